@@ -1,0 +1,549 @@
+//! Gridded N-D lookup tables (1 to [`MAX_DIMS`] dimensions) with multilinear
+//! interpolation, as flight simulators store aerodynamic databases.
+//!
+//! Breakpoints are strictly increasing per axis; values are stored row-major,
+//! the last axis fastest (the DAVE-ML `griddedTableDef` order). Along each axis
+//! and on each side, an input outside the breakpoints either *holds* the end
+//! value (the default, as qualified simulator models do, thesis Section 3.4) or
+//! is *extrapolated linearly* from the end segment. Optional input limits
+//! (min/max) clamp the input before anything else, as DAVE-ML's
+//! `independentVarRef min/max` do.
+//!
+//! For a point $x$ with bracketing breakpoints $x_i \le x \le x_{i+1}$ on each
+//! axis, the fraction is $f = (x - x_i)/(x_{i+1}-x_i)$ and the value is the
+//! tensor product of 1-D linear interpolations,
+//! $$ y = \sum_{c \in \{0,1\}^n} \prod_k \big((1-f_k)^{1-c_k} f_k^{c_k}\big)\, v_{i+c}, $$
+//! computed as $2^n - 1$ lerps of the form $(1-f)a + fb$, which returns the node
+//! value exactly at a node.
+//!
+//! A NaN input gives a NaN output; nothing here panics on user data.
+
+use crate::error::{AeroError, Result};
+
+/// The largest number of table dimensions.
+pub const MAX_DIMS: usize = 8;
+
+/// What an axis does with an input beyond its end breakpoint.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Extrapolation {
+    /// Hold the end value (qualified simulator models; DAVE-ML `extrapolate="neither"`).
+    #[default]
+    Hold,
+    /// Continue the end segment's slope.
+    Linear,
+}
+
+impl std::str::FromStr for Extrapolation {
+    type Err = AeroError;
+    fn from_str(s: &str) -> Result<Self> {
+        match s {
+            "hold" => Ok(Extrapolation::Hold),
+            "linear" => Ok(Extrapolation::Linear),
+            other => Err(AeroError::invalid(
+                "extrapolation",
+                format!("unknown policy '{other}'; valid values are 'hold' and 'linear'"),
+            )),
+        }
+    }
+}
+
+/// One axis of a table: its breakpoints and its out-of-range policy.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Axis {
+    /// Name of the independent variable (for messages and exports).
+    pub name: String,
+    breakpoints: Vec<f64>,
+    /// Policy below the first breakpoint.
+    pub below: Extrapolation,
+    /// Policy above the last breakpoint.
+    pub above: Extrapolation,
+    /// Lower input limit applied before interpolation, if any.
+    pub min: Option<f64>,
+    /// Upper input limit applied before interpolation, if any.
+    pub max: Option<f64>,
+}
+
+impl Axis {
+    /// An axis with strictly increasing, finite breakpoints, holding at both ends.
+    ///
+    /// # Errors
+    /// [`AeroError::InvalidInput`] naming the axis and the offending index when
+    /// the breakpoints are empty, not finite or not strictly increasing.
+    pub fn new(name: impl Into<String>, breakpoints: Vec<f64>) -> Result<Self> {
+        let name = name.into();
+        if breakpoints.is_empty() {
+            return Err(AeroError::invalid(
+                format!("axis '{name}'"),
+                "has no breakpoints; give at least one",
+            ));
+        }
+        for (i, b) in breakpoints.iter().enumerate() {
+            if !b.is_finite() {
+                return Err(AeroError::invalid(
+                    format!("axis '{name}', breakpoint {i}"),
+                    format!("is {b}; breakpoints must be finite"),
+                ));
+            }
+            if i > 0 && *b <= breakpoints[i - 1] {
+                return Err(AeroError::invalid(
+                    format!("axis '{name}', breakpoint {i}"),
+                    format!(
+                        "{b} does not exceed breakpoint {} ({}); breakpoints must be strictly increasing",
+                        i - 1,
+                        breakpoints[i - 1]
+                    ),
+                ));
+            }
+        }
+        Ok(Axis {
+            name,
+            breakpoints,
+            below: Extrapolation::Hold,
+            above: Extrapolation::Hold,
+            min: None,
+            max: None,
+        })
+    }
+
+    /// Set the policy on both sides.
+    pub fn with_extrapolation(mut self, below: Extrapolation, above: Extrapolation) -> Self {
+        self.below = below;
+        self.above = above;
+        self
+    }
+
+    /// Set input limits applied before interpolation (`None` for no limit).
+    ///
+    /// # Errors
+    /// [`AeroError::InvalidInput`] when `min > max` or a limit is NaN.
+    pub fn with_limits(mut self, min: Option<f64>, max: Option<f64>) -> Result<Self> {
+        if min.is_some_and(f64::is_nan) || max.is_some_and(f64::is_nan) {
+            return Err(AeroError::invalid(
+                format!("axis '{}'", self.name),
+                "input limits must not be NaN",
+            ));
+        }
+        if let (Some(lo), Some(hi)) = (min, max) {
+            if lo > hi {
+                return Err(AeroError::invalid(
+                    format!("axis '{}'", self.name),
+                    format!("lower limit {lo} exceeds upper limit {hi}"),
+                ));
+            }
+        }
+        self.min = min;
+        self.max = max;
+        Ok(self)
+    }
+
+    /// The breakpoints.
+    pub fn breakpoints(&self) -> &[f64] {
+        &self.breakpoints
+    }
+
+    /// Index `i` of the segment and fraction `f` for input `x`, so that the
+    /// value is `(1-f) v[i] + f v[i+1]`. For a single-breakpoint axis `i = 0`,
+    /// `f = 0`. Returns `None` for NaN.
+    #[inline]
+    pub fn locate(&self, x: f64) -> Option<(usize, f64)> {
+        if x.is_nan() {
+            return None;
+        }
+        let mut x = x;
+        if let Some(lo) = self.min {
+            if x < lo {
+                x = lo;
+            }
+        }
+        if let Some(hi) = self.max {
+            if x > hi {
+                x = hi;
+            }
+        }
+        let bp = &self.breakpoints;
+        let n = bp.len();
+        if n == 1 {
+            return Some((0, 0.0));
+        }
+        let first = bp[0];
+        let last = bp[n - 1];
+        if x <= first {
+            return Some(match self.below {
+                Extrapolation::Hold => (0, 0.0),
+                Extrapolation::Linear => (0, (x - first) / (bp[1] - first)),
+            });
+        }
+        if x >= last {
+            return Some(match self.above {
+                Extrapolation::Hold => (n - 2, 1.0),
+                Extrapolation::Linear => (n - 2, (x - bp[n - 2]) / (last - bp[n - 2])),
+            });
+        }
+        // bp[0] < x < bp[n-1]: the last index with bp[i] <= x, at most n-2.
+        let i = bp.partition_point(|&b| b <= x) - 1;
+        let i = i.min(n - 2);
+        Some((i, (x - bp[i]) / (bp[i + 1] - bp[i])))
+    }
+}
+
+/// A gridded table of 1 to [`MAX_DIMS`] dimensions.
+///
+/// ```
+/// use aero_core::table::{Axis, Table};
+/// let t = Table::new(
+///     vec![Axis::new("alpha", vec![0.0, 10.0]).unwrap(), Axis::new("beta", vec![-5.0, 5.0]).unwrap()],
+///     vec![0.0, 1.0, 2.0, 3.0],
+/// ).unwrap();
+/// // bilinear: at the centre the mean of the four corners
+/// assert!((t.eval(&[5.0, 0.0]) - 1.5).abs() < 1e-15);
+/// // holds beyond the ends by default
+/// assert_eq!(t.eval(&[20.0, 5.0]), 3.0);
+/// ```
+#[derive(Debug, Clone, PartialEq)]
+pub struct Table {
+    axes: Vec<Axis>,
+    values: Vec<f64>,
+    strides: [usize; MAX_DIMS],
+}
+
+impl Table {
+    /// Build a table from its axes and its values (row-major, last axis fastest).
+    ///
+    /// # Errors
+    /// [`AeroError::InvalidInput`] when there are no axes or more than
+    /// [`MAX_DIMS`], or when the number of values differs from the product of
+    /// the breakpoint counts (the message gives both).
+    pub fn new(axes: Vec<Axis>, values: Vec<f64>) -> Result<Self> {
+        if axes.is_empty() || axes.len() > MAX_DIMS {
+            return Err(AeroError::invalid(
+                "table",
+                format!("has {} axes; a table has 1 to {MAX_DIMS} axes", axes.len()),
+            ));
+        }
+        let expected: usize = axes.iter().map(|a| a.breakpoints.len()).product();
+        if values.len() != expected {
+            let shape: Vec<String> = axes
+                .iter()
+                .map(|a| format!("{}:{}", a.name, a.breakpoints.len()))
+                .collect();
+            return Err(AeroError::invalid(
+                "table",
+                format!(
+                    "has {} values but its breakpoints ({}) need {expected}",
+                    values.len(),
+                    shape.join(" x ")
+                ),
+            ));
+        }
+        let mut strides = [0usize; MAX_DIMS];
+        let mut s = 1usize;
+        for k in (0..axes.len()).rev() {
+            strides[k] = s;
+            s *= axes[k].breakpoints.len();
+        }
+        Ok(Table {
+            axes,
+            values,
+            strides,
+        })
+    }
+
+    /// Number of dimensions.
+    pub fn ndim(&self) -> usize {
+        self.axes.len()
+    }
+
+    /// The axes.
+    pub fn axes(&self) -> &[Axis] {
+        &self.axes
+    }
+
+    /// Mutable access to the axes' policies and limits (breakpoints stay fixed).
+    pub fn axis_mut(&mut self, k: usize) -> Option<&mut Axis> {
+        self.axes.get_mut(k)
+    }
+
+    /// The values, row-major with the last axis fastest.
+    pub fn values(&self) -> &[f64] {
+        &self.values
+    }
+
+    /// Shape: breakpoints per axis.
+    pub fn shape(&self) -> Vec<usize> {
+        self.axes.iter().map(|a| a.breakpoints.len()).collect()
+    }
+
+    /// Evaluate at one point without allocating: the real-time path.
+    ///
+    /// `x` must hold one value per axis; a wrong length or any NaN gives NaN.
+    #[inline]
+    pub fn eval(&self, x: &[f64]) -> f64 {
+        let n = self.axes.len();
+        if x.len() != n {
+            return f64::NAN;
+        }
+        let mut base = 0usize;
+        let mut frac = [0.0f64; MAX_DIMS];
+        let mut step = [0usize; MAX_DIMS];
+        for k in 0..n {
+            let Some((i, f)) = self.axes[k].locate(x[k]) else {
+                return f64::NAN;
+            };
+            base += i * self.strides[k];
+            frac[k] = f;
+            step[k] = if self.axes[k].breakpoints.len() > 1 {
+                self.strides[k]
+            } else {
+                0
+            };
+        }
+        // Gather the 2^n corners, then reduce axis by axis (last axis first).
+        let mut corners = [0.0f64; 1 << MAX_DIMS];
+        let m = 1usize << n;
+        for (c, slot) in corners.iter_mut().enumerate().take(m) {
+            let mut off = base;
+            for (k, st) in step.iter().enumerate().take(n) {
+                // bit (n-1-k) of c selects the upper node on axis k
+                if (c >> (n - 1 - k)) & 1 == 1 {
+                    off += st;
+                }
+            }
+            *slot = self.values[off];
+        }
+        let mut len = m;
+        for k in (0..n).rev() {
+            let f = frac[k];
+            let g = 1.0 - f;
+            len /= 2;
+            for j in 0..len {
+                corners[j] = g * corners[2 * j] + f * corners[2 * j + 1];
+            }
+        }
+        corners[0]
+    }
+
+    /// Evaluate at many points given as one column per axis, writing into `out`.
+    ///
+    /// Runs in parallel over chunks of points with the `parallel` feature; the
+    /// result is identical to calling [`Table::eval`] on each point.
+    ///
+    /// # Errors
+    /// [`AeroError::InvalidInput`] when the number of columns differs from the
+    /// number of axes or the columns and `out` differ in length.
+    pub fn eval_columns(&self, columns: &[&[f64]], out: &mut [f64]) -> Result<()> {
+        let n = self.ndim();
+        if columns.len() != n {
+            return Err(AeroError::invalid(
+                "table lookup",
+                format!("got {} input columns for a {n}-D table", columns.len()),
+            ));
+        }
+        for (k, c) in columns.iter().enumerate() {
+            if c.len() != out.len() {
+                return Err(AeroError::invalid(
+                    format!("table lookup, column {k} ('{}')", self.axes[k].name),
+                    format!("has {} points but the output has {}", c.len(), out.len()),
+                ));
+            }
+        }
+        let work = |start: usize, chunk: &mut [f64]| {
+            let mut x = [0.0f64; MAX_DIMS];
+            for (j, o) in chunk.iter_mut().enumerate() {
+                for k in 0..n {
+                    x[k] = columns[k][start + j];
+                }
+                *o = self.eval(&x[..n]);
+            }
+        };
+        run_chunks(out, work);
+        Ok(())
+    }
+
+    /// Evaluate at many points given row-major as an `(npoints, ndim)` array.
+    ///
+    /// # Errors
+    /// [`AeroError::InvalidInput`] when `points.len()` is not `out.len() * ndim`.
+    pub fn eval_rows(&self, points: &[f64], out: &mut [f64]) -> Result<()> {
+        let n = self.ndim();
+        if points.len() != out.len() * n {
+            return Err(AeroError::invalid(
+                "table lookup",
+                format!(
+                    "points hold {} values, not {} points x {n} axes",
+                    points.len(),
+                    out.len()
+                ),
+            ));
+        }
+        let work = |start: usize, chunk: &mut [f64]| {
+            for (j, o) in chunk.iter_mut().enumerate() {
+                let r = (start + j) * n;
+                *o = self.eval(&points[r..r + n]);
+            }
+        };
+        run_chunks(out, work);
+        Ok(())
+    }
+}
+
+/// Points per parallel task: large enough to amortise scheduling.
+const CHUNK: usize = 8192;
+
+#[cfg(feature = "parallel")]
+fn run_chunks(out: &mut [f64], work: impl Fn(usize, &mut [f64]) + Sync) {
+    use rayon::prelude::*;
+    if out.len() <= CHUNK {
+        work(0, out);
+        return;
+    }
+    out.par_chunks_mut(CHUNK)
+        .enumerate()
+        .for_each(|(c, chunk)| work(c * CHUNK, chunk));
+}
+
+#[cfg(not(feature = "parallel"))]
+fn run_chunks(out: &mut [f64], work: impl Fn(usize, &mut [f64])) {
+    for (c, chunk) in out.chunks_mut(CHUNK).enumerate() {
+        work(c * CHUNK, chunk);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    fn axis(name: &str, bp: &[f64]) -> Axis {
+        Axis::new(name, bp.to_vec()).expect("valid axis")
+    }
+
+    /// A table of an affine function is reproduced exactly by multilinear interpolation.
+    fn affine_table() -> Table {
+        let a = axis("a", &[-2.0, 0.0, 1.0, 4.0]);
+        let b = axis("b", &[0.0, 0.5, 3.0]);
+        let c = axis("c", &[1.0, 2.0]);
+        let mut v = Vec::new();
+        for &x in a.breakpoints() {
+            for &y in b.breakpoints() {
+                for &z in c.breakpoints() {
+                    v.push(1.0 + 2.0 * x - 3.0 * y + 0.5 * z);
+                }
+            }
+        }
+        Table::new(vec![a, b, c], v).expect("valid table")
+    }
+
+    #[test]
+    fn affine_function_is_exact_inside() {
+        let t = affine_table();
+        for &(x, y, z) in &[(0.3, 1.7, 1.2), (-1.9, 2.9, 1.99), (3.5, 0.1, 1.5)] {
+            let want = 1.0 + 2.0 * x - 3.0 * y + 0.5 * z;
+            assert!((t.eval(&[x, y, z]) - want).abs() < 1e-13);
+        }
+    }
+
+    #[test]
+    fn hold_and_linear_at_every_edge() {
+        let mut t = affine_table();
+        // hold: clamp each coordinate to its range
+        let held = t.eval(&[10.0, -1.0, 0.0]);
+        assert!((held - (1.0 + 8.0 - 0.0 + 0.5)).abs() < 1e-13);
+        for k in 0..3 {
+            if let Some(ax) = t.axis_mut(k) {
+                ax.below = Extrapolation::Linear;
+                ax.above = Extrapolation::Linear;
+            }
+        }
+        // linear: the affine function continues
+        for &(x, y, z) in &[(10.0, -1.0, 0.0), (-5.0, 7.0, 3.0)] {
+            let want = 1.0 + 2.0 * x - 3.0 * y + 0.5 * z;
+            assert!((t.eval(&[x, y, z]) - want).abs() < 1e-12);
+        }
+    }
+
+    #[test]
+    fn limits_clamp_before_extrapolation() {
+        let a = axis("a", &[0.0, 1.0])
+            .with_extrapolation(Extrapolation::Linear, Extrapolation::Linear)
+            .with_limits(Some(-1.0), Some(2.0))
+            .expect("limits");
+        let t = Table::new(vec![a], vec![0.0, 10.0]).expect("table");
+        assert_eq!(t.eval(&[5.0]), 20.0);
+        assert_eq!(t.eval(&[-3.0]), -10.0);
+        assert_eq!(t.eval(&[1.5]), 15.0);
+    }
+
+    #[test]
+    fn nan_in_nan_out() {
+        let t = affine_table();
+        assert!(t.eval(&[f64::NAN, 0.0, 1.0]).is_nan());
+        assert!(t.eval(&[0.0, 0.0]).is_nan());
+    }
+
+    #[test]
+    fn construction_errors_name_axis_and_index() {
+        let e = Axis::new("alpha", vec![0.0, 2.0, 2.0]).unwrap_err();
+        assert!(e.to_string().contains("axis 'alpha', breakpoint 2"), "{e}");
+        let e = Table::new(
+            vec![axis("a", &[0.0, 1.0]), axis("b", &[0.0, 1.0, 2.0])],
+            vec![0.0; 5],
+        )
+        .unwrap_err();
+        assert!(e.to_string().contains("has 5 values"), "{e}");
+        assert!(e.to_string().contains("need 6"), "{e}");
+    }
+
+    #[test]
+    fn single_breakpoint_axis_is_constant_along_it() {
+        let t = Table::new(
+            vec![axis("a", &[0.0, 1.0]), axis("b", &[3.0])],
+            vec![1.0, 2.0],
+        )
+        .expect("table");
+        assert_eq!(t.eval(&[0.5, -100.0]), 1.5);
+    }
+
+    #[test]
+    fn batch_paths_match_single_point() {
+        let t = affine_table();
+        let npts = 20_000;
+        let xs: Vec<f64> = (0..npts)
+            .map(|i| -3.0 + 8.0 * (i as f64) / npts as f64)
+            .collect();
+        let ys: Vec<f64> = (0..npts)
+            .map(|i| ((i * 7) % 400) as f64 / 100.0 - 0.5)
+            .collect();
+        let zs: Vec<f64> = (0..npts)
+            .map(|i| 0.5 + ((i * 13) % 300) as f64 / 100.0)
+            .collect();
+        let mut out = vec![0.0; npts];
+        t.eval_columns(&[&xs, &ys, &zs], &mut out).expect("columns");
+        let rows: Vec<f64> = (0..npts).flat_map(|i| [xs[i], ys[i], zs[i]]).collect();
+        let mut out2 = vec![0.0; npts];
+        t.eval_rows(&rows, &mut out2).expect("rows");
+        for i in 0..npts {
+            let one = t.eval(&[xs[i], ys[i], zs[i]]);
+            assert_eq!(out[i].to_bits(), one.to_bits());
+            assert_eq!(out2[i].to_bits(), one.to_bits());
+        }
+        assert!(t.eval_columns(&[&xs, &ys], &mut out).is_err());
+    }
+
+    proptest! {
+        /// A table returns its own node values exactly at every node.
+        #[test]
+        fn hits_its_nodes(n0 in 2usize..6, n1 in 1usize..5, seed in 0u64..1000) {
+            let bp0: Vec<f64> = (0..n0).map(|i| i as f64 * 1.5 - 2.0).collect();
+            let bp1: Vec<f64> = (0..n1).map(|i| (i * i) as f64 + 0.25).collect();
+            let vals: Vec<f64> = (0..n0 * n1)
+                .map(|i| ((i as u64 * 2654435761 + seed) % 1000) as f64 / 37.0 - 10.0)
+                .collect();
+            let t = Table::new(vec![axis("x", &bp0), axis("y", &bp1)], vals.clone()).unwrap();
+            for i in 0..n0 {
+                for j in 0..n1 {
+                    prop_assert_eq!(t.eval(&[bp0[i], bp1[j]]), vals[i * n1 + j]);
+                }
+            }
+        }
+    }
+}

@@ -1,0 +1,26 @@
+"""Shared pytest configuration: the public DAVE-ML check models live in ../shared/data/daveml."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def _shared_daveml() -> Path:
+    env = os.environ.get("AERODELTA_SHARED_DAVEML")
+    if env:
+        return Path(env)
+    return ROOT.parent / "shared" / "data" / "daveml"
+
+
+@pytest.fixture(scope="session")
+def daveml_dir() -> Path:
+    """Folder of the public DAVE-ML models with NASA check cases (not copied into the repo)."""
+    d = _shared_daveml()
+    if not d.is_dir():
+        pytest.fail(f"public DAVE-ML models not found at {d}; set AERODELTA_SHARED_DAVEML")
+    return d
