@@ -278,40 +278,56 @@ impl Table {
     /// `x` must hold one value per axis; a wrong length or any NaN gives NaN.
     #[inline]
     pub fn eval(&self, x: &[f64]) -> f64 {
-        let n = self.axes.len();
-        if x.len() != n {
+        if x.len() != self.axes.len() {
             return f64::NAN;
         }
+        // Dispatch on the dimension so the corner buffer is exactly 2^n long.
+        match x.len() {
+            1 => self.eval_n::<1, 2>(x),
+            2 => self.eval_n::<2, 4>(x),
+            3 => self.eval_n::<3, 8>(x),
+            4 => self.eval_n::<4, 16>(x),
+            5 => self.eval_n::<5, 32>(x),
+            6 => self.eval_n::<6, 64>(x),
+            7 => self.eval_n::<7, 128>(x),
+            8 => self.eval_n::<8, 256>(x),
+            _ => f64::NAN,
+        }
+    }
+
+    /// Multilinear interpolation in `N` dimensions with `M = 2^N` corners.
+    #[inline(always)]
+    fn eval_n<const N: usize, const M: usize>(&self, x: &[f64]) -> f64 {
         let mut base = 0usize;
-        let mut frac = [0.0f64; MAX_DIMS];
-        let mut step = [0usize; MAX_DIMS];
-        for k in 0..n {
-            let Some((i, f)) = self.axes[k].locate(x[k]) else {
+        let mut frac = [0.0f64; N];
+        let mut step = [0usize; N];
+        for k in 0..N {
+            let axis = &self.axes[k];
+            let Some((i, f)) = axis.locate(x[k]) else {
                 return f64::NAN;
             };
             base += i * self.strides[k];
             frac[k] = f;
-            step[k] = if self.axes[k].breakpoints.len() > 1 {
+            step[k] = if axis.breakpoints.len() > 1 {
                 self.strides[k]
             } else {
                 0
             };
         }
-        // Gather the 2^n corners, then reduce axis by axis (last axis first).
-        let mut corners = [0.0f64; 1 << MAX_DIMS];
-        let m = 1usize << n;
-        for (c, slot) in corners.iter_mut().enumerate().take(m) {
+        // Gather the 2^N corners (bit N-1-k of the corner index selects the
+        // upper node on axis k), then reduce axis by axis, last axis first.
+        let mut corners = [0.0f64; M];
+        for (c, slot) in corners.iter_mut().enumerate() {
             let mut off = base;
-            for (k, st) in step.iter().enumerate().take(n) {
-                // bit (n-1-k) of c selects the upper node on axis k
-                if (c >> (n - 1 - k)) & 1 == 1 {
+            for (k, st) in step.iter().enumerate() {
+                if (c >> (N - 1 - k)) & 1 == 1 {
                     off += st;
                 }
             }
             *slot = self.values[off];
         }
-        let mut len = m;
-        for k in (0..n).rev() {
+        let mut len = M;
+        for k in (0..N).rev() {
             let f = frac[k];
             let g = 1.0 - f;
             len /= 2;
