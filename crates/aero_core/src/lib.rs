@@ -9,10 +9,13 @@
 //! One concept per module:
 //! - [`table`]: gridded N-D lookup tables, hold or linear extrapolation, a
 //!   batch path and an allocation-free single-point path;
+//! - [`regressor`]: the expression language of Δ-model regressors
+//!   (dead-band splines of Eq. 3.15-3.16, products, user columns);
 //! - [`error`]: the error kinds every module returns.
 #![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used))]
 
 pub mod error;
+pub mod regressor;
 pub mod table;
 
 pub use error::{AeroError, ErrorKind, Result, ResultExt};

@@ -1,0 +1,639 @@
+//! A small expression language for regressors of the Δ model (thesis
+//! Section 3.3.2 and Eq. 3.14, 3.21, 3.22).
+//!
+//! A regressor is an expression over named data columns, e.g.
+//! `beta_rad`, `phat`, `alphadot_rps * ds_deg`, `ct_left - ct_right`,
+//! `deadband(da_deg, 2)` or `1` (the constant of the bias term). It is parsed
+//! once and evaluated over whole columns.
+//!
+//! Grammar (usual precedence; `^` binds tightest and is right-associative):
+//! ```text
+//! expr    := term (('+' | '-') term)*
+//! term    := unary (('*' | '/') unary)*
+//! unary   := '-' unary | power
+//! power   := atom ('^' unary)?
+//! atom    := number | name | name '(' expr (',' expr)* ')' | '(' expr ')'
+//! ```
+//! Functions:
+//! - `pos(x)` $= (x)_+ = \max(x, 0)$ and `neg(x)` $= (x)_- = \min(x, 0)$;
+//! - `deadband(x, k)` $= (x - k)_+ + (x + k)_-$, the aileron dead-band spline
+//!   of thesis Eq. 3.15-3.16 (zero for $|x| \le k$, slope one outside);
+//! - `step(x)` (1 for $x > 0$, else 0), `abs`, `sqrt`, `sin`, `cos`, `exp`,
+//!   `min(a, b)`, `max(a, b)`.
+//!
+//! Names are column names; they may contain letters, digits and `_`, and may
+//! not start with a digit.
+
+use crate::error::{AeroError, Result};
+use std::fmt;
+
+/// A parsed regressor expression.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Expr {
+    /// A number.
+    Const(f64),
+    /// A data column by name.
+    Column(String),
+    /// Negation.
+    Neg(Box<Expr>),
+    /// A binary operation.
+    Bin(BinOp, Box<Expr>, Box<Expr>),
+    /// A function call.
+    Call(Func, Vec<Expr>),
+}
+
+/// Binary operators.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum BinOp {
+    /// `+`
+    Add,
+    /// `-`
+    Sub,
+    /// `*`
+    Mul,
+    /// `/`
+    Div,
+    /// `^`
+    Pow,
+}
+
+/// Built-in functions.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Func {
+    /// `pos(x) = max(x, 0)`
+    Pos,
+    /// `neg(x) = min(x, 0)`
+    Neg,
+    /// `deadband(x, k) = (x-k)+ + (x+k)-` (thesis Eq. 3.15-3.16)
+    Deadband,
+    /// `step(x)`: 1 if x > 0 else 0
+    Step,
+    /// `abs(x)`
+    Abs,
+    /// `sqrt(x)`
+    Sqrt,
+    /// `sin(x)` (x in radians)
+    Sin,
+    /// `cos(x)` (x in radians)
+    Cos,
+    /// `exp(x)`
+    Exp,
+    /// `min(a, b)`
+    Min,
+    /// `max(a, b)`
+    Max,
+}
+
+impl Func {
+    fn from_name(name: &str) -> Option<(Func, usize)> {
+        Some(match name {
+            "pos" => (Func::Pos, 1),
+            "neg" => (Func::Neg, 1),
+            "deadband" => (Func::Deadband, 2),
+            "step" => (Func::Step, 1),
+            "abs" => (Func::Abs, 1),
+            "sqrt" => (Func::Sqrt, 1),
+            "sin" => (Func::Sin, 1),
+            "cos" => (Func::Cos, 1),
+            "exp" => (Func::Exp, 1),
+            "min" => (Func::Min, 2),
+            "max" => (Func::Max, 2),
+            _ => return None,
+        })
+    }
+
+    fn name(self) -> &'static str {
+        match self {
+            Func::Pos => "pos",
+            Func::Neg => "neg",
+            Func::Deadband => "deadband",
+            Func::Step => "step",
+            Func::Abs => "abs",
+            Func::Sqrt => "sqrt",
+            Func::Sin => "sin",
+            Func::Cos => "cos",
+            Func::Exp => "exp",
+            Func::Min => "min",
+            Func::Max => "max",
+        }
+    }
+
+    #[inline]
+    fn apply(self, a: f64, b: f64) -> f64 {
+        match self {
+            Func::Pos => a.max(0.0),
+            Func::Neg => a.min(0.0),
+            Func::Deadband => {
+                if a.is_nan() || b.is_nan() {
+                    f64::NAN
+                } else {
+                    (a - b).max(0.0) + (a + b).min(0.0)
+                }
+            }
+            Func::Step => {
+                if a.is_nan() {
+                    f64::NAN
+                } else if a > 0.0 {
+                    1.0
+                } else {
+                    0.0
+                }
+            }
+            Func::Abs => a.abs(),
+            Func::Sqrt => a.sqrt(),
+            Func::Sin => a.sin(),
+            Func::Cos => a.cos(),
+            Func::Exp => a.exp(),
+            Func::Min => {
+                if a.is_nan() || b.is_nan() {
+                    f64::NAN
+                } else {
+                    a.min(b)
+                }
+            }
+            Func::Max => {
+                if a.is_nan() || b.is_nan() {
+                    f64::NAN
+                } else {
+                    a.max(b)
+                }
+            }
+        }
+    }
+}
+
+impl fmt::Display for Expr {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Expr::Const(c) => write!(f, "{c}"),
+            Expr::Column(n) => f.write_str(n),
+            Expr::Neg(e) => write!(f, "-({e})"),
+            Expr::Bin(op, a, b) => {
+                let s = match op {
+                    BinOp::Add => "+",
+                    BinOp::Sub => "-",
+                    BinOp::Mul => "*",
+                    BinOp::Div => "/",
+                    BinOp::Pow => "^",
+                };
+                write!(f, "({a} {s} {b})")
+            }
+            Expr::Call(func, args) => {
+                write!(f, "{}(", func.name())?;
+                for (i, a) in args.iter().enumerate() {
+                    if i > 0 {
+                        f.write_str(", ")?;
+                    }
+                    write!(f, "{a}")?;
+                }
+                f.write_str(")")
+            }
+        }
+    }
+}
+
+#[derive(Debug, Clone, PartialEq)]
+enum Tok {
+    Num(f64),
+    Name(String),
+    Op(char),
+}
+
+fn tokenize(src: &str) -> Result<Vec<(usize, Tok)>> {
+    let bytes: Vec<char> = src.chars().collect();
+    let mut out = Vec::new();
+    let mut i = 0;
+    while i < bytes.len() {
+        let c = bytes[i];
+        if c.is_whitespace() {
+            i += 1;
+        } else if c.is_ascii_digit()
+            || (c == '.' && i + 1 < bytes.len() && bytes[i + 1].is_ascii_digit())
+        {
+            let start = i;
+            while i < bytes.len() && (bytes[i].is_ascii_digit() || bytes[i] == '.') {
+                i += 1;
+            }
+            if i < bytes.len() && (bytes[i] == 'e' || bytes[i] == 'E') {
+                let save = i;
+                i += 1;
+                if i < bytes.len() && (bytes[i] == '+' || bytes[i] == '-') {
+                    i += 1;
+                }
+                if i < bytes.len() && bytes[i].is_ascii_digit() {
+                    while i < bytes.len() && bytes[i].is_ascii_digit() {
+                        i += 1;
+                    }
+                } else {
+                    i = save;
+                }
+            }
+            let text: String = bytes[start..i].iter().collect();
+            let v: f64 = text.parse().map_err(|_| {
+                AeroError::invalid(
+                    format!("regressor '{src}', column {}", start + 1),
+                    format!("'{text}' is not a number"),
+                )
+            })?;
+            out.push((start, Tok::Num(v)));
+        } else if c.is_alphabetic() || c == '_' {
+            let start = i;
+            while i < bytes.len() && (bytes[i].is_alphanumeric() || bytes[i] == '_') {
+                i += 1;
+            }
+            out.push((start, Tok::Name(bytes[start..i].iter().collect())));
+        } else if "+-*/^(),".contains(c) {
+            out.push((i, Tok::Op(c)));
+            i += 1;
+        } else {
+            return Err(AeroError::invalid(
+                format!("regressor '{src}', column {}", i + 1),
+                format!(
+                    "unexpected character '{c}'; use names, numbers, + - * / ^, ( ) and functions"
+                ),
+            ));
+        }
+    }
+    Ok(out)
+}
+
+struct Parser<'a> {
+    src: &'a str,
+    toks: Vec<(usize, Tok)>,
+    pos: usize,
+}
+
+impl Parser<'_> {
+    fn err(&self, msg: impl Into<String>) -> AeroError {
+        let col = self
+            .toks
+            .get(self.pos)
+            .map_or(self.src.chars().count(), |t| t.0)
+            + 1;
+        AeroError::invalid(format!("regressor '{}', column {col}", self.src), msg)
+    }
+
+    fn peek(&self) -> Option<&Tok> {
+        self.toks.get(self.pos).map(|t| &t.1)
+    }
+
+    fn eat_op(&mut self, c: char) -> bool {
+        if self.peek() == Some(&Tok::Op(c)) {
+            self.pos += 1;
+            true
+        } else {
+            false
+        }
+    }
+
+    fn expr(&mut self) -> Result<Expr> {
+        let mut lhs = self.term()?;
+        loop {
+            let op = if self.eat_op('+') {
+                BinOp::Add
+            } else if self.eat_op('-') {
+                BinOp::Sub
+            } else {
+                return Ok(lhs);
+            };
+            let rhs = self.term()?;
+            lhs = Expr::Bin(op, Box::new(lhs), Box::new(rhs));
+        }
+    }
+
+    fn term(&mut self) -> Result<Expr> {
+        let mut lhs = self.unary()?;
+        loop {
+            let op = if self.eat_op('*') {
+                BinOp::Mul
+            } else if self.eat_op('/') {
+                BinOp::Div
+            } else {
+                return Ok(lhs);
+            };
+            let rhs = self.unary()?;
+            lhs = Expr::Bin(op, Box::new(lhs), Box::new(rhs));
+        }
+    }
+
+    fn unary(&mut self) -> Result<Expr> {
+        if self.eat_op('-') {
+            let e = self.unary()?;
+            return Ok(match e {
+                Expr::Const(c) => Expr::Const(-c),
+                e => Expr::Neg(Box::new(e)),
+            });
+        }
+        self.power()
+    }
+
+    fn power(&mut self) -> Result<Expr> {
+        let base = self.atom()?;
+        if self.eat_op('^') {
+            let exp = self.unary()?;
+            return Ok(Expr::Bin(BinOp::Pow, Box::new(base), Box::new(exp)));
+        }
+        Ok(base)
+    }
+
+    fn atom(&mut self) -> Result<Expr> {
+        match self.peek().cloned() {
+            Some(Tok::Num(v)) => {
+                self.pos += 1;
+                Ok(Expr::Const(v))
+            }
+            Some(Tok::Name(name)) => {
+                self.pos += 1;
+                if self.eat_op('(') {
+                    let Some((func, arity)) = Func::from_name(&name) else {
+                        self.pos -= 2;
+                        return Err(self.err(format!(
+                            "unknown function '{name}'; known: pos, neg, deadband, step, abs, sqrt, sin, cos, exp, min, max"
+                        )));
+                    };
+                    let mut args = vec![self.expr()?];
+                    while self.eat_op(',') {
+                        args.push(self.expr()?);
+                    }
+                    if !self.eat_op(')') {
+                        return Err(self.err("expected ')' to close the argument list"));
+                    }
+                    if args.len() != arity {
+                        return Err(self.err(format!(
+                            "{name}() takes {arity} argument(s), got {}",
+                            args.len()
+                        )));
+                    }
+                    Ok(Expr::Call(func, args))
+                } else {
+                    Ok(Expr::Column(name))
+                }
+            }
+            Some(Tok::Op('(')) => {
+                self.pos += 1;
+                let e = self.expr()?;
+                if !self.eat_op(')') {
+                    return Err(self.err("expected ')'"));
+                }
+                Ok(e)
+            }
+            Some(Tok::Op(c)) => Err(self.err(format!("unexpected '{c}'"))),
+            None => Err(self.err("unexpected end of expression")),
+        }
+    }
+}
+
+impl Expr {
+    /// Parse a regressor expression.
+    ///
+    /// # Errors
+    /// [`AeroError::InvalidInput`] naming the expression and the 1-based
+    /// column of the first problem.
+    ///
+    /// ```
+    /// use aero_core::regressor::Expr;
+    /// let e = Expr::parse("deadband(da_deg, 2)").unwrap();
+    /// let da = [-5.0, -1.0, 0.0, 1.5, 4.0];
+    /// let out = e.eval_columns(&|n: &str| (n == "da_deg").then_some(&da[..]), da.len()).unwrap();
+    /// assert_eq!(out, vec![-3.0, 0.0, 0.0, 0.0, 2.0]);
+    /// ```
+    pub fn parse(src: &str) -> Result<Expr> {
+        let toks = tokenize(src)?;
+        let mut p = Parser { src, toks, pos: 0 };
+        if p.toks.is_empty() {
+            return Err(AeroError::invalid(
+                "regressor ''",
+                "is empty; write an expression such as 'beta_rad' or '1'",
+            ));
+        }
+        let e = p.expr()?;
+        if p.pos != p.toks.len() {
+            return Err(p.err("unexpected text after the end of the expression"));
+        }
+        Ok(e)
+    }
+
+    /// The column names this expression reads, each once, in order of appearance.
+    pub fn columns(&self) -> Vec<String> {
+        let mut out = Vec::new();
+        self.collect_columns(&mut out);
+        out
+    }
+
+    fn collect_columns(&self, out: &mut Vec<String>) {
+        match self {
+            Expr::Const(_) => {}
+            Expr::Column(n) => {
+                if !out.iter().any(|o| o == n) {
+                    out.push(n.clone());
+                }
+            }
+            Expr::Neg(e) => e.collect_columns(out),
+            Expr::Bin(_, a, b) => {
+                a.collect_columns(out);
+                b.collect_columns(out);
+            }
+            Expr::Call(_, args) => args.iter().for_each(|a| a.collect_columns(out)),
+        }
+    }
+
+    /// True when the expression reads no column (e.g. the bias term `1`).
+    pub fn is_constant(&self) -> bool {
+        self.columns().is_empty()
+    }
+
+    /// Evaluate at one point, looking columns up by name.
+    ///
+    /// Returns NaN when a column is missing (the batch path reports it).
+    pub fn eval_point(&self, lookup: &dyn Fn(&str) -> Option<f64>) -> f64 {
+        match self {
+            Expr::Const(c) => *c,
+            Expr::Column(n) => lookup(n).unwrap_or(f64::NAN),
+            Expr::Neg(e) => -e.eval_point(lookup),
+            Expr::Bin(op, a, b) => binop(*op, a.eval_point(lookup), b.eval_point(lookup)),
+            Expr::Call(func, args) => {
+                let a = args.first().map_or(f64::NAN, |e| e.eval_point(lookup));
+                let b = args.get(1).map_or(0.0, |e| e.eval_point(lookup));
+                func.apply(a, b)
+            }
+        }
+    }
+
+    /// Evaluate over whole columns of `n` rows.
+    ///
+    /// # Errors
+    /// [`AeroError::InvalidInput`] naming the expression and the missing
+    /// column, or a column whose length differs from `n`.
+    pub fn eval_columns<'a>(
+        &self,
+        lookup: &dyn Fn(&str) -> Option<&'a [f64]>,
+        n: usize,
+    ) -> Result<Vec<f64>> {
+        match self {
+            Expr::Const(c) => Ok(vec![*c; n]),
+            Expr::Column(name) => {
+                let col = lookup(name).ok_or_else(|| {
+                    AeroError::invalid(
+                        format!("regressor column '{name}'"),
+                        "is not in the data; add the channel or derive it before fitting",
+                    )
+                })?;
+                if col.len() != n {
+                    return Err(AeroError::invalid(
+                        format!("regressor column '{name}'"),
+                        format!("has {} rows, expected {n}", col.len()),
+                    ));
+                }
+                Ok(col.to_vec())
+            }
+            Expr::Neg(e) => {
+                let mut v = e.eval_columns(lookup, n)?;
+                v.iter_mut().for_each(|x| *x = -*x);
+                Ok(v)
+            }
+            Expr::Bin(op, a, b) => {
+                let mut va = a.eval_columns(lookup, n)?;
+                let vb = b.eval_columns(lookup, n)?;
+                for (x, y) in va.iter_mut().zip(&vb) {
+                    *x = binop(*op, *x, *y);
+                }
+                Ok(va)
+            }
+            Expr::Call(func, args) => {
+                let mut va = match args.first() {
+                    Some(e) => e.eval_columns(lookup, n)?,
+                    None => vec![f64::NAN; n],
+                };
+                match args.get(1) {
+                    Some(e) => {
+                        let vb = e.eval_columns(lookup, n)?;
+                        for (x, y) in va.iter_mut().zip(&vb) {
+                            *x = func.apply(*x, *y);
+                        }
+                    }
+                    None => va.iter_mut().for_each(|x| *x = func.apply(*x, 0.0)),
+                }
+                Ok(va)
+            }
+        }
+    }
+}
+
+#[inline]
+fn binop(op: BinOp, a: f64, b: f64) -> f64 {
+    match op {
+        BinOp::Add => a + b,
+        BinOp::Sub => a - b,
+        BinOp::Mul => a * b,
+        BinOp::Div => a / b,
+        BinOp::Pow => {
+            if b.fract() == 0.0 && b.abs() <= 16.0 {
+                a.powi(b as i32)
+            } else {
+                a.powf(b)
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn eval(src: &str, cols: &[(&str, &[f64])]) -> Vec<f64> {
+        let n = cols.first().map_or(1, |c| c.1.len());
+        let lookup = |name: &str| cols.iter().find(|c| c.0 == name).map(|c| c.1);
+        Expr::parse(src)
+            .expect("parses")
+            .eval_columns(&lookup, n)
+            .expect("evaluates")
+    }
+
+    #[test]
+    fn precedence_and_associativity() {
+        let x = [2.0];
+        assert_eq!(eval("1 + 2 * x ^ 2", &[("x", &x)]), vec![9.0]);
+        assert_eq!(eval("2 ^ 3 ^ 2", &[("x", &x)]), vec![512.0]);
+        assert_eq!(eval("-x ^ 2", &[("x", &x)]), vec![-4.0]);
+        assert_eq!(eval("(1 + x) * 3 - 8 / x", &[("x", &x)]), vec![5.0]);
+        assert_eq!(eval("1.5e1 - x", &[("x", &x)]), vec![13.0]);
+    }
+
+    #[test]
+    fn deadband_is_thesis_eq_3_15_3_16() {
+        // (da - 2)+ + (da + 2)-: zero in [-2, 2], unit slope outside.
+        let da = [-6.0, -2.0, -1.9, 0.0, 2.0, 2.5, 10.0];
+        let got = eval("deadband(da, 2)", &[("da", &da)]);
+        let want: Vec<f64> = da
+            .iter()
+            .map(|&d| {
+                let plus = if d - 2.0 > 0.0 { d - 2.0 } else { 0.0 };
+                let minus = if d + 2.0 < 0.0 { d + 2.0 } else { 0.0 };
+                plus + minus
+            })
+            .collect();
+        assert_eq!(got, want);
+        assert_eq!(eval("pos(da - 2) + neg(da + 2)", &[("da", &da)]), want);
+    }
+
+    #[test]
+    fn products_and_functions() {
+        let a = [1.0, -2.0];
+        let b = [3.0, 4.0];
+        assert_eq!(eval("a * b", &[("a", &a), ("b", &b)]), vec![3.0, -8.0]);
+        assert_eq!(
+            eval("abs(a) + max(a, b) - min(a, 0)", &[("a", &a), ("b", &b)]),
+            vec![4.0, 8.0]
+        );
+        assert_eq!(eval("step(a)", &[("a", &a)]), vec![1.0, 0.0]);
+        let e = Expr::parse("alphadot * ds + beta * phat - 1").expect("parses");
+        assert_eq!(e.columns(), vec!["alphadot", "ds", "beta", "phat"]);
+        assert!(Expr::parse("2 * 3").expect("parses").is_constant());
+    }
+
+    #[test]
+    fn nan_propagates() {
+        let a = [f64::NAN];
+        assert!(eval("deadband(a, 2)", &[("a", &a)])[0].is_nan());
+        assert!(eval("step(a)", &[("a", &a)])[0].is_nan());
+        assert!(eval("max(a, 1)", &[("a", &a)])[0].is_nan());
+    }
+
+    #[test]
+    fn errors_name_expression_and_column() {
+        let e = Expr::parse("beta * ").unwrap_err().to_string();
+        assert!(e.contains("regressor 'beta * ', column 8"), "{e}");
+        let e = Expr::parse("foo(beta)").unwrap_err().to_string();
+        assert!(e.contains("unknown function 'foo'"), "{e}");
+        let e = Expr::parse("deadband(da)").unwrap_err().to_string();
+        assert!(e.contains("takes 2 argument(s), got 1"), "{e}");
+        let e = Expr::parse("beta $ 2").unwrap_err().to_string();
+        assert!(e.contains("column 6") && e.contains("'$'"), "{e}");
+        let e = Expr::parse("(beta").unwrap_err().to_string();
+        assert!(e.contains("expected ')'"), "{e}");
+        let lookup = |_: &str| -> Option<&[f64]> { None };
+        let e = Expr::parse("phat")
+            .expect("parses")
+            .eval_columns(&lookup, 3)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("regressor column 'phat'"), "{e}");
+    }
+
+    #[test]
+    fn point_and_column_paths_agree() {
+        let a = [0.3, -1.7, 2.5];
+        let b = [1.0, 2.0, -3.0];
+        let src = "deadband(a, 0.5) * b ^ 2 - sin(a) / (1 + abs(b))";
+        let cols = eval(src, &[("a", &a), ("b", &b)]);
+        let e = Expr::parse(src).expect("parses");
+        for i in 0..3 {
+            let lookup = |n: &str| match n {
+                "a" => Some(a[i]),
+                "b" => Some(b[i]),
+                _ => None,
+            };
+            assert_eq!(e.eval_point(&lookup).to_bits(), cols[i].to_bits());
+        }
+    }
+}
