@@ -11,10 +11,15 @@
 //!   batch path and an allocation-free single-point path;
 //! - [`regressor`]: the expression language of Δ-model regressors
 //!   (dead-band splines of Eq. 3.15-3.16, products, user columns);
+//! - [`delta_model`]: the Δ part of the extended model (Eq. 3.11-3.12, 3.19),
+//!   its versioned file and an allocation-free bound evaluation;
+//! - [`fsutil`]: atomic writes;
 //! - [`error`]: the error kinds every module returns.
 #![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used))]
 
+pub mod delta_model;
 pub mod error;
+pub mod fsutil;
 pub mod regressor;
 pub mod table;
 

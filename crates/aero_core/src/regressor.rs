@@ -519,6 +519,129 @@ impl Expr {
     }
 }
 
+/// A regressor whose column names are resolved to positions in a state
+/// vector, for allocation-free evaluation in a simulator's real-time loop.
+#[derive(Debug, Clone, PartialEq)]
+pub struct BoundExpr {
+    code: Vec<Op>,
+    stack_depth: usize,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Op {
+    Const(f64),
+    Load(usize),
+    Neg,
+    Bin(BinOp),
+    Call1(Func),
+    Call2(Func),
+}
+
+/// Deepest stack a bound expression may use (no allocation at evaluation).
+const MAX_STACK: usize = 32;
+
+impl Expr {
+    /// Resolve column names against `layout` (the names of the state vector's
+    /// entries, in order).
+    ///
+    /// # Errors
+    /// [`AeroError::InvalidInput`] naming a column absent from the layout, or
+    /// an expression nested too deeply for the fixed evaluation stack.
+    pub fn bind(&self, layout: &[&str]) -> Result<BoundExpr> {
+        let mut code = Vec::new();
+        self.compile(layout, &mut code)?;
+        let mut depth = 0usize;
+        let mut max_depth = 0usize;
+        for op in &code {
+            match op {
+                Op::Const(_) | Op::Load(_) => depth += 1,
+                Op::Bin(_) | Op::Call2(_) => depth -= 1,
+                Op::Neg | Op::Call1(_) => {}
+            }
+            max_depth = max_depth.max(depth);
+        }
+        if max_depth > MAX_STACK {
+            return Err(AeroError::invalid(
+                format!("regressor '{self}'"),
+                format!("nests {max_depth} levels deep; at most {MAX_STACK} are supported"),
+            ));
+        }
+        Ok(BoundExpr {
+            code,
+            stack_depth: max_depth,
+        })
+    }
+
+    fn compile(&self, layout: &[&str], code: &mut Vec<Op>) -> Result<()> {
+        match self {
+            Expr::Const(c) => code.push(Op::Const(*c)),
+            Expr::Column(n) => {
+                let i = layout.iter().position(|l| l == n).ok_or_else(|| {
+                    AeroError::invalid(
+                        format!("regressor column '{n}'"),
+                        format!("is not among the model inputs ({})", layout.join(", ")),
+                    )
+                })?;
+                code.push(Op::Load(i));
+            }
+            Expr::Neg(e) => {
+                e.compile(layout, code)?;
+                code.push(Op::Neg);
+            }
+            Expr::Bin(op, a, b) => {
+                a.compile(layout, code)?;
+                b.compile(layout, code)?;
+                code.push(Op::Bin(*op));
+            }
+            Expr::Call(f, args) => {
+                for a in args {
+                    a.compile(layout, code)?;
+                }
+                code.push(if args.len() == 2 {
+                    Op::Call2(*f)
+                } else {
+                    Op::Call1(*f)
+                });
+            }
+        }
+        Ok(())
+    }
+}
+
+impl BoundExpr {
+    /// Evaluate on a state vector laid out as given to [`Expr::bind`].
+    /// Never allocates; an index past the state's end reads NaN.
+    #[inline]
+    pub fn eval(&self, state: &[f64]) -> f64 {
+        let mut stack = [0.0f64; MAX_STACK];
+        let mut sp = 0usize;
+        for op in &self.code {
+            match *op {
+                Op::Const(c) => {
+                    stack[sp] = c;
+                    sp += 1;
+                }
+                Op::Load(i) => {
+                    stack[sp] = state.get(i).copied().unwrap_or(f64::NAN);
+                    sp += 1;
+                }
+                Op::Neg => stack[sp - 1] = -stack[sp - 1],
+                Op::Bin(b) => {
+                    sp -= 1;
+                    stack[sp - 1] = binop(b, stack[sp - 1], stack[sp]);
+                }
+                Op::Call1(f) => stack[sp - 1] = f.apply(stack[sp - 1], 0.0),
+                Op::Call2(f) => {
+                    sp -= 1;
+                    stack[sp - 1] = f.apply(stack[sp - 1], stack[sp]);
+                }
+            }
+        }
+        debug_assert!(self.stack_depth <= MAX_STACK);
+        stack[0]
+    }
+}
+
 #[inline]
 fn binop(op: BinOp, a: f64, b: f64) -> f64 {
     match op {
@@ -618,6 +741,26 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("regressor column 'phat'"), "{e}");
+    }
+
+    #[test]
+    fn bound_path_matches_columns() {
+        let a = [0.3, -1.7, 2.5];
+        let b = [1.0, 2.0, -3.0];
+        let src = "deadband(a, 0.5) * b ^ 2 - sin(a) / (1 + abs(b)) + -max(a, b)";
+        let cols = eval(src, &[("a", &a), ("b", &b)]);
+        let bound = Expr::parse(src)
+            .expect("parses")
+            .bind(&["x", "b", "a"])
+            .expect("binds");
+        for i in 0..3 {
+            assert_eq!(bound.eval(&[99.0, b[i], a[i]]).to_bits(), cols[i].to_bits());
+        }
+        let e = Expr::parse("c + a")
+            .expect("parses")
+            .bind(&["a", "b"])
+            .unwrap_err();
+        assert!(e.to_string().contains("regressor column 'c'"), "{e}");
     }
 
     #[test]
