@@ -17,12 +17,14 @@ from aerodelta.exceptions import (
     ParseError,
     TooLittleDataError,
 )
+from aerodelta.model import DeltaModel
 from aerodelta.table import Table
 
 __all__ = [
     "AeroIOError",
     "AerodeltaError",
     "DataError",
+    "DeltaModel",
     "InvalidInputError",
     "NoConvergenceError",
     "OutOfRangeError",

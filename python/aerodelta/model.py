@@ -1,0 +1,133 @@
+"""The Δ part of the extended model: load, save, evaluate (engine: ``aero_core::delta_model``).
+
+The extended coefficient is ``C_ext = C_qualified + w(alpha) * dC`` (thesis Eq. 3.11-3.12):
+``dC`` sums parameter tables in (flap, alpha) times regressors (Eq. 3.19), ``w`` blends the
+correction in linearly between ``alpha_l`` and ``alpha_u`` per flap.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import polars as pl
+
+from aerodelta import _core
+
+SCHEMA = "aerodelta.model/1"
+
+
+class DeltaModel:
+    """A validated Δ model, as saved by ``aerodelta fit`` and read by ``aero_core``.
+
+    Build one from a spec dictionary (the JSON document, schema ``aerodelta.model/1``)
+    with :meth:`from_spec`, or load a file with :meth:`load`.
+
+    Examples
+    --------
+    >>> spec = {
+    ...     "schema": "aerodelta.model/1",
+    ...     "flaps_deg": [0.0],
+    ...     "coefficients": {"Cl": {
+    ...         "terms": [{"name": "dCl_0", "regressor": "1",
+    ...                    "alpha_deg": [10.0, 20.0], "values": [[0.0, 0.02]]}],
+    ...         "alpha_l_deg": [10.0], "alpha_u_deg": [12.0]}},
+    ... }
+    >>> m = DeltaModel.from_spec(spec)
+    >>> out = m.evaluate(pl.DataFrame({"alpha_deg": [11.0, 15.0], "flap_deg": [0.0, 0.0]}))
+    >>> [round(v, 6) for v in out["dCl_blended"]]
+    [0.001, 0.01]
+    """
+
+    __slots__ = ("_m",)
+
+    def __init__(self) -> None:
+        raise TypeError("use DeltaModel.load(path) or DeltaModel.from_spec(dict)")
+
+    @classmethod
+    def _from_core(cls, m: _core.DeltaModel) -> DeltaModel:
+        obj = object.__new__(cls)
+        obj._m = m
+        return obj
+
+    @classmethod
+    def from_spec(cls, spec: Mapping[str, Any], source: str = "<spec>") -> DeltaModel:
+        """Validate a spec dictionary (see the module docstring for its meaning)."""
+        return cls._from_core(_core.DeltaModel.from_json(json.dumps(spec), source))
+
+    @classmethod
+    def load(cls, path: str | Path) -> DeltaModel:
+        """Load a model file (JSON, schema ``aerodelta.model/1``)."""
+        return cls._from_core(_core.DeltaModel.load(str(path)))
+
+    def save(self, path: str | Path) -> None:
+        """Write the model atomically (temporary file, then rename)."""
+        self._m.save(str(path))
+
+    def to_spec(self) -> dict[str, Any]:
+        """The stored document as a dictionary."""
+        return json.loads(self._m.to_json())
+
+    @property
+    def coefficients(self) -> list[str]:
+        """Coefficient names (e.g. ``["CY", "Cl", "Cn"]``)."""
+        return self._m.coefficient_names
+
+    @property
+    def input_columns(self) -> list[str]:
+        """Data columns the model reads: alpha (deg), flap (deg) and the regressors' columns."""
+        return self._m.input_columns
+
+    def parameter(self, coefficient: str, term: str, flap_deg: float, alpha_deg: float) -> float:
+        """Value of one parameter table at a flap setting and angle of attack (deg)."""
+        return self._m.parameter(coefficient, term, float(flap_deg), float(alpha_deg))
+
+    def evaluate(
+        self,
+        data: pl.DataFrame,
+        *,
+        coefficients: list[str] | None = None,
+        terms: bool = False,
+    ) -> pl.DataFrame:
+        """Evaluate the corrections along records.
+
+        Parameters
+        ----------
+        data
+            Columns named as :attr:`input_columns` (angles in deg as named).
+        coefficients
+            Subset to evaluate (default all).
+        terms
+            Also return each term's (unblended) contribution as ``<term>`` columns.
+
+        Returns
+        -------
+        polars.DataFrame
+            Per coefficient ``C``: ``dC`` (unblended Δ), ``w_C`` (blend weight, Eq. 3.12) and
+            ``dC_blended`` = ``w_C * dC``, the amount to add to the qualified model.
+        """
+        n = data.height
+        needed = set(self.input_columns)
+        missing = sorted(needed - set(data.columns))
+        if missing:
+            raise _core.InvalidInputError(
+                f"columns {missing} are required by the model but missing from the data"
+            )
+        cols = {
+            c: np.ascontiguousarray(data[c].cast(pl.Float64).to_numpy()) for c in sorted(needed)
+        }
+        out: dict[str, np.ndarray] = {}
+        for c in coefficients or self.coefficients:
+            delta, weight, contribs = self._m.eval_columns(c, cols, n)
+            out[f"d{c}"] = delta
+            out[f"w_{c}"] = weight
+            out[f"d{c}_blended"] = weight * delta
+            if terms:
+                out.update(contribs)
+        return pl.DataFrame(out)
+
+    def __repr__(self) -> str:
+        return f"DeltaModel({', '.join(self.coefficients)})"
