@@ -14,6 +14,7 @@
 //! - [`delta_model`]: the Δ part of the extended model (Eq. 3.11-3.12, 3.19),
 //!   its versioned file and an allocation-free bound evaluation;
 //! - [`fsutil`]: atomic writes;
+//! - [`rolloff_detect`]: detection of uncommanded roll-off events (Section 3.4.3);
 //! - [`error`]: the error kinds every module returns.
 #![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used))]
 
@@ -21,6 +22,7 @@ pub mod delta_model;
 pub mod error;
 pub mod fsutil;
 pub mod regressor;
+pub mod rolloff_detect;
 pub mod table;
 
 pub use error::{AeroError, ErrorKind, Result, ResultExt};
