@@ -9,10 +9,14 @@
 //! One concept per module:
 //! - [`table`]: gridded N-D lookup tables, hold or linear extrapolation, a
 //!   batch path and an allocation-free single-point path;
+//! - [`spline`]: cubic smoothing splines with MATLAB `csaps` semantics (Eq. 3.13);
+//! - [`partition`]: alpha partitioning into bins of enough points (Section 3.3.1);
 //! - [`error`]: the error kinds every module returns.
 #![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used))]
 
 pub mod error;
+pub mod partition;
+pub mod spline;
 pub mod table;
 
 pub use error::{AeroError, ErrorKind, Result, ResultExt};
