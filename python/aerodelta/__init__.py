@@ -17,17 +17,23 @@ from aerodelta.exceptions import (
     ParseError,
     TooLittleDataError,
 )
+from aerodelta.partition import AlphaBins, partition_alpha
+from aerodelta.spline import SmoothingSpline, smoothing_spline
 from aerodelta.table import Table
 
 __all__ = [
     "AeroIOError",
     "AerodeltaError",
+    "AlphaBins",
     "DataError",
     "InvalidInputError",
     "NoConvergenceError",
     "OutOfRangeError",
     "ParseError",
+    "SmoothingSpline",
     "Table",
     "TooLittleDataError",
     "__version__",
+    "partition_alpha",
+    "smoothing_spline",
 ]

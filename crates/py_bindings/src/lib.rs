@@ -6,6 +6,8 @@
 use pyo3::prelude::*;
 
 mod error;
+mod partition;
+mod spline;
 mod table;
 mod util;
 
@@ -14,5 +16,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     error::register(m)?;
     table::register(m)?;
+    spline::register(m)?;
+    partition::register(m)?;
     Ok(())
 }
