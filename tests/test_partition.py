@@ -141,3 +141,11 @@ def test_errors_name_the_row() -> None:
         ad.partition_alpha([1.0, 2.0], 1, alpha_range=(3.0, 2.0))
     with pytest.raises(ad.TooLittleDataError, match="no alpha sample"):
         ad.partition_alpha([1.0, 2.0], 1, alpha_range=(3.0, 4.0))
+
+
+def test_docstring_examples() -> None:
+    import doctest
+
+    import aerodelta.partition
+
+    assert doctest.testmod(aerodelta.partition).failed == 0

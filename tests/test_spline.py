@@ -133,3 +133,11 @@ def test_errors_name_the_index() -> None:
         s([1.0], -1)
     with pytest.raises(ad.InvalidInputError, match="extrapolate"):
         s([1.0], extrapolate="linear")  # type: ignore[arg-type]
+
+
+def test_docstring_examples() -> None:
+    import doctest
+
+    import aerodelta.spline
+
+    assert doctest.testmod(aerodelta.spline).failed == 0

@@ -519,6 +519,11 @@ mod tests {
         assert_eq!(bins.len(), 1);
         assert_eq!(bins.underfilled, vec![true]);
         assert_eq!(bins.edges, vec![1.0, 2.0]);
+        // All samples at one alpha: one nominal-width bin centred on it.
+        let bins = partition_alpha(&[4.0; 50], 1, None, &PartitionOptions::default()).expect("p");
+        assert_eq!(bins.len(), 1);
+        assert!((bins.edges[0] - 3.9).abs() < 1e-12 && (bins.edges[1] - 4.1).abs() < 1e-12);
+        assert_eq!(bins.counts, vec![50]);
     }
 
     #[test]
@@ -538,6 +543,34 @@ mod tests {
             assert_eq!(i == OUTSIDE, !(4.0..=12.0).contains(&x));
         }
         check_invariants(&alpha, &a);
+    }
+
+    proptest::proptest! {
+        /// Without a cap, every bin is filled whenever the data can fill one bin;
+        /// bins are contiguous, cover the data, and counts match the assignment.
+        #[test]
+        fn bins_are_filled_and_consistent(seed in 0u64..500, n in 2usize..3000, k in 1usize..8,
+                                          tail in 0.5f64..4.0) {
+            let mut u = uniform(seed);
+            let alpha: Vec<f64> = (0..n).map(|_| 2.0 + 20.0 * u().powf(tail)).collect();
+            let bins = partition_alpha(&alpha, k, None, &PartitionOptions::default()).expect("p");
+            check_invariants(&alpha, &bins);
+            let lo = alpha.iter().copied().fold(f64::INFINITY, f64::min);
+            let hi = alpha.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+            proptest::prop_assert_eq!(bins.edges[0], lo);
+            proptest::prop_assert_eq!(bins.edges[bins.len()], hi);
+            proptest::prop_assert!(bins.index.iter().all(|&i| i >= 0));
+            if n >= 10 * k {
+                proptest::prop_assert!(bins.counts.iter().all(|&c| c >= 10 * k));
+            } else {
+                proptest::prop_assert_eq!(bins.len(), 1);
+                proptest::prop_assert!(bins.underfilled[0]);
+            }
+            // Every edge but the outer two lies on the 0.2 deg grid.
+            for e in &bins.edges[1..bins.len()] {
+                proptest::prop_assert!((e * 5.0 - (e * 5.0).round()).abs() < 1e-9);
+            }
+        }
     }
 
     #[test]
