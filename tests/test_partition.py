@@ -3,11 +3,14 @@ the returned edges, independent per-bin counts of maneuvers, and closed-form gri
 
 from __future__ import annotations
 
+import doctest
+
 import numpy as np
 import polars as pl
 import pytest
 
 import aerodelta as ad
+import aerodelta.partition
 
 
 def _stall_like(seed: int, n_dense: int = 6000, n_tail: int = 700) -> np.ndarray:
@@ -144,8 +147,4 @@ def test_errors_name_the_row() -> None:
 
 
 def test_docstring_examples() -> None:
-    import doctest
-
-    import aerodelta.partition
-
     assert doctest.testmod(aerodelta.partition).failed == 0

@@ -4,11 +4,14 @@ interpolation)."""
 
 from __future__ import annotations
 
+import doctest
+
 import csaps
 import numpy as np
 import pytest
 
 import aerodelta as ad
+import aerodelta.spline
 
 RTOL = 1e-10
 
@@ -136,8 +139,4 @@ def test_errors_name_the_index() -> None:
 
 
 def test_docstring_examples() -> None:
-    import doctest
-
-    import aerodelta.spline
-
     assert doctest.testmod(aerodelta.spline).failed == 0
