@@ -112,6 +112,27 @@ def test_to_table_resamples_on_grid() -> None:
     assert t.eval_point([grid[-1] + 10.0]) == t.values[-1]
 
 
+def test_merge_duplicates_equals_csaps_on_merged_data() -> None:
+    rng = np.random.default_rng(9)
+    x, y, _ = _data(9, 20)
+    # Every site appears 1-3 times with its own value and weight, shuffled.
+    rep = rng.integers(1, 4, x.size)
+    xd = np.repeat(x, rep)
+    yd = np.repeat(y, rep) + 0.1 * rng.standard_normal(xd.size)
+    wd = 0.5 + rng.random(xd.size)
+    perm = rng.permutation(xd.size)
+    s = ad.smoothing_spline(xd[perm], yd[perm], p=0.4, weights=wd[perm], merge_duplicates=True)
+    site = np.repeat(np.arange(x.size), rep)
+    wsum = np.bincount(site, weights=wd)
+    ymean = np.bincount(site, weights=wd * yd) / wsum
+    ref = csaps.CubicSmoothingSpline(x, ymean, weights=wsum, smooth=0.4)
+    np.testing.assert_array_equal(s.breaks, x)
+    xe = np.linspace(x[0] - 1.0, x[-1] + 1.0, 200)
+    _close(s(xe), ref(xe))
+    with pytest.raises(ad.InvalidInputError, match=r"x\[\d+\].*strictly increasing"):
+        ad.smoothing_spline(xd[perm], yd[perm])
+
+
 def test_errors_name_the_index() -> None:
     with pytest.raises(ad.TooLittleDataError, match="at least 2"):
         ad.smoothing_spline([1.0], [1.0])

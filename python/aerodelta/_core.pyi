@@ -52,6 +52,11 @@ def smoothing_spline(
     p: float | None = None,
     normalized: bool = False,
 ) -> SmoothingSpline: ...
+def merge_sites(
+    x: npt.NDArray[np.float64],
+    y: npt.NDArray[np.float64],
+    weights: npt.NDArray[np.float64] | None = None,
+) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64], npt.NDArray[np.float64]]: ...
 
 class AlphaBins:
     @property

@@ -127,14 +127,15 @@ def smoothing_spline(
     weights: npt.ArrayLike | None = None,
     *,
     normalized: bool = False,
+    merge_duplicates: bool = False,
 ) -> SmoothingSpline:
     """Fit the cubic smoothing spline of thesis Eq. 3.13 (MATLAB / Python ``csaps``).
 
     Parameters
     ----------
     x
-        Data sites, 1-D, finite and strictly increasing (e.g. alpha-bin centres, deg).
-        Repeated sites are refused: average them first, summing their weights.
+        Data sites, 1-D, finite and strictly increasing (e.g. alpha-bin centres, deg);
+        unsorted or repeated sites are refused unless ``merge_duplicates``.
     y
         Values at the sites, 1-D (one series; call once per series).
     p
@@ -146,6 +147,10 @@ def smoothing_spline(
     normalized
         Use ``csaps``'s ``normalizedsmooth``: ``p`` (default 0.5) is a scale-free
         smoothing value mapped to the actual parameter (see ``.p``).
+    merge_duplicates
+        Sort the data and replace repeated sites by one site with the weighted mean
+        value and the summed weight, as MATLAB ``csaps`` does (the minimiser of
+        Eq. 3.13 is unchanged). ``breaks`` are then the distinct sites.
 
     Returns
     -------
@@ -177,6 +182,8 @@ def smoothing_spline(
             raise _core.InvalidInputError(f"argument 'p': '{p}' is not a number or 'auto'")
         p = None
     pv = None if p is None else float(p)
+    if merge_duplicates:
+        xa, ya, wa = _core.merge_sites(xa, ya, wa)
     return SmoothingSpline._from_core(_core.smoothing_spline(xa, ya, wa, pv, normalized))
 
 

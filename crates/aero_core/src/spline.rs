@@ -27,8 +27,9 @@
 //! follows operation for operation, so results agree to rounding).
 //!
 //! # Conventions
-//! - `x` must be finite and *strictly* increasing (duplicates are refused, not
-//!   merged: average repeated sites yourself, summing their weights).
+//! - `x` must be finite and *strictly* increasing (duplicates are refused);
+//!   [`merge_sites`] sorts data and merges repeated sites by weighted averaging
+//!   (summing their weights) as MATLAB `csaps` does, without changing the fit.
 //! - `y` is scalar-valued; fit several series over the same sites by calling
 //!   [`smoothing_spline`] once per series.
 //! - Outside $[x_1, x_n]$ the end pieces are continued as polynomials
@@ -301,6 +302,82 @@ pub fn smoothing_spline(
         coefs,
         p,
     })
+}
+
+/// Sort the sites and merge repeated ones, so data in any order can be passed to
+/// [`smoothing_spline`] (what MATLAB `csaps` does before fitting; the Python
+/// `csaps` package refuses such data).
+///
+/// Sites are sorted increasingly (stable); the values at equal sites are
+/// replaced by their weighted mean $\bar y = \sum w_k y_k / \sum w_k$ with
+/// weight $\sum w_k$. Because
+/// $\sum_k w_k (y_k - f)^2 = (\sum_k w_k)(\bar y - f)^2 + \text{const}$,
+/// the merged data give the same minimiser of thesis Eq. 3.13 as the original.
+/// Returns `(x, y, w)`; `w` is all ones when no weights are given and no site repeats.
+///
+/// # Errors
+/// [`AeroError::InvalidInput`] naming the index (in the input order) for lengths
+/// that differ or non-finite data; [`AeroError::OutOfRange`] for a weight $\le 0$.
+pub fn merge_sites(
+    x: &[f64],
+    y: &[f64],
+    weights: Option<&[f64]>,
+) -> Result<(Vec<f64>, Vec<f64>, Vec<f64>)> {
+    const PLACE: &str = "smoothing spline";
+    let n = x.len();
+    if y.len() != n || weights.is_some_and(|w| w.len() != n) {
+        return Err(AeroError::invalid(
+            PLACE,
+            format!(
+                "x has {n} points, y {} and weights {}; give one of each per site",
+                y.len(),
+                weights.map_or(n, <[f64]>::len)
+            ),
+        ));
+    }
+    for i in 0..n {
+        for (name, v) in [("x", x[i]), ("y", y[i])] {
+            if !v.is_finite() {
+                return Err(AeroError::invalid(
+                    format!("{PLACE}, {name}[{i}]"),
+                    format!("is {v}; data must be finite (drop the point or fill it)"),
+                ));
+            }
+        }
+        if let Some(w) = weights {
+            if !w[i].is_finite() {
+                return Err(AeroError::invalid(
+                    format!("{PLACE}, weights[{i}]"),
+                    format!("is {}; weights must be finite", w[i]),
+                ));
+            }
+            if w[i] <= 0.0 {
+                return Err(AeroError::out_of_range(
+                    format!("{PLACE}, weights[{i}]"),
+                    format!("is {}; weights must be > 0 (drop the point instead)", w[i]),
+                ));
+            }
+        }
+    }
+    let wt = |i: usize| weights.map_or(1.0, |w| w[i]);
+    let mut order: Vec<usize> = (0..n).collect();
+    order.sort_by(|&a, &b| x[a].total_cmp(&x[b]));
+    let (mut xs, mut ys, mut ws): (Vec<f64>, Vec<f64>, Vec<f64>) = (vec![], vec![], vec![]);
+    let mut k = 0;
+    while k < n {
+        let xi = x[order[k]];
+        let (mut sw, mut swy) = (0.0, 0.0);
+        while k < n && x[order[k]] == xi {
+            let i = order[k];
+            sw += wt(i);
+            swy += wt(i) * y[i];
+            k += 1;
+        }
+        xs.push(xi);
+        ys.push(swy / sw);
+        ws.push(sw);
+    }
+    Ok((xs, ys, ws))
 }
 
 /// The $p = 0$ limit of Eq. 3.13, the weighted least-squares straight line, in
@@ -637,6 +714,23 @@ mod tests {
         assert_eq!(e.kind(), crate::ErrorKind::OutOfRange);
         let e = smoothing_spline(&[0.0, 1.0], &[0.0; 3], None, Smoothing::Fixed(0.5)).unwrap_err();
         assert_eq!(e.kind(), crate::ErrorKind::InvalidInput);
+    }
+
+    #[test]
+    fn merge_sites_sorts_and_averages() {
+        let (x, y, w) = merge_sites(
+            &[2.0, 1.0, 2.0, 0.0],
+            &[1.0, 5.0, 4.0, 3.0],
+            Some(&[1.0, 1.0, 2.0, 1.0]),
+        )
+        .expect("merge");
+        assert_eq!(x, vec![0.0, 1.0, 2.0]);
+        assert_eq!(y, vec![3.0, 5.0, 3.0]);
+        assert_eq!(w, vec![1.0, 1.0, 3.0]);
+        let e = merge_sites(&[0.0, f64::NAN], &[0.0, 0.0], None).unwrap_err();
+        assert!(e.to_string().contains("x[1]"), "{e}");
+        let e = merge_sites(&[0.0, 1.0], &[0.0, 0.0], Some(&[1.0, -1.0])).unwrap_err();
+        assert_eq!(e.kind(), crate::ErrorKind::OutOfRange);
     }
 
     proptest! {

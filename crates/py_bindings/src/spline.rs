@@ -1,6 +1,8 @@
 //! `SmoothingSpline`: a frozen newtype over `aero_core::spline::SmoothingSpline`
 //! (cubic smoothing spline with MATLAB `csaps` semantics, thesis Eq. 3.13).
-use aero_core::spline::{smoothing_spline, Smoothing, SmoothingSpline, SplineExtrapolation};
+use aero_core::spline::{
+    merge_sites, smoothing_spline, Smoothing, SmoothingSpline, SplineExtrapolation,
+};
 use numpy::{IntoPyArray, PyArray1, PyReadonlyArray1};
 use pyo3::prelude::*;
 
@@ -34,6 +36,31 @@ fn fit<'py>(
         (false, None) => Smoothing::Auto,
     };
     detached(py, || smoothing_spline(x, y, w, smoothing)).map(PySmoothingSpline)
+}
+
+/// Sort sites and merge repeated ones by weighted averaging; returns `(x, y, w)`.
+#[pyfunction(name = "merge_sites")]
+#[pyo3(signature = (x, y, weights=None))]
+#[allow(clippy::type_complexity)]
+fn merge<'py>(
+    py: Python<'py>,
+    x: PyReadonlyArray1<'py, f64>,
+    y: PyReadonlyArray1<'py, f64>,
+    weights: Option<PyReadonlyArray1<'py, f64>>,
+) -> PyResult<(
+    Bound<'py, PyArray1<f64>>,
+    Bound<'py, PyArray1<f64>>,
+    Bound<'py, PyArray1<f64>>,
+)> {
+    let x = x.as_slice()?;
+    let y = y.as_slice()?;
+    let w = weights.as_ref().map(|w| w.as_slice()).transpose()?;
+    let (xs, ys, ws) = detached(py, || merge_sites(x, y, w))?;
+    Ok((
+        xs.into_pyarray(py),
+        ys.into_pyarray(py),
+        ws.into_pyarray(py),
+    ))
 }
 
 #[pymethods]
@@ -85,5 +112,6 @@ impl PySmoothingSpline {
 
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PySmoothingSpline>()?;
+    m.add_function(wrap_pyfunction!(merge, m)?)?;
     m.add_function(wrap_pyfunction!(fit, m)?)
 }
