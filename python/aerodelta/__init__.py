@@ -18,18 +18,24 @@ from aerodelta.exceptions import (
     TooLittleDataError,
 )
 from aerodelta.model import DeltaModel
+from aerodelta.partition import AlphaBins, partition_alpha
+from aerodelta.spline import SmoothingSpline, smoothing_spline
 from aerodelta.table import Table
 
 __all__ = [
     "AeroIOError",
     "AerodeltaError",
+    "AlphaBins",
     "DataError",
     "DeltaModel",
     "InvalidInputError",
     "NoConvergenceError",
     "OutOfRangeError",
     "ParseError",
+    "SmoothingSpline",
     "Table",
     "TooLittleDataError",
     "__version__",
+    "partition_alpha",
+    "smoothing_spline",
 ]

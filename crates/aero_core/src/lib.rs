@@ -15,14 +15,18 @@
 //!   its versioned file and an allocation-free bound evaluation;
 //! - [`fsutil`]: atomic writes;
 //! - [`rolloff_detect`]: detection of uncommanded roll-off events (Section 3.4.3);
+//! - [`spline`]: cubic smoothing splines with MATLAB `csaps` semantics (Eq. 3.13);
+//! - [`partition`]: alpha partitioning into bins of enough points (Section 3.3.1);
 //! - [`error`]: the error kinds every module returns.
 #![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used))]
 
 pub mod delta_model;
 pub mod error;
 pub mod fsutil;
+pub mod partition;
 pub mod regressor;
 pub mod rolloff_detect;
+pub mod spline;
 pub mod table;
 
 pub use error::{AeroError, ErrorKind, Result, ResultExt};

@@ -7,6 +7,8 @@ use pyo3::prelude::*;
 
 mod delta_model;
 mod error;
+mod partition;
+mod spline;
 mod table;
 mod util;
 
@@ -16,5 +18,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     error::register(m)?;
     table::register(m)?;
     delta_model::register(m)?;
+    spline::register(m)?;
+    partition::register(m)?;
     Ok(())
 }
