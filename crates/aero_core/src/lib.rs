@@ -9,9 +9,12 @@
 //! One concept per module:
 //! - [`table`]: gridded N-D lookup tables, hold or linear extrapolation, a
 //!   batch path and an allocation-free single-point path;
+//! - [`daveml`]: DAVE-ML (AIAA S-119) models: read, evaluate, run their check
+//!   cases, and write models with self-generated check cases;
 //! - [`error`]: the error kinds every module returns.
 #![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used))]
 
+pub mod daveml;
 pub mod error;
 pub mod table;
 
