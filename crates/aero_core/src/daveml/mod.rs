@@ -28,9 +28,12 @@ pub mod model;
 pub mod parse;
 pub mod write;
 
+#[cfg(test)]
+mod tests;
+
 pub use check::{CheckKind, CheckRow, Shot};
 pub use model::{DaveModel, Variable};
-pub use write::{write_model, ModelSpec};
+pub use write::{to_xml, write_model, ModelSpec};
 
 use crate::error::AeroError;
 
