@@ -7,6 +7,13 @@ this package handles files, schemas, units, orchestration, reports and the CLI.
 from __future__ import annotations
 
 from aerodelta._core import __version__
+from aerodelta.daveml import (
+    DaveModel,
+    check_daveml,
+    load_daveml,
+    write_daveml,
+    write_example_model,
+)
 from aerodelta.exceptions import (
     AerodeltaError,
     AeroIOError,
@@ -23,6 +30,7 @@ __all__ = [
     "AeroIOError",
     "AerodeltaError",
     "DataError",
+    "DaveModel",
     "InvalidInputError",
     "NoConvergenceError",
     "OutOfRangeError",
@@ -30,4 +38,8 @@ __all__ = [
     "Table",
     "TooLittleDataError",
     "__version__",
+    "check_daveml",
+    "load_daveml",
+    "write_daveml",
+    "write_example_model",
 ]
