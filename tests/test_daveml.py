@@ -360,3 +360,13 @@ def test_write_rejects_bad_spec_naming_the_table(tmp_path: Path) -> None:
     with pytest.raises(aerodelta.InvalidInputError, match="table 'Cl_r'"):
         write_daveml(tmp_path / "x.dml", spec)
     assert not list(tmp_path.iterdir())
+
+
+def test_core_binding_takes_and_returns_dicts(daveml_dir: Path) -> None:
+    core = load_daveml(daveml_dir / "fiveD_table.dml")._m
+    x = {f"in{k}": np.array([1.0, 2.0, 1.5]) for k in range(1, 6)}
+    out = core.evaluate(x)
+    assert list(out) == ["out1t"]
+    assert isinstance(out["out1t"], np.ndarray)
+    assert out["out1t"][:2].tolist() == [11111.0, 22222.0]
+    assert core.evaluate(x, ["in3"])["in3"].tolist() == [1.0, 2.0, 1.5]

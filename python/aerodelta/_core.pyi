@@ -52,10 +52,9 @@ class DaveModel:
     ) -> list[tuple[str, str, str, bool, bool, float | None, float | None, float | None]]: ...
     def evaluate(
         self,
-        names: list[str],
-        columns: list[npt.NDArray[np.float64]],
-        outputs: list[str],
-    ) -> list[npt.NDArray[np.float64]]: ...
+        inputs: dict[str, npt.NDArray[np.float64]],
+        outputs: list[str] | None = None,
+    ) -> dict[str, npt.NDArray[np.float64]]: ...
     def run_checks(
         self,
     ) -> list[tuple[str, str, str, str, str, float, float, float, bool]]: ...

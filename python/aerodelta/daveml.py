@@ -171,16 +171,15 @@ class DaveModel:
         if ignore_extra:
             known = set(self.variables()["id"].to_list())
             items = [(k, v) for k, v in items if k in known]
-        names = [str(k) for k, _ in items]
         arrays = [np.asarray(v, dtype=np.float64) for _, v in items]
         if arrays:
             arrays = list(np.broadcast_arrays(*arrays))
-        cols = [np.ascontiguousarray(a.ravel()) for a in arrays]
+        cols = {
+            str(k): np.ascontiguousarray(a.ravel()) for (k, _), a in zip(items, arrays, strict=True)
+        }
         outs = list(outputs) if outputs is not None else self.outputs
-        values = self._m.evaluate(names, cols, outs)
-        return pl.DataFrame(
-            dict(zip(outs, values, strict=True)), schema=dict.fromkeys(outs, pl.Float64)
-        )
+        values = self._m.evaluate(cols, outs)
+        return pl.DataFrame(values, schema=dict.fromkeys(outs, pl.Float64))
 
     def run_checks(self) -> pl.DataFrame:
         """Run the file's static check cases.

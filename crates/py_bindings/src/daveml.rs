@@ -3,8 +3,9 @@
 use std::path::PathBuf;
 
 use aero_core::daveml::{self, DaveModel, ModelSpec};
-use numpy::{IntoPyArray, PyArray1, PyReadonlyArray1};
+use numpy::{IntoPyArray, PyReadonlyArray1};
 use pyo3::prelude::*;
+use pyo3::types::PyDict;
 
 use crate::util::detached;
 
@@ -74,25 +75,27 @@ impl PyDaveModel {
             .collect()
     }
 
-    /// Evaluate at many points: one contiguous float64 array per input varID;
-    /// returns one array per requested output varID.
+    /// Evaluate at many points: `inputs` maps input varIDs to contiguous float64
+    /// arrays of one length; returns a dict of one array per output varID
+    /// (default: the model's outputs). The work runs with the GIL released.
+    #[pyo3(signature = (inputs, outputs=None))]
     fn evaluate<'py>(
         &self,
         py: Python<'py>,
-        names: Vec<String>,
-        columns: Vec<PyReadonlyArray1<'py, f64>>,
-        outputs: Vec<String>,
-    ) -> PyResult<Vec<Bound<'py, PyArray1<f64>>>> {
-        if names.len() != columns.len() {
-            return Err(crate::error::to_py(aero_core::AeroError::invalid(
-                "argument 'columns'",
-                format!("has {} arrays for {} names", columns.len(), names.len()),
-            )));
+        inputs: &Bound<'py, PyDict>,
+        outputs: Option<Vec<String>>,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let mut names = Vec::with_capacity(inputs.len());
+        let mut arrays = Vec::with_capacity(inputs.len());
+        for (k, v) in inputs.iter() {
+            names.push(k.extract::<String>()?);
+            arrays.push(v.extract::<PyReadonlyArray1<'py, f64>>()?);
         }
-        let slices: Vec<&[f64]> = columns
+        let slices: Vec<&[f64]> = arrays
             .iter()
             .map(|c| c.as_slice())
             .collect::<Result<_, _>>()?;
+        let outputs = outputs.unwrap_or_else(|| self.outputs());
         let model = &self.0;
         let cols = detached(py, || {
             let inputs: Vec<(&str, &[f64])> = names
@@ -103,7 +106,11 @@ impl PyDaveModel {
             let outs: Vec<&str> = outputs.iter().map(String::as_str).collect();
             model.evaluate_columns(&inputs, &outs)
         })?;
-        Ok(cols.into_iter().map(|c| c.into_pyarray(py)).collect())
+        let out = PyDict::new(py);
+        for (name, col) in outputs.iter().zip(cols) {
+            out.set_item(name, col.into_pyarray(py))?;
+        }
+        Ok(out)
     }
 
     /// Run the file's static check cases.

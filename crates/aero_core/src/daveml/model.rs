@@ -229,12 +229,16 @@ impl DaveModel {
             let y = match &self.defs[i] {
                 Def::Free => continue,
                 Def::Calc(e) => e.eval(values),
-                Def::Table { table, args: a } => {
-                    for (k, &j) in a.iter().enumerate() {
-                        args[k] = values[j];
+                Def::Table { table, args: a } => match a.as_slice() {
+                    [x] => lookup_1d(table, values[*x]),
+                    [x, y] => lookup_2d(table, values[*x], values[*y]),
+                    _ => {
+                        for (k, &j) in a.iter().enumerate() {
+                            args[k] = values[j];
+                        }
+                        table.eval(&args[..a.len()])
                     }
-                    table.eval(&args[..a.len()])
-                }
+                },
             };
             values[i] = self.vars[i].limit(y);
         }
@@ -302,6 +306,42 @@ impl DaveModel {
         }
         Ok(cols)
     }
+}
+
+/// [`Table::eval`] for a 1-D table, bit for bit, without its 2^8-corner scratch array.
+#[inline]
+pub(crate) fn lookup_1d(t: &Table, x: f64) -> f64 {
+    let ax = &t.axes()[0];
+    let v = t.values();
+    let Some((i, f)) = ax.locate(x) else {
+        return f64::NAN;
+    };
+    if v.len() == 1 {
+        return (1.0 - f) * v[0] + f * v[0];
+    }
+    (1.0 - f) * v[i] + f * v[i + 1]
+}
+
+/// [`Table::eval`] for a 2-D table, bit for bit (same reduction order: last axis first).
+#[inline]
+pub(crate) fn lookup_2d(t: &Table, x: f64, y: f64) -> f64 {
+    let axes = t.axes();
+    let v = t.values();
+    let (Some((i, f0)), Some((j, f1))) = (axes[0].locate(x), axes[1].locate(y)) else {
+        return f64::NAN;
+    };
+    let n1 = axes[1].breakpoints().len();
+    let s0 = if axes[0].breakpoints().len() > 1 {
+        n1
+    } else {
+        0
+    };
+    let s1 = usize::from(n1 > 1);
+    let b = i * n1 + j;
+    let (g0, g1) = (1.0 - f0, 1.0 - f1);
+    let lo = g1 * v[b] + f1 * v[b + s1];
+    let hi = g1 * v[b + s0] + f1 * v[b + s0 + s1];
+    g0 * lo + f0 * hi
 }
 
 /// Points per parallel task.

@@ -313,3 +313,41 @@ fn writer_rejects_bad_specs_by_name() {
     let json = serde_json::to_string(&spec()).expect("json");
     assert_eq!(ModelSpec::from_json(&json).expect("back"), spec());
 }
+
+#[test]
+fn fast_1d_2d_lookups_equal_table_eval_bit_for_bit() {
+    use crate::table::{Axis, Extrapolation, Table};
+    let ax = |n: &str, b: &[f64], e: Extrapolation| {
+        Axis::new(n, b.to_vec())
+            .expect("axis")
+            .with_extrapolation(e, e)
+            .with_limits(Some(-7.0), None)
+            .expect("limits")
+    };
+    for e in [Extrapolation::Hold, Extrapolation::Linear] {
+        let bx = [-2.0, 0.0, 1.5, 4.0];
+        let by = [0.0, 0.7, 3.0];
+        let t1 = Table::new(vec![ax("x", &bx, e)], vec![0.3, -1.1, 2.7, 0.9]).expect("t1");
+        let v2: Vec<f64> = (0..12).map(|k| (f64::from(k) * 0.37).sin()).collect();
+        let t2 = Table::new(vec![ax("x", &bx, e), ax("y", &by, e)], v2).expect("t2");
+        let t2s = Table::new(
+            vec![ax("x", &bx, e), ax("y", &[1.0], e)],
+            vec![1.0, 2.0, 4.0, 8.0],
+        )
+        .expect("t2s");
+        for k in 0..400 {
+            let x = -9.0 + f64::from(k) * 0.035;
+            let y = 4.5 - f64::from(k) * 0.021;
+            assert_eq!(model::lookup_1d(&t1, x).to_bits(), t1.eval(&[x]).to_bits());
+            assert_eq!(
+                model::lookup_2d(&t2, x, y).to_bits(),
+                t2.eval(&[x, y]).to_bits()
+            );
+            assert_eq!(
+                model::lookup_2d(&t2s, x, y).to_bits(),
+                t2s.eval(&[x, y]).to_bits()
+            );
+        }
+        assert!(model::lookup_1d(&t1, f64::NAN).is_nan());
+    }
+}
