@@ -225,8 +225,9 @@ impl DaveModel {
     pub fn run_checks(&self) -> Vec<CheckRow> {
         let mut rows = Vec::new();
         let mut values = vec![0.0; self.vars.len()];
+        let mut cache = super::model::LocCache::new(self.locators.len());
         for shot in &self.shots {
-            self.compute(&shot.inputs, &mut values);
+            self.compute_cached(&shot.inputs, &mut values, &mut cache);
             let shot_tol = shot.outputs.iter().map(|o| o.2).fold(f64::NAN, f64::max);
             let shot_tol = if shot_tol.is_nan() {
                 DEFAULT_TOL

@@ -15,7 +15,7 @@
 //! - [`mathml`]: the MathML-2 content subset, precompiled to an expression tree;
 //! - [`model`]: evaluation in a topological order computed at load;
 //! - [`check`]: the file's static shots, run against the model;
-//! - [`write`]: a [`ModelSpec`] (inputs, gridded tables, sums of products)
+//! - [`write`](mod@write): a [`ModelSpec`] (inputs, gridded tables, sums of products)
 //!   written as DAVE-ML with check cases generated from the model itself.
 //!
 //! Table lookups use [`crate::table`]: `extrapolate="neither"` holds the end
@@ -139,7 +139,7 @@ pub(crate) fn child<'a, 'i>(
 }
 
 #[cfg(test)]
-mod conformance {
+pub(crate) mod conformance {
     use super::*;
     use std::path::PathBuf;
 
@@ -215,6 +215,60 @@ mod conformance {
         for f in ["simple_aero.dml", "simplest_aero.dml", "twoD_table.dml"] {
             let m = DaveModel::from_file(shared(f)).unwrap_or_else(|e| panic!("{e}"));
             assert!(m.shots().is_empty());
+        }
+    }
+}
+
+#[cfg(test)]
+mod shared_locate {
+    use super::conformance::shared;
+    use super::*;
+
+    /// The batch and `evaluate` paths (one locate per shared variable and
+    /// breakpoint set) equal the real-time `compute` path bit for bit.
+    #[test]
+    fn cached_and_plain_paths_agree_bitwise_on_public_models() {
+        for f in ["F16_aero.dml", "HL20_aero.dml", "atmos_76.dml"] {
+            let m = DaveModel::from_file(shared(f)).unwrap_or_else(|e| panic!("{e}"));
+            assert!(
+                m.locators.len()
+                    < m.defs
+                        .iter()
+                        .map(|d| match d {
+                            model::Def::Table { args, .. } => args.len(),
+                            _ => 0,
+                        })
+                        .sum::<usize>(),
+                "{f}: tables share locators"
+            );
+            let ins: Vec<usize> = m
+                .inputs()
+                .iter()
+                .filter_map(|v| m.index_of(&v.id))
+                .collect();
+            let mut plain = vec![0.0; m.variables().len()];
+            for k in 0..200u32 {
+                // Deterministic spread of inputs, incl. far outside table ranges.
+                let set: Vec<(usize, f64)> = ins
+                    .iter()
+                    .enumerate()
+                    .map(|(j, &i)| {
+                        (
+                            i,
+                            ((f64::from(k) * 0.731 + j as f64 * 1.37).sin()) * 60.0 + 1.0,
+                        )
+                    })
+                    .collect();
+                let ids: Vec<(&str, f64)> = set
+                    .iter()
+                    .map(|&(i, x)| (m.variables()[i].id.as_str(), x))
+                    .collect();
+                let cached = m.evaluate(&ids).expect("evaluate");
+                m.compute(&set, &mut plain);
+                for (a, b) in cached.iter().zip(&plain) {
+                    assert_eq!(a.to_bits(), b.to_bits(), "{f}");
+                }
+            }
         }
     }
 }

@@ -61,8 +61,39 @@ pub(crate) enum Def {
     Free,
     /// A MathML `calculation`.
     Calc(Expr),
-    /// The output of a `function`: a table looked up with `args`.
-    Table { table: Table, args: Vec<usize> },
+    /// The output of a `function`: a table looked up with `args`; `locs[k]`
+    /// is the shared [`Locator`] of axis `k`.
+    Table {
+        table: Table,
+        args: Vec<usize>,
+        locs: Vec<usize>,
+    },
+}
+
+/// An input variable located on one axis: shared by every table that looks
+/// the same variable up in the same breakpoints with the same limits and policy.
+#[derive(Debug, Clone)]
+pub(crate) struct Locator {
+    pub var: usize,
+    pub axis: crate::table::Axis,
+}
+
+/// Per-evaluation memo of locator results: `stamp[l] == gen` when `loc[l]` is current.
+#[derive(Debug, Clone)]
+pub(crate) struct LocCache {
+    gen: u64,
+    stamp: Vec<u64>,
+    loc: Vec<Option<(usize, f64)>>,
+}
+
+impl LocCache {
+    pub(crate) fn new(n: usize) -> Self {
+        LocCache {
+            gen: 0,
+            stamp: vec![0; n],
+            loc: vec![None; n],
+        }
+    }
 }
 
 /// A DAVE-ML model ready to evaluate.
@@ -89,6 +120,8 @@ pub struct DaveModel {
     pub(crate) required: Vec<usize>,
     /// Start values: initial values (limited), NaN elsewhere.
     pub(crate) base: Vec<f64>,
+    /// Distinct (variable, axis) lookups shared between tables.
+    pub(crate) locators: Vec<Locator>,
     pub(crate) by_id: HashMap<String, usize>,
     pub(crate) shots: Vec<Shot>,
 }
@@ -211,7 +244,8 @@ impl DaveModel {
         let idx = self.input_indices(inputs.iter().map(|(k, _)| *k))?;
         let mut values = self.base.clone();
         let set: Vec<(usize, f64)> = idx.into_iter().zip(inputs.iter().map(|p| p.1)).collect();
-        self.compute(&set, &mut values);
+        let mut cache = LocCache::new(self.locators.len());
+        self.compute_cached(&set, &mut values, &mut cache);
         Ok(values)
     }
 
@@ -229,9 +263,55 @@ impl DaveModel {
             let y = match &self.defs[i] {
                 Def::Free => continue,
                 Def::Calc(e) => e.eval(values),
-                Def::Table { table, args: a } => match a.as_slice() {
+                Def::Table { table, args: a, .. } => match a.as_slice() {
                     [x] => lookup_1d(table, values[*x]),
                     [x, y] => lookup_2d(table, values[*x], values[*y]),
+                    _ => {
+                        for (k, &j) in a.iter().enumerate() {
+                            args[k] = values[j];
+                        }
+                        table.eval(&args[..a.len()])
+                    }
+                },
+            };
+            values[i] = self.vars[i].limit(y);
+        }
+    }
+
+    /// [`DaveModel::compute`] locating each shared (variable, axis) pair once
+    /// per point; bit-identical results.
+    pub(crate) fn compute_cached(
+        &self,
+        set: &[(usize, f64)],
+        values: &mut [f64],
+        cache: &mut LocCache,
+    ) {
+        values.copy_from_slice(&self.base);
+        for &(i, x) in set {
+            values[i] = self.vars[i].limit(x);
+        }
+        cache.gen += 1;
+        let gen = cache.gen;
+        let mut locate = |l: usize, values: &[f64]| -> Option<(usize, f64)> {
+            if cache.stamp[l] != gen {
+                let lc = &self.locators[l];
+                cache.loc[l] = lc.axis.locate(values[lc.var]);
+                cache.stamp[l] = gen;
+            }
+            cache.loc[l]
+        };
+        let mut args = [0.0f64; MAX_DIMS];
+        for &i in &self.order {
+            let y = match &self.defs[i] {
+                Def::Free => continue,
+                Def::Calc(e) => e.eval(values),
+                Def::Table {
+                    table,
+                    args: a,
+                    locs,
+                } => match locs.as_slice() {
+                    [l] => lerp_1d(table, locate(*l, values)),
+                    [l0, l1] => lerp_2d(table, locate(*l0, values), locate(*l1, values)),
                     _ => {
                         for (k, &j) in a.iter().enumerate() {
                             args[k] = values[j];
@@ -284,12 +364,13 @@ impl DaveModel {
         let mut rows = vec![0.0f64; npts * nout];
         let work = |start: usize, chunk: &mut [f64]| {
             let mut values = vec![0.0f64; self.vars.len()];
+            let mut cache = LocCache::new(self.locators.len());
             let mut set: Vec<(usize, f64)> = idx.iter().map(|&i| (i, 0.0)).collect();
             for (j, row) in chunk.chunks_mut(nout.max(1)).enumerate() {
                 for (s, (_, col)) in set.iter_mut().zip(inputs) {
                     s.1 = col[start + j];
                 }
-                self.compute(&set, &mut values);
+                self.compute_cached(&set, &mut values, &mut cache);
                 for (r, &o) in row.iter_mut().zip(&out_idx) {
                     *r = values[o];
                 }
@@ -311,9 +392,14 @@ impl DaveModel {
 /// [`Table::eval`] for a 1-D table, bit for bit, without its 2^8-corner scratch array.
 #[inline]
 pub(crate) fn lookup_1d(t: &Table, x: f64) -> f64 {
-    let ax = &t.axes()[0];
+    lerp_1d(t, t.axes()[0].locate(x))
+}
+
+/// A 1-D table at a located point `(i, f)` (`None`: NaN input).
+#[inline]
+fn lerp_1d(t: &Table, at: Option<(usize, f64)>) -> f64 {
     let v = t.values();
-    let Some((i, f)) = ax.locate(x) else {
+    let Some((i, f)) = at else {
         return f64::NAN;
     };
     if v.len() == 1 {
@@ -326,8 +412,15 @@ pub(crate) fn lookup_1d(t: &Table, x: f64) -> f64 {
 #[inline]
 pub(crate) fn lookup_2d(t: &Table, x: f64, y: f64) -> f64 {
     let axes = t.axes();
+    lerp_2d(t, axes[0].locate(x), axes[1].locate(y))
+}
+
+/// A 2-D table at located points on both axes.
+#[inline]
+fn lerp_2d(t: &Table, a: Option<(usize, f64)>, b: Option<(usize, f64)>) -> f64 {
+    let axes = t.axes();
     let v = t.values();
-    let (Some((i, f0)), Some((j, f1))) = (axes[0].locate(x), axes[1].locate(y)) else {
+    let (Some((i, f0)), Some((j, f1))) = (a, b) else {
         return f64::NAN;
     };
     let n1 = axes[1].breakpoints().len();

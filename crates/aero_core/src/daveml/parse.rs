@@ -8,7 +8,7 @@ use roxmltree::{Document, Node, ParsingOptions};
 
 use super::check::parse_check_data;
 use super::mathml;
-use super::model::{DaveModel, Def, Variable};
+use super::model::{DaveModel, Def, Locator, Variable};
 use super::{child, elements, parse_numbers, text_of, Source};
 use crate::error::{AeroError, Result};
 use crate::table::{Axis, Extrapolation, Table, MAX_DIMS};
@@ -143,6 +143,7 @@ pub(crate) fn parse(text: &str, file: &str) -> Result<DaveModel> {
     }
 
     let order = topological_order(&src, &vars, &defs, &defined_at)?;
+    let locators = share_locators(&mut defs);
     let mut base = vec![f64::NAN; n];
     let mut required = Vec::new();
     for i in 0..n {
@@ -159,6 +160,7 @@ pub(crate) fn parse(text: &str, file: &str) -> Result<DaveModel> {
         order,
         required,
         base,
+        locators,
         by_id: by_id.clone(),
         shots: Vec::new(),
     };
@@ -166,6 +168,35 @@ pub(crate) fn parse(text: &str, file: &str) -> Result<DaveModel> {
         model.shots = parse_check_data(&src, cd, &model)?;
     }
     Ok(model)
+}
+
+/// One [`Locator`] per distinct (variable, axis) pair among the tables, so a
+/// point locates e.g. alpha in a breakpoint set once for all tables sharing it.
+fn share_locators(defs: &mut [Def]) -> Vec<Locator> {
+    let mut locators: Vec<Locator> = Vec::new();
+    for d in defs.iter_mut() {
+        if let Def::Table { table, args, locs } = d {
+            locs.clear();
+            for (k, &var) in args.iter().enumerate() {
+                let axis = &table.axes()[k];
+                let l = match locators
+                    .iter()
+                    .position(|l| l.var == var && &l.axis == axis)
+                {
+                    Some(l) => l,
+                    None => {
+                        locators.push(Locator {
+                            var,
+                            axis: axis.clone(),
+                        });
+                        locators.len() - 1
+                    }
+                };
+                locs.push(l);
+            }
+        }
+    }
+    locators
 }
 
 fn limit(v: &Variable, x: f64) -> f64 {
@@ -255,7 +286,14 @@ fn function(
             ));
         }
         let table = Table::new(axes, values).map_err(|e| src.err(dep_pts, e.to_string()))?;
-        return Ok((dep, Def::Table { table, args }));
+        return Ok((
+            dep,
+            Def::Table {
+                table,
+                args,
+                locs: Vec::new(),
+            },
+        ));
     }
 
     let mut ivs = Vec::new();
@@ -350,7 +388,14 @@ fn function(
         child(table_node, "dataTable").ok_or_else(|| src.err(table_node, "has no <dataTable>"))?;
     let values = parse_numbers(src, data)?;
     let table = Table::new(axes, values).map_err(|e| src.err(table_node, e.to_string()))?;
-    Ok((dep, Def::Table { table, args }))
+    Ok((
+        dep,
+        Def::Table {
+            table,
+            args,
+            locs: Vec::new(),
+        },
+    ))
 }
 
 fn dependencies(def: &Def) -> Vec<usize> {
