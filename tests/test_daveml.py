@@ -284,6 +284,7 @@ def test_good_reference_file_passes(tmp_path: Path) -> None:
 
 def test_evaluate_errors_are_invalid_input(daveml_dir: Path) -> None:
     m = load_daveml(daveml_dir / "tables.dml")
+    assert m.name == "tables.dml"  # no fileHeader name: the file name
     with pytest.raises(aerodelta.InvalidInputError, match="input 'in3'"):
         m.evaluate({"in1": [0.0], "in2": [0.0]})
     with pytest.raises(aerodelta.InvalidInputError, match="'bogus'"):

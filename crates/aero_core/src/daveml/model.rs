@@ -149,7 +149,8 @@ impl DaveModel {
         super::parse::parse(text, name)
     }
 
-    /// The model's name: the `fileHeader` `name` attribute, else the file name.
+    /// The model's name: the `fileHeader` `name` attribute, else the file name
+    /// (without its folder).
     pub fn name(&self) -> &str {
         &self.name
     }

@@ -49,7 +49,14 @@ pub(crate) fn parse(text: &str, file: &str) -> Result<DaveModel> {
     }
     let name = child(root, "fileHeader")
         .and_then(|h| h.attribute("name"))
-        .map_or_else(|| file.to_string(), str::to_string);
+        .map_or_else(
+            || {
+                std::path::Path::new(file)
+                    .file_name()
+                    .map_or_else(|| file.to_string(), |f| f.to_string_lossy().into_owned())
+            },
+            str::to_string,
+        );
 
     // Variables.
     let mut vars = Vec::new();
