@@ -3,6 +3,7 @@ files and the project's own example model (round trip)."""
 
 from __future__ import annotations
 
+import doctest
 import json
 import math
 import xml.etree.ElementTree as ET
@@ -14,6 +15,7 @@ import pytest
 from scipy.interpolate import RegularGridInterpolator
 
 import aerodelta
+import aerodelta.daveml
 from aerodelta import cli
 from aerodelta.daveml import (
     check_daveml,
@@ -371,3 +373,19 @@ def test_core_binding_takes_and_returns_dicts(daveml_dir: Path) -> None:
     assert isinstance(out["out1t"], np.ndarray)
     assert out["out1t"][:2].tolist() == [11111.0, 22222.0]
     assert core.evaluate(x, ["in3"])["in3"].tolist() == [1.0, 2.0, 1.5]
+
+
+def test_docstring_examples_run() -> None:
+    result = doctest.testmod(aerodelta.daveml, raise_on_error=False)
+    assert result.attempted > 0 and result.failed == 0
+
+
+def test_cli_internal_flag_lists_internal_values(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "e.dml"
+    write_example_model(out)
+    assert cli.main(["check-daveml", str(out), "--internal"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    internal = [ln for ln in lines if " internal " in ln and ln.endswith("pass")]
+    assert len(internal) == 9 * 19  # 6 inputs + 10 tables + 3 outputs per shot
