@@ -14,6 +14,11 @@ def _shared_daveml() -> Path:
     env = os.environ.get("AERODELTA_SHARED_DAVEML")
     if env:
         return Path(env)
+    # ../shared/data/daveml in the main checkout; further up from a nested worktree.
+    for base in ROOT.parents:
+        d = base / "shared" / "data" / "daveml"
+        if d.is_dir():
+            return d
     return ROOT.parent / "shared" / "data" / "daveml"
 
 

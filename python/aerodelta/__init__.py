@@ -7,6 +7,13 @@ this package handles files, schemas, units, orchestration, reports and the CLI.
 from __future__ import annotations
 
 from aerodelta._core import __version__
+from aerodelta.daveml import (
+    DaveModel,
+    check_daveml,
+    load_daveml,
+    write_daveml,
+    write_example_model,
+)
 from aerodelta.exceptions import (
     AerodeltaError,
     AeroIOError,
@@ -27,6 +34,7 @@ __all__ = [
     "AerodeltaError",
     "AlphaBins",
     "DataError",
+    "DaveModel",
     "DeltaModel",
     "InvalidInputError",
     "NoConvergenceError",
@@ -36,6 +44,10 @@ __all__ = [
     "Table",
     "TooLittleDataError",
     "__version__",
+    "check_daveml",
+    "load_daveml",
     "partition_alpha",
     "smoothing_spline",
+    "write_daveml",
+    "write_example_model",
 ]

@@ -9,17 +9,20 @@
 //! One concept per module:
 //! - [`table`]: gridded N-D lookup tables, hold or linear extrapolation, a
 //!   batch path and an allocation-free single-point path;
+//! - [`daveml`]: DAVE-ML (AIAA S-119) models: read, evaluate, run their check
+//!   cases, and write models with self-generated check cases;
+//! - [`spline`]: cubic smoothing splines with MATLAB `csaps` semantics (Eq. 3.13);
+//! - [`partition`]: alpha partitioning into bins of enough points (Section 3.3.1);
 //! - [`regressor`]: the expression language of Δ-model regressors
 //!   (dead-band splines of Eq. 3.15-3.16, products, user columns);
 //! - [`delta_model`]: the Δ part of the extended model (Eq. 3.11-3.12, 3.19),
 //!   its versioned file and an allocation-free bound evaluation;
-//! - [`fsutil`]: atomic writes;
 //! - [`rolloff_detect`]: detection of uncommanded roll-off events (Section 3.4.3);
-//! - [`spline`]: cubic smoothing splines with MATLAB `csaps` semantics (Eq. 3.13);
-//! - [`partition`]: alpha partitioning into bins of enough points (Section 3.3.1);
+//! - [`fsutil`]: atomic writes;
 //! - [`error`]: the error kinds every module returns.
 #![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used))]
 
+pub mod daveml;
 pub mod delta_model;
 pub mod error;
 pub mod fsutil;

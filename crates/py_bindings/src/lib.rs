@@ -5,6 +5,7 @@
 
 use pyo3::prelude::*;
 
+mod daveml;
 mod delta_model;
 mod error;
 mod partition;
@@ -20,5 +21,6 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     delta_model::register(m)?;
     spline::register(m)?;
     partition::register(m)?;
+    daveml::register(m)?;
     Ok(())
 }

@@ -22,6 +22,10 @@ def _register(name: str, module: str) -> None:
     COMMANDS[name] = module
 
 
+_register("check-daveml", "check_daveml")
+_register("write-example-model", "write_example_model")
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser with every registered subcommand."""
     parser = argparse.ArgumentParser(

@@ -1,0 +1,628 @@
+//! Write a model as DAVE-ML: input variables (units, limits), gridded tables
+//! (one `breakpointDef` per distinct axis, a `function` with an inline
+//! `griddedTableDef` per table) and outputs that are MathML sums of products,
+//! $y = \sum_k c_k \prod_j x_{kj}$. The `checkData` static shots are generated
+//! by evaluating the model itself at the spec's check points, so any DAVE-ML
+//! tool can verify the file; every variable's value is listed as an
+//! `internalValues` entry. The write is atomic (temporary file in the same
+//! folder, then rename).
+
+use std::collections::BTreeMap;
+use std::fmt::Write as _;
+use std::path::Path;
+
+use serde::{Deserialize, Serialize};
+
+use super::model::DaveModel;
+use crate::error::{AeroError, Result};
+
+fn default_units() -> String {
+    "nd".to_string()
+}
+fn default_tol() -> f64 {
+    1e-9
+}
+fn one() -> f64 {
+    1.0
+}
+
+/// A model to write.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ModelSpec {
+    /// Model name (`fileHeader name`).
+    pub name: String,
+    /// Free text for the file header.
+    #[serde(default)]
+    pub description: String,
+    /// Author written in the header (default "aerodelta").
+    #[serde(default)]
+    pub author: String,
+    /// ISO date of the file (default: today, UTC).
+    #[serde(default)]
+    pub date: Option<String>,
+    /// Input variables.
+    pub inputs: Vec<InputSpec>,
+    /// Gridded tables, each defining one variable.
+    #[serde(default)]
+    pub tables: Vec<TableSpec>,
+    /// Output variables: sums of products of other variables.
+    pub outputs: Vec<OutputSpec>,
+    /// Points at which check cases are generated.
+    #[serde(default)]
+    pub checks: Vec<CheckPoint>,
+    /// Tolerance written on every generated check output.
+    #[serde(default = "default_tol")]
+    pub check_tolerance: f64,
+}
+
+/// An input variable.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct InputSpec {
+    /// `varID`.
+    pub id: String,
+    /// `name` (default: the id).
+    #[serde(default)]
+    pub name: String,
+    /// Units, DAVE-ML style (`deg`, `nd`, `rad_s`).
+    #[serde(default = "default_units")]
+    pub units: String,
+    #[serde(default)]
+    pub description: String,
+    /// Lower limit (`minValue`, also the tables' `independentVarRef min`).
+    #[serde(default)]
+    pub min: Option<f64>,
+    /// Upper limit (`maxValue`, also the tables' `independentVarRef max`).
+    #[serde(default)]
+    pub max: Option<f64>,
+    /// Default value when a caller does not give one.
+    #[serde(default)]
+    pub initial: Option<f64>,
+}
+
+/// DAVE-ML `extrapolate`: where a table continues its end slopes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Extrapolate {
+    /// Hold the end values (the default).
+    #[default]
+    Neither,
+    /// Linear below the first breakpoint.
+    Min,
+    /// Linear above the last breakpoint.
+    Max,
+    /// Linear on both sides.
+    Both,
+}
+
+impl Extrapolate {
+    fn as_str(self) -> &'static str {
+        match self {
+            Extrapolate::Neither => "neither",
+            Extrapolate::Min => "min",
+            Extrapolate::Max => "max",
+            Extrapolate::Both => "both",
+        }
+    }
+}
+
+/// A gridded table defining variable `id` from variables `args`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TableSpec {
+    /// `varID` of the variable the table defines.
+    pub id: String,
+    #[serde(default)]
+    pub name: String,
+    #[serde(default = "default_units")]
+    pub units: String,
+    #[serde(default)]
+    pub description: String,
+    /// `varID`s of the independent variables, one per axis.
+    pub args: Vec<String>,
+    /// Strictly increasing breakpoints per axis.
+    pub breakpoints: Vec<Vec<f64>>,
+    /// Values, row-major with the last axis fastest.
+    pub values: Vec<f64>,
+    /// Extrapolation on every axis.
+    #[serde(default)]
+    pub extrapolate: Extrapolate,
+    /// Also flag the table's variable `isOutput`.
+    #[serde(default)]
+    pub is_output: bool,
+}
+
+/// One product term $c \prod_j x_j$ of an output.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Term {
+    #[serde(default = "one")]
+    pub coef: f64,
+    /// `varID`s multiplied together (empty: the constant `coef`).
+    #[serde(default)]
+    pub factors: Vec<String>,
+}
+
+/// An output variable $y = \sum_k c_k \prod_j x_{kj}$.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct OutputSpec {
+    pub id: String,
+    #[serde(default)]
+    pub name: String,
+    #[serde(default = "default_units")]
+    pub units: String,
+    #[serde(default)]
+    pub description: String,
+    pub terms: Vec<Term>,
+}
+
+/// A point where a check case is generated: input `varID` -> value (inputs not
+/// given take their `initial`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CheckPoint {
+    pub name: String,
+    pub inputs: BTreeMap<String, f64>,
+}
+
+impl ModelSpec {
+    /// Read a spec from JSON (the Python bindings pass it this way).
+    ///
+    /// # Errors
+    /// [`AeroError::InvalidInput`] naming the JSON problem (field, line, column).
+    pub fn from_json(text: &str) -> Result<Self> {
+        serde_json::from_str(text)
+            .map_err(|e| AeroError::invalid("model spec (JSON)", e.to_string()))
+    }
+
+    fn validate(&self) -> Result<()> {
+        let mut known: Vec<&str> = Vec::new();
+        let place = |what: &str, id: &str| format!("model spec '{}', {what} '{id}'", self.name);
+        let declare = |what: &str, id: &str, known: &mut Vec<&str>| -> Result<()> {
+            if id.is_empty()
+                || !id.chars().all(|c| c.is_ascii_alphanumeric() || c == '_')
+                || id.starts_with(|c: char| c.is_ascii_digit())
+            {
+                return Err(AeroError::invalid(
+                    place(what, id),
+                    "ids must be non-empty, letters, digits and '_', not starting with a digit",
+                ));
+            }
+            if known.contains(&id) {
+                return Err(AeroError::invalid(
+                    place(what, id),
+                    "is declared twice; ids must be unique",
+                ));
+            }
+            Ok(())
+        };
+        for i in &self.inputs {
+            declare("input", &i.id, &mut known)?;
+            known.push(&i.id);
+            if let (Some(lo), Some(hi)) = (i.min, i.max) {
+                if lo > hi {
+                    return Err(AeroError::invalid(
+                        place("input", &i.id),
+                        format!("min {lo} exceeds max {hi}"),
+                    ));
+                }
+            }
+        }
+        for t in &self.tables {
+            declare("table", &t.id, &mut known)?;
+            if t.args.len() != t.breakpoints.len() {
+                return Err(AeroError::invalid(
+                    place("table", &t.id),
+                    format!(
+                        "has {} args but {} breakpoint lists; give one per axis",
+                        t.args.len(),
+                        t.breakpoints.len()
+                    ),
+                ));
+            }
+            for a in &t.args {
+                if !known.contains(&a.as_str()) {
+                    return Err(AeroError::invalid(
+                        place("table", &t.id),
+                        format!("argument '{a}' is not an input or an earlier table"),
+                    ));
+                }
+            }
+            if let Some(k) = t.values.iter().position(|v| !v.is_finite()) {
+                return Err(AeroError::invalid(
+                    place("table", &t.id),
+                    format!("value {k} is {}; values must be finite", t.values[k]),
+                ));
+            }
+            let axes = t
+                .args
+                .iter()
+                .zip(&t.breakpoints)
+                .map(|(a, b)| crate::table::Axis::new(a.clone(), b.clone()))
+                .collect::<Result<Vec<_>>>()
+                .map_err(|e| e.context(place("table", &t.id)))?;
+            crate::table::Table::new(axes, t.values.clone())
+                .map_err(|e| e.context(place("table", &t.id)))?;
+            known.push(&t.id);
+        }
+        for o in &self.outputs {
+            declare("output", &o.id, &mut known)?;
+            for term in &o.terms {
+                if !term.coef.is_finite() {
+                    return Err(AeroError::invalid(
+                        place("output", &o.id),
+                        "term coefficients must be finite",
+                    ));
+                }
+                for f in &term.factors {
+                    if !known.contains(&f.as_str()) {
+                        return Err(AeroError::invalid(
+                            place("output", &o.id),
+                            format!("factor '{f}' is not an input, a table or an earlier output"),
+                        ));
+                    }
+                }
+            }
+            known.push(&o.id);
+        }
+        if self.check_tolerance.is_nan() || self.check_tolerance < 0.0 {
+            return Err(AeroError::invalid(
+                place("check_tolerance", ""),
+                "must be a non-negative number",
+            ));
+        }
+        Ok(())
+    }
+}
+
+fn esc(s: &str) -> String {
+    let mut o = String::with_capacity(s.len());
+    for c in s.chars() {
+        match c {
+            '&' => o.push_str("&amp;"),
+            '<' => o.push_str("&lt;"),
+            '>' => o.push_str("&gt;"),
+            '"' => o.push_str("&quot;"),
+            _ => o.push(c),
+        }
+    }
+    o
+}
+
+/// Shortest text that reads back as the same `f64`.
+fn num(x: f64) -> String {
+    format!("{x:?}")
+}
+
+fn or<'a>(a: &'a str, b: &'a str) -> &'a str {
+    if a.is_empty() {
+        b
+    } else {
+        a
+    }
+}
+
+/// Today's date (UTC) as `YYYY-MM-DD` (H. Hinnant's civil-from-days algorithm).
+fn today() -> String {
+    let secs = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| d.as_secs());
+    let z = (secs / 86_400) as i64 + 719_468;
+    let era = z.div_euclid(146_097);
+    let doe = z - era * 146_097;
+    let yoe = (doe - doe / 1460 + doe / 36_524 - doe / 146_096) / 365;
+    let doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
+    let mp = (5 * doy + 2) / 153;
+    let d = doy - (153 * mp + 2) / 5 + 1;
+    let m = if mp < 10 { mp + 3 } else { mp - 9 };
+    let y = yoe + era * 400 + i64::from(m <= 2);
+    format!("{y:04}-{m:02}-{d:02}")
+}
+
+fn body(spec: &ModelSpec) -> String {
+    let mut x = String::new();
+    let _ = writeln!(x, "<?xml version=\"1.0\" encoding=\"UTF-8\"?>");
+    let _ = writeln!(x, "<!DOCTYPE DAVEfunc PUBLIC \"-//AIAA//DTD for Flight Dynamic Models - Functions 2.0//EN\"\n  \"http://www.daveml.org/DTDs/2p0/DAVEfunc.dtd\">");
+    let _ = writeln!(x, "<DAVEfunc xmlns=\"http://daveml.org/2010/DAVEML\">");
+    let _ = writeln!(x, "  <fileHeader name=\"{}\">", esc(&spec.name));
+    let _ = writeln!(
+        x,
+        "    <author name=\"{}\" org=\"aerodelta\"/>",
+        esc(or(&spec.author, "aerodelta"))
+    );
+    let date = spec.date.clone().unwrap_or_else(today);
+    let _ = writeln!(x, "    <creationDate date=\"{}\"/>", esc(&date));
+    let _ = writeln!(
+        x,
+        "    <fileVersion>written by aerodelta {}</fileVersion>",
+        env!("CARGO_PKG_VERSION")
+    );
+    if !spec.description.is_empty() {
+        let _ = writeln!(
+            x,
+            "    <description>{}</description>",
+            esc(&spec.description)
+        );
+    }
+    let _ = writeln!(x, "  </fileHeader>");
+
+    for i in &spec.inputs {
+        let mut attrs = format!(
+            "name=\"{}\" varID=\"{}\" units=\"{}\"",
+            esc(or(&i.name, &i.id)),
+            esc(&i.id),
+            esc(&i.units)
+        );
+        if let Some(v) = i.initial {
+            let _ = write!(attrs, " initialValue=\"{}\"", num(v));
+        }
+        if let Some(v) = i.min {
+            let _ = write!(attrs, " minValue=\"{}\"", num(v));
+        }
+        if let Some(v) = i.max {
+            let _ = write!(attrs, " maxValue=\"{}\"", num(v));
+        }
+        let _ = writeln!(x, "  <variableDef {attrs}>");
+        if !i.description.is_empty() {
+            let _ = writeln!(x, "    <description>{}</description>", esc(&i.description));
+        }
+        let _ = writeln!(x, "    <isInput/>\n  </variableDef>");
+    }
+    for t in &spec.tables {
+        let _ = writeln!(
+            x,
+            "  <variableDef name=\"{}\" varID=\"{}\" units=\"{}\">",
+            esc(or(&t.name, &t.id)),
+            esc(&t.id),
+            esc(&t.units)
+        );
+        if !t.description.is_empty() {
+            let _ = writeln!(x, "    <description>{}</description>", esc(&t.description));
+        }
+        if t.is_output {
+            let _ = writeln!(x, "    <isOutput/>");
+        }
+        let _ = writeln!(x, "  </variableDef>");
+    }
+    for o in &spec.outputs {
+        let _ = writeln!(
+            x,
+            "  <variableDef name=\"{}\" varID=\"{}\" units=\"{}\">",
+            esc(or(&o.name, &o.id)),
+            esc(&o.id),
+            esc(&o.units)
+        );
+        if !o.description.is_empty() {
+            let _ = writeln!(x, "    <description>{}</description>", esc(&o.description));
+        }
+        let _ = writeln!(
+            x,
+            "    <calculation>\n      <math xmlns=\"http://www.w3.org/1998/Math/MathML\">"
+        );
+        let _ = writeln!(x, "{}", sum_of_products(&o.terms, "        "));
+        let _ = writeln!(
+            x,
+            "      </math>\n    </calculation>\n    <isOutput/>\n  </variableDef>"
+        );
+    }
+
+    // One breakpointDef per distinct (variable, breakpoints).
+    let mut bps: Vec<(String, &str, &Vec<f64>)> = Vec::new();
+    let mut table_bps: Vec<Vec<String>> = Vec::new();
+    for t in &spec.tables {
+        let mut ids = Vec::new();
+        for (a, b) in t.args.iter().zip(&t.breakpoints) {
+            let found = bps
+                .iter()
+                .find(|(_, va, vb)| *va == a.as_str() && *vb == b)
+                .map(|e| e.0.clone());
+            let id = found.unwrap_or_else(|| {
+                let k = bps.iter().filter(|(_, va, _)| *va == a.as_str()).count();
+                let id = if k == 0 {
+                    format!("{a}_bp")
+                } else {
+                    format!("{a}_bp{}", k + 1)
+                };
+                bps.push((id.clone(), a.as_str(), b));
+                id
+            });
+            ids.push(id);
+        }
+        table_bps.push(ids);
+    }
+    let units_of = |id: &str| -> String {
+        spec.inputs
+            .iter()
+            .find(|i| i.id == id)
+            .map(|i| i.units.clone())
+            .or_else(|| {
+                spec.tables
+                    .iter()
+                    .find(|t| t.id == id)
+                    .map(|t| t.units.clone())
+            })
+            .unwrap_or_default()
+    };
+    for (id, var, vals) in &bps {
+        let _ = writeln!(
+            x,
+            "  <breakpointDef name=\"{}\" bpID=\"{}\" units=\"{}\">",
+            esc(id),
+            esc(id),
+            esc(&units_of(var))
+        );
+        let v: Vec<String> = vals.iter().map(|&b| num(b)).collect();
+        let _ = writeln!(
+            x,
+            "    <bpVals>{}</bpVals>\n  </breakpointDef>",
+            v.join(", ")
+        );
+    }
+    for (t, ids) in spec.tables.iter().zip(&table_bps) {
+        let _ = writeln!(x, "  <function name=\"{}\">", esc(or(&t.name, &t.id)));
+        for a in &t.args {
+            let mut attrs = format!("varID=\"{}\"", esc(a));
+            if let Some(i) = spec.inputs.iter().find(|i| &i.id == a) {
+                if let Some(v) = i.min {
+                    let _ = write!(attrs, " min=\"{}\"", num(v));
+                }
+                if let Some(v) = i.max {
+                    let _ = write!(attrs, " max=\"{}\"", num(v));
+                }
+            }
+            let _ = writeln!(
+                x,
+                "    <independentVarRef {attrs} extrapolate=\"{}\"/>",
+                t.extrapolate.as_str()
+            );
+        }
+        let _ = writeln!(x, "    <dependentVarRef varID=\"{}\"/>", esc(&t.id));
+        let _ = writeln!(x, "    <functionDefn name=\"{}_fn\">", esc(&t.id));
+        let _ = writeln!(
+            x,
+            "      <griddedTableDef name=\"{0}_table\" gtID=\"{0}_table\">",
+            esc(&t.id)
+        );
+        let _ = writeln!(x, "        <breakpointRefs>");
+        for id in ids {
+            let _ = writeln!(x, "          <bpRef bpID=\"{}\"/>", esc(id));
+        }
+        let _ = writeln!(x, "        </breakpointRefs>\n        <dataTable> <!-- last breakpoint varies fastest -->");
+        let row = t.breakpoints.last().map_or(1, |b| b.len().max(1));
+        for chunk in t.values.chunks(row) {
+            let v: Vec<String> = chunk.iter().map(|&b| num(b)).collect();
+            let _ = writeln!(x, "          {}", v.join(", "));
+        }
+        let _ = writeln!(
+            x,
+            "        </dataTable>\n      </griddedTableDef>\n    </functionDefn>\n  </function>"
+        );
+    }
+    x
+}
+
+fn sum_of_products(terms: &[Term], ind: &str) -> String {
+    let term = |t: &Term, ind: &str| -> String {
+        let mut parts: Vec<String> = Vec::new();
+        if t.coef != 1.0 || t.factors.is_empty() {
+            parts.push(format!("<cn>{}</cn>", num(t.coef)));
+        }
+        parts.extend(t.factors.iter().map(|f| format!("<ci>{}</ci>", esc(f))));
+        if parts.len() == 1 {
+            format!("{ind}{}", parts[0])
+        } else {
+            format!("{ind}<apply><times/>{}</apply>", parts.join(""))
+        }
+    };
+    match terms {
+        [] => format!("{ind}<cn>0</cn>"),
+        [one] => term(one, ind),
+        many => {
+            let inner: Vec<String> = many.iter().map(|t| term(t, &format!("{ind}  "))).collect();
+            format!(
+                "{ind}<apply>\n{ind}  <plus/>\n{}\n{ind}</apply>",
+                inner.join("\n")
+            )
+        }
+    }
+}
+
+/// The DAVE-ML text of `spec`, with check cases generated by evaluating it.
+///
+/// # Errors
+/// [`AeroError::InvalidInput`] naming the spec element at fault (duplicate or
+/// unknown ids, table shape, non-increasing breakpoints, a check point missing
+/// an input).
+pub fn to_xml(spec: &ModelSpec) -> Result<String> {
+    spec.validate()?;
+    let mut x = body(spec);
+    if !spec.checks.is_empty() {
+        let model = DaveModel::from_str(&format!("{x}</DAVEfunc>\n"), &spec.name)?;
+        let vars = model.variables();
+        let _ = writeln!(x, "  <checkData>");
+        for cp in &spec.checks {
+            let given: Vec<(&str, f64)> = cp.inputs.iter().map(|(k, v)| (k.as_str(), *v)).collect();
+            let values = model.evaluate(&given).map_err(|e| {
+                e.context(format!(
+                    "model spec '{}', check point '{}'",
+                    spec.name, cp.name
+                ))
+            })?;
+            let _ = writeln!(
+                x,
+                "    <staticShot name=\"{}\">\n      <checkInputs>",
+                esc(&cp.name)
+            );
+            for i in &spec.inputs {
+                let Some(k) = model.index_of(&i.id) else {
+                    continue;
+                };
+                let _ = writeln!(
+                    x,
+                    "        <signal> <signalName>{}</signalName> <signalUnits>{}</signalUnits> <signalValue>{}</signalValue> </signal>",
+                    esc(&vars[k].name), esc(&vars[k].units), num(cp.inputs.get(&i.id).copied().unwrap_or(values[k]))
+                );
+            }
+            let _ = writeln!(x, "      </checkInputs>\n      <internalValues>");
+            for (k, v) in vars.iter().enumerate() {
+                let _ = writeln!(
+                    x,
+                    "        <signal> <varID>{}</varID> <signalValue>{}</signalValue> </signal>",
+                    esc(&v.id),
+                    num(values[k])
+                );
+            }
+            let _ = writeln!(x, "      </internalValues>\n      <checkOutputs>");
+            for (k, v) in vars.iter().enumerate().filter(|(_, v)| v.is_output) {
+                let _ = writeln!(
+                    x,
+                    "        <signal> <signalName>{}</signalName> <signalUnits>{}</signalUnits> <signalValue>{}</signalValue> <tol>{}</tol> </signal>",
+                    esc(&v.name), esc(&v.units), num(values[k]), num(spec.check_tolerance)
+                );
+            }
+            let _ = writeln!(x, "      </checkOutputs>\n    </staticShot>");
+        }
+        let _ = writeln!(x, "  </checkData>");
+    }
+    x.push_str("</DAVEfunc>\n");
+    Ok(x)
+}
+
+/// Write `spec` to `path` atomically (`path.tmp-<pid>`, then rename) and return
+/// the model read back from the written text, its checks verified.
+///
+/// # Errors
+/// As [`to_xml`]; [`AeroError::Io`] when the file cannot be written;
+/// [`AeroError::InvalidInput`] if the written file fails its own checks.
+pub fn write_model(spec: &ModelSpec, path: &Path) -> Result<DaveModel> {
+    let text = to_xml(spec)?;
+    let model = DaveModel::from_str(&text, &path.display().to_string())?;
+    if let Some(bad) = model.run_checks().into_iter().find(|r| !r.pass) {
+        return Err(AeroError::invalid(
+            format!(
+                "model spec '{}', shot '{}', variable '{}'",
+                spec.name, bad.shot, bad.var_id
+            ),
+            format!(
+                "the written model gives {} where its check expects {}",
+                bad.actual, bad.expected
+            ),
+        ));
+    }
+    let file_name = path.file_name().ok_or_else(|| {
+        AeroError::invalid(format!("output path '{}'", path.display()), "names no file")
+    })?;
+    let tmp = path.with_file_name(format!(
+        "{}.tmp-{}",
+        file_name.to_string_lossy(),
+        std::process::id()
+    ));
+    std::fs::write(&tmp, text.as_bytes()).map_err(|e| AeroError::io(&tmp, e))?;
+    if let Err(e) = std::fs::rename(&tmp, path) {
+        let _ = std::fs::remove_file(&tmp);
+        return Err(AeroError::io(path, e));
+    }
+    Ok(model)
+}
