@@ -9,10 +9,16 @@
 //! One concept per module:
 //! - [`table`]: gridded N-D lookup tables, hold or linear extrapolation, a
 //!   batch path and an allocation-free single-point path;
+//! - [`sim`]: the 6-DOF simulator (Eq. 3.1), pilot, sensors and campaign generator;
+//! - [`aircraft`]: the representative turboprop, its qualified and truth models;
+//! - [`rolloff`]: the stochastic roll-off of Section 3.4.3;
 //! - [`error`]: the error kinds every module returns.
 #![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used))]
 
+pub mod aircraft;
 pub mod error;
+pub mod rolloff;
+pub mod sim;
 pub mod table;
 
 pub use error::{AeroError, ErrorKind, Result, ResultExt};
