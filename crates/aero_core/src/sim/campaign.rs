@@ -160,12 +160,12 @@ fn engine_spec(ac: &AircraftRef) -> EngineSpec {
     }
 }
 
-fn actuators(de0: f64) -> [Actuator; 5] {
+fn actuators(c0: &Controls) -> [Actuator; 5] {
     let d = f64::to_radians;
     [
-        Actuator::new(0.06, d(60.0), d(-20.0), d(20.0), 0.0),
-        Actuator::new(0.06, d(40.0), d(-22.0), d(18.0), de0),
-        Actuator::new(0.08, d(40.0), d(-25.0), d(25.0), 0.0),
+        Actuator::new(0.06, d(60.0), d(-20.0), d(20.0), c0.da),
+        Actuator::new(0.06, d(40.0), d(-22.0), d(18.0), c0.de),
+        Actuator::new(0.08, d(40.0), d(-25.0), d(25.0), c0.dr),
         Actuator::new(0.05, d(90.0), 0.0, d(45.0), 0.0),
         Actuator::new(0.05, d(90.0), 0.0, d(45.0), 0.0),
     ]
@@ -223,8 +223,9 @@ pub fn run_maneuver(
     };
     let mut model = TruthAero::new(qual.at_flap(m.flap_deg)?, effects.to_vec(), rolloff);
     let mut sim = Simulator::new(ac.clone(), m.flap_deg, nalgebra::SVector::zeros(), dt);
-    let (x0, de0, t_each) = trim(&sim, &model, v0, h0).context(format!("maneuver {}", m.index))?;
-    sim.x = x0;
+    let tr = trim(&sim, &model, v0, h0).context(format!("maneuver {}", m.index))?;
+    let t_each = tr.thrust_n;
+    sim.x = tr.x;
     let sigma = air0.density_kgm3 / 1.225;
     let espec = engine_spec(&ac);
     let probe = Engine::settled(espec, 0.0, sigma);
@@ -279,7 +280,7 @@ pub fn run_maneuver(
         stream::PILOT,
     );
     let mut pusher = m.pusher.then(|| Pusher::new(stall.alpha_max_deg - 1.0));
-    let mut acts = actuators(de0);
+    let mut acts = actuators(&tr.controls);
     let sig = spec.turbulence_mps;
     let mut gusts = Dryden::new([sig, sig, sig], m.seed, stream::GUST);
 
@@ -289,10 +290,7 @@ pub fn run_maneuver(
     let mut eff_rows: Vec<[f64; 3]> = Vec::with_capacity((max_steps / decim + 2) * effects.len());
     let mut contrib = vec![[0.0; 3]; effects.len()];
     let (mut max_alpha, mut n_at, mut max_bank) = (f64::NEG_INFINITY, 1.0, 0.0f64);
-    let mut surfaces = Controls {
-        de: de0,
-        ..Controls::default()
-    };
+    let mut surfaces = tr.controls;
     for step in 0..max_steps {
         let ad = sim.air(&sim.x);
         let thrust = [engines[0].thrust(ad.tas), engines[1].thrust(ad.tas)];
