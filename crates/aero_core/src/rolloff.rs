@@ -234,6 +234,26 @@ impl RollOff {
     }
 }
 
+/// `n` successive draws of a fresh generator (for statistics and the Python API).
+///
+/// # Errors
+/// When the configuration is invalid.
+pub fn sample_draws(
+    config: &RollOffConfig,
+    flap_deg: f64,
+    seed: u64,
+    stream: u64,
+    n: usize,
+) -> Result<Vec<RollOffDraw>> {
+    let mut r = RollOff::new(config.clone(), flap_deg, seed, stream)?;
+    let mut out = Vec::with_capacity(n);
+    out.push(r.current());
+    for i in 1..n {
+        out.push(r.redraw(i as f64));
+    }
+    Ok(out)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

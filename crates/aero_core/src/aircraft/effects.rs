@@ -469,6 +469,54 @@ impl MeasurementEffects {
     }
 }
 
+/// The effect library as JSON: aerodynamic effects with their terms, design
+/// values, per-flap factors and default alpha shapes, then the measurement
+/// effects and the roll-off with their design magnitudes.
+pub fn library_json() -> String {
+    let mut items: Vec<serde_json::Value> = Vec::new();
+    for name in AERO_EFFECTS {
+        if let Ok(e) = effect(name) {
+            let (lo, hi) = e.shape.support();
+            items.push(serde_json::json!({
+                "name": e.name, "kind": "aerodynamic", "description": e.description,
+                "terms": e.terms, "flap_factor": e.flap_factor, "shape": e.shape,
+                "alpha_range_deg": [lo, hi],
+            }));
+        }
+    }
+    let meas = [
+        ("alpha_vane_bias", "alpha vane bias, 0.5 deg", "alpha_deg"),
+        ("beta_vane_bias", "beta vane bias, 0.5 deg", "beta_deg"),
+        (
+            "accelerometer_offset",
+            "accelerometer 0.3 m right, 0.4 m down of its declared position",
+            "ay_mps2, az_mps2",
+        ),
+        (
+            "control_lag",
+            "recorded controls lead the acting ones by 0.10 s",
+            "da_deg, de_deg, dr_deg, dsl_deg, dsr_deg",
+        ),
+        (
+            "time_skew",
+            "air data recorded 0.04 s late",
+            "alpha_deg, beta_deg, tas_mps",
+        ),
+    ];
+    for (name, description, channels) in meas {
+        items.push(serde_json::json!({
+            "name": name, "kind": "measurement", "description": description, "channels": channels,
+        }));
+    }
+    items.push(serde_json::json!({
+        "name": "stochastic_rolloff", "kind": "stochastic",
+        "description": "Gaussian-in-alpha roll-off spike, thesis Section 3.4.3 and Table 3.2",
+        "config": crate::rolloff::RollOffConfig::default(),
+        "alpha_range_deg": [15.0, 22.0],
+    }));
+    serde_json::Value::Array(items).to_string()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -121,6 +121,29 @@ pub struct ManeuverResult {
     pub max_bank_deg: f64,
 }
 
+impl CampaignSpec {
+    /// Parse a specification from JSON (missing fields take their defaults).
+    ///
+    /// # Errors
+    /// [`AeroError::Parse`] naming the JSON line and the problem.
+    pub fn from_json(text: &str) -> Result<Self> {
+        serde_json::from_str(text)
+            .map_err(|e| AeroError::parse("campaign spec (JSON)", e.line(), e.to_string()))
+    }
+
+    /// The specification as JSON.
+    pub fn to_json(&self) -> String {
+        serde_json::to_string(self).unwrap_or_default()
+    }
+}
+
+impl ManeuverResult {
+    /// Metadata (everything but the columns) as JSON.
+    pub fn meta_json(&self) -> String {
+        serde_json::to_string(self).unwrap_or_default()
+    }
+}
+
 /// The list of maneuvers of a campaign.
 pub fn plan(spec: &CampaignSpec) -> Vec<ManeuverPlan> {
     let mut out = Vec::new();
@@ -501,6 +524,71 @@ pub fn run_campaign(spec: &CampaignSpec) -> Result<Vec<ManeuverResult>> {
     #[cfg(not(feature = "parallel"))]
     let results: Vec<Result<ManeuverResult>> = plans.iter().map(run).collect();
     results.into_iter().collect()
+}
+
+/// Replay recorded controls (deg) and thrust coefficients on the ADX-37 from
+/// state `x0`: the qualified model when `effects` is empty, else the truth
+/// model with those effects and, when `rolloff_seed` is given, the roll-off.
+/// Returns the 12 states at each step (n + 1 rows).
+///
+/// # Errors
+/// For unknown effects or mismatched input lengths.
+pub fn replay_adx37(
+    flap_deg: f64,
+    effects: &[EffectSpec],
+    rolloff_seed: Option<u64>,
+    x0: [f64; 12],
+    dt: f64,
+    controls_deg: &[[f64; 5]],
+    ct: &[[f64; 2]],
+) -> Result<Vec<[f64; 12]>> {
+    let ac = adx37();
+    let qual = QualifiedModel::adx37(&ac)?;
+    let aero = active_effects(effects)?;
+    let rolloff = match rolloff_seed {
+        Some(seed) => Some(RollOff::new(
+            RollOffConfig::default(),
+            flap_deg,
+            seed,
+            stream::ROLLOFF,
+        )?),
+        None => None,
+    };
+    let mut model = TruthAero::new(qual.at_flap(flap_deg)?, aero, rolloff);
+    let mut sim = Simulator::new(ac, flap_deg, nalgebra::SVector::from(x0), dt);
+    let d = f64::to_radians;
+    let controls: Vec<Controls> = controls_deg
+        .iter()
+        .map(|c| Controls {
+            da: d(c[0]),
+            de: d(c[1]),
+            dr: d(c[2]),
+            dsl: d(c[3]),
+            dsr: d(c[4]),
+        })
+        .collect();
+    let states = crate::sim::maneuver::replay_ct(&mut sim, &mut model, &controls, ct)?;
+    Ok(states.iter().map(|x| x.data.0[0]).collect())
+}
+
+/// The wings-level trim of the ADX-37 qualified model at `v` (m/s), `h` (m), flap (deg):
+/// (12 states, controls δa, δe, δr, δsl, δsr in deg, C_T per engine).
+///
+/// # Errors
+/// When no trim exists (below the stall speed).
+pub fn trim_adx37(flap_deg: f64, v: f64, h: f64) -> Result<([f64; 12], [f64; 5], f64)> {
+    let ac = adx37();
+    let qual = QualifiedModel::adx37(&ac)?;
+    let model = TruthAero::new(qual.at_flap(flap_deg)?, Vec::new(), None);
+    let sim = Simulator::new(ac.clone(), flap_deg, nalgebra::SVector::zeros(), 0.01);
+    let tr = trim(&sim, &model, v, h)?;
+    let c = tr.controls;
+    let qs = sim.air(&tr.x).qbar * ac.s_m2;
+    Ok((
+        tr.x.data.0[0],
+        [c.da, c.de, c.dr, c.dsl, c.dsr].map(f64::to_degrees),
+        tr.thrust_n / qs,
+    ))
 }
 
 #[cfg(test)]

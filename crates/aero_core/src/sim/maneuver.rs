@@ -283,6 +283,37 @@ pub fn replay<M: AeroModel + ?Sized>(
     Ok(out)
 }
 
+/// Replay with recorded thrust coefficients: each step converts C_T to thrust
+/// with the current dynamic pressure (T = C_T q̄ S).
+///
+/// # Errors
+/// When the two input lists differ in length.
+pub fn replay_ct<M: AeroModel + ?Sized>(
+    sim: &mut Simulator,
+    model: &mut M,
+    controls: &[Controls],
+    ct: &[[f64; 2]],
+) -> Result<Vec<StateVec>> {
+    if controls.len() != ct.len() {
+        return Err(AeroError::invalid(
+            "replay",
+            format!(
+                "{} control rows but {} C_T rows; give one of each per step",
+                controls.len(),
+                ct.len()
+            ),
+        ));
+    }
+    let mut out = Vec::with_capacity(controls.len() + 1);
+    out.push(sim.x);
+    for (c, k) in controls.iter().zip(ct) {
+        let qs = sim.air(&sim.x).qbar * sim.aircraft.s_m2;
+        sim.step(model, c, [k[0] * qs, k[1] * qs]);
+        out.push(sim.x);
+    }
+    Ok(out)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
