@@ -7,6 +7,15 @@ this package handles files, schemas, units, orchestration, reports and the CLI.
 from __future__ import annotations
 
 from aerodelta._core import __version__
+from aerodelta.campaign import (
+    CampaignInfo,
+    effect_library,
+    generate_campaign,
+    qualified_model_tables,
+    replay,
+    rolloff_draws,
+    simulate_campaign,
+)
 from aerodelta.exceptions import (
     AerodeltaError,
     AeroIOError,
@@ -20,6 +29,7 @@ from aerodelta.exceptions import (
 from aerodelta.table import Table
 
 __all__ = [
+    "CampaignInfo",
     "AeroIOError",
     "AerodeltaError",
     "DataError",
@@ -30,4 +40,10 @@ __all__ = [
     "Table",
     "TooLittleDataError",
     "__version__",
+    "effect_library",
+    "generate_campaign",
+    "qualified_model_tables",
+    "replay",
+    "rolloff_draws",
+    "simulate_campaign",
 ]
