@@ -29,9 +29,9 @@ from aerodelta.exceptions import (
 from aerodelta.table import Table
 
 __all__ = [
-    "CampaignInfo",
     "AeroIOError",
     "AerodeltaError",
+    "CampaignInfo",
     "DataError",
     "InvalidInputError",
     "NoConvergenceError",

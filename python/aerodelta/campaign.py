@@ -27,6 +27,7 @@ from typing import Any, Literal
 import numpy as np
 import numpy.typing as npt
 import polars as pl
+from tqdm import tqdm
 
 from aerodelta import _core
 from aerodelta.exceptions import DataError, InvalidInputError
@@ -301,8 +302,6 @@ def generate_campaign(
     seeds: dict[str, int] = {}
     bar = None
     if progress:
-        from tqdm import tqdm
-
         bar = tqdm(total=len(plan), desc="campaign", unit="maneuver")
     try:
         chunk = 20

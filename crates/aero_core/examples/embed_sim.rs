@@ -64,6 +64,10 @@ fn main() -> Result<(), aero_core::AeroError> {
         }
     }
     let el = t0.elapsed().as_secs_f64();
-    println!("60 s simulated in {:.2} ms ({:.0}x real time)", el * 1e3, 60.0 / el);
+    println!(
+        "60 s simulated in {:.2} ms ({:.0}x real time)",
+        el * 1e3,
+        60.0 / el
+    );
     Ok(())
 }

@@ -8,7 +8,9 @@ use aero_core::aircraft::turboprop::adx37;
 use aero_core::rolloff::{sample_draws, RollOffConfig};
 use aero_core::sim::campaign::{plan, replay_adx37, run_campaign, trim_adx37, CampaignSpec};
 use aero_core::AeroError;
-use numpy::{IntoPyArray, PyArray1, PyArray2, PyArrayMethods, PyReadonlyArray2, PyUntypedArrayMethods};
+use numpy::{
+    IntoPyArray, PyArray1, PyArray2, PyArrayMethods, PyReadonlyArray2, PyUntypedArrayMethods,
+};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 

@@ -7,6 +7,8 @@ from __future__ import annotations
 import argparse
 import sys
 
+from aerodelta.campaign import effect_library, generate_campaign
+
 HELP = "generate a virtual flight test campaign (synthetic stall maneuvers)"
 
 
@@ -33,8 +35,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Run ``aerodelta campaign``."""
-    from aerodelta.campaign import effect_library, generate_campaign
-
     if args.list_effects:
         for e in effect_library():
             rng = e.get("alpha_range_deg")

@@ -552,33 +552,65 @@ fn input_value(inp: Input, s: &AeroInput) -> f64 {
     }
 }
 
-/// A control term of the sliced model: (coefficient index, input, sign,
-/// deflection breakpoints, values [alpha][deflection]).
-type ControlTerm = (usize, Input, f64, Vec<f64>, Vec<f64>);
-
 /// Uniform alpha grid of the precomputed path, deg: it contains every
 /// breakpoint of the tables, so its linear interpolation is exact.
 const A0: f64 = -15.0;
 const DA: f64 = 0.5;
 const NA: usize = 111; // -15 ... 40
 
+/// Number of regressors (see [`Regressor`]).
+const NREG: usize = 9;
+
+fn reg_index(r: Regressor) -> usize {
+    match r {
+        Regressor::One => 0,
+        Regressor::Beta => 1,
+        Regressor::PHat => 2,
+        Regressor::QHat => 3,
+        Regressor::RHat => 4,
+        Regressor::AlphaDotHat => 5,
+        Regressor::De => 6,
+        Regressor::CtSum => 7,
+        Regressor::CtDiff => 8,
+    }
+}
+
+/// The control inputs of the sliced model (one locate each per call).
+const CTRL_INPUTS: [Input; 4] = [Input::DaDeg, Input::DrDeg, Input::DslDeg, Input::DsrDeg];
+
+/// A control table sliced at one flap: deflection breakpoints and values [alpha][defl].
+#[derive(Debug, Clone)]
+struct ControlTerm {
+    coef: usize,
+    input: usize,
+    sign: f64,
+    breakpoints: usize,
+    values: Vec<f64>,
+}
+
 /// The qualified model sliced at one flap setting, resampled on a uniform
-/// alpha grid: identical values to the general path, one alpha search per call.
+/// alpha grid: identical values to the general path, one alpha search per
+/// call, contiguous rows, one search per control input.
 #[derive(Debug, Clone)]
 pub struct FlapModel {
     /// Flap, deg.
     pub flap_deg: f64,
-    /// One column per 2-D term: (coefficient index, regressor, values on the grid).
-    cols: Vec<(usize, Regressor, [f64; NA])>,
-    /// Control terms: (coefficient index, input, sign, deflection breakpoints, values [alpha][defl]).
+    ncols: usize,
+    /// Row-major [alpha][column] values of the 2-D terms (sign applied).
+    grid: Vec<f64>,
+    col_coef: Vec<usize>,
+    col_reg: Vec<usize>,
     ctrl: Vec<ControlTerm>,
+    /// Distinct deflection breakpoint sets, one per control input in [`CTRL_INPUTS`] order.
+    ctrl_bp: Vec<Vec<f64>>,
     cbar: f64,
 }
 
 impl FlapModel {
     fn new(q: &QualifiedModel, flap_deg: f64) -> Result<Self> {
-        let mut cols = Vec::new();
+        let mut cols: Vec<(usize, usize, Vec<f64>)> = Vec::new();
         let mut ctrl = Vec::new();
+        let mut ctrl_bp: Vec<Vec<f64>> = vec![Vec::new(); CTRL_INPUTS.len()];
         for term in &q.terms {
             let t = q.table(&term.table).ok_or_else(|| {
                 crate::error::AeroError::invalid(
@@ -588,26 +620,56 @@ impl FlapModel {
             })?;
             let ci = coef_index(term.coef);
             if term.inputs.len() == 2 {
-                let mut v = [0.0; NA];
-                for (i, vi) in v.iter_mut().enumerate() {
-                    *vi = term.sign * t.eval(&[A0 + DA * i as f64, flap_deg]);
-                }
-                cols.push((ci, term.regressor, v));
+                let v = (0..NA)
+                    .map(|i| term.sign * t.eval(&[A0 + DA * i as f64, flap_deg]))
+                    .collect();
+                cols.push((ci, reg_index(term.regressor), v));
             } else {
                 let defl = t.axes()[1].breakpoints().to_vec();
+                let slot = CTRL_INPUTS
+                    .iter()
+                    .position(|&x| x == term.inputs[1])
+                    .ok_or_else(|| {
+                        crate::error::AeroError::invalid("qualified model", "unknown control input")
+                    })?;
+                if ctrl_bp[slot].is_empty() {
+                    ctrl_bp[slot] = defl.clone();
+                } else if ctrl_bp[slot] != defl {
+                    return Err(crate::error::AeroError::invalid(
+                        format!("qualified table '{}'", term.table),
+                        "control tables on the same input must share breakpoints",
+                    ));
+                }
                 let mut v = Vec::with_capacity(NA * defl.len());
                 for i in 0..NA {
                     for &d in &defl {
                         v.push(t.eval(&[A0 + DA * i as f64, d, flap_deg]));
                     }
                 }
-                ctrl.push((ci, term.inputs[1], term.sign, defl, v));
+                ctrl.push(ControlTerm {
+                    coef: ci,
+                    input: slot,
+                    sign: term.sign,
+                    breakpoints: defl.len(),
+                    values: v,
+                });
+            }
+        }
+        let ncols = cols.len();
+        let mut grid = vec![0.0; NA * ncols];
+        for (j, (_, _, v)) in cols.iter().enumerate() {
+            for i in 0..NA {
+                grid[i * ncols + j] = v[i];
             }
         }
         Ok(FlapModel {
             flap_deg,
-            cols,
+            ncols,
+            grid,
+            col_coef: cols.iter().map(|c| c.0).collect(),
+            col_reg: cols.iter().map(|c| c.1).collect(),
             ctrl,
+            ctrl_bp,
             cbar: q.aircraft.cbar_m,
         })
     }
@@ -616,30 +678,52 @@ impl FlapModel {
     #[inline]
     pub fn evaluate(&self, s: &AeroInput) -> [f64; 6] {
         let adh = s.alpha_dot * self.cbar / (2.0 * s.tas.max(1.0));
+        let regs: [f64; NREG] = [
+            1.0,
+            s.beta,
+            s.p_hat,
+            s.q_hat,
+            s.r_hat,
+            adh,
+            s.controls.de,
+            s.ct_sum(),
+            s.ct_diff(),
+        ];
         let x = ((s.alpha.to_degrees() - A0) / DA).clamp(0.0, (NA - 1) as f64);
         let i = (x as usize).min(NA - 2);
         let f = x - i as f64;
+        let n = self.ncols;
+        let r0 = &self.grid[i * n..(i + 1) * n];
+        let r1 = &self.grid[(i + 1) * n..(i + 2) * n];
         let mut out = [0.0; 6];
-        for (ci, reg, v) in &self.cols {
-            let val = v[i] + f * (v[i + 1] - v[i]);
-            out[*ci] += val * reg.value(s, adh);
+        for (((a, b), &ci), &ri) in r0.iter().zip(r1).zip(&self.col_coef).zip(&self.col_reg) {
+            out[ci] += (a + f * (b - a)) * regs[ri];
         }
-        for (ci, inp, sign, defl, v) in &self.ctrl {
-            let d = input_value(*inp, s);
-            let n = defl.len();
-            let (j, g) = if d <= defl[0] {
+        // locate each control input once
+        let mut loc = [(0usize, 0.0f64); 4];
+        for (k, bp) in self.ctrl_bp.iter().enumerate() {
+            if bp.len() < 2 {
+                continue;
+            }
+            let d = input_value(CTRL_INPUTS[k], s);
+            let m = bp.len();
+            loc[k] = if d <= bp[0] {
                 (0, 0.0)
-            } else if d >= defl[n - 1] {
-                (n - 2, 1.0)
+            } else if d >= bp[m - 1] {
+                (m - 2, 1.0)
             } else {
-                let j = (defl.partition_point(|&b| b <= d) - 1).min(n - 2);
-                (j, (d - defl[j]) / (defl[j + 1] - defl[j]))
+                let j = (bp.partition_point(|&b| b <= d) - 1).min(m - 2);
+                (j, (d - bp[j]) / (bp[j + 1] - bp[j]))
             };
-            let r0 = &v[i * n..i * n + n];
-            let r1 = &v[(i + 1) * n..(i + 1) * n + n];
-            let a = r0[j] + g * (r0[j + 1] - r0[j]);
-            let c = r1[j] + g * (r1[j + 1] - r1[j]);
-            out[*ci] += sign * (a + f * (c - a));
+        }
+        for c in &self.ctrl {
+            let (j, g) = loc[c.input];
+            let m = c.breakpoints;
+            let v = &c.values;
+            let (p0, p1) = (i * m + j, (i + 1) * m + j);
+            let a = v[p0] + g * (v[p0 + 1] - v[p0]);
+            let b = v[p1] + g * (v[p1 + 1] - v[p1]);
+            out[c.coef] += c.sign * (a + f * (b - a));
         }
         out
     }

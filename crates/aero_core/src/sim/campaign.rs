@@ -9,7 +9,7 @@
 use nalgebra::Vector3;
 
 use crate::aircraft::effects::{ActiveEffect, MeasurementEffects};
-use crate::aircraft::qualified::{QualifiedModel, FLAP_STALL};
+use crate::aircraft::qualified::{FlapModel, QualifiedModel, FLAP_STALL};
 use crate::aircraft::truth::{active_effects, EffectSpec, TruthAero};
 use crate::aircraft::turboprop::{adx37, AircraftRef};
 use crate::error::{AeroError, Result, ResultExt};
@@ -244,7 +244,7 @@ pub fn run_maneuver(
     } else {
         None
     };
-    let mut model = TruthAero::new(qual.at_flap(m.flap_deg)?, effects.to_vec(), rolloff);
+    let mut model = TruthAero::new(slice(qual, m.flap_deg)?, effects.to_vec(), rolloff);
     let mut sim = Simulator::new(ac.clone(), m.flap_deg, nalgebra::SVector::zeros(), dt);
     let tr = trim(&sim, &model, v0, h0).context(format!("maneuver {}", m.index))?;
     let t_each = tr.thrust_n;
@@ -509,13 +509,12 @@ pub fn resolve_effects(
 /// # Errors
 /// The first maneuver error, with its index.
 pub fn run_campaign(spec: &CampaignSpec) -> Result<Vec<ManeuverResult>> {
-    let ac = adx37();
-    let qual = QualifiedModel::adx37(&ac)?;
+    let (qual, _) = adx37_models()?;
     let (aero, meas, rolloff_on, scale) = resolve_effects(spec)?;
     let mut spec = spec.clone();
     spec.rolloff.scale *= if rolloff_on { scale } else { 1.0 };
     let plans = plan(&spec);
-    let run = |m: &ManeuverPlan| run_maneuver(&spec, &qual, &aero, &meas, rolloff_on, m);
+    let run = |m: &ManeuverPlan| run_maneuver(&spec, qual, &aero, &meas, rolloff_on, m);
     #[cfg(feature = "parallel")]
     let results: Vec<Result<ManeuverResult>> = {
         use rayon::prelude::*;
@@ -524,6 +523,37 @@ pub fn run_campaign(spec: &CampaignSpec) -> Result<Vec<ManeuverResult>> {
     #[cfg(not(feature = "parallel"))]
     let results: Vec<Result<ManeuverResult>> = plans.iter().map(run).collect();
     results.into_iter().collect()
+}
+
+/// The ADX-37 qualified model and its slices at the five flap settings, built once.
+///
+/// # Errors
+/// Only if a table is malformed (a bug).
+pub fn adx37_models() -> Result<&'static (QualifiedModel, Vec<FlapModel>)> {
+    static MODELS: std::sync::OnceLock<
+        std::result::Result<(QualifiedModel, Vec<FlapModel>), String>,
+    > = std::sync::OnceLock::new();
+    let built = MODELS.get_or_init(|| {
+        let q = QualifiedModel::adx37(&adx37()).map_err(|e| e.to_string())?;
+        let slices = FLAP_STALL
+            .iter()
+            .map(|f| q.at_flap(f.flap_deg))
+            .collect::<Result<Vec<_>>>()
+            .map_err(|e| e.to_string())?;
+        Ok((q, slices))
+    });
+    built
+        .as_ref()
+        .map_err(|e| AeroError::invalid("ADX-37 qualified model", e.clone()))
+}
+
+/// The qualified model of `q` at `flap_deg`: a cached slice for the five standard settings.
+fn slice(q: &QualifiedModel, flap_deg: f64) -> Result<FlapModel> {
+    let (_, slices) = adx37_models()?;
+    match slices.iter().find(|s| s.flap_deg == flap_deg) {
+        Some(s) if q.aircraft == adx37() => Ok(s.clone()),
+        _ => q.at_flap(flap_deg),
+    }
 }
 
 /// Replay recorded controls (deg) and thrust coefficients on the ADX-37 from
@@ -543,7 +573,7 @@ pub fn replay_adx37(
     ct: &[[f64; 2]],
 ) -> Result<Vec<[f64; 12]>> {
     let ac = adx37();
-    let qual = QualifiedModel::adx37(&ac)?;
+    let (qual, _) = adx37_models()?;
     let aero = active_effects(effects)?;
     let rolloff = match rolloff_seed {
         Some(seed) => Some(RollOff::new(
@@ -554,7 +584,7 @@ pub fn replay_adx37(
         )?),
         None => None,
     };
-    let mut model = TruthAero::new(qual.at_flap(flap_deg)?, aero, rolloff);
+    let mut model = TruthAero::new(slice(qual, flap_deg)?, aero, rolloff);
     let mut sim = Simulator::new(ac, flap_deg, nalgebra::SVector::from(x0), dt);
     let d = f64::to_radians;
     let controls: Vec<Controls> = controls_deg
@@ -578,8 +608,8 @@ pub fn replay_adx37(
 /// When no trim exists (below the stall speed).
 pub fn trim_adx37(flap_deg: f64, v: f64, h: f64) -> Result<([f64; 12], [f64; 5], f64)> {
     let ac = adx37();
-    let qual = QualifiedModel::adx37(&ac)?;
-    let model = TruthAero::new(qual.at_flap(flap_deg)?, Vec::new(), None);
+    let (qual, _) = adx37_models()?;
+    let model = TruthAero::new(slice(qual, flap_deg)?, Vec::new(), None);
     let sim = Simulator::new(ac.clone(), flap_deg, nalgebra::SVector::zeros(), 0.01);
     let tr = trim(&sim, &model, v, h)?;
     let c = tr.controls;

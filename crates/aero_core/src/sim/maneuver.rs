@@ -33,6 +33,8 @@ pub struct Simulator {
     /// Last β̇, rad/s.
     pub beta_dot: f64,
     prev_ab: Option<(f64, f64)>,
+    /// Atmosphere held over the RK4 stages of a step (altitude changes < 1 m per step).
+    frozen: Option<crate::sim::atmosphere::Air>,
 }
 
 /// Air-relative quantities at a state.
@@ -73,6 +75,7 @@ impl Simulator {
             alpha_dot: 0.0,
             beta_dot: 0.0,
             prev_ab: None,
+            frozen: None,
         }
     }
 
@@ -82,7 +85,7 @@ impl Simulator {
         let v = x[ix::V] - self.gust.y;
         let w = x[ix::W] - self.gust.z;
         let tas = (u * u + v * v + w * w).sqrt().max(1e-3);
-        let a = isa(x[ix::H]);
+        let a = self.frozen.unwrap_or_else(|| isa(x[ix::H]));
         AirData {
             alpha: w.atan2(u),
             beta: (v / tas).clamp(-1.0, 1.0).asin(),
@@ -152,12 +155,14 @@ impl Simulator {
     pub fn step<M: AeroModel + ?Sized>(&mut self, model: &mut M, c: &Controls, thrust_n: [f64; 2]) {
         let (inp, _) = self.aero_input(&self.x, c, thrust_n);
         model.advance(self.t, &inp);
+        self.frozen = Some(isa(self.x[ix::H]));
         let x0 = self.x;
         let me = &*self;
         let m = &*model;
         let next = rk4_step(&me.body, &x0, me.dt, |x| me.loads(m, x, c, thrust_n));
         self.x = next;
         self.t += self.dt;
+        self.frozen = None;
         let ad = self.air(&self.x);
         if let Some((a0, b0)) = self.prev_ab {
             self.alpha_dot = (ad.alpha - a0) / self.dt;
