@@ -178,6 +178,12 @@ pub struct PilotParams {
     pub excitation: f64,
     /// Recovery duration, s.
     pub recovery_s: f64,
+    /// Bank excursion from the target that makes the pilot recover at once (wing drop), deg.
+    pub wing_drop_deg: f64,
+    /// Whether the pilot keeps fighting the roll with full aileron gain while still
+    /// stalled (the thesis's pilots often did, Section 3.4.3), or first lowers alpha
+    /// with ailerons nearly neutral (the proper recovery technique, Section 4.2.2).
+    pub aileron_in_stall: bool,
 }
 
 const DELAY_SLOTS: usize = 64;
@@ -299,8 +305,12 @@ impl Pilot {
     fn decide(&mut self, o: &Observation, pusher_fired: bool, dt: f64) -> Command {
         let p = self.params;
         let alpha_deg = o.alpha.to_degrees();
+        let wing_drop = alpha_deg > self.stall.alpha_max_deg - 3.0
+            && (o.phi - p.bank).abs().to_degrees() > p.wing_drop_deg;
         if self.phase == Phase::Approach
-            && (pusher_fired || alpha_deg > self.stall.alpha_max_deg + p.stall_margin_deg)
+            && (pusher_fired
+                || wing_drop
+                || alpha_deg > self.stall.alpha_max_deg + p.stall_margin_deg)
         {
             self.phase = Phase::Recovery;
             self.recovery_at = o.t;
@@ -313,17 +323,23 @@ impl Pilot {
         let cm_ff = pitch_curve(&self.stall, a_ref.to_degrees()) - 0.19 * o.ct_sum;
         let e = o.alpha - a_ref;
         self.int_alpha = (self.int_alpha + e * dt).clamp(-0.3, 0.3);
-        let de = -cm_ff / cm_de + p.trim_error + g * (1.2 * e + 0.6 * self.int_alpha + 0.5 * o.q);
+        let de = -cm_ff / cm_de + p.trim_error + g * (0.9 * e + 0.6 * self.int_alpha + 0.3 * o.q);
         // ailerons: bank hold (PD); the bank target is zero in the recovery
         let bank = if self.phase == Phase::Recovery {
             0.0
         } else {
             p.bank
         };
-        let mut da = g * (1.6 * (o.phi - bank) + 0.9 * o.p);
+        let mut da = g * (0.6 * (o.phi - bank) + 0.25 * o.p);
+        if self.phase == Phase::Recovery
+            && !p.aileron_in_stall
+            && alpha_deg > self.stall.alpha_max_deg - 2.0
+        {
+            da *= 0.3;
+        }
         // rudder: cancel sideslip (PI) and damp yaw
         self.int_beta = (self.int_beta + o.beta * dt).clamp(-0.5, 0.5);
-        let mut dr = g * (-1.5 * o.beta - 1.0 * self.int_beta + 0.6 * o.r);
+        let mut dr = g * (-0.8 * o.beta - 0.5 * self.int_beta + 0.2 * o.r);
         // excitation: doublets and stick noise
         let x = p.excitation;
         if x > 0.0 {
