@@ -234,3 +234,60 @@ def test_cli_list_effects_and_quick_run(tmp_path: Path, capsys: pytest.CaptureFi
     assert code == 0
     assert (tmp_path / "c" / "manifest.csv").exists()
     assert "wrote 40 maneuvers" in capsys.readouterr().out
+
+
+def test_measurement_effects_act_on_their_channels_only() -> None:
+    # Same seed: the flight is identical (sensors do not feed back), so each
+    # measurement effect shows as its exact signature on its own channels.
+    def rec(effects: str) -> pl.DataFrame:
+        return simulate_campaign(effects=effects, seed=2, size=1, only=[5])[0]["record"]
+
+    base = rec("none")
+    bias = rec("alpha_vane_bias,beta_vane_bias=2")
+    np.testing.assert_allclose(bias["alpha_deg"] - base["alpha_deg"], 0.5, atol=1e-9)
+    np.testing.assert_allclose(bias["beta_deg"] - base["beta_deg"], 1.0, atol=1e-9)
+    assert bias.drop("alpha_deg", "beta_deg").equals(base.drop("alpha_deg", "beta_deg"))
+    lag = rec("control_lag")  # recorded controls lead by 0.10 s = 5 samples at 50 Hz
+    for c in ("da_deg", "de_deg", "dr_deg"):
+        np.testing.assert_allclose(lag[c].to_numpy()[:-5], base[c].to_numpy()[5:], atol=1e-9)
+    skew = rec("time_skew")  # air data 0.04 s = 2 samples late
+    np.testing.assert_allclose(skew["alpha_deg"].to_numpy()[2:], base["alpha_deg"].to_numpy()[:-2])
+    acc = rec("accelerometer_offset")
+    assert not np.allclose(acc["ay_mps2"], base["ay_mps2"])
+    assert acc.drop("ax_mps2", "ay_mps2", "az_mps2").equals(
+        base.drop("ax_mps2", "ay_mps2", "az_mps2")
+    )
+
+
+def _shape(alpha: np.ndarray, sh: dict) -> np.ndarray:
+    def ss(x: np.ndarray) -> np.ndarray:
+        x = np.clip(x, 0, 1)
+        return x * x * (3 - 2 * x)
+
+    up = ss((alpha - sh["onset_deg"]) / (sh["full_deg"] - sh["onset_deg"]))
+    rec = sh["recover_full_deg"] - sh["recover_start_deg"]
+    return up * (1 - sh["recovery"] * ss((alpha - sh["recover_start_deg"]) / rec))
+
+
+def test_effect_contribution_follows_its_definition_and_magnitude() -> None:
+    # dCl_roll_damping = m * g(alpha) * k_flap * C_design * p b / (2 V), recomputed here
+    # from the library's published shape and the noise-free recorded p and V.
+    lib = {e["name"]: e for e in effect_library()}["roll_damping"]
+    b = tomllib.loads(aerodelta.campaign.aircraft_toml())["geometry"]["b_m"]
+    for mag in (1.0, 2.5):
+        m = simulate_campaign(
+            effects={"roll_damping": mag}, rolloff=False, noise=0.0, size=1, only=[1]
+        )[0]
+        tr, rec = m["truth"], m["record"]
+        p_hat = np.radians(rec["p_dps"].to_numpy()) * b / (2 * rec["tas_mps"].to_numpy())
+        g = _shape(tr["alpha_true_deg"].to_numpy(), lib["shape"])
+        expect = mag * g * lib["flap_factor"][0] * lib["terms"][0]["design"] * p_hat
+        np.testing.assert_allclose(tr["dCl_roll_damping"].to_numpy(), expect, atol=1e-12)
+        assert np.abs(expect).max() > 1e-4
+
+
+def test_excitation_is_adjustable() -> None:
+    quiet = simulate_campaign(effects="none", excitation=0.0, turbulence=0.0, size=1, only=[0])[0]
+    busy = simulate_campaign(effects="none", excitation=2.0, turbulence=0.0, size=1, only=[0])[0]
+    assert busy["record"]["dr_deg"].std() > 2 * quiet["record"]["dr_deg"].std()
+    assert busy["record"]["p_dps"].std() > 2 * quiet["record"]["p_dps"].std()
