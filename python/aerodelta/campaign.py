@@ -16,6 +16,7 @@ The same seed gives byte-identical files. See ``docs/aircraft.md``.
 
 from __future__ import annotations
 
+import functools
 import json
 import os
 import shutil
@@ -89,7 +90,12 @@ def effect_library() -> list[dict[str, Any]]:
 
 def effect_names() -> list[str]:
     """All effect names the campaign generator knows."""
-    return [e["name"] for e in effect_library()]
+    return list(_effect_names())
+
+
+@functools.cache
+def _effect_names() -> tuple[str, ...]:
+    return tuple(e["name"] for e in effect_library())
 
 
 def parse_effects(
@@ -130,7 +136,7 @@ def parse_effects(
                     f"effect '{name}': magnitude '{mag}' is not a number (use name=1.5)"
                 ) from None
             items.append((name.strip(), m))
-    known = set(effect_names())
+    known = set(_effect_names())
     out: dict[str, float] = {}
     for name, m in items:
         if name not in known:

@@ -398,7 +398,11 @@ impl ActiveEffect {
     /// `[ΔC_Y, ΔC_l, ΔC_n]` of this effect at `s`.
     #[inline]
     pub fn contribution(&self, s: &AeroInput, flap_i: usize) -> [f64; 3] {
-        let g = self.shape.value(s.alpha.to_degrees());
+        let a = s.alpha.to_degrees();
+        if a <= self.shape.onset_deg {
+            return [0.0; 3];
+        }
+        let g = self.shape.value(a);
         let mut out = [0.0; 3];
         if g == 0.0 {
             return out;

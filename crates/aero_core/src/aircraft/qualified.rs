@@ -603,6 +603,9 @@ pub struct FlapModel {
     ctrl: Vec<ControlTerm>,
     /// Distinct deflection breakpoint sets, one per control input in [`CTRL_INPUTS`] order.
     ctrl_bp: Vec<Vec<f64>>,
+    /// Per control input: segment index for each whole degree from the first breakpoint
+    /// (an O(1) locate; every breakpoint is a whole degree).
+    ctrl_seg: Vec<Vec<u8>>,
     cbar: f64,
 }
 
@@ -662,8 +665,25 @@ impl FlapModel {
                 grid[i * ncols + j] = v[i];
             }
         }
+        let ctrl_seg = ctrl_bp
+            .iter()
+            .map(|bp| {
+                if bp.len() < 2 || bp.iter().any(|b| b.fract() != 0.0) {
+                    return Vec::new();
+                }
+                let (lo, hi) = (bp[0], bp[bp.len() - 1]);
+                let n = (hi - lo) as usize;
+                (0..n)
+                    .map(|k| {
+                        let d = lo + k as f64;
+                        ((bp.partition_point(|&b| b <= d) - 1).min(bp.len() - 2)) as u8
+                    })
+                    .collect()
+            })
+            .collect();
         Ok(FlapModel {
             flap_deg,
+            ctrl_seg,
             ncols,
             grid,
             col_coef: cols.iter().map(|c| c.0).collect(),
@@ -695,10 +715,15 @@ impl FlapModel {
         let n = self.ncols;
         let r0 = &self.grid[i * n..(i + 1) * n];
         let r1 = &self.grid[(i + 1) * n..(i + 2) * n];
-        let mut out = [0.0; 6];
+        let mut out8 = [0.0; 8];
+        let mut regs16 = [0.0; 16];
+        regs16[..NREG].copy_from_slice(&regs);
         for (((a, b), &ci), &ri) in r0.iter().zip(r1).zip(&self.col_coef).zip(&self.col_reg) {
-            out[ci] += (a + f * (b - a)) * regs[ri];
+            // masks make the bounds evident (ci < 6, ri < 9 by construction)
+            out8[ci & 7] += (a + f * (b - a)) * regs16[ri & 15];
         }
+        let mut out = [0.0; 6];
+        out.copy_from_slice(&out8[..6]);
         // locate each control input once
         let mut loc = [(0usize, 0.0f64); 4];
         for (k, bp) in self.ctrl_bp.iter().enumerate() {
@@ -712,7 +737,11 @@ impl FlapModel {
             } else if d >= bp[m - 1] {
                 (m - 2, 1.0)
             } else {
-                let j = (bp.partition_point(|&b| b <= d) - 1).min(m - 2);
+                let seg = &self.ctrl_seg[k];
+                let j = match seg.get((d - bp[0]) as usize) {
+                    Some(&j) => j as usize,
+                    None => (bp.partition_point(|&b| b <= d) - 1).min(m - 2),
+                };
                 (j, (d - bp[j]) / (bp[j + 1] - bp[j]))
             };
         }

@@ -95,6 +95,7 @@ impl TruthAero {
 }
 
 impl AeroModel for TruthAero {
+    #[inline]
     fn coefficients(&self, s: &AeroInput) -> AeroCoeffs {
         let mut c = self.qualified.evaluate(s);
         for e in &self.effects {

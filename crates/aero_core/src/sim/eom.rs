@@ -83,12 +83,14 @@ impl Loads {
 }
 
 /// Angular acceleration from I ω̇ = M − ω × (I ω + h_p) (Eq. 3.1d-f), rad/s².
+#[inline]
 pub fn angular_acceleration(body: &RigidBody, omega: &Vector3<f64>, loads: &Loads) -> Vector3<f64> {
     let h = body.inertia * omega + Vector3::new(-loads.prop_momentum, 0.0, 0.0);
     body.inv_inertia * (loads.moment - omega.cross(&h))
 }
 
 /// Time derivative of the state, thesis Eq. 3.1a-l (with Eq. 3.1b's g cosθ sinφ).
+#[inline]
 pub fn derivative(body: &RigidBody, x: &StateVec, loads: &Loads) -> StateVec {
     let (u, v, w) = (x[ix::U], x[ix::V], x[ix::W]);
     let (p, q, r) = (x[ix::P], x[ix::Q], x[ix::R]);

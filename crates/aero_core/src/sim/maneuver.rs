@@ -80,6 +80,7 @@ impl Simulator {
     }
 
     /// Air data at state `x` (gusts subtracted).
+    #[inline]
     pub fn air(&self, x: &StateVec) -> AirData {
         let u = x[ix::U] - self.gust.x;
         let v = x[ix::V] - self.gust.y;
@@ -97,6 +98,7 @@ impl Simulator {
     }
 
     /// The model input at state `x` with surfaces `c` and engine thrusts (N).
+    #[inline]
     pub fn aero_input(
         &self,
         x: &StateVec,
@@ -128,6 +130,7 @@ impl Simulator {
     }
 
     /// Loads at state `x` from `model`.
+    #[inline]
     pub fn loads<M: AeroModel + ?Sized>(
         &self,
         model: &M,
@@ -153,17 +156,33 @@ impl Simulator {
 
     /// Advance one fixed step with surfaces `c` (rad) and thrusts (N) held over it.
     pub fn step<M: AeroModel + ?Sized>(&mut self, model: &mut M, c: &Controls, thrust_n: [f64; 2]) {
+        self.frozen = Some(isa(self.x[ix::H]));
+        self.step_frozen(model, c, thrust_n);
+    }
+
+    /// Advance one step with thrust from thrust coefficients C_T (T = C_T q̄ S at the step start).
+    pub fn step_ct<M: AeroModel + ?Sized>(&mut self, model: &mut M, c: &Controls, ct: [f64; 2]) {
+        self.frozen = Some(isa(self.x[ix::H]));
+        let qs = self.air(&self.x).qbar * self.aircraft.s_m2;
+        self.step_frozen(model, c, [ct[0] * qs, ct[1] * qs]);
+    }
+
+    fn step_frozen<M: AeroModel + ?Sized>(
+        &mut self,
+        model: &mut M,
+        c: &Controls,
+        thrust_n: [f64; 2],
+    ) {
         let (inp, _) = self.aero_input(&self.x, c, thrust_n);
         model.advance(self.t, &inp);
-        self.frozen = Some(isa(self.x[ix::H]));
         let x0 = self.x;
         let me = &*self;
         let m = &*model;
         let next = rk4_step(&me.body, &x0, me.dt, |x| me.loads(m, x, c, thrust_n));
         self.x = next;
         self.t += self.dt;
+        let ad = self.air(&self.x); // angles only: the frozen atmosphere is fine here
         self.frozen = None;
-        let ad = self.air(&self.x);
         if let Some((a0, b0)) = self.prev_ab {
             self.alpha_dot = (ad.alpha - a0) / self.dt;
             self.beta_dot = (ad.beta - b0) / self.dt;
@@ -312,8 +331,7 @@ pub fn replay_ct<M: AeroModel + ?Sized>(
     let mut out = Vec::with_capacity(controls.len() + 1);
     out.push(sim.x);
     for (c, k) in controls.iter().zip(ct) {
-        let qs = sim.air(&sim.x).qbar * sim.aircraft.s_m2;
-        sim.step(model, c, [k[0] * qs, k[1] * qs]);
+        sim.step_ct(model, c, *k);
         out.push(sim.x);
     }
     Ok(out)
