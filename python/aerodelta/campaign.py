@@ -159,6 +159,7 @@ def _spec(
     rolloff: bool,
     excitation: float,
     only: Sequence[int] = (),
+    record_hz: float = 50.0,
 ) -> dict[str, Any]:
     reps = SIZES.get(size, 0) if isinstance(size, str) else int(size)
     if reps <= 0:
@@ -177,6 +178,7 @@ def _spec(
         turbulence_mps=float(turbulence),
         excitation=float(excitation),
         only=list(only),
+        record_hz=float(record_hz),
     )
     return spec
 
@@ -191,6 +193,7 @@ def simulate_campaign(
     rolloff: bool = True,
     excitation: float = 1.0,
     only: Sequence[int] = (),
+    record_hz: float = 50.0,
 ) -> list[dict[str, Any]]:
     """Fly a campaign in memory (no files).
 
@@ -200,6 +203,8 @@ def simulate_campaign(
         As :func:`generate_campaign`.
     only
         Maneuver indices to fly (empty: all).
+    record_hz
+        Record rate, Hz (a divisor of the 100 Hz simulation rate).
 
     Returns
     -------
@@ -216,6 +221,7 @@ def simulate_campaign(
         rolloff=rolloff,
         excitation=excitation,
         only=only,
+        record_hz=record_hz,
     )
     out = []
     for m in _core.sim_run_campaign(json.dumps(spec)):

@@ -317,8 +317,14 @@ pub fn run_maneuver(
     let (mut max_alpha, mut n_at, mut max_bank) = (f64::NEG_INFINITY, 1.0, 0.0f64);
     let mut surfaces = tr.controls;
     for step in 0..max_steps {
+        // gusts of this step, then what the pilot sees, then the surfaces and
+        // thrust acting over this step: the sample at t_k records exactly those
+        // (so a replay of the record reproduces the flight, Section 4.3)
+        if sig > 0.0 {
+            let tas = sim.air(&sim.x).tas;
+            sim.gust = gusts.advance(tas, dt);
+        }
         let ad = sim.air(&sim.x);
-        let thrust = [engines[0].thrust(ad.tas), engines[1].thrust(ad.tas)];
         let qs = ad.qbar * ac.s_m2;
         let o = Observation {
             t: sim.t,
@@ -330,7 +336,7 @@ pub fn run_maneuver(
             phi: sim.x[ix::PHI],
             tas: ad.tas,
             rho: ad.rho,
-            ct_sum: (thrust[0] + thrust[1]) / qs,
+            ct_sum: (engines[0].thrust(ad.tas) + engines[1].thrust(ad.tas)) / qs,
         };
         let push = pusher
             .as_mut()
@@ -340,6 +346,19 @@ pub fn run_maneuver(
             controls: c,
             levers,
         } = pilot.command(&o, fired, dt);
+        if step > 0 {
+            surfaces = Controls {
+                da: acts[0].advance(c.da, dt),
+                de: acts[1].advance(c.de + push, dt),
+                dr: acts[2].advance(c.dr, dt),
+                dsl: acts[3].advance(c.dsl, dt),
+                dsr: acts[4].advance(c.dsr, dt),
+            };
+            for (e, l) in engines.iter_mut().zip(levers) {
+                e.advance(l, ad.rho / 1.225, dt);
+            }
+        }
+        let thrust = [engines[0].thrust(ad.tas), engines[1].thrust(ad.tas)];
         if step % decim == 0 {
             let (xd, loads) = sim.derivative(&model, &surfaces, thrust);
             let (inp, _) = sim.aero_input(&sim.x, &surfaces, thrust);
@@ -384,22 +403,6 @@ pub fn run_maneuver(
         if pilot.done(sim.t) {
             break;
         }
-        surfaces = Controls {
-            da: acts[0].advance(c.da, dt),
-            de: acts[1].advance(c.de + push, dt),
-            dr: acts[2].advance(c.dr, dt),
-            dsl: acts[3].advance(c.dsl, dt),
-            dsr: acts[4].advance(c.dsr, dt),
-        };
-        for (e, l) in engines.iter_mut().zip(levers) {
-            e.advance(l, ad.rho / 1.225, dt);
-        }
-        sim.gust = if sig > 0.0 {
-            gusts.advance(ad.tas, dt)
-        } else {
-            Vector3::zeros()
-        };
-        let thrust = [engines[0].thrust(ad.tas), engines[1].thrust(ad.tas)];
         sim.step(&mut model, &surfaces, thrust);
         if !sim.x.iter().all(|v| v.is_finite()) {
             return Err(AeroError::invalid(
