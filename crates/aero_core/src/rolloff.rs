@@ -270,7 +270,10 @@ mod tests {
         let n = 100_000usize;
         let (mut right, mut sk, mut sk2, mut sa, mut sa2) = (0usize, 0.0, 0.0, 0.0, 0.0);
         for i in 0..n {
-            let d = r.redraw(i as f64);
+            // one upward crossing of the re-arm alpha per cycle
+            r.update(i as f64, 14.0);
+            assert!(r.update(i as f64 + 0.5, 16.0));
+            let d = r.current();
             right += usize::from(d.sign > 0.0);
             sk += d.factor;
             sk2 += d.factor * d.factor;
