@@ -4,6 +4,7 @@
 //! the ranges of thesis Table 3.1:
 //! - static lateral data (β, p̂, r̂, C_T derivatives): alpha −15…15 deg;
 //! - control data (aileron, rudder, spoiler tables): alpha −4…10 deg;
+//! - sideslip ±40 deg and per-engine C_T −0.1…1.5 (regressors held at the limits);
 //! - flaps 0, 5, 10, 15, 35 deg (interpolated between).
 //!
 //! The longitudinal tables (C_L, C_D, C_m) extend to alpha 40 deg with a real
@@ -88,20 +89,39 @@ pub enum Regressor {
     CtDiff,
 }
 
+/// Sideslip range of the static data, rad (Table 3.1: ±40°): the qualified model holds beyond.
+pub const BETA_MAX: f64 = 40.0 * std::f64::consts::PI / 180.0;
+/// Per-engine thrust-coefficient range of the static data (Table 3.1: −0.1 … 1.5).
+pub const CT_RANGE: (f64, f64) = (-0.1, 1.5);
+
+#[inline]
+fn held_ct(s: &AeroInput) -> (f64, f64) {
+    (
+        s.ct_left.clamp(CT_RANGE.0, CT_RANGE.1),
+        s.ct_right.clamp(CT_RANGE.0, CT_RANGE.1),
+    )
+}
+
 impl Regressor {
-    /// Value of the regressor at an input (`cbar`, `b` unused: the hats are in the input).
+    /// Value of the regressor at an input, β and C_T held at the Table 3.1 limits.
     #[inline]
     pub fn value(self, s: &AeroInput, alpha_dot_hat: f64) -> f64 {
         match self {
             Regressor::One => 1.0,
-            Regressor::Beta => s.beta,
+            Regressor::Beta => s.beta.clamp(-BETA_MAX, BETA_MAX),
             Regressor::PHat => s.p_hat,
             Regressor::QHat => s.q_hat,
             Regressor::RHat => s.r_hat,
             Regressor::AlphaDotHat => alpha_dot_hat,
             Regressor::De => s.controls.de,
-            Regressor::CtSum => s.ct_sum(),
-            Regressor::CtDiff => s.ct_diff(),
+            Regressor::CtSum => {
+                let (l, r) = held_ct(s);
+                l + r
+            }
+            Regressor::CtDiff => {
+                let (l, r) = held_ct(s);
+                l - r
+            }
         }
     }
 }
@@ -698,16 +718,17 @@ impl FlapModel {
     #[inline]
     pub fn evaluate(&self, s: &AeroInput) -> [f64; 6] {
         let adh = s.alpha_dot * self.cbar / (2.0 * s.tas.max(1.0));
+        let (ctl, ctr) = held_ct(s);
         let regs: [f64; NREG] = [
             1.0,
-            s.beta,
+            s.beta.clamp(-BETA_MAX, BETA_MAX),
             s.p_hat,
             s.q_hat,
             s.r_hat,
             adh,
             s.controls.de,
-            s.ct_sum(),
-            s.ct_diff(),
+            ctl + ctr,
+            ctl - ctr,
         ];
         let x = ((s.alpha.to_degrees() - A0) / DA).clamp(0.0, (NA - 1) as f64);
         let i = (x as usize).min(NA - 2);
