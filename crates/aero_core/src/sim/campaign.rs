@@ -690,6 +690,23 @@ mod tests {
         }
     }
 
+    #[cfg(feature = "parallel")]
+    #[test]
+    fn thread_count_does_not_change_results() {
+        let mut s = quick(8);
+        s.only = vec![0, 3, 9, 14];
+        let many = run_campaign(&s).unwrap();
+        let one = rayon::ThreadPoolBuilder::new()
+            .num_threads(1)
+            .build()
+            .unwrap()
+            .install(|| run_campaign(&s).unwrap());
+        for (a, b) in many.iter().zip(&one) {
+            assert_eq!(a.record, b.record);
+            assert_eq!(a.truth, b.truth);
+        }
+    }
+
     #[test]
     fn same_seed_same_campaign() {
         let mut s = quick(5);
