@@ -7,6 +7,15 @@ this package handles files, schemas, units, orchestration, reports and the CLI.
 from __future__ import annotations
 
 from aerodelta._core import __version__
+from aerodelta.campaign import (
+    CampaignInfo,
+    effect_library,
+    generate_campaign,
+    qualified_model_tables,
+    replay,
+    rolloff_draws,
+    simulate_campaign,
+)
 from aerodelta.daveml import (
     DaveModel,
     check_daveml,
@@ -33,6 +42,7 @@ __all__ = [
     "AeroIOError",
     "AerodeltaError",
     "AlphaBins",
+    "CampaignInfo",
     "DataError",
     "DaveModel",
     "DeltaModel",
@@ -45,8 +55,14 @@ __all__ = [
     "TooLittleDataError",
     "__version__",
     "check_daveml",
+    "effect_library",
+    "generate_campaign",
     "load_daveml",
     "partition_alpha",
+    "qualified_model_tables",
+    "replay",
+    "rolloff_draws",
+    "simulate_campaign",
     "smoothing_spline",
     "write_daveml",
     "write_example_model",

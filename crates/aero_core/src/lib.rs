@@ -9,6 +9,9 @@
 //! One concept per module:
 //! - [`table`]: gridded N-D lookup tables, hold or linear extrapolation, a
 //!   batch path and an allocation-free single-point path;
+//! - [`sim`]: the 6-DOF simulator (Eq. 3.1), pilot, sensors and campaign generator;
+//! - [`aircraft`]: the representative turboprop, its qualified and truth models;
+//! - [`rolloff`]: the stochastic roll-off of Section 3.4.3 (runtime model);
 //! - [`daveml`]: DAVE-ML (AIAA S-119) models: read, evaluate, run their check
 //!   cases, and write models with self-generated check cases;
 //! - [`spline`]: cubic smoothing splines with MATLAB `csaps` semantics (Eq. 3.13);
@@ -22,13 +25,16 @@
 //! - [`error`]: the error kinds every module returns.
 #![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used))]
 
+pub mod aircraft;
 pub mod daveml;
 pub mod delta_model;
 pub mod error;
 pub mod fsutil;
 pub mod partition;
 pub mod regressor;
+pub mod rolloff;
 pub mod rolloff_detect;
+pub mod sim;
 pub mod spline;
 pub mod table;
 

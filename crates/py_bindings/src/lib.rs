@@ -9,6 +9,7 @@ mod daveml;
 mod delta_model;
 mod error;
 mod partition;
+mod sim;
 mod spline;
 mod table;
 mod util;
@@ -22,5 +23,6 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     spline::register(m)?;
     partition::register(m)?;
     daveml::register(m)?;
+    sim::register(m)?;
     Ok(())
 }

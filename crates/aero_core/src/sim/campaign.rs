@@ -1,0 +1,721 @@
+//! A deterministic virtual flight-test campaign: the maneuvers of thesis
+//! Section 3.2.1 over the five flap settings, with and without the stick
+//! pusher, flown by the pilot model on the truth aircraft and recorded by the
+//! sensor model. Seed → per-maneuver seeds (SplitMix64) → independent ChaCha
+//! streams per component (pilot, gusts, roll-off, sensors), so a maneuver's
+//! result depends only on the campaign seed and its index: identical whatever
+//! the thread count (`parallel` feature, rayon).
+
+use nalgebra::Vector3;
+
+use crate::aircraft::effects::{ActiveEffect, MeasurementEffects};
+use crate::aircraft::qualified::{FlapModel, QualifiedModel, FLAP_STALL};
+use crate::aircraft::truth::{active_effects, EffectSpec, TruthAero};
+use crate::aircraft::turboprop::{adx37, AircraftRef};
+use crate::error::{AeroError, Result, ResultExt};
+use crate::rolloff::{RollOff, RollOffConfig, RollOffDraw};
+use crate::sim::actuator::Actuator;
+use crate::sim::aero::{AeroModel, Controls};
+use crate::sim::atmosphere::{isa, G0};
+use crate::sim::engine::{Engine, EngineSpec};
+use crate::sim::eom::ix;
+use crate::sim::maneuver::{trim, Simulator};
+use crate::sim::pilot::{Command, Kind, Observation, Pilot, PilotParams, Pusher};
+use crate::sim::rng::{derive_seed, Stream};
+use crate::sim::sensors::{record, NoiseSpec, TrueSample, CHANNELS};
+use crate::sim::turbulence::Dryden;
+
+/// Random streams of one maneuver.
+mod stream {
+    pub const SETUP: u64 = 1;
+    pub const PILOT: u64 = 2;
+    pub const GUST: u64 = 3;
+    pub const ROLLOFF: u64 = 4;
+    pub const SENSORS: u64 = 5;
+}
+
+/// What a campaign contains and how it is flown.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(default)]
+pub struct CampaignSpec {
+    /// Campaign seed.
+    pub seed: u64,
+    /// Repetitions of each (flap, kind, pusher) cell: 5 flaps × 4 kinds × 2 × reps maneuvers.
+    pub repetitions: usize,
+    /// Effects switched on (aero, measurement and `stochastic_rolloff`).
+    pub effects: Vec<EffectSpec>,
+    /// Sensor noise scale (0 = noise-free, 1 = nominal).
+    pub noise_scale: f64,
+    /// Dryden RMS gust intensity, m/s (0 = calm).
+    pub turbulence_mps: f64,
+    /// Pilot excitation scale (doublets, stick noise), 1 = nominal.
+    pub excitation: f64,
+    /// Roll-off statistics (thesis Table 3.2 by default).
+    pub rolloff: RollOffConfig,
+    /// Simulation rate, Hz.
+    pub sim_hz: f64,
+    /// Record rate, Hz (a divisor of `sim_hz`).
+    pub record_hz: f64,
+    /// Only maneuvers with these indices (empty = all), for tests and benchmarks.
+    pub only: Vec<usize>,
+}
+
+impl Default for CampaignSpec {
+    fn default() -> Self {
+        CampaignSpec {
+            seed: 0,
+            repetitions: 5,
+            effects: Vec::new(),
+            noise_scale: 1.0,
+            turbulence_mps: 0.5,
+            excitation: 1.0,
+            rolloff: RollOffConfig::default(),
+            sim_hz: 100.0,
+            record_hz: 50.0,
+            only: Vec::new(),
+        }
+    }
+}
+
+/// One maneuver of the plan.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct ManeuverPlan {
+    /// Index in the campaign.
+    pub index: usize,
+    /// Flap, deg.
+    pub flap_deg: f64,
+    /// Kind.
+    pub kind: Kind,
+    /// Stick pusher on.
+    pub pusher: bool,
+    /// Maneuver seed.
+    pub seed: u64,
+}
+
+/// The result of one maneuver.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct ManeuverResult {
+    /// Identifier (`m007_f10_turning_p`).
+    pub id: String,
+    /// Plan.
+    pub plan: ManeuverPlan,
+    /// Record channel names.
+    pub record_names: Vec<String>,
+    /// Record columns.
+    #[serde(skip)]
+    pub record: Vec<Vec<f64>>,
+    /// Truth channel names.
+    pub truth_names: Vec<String>,
+    /// Truth columns.
+    #[serde(skip)]
+    pub truth: Vec<Vec<f64>>,
+    /// Roll-off draws.
+    pub rolloff_draws: Vec<RollOffDraw>,
+    /// Maximum true alpha, deg.
+    pub max_alpha_deg: f64,
+    /// Load factor when alpha first reaches α_max − 1° (stall onset).
+    pub load_factor_at_stall: f64,
+    /// Whether the pusher fired.
+    pub pusher_fired: bool,
+    /// Maximum |bank|, deg.
+    pub max_bank_deg: f64,
+}
+
+impl CampaignSpec {
+    /// Parse a specification from JSON (missing fields take their defaults).
+    ///
+    /// # Errors
+    /// [`AeroError::Parse`] naming the JSON line and the problem.
+    pub fn from_json(text: &str) -> Result<Self> {
+        serde_json::from_str(text)
+            .map_err(|e| AeroError::parse("campaign spec (JSON)", e.line(), e.to_string()))
+    }
+
+    /// The specification as JSON.
+    pub fn to_json(&self) -> String {
+        serde_json::to_string(self).unwrap_or_default()
+    }
+}
+
+impl ManeuverResult {
+    /// Metadata (everything but the columns) as JSON.
+    pub fn meta_json(&self) -> String {
+        serde_json::to_string(self).unwrap_or_default()
+    }
+}
+
+/// The list of maneuvers of a campaign.
+pub fn plan(spec: &CampaignSpec) -> Vec<ManeuverPlan> {
+    let mut out = Vec::new();
+    let mut index = 0;
+    for rep in 0..spec.repetitions.max(1) {
+        let _ = rep;
+        for f in FLAP_STALL {
+            for kind in Kind::ALL {
+                for pusher in [true, false] {
+                    out.push(ManeuverPlan {
+                        index,
+                        flap_deg: f.flap_deg,
+                        kind,
+                        pusher,
+                        seed: derive_seed(spec.seed, index as u64),
+                    });
+                    index += 1;
+                }
+            }
+        }
+    }
+    if !spec.only.is_empty() {
+        out.retain(|m| spec.only.contains(&m.index));
+    }
+    out
+}
+
+fn engine_spec(ac: &AircraftRef) -> EngineSpec {
+    EngineSpec {
+        max_power_w: ac.max_power_w,
+        idle_power_w: 0.04 * ac.max_power_w,
+        time_constant_s: 1.2,
+        efficiency: 0.8,
+        max_thrust_n: 30_000.0,
+        prop_rpm: ac.prop_rpm,
+        density_exponent: 0.7,
+    }
+}
+
+fn actuators(c0: &Controls) -> [Actuator; 5] {
+    let d = f64::to_radians;
+    [
+        Actuator::new(0.06, d(60.0), d(-20.0), d(20.0), c0.da),
+        Actuator::new(0.06, d(40.0), d(-22.0), d(18.0), c0.de),
+        Actuator::new(0.08, d(40.0), d(-25.0), d(25.0), c0.dr),
+        Actuator::new(0.05, d(90.0), 0.0, d(45.0), 0.0),
+        Actuator::new(0.05, d(90.0), 0.0, d(45.0), 0.0),
+    ]
+}
+
+/// Fly one maneuver of `plan` on the truth aircraft.
+///
+/// # Errors
+/// When the trim fails or an effect name is unknown.
+pub fn run_maneuver(
+    spec: &CampaignSpec,
+    qual: &QualifiedModel,
+    effects: &[ActiveEffect],
+    meas: &MeasurementEffects,
+    rolloff_on: bool,
+    m: &ManeuverPlan,
+) -> Result<ManeuverResult> {
+    let ac = qual.aircraft.clone();
+    let fi = FLAP_STALL
+        .iter()
+        .position(|f| f.flap_deg == m.flap_deg)
+        .unwrap_or(0);
+    let stall = FLAP_STALL[fi];
+    let mut setup = Stream::new(m.seed, stream::SETUP);
+    let h0 = 3000.0 + setup.range(-300.0, 300.0);
+    let air0 = isa(h0);
+    let w = ac.mass_kg * G0;
+    let vs = (2.0 * w / (air0.density_kgm3 * ac.s_m2 * stall.cl_max)).sqrt();
+    let v0 = match m.kind {
+        Kind::Accelerated => 1.55,
+        Kind::Turning => 1.35 * 1.075,
+        _ => 1.35,
+    } * vs
+        * setup.range(0.97, 1.05);
+    let bank_sign = if setup.bernoulli(0.5) { 1.0 } else { -1.0 };
+    let bank = match m.kind {
+        Kind::Turning => setup.range(27.0, 33.0),
+        Kind::Accelerated => setup.range(30.0, 40.0),
+        _ => 0.0,
+    }
+    .to_radians()
+        * bank_sign;
+    let dt = 1.0 / spec.sim_hz;
+    let decim = ((spec.sim_hz / spec.record_hz).round() as usize).max(1);
+
+    let rolloff = if rolloff_on {
+        Some(RollOff::new(
+            spec.rolloff.clone(),
+            m.flap_deg,
+            m.seed,
+            stream::ROLLOFF,
+        )?)
+    } else {
+        None
+    };
+    let mut model = TruthAero::new(slice(qual, m.flap_deg)?, effects.to_vec(), rolloff);
+    let mut sim = Simulator::new(ac.clone(), m.flap_deg, nalgebra::SVector::zeros(), dt);
+    let tr = trim(&sim, &model, v0, h0).context(format!("maneuver {}", m.index))?;
+    let t_each = tr.thrust_n;
+    sim.x = tr.x;
+    let sigma = air0.density_kgm3 / 1.225;
+    let espec = engine_spec(&ac);
+    let probe = Engine::settled(espec, 0.0, sigma);
+    let p_trim = probe.power_for_thrust(t_each, v0);
+    let lever_trim = probe.lever_for_power(p_trim, sigma);
+    let mut engines = [
+        Engine {
+            spec: espec,
+            power_w: p_trim,
+        },
+        Engine {
+            spec: espec,
+            power_w: p_trim,
+        },
+    ];
+    let levers = match m.kind {
+        Kind::AsymmetricThrust => {
+            if setup.bernoulli(0.5) {
+                [0.85, 0.0]
+            } else {
+                [0.0, 0.85]
+            }
+        }
+        Kind::Accelerated => [lever_trim.clamp(0.0, 1.0); 2],
+        _ => [(lever_trim * setup.range(0.6, 1.1)).clamp(0.0, 1.0); 2],
+    };
+    let params = PilotParams {
+        kind: m.kind,
+        bank,
+        delay_s: setup.range(0.15, 0.35),
+        gain: setup.range(0.75, 1.3),
+        decel: 0.514 * setup.range(0.8, 1.25),
+        pull_rate_dps: match m.kind {
+            Kind::Accelerated => setup.range(0.6, 1.0),
+            _ => setup.range(0.5, 1.0),
+        },
+        stall_margin_deg: setup.range(0.5, 3.0),
+        levers,
+        trim_error: setup.range(-0.5, 0.5).to_radians(),
+        excitation: spec.excitation,
+        recovery_s: setup.range(7.0, 10.0),
+        wing_drop_deg: setup.range(15.0, 30.0),
+        aileron_in_stall: setup.bernoulli(0.5),
+    };
+    let alpha0 = sim.air(&sim.x).alpha.to_degrees();
+    let mut pilot = Pilot::new(
+        params,
+        stall,
+        w / ac.s_m2,
+        v0,
+        alpha0,
+        dt,
+        m.seed,
+        stream::PILOT,
+    );
+    let mut pusher = m.pusher.then(|| Pusher::new(stall.alpha_max_deg - 1.0));
+    let mut acts = actuators(&tr.controls);
+    let sig = spec.turbulence_mps;
+    let mut gusts = Dryden::new([sig, sig, sig], m.seed, stream::GUST);
+
+    let max_steps = (150.0 * spec.sim_hz) as usize;
+    let mut samples: Vec<TrueSample> = Vec::with_capacity(max_steps / decim + 2);
+    let mut truth_rows: Vec<[f64; 8]> = Vec::with_capacity(max_steps / decim + 2);
+    let mut eff_rows: Vec<[f64; 3]> = Vec::with_capacity((max_steps / decim + 2) * effects.len());
+    let mut contrib = vec![[0.0; 3]; effects.len()];
+    let (mut max_alpha, mut n_at, mut max_bank) = (f64::NEG_INFINITY, 1.0, 0.0f64);
+    let mut surfaces = tr.controls;
+    for step in 0..max_steps {
+        // gusts of this step, then what the pilot sees, then the surfaces and
+        // thrust acting over this step: the sample at t_k records exactly those
+        // (so a replay of the record reproduces the flight, Section 4.3)
+        if sig > 0.0 {
+            let tas = sim.air(&sim.x).tas;
+            sim.gust = gusts.advance(tas, dt);
+        }
+        let ad = sim.air(&sim.x);
+        let qs = ad.qbar * ac.s_m2;
+        let o = Observation {
+            t: sim.t,
+            alpha: ad.alpha,
+            beta: ad.beta,
+            p: sim.x[ix::P],
+            q: sim.x[ix::Q],
+            r: sim.x[ix::R],
+            phi: sim.x[ix::PHI],
+            tas: ad.tas,
+            rho: ad.rho,
+            ct_sum: (engines[0].thrust(ad.tas) + engines[1].thrust(ad.tas)) / qs,
+        };
+        let push = pusher
+            .as_mut()
+            .map_or(0.0, |p| p.update(sim.t, ad.alpha.to_degrees()));
+        let fired = pusher.as_ref().is_some_and(Pusher::has_fired);
+        let Command {
+            controls: c,
+            levers,
+        } = pilot.command(&o, fired, dt);
+        if step > 0 {
+            surfaces = Controls {
+                da: acts[0].advance(c.da, dt),
+                de: acts[1].advance(c.de + push, dt),
+                dr: acts[2].advance(c.dr, dt),
+                dsl: acts[3].advance(c.dsl, dt),
+                dsr: acts[4].advance(c.dsr, dt),
+            };
+            for (e, l) in engines.iter_mut().zip(levers) {
+                e.advance(l, ad.rho / 1.225, dt);
+            }
+        }
+        let thrust = [engines[0].thrust(ad.tas), engines[1].thrust(ad.tas)];
+        if step % decim == 0 {
+            let (xd, loads) = sim.derivative(&model, &surfaces, thrust);
+            let (inp, _) = sim.aero_input(&sim.x, &surfaces, thrust);
+            let coeffs = model.coefficients(&inp);
+            let qc = model.qualified_coeffs(&inp);
+            model.contributions(&inp, &mut contrib);
+            eff_rows.extend_from_slice(&contrib);
+            truth_rows.push([
+                sim.t,
+                ad.alpha.to_degrees(),
+                ad.beta.to_degrees(),
+                coeffs.cl,
+                coeffs.cn,
+                coeffs.cy,
+                qc[3],
+                model.rolloff_cl(&inp),
+            ]);
+            // qualified Cn, CY kept in the last two columns of a second row array
+            truth_rows.push([qc[5], qc[2], 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]);
+            let x = &sim.x;
+            samples.push(TrueSample {
+                t: sim.t,
+                v_air: Vector3::new(x[ix::U], x[ix::V], x[ix::W]) - sim.gust,
+                omega: Vector3::new(x[ix::P], x[ix::Q], x[ix::R]),
+                omega_dot: Vector3::new(xd[ix::P], xd[ix::Q], xd[ix::R]),
+                euler: Vector3::new(x[ix::PHI], x[ix::THETA], x[ix::PSI]),
+                f_cg: loads.force / ac.mass_kg,
+                tas: ad.tas,
+                rho: ad.rho,
+                h: x[ix::H],
+                controls: surfaces,
+                ct: [inp.ct_left, inp.ct_right],
+            });
+            let n = -loads.force.z / w;
+            let a_deg = ad.alpha.to_degrees();
+            if a_deg >= stall.alpha_max_deg - 1.0 && max_alpha < stall.alpha_max_deg - 1.0 {
+                n_at = n; // load factor at the stall onset (first reach of α_max − 1°)
+            }
+            max_alpha = max_alpha.max(a_deg);
+            max_bank = max_bank.max(x[ix::PHI].abs().to_degrees());
+        }
+        if pilot.done(sim.t) {
+            break;
+        }
+        sim.step(&mut model, &surfaces, thrust);
+        if !sim.x.iter().all(|v| v.is_finite()) {
+            return Err(AeroError::invalid(
+                format!("maneuver {}", m.index),
+                format!("the simulation diverged at t = {:.2} s", sim.t),
+            ));
+        }
+    }
+    let meas_cols = record(
+        &samples,
+        &ac,
+        m.flap_deg,
+        meas,
+        &NoiseSpec::default(),
+        spec.noise_scale,
+        m.seed,
+        stream::SENSORS,
+    );
+    // truth columns
+    let ns = samples.len();
+    let mut truth_names: Vec<String> = [
+        "t",
+        "alpha_true_deg",
+        "beta_true_deg",
+        "Cl_true",
+        "Cn_true",
+        "CY_true",
+        "Cl_qual",
+        "Cn_qual",
+        "CY_qual",
+    ]
+    .iter()
+    .map(|s| s.to_string())
+    .collect();
+    let mut truth: Vec<Vec<f64>> = (0..9).map(|_| Vec::with_capacity(ns)).collect();
+    for k in 0..ns {
+        let a = &truth_rows[2 * k];
+        let b = &truth_rows[2 * k + 1];
+        for (j, v) in [a[0], a[1], a[2], a[3], a[4], a[5], a[6], b[0], b[1]]
+            .iter()
+            .enumerate()
+        {
+            truth[j].push(*v);
+        }
+    }
+    for (ei, e) in effects.iter().enumerate() {
+        for (ci, cname) in ["CY", "Cl", "Cn"].iter().enumerate() {
+            truth_names.push(format!("d{cname}_{}", e.def.name));
+            truth.push(
+                (0..ns)
+                    .map(|k| eff_rows[k * effects.len() + ei][ci])
+                    .collect(),
+            );
+        }
+    }
+    if rolloff_on {
+        truth_names.push("dCl_stochastic_rolloff".into());
+        truth.push((0..ns).map(|k| truth_rows[2 * k][7]).collect());
+    }
+    let id = format!(
+        "m{:03}_f{:02}_{}_{}",
+        m.index,
+        m.flap_deg as i64,
+        m.kind.name(),
+        if m.pusher { "p" } else { "n" }
+    );
+    Ok(ManeuverResult {
+        id,
+        plan: *m,
+        record_names: CHANNELS.iter().map(|s| s.to_string()).collect(),
+        record: meas_cols,
+        truth_names,
+        truth,
+        rolloff_draws: model
+            .rolloff
+            .as_ref()
+            .map(|r| r.history.clone())
+            .unwrap_or_default(),
+        max_alpha_deg: max_alpha,
+        load_factor_at_stall: n_at,
+        pusher_fired: pusher.as_ref().is_some_and(Pusher::has_fired),
+        max_bank_deg: max_bank,
+    })
+}
+
+/// Split the effect requests into aerodynamic effects, measurement effects and the roll-off switch.
+///
+/// # Errors
+/// For an unknown effect name or an invalid roll-off configuration.
+pub fn resolve_effects(
+    spec: &CampaignSpec,
+) -> Result<(Vec<ActiveEffect>, MeasurementEffects, bool, f64)> {
+    let aero = active_effects(&spec.effects)?;
+    let mut meas = MeasurementEffects::none();
+    let mut rolloff_scale = 0.0;
+    for e in &spec.effects {
+        if e.name == "stochastic_rolloff" {
+            rolloff_scale = e.magnitude;
+        } else if crate::aircraft::effects::MEASUREMENT_EFFECTS.contains(&e.name.as_str()) {
+            meas.set(&e.name, e.magnitude)?;
+        }
+    }
+    spec.rolloff.validate()?;
+    Ok((aero, meas, rolloff_scale > 0.0, rolloff_scale))
+}
+
+/// Run a whole campaign (in parallel with the `parallel` feature; same result either way).
+///
+/// # Errors
+/// The first maneuver error, with its index.
+pub fn run_campaign(spec: &CampaignSpec) -> Result<Vec<ManeuverResult>> {
+    let (qual, _) = adx37_models()?;
+    let (aero, meas, rolloff_on, scale) = resolve_effects(spec)?;
+    let mut spec = spec.clone();
+    spec.rolloff.scale *= if rolloff_on { scale } else { 1.0 };
+    let plans = plan(&spec);
+    let run = |m: &ManeuverPlan| run_maneuver(&spec, qual, &aero, &meas, rolloff_on, m);
+    #[cfg(feature = "parallel")]
+    let results: Vec<Result<ManeuverResult>> = {
+        use rayon::prelude::*;
+        plans.par_iter().map(run).collect()
+    };
+    #[cfg(not(feature = "parallel"))]
+    let results: Vec<Result<ManeuverResult>> = plans.iter().map(run).collect();
+    results.into_iter().collect()
+}
+
+/// The ADX-37 qualified model and its slices at the five flap settings, built once.
+///
+/// # Errors
+/// Only if a table is malformed (a bug).
+pub fn adx37_models() -> Result<&'static (QualifiedModel, Vec<FlapModel>)> {
+    static MODELS: std::sync::OnceLock<
+        std::result::Result<(QualifiedModel, Vec<FlapModel>), String>,
+    > = std::sync::OnceLock::new();
+    let built = MODELS.get_or_init(|| {
+        let q = QualifiedModel::adx37(&adx37()).map_err(|e| e.to_string())?;
+        let slices = FLAP_STALL
+            .iter()
+            .map(|f| q.at_flap(f.flap_deg))
+            .collect::<Result<Vec<_>>>()
+            .map_err(|e| e.to_string())?;
+        Ok((q, slices))
+    });
+    built
+        .as_ref()
+        .map_err(|e| AeroError::invalid("ADX-37 qualified model", e.clone()))
+}
+
+/// The qualified model of `q` at `flap_deg`: a cached slice for the five standard settings.
+fn slice(q: &QualifiedModel, flap_deg: f64) -> Result<FlapModel> {
+    let (_, slices) = adx37_models()?;
+    match slices.iter().find(|s| s.flap_deg == flap_deg) {
+        Some(s) if q.aircraft == adx37() => Ok(s.clone()),
+        _ => q.at_flap(flap_deg),
+    }
+}
+
+/// Replay recorded controls (deg) and thrust coefficients on the ADX-37 from
+/// state `x0`: the qualified model when `effects` is empty, else the truth
+/// model with those effects and, when `rolloff_seed` is given, the roll-off.
+/// Returns the 12 states at each step (n + 1 rows).
+///
+/// # Errors
+/// For unknown effects or mismatched input lengths.
+pub fn replay_adx37(
+    flap_deg: f64,
+    effects: &[EffectSpec],
+    rolloff_seed: Option<u64>,
+    x0: [f64; 12],
+    dt: f64,
+    controls_deg: &[[f64; 5]],
+    ct: &[[f64; 2]],
+) -> Result<Vec<[f64; 12]>> {
+    let ac = adx37();
+    let (qual, _) = adx37_models()?;
+    let aero = active_effects(effects)?;
+    let rolloff = match rolloff_seed {
+        Some(seed) => Some(RollOff::new(
+            RollOffConfig::default(),
+            flap_deg,
+            seed,
+            stream::ROLLOFF,
+        )?),
+        None => None,
+    };
+    let mut model = TruthAero::new(slice(qual, flap_deg)?, aero, rolloff);
+    let mut sim = Simulator::new(ac, flap_deg, nalgebra::SVector::from(x0), dt);
+    let d = f64::to_radians;
+    let controls: Vec<Controls> = controls_deg
+        .iter()
+        .map(|c| Controls {
+            da: d(c[0]),
+            de: d(c[1]),
+            dr: d(c[2]),
+            dsl: d(c[3]),
+            dsr: d(c[4]),
+        })
+        .collect();
+    let states = crate::sim::maneuver::replay_ct(&mut sim, &mut model, &controls, ct)?;
+    Ok(states.iter().map(|x| x.data.0[0]).collect())
+}
+
+/// The wings-level trim of the ADX-37 qualified model at `v` (m/s), `h` (m), flap (deg):
+/// (12 states, controls δa, δe, δr, δsl, δsr in deg, C_T per engine).
+///
+/// # Errors
+/// When no trim exists (below the stall speed).
+pub fn trim_adx37(flap_deg: f64, v: f64, h: f64) -> Result<([f64; 12], [f64; 5], f64)> {
+    let ac = adx37();
+    let (qual, _) = adx37_models()?;
+    let model = TruthAero::new(slice(qual, flap_deg)?, Vec::new(), None);
+    let sim = Simulator::new(ac.clone(), flap_deg, nalgebra::SVector::zeros(), 0.01);
+    let tr = trim(&sim, &model, v, h)?;
+    let c = tr.controls;
+    let qs = sim.air(&tr.x).qbar * ac.s_m2;
+    Ok((
+        tr.x.data.0[0],
+        [c.da, c.de, c.dr, c.dsl, c.dsr].map(f64::to_degrees),
+        tr.thrust_n / qs,
+    ))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::aircraft::truth::EffectSpec;
+
+    fn quick(seed: u64) -> CampaignSpec {
+        CampaignSpec {
+            seed,
+            repetitions: 1,
+            effects: vec![EffectSpec {
+                name: "stochastic_rolloff".into(),
+                magnitude: 1.0,
+                shape: None,
+            }],
+            ..CampaignSpec::default()
+        }
+    }
+
+    #[test]
+    fn maneuvers_reach_the_stall_and_recover() {
+        let r = run_campaign(&quick(3)).unwrap();
+        assert_eq!(r.len(), 40);
+        for m in &r {
+            let stall = FLAP_STALL
+                .iter()
+                .find(|f| f.flap_deg == m.plan.flap_deg)
+                .unwrap();
+            assert!(
+                m.max_alpha_deg > stall.alpha_max_deg - 3.5,
+                "{}: max alpha {}",
+                m.id,
+                m.max_alpha_deg
+            );
+            assert!(
+                m.max_alpha_deg < 40.0,
+                "{}: max alpha {}",
+                m.id,
+                m.max_alpha_deg
+            );
+            if m.plan.pusher && matches!(m.plan.kind, Kind::Straight | Kind::Turning) {
+                assert!(m.pusher_fired, "{}", m.id);
+            }
+            if m.plan.pusher {
+                // the pusher bounds alpha (a wing drop may end the approach earlier)
+                assert!(m.max_alpha_deg < stall.alpha_max_deg + 8.0, "{}", m.id);
+            }
+            if m.plan.kind == Kind::Accelerated {
+                assert!(
+                    m.load_factor_at_stall > 1.3,
+                    "{}: n = {}",
+                    m.id,
+                    m.load_factor_at_stall
+                );
+            }
+            let t = &m.record[0];
+            assert!(
+                t.len() > 500 && *t.last().unwrap() < 150.0,
+                "{}: duration {}",
+                m.id,
+                t.last().unwrap()
+            );
+        }
+    }
+
+    #[cfg(feature = "parallel")]
+    #[test]
+    fn thread_count_does_not_change_results() {
+        let mut s = quick(8);
+        s.only = vec![0, 3, 9, 14];
+        let many = run_campaign(&s).unwrap();
+        let one = rayon::ThreadPoolBuilder::new()
+            .num_threads(1)
+            .build()
+            .unwrap()
+            .install(|| run_campaign(&s).unwrap());
+        for (a, b) in many.iter().zip(&one) {
+            assert_eq!(a.record, b.record);
+            assert_eq!(a.truth, b.truth);
+        }
+    }
+
+    #[test]
+    fn same_seed_same_campaign() {
+        let mut s = quick(5);
+        s.only = vec![1, 17];
+        let a = run_campaign(&s).unwrap();
+        let b = run_campaign(&s).unwrap();
+        assert_eq!(a[1].record, b[1].record);
+        s.seed = 6;
+        let c = run_campaign(&s).unwrap();
+        assert_ne!(a[1].record, c[1].record);
+    }
+}

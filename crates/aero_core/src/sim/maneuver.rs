@@ -1,0 +1,495 @@
+//! The simulation loop (thesis Figure 3.2): aerodynamic model → loads →
+//! Eq. 3.1 → RK4, at a fixed step, with the atmosphere, gusts, engines and
+//! actuators around it; trim; and replay of recorded control positions
+//! (thesis Section 4.3).
+
+use nalgebra::Vector3;
+
+use crate::aircraft::turboprop::AircraftRef;
+use crate::error::{AeroError, Result};
+use crate::sim::aero::{AeroInput, AeroModel, Controls};
+use crate::sim::atmosphere::{isa, G0};
+use crate::sim::eom::{derivative, ix, rk4_step, Loads, RigidBody, StateVec};
+
+/// The 6-DOF aircraft: state, environment, and the coupling to an [`AeroModel`].
+#[derive(Debug, Clone)]
+pub struct Simulator {
+    /// Reference values (geometry, mass, propellers).
+    pub aircraft: AircraftRef,
+    /// Rigid body.
+    pub body: RigidBody,
+    /// State (see [`crate::sim::eom`]).
+    pub x: StateVec,
+    /// Time, s.
+    pub t: f64,
+    /// Fixed step, s.
+    pub dt: f64,
+    /// Flap setting, deg.
+    pub flap_deg: f64,
+    /// Gust velocity (body axes), m/s: the air moves with it.
+    pub gust: Vector3<f64>,
+    /// Last α̇, β̇ (rad/s), from the previous step (backward difference).
+    pub alpha_dot: f64,
+    /// Last β̇, rad/s.
+    pub beta_dot: f64,
+    prev_ab: Option<(f64, f64)>,
+    /// Atmosphere held over the RK4 stages of a step (altitude changes < 1 m per step).
+    frozen: Option<crate::sim::atmosphere::Air>,
+}
+
+/// Air-relative quantities at a state.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct AirData {
+    /// Alpha, rad.
+    pub alpha: f64,
+    /// Beta, rad.
+    pub beta: f64,
+    /// True airspeed, m/s.
+    pub tas: f64,
+    /// Density, kg/m³.
+    pub rho: f64,
+    /// Dynamic pressure, Pa.
+    pub qbar: f64,
+    /// Speed of sound, m/s.
+    pub sound: f64,
+}
+
+impl Simulator {
+    /// A simulator at state `x` with step `dt` (s).
+    pub fn new(aircraft: AircraftRef, flap_deg: f64, x: StateVec, dt: f64) -> Self {
+        let body = RigidBody::new(
+            aircraft.mass_kg,
+            aircraft.ixx,
+            aircraft.iyy,
+            aircraft.izz,
+            aircraft.ixz,
+        );
+        Simulator {
+            aircraft,
+            body,
+            x,
+            t: 0.0,
+            dt,
+            flap_deg,
+            gust: Vector3::zeros(),
+            alpha_dot: 0.0,
+            beta_dot: 0.0,
+            prev_ab: None,
+            frozen: None,
+        }
+    }
+
+    /// Air data at state `x` (gusts subtracted).
+    #[inline]
+    pub fn air(&self, x: &StateVec) -> AirData {
+        let u = x[ix::U] - self.gust.x;
+        let v = x[ix::V] - self.gust.y;
+        let w = x[ix::W] - self.gust.z;
+        let tas = (u * u + v * v + w * w).sqrt().max(1e-3);
+        let a = self.frozen.unwrap_or_else(|| isa(x[ix::H]));
+        AirData {
+            alpha: w.atan2(u),
+            beta: (v / tas).clamp(-1.0, 1.0).asin(),
+            tas,
+            rho: a.density_kgm3,
+            qbar: 0.5 * a.density_kgm3 * tas * tas,
+            sound: a.sound_speed_mps,
+        }
+    }
+
+    /// The model input at state `x` with surfaces `c` and engine thrusts (N).
+    #[inline]
+    pub fn aero_input(
+        &self,
+        x: &StateVec,
+        c: &Controls,
+        thrust_n: [f64; 2],
+    ) -> (AeroInput, AirData) {
+        let ad = self.air(x);
+        let ac = &self.aircraft;
+        let qs = ad.qbar * ac.s_m2;
+        let k = 1.0 / (2.0 * ad.tas);
+        (
+            AeroInput {
+                alpha: ad.alpha,
+                beta: ad.beta,
+                p_hat: x[ix::P] * ac.b_m * k,
+                q_hat: x[ix::Q] * ac.cbar_m * k,
+                r_hat: x[ix::R] * ac.b_m * k,
+                alpha_dot: self.alpha_dot,
+                beta_dot: self.beta_dot,
+                controls: *c,
+                flap_deg: self.flap_deg,
+                ct_left: thrust_n[0] / qs,
+                ct_right: thrust_n[1] / qs,
+                mach: ad.tas / ad.sound,
+                tas: ad.tas,
+            },
+            ad,
+        )
+    }
+
+    /// Loads at state `x` from `model`.
+    #[inline]
+    pub fn loads<M: AeroModel + ?Sized>(
+        &self,
+        model: &M,
+        x: &StateVec,
+        c: &Controls,
+        thrust_n: [f64; 2],
+    ) -> Loads {
+        let (inp, ad) = self.aero_input(x, c, thrust_n);
+        let co = model.coefficients(&inp);
+        let ac = &self.aircraft;
+        let qs = ad.qbar * ac.s_m2;
+        let prop = if ac.n_engines >= 2 { 2.0 } else { 1.0 };
+        Loads {
+            force: Vector3::new(co.cx, co.cy, co.cz) * qs,
+            moment: Vector3::new(
+                co.cl * qs * ac.b_m,
+                co.cm * qs * ac.cbar_m,
+                co.cn * qs * ac.b_m,
+            ),
+            prop_momentum: prop * ac.prop_inertia * ac.prop_rpm * std::f64::consts::PI / 30.0,
+        }
+    }
+
+    /// Advance one fixed step with surfaces `c` (rad) and thrusts (N) held over it.
+    pub fn step<M: AeroModel + ?Sized>(&mut self, model: &mut M, c: &Controls, thrust_n: [f64; 2]) {
+        self.frozen = Some(isa(self.x[ix::H]));
+        self.step_frozen(model, c, thrust_n);
+    }
+
+    /// Advance one step with thrust from thrust coefficients C_T (T = C_T q̄ S at the step start).
+    pub fn step_ct<M: AeroModel + ?Sized>(&mut self, model: &mut M, c: &Controls, ct: [f64; 2]) {
+        self.frozen = Some(isa(self.x[ix::H]));
+        let qs = self.air(&self.x).qbar * self.aircraft.s_m2;
+        self.step_frozen(model, c, [ct[0] * qs, ct[1] * qs]);
+    }
+
+    fn step_frozen<M: AeroModel + ?Sized>(
+        &mut self,
+        model: &mut M,
+        c: &Controls,
+        thrust_n: [f64; 2],
+    ) {
+        let (inp, _) = self.aero_input(&self.x, c, thrust_n);
+        model.advance(self.t, &inp);
+        let x0 = self.x;
+        let me = &*self;
+        let m = &*model;
+        let next = rk4_step(&me.body, &x0, me.dt, |x| me.loads(m, x, c, thrust_n));
+        self.x = next;
+        self.t += self.dt;
+        let ad = self.air(&self.x); // angles only: the frozen atmosphere is fine here
+        self.frozen = None;
+        if let Some((a0, b0)) = self.prev_ab {
+            self.alpha_dot = (ad.alpha - a0) / self.dt;
+            self.beta_dot = (ad.beta - b0) / self.dt;
+        }
+        self.prev_ab = Some((ad.alpha, ad.beta));
+    }
+
+    /// State derivative at the current state (for accelerations and sensors).
+    pub fn derivative<M: AeroModel + ?Sized>(
+        &self,
+        model: &M,
+        c: &Controls,
+        thrust_n: [f64; 2],
+    ) -> (StateVec, Loads) {
+        let l = self.loads(model, &self.x, c, thrust_n);
+        (derivative(&self.body, &self.x, &l), l)
+    }
+}
+
+/// A wings-level trimmed flight condition.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Trim {
+    /// State (θ = α: level flight).
+    pub x: StateVec,
+    /// Surface positions, rad.
+    pub controls: Controls,
+    /// Thrust per engine, N.
+    pub thrust_n: f64,
+}
+
+/// Wings-level, level-flight trim at airspeed `v` (m/s), altitude `h` (m):
+/// α, β, δe, thrust, δa, δr such that u̇ = v̇ = ẇ = ṗ = q̇ = ṙ = 0 (Newton with
+/// a finite-difference Jacobian; the lateral unknowns balance the
+/// propellers' asymmetric slipstream terms).
+///
+/// # Errors
+/// [`AeroError::NoConvergence`] when the Newton iteration fails (speed below stall).
+pub fn trim<M: AeroModel + ?Sized>(sim: &Simulator, model: &M, v: f64, h: f64) -> Result<Trim> {
+    type V6 = nalgebra::SVector<f64, 6>;
+    let w = sim.aircraft.mass_kg * G0;
+    let build = |z: &V6| {
+        let mut x = StateVec::zeros();
+        let (a, b) = (z[0], z[1]);
+        x[ix::U] = v * a.cos() * b.cos();
+        x[ix::V] = v * b.sin();
+        x[ix::W] = v * a.sin() * b.cos();
+        x[ix::THETA] = (x[ix::W] / x[ix::U]).atan();
+        x[ix::H] = h;
+        let c = Controls {
+            da: z[4],
+            de: z[2],
+            dr: z[5],
+            ..Controls::default()
+        };
+        (x, c, z[3] * w)
+    };
+    let resid = |z: &V6| {
+        let (x, c, t) = build(z);
+        let d = derivative(&sim.body, &x, &sim.loads(model, &x, &c, [t, t]));
+        V6::from([d[ix::U], d[ix::V], d[ix::W], d[ix::P], d[ix::Q], d[ix::R]])
+    };
+    let mut z = V6::from([0.08, 0.0, 0.0, 0.05, 0.0, 0.0]);
+    let mut r = resid(&z);
+    for _ in 0..60 {
+        if r.norm() < 1e-11 {
+            break;
+        }
+        let mut j = nalgebra::SMatrix::<f64, 6, 6>::zeros();
+        for k in 0..6 {
+            let mut zp = z;
+            zp[k] += 1e-7;
+            j.set_column(k, &((resid(&zp) - r) / 1e-7));
+        }
+        let Some(dz) = j.lu().solve(&(-r)) else {
+            break;
+        };
+        z += dz.map(|d| d.clamp(-0.05, 0.05));
+        r = resid(&z);
+    }
+    if r.norm().is_nan() || r.norm() >= 1e-7 || z[0].to_degrees() > 16.0 {
+        return Err(AeroError::NoConvergence {
+            place: format!("trim at {v:.1} m/s, {h:.0} m"),
+            iterations: 60,
+            residual: r.norm(),
+            message: "no level-flight trim; raise the airspeed above the stall speed".into(),
+        });
+    }
+    let (x, controls, t) = build(&z);
+    Ok(Trim {
+        x,
+        controls,
+        thrust_n: t,
+    })
+}
+
+/// Replay (thesis Section 4.3): drive the simulation with recorded control
+/// positions and thrusts from a flight record, from initial state `x0`.
+/// `controls[k]` and `thrust_n[k]` act over step k (length `n`); returns the
+/// state at each step start and the final one (n + 1 rows).
+pub fn replay<M: AeroModel + ?Sized>(
+    sim: &mut Simulator,
+    model: &mut M,
+    controls: &[Controls],
+    thrust_n: &[[f64; 2]],
+) -> Result<Vec<StateVec>> {
+    if controls.len() != thrust_n.len() {
+        return Err(AeroError::invalid(
+            "replay",
+            format!(
+                "{} control rows but {} thrust rows; give one of each per step",
+                controls.len(),
+                thrust_n.len()
+            ),
+        ));
+    }
+    let mut out = Vec::with_capacity(controls.len() + 1);
+    out.push(sim.x);
+    for (c, t) in controls.iter().zip(thrust_n) {
+        sim.step(model, c, *t);
+        out.push(sim.x);
+    }
+    Ok(out)
+}
+
+/// Replay with recorded thrust coefficients: each step converts C_T to thrust
+/// with the current dynamic pressure (T = C_T q̄ S).
+///
+/// # Errors
+/// When the two input lists differ in length.
+pub fn replay_ct<M: AeroModel + ?Sized>(
+    sim: &mut Simulator,
+    model: &mut M,
+    controls: &[Controls],
+    ct: &[[f64; 2]],
+) -> Result<Vec<StateVec>> {
+    if controls.len() != ct.len() {
+        return Err(AeroError::invalid(
+            "replay",
+            format!(
+                "{} control rows but {} C_T rows; give one of each per step",
+                controls.len(),
+                ct.len()
+            ),
+        ));
+    }
+    let mut out = Vec::with_capacity(controls.len() + 1);
+    out.push(sim.x);
+    for (c, k) in controls.iter().zip(ct) {
+        sim.step_ct(model, c, *k);
+        out.push(sim.x);
+    }
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::aircraft::qualified::{QualifiedAero, QualifiedModel};
+    use crate::aircraft::turboprop::adx37;
+    use crate::sim::aero::AeroCoeffs;
+    use nalgebra::{SMatrix, SVector};
+
+    fn qualified(flap: f64) -> QualifiedAero {
+        let q = QualifiedModel::adx37(&adx37()).unwrap();
+        QualifiedAero {
+            model: q.at_flap(flap).unwrap(),
+        }
+    }
+
+    #[test]
+    fn trimmed_level_flight_stays_trimmed_for_60_s() {
+        let mut model = qualified(0.0);
+        let mut sim = Simulator::new(adx37(), 0.0, StateVec::zeros(), 0.01);
+        let tr = trim(&sim, &model, 85.0, 3000.0).unwrap();
+        let (x0, c, t) = (tr.x, tr.controls, tr.thrust_n);
+        sim.x = x0;
+        for _ in 0..6000 {
+            sim.step(&mut model, &c, [t, t]);
+        }
+        let d = sim.x - x0;
+        assert!(d[ix::U].abs() < 1e-4 && d[ix::W].abs() < 1e-4, "{d}");
+        assert!(d[ix::THETA].abs() < 1e-6 && d[ix::Q].abs() < 1e-7);
+        assert!(d[ix::H].abs() < 1e-3, "altitude drift {}", d[ix::H]);
+        assert!(d[ix::PHI].abs() < 1e-6 && d[ix::V].abs() < 1e-4 && d[ix::R].abs() < 1e-7);
+        assert!((sim.x[ix::XE].hypot(sim.x[ix::YE]) - 85.0 * 60.0).abs() < 1e-2);
+    }
+
+    /// Roll-rate-only aerodynamics: C_l = C_l,p p̂ (all else zero), and lift = weight.
+    #[derive(Debug)]
+    struct RollOnly {
+        clp: f64,
+        cz: f64,
+    }
+    impl AeroModel for RollOnly {
+        fn coefficients(&self, s: &AeroInput) -> AeroCoeffs {
+            AeroCoeffs {
+                cl: self.clp * s.p_hat,
+                cz: self.cz,
+                ..AeroCoeffs::default()
+            }
+        }
+    }
+
+    #[test]
+    fn roll_mode_time_constant_matches_clp_and_inertia() {
+        // τ = −I'_xx 2V / (q̄ S b² C_l,p) with I'_xx = I_xx − I_xz²/I_zz (the roll
+        // equation with I_xz coupling, ṗ = c₃ L for N = 0: c₃ = I_zz/Γ).
+        let ac = adx37();
+        let (v, h, clp) = (80.0, 3000.0, -0.5);
+        let rho = isa(h).density_kgm3;
+        let qs = 0.5 * rho * v * v * ac.s_m2;
+        let mut model = RollOnly {
+            clp,
+            cz: -ac.mass_kg * G0 / qs,
+        };
+        let mut x = StateVec::zeros();
+        x[ix::U] = v;
+        x[ix::H] = h;
+        x[ix::P] = 0.1;
+        let mut sim = Simulator::new(ac.clone(), 0.0, x, 0.001);
+        let ixx_eff = ac.ixx - ac.ixz * ac.ixz / ac.izz;
+        let tau = -ixx_eff * 2.0 * v / (qs * ac.b_m * ac.b_m * clp);
+        let target = 0.1 * (-1.0f64).exp();
+        let mut prev = (0.0, 0.1);
+        let mut t_e = f64::NAN;
+        for _ in 0..5000 {
+            sim.step(&mut model, &Controls::default(), [0.0, 0.0]);
+            let p = sim.x[ix::P];
+            if p <= target {
+                t_e = prev.0 + (prev.1 - target) / (prev.1 - p) * (sim.t - prev.0);
+                break;
+            }
+            prev = (sim.t, p);
+        }
+        assert!(
+            (t_e / tau - 1.0).abs() < 0.03,
+            "simulated {t_e} s vs {tau} s"
+        );
+    }
+
+    #[test]
+    fn steady_heading_sideslip_balances() {
+        // Solve u̇ = v̇ = ẇ = ṗ = q̇ = ṙ = 0 at β = 5° for (α, δe, T, δa, δr, φ),
+        // then fly it: the state holds and the heading stays constant.
+        let mut model = qualified(0.0);
+        let ac = adx37();
+        let sim = Simulator::new(ac.clone(), 0.0, StateVec::zeros(), 0.01);
+        let (v, h, beta) = (80.0, 3000.0, 5f64.to_radians());
+        let build = |z: &SVector<f64, 6>| {
+            let mut x = StateVec::zeros();
+            x[ix::U] = v * z[0].cos() * beta.cos();
+            x[ix::V] = v * beta.sin();
+            x[ix::W] = v * z[0].sin() * beta.cos();
+            x[ix::PHI] = z[5];
+            x[ix::H] = h;
+            // level: θ such that ḣ = 0
+            let mut th = z[0];
+            for _ in 0..30 {
+                let f = x[ix::U] * th.sin()
+                    - x[ix::V] * th.cos() * z[5].sin()
+                    - x[ix::W] * th.cos() * z[5].cos();
+                let df = x[ix::U] * th.cos()
+                    + x[ix::V] * th.sin() * z[5].sin()
+                    + x[ix::W] * th.sin() * z[5].cos();
+                th -= f / df;
+            }
+            x[ix::THETA] = th;
+            let c = Controls {
+                da: z[3],
+                de: z[1],
+                dr: z[4],
+                ..Controls::default()
+            };
+            (x, c, [z[2] * 1e4, z[2] * 1e4])
+        };
+        let resid = |z: &SVector<f64, 6>| {
+            let (x, c, t) = build(z);
+            let d = derivative(&sim.body, &x, &sim.loads(&model, &x, &c, t));
+            SVector::<f64, 6>::from([d[0], d[1], d[2], d[3], d[4], d[5]])
+        };
+        let mut z = SVector::<f64, 6>::from([0.05, 0.0, 0.5, 0.0, 0.0, 0.0]);
+        for _ in 0..40 {
+            let r = resid(&z);
+            let mut j = SMatrix::<f64, 6, 6>::zeros();
+            for k in 0..6 {
+                let mut zp = z;
+                zp[k] += 1e-7;
+                j.set_column(k, &((resid(&zp) - r) / 1e-7));
+            }
+            z -= j.lu().solve(&r).unwrap();
+        }
+        assert!(resid(&z).norm() < 1e-9);
+        // β > 0 (wind from the right): C_n,β yaws the nose right, positive rudder holds it left
+        assert!(
+            z[4] > 0.0,
+            "right sideslip is held by positive (left-yawing) rudder: {}",
+            z[4]
+        );
+        assert!(z[5] > 0.0, "and a bank into the wind: {}", z[5]);
+        let (x0, c, t) = build(&z);
+        let mut s2 = Simulator::new(ac, 0.0, x0, 0.01);
+        for _ in 0..1000 {
+            s2.step(&mut model, &c, t);
+        }
+        let d = s2.x - x0;
+        assert!(d[ix::PSI].abs() < 1e-5, "heading drift {}", d[ix::PSI]);
+        assert!(d[ix::P].abs() < 1e-6 && d[ix::R].abs() < 1e-6);
+        assert!(d[ix::V].abs() < 1e-3 && d[ix::PHI].abs() < 1e-5);
+    }
+}

@@ -1,0 +1,24 @@
+//! The 6-DOF simulator (thesis Section 3.1.1, Eq. 3.1) and the virtual flight
+//! test built on it. One concept per module:
+//! - [`atmosphere`]: ISA to 20 km;
+//! - [`eom`]: rigid-body equations of motion, RK4;
+//! - [`aero`]: the [`aero::AeroModel`] trait any aerodynamic model implements;
+//! - [`engine`], [`actuator`]: turboprop and control-surface actuators;
+//! - [`turbulence`]: Dryden gusts (MIL-F-8785C);
+//! - [`pilot`]: the pilot model and stick pusher flying the stall maneuvers of Section 3.2.1;
+//! - [`sensors`]: flight-test instrumentation (positions, noise, biases, lags);
+//! - [`maneuver`]: the simulation loop of one maneuver, and replay of recorded controls;
+//! - [`campaign`]: a deterministic campaign of maneuvers;
+//! - [`rng`]: seeded portable random streams.
+
+pub mod actuator;
+pub mod aero;
+pub mod atmosphere;
+pub mod campaign;
+pub mod engine;
+pub mod eom;
+pub mod maneuver;
+pub mod pilot;
+pub mod rng;
+pub mod sensors;
+pub mod turbulence;

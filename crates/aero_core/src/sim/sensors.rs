@@ -1,0 +1,253 @@
+//! Flight-test instrumentation: turns true signals into the canonical record
+//! channels. Vanes and accelerometer sit at the positions of the aircraft
+//! reference file (so the ingestion's corrections matter); noise, per-maneuver
+//! biases and the measurement effects of the vocabulary (vane biases, an
+//! undeclared accelerometer offset, control lag, time skew) are applied here.
+//!
+//! Vane angles from the local air velocity V + ω × r_vane (no upwash
+//! calibration error): α_v = atan2(w_v, u_v), β_v = asin(v_v/|V_v|).
+//! Accelerometer: specific force f_cg + ω̇ × r + ω × (ω × r).
+
+use nalgebra::Vector3;
+
+use crate::aircraft::effects::MeasurementEffects;
+use crate::aircraft::turboprop::AircraftRef;
+use crate::sim::aero::Controls;
+use crate::sim::rng::Stream;
+
+/// True signals at one record instant.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TrueSample {
+    /// Time, s.
+    pub t: f64,
+    /// Air-relative body velocity (u, v, w), m/s.
+    pub v_air: Vector3<f64>,
+    /// Body rates, rad/s.
+    pub omega: Vector3<f64>,
+    /// Angular acceleration, rad/s².
+    pub omega_dot: Vector3<f64>,
+    /// Euler angles φ, θ, ψ, rad.
+    pub euler: Vector3<f64>,
+    /// Specific force at the CG (non-gravitational force / m), m/s².
+    pub f_cg: Vector3<f64>,
+    /// True airspeed, m/s.
+    pub tas: f64,
+    /// Density, kg/m³.
+    pub rho: f64,
+    /// Altitude, m.
+    pub h: f64,
+    /// Acting surface positions, rad.
+    pub controls: Controls,
+    /// Thrust coefficients per engine.
+    pub ct: [f64; 2],
+}
+
+/// Noise standard deviations at noise scale 1.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct NoiseSpec {
+    /// Vanes, deg.
+    pub angle_deg: f64,
+    /// Rate gyros, deg/s.
+    pub rate_dps: f64,
+    /// Attitude, deg.
+    pub attitude_deg: f64,
+    /// Accelerometers, m/s².
+    pub accel_mps2: f64,
+    /// Airspeed, m/s.
+    pub tas_mps: f64,
+    /// Control positions, deg.
+    pub control_deg: f64,
+    /// Thrust coefficient.
+    pub ct: f64,
+    /// Per-maneuver gyro bias sd, deg/s.
+    pub gyro_bias_dps: f64,
+    /// Per-maneuver accelerometer bias sd, m/s².
+    pub accel_bias_mps2: f64,
+}
+
+impl Default for NoiseSpec {
+    /// Typical flight-test instrumentation (Klein & Morelli, Ch. 9 sensor tables).
+    fn default() -> Self {
+        NoiseSpec {
+            angle_deg: 0.05,
+            rate_dps: 0.03,
+            attitude_deg: 0.03,
+            accel_mps2: 0.03,
+            tas_mps: 0.15,
+            control_deg: 0.05,
+            ct: 0.002,
+            gyro_bias_dps: 0.02,
+            accel_bias_mps2: 0.01,
+        }
+    }
+}
+
+/// The record channels in canonical order (without Cl_sim etc.).
+pub const CHANNELS: [&str; 24] = [
+    "t",
+    "alpha_deg",
+    "beta_deg",
+    "p_dps",
+    "q_dps",
+    "r_dps",
+    "phi_deg",
+    "theta_deg",
+    "psi_deg",
+    "ax_mps2",
+    "ay_mps2",
+    "az_mps2",
+    "tas_mps",
+    "rho_kgm3",
+    "da_deg",
+    "de_deg",
+    "dr_deg",
+    "dsl_deg",
+    "dsr_deg",
+    "flap_deg",
+    "ct_left",
+    "ct_right",
+    "prop_rpm",
+    "h_m",
+];
+
+fn shifted(t: &[f64], y: &[f64], shift: f64) -> Vec<f64> {
+    // value at t_k + shift by linear interpolation, holding the ends
+    let n = t.len();
+    (0..n)
+        .map(|k| {
+            let tq = t[k] + shift;
+            if tq <= t[0] {
+                return y[0];
+            }
+            if tq >= t[n - 1] {
+                return y[n - 1];
+            }
+            let j = (t.partition_point(|&x| x <= tq) - 1).min(n - 2);
+            let f = (tq - t[j]) / (t[j + 1] - t[j]);
+            y[j] + f * (y[j + 1] - y[j])
+        })
+        .collect()
+}
+
+/// The recorded channels ([`CHANNELS`] order) of a maneuver.
+#[allow(clippy::too_many_arguments)]
+pub fn record(
+    samples: &[TrueSample],
+    ac: &AircraftRef,
+    flap_deg: f64,
+    meas: &MeasurementEffects,
+    noise: &NoiseSpec,
+    noise_scale: f64,
+    seed: u64,
+    stream: u64,
+) -> Vec<Vec<f64>> {
+    let mut rng = Stream::new(seed, stream);
+    let ns = noise_scale;
+    let gb = Vector3::new(rng.normal(), rng.normal(), rng.normal()) * (noise.gyro_bias_dps * ns);
+    let ab = Vector3::new(rng.normal(), rng.normal(), rng.normal()) * (noise.accel_bias_mps2 * ns);
+    let v3 = |a: [f64; 3]| Vector3::new(a[0], a[1], a[2]);
+    let r_acc = v3(ac.accel_m) + v3(meas.accelerometer_offset_m);
+    let r_a = v3(ac.alpha_vane_m);
+    let r_b = v3(ac.beta_vane_m);
+    let n = samples.len();
+    let mut cols: Vec<Vec<f64>> = (0..CHANNELS.len()).map(|_| Vec::with_capacity(n)).collect();
+    for s in samples {
+        let mut nz = |sd: f64| sd * ns * rng.normal();
+        let va = s.v_air + s.omega.cross(&r_a);
+        let vb = s.v_air + s.omega.cross(&r_b);
+        let alpha_v = va.z.atan2(va.x).to_degrees() + meas.alpha_vane_bias_deg;
+        let beta_v =
+            (vb.y / vb.norm()).clamp(-1.0, 1.0).asin().to_degrees() + meas.beta_vane_bias_deg;
+        let acc = s.f_cg + s.omega_dot.cross(&r_acc) + s.omega.cross(&s.omega.cross(&r_acc)) + ab;
+        let rates = s.omega.map(f64::to_degrees) + gb;
+        let c = &s.controls;
+        let vals = [
+            s.t,
+            alpha_v + nz(noise.angle_deg),
+            beta_v + nz(noise.angle_deg),
+            rates.x + nz(noise.rate_dps),
+            rates.y + nz(noise.rate_dps),
+            rates.z + nz(noise.rate_dps),
+            s.euler.x.to_degrees() + nz(noise.attitude_deg),
+            s.euler.y.to_degrees() + nz(noise.attitude_deg),
+            s.euler.z.to_degrees() + nz(noise.attitude_deg),
+            acc.x + nz(noise.accel_mps2),
+            acc.y + nz(noise.accel_mps2),
+            acc.z + nz(noise.accel_mps2),
+            s.tas + nz(noise.tas_mps),
+            s.rho,
+            c.da.to_degrees() + nz(noise.control_deg),
+            c.de.to_degrees() + nz(noise.control_deg),
+            c.dr.to_degrees() + nz(noise.control_deg),
+            c.dsl.to_degrees() + nz(noise.control_deg),
+            c.dsr.to_degrees() + nz(noise.control_deg),
+            flap_deg,
+            s.ct[0] + nz(noise.ct),
+            s.ct[1] + nz(noise.ct),
+            ac.prop_rpm,
+            s.h,
+        ];
+        for (col, v) in cols.iter_mut().zip(vals) {
+            col.push(v);
+        }
+    }
+    if n >= 2 {
+        let t = cols[0].clone();
+        if meas.time_skew_s != 0.0 {
+            // air data recorded late: rec(t) = true(t − τ)
+            for k in [1usize, 2, 12] {
+                cols[k] = shifted(&t, &cols[k], -meas.time_skew_s);
+            }
+        }
+        if meas.control_lag_s != 0.0 {
+            // recorded controls lead the acting ones: rec(t) = acting(t + τ)
+            for col in &mut cols[14..=18] {
+                *col = shifted(&t, col, meas.control_lag_s);
+            }
+        }
+    }
+    cols
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::aircraft::turboprop::adx37;
+
+    #[test]
+    fn accelerometer_and_vane_kinematics() {
+        let ac = adx37();
+        let s = TrueSample {
+            t: 0.0,
+            v_air: Vector3::new(60.0, 0.0, 6.0),
+            omega: Vector3::new(0.0, 0.1, 0.0),
+            omega_dot: Vector3::new(0.5, 0.0, 0.0),
+            euler: Vector3::zeros(),
+            f_cg: Vector3::new(0.0, 0.0, -9.8),
+            tas: 60.3,
+            rho: 1.0,
+            h: 3000.0,
+            controls: Controls::default(),
+            ct: [0.1, 0.1],
+        };
+        let cols = record(
+            &[s],
+            &ac,
+            0.0,
+            &MeasurementEffects::none(),
+            &NoiseSpec::default(),
+            0.0,
+            0,
+            0,
+        );
+        let r = ac.accel_m;
+        // ω̇ × r with ω̇ = (0.5,0,0): (0, -0.5 r_z, 0.5 r_y); ω×(ω×r) with ω=(0,q,0): (-q² r_x, 0, -q² r_z)
+        assert!((cols[9][0] - (-0.01 * r[0])).abs() < 1e-12);
+        assert!((cols[10][0] - (-0.5 * r[2])).abs() < 1e-12);
+        assert!((cols[11][0] - (-9.8 + 0.5 * r[1] - 0.01 * r[2])).abs() < 1e-12);
+        // vane: w_local = w − q x_vane
+        let xv = ac.alpha_vane_m[0];
+        let expect = (6.0 - 0.1 * xv).atan2(60.0).to_degrees();
+        assert!((cols[1][0] - expect).abs() < 1e-12);
+    }
+}

@@ -1,0 +1,199 @@
+//! The virtual flight test: campaigns, replay, trim, the effect library, the
+//! aircraft reference, the qualified model's tables and roll-off draws.
+//! Conversion and error mapping only.
+use aero_core::aircraft::effects::library_json;
+use aero_core::aircraft::qualified::QualifiedModel;
+use aero_core::aircraft::truth::EffectSpec;
+use aero_core::aircraft::turboprop::adx37;
+use aero_core::rolloff::{sample_draws, RollOffConfig};
+use aero_core::sim::campaign::{plan, replay_adx37, run_campaign, trim_adx37, CampaignSpec};
+use aero_core::AeroError;
+use numpy::{
+    IntoPyArray, PyArray1, PyArray2, PyArrayMethods, PyReadonlyArray2, PyUntypedArrayMethods,
+};
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+
+use crate::error::to_py;
+use crate::util::detached;
+
+/// Run a campaign given as JSON; returns one dict per maneuver:
+/// `{"id", "meta" (JSON), "record": {name: array}, "truth": {name: array}}`.
+#[pyfunction]
+fn sim_run_campaign<'py>(py: Python<'py>, spec_json: &str) -> PyResult<Vec<Bound<'py, PyDict>>> {
+    let spec = CampaignSpec::from_json(spec_json).map_err(to_py)?;
+    let results = detached(py, || run_campaign(&spec))?;
+    let mut out = Vec::with_capacity(results.len());
+    for m in results {
+        let d = PyDict::new(py);
+        d.set_item("id", &m.id)?;
+        d.set_item("meta", m.meta_json())?;
+        let rec = PyDict::new(py);
+        for (name, col) in m.record_names.iter().zip(m.record) {
+            rec.set_item(name, col.into_pyarray(py))?;
+        }
+        d.set_item("record", rec)?;
+        let tr = PyDict::new(py);
+        for (name, col) in m.truth_names.iter().zip(m.truth) {
+            tr.set_item(name, col.into_pyarray(py))?;
+        }
+        d.set_item("truth", tr)?;
+        out.push(d);
+    }
+    Ok(out)
+}
+
+/// The maneuver plan of a campaign spec, as JSON.
+#[pyfunction]
+fn sim_plan(spec_json: &str) -> PyResult<String> {
+    let spec = CampaignSpec::from_json(spec_json).map_err(to_py)?;
+    serde_json::to_string(&plan(&spec))
+        .map_err(|e| to_py(AeroError::invalid("plan", e.to_string())))
+}
+
+/// The default campaign spec, as JSON.
+#[pyfunction]
+fn sim_default_spec() -> String {
+    CampaignSpec::default().to_json()
+}
+
+/// Replay recorded controls on the ADX-37 (see `aero_core::sim::campaign::replay_adx37`).
+#[pyfunction]
+#[pyo3(signature = (flap_deg, effects_json, x0, dt, controls_deg, ct, rolloff_seed=None))]
+#[allow(clippy::too_many_arguments)]
+fn sim_replay<'py>(
+    py: Python<'py>,
+    flap_deg: f64,
+    effects_json: &str,
+    x0: [f64; 12],
+    dt: f64,
+    controls_deg: PyReadonlyArray2<'py, f64>,
+    ct: PyReadonlyArray2<'py, f64>,
+    rolloff_seed: Option<u64>,
+) -> PyResult<Bound<'py, PyArray2<f64>>> {
+    let effects: Vec<EffectSpec> = serde_json::from_str(effects_json)
+        .map_err(|e| to_py(AeroError::parse("effects (JSON)", e.line(), e.to_string())))?;
+    let (cs, ks) = (controls_deg.shape(), ct.shape());
+    if cs[1] != 5 || ks[1] != 2 {
+        return Err(to_py(AeroError::invalid(
+            "replay",
+            format!("controls must be n x 5 (da, de, dr, dsl, dsr deg) and ct n x 2; got {cs:?} and {ks:?}"),
+        )));
+    }
+    let c: Vec<[f64; 5]> = controls_deg
+        .as_slice()?
+        .chunks_exact(5)
+        .map(|r| [r[0], r[1], r[2], r[3], r[4]])
+        .collect();
+    let k: Vec<[f64; 2]> = ct
+        .as_slice()?
+        .chunks_exact(2)
+        .map(|r| [r[0], r[1]])
+        .collect();
+    let states = detached(py, || {
+        replay_adx37(flap_deg, &effects, rolloff_seed, x0, dt, &c, &k)
+    })?;
+    let n = states.len();
+    let flat: Vec<f64> = states.into_iter().flatten().collect();
+    flat.into_pyarray(py).reshape([n, 12])
+}
+
+/// Wings-level trim of the qualified ADX-37: (states, controls deg, C_T per engine).
+#[pyfunction]
+fn sim_trim(flap_deg: f64, v: f64, h: f64) -> PyResult<(Vec<f64>, Vec<f64>, f64)> {
+    let (x, c, ct) = trim_adx37(flap_deg, v, h).map_err(to_py)?;
+    Ok((x.to_vec(), c.to_vec(), ct))
+}
+
+/// The effect library as JSON.
+#[pyfunction]
+fn sim_effect_library() -> String {
+    library_json()
+}
+
+/// The aircraft reference file (TOML text).
+#[pyfunction]
+fn sim_aircraft_toml() -> String {
+    adx37().to_toml()
+}
+
+/// The qualified model: (tables as (name, axis names, breakpoints, values), terms JSON).
+#[pyfunction]
+#[allow(clippy::type_complexity)]
+fn sim_qualified_tables<'py>(
+    py: Python<'py>,
+) -> PyResult<(
+    Vec<(
+        String,
+        Vec<String>,
+        Vec<Vec<f64>>,
+        Bound<'py, PyArray1<f64>>,
+    )>,
+    String,
+)> {
+    let q = QualifiedModel::adx37(&adx37()).map_err(to_py)?;
+    let (tables, terms) = q.export();
+    let t = tables
+        .iter()
+        .map(|(name, t)| {
+            (
+                name.clone(),
+                t.axes().iter().map(|a| a.name.clone()).collect(),
+                t.axes().iter().map(|a| a.breakpoints().to_vec()).collect(),
+                t.values().to_vec().into_pyarray(py),
+            )
+        })
+        .collect();
+    let terms = serde_json::to_string(terms)
+        .map_err(|e| to_py(AeroError::invalid("terms", e.to_string())))?;
+    Ok((t, terms))
+}
+
+/// `n` roll-off draws at a flap setting: dict of arrays sign, factor, alpha_shift_deg, center_deg, peak.
+#[pyfunction]
+#[pyo3(signature = (flap_deg, seed, n, stream=0))]
+fn sim_rolloff_draws<'py>(
+    py: Python<'py>,
+    flap_deg: f64,
+    seed: u64,
+    n: usize,
+    stream: u64,
+) -> PyResult<Bound<'py, PyDict>> {
+    let draws = detached(py, || {
+        sample_draws(&RollOffConfig::default(), flap_deg, seed, stream, n)
+    })?;
+    let d = PyDict::new(py);
+    let col = |f: &dyn Fn(&aero_core::rolloff::RollOffDraw) -> f64| {
+        draws.iter().map(f).collect::<Vec<f64>>()
+    };
+    d.set_item("sign", col(&|r| r.sign).into_pyarray(py))?;
+    d.set_item("factor", col(&|r| r.factor).into_pyarray(py))?;
+    d.set_item(
+        "alpha_shift_deg",
+        col(&|r| r.alpha_shift_deg).into_pyarray(py),
+    )?;
+    d.set_item("center_deg", col(&|r| r.center_deg).into_pyarray(py))?;
+    d.set_item("peak", col(&|r| r.peak).into_pyarray(py))?;
+    Ok(d)
+}
+
+/// The default roll-off configuration (thesis Table 3.2) as JSON.
+#[pyfunction]
+fn sim_rolloff_config() -> PyResult<String> {
+    serde_json::to_string(&RollOffConfig::default())
+        .map_err(|e| to_py(AeroError::invalid("rolloff", e.to_string())))
+}
+
+pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_function(wrap_pyfunction!(sim_run_campaign, m)?)?;
+    m.add_function(wrap_pyfunction!(sim_plan, m)?)?;
+    m.add_function(wrap_pyfunction!(sim_default_spec, m)?)?;
+    m.add_function(wrap_pyfunction!(sim_replay, m)?)?;
+    m.add_function(wrap_pyfunction!(sim_trim, m)?)?;
+    m.add_function(wrap_pyfunction!(sim_effect_library, m)?)?;
+    m.add_function(wrap_pyfunction!(sim_aircraft_toml, m)?)?;
+    m.add_function(wrap_pyfunction!(sim_qualified_tables, m)?)?;
+    m.add_function(wrap_pyfunction!(sim_rolloff_draws, m)?)?;
+    m.add_function(wrap_pyfunction!(sim_rolloff_config, m)?)?;
+    Ok(())
+}

@@ -1,0 +1,494 @@
+"""Virtual flight test campaigns (engine: ``aero_core::sim``).
+
+A campaign is flown by the pilot model on the *truth* aircraft (the qualified
+model of the representative ADX-37 turboprop plus switchable post-stall
+effects and the stochastic roll-off of thesis Section 3.4.3) and written in the
+contract layout read by ``aerodelta ingest``::
+
+    DIR/manifest.csv          maneuver_id, flap_deg, kind, pusher, file, + metadata
+    DIR/aircraft.toml         aircraft reference
+    DIR/records/<id>.parquet  canonical channels (float64)
+    DIR/truth/<id>.parquet    truth only: Cl/Cn/CY true and qualified, per-effect dC*_<effect>
+    DIR/truth/campaign.json   effects, magnitudes, shapes, seeds, roll-off draws
+
+The same seed gives byte-identical files. See ``docs/aircraft.md``.
+"""
+
+from __future__ import annotations
+
+import functools
+import json
+import os
+import shutil
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Literal
+
+import numpy as np
+import numpy.typing as npt
+import polars as pl
+from tqdm import tqdm
+
+from aerodelta import _core
+from aerodelta.exceptions import DataError, InvalidInputError
+
+Size = Literal["default", "quick"]
+
+#: Aerodynamic effects switched on by ``effects="default"`` (thesis Chapter 4 findings).
+DEFAULT_EFFECTS: tuple[str, ...] = (
+    "aileron_effectiveness",
+    "roll_damping",
+    "dihedral",
+    "directional_stability",
+    "rudder_effectiveness",
+    "lateral_asymmetry",
+)
+
+#: Repetitions of each (flap, kind, pusher) cell: 5 flaps x 4 kinds x 2 x reps maneuvers.
+SIZES: dict[str, int] = {"default": 5, "quick": 1}
+
+
+@dataclass(frozen=True)
+class CampaignInfo:
+    """What :func:`generate_campaign` wrote.
+
+    Attributes
+    ----------
+    path
+        The campaign folder.
+    n_maneuvers
+        Number of maneuvers.
+    seed
+        Campaign seed.
+    effects
+        Effects switched on, name -> magnitude (1 = design magnitude).
+    manifest
+        The manifest table (as written to ``manifest.csv``).
+    """
+
+    path: Path
+    n_maneuvers: int
+    seed: int
+    effects: dict[str, float]
+    manifest: pl.DataFrame
+
+
+def effect_library() -> list[dict[str, Any]]:
+    """The effect vocabulary with design magnitudes, terms and alpha shapes.
+
+    Returns
+    -------
+    list of dict
+        One entry per effect: ``name``, ``kind`` (aerodynamic, measurement,
+        stochastic), ``description`` and, for aerodynamic effects, ``terms``
+        (coefficient, regressor, design value), ``flap_factor``, ``shape`` and
+        ``alpha_range_deg``.
+    """
+    return json.loads(_core.sim_effect_library())
+
+
+def effect_names() -> list[str]:
+    """All effect names the campaign generator knows."""
+    return list(_effect_names())
+
+
+@functools.cache
+def _effect_names() -> tuple[str, ...]:
+    return tuple(e["name"] for e in effect_library())
+
+
+def parse_effects(
+    effects: str | Sequence[str] | Mapping[str, float] | None,
+) -> dict[str, float]:
+    """Normalise an effect selection to ``{name: magnitude}``.
+
+    Parameters
+    ----------
+    effects
+        ``"default"`` (the thesis's Chapter 4 effects), ``"none"``/``None``, a
+        comma list ``"name[=magnitude],..."``, a list of names or a mapping.
+
+    Raises
+    ------
+    InvalidInputError
+        For an unknown name or a bad magnitude, naming both.
+    """
+    if effects is None:
+        return {}
+    if isinstance(effects, Mapping):
+        items = [(str(k), float(v)) for k, v in effects.items()]
+    else:
+        parts = effects.split(",") if isinstance(effects, str) else list(effects)
+        items = []
+        for raw in parts:
+            p = raw.strip()
+            if not p or p == "none":
+                continue
+            if p == "default":
+                items.extend((n, 1.0) for n in DEFAULT_EFFECTS)
+                continue
+            name, _, mag = p.partition("=")
+            try:
+                m = float(mag) if mag else 1.0
+            except ValueError:
+                raise InvalidInputError(
+                    f"effect '{name}': magnitude '{mag}' is not a number (use name=1.5)"
+                ) from None
+            items.append((name.strip(), m))
+    known = set(_effect_names())
+    out: dict[str, float] = {}
+    for name, m in items:
+        if name not in known:
+            raise InvalidInputError(
+                f"unknown effect '{name}'; `aerodelta campaign --list-effects` lists them"
+            )
+        if not np.isfinite(m):
+            raise InvalidInputError(f"effect '{name}': magnitude must be finite")
+        out[name] = m
+    return out
+
+
+def _spec(
+    effects: dict[str, float],
+    *,
+    seed: int,
+    size: Size | int,
+    noise: float,
+    turbulence: float,
+    rolloff: bool,
+    excitation: float,
+    only: Sequence[int] = (),
+    record_hz: float = 50.0,
+) -> dict[str, Any]:
+    reps = SIZES.get(size, 0) if isinstance(size, str) else int(size)
+    if reps <= 0:
+        raise InvalidInputError(f"size '{size}': use 'default', 'quick' or a positive integer")
+    eff = dict(effects)
+    if rolloff:
+        eff.setdefault("stochastic_rolloff", 1.0)
+    else:
+        eff.pop("stochastic_rolloff", None)
+    spec = json.loads(_core.sim_default_spec())
+    spec.update(
+        seed=int(seed),
+        repetitions=reps,
+        effects=[{"name": k, "magnitude": v} for k, v in sorted(eff.items())],
+        noise_scale=float(noise),
+        turbulence_mps=float(turbulence),
+        excitation=float(excitation),
+        only=list(only),
+        record_hz=float(record_hz),
+    )
+    return spec
+
+
+def simulate_campaign(
+    *,
+    effects: str | Sequence[str] | Mapping[str, float] | None = "default",
+    seed: int = 0,
+    size: Size | int = "default",
+    noise: float = 1.0,
+    turbulence: float = 0.5,
+    rolloff: bool = True,
+    excitation: float = 1.0,
+    only: Sequence[int] = (),
+    record_hz: float = 50.0,
+) -> list[dict[str, Any]]:
+    """Fly a campaign in memory (no files).
+
+    Parameters
+    ----------
+    effects, seed, size, noise, turbulence, rolloff, excitation
+        As :func:`generate_campaign`.
+    only
+        Maneuver indices to fly (empty: all).
+    record_hz
+        Record rate, Hz (a divisor of the 100 Hz simulation rate).
+
+    Returns
+    -------
+    list of dict
+        Per maneuver: ``id``, ``meta`` (dict), ``record`` and ``truth``
+        (polars DataFrames).
+    """
+    spec = _spec(
+        parse_effects(effects),
+        seed=seed,
+        size=size,
+        noise=noise,
+        turbulence=turbulence,
+        rolloff=rolloff,
+        excitation=excitation,
+        only=only,
+        record_hz=record_hz,
+    )
+    out = []
+    for m in _core.sim_run_campaign(json.dumps(spec)):
+        out.append(
+            {
+                "id": m["id"],
+                "meta": json.loads(m["meta"]),
+                "record": pl.DataFrame(m["record"]),
+                "truth": pl.DataFrame(m["truth"]),
+            }
+        )
+    return out
+
+
+def _write_parquet(df: pl.DataFrame, path: Path) -> None:
+    df.write_parquet(path, compression="zstd", statistics=False)
+
+
+def generate_campaign(
+    out_dir: str | os.PathLike[str],
+    *,
+    effects: str | Sequence[str] | Mapping[str, float] | None = "default",
+    seed: int = 0,
+    size: Size | int = "default",
+    noise: float = 1.0,
+    turbulence: float = 0.5,
+    rolloff: bool = True,
+    excitation: float = 1.0,
+    overwrite: bool = False,
+    progress: bool = False,
+) -> CampaignInfo:
+    """Generate a virtual flight test campaign and write it in the contract layout.
+
+    Parameters
+    ----------
+    out_dir
+        Campaign folder to create (written into a temporary sibling, then renamed).
+    effects
+        ``"default"``, ``"none"``, ``"name[=magnitude],..."``, a list or a mapping
+        (magnitude 1 = the design magnitude of ``docs/aircraft.md``).
+    seed
+        Campaign seed; the same seed gives byte-identical files.
+    size
+        ``"default"`` (200 maneuvers, the thesis's size), ``"quick"`` (40) or
+        the number of repetitions per (flap, kind, pusher) cell.
+    noise
+        Sensor noise scale (0 = noise-free).
+    turbulence
+        Dryden RMS gust intensity, m/s (0 = calm air).
+    rolloff
+        Include the stochastic roll-off (thesis Table 3.2).
+    excitation
+        Pilot excitation scale (doublets, stick noise); 0 = none.
+    overwrite
+        Replace an existing folder.
+    progress
+        Show a tqdm progress bar on stderr.
+
+    Returns
+    -------
+    CampaignInfo
+
+    Raises
+    ------
+    DataError
+        If ``out_dir`` exists and ``overwrite`` is false.
+    """
+    out = Path(out_dir)
+    if out.exists() and not overwrite:
+        raise DataError(f"{out}: already exists; choose another folder or pass overwrite=True")
+    eff = parse_effects(effects)
+    spec = _spec(
+        eff,
+        seed=seed,
+        size=size,
+        noise=noise,
+        turbulence=turbulence,
+        rolloff=rolloff,
+        excitation=excitation,
+    )
+    plan = json.loads(_core.sim_plan(json.dumps(spec)))
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = out.parent / f".{out.name}.tmp-{os.getpid()}"
+    if tmp.exists():
+        shutil.rmtree(tmp)
+    (tmp / "records").mkdir(parents=True)
+    (tmp / "truth").mkdir()
+    rows: list[dict[str, Any]] = []
+    draws: dict[str, Any] = {}
+    seeds: dict[str, int] = {}
+    bar = None
+    if progress:
+        bar = tqdm(total=len(plan), desc="campaign", unit="maneuver")
+    try:
+        chunk = 20
+        for start in range(0, len(plan), chunk):
+            idx = [p["index"] for p in plan[start : start + chunk]]
+            spec["only"] = idx
+            for m in _core.sim_run_campaign(json.dumps(spec)):
+                meta = json.loads(m["meta"])
+                p = meta["plan"]
+                mid = m["id"]
+                _write_parquet(pl.DataFrame(m["record"]), tmp / "records" / f"{mid}.parquet")
+                _write_parquet(pl.DataFrame(m["truth"]), tmp / "truth" / f"{mid}.parquet")
+                rows.append(
+                    {
+                        "maneuver_id": mid,
+                        "flap_deg": float(p["flap_deg"]),
+                        "kind": _kind_name(p["kind"]),
+                        "pusher": bool(p["pusher"]),
+                        "file": f"records/{mid}.parquet",
+                        "seed": int(p["seed"]),
+                        "pusher_fired": bool(meta["pusher_fired"]),
+                        "max_alpha_deg": float(meta["max_alpha_deg"]),
+                        "load_factor_at_stall": float(meta["load_factor_at_stall"]),
+                        "max_bank_deg": float(meta["max_bank_deg"]),
+                        "effects": ";".join(f"{k}={v:g}" for k, v in sorted(eff.items())),
+                    }
+                )
+                draws[mid] = meta["rolloff_draws"]
+                seeds[mid] = int(p["seed"])
+            if bar is not None:
+                bar.update(len(idx))
+        manifest = pl.DataFrame(rows)
+        manifest.write_csv(tmp / "manifest.csv")
+        (tmp / "aircraft.toml").write_text(_core.sim_aircraft_toml())
+        lib = {e["name"]: e for e in effect_library()}
+        spec["only"] = []
+        info = {
+            "seed": int(seed),
+            "spec": spec,
+            "effects": {
+                k: {
+                    "magnitude": v,
+                    "shape": lib[k].get("shape"),
+                    "alpha_range_deg": lib[k].get("alpha_range_deg"),
+                    "terms": lib[k].get("terms"),
+                    "flap_factor": lib[k].get("flap_factor"),
+                }
+                for k, v in sorted(spec_effects(spec).items())
+            },
+            "maneuver_seeds": seeds,
+            "rolloff_draws": draws,
+            "rolloff_config": json.loads(_core.sim_rolloff_config()),
+        }
+        (tmp / "truth" / "campaign.json").write_text(json.dumps(info, indent=1, sort_keys=True))
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    finally:
+        if bar is not None:
+            bar.close()
+    if out.exists():
+        old = out.parent / f".{out.name}.old-{os.getpid()}"
+        out.rename(old)
+        tmp.rename(out)
+        shutil.rmtree(old, ignore_errors=True)
+    else:
+        tmp.rename(out)
+    return CampaignInfo(
+        path=out,
+        n_maneuvers=len(rows),
+        seed=int(seed),
+        effects=spec_effects(spec),
+        manifest=manifest,
+    )
+
+
+def spec_effects(spec: Mapping[str, Any]) -> dict[str, float]:
+    """``{name: magnitude}`` of a campaign spec (as stored in ``truth/campaign.json``)."""
+    return {e["name"]: float(e["magnitude"]) for e in spec["effects"]}
+
+
+def _kind_name(kind: str) -> str:
+    return {"asymmetricthrust": "asymmetric_thrust"}.get(kind, kind)
+
+
+def aircraft_toml() -> str:
+    """The representative aircraft's reference file (contract ``aircraft.toml``)."""
+    return _core.sim_aircraft_toml()
+
+
+def qualified_model_tables() -> tuple[list[dict[str, Any]], list[dict[str, Any]]]:
+    """The qualified model as named tables and the terms combining them.
+
+    Returns
+    -------
+    tables
+        ``{"name", "axes" (input names), "breakpoints", "values" (row-major, last
+        axis fastest)}`` per table; alpha in deg, controls in deg.
+    terms
+        ``{"coef", "table", "inputs", "regressor", "sign"}``: each coefficient is
+        the sum of sign * table(inputs) * regressor (see ``docs/aircraft.md``).
+    """
+    tables, terms = _core.sim_qualified_tables()
+    return (
+        [{"name": n, "axes": a, "breakpoints": b, "values": v} for n, a, b, v in tables],
+        json.loads(terms),
+    )
+
+
+def rolloff_draws(flap_deg: float, seed: int, n: int, stream: int = 0) -> pl.DataFrame:
+    """``n`` successive roll-off draws (thesis Section 3.4.3) of one seeded generator.
+
+    Returns
+    -------
+    polars.DataFrame
+        Columns ``sign`` (+1 right), ``factor``, ``alpha_shift_deg``,
+        ``center_deg``, ``peak`` (signed peak ΔC_l).
+    """
+    return pl.DataFrame(_core.sim_rolloff_draws(float(flap_deg), int(seed), int(n), int(stream)))
+
+
+def trim(flap_deg: float, tas_mps: float, h_m: float) -> dict[str, Any]:
+    """Wings-level trim of the qualified ADX-37.
+
+    Returns
+    -------
+    dict
+        ``state`` (12: u v w [m/s], p q r [rad/s], phi theta psi [rad], x y h [m]),
+        ``controls_deg`` (da, de, dr, dsl, dsr) and ``ct`` (per engine).
+    """
+    x, c, ct = _core.sim_trim(float(flap_deg), float(tas_mps), float(h_m))
+    return {"state": x, "controls_deg": c, "ct": ct}
+
+
+def replay(
+    flap_deg: float,
+    state0: Sequence[float],
+    dt: float,
+    controls_deg: npt.ArrayLike,
+    ct: npt.ArrayLike,
+    *,
+    effects: str | Sequence[str] | Mapping[str, float] | None = None,
+    rolloff_seed: int | None = None,
+) -> npt.NDArray[np.float64]:
+    """Replay recorded controls on the ADX-37 (thesis Section 4.3).
+
+    Parameters
+    ----------
+    flap_deg
+        Flap setting, deg.
+    state0
+        Initial 12 states (see :func:`trim`).
+    dt
+        Step, s.
+    controls_deg
+        ``(n, 5)``: da, de, dr, dsl, dsr in deg, one row per step.
+    ct
+        ``(n, 2)``: thrust coefficient per engine per step.
+    effects
+        Truth effects (``None``: the qualified model).
+    rolloff_seed
+        Include the stochastic roll-off with this seed.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``(n + 1, 12)`` states.
+    """
+    eff = parse_effects(effects)
+    eff.pop("stochastic_rolloff", None)
+    c = np.ascontiguousarray(controls_deg, dtype=np.float64)
+    k = np.ascontiguousarray(ct, dtype=np.float64)
+    if c.ndim != 2 or k.ndim != 2 or c.shape[0] != k.shape[0]:
+        raise InvalidInputError(
+            f"replay: controls_deg must be (n, 5) and ct (n, 2); got {c.shape} and {k.shape}"
+        )
+    spec = json.dumps([{"name": n, "magnitude": m} for n, m in eff.items()])
+    return _core.sim_replay(float(flap_deg), spec, list(state0), float(dt), c, k, rolloff_seed)
