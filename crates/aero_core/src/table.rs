@@ -61,6 +61,9 @@ pub struct Axis {
     pub min: Option<f64>,
     /// Upper input limit applied before interpolation, if any.
     pub max: Option<f64>,
+    /// `(first breakpoint, 1/spacing)` when the breakpoints are uniformly
+    /// spaced: the segment index is then computed, not searched.
+    uniform: Option<(f64, f64)>,
 }
 
 impl Axis {
@@ -95,6 +98,7 @@ impl Axis {
                 ));
             }
         }
+        let uniform = uniform_spacing(&breakpoints);
         Ok(Axis {
             name,
             breakpoints,
@@ -102,6 +106,7 @@ impl Axis {
             above: Extrapolation::Hold,
             min: None,
             max: None,
+            uniform,
         })
     }
 
@@ -179,11 +184,51 @@ impl Axis {
                 Extrapolation::Linear => (n - 2, (x - bp[n - 2]) / (last - bp[n - 2])),
             });
         }
-        // bp[0] < x < bp[n-1]: the last index with bp[i] <= x, at most n-2.
-        let i = bp.partition_point(|&b| b <= x) - 1;
-        let i = i.min(n - 2);
+        // bp[0] < x < bp[n-1]: the last index i <= n-2 with bp[i] <= x.
+        let i = match self.uniform {
+            Some((x0, inv_h)) => {
+                // Computed guess, then an exact fix-up against the breakpoints,
+                // so the result is the same as the search's.
+                let mut i = (((x - x0) * inv_h) as usize).min(n - 2);
+                while i > 0 && bp[i] > x {
+                    i -= 1;
+                }
+                while i + 2 < n && bp[i + 1] <= x {
+                    i += 1;
+                }
+                i
+            }
+            None => {
+                // Branchless binary search (conditional moves, no mispredictions
+                // on random inputs): invariant bp[base] <= x.
+                let mut base = 0usize;
+                let mut len = n - 1;
+                while len > 1 {
+                    let half = len / 2;
+                    if bp[base + half] <= x {
+                        base += half;
+                    }
+                    len -= half;
+                }
+                base
+            }
+        };
         Some((i, (x - bp[i]) / (bp[i + 1] - bp[i])))
     }
+}
+
+/// `(x0, 1/h)` when `bp` is uniformly spaced to within 1e-9 of the spacing.
+fn uniform_spacing(bp: &[f64]) -> Option<(f64, f64)> {
+    let n = bp.len();
+    if n < 3 {
+        return None;
+    }
+    let h = (bp[n - 1] - bp[0]) / (n - 1) as f64;
+    let uniform = bp
+        .iter()
+        .enumerate()
+        .all(|(i, &b)| (b - (bp[0] + i as f64 * h)).abs() <= 1e-9 * h);
+    uniform.then_some((bp[0], 1.0 / h))
 }
 
 /// A gridded table of 1 to [`MAX_DIMS`] dimensions.
@@ -487,6 +532,22 @@ mod tests {
         assert_eq!(t.eval(&[5.0]), 20.0);
         assert_eq!(t.eval(&[-3.0]), -10.0);
         assert_eq!(t.eval(&[1.5]), 15.0);
+    }
+
+    #[test]
+    fn uniform_and_searched_axes_locate_identically() {
+        let uni = axis("u", &[0.0, 0.1, 0.2, 0.30000000000000004, 0.4, 0.5]);
+        assert!(uni.uniform.is_some());
+        let mut searched = uni.clone();
+        searched.uniform = None;
+        for k in -20..=70 {
+            let x = k as f64 * 0.01;
+            assert_eq!(uni.locate(x), searched.locate(x), "x = {x}");
+        }
+        for &x in uni.breakpoints() {
+            assert_eq!(uni.locate(x), searched.locate(x));
+        }
+        assert!(axis("n", &[0.0, 1.0, 3.0]).uniform.is_none());
     }
 
     #[test]
