@@ -9,10 +9,13 @@
 //! One concept per module:
 //! - [`table`]: gridded N-D lookup tables, hold or linear extrapolation, a
 //!   batch path and an allocation-free single-point path;
+//! - [`preprocess`]: flight test preprocessing: smoothing, derivatives, CG transfers,
+//!   measured coefficients (Eq. 3.2-3.4), data compatibility (Section 2.4);
 //! - [`error`]: the error kinds every module returns.
 #![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used))]
 
 pub mod error;
+pub mod preprocess;
 pub mod table;
 
 pub use error::{AeroError, ErrorKind, Result, ResultExt};
