@@ -4,10 +4,10 @@
 //! Body axes (Etkin, thesis Section 3.1): x forward, y right wing, z down; angular velocity
 //! $\boldsymbol\omega = (p, q, r)$ in rad/s, sensor position $\mathbf r$ relative to the CG in m.
 //!
-//! **Accelerometer.** A rigid body's specific force at $\mathbf r$ is $\mathbf a_s = \mathbf a_{cg} + \dot{\boldsymbol\omega}\times\mathbf r
-//! + \boldsymbol\omega\times(\boldsymbol\omega\times\mathbf r)$, hence
-//! $\mathbf a_{cg} = \mathbf a_s - \dot{\boldsymbol\omega}\times\mathbf r -
-//! \boldsymbol\omega\times(\boldsymbol\omega\times\mathbf r)$ (Klein & Morelli 2006, instrumentation corrections).
+//! **Accelerometer.** A rigid body's specific force at $\mathbf r$ is
+//! $$\mathbf a_s = \mathbf a_{cg} + \dot{\boldsymbol\omega}\times\mathbf r + \boldsymbol\omega\times(\boldsymbol\omega\times\mathbf r),$$
+//! hence $\mathbf a_{cg} = \mathbf a_s - \dot{\boldsymbol\omega}\times\mathbf r - \boldsymbol\omega\times(\boldsymbol\omega\times\mathbf r)$
+//! (Klein & Morelli 2006, instrumentation corrections).
 //!
 //! **Vanes.** The air-relative velocity at a vane is $\mathbf V_v = \mathbf V_{cg} +
 //! \boldsymbol\omega\times\mathbf r_v$ with $\mathbf V_{cg} = V(\cos\alpha\cos\beta, \sin\beta,
