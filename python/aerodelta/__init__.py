@@ -7,6 +7,8 @@ this package handles files, schemas, units, orchestration, reports and the CLI.
 from __future__ import annotations
 
 from aerodelta._core import __version__
+from aerodelta.aircraft import Aircraft
+from aerodelta.channel_map import ChannelMap
 from aerodelta.exceptions import (
     AerodeltaError,
     AeroIOError,
@@ -17,17 +19,25 @@ from aerodelta.exceptions import (
     ParseError,
     TooLittleDataError,
 )
+from aerodelta.ingest import IngestResult, ingest
 from aerodelta.table import Table
+from aerodelta.validate import Finding, ValidationReport
 
 __all__ = [
     "AeroIOError",
     "AerodeltaError",
+    "Aircraft",
+    "ChannelMap",
     "DataError",
+    "Finding",
+    "IngestResult",
     "InvalidInputError",
     "NoConvergenceError",
     "OutOfRangeError",
     "ParseError",
     "Table",
     "TooLittleDataError",
+    "ValidationReport",
     "__version__",
+    "ingest",
 ]

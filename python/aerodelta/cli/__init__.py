@@ -22,6 +22,9 @@ def _register(name: str, module: str) -> None:
     COMMANDS[name] = module
 
 
+_register("ingest", "ingest")
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser with every registered subcommand."""
     parser = argparse.ArgumentParser(
