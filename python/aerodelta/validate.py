@@ -193,16 +193,16 @@ def validate(
                 f"time is {what}; sort the record and remove duplicates",
             )
         else:
-            med = float(np.median(dt))
-            off = np.flatnonzero(np.abs(dt - med) > 0.01 * med)
-            if off.size:
-                k = int(off[0])
+            jumps = np.flatnonzero(np.abs(np.diff(dt)) > 0.01 * dt[:-1]) + 1
+            if jumps.size:
+                k = int(jumps[0])
                 rep.add(
                     "error",
                     "t",
-                    _rows(sorted({int(i) for j in off for i in (j, j + 1)})),
-                    f"sample rate changes inside the record (step {dt[k]:.6g} s at rows "
-                    f"{k}-{k + 1} vs {med:.6g} s); resample to one rate before ingesting",
+                    _rows(sorted({int(i) for j in jumps for i in (j, j + 1)})),
+                    f"sample rate changes inside the record (step {dt[k - 1]:.6g} s before row "
+                    f"{k}, {dt[k]:.6g} s at rows {k}-{k + 1}); resample to one rate before "
+                    "ingesting",
                 )
     # physical ranges (finite samples only)
     for c, x in data.items():
