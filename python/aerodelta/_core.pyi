@@ -78,5 +78,5 @@ def compat_check(
     alpha: npt.NDArray[np.float64],
     beta: npt.NDArray[np.float64],
     euler: list[npt.NDArray[np.float64]],
-    max_iter: int = 30,
+    max_iter: int = 20,
 ) -> dict[str, object]: ...

@@ -233,6 +233,14 @@ def _run_compat(out: pl.DataFrame, reports: list[ValidationReport]) -> pl.DataFr
     rows = []
     for g, res in zip(groups, results, strict=False):
         mid = str(g["maneuver_id"][0])
+        if not res["converged"] and mid in by_id:
+            by_id[mid].add(
+                "warning",
+                "compat",
+                "",
+                f"data compatibility check did not converge in {res['iterations']} iterations "
+                "(inconsistent or unexcited data); its estimates are unreliable",
+            )
         for name, est, se in zip(res["names"], res["params"], res["std_err"], strict=False):  # type: ignore[call-overload]
             rows.append((mid, name, float(est), float(se), False))
             thr = COMPAT_THRESHOLDS.get(name)

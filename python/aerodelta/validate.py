@@ -263,6 +263,11 @@ def _unit_checks(data: dict[str, np.ndarray], rep: ValidationReport) -> None:
     if den <= 0 or float(num @ num) < 1e-6 * len(num):
         return
     k = float(kin @ num) / den
+    corr = float(kin @ num) / np.sqrt(den * float(num @ num))
+    if corr < 0.8:
+        # the attitude does not follow the rates closely enough to judge their units
+        # (the compatibility check reports inconsistent data)
+        return
     if 20.0 < k < 200.0:
         rep.add(
             "error",

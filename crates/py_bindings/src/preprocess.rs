@@ -200,7 +200,7 @@ fn preprocess_batch<'py>(
 /// Data compatibility check of one maneuver (SI, rad, at the CG). Returns a dict with
 /// `names`, `params`, `std_err`, `outputs`, `rms_before`, `rms_after`, `iterations`, `converged`.
 #[pyfunction]
-#[pyo3(signature = (t, accel, rates, tas, alpha, beta, euler, max_iter=30))]
+#[pyo3(signature = (t, accel, rates, tas, alpha, beta, euler, max_iter=20))]
 #[allow(clippy::too_many_arguments)]
 fn compat_check<'py>(
     py: Python<'py>,

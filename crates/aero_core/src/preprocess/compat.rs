@@ -322,7 +322,7 @@ pub fn check(inp: &CompatInput<'_>, max_iter: usize) -> Result<CompatResult> {
                 }
                 accepted = true;
                 let rel = (j0 - jc) / j0.max(1e-300);
-                if rel < 1e-9 {
+                if rel < 1e-7 {
                     converged = true;
                 }
                 break;

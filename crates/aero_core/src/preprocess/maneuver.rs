@@ -173,13 +173,21 @@ pub fn preprocess_maneuver(
     let mut cut = Vec::with_capacity(9);
     let mut noise = Vec::with_capacity(9);
     let mut s: Vec<Vec<f64>> = Vec::with_capacity(9);
-    for k in 1..=9 {
-        if opts.smooth {
-            let r = sm.smooth(cols[k], dt);
+    if opts.smooth {
+        // channels 1..=9 in pairs sharing one complex FFT
+        let mut push = |r: super::smooth::Smoothed| {
             cut.push(r.cutoff_hz);
             noise.push(r.noise_std);
             s.push(r.values);
-        } else {
+        };
+        for k in [1usize, 3, 5, 7] {
+            let (a, b) = sm.smooth_pair(cols[k], cols[k + 1], dt);
+            push(a);
+            push(b);
+        }
+        push(sm.smooth(cols[9], dt));
+    } else {
+        for k in 1..=9 {
             cut.push(nyq);
             noise.push(0.0);
             s.push(cols[k].to_vec());
