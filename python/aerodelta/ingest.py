@@ -23,7 +23,7 @@ from aerodelta.channel_map import ChannelMap
 from aerodelta.channels import CHANNELS
 from aerodelta.exceptions import DataError
 from aerodelta.preprocess import preprocess_frame
-from aerodelta.readers import find_records, read_manifest, scan_record
+from aerodelta.readers import RecordSource, find_records, read_manifest, scan_record
 from aerodelta.validate import ValidationReport, validate
 
 #: Practical thresholds above which an estimated bias is reported as a warning (and more than
@@ -168,26 +168,30 @@ def ingest(  # noqa: PLR0917
     sources = find_records(list(data) if isinstance(data, (list, tuple)) else data, man)
     frames: list[pl.DataFrame] = []
     reports: list[ValidationReport] = []
-    for src in tqdm(sources, desc="ingest", unit="maneuver", disable=not progress):
+
+    def lazy(src: RecordSource) -> pl.LazyFrame:
         lf = scan_record(src.path)
         if src.multi:
             lf = lf.filter(pl.col("maneuver_id").cast(pl.Utf8) == src.maneuver_id)
         if cmap is not None:
-            lf = cmap.apply(lf, str(src.path))
-        else:
-            names = lf.collect_schema().names()
-            lf = lf.select([pl.col(c) for c in names if c in CHANNELS])
-        df = lf.collect()
-        if "maneuver_id" in df.columns:
-            df = df.drop("maneuver_id")
-        df, rep = validate(df, str(src.path), src.maneuver_id, allow_interpolation)
-        reports.append(rep)
-        if rep.ok:
-            frames.append(
-                df.select(pl.all().cast(pl.Float64)).with_columns(
-                    pl.lit(src.maneuver_id).alias("maneuver_id")
-                )
-            )
+            return cmap.apply(lf, str(src.path))
+        names = lf.collect_schema().names()
+        return lf.select([pl.col(c) for c in names if c in CHANNELS])
+
+    bar = tqdm(total=len(sources), desc="ingest", unit="maneuver", disable=not progress)
+    chunk = 32  # maneuvers read in parallel by one polars collect_all
+    for i0 in range(0, len(sources), chunk):
+        part = sources[i0 : i0 + chunk]
+        for src, raw in zip(part, pl.collect_all([lazy(s) for s in part]), strict=True):
+            df = raw.drop("maneuver_id") if "maneuver_id" in raw.columns else raw
+            df, rep = validate(df, str(src.path), src.maneuver_id, allow_interpolation)
+            reports.append(rep)
+            if rep.ok:
+                if any(dt != pl.Float64 for dt in df.schema.values()):
+                    df = df.select(pl.all().cast(pl.Float64))
+                frames.append(df.with_columns(pl.lit(src.maneuver_id).alias("maneuver_id")))
+            bar.update(1)
+    bar.close()
     errors = [f for r in reports for f in r.errors]
     if errors:
         lines = [str(f) for f in errors[:25]]

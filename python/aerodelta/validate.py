@@ -150,7 +150,7 @@ def validate(
         rep.add("error", "t", "", f"{n} samples; a maneuver needs at least 20")
         return df, rep
     data: dict[str, np.ndarray] = {
-        c: df[c].cast(pl.Float64).to_numpy().copy() for c in df.columns if c in CHANNELS
+        c: df[c].cast(pl.Float64).to_numpy() for c in df.columns if c in CHANNELS
     }
     # non-finite runs
     for c, x in data.items():
@@ -161,7 +161,9 @@ def validate(
         fixable = [(a, b) for a, b in runs if b - a + 1 <= MAX_INTERP_GAP and a > 0 and b < n - 1]
         if allow_interpolation and c != "t" and len(fixable) == len(runs):
             idx = np.arange(n)
-            x[bad] = np.interp(idx[bad], idx[~bad], x[~bad])
+            filled = x.copy()
+            filled[bad] = np.interp(idx[bad], idx[~bad], x[~bad])
+            data[c] = filled
             rep.add(
                 "warning",
                 c,
@@ -257,8 +259,9 @@ def _unit_checks(data: dict[str, np.ndarray], rep: ValidationReport) -> None:
     # kinematic Euler rates (thesis Eq. 3.1g-h) in the declared units, deg/s
     phidot_k = p + np.tan(th) * (q * np.sin(phi) + r * np.cos(phi))
     thdot_k = q * np.cos(phi) - r * np.sin(phi)
-    kin = np.concatenate((phidot_k, thdot_k))
-    num = np.concatenate((np.gradient(data["phi_deg"], t), np.gradient(data["theta_deg"], t)))
+    dt = np.diff(t)
+    num = np.concatenate((np.diff(data["phi_deg"]) / dt, np.diff(data["theta_deg"]) / dt))
+    kin = np.concatenate((0.5 * (phidot_k[1:] + phidot_k[:-1]), 0.5 * (thdot_k[1:] + thdot_k[:-1])))
     den = float(kin @ kin)
     if den <= 0 or float(num @ num) < 1e-6 * len(num):
         return

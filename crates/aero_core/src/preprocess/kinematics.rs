@@ -91,8 +91,11 @@ pub fn vanes_at_sensor_point(
 }
 
 /// CG angle of attack and sideslip (rad) from vane readings (rad), one sample: exact
-/// inversion of [`vanes_at_sensor_point`] by fixed-point iteration (at most 20 steps,
-/// stops below 1e-13 rad). `v` is the true airspeed at the CG, m/s (must be > 0).
+/// inversion of [`vanes_at_sensor_point`]. Given $\beta$, the alpha vane relation has the
+/// closed form $\sin(\alpha - \alpha_v) = (c_x\sin\alpha_v - c_z\cos\alpha_v)/(V\cos\beta)$
+/// with $\mathbf c = \boldsymbol\omega\times\mathbf r_\alpha$; $\beta$ is found by fixed-point
+/// iteration on the beta vane relation (at most 20 steps, stops when a step is below 1e-9 rad; the error left is then ~1e-11 rad). `v` is the
+/// true airspeed at the CG, m/s (must be > 0).
 #[inline]
 pub fn vanes_to_cg_point(
     alpha_v: f64,
@@ -102,13 +105,24 @@ pub fn vanes_to_cg_point(
     r_alpha: [f64; 3],
     r_beta: [f64; 3],
 ) -> (f64, f64) {
-    let (mut a, mut b) = (alpha_v, beta_v);
+    let c = cross(w, r_alpha);
+    let (sav, cav) = alpha_v.sin_cos();
+    let num = c[0] * sav - c[2] * cav;
+    let alpha_of = |b: f64| alpha_v + (num / (v * b.cos())).clamp(-1.0, 1.0).asin();
+    // start from the first-order sideslip correction; one or two steps then suffice
+    let mut b = beta_v - (w[2] * r_beta[0] - w[0] * r_beta[2]) / v;
+    let mut a = alpha_of(b);
+    let cb = cross(w, r_beta);
     for _ in 0..20 {
-        let (av, bv) = vanes_at_sensor_point(a, b, v, w, r_alpha, r_beta);
-        let (da, db) = (alpha_v - av, beta_v - bv);
-        a += da;
+        // beta vane reading for the current (a, b): asin(v_b / |V_b|)
+        let (sa, ca) = a.sin_cos();
+        let (sb, cbt) = b.sin_cos();
+        let vb = [v * ca * cbt + cb[0], v * sb + cb[1], v * sa * cbt + cb[2]];
+        let nb = (vb[0] * vb[0] + vb[1] * vb[1] + vb[2] * vb[2]).sqrt();
+        let db = beta_v - (vb[1] / nb).clamp(-1.0, 1.0).asin();
         b += db;
-        if da.abs() < 1e-13 && db.abs() < 1e-13 {
+        a = alpha_of(b);
+        if db.abs() < 1e-9 {
             break;
         }
     }
