@@ -170,3 +170,38 @@ def test_cli_writes_outputs_atomically(campaign: Path, tmp_path: Path, capsys) -
         "validation.json",
     ]
     assert pl.read_parquet(out / "data.parquet").height == 2 * len(T)
+
+
+def test_air_data_thrust_and_spoilers_from_raw_channels(tmp_path: Path, truth: dict) -> None:
+    # independent reference: ISA-like static conditions, subsonic isentropic pitot
+    r_air, gamma = 287.05287, 1.4
+    ps, sat = 84000.0, 275.0
+    rho = ps / (r_air * sat)
+    v = truth["tas_mps"]
+    mach = v / np.sqrt(gamma * r_air * sat)
+    pt = ps * (1 + 0.2 * mach**2) ** 3.5
+    torque, rpm = 9000.0, 1020.0
+    n = len(T)
+    rec = canonical_frame(truth).drop("tas_mps", "rho_kgm3", "ct_left", "ct_right")
+    rec = rec.with_columns(
+        pl.Series("ps_pa", np.full(n, ps)),
+        pl.Series("pt_pa", pt),
+        pl.Series("sat_k", np.full(n, sat)),
+        pl.Series("torque_left_nm", np.full(n, torque)),
+        pl.Series("rpm_left", np.full(n, rpm)),
+        pl.Series("torque_right_nm", np.full(n, 0.5 * torque)),
+        pl.Series("rpm_right", np.full(n, rpm)),
+        pl.Series("dsl_deg", np.full(n, 3.0)),
+        pl.Series("dsr_deg", np.full(n, 1.0)),
+    )
+    rec.write_parquet(tmp_path / "raw.parquet")
+    (tmp_path / "aircraft.toml").write_text(AIRCRAFT_TOML)
+    d = aerodelta.ingest(tmp_path, smooth=False, compat=False, progress=False).data
+    np.testing.assert_allclose(d["tas_mps"].to_numpy(), v, rtol=1e-10)
+    np.testing.assert_allclose(d["rho_kgm3"].to_numpy(), rho, rtol=1e-12)
+    qbar = 0.5 * rho * v**2
+    ct_l = 0.8 * torque * rpm * 2 * np.pi / 60 / v / (qbar * 61.0)
+    np.testing.assert_allclose(d["ct_left"].to_numpy(), ct_l, rtol=1e-10)
+    np.testing.assert_allclose(d["ct_diff"].to_numpy(), 0.5 * ct_l, rtol=1e-10)
+    np.testing.assert_allclose(d["ds_deg"].to_numpy(), 4.0)
+    np.testing.assert_allclose(d["qbar_pa"].to_numpy(), qbar, rtol=1e-10)
