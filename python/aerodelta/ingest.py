@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 import polars as pl
+import polars.selectors as cs
 from tqdm import tqdm
 
 from aerodelta import _core
@@ -167,6 +168,7 @@ def ingest(  # noqa: PLR0917
         man = None
     sources = find_records(list(data) if isinstance(data, (list, tuple)) else data, man)
     frames: list[pl.DataFrame] = []
+    kept: list[tuple[str, int]] = []
     reports: list[ValidationReport] = []
 
     def lazy(src: RecordSource) -> pl.LazyFrame:
@@ -175,8 +177,7 @@ def ingest(  # noqa: PLR0917
             lf = lf.filter(pl.col("maneuver_id").cast(pl.Utf8) == src.maneuver_id)
         if cmap is not None:
             return cmap.apply(lf, str(src.path))
-        names = lf.collect_schema().names()
-        return lf.select([pl.col(c) for c in names if c in CHANNELS])
+        return lf.select(cs.by_name(*CHANNELS, "maneuver_id", require_all=False))
 
     bar = tqdm(total=len(sources), desc="ingest", unit="maneuver", disable=not progress)
     chunk = 32  # maneuvers read in parallel by one polars collect_all
@@ -189,7 +190,8 @@ def ingest(  # noqa: PLR0917
             if rep.ok:
                 if any(dt != pl.Float64 for dt in df.schema.values()):
                     df = df.select(pl.all().cast(pl.Float64))
-                frames.append(df.with_columns(pl.lit(src.maneuver_id).alias("maneuver_id")))
+                frames.append(df)
+                kept.append((src.maneuver_id, df.height))
             bar.update(1)
     bar.close()
     errors = [f for r in reports for f in r.errors]
@@ -199,7 +201,9 @@ def ingest(  # noqa: PLR0917
         raise DataError(
             f"{len(errors)} problem(s) refused the data:\n  " + "\n  ".join(lines) + more
         )
-    allc = pl.concat(frames, how="diagonal_relaxed")
+    ids = pl.Series("maneuver_id", [m for m, _ in kept], dtype=pl.Utf8)
+    rows = np.repeat(np.arange(len(kept)), [k for _, k in kept])
+    allc = pl.concat(frames, how="diagonal_relaxed").with_columns(ids.gather(rows))
     out, smoothing = preprocess_frame(allc, ac, smooth=smooth)
     compat_df = None
     if compat or apply_compat:

@@ -149,14 +149,16 @@ def validate(
     if n < 20:
         rep.add("error", "t", "", f"{n} samples; a maneuver needs at least 20")
         return df, rep
-    data: dict[str, np.ndarray] = {
-        c: df[c].cast(pl.Float64).to_numpy() for c in df.columns if c in CHANNELS
-    }
+    names = [c for c in df.columns if c in CHANNELS]
+    # one 2-D copy; the checks below run column-wise on it and loop only over columns at fault
+    mat = df.select(pl.col(names).cast(pl.Float64)).to_numpy()
+    data: dict[str, np.ndarray] = {c: mat[:, i] for i, c in enumerate(names)}
+    fin = np.isfinite(mat)
+    nonfinite_cols = [names[i] for i in np.flatnonzero(~fin.all(axis=0))]
     # non-finite runs
-    for c, x in data.items():
+    for c in nonfinite_cols:
+        x = data[c]
         bad = ~np.isfinite(x)
-        if not bad.any():
-            continue
         runs = _runs(bad)
         fixable = [(a, b) for a, b in runs if b - a + 1 <= MAX_INTERP_GAP and a > 0 and b < n - 1]
         if allow_interpolation and c != "t" and len(fixable) == len(runs):
@@ -207,10 +209,15 @@ def validate(
                     "ingesting",
                 )
     # physical ranges (finite samples only)
-    for c, x in data.items():
+    lo = np.array([CHANNELS[c].lo for c in names])
+    hi = np.array([CHANNELS[c].hi for c in names])
+    with np.errstate(invalid="ignore"):
+        outside = fin & ((mat < lo) | (mat > hi))
+    for i in np.flatnonzero(outside.any(axis=0)):
+        c = names[i]
+        x = data[c]
         spec = CHANNELS[c]
-        fin = np.isfinite(x)
-        out = fin & ((x < spec.lo) | (x > spec.hi))
+        out = outside[:, i]
         if out.any():
             rep.add(
                 "error",
@@ -305,11 +312,18 @@ _HEALTH_CHANNELS = (
 def _sensor_health(data: dict[str, np.ndarray], rep: ValidationReport) -> None:
     """Warn on stuck or clipped continuous sensors."""
     n = len(next(iter(data.values())))
-    for c in _HEALTH_CHANNELS:
-        x = data.get(c)
-        if x is None or not np.isfinite(x).all():
-            continue
-        if np.ptp(x) == 0.0:
+    cols = [c for c in _HEALTH_CHANNELS if c in data and np.isfinite(data[c]).all()]
+    if not cols:
+        return
+    sub = np.stack([data[c] for c in cols], axis=1)
+    flat = np.ptp(sub, axis=0) == 0.0
+    repeats = (np.diff(sub, axis=0) == 0.0).sum(axis=0)
+    min_run = max(25, n // 50)
+    for j, c in enumerate(cols):
+        if not flat[j] and repeats[j] < min_run - 1:
+            continue  # no run of repeated values can be long enough
+        x = data[c]
+        if flat[j]:
             rep.add(
                 "warning",
                 c,
@@ -319,7 +333,7 @@ def _sensor_health(data: dict[str, np.ndarray], rep: ValidationReport) -> None:
             )
             continue
         same = np.concatenate(([False], np.diff(x) == 0.0))
-        long_runs = [(a - 1, b) for a, b in _runs(same) if b - a + 2 >= max(25, n // 50)]
+        long_runs = [(a - 1, b) for a, b in _runs(same) if b - a + 2 >= min_run]
         hi, lo = x.max(), x.min()
         clipped = [
             (a, b) for a, b in long_runs if x[a] in (hi, lo) and b - a + 1 >= max(5, n // 200)
