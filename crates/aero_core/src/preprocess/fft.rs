@@ -13,20 +13,30 @@ type C = Complex<f64>;
 #[derive(Debug, Clone)]
 struct Radix2 {
     n: usize,
-    /// `twiddles[k] = exp(-2 pi i k / n)`, k < n/2.
-    twiddles: Vec<C>,
+    /// Per stage (butterfly span 2, 4, ..., n), contiguous forward twiddles
+    /// `exp(-2 pi i k / len)`, k < len/2, and their conjugates.
+    fwd: Vec<Vec<C>>,
+    inv: Vec<Vec<C>>,
 }
 
 impl Radix2 {
     fn new(n: usize) -> Self {
         debug_assert!(n.is_power_of_two());
-        let twiddles = (0..n / 2)
-            .map(|k| {
-                let a = -2.0 * std::f64::consts::PI * k as f64 / n as f64;
-                C::new(a.cos(), a.sin())
-            })
-            .collect();
-        Radix2 { n, twiddles }
+        let mut fwd = Vec::new();
+        let mut inv = Vec::new();
+        let mut len = 2;
+        while len <= n {
+            let tw: Vec<C> = (0..len / 2)
+                .map(|k| {
+                    let a = -2.0 * std::f64::consts::PI * k as f64 / len as f64;
+                    C::new(a.cos(), a.sin())
+                })
+                .collect();
+            inv.push(tw.iter().map(|w| w.conj()).collect());
+            fwd.push(tw);
+            len *= 2;
+        }
+        Radix2 { n, fwd, inv }
     }
 
     /// In-place transform; `inverse` conjugates the twiddles (no 1/n).
@@ -43,21 +53,17 @@ impl Radix2 {
                 x.swap(i, j);
             }
         }
-        let mut len = 2;
-        while len <= n {
-            let half = len / 2;
-            let step = n / len;
-            for start in (0..n).step_by(len) {
-                for k in 0..half {
-                    let w = self.twiddles[k * step];
-                    let w = if inverse { w.conj() } else { w };
-                    let a = x[start + k];
-                    let b = x[start + k + half] * w;
-                    x[start + k] = a + b;
-                    x[start + k + half] = a - b;
+        let stages = if inverse { &self.inv } else { &self.fwd };
+        for tw in stages {
+            let half = tw.len();
+            for chunk in x.chunks_exact_mut(2 * half) {
+                let (a, b) = chunk.split_at_mut(half);
+                for ((ak, bk), wk) in a.iter_mut().zip(b.iter_mut()).zip(tw) {
+                    let t = *bk * *wk;
+                    *bk = *ak - t;
+                    *ak += t;
                 }
             }
-            len *= 2;
         }
     }
 }
