@@ -151,7 +151,10 @@ def validate(
         return df, rep
     names = [c for c in df.columns if c in CHANNELS]
     # one 2-D copy; the checks below run column-wise on it and loop only over columns at fault
-    mat = df.select(pl.col(names).cast(pl.Float64)).to_numpy()
+    if names == df.columns and all(t == pl.Float64 for t in df.schema.values()):
+        mat = df.to_numpy()
+    else:
+        mat = df.select(pl.col(names).cast(pl.Float64)).to_numpy()
     data: dict[str, np.ndarray] = {c: mat[:, i] for i, c in enumerate(names)}
     fin = np.isfinite(mat)
     nonfinite_cols = [names[i] for i in np.flatnonzero(~fin.all(axis=0))]
