@@ -3,15 +3,14 @@
 //! thesis Section 3.2.3 uses SIDPAC).
 //!
 //! Steps, for samples $x_0..x_{n-1}$ at interval $\Delta t$:
-//! 1. remove the straight line through the end values $\hat x_0, \hat x_{n-1}$ (each from a
-//!    least-squares quadratic over the first/last 5 % of the record, 5 to 50 samples, so one
-//!    noisy end sample does not tilt the record): $d_j = x_j - \hat x_0 - (\hat x_{n-1}-\hat x_0)\,j/(n-1)$;
-//! 2. extend $d$ as an odd sequence (a sine series: no jump and no kink at either end, so no
-//!    Gibbs ringing). To use a power-of-two FFT, the half period $H$ is the next power of two
-//!    $\ge n-1$; the $L = H-(n-1)$ samples past the end are the odd reflection about the end,
-//!    $d_{n-1+j} = -d_{n-1-j}\,w_j$, under a taper $w_j = \cos^2(\pi j/(2(L+1)))$ (value and slope
-//!    stay continuous at the end, and the bridge reaches 0 at $H$). The sequence, odd about 0
-//!    and $H$, has period $M = 2H$; its DFT is $D_k$, $f_k = k/(M\Delta t)$;
+//! 1. remove the straight line through the end points, $d_j = x_j - x_0 - (x_{n-1}-x_0)\,j/(n-1)$,
+//!    so $d_0 = d_{n-1} = 0$ (the line is added back at the end);
+//! 2. make $d$ periodic without a jump or a kink: past the last sample, its odd reflection about
+//!    that sample, $d_{n-1+j} = -d_{n-1-j}\,w_j$, and before the first, $d_{-j} = -d_j\,w'_j$, each
+//!    under a taper $w_j = \cos^2(\pi j/(2(L+1)))$ over the $L$ padding samples, so value and
+//!    slope stay continuous at both ends and the bridges meet at zero. The period $P$ is the
+//!    power of two $\ge n + \max(n/4, 16)$; the DFT is $D_k$, $f_k = k/(P\Delta t)$. Unlike a
+//!    pure sine series, neither end sample is a symmetry point, so both ends are smoothed too;
 //! 3. estimate the white-noise floor $N_0$ as the mean of $|D_k|^2$ over the top 40 % of
 //!    the band, fit $\ln |D_k|^2 = a + b k$ over the band where the (running-mean)
 //!    spectrum stands above $2N_0$ (bins $k \le k_b$): the signal model is
@@ -20,9 +19,9 @@
 //!    add the line back. Two channels share one complex FFT (real and imaginary parts).
 //!
 //! The cut-off reported is where the signal model meets the noise floor,
-//! $f_c = k_c/(M\Delta t)$ with $a + b k_c = \ln N_0$; the noise standard deviation is
-//! $\hat\sigma = \sqrt{N_0/N_e}$ with $N_e = 2(n-2) + 2\sum_j w_j^2$ the noise-carrying
-//! samples of the extended sequence (for white noise $E|D_k|^2 = N_e\sigma^2$).
+//! $f_c = k_c/(P\Delta t)$ with $a + b k_c = \ln N_0$; the noise standard deviation is
+//! $\hat\sigma = \sqrt{N_0/N_e}$ with $N_e = (n-2) + \sum_j w_j^2 + \sum_j w_j'^2$ the
+//! noise-carrying samples of one period (Parseval: the mean of $|D_k|^2$ is $N_e\sigma^2$).
 
 use nalgebra::Complex;
 
@@ -45,9 +44,10 @@ pub struct Smoothed {
 #[derive(Debug, Clone)]
 pub struct Smoother {
     n: usize,
-    /// Half period H (power of two >= n-1).
+    /// Half the FFT period (the Nyquist bin).
     half: usize,
-    taper: Vec<f64>,
+    taper_end: Vec<f64>,
+    taper_start: Vec<f64>,
     n_eff: f64,
     plan: Option<FftPlan>,
 }
@@ -67,47 +67,52 @@ impl Smoother {
             return Smoother {
                 n,
                 half: 0,
-                taper: vec![],
+                taper_end: vec![],
+                taper_start: vec![],
                 n_eff: 1.0,
                 plan: None,
             };
         }
-        let half = (n - 1).next_power_of_two();
-        let l = half - (n - 1);
-        let taper: Vec<f64> = (0..=l)
-            .map(|j| {
-                let c = (std::f64::consts::PI * j as f64 / (2.0 * (l + 1) as f64)).cos();
-                c * c
-            })
-            .collect();
-        let n_eff = 2.0 * ((n - 2) as f64 + taper.iter().skip(1).map(|w| w * w).sum::<f64>());
+        let period = (n + (n / 4).max(16)).next_power_of_two();
+        let pad = period - n;
+        let l_end = pad / 2;
+        let l_start = pad - l_end;
+        let taper = |l: usize| -> Vec<f64> {
+            (0..=l)
+                .map(|j| {
+                    let c = (std::f64::consts::PI * j as f64 / (2.0 * (l + 1) as f64)).cos();
+                    c * c
+                })
+                .collect()
+        };
+        let (taper_end, taper_start) = (taper(l_end), taper(l_start));
+        let energy = |t: &[f64]| -> f64 {
+            t.iter()
+                .enumerate()
+                .skip(1)
+                .filter(|(j, _)| *j < n - 1)
+                .map(|(_, w)| w * w)
+                .sum()
+        };
+        let n_eff = (n - 2) as f64 + energy(&taper_end) + energy(&taper_start);
         Smoother {
             n,
-            half,
-            taper,
+            half: period / 2,
+            taper_end,
+            taper_start,
             n_eff,
-            plan: Some(FftPlan::new(2 * half)),
+            plan: Some(FftPlan::new(period)),
         }
     }
 
-    /// Detrend and extend `x` into the real (`imag = false`) or imaginary part of `buf`.
+    /// Detrend `x` and write one period of its bridged extension into the real
+    /// (`imag = false`) or imaginary part of `buf`; returns the line `(x0, slope)`.
     fn fill(&self, buf: &mut [C], x: &[f64], imag: bool) -> (f64, f64) {
         let n = self.n;
-        let h = self.half;
-        let m = 2 * h;
-        let k = (n / 20).clamp(5, 50).min(n);
-        let x0 = end_value(x[..k].iter().copied());
-        let x1 = end_value(x[n - k..].iter().rev().copied());
-        let slope = (x1 - x0) / (n - 1) as f64;
-        let mut d = vec![0.0; h + 1];
-        for j in 1..n {
-            d[j] = x[j] - x0 - slope * j as f64;
-        }
-        for j in 1..self.taper.len() {
-            if n - 1 + j < h {
-                d[n - 1 + j] = -d[n - 1 - j] * self.taper[j];
-            }
-        }
+        let p = 2 * self.half;
+        let x0 = x[0];
+        let slope = (x[n - 1] - x0) / (n - 1) as f64;
+        let d = |j: usize| -> f64 { x[j] - x0 - slope * j as f64 };
         let set = |c: &mut C, v: f64| {
             if imag {
                 c.im = v;
@@ -115,9 +120,20 @@ impl Smoother {
                 c.re = v;
             }
         };
-        for j in 1..h {
-            set(&mut buf[j], d[j]);
-            set(&mut buf[m - j], -d[j]);
+        for j in 0..n {
+            set(&mut buf[j], d(j));
+        }
+        // end bridge: odd reflection about the last sample, tapered to zero
+        for (j, w) in self.taper_end.iter().enumerate().skip(1) {
+            let v = if j < n - 1 { -d(n - 1 - j) * w } else { 0.0 };
+            set(&mut buf[n - 1 + j], v);
+        }
+        // start bridge (backwards from the end of the period): odd reflection about sample 0
+        for (j, w) in self.taper_start.iter().enumerate().skip(1) {
+            let v = if j < n - 1 { -d(j) * w } else { 0.0 };
+            if p - j > n - 1 + self.taper_end.len() - 1 {
+                set(&mut buf[p - j], v);
+            }
         }
         (x0, slope)
     }
@@ -297,25 +313,6 @@ impl Smoother {
     }
 }
 
-/// Value at the first sample of a least-squares quadratic through `xs` (the end points of the
-/// detrending line, so that one noisy end sample does not tilt the whole record).
-fn end_value(xs: impl Iterator<Item = f64>) -> f64 {
-    let (mut m, mut v) = (
-        nalgebra::Matrix3::<f64>::zeros(),
-        nalgebra::Vector3::<f64>::zeros(),
-    );
-    let mut first = 0.0;
-    for (i, y) in xs.enumerate() {
-        if i == 0 {
-            first = y;
-        }
-        let b = nalgebra::Vector3::new(1.0, i as f64, (i * i) as f64);
-        m += b * b.transpose();
-        v += b * y;
-    }
-    m.lu().solve(&v).map_or(first, |c| c[0])
-}
-
 /// Smooth one signal (plans a [`Smoother`] for its length).
 pub fn smooth(x: &[f64], dt: f64) -> Smoothed {
     Smoother::new(x.len()).smooth(x, dt)
@@ -377,6 +374,26 @@ mod tests {
             "cutoff {}",
             s.cutoff_hz
         );
+    }
+
+    #[test]
+    fn every_length_keeps_a_clean_signal() {
+        // lengths at, just above and below powers of two (bridge lengths 0 .. n-2)
+        for n in [8usize, 9, 10, 17, 33, 1025, 1026, 2048, 3000] {
+            let dt = 0.05;
+            let x: Vec<f64> = (0..n)
+                .map(|i| 1.0 + 0.3 * (0.4 * i as f64 * dt).sin())
+                .collect();
+            let s = smooth(&x, dt);
+            assert_eq!(s.values.len(), n);
+            let err = s
+                .values
+                .iter()
+                .zip(&x)
+                .map(|(a, b)| (a - b).abs())
+                .fold(0.0, f64::max);
+            assert!(err < 1e-3, "n={n}: max error {err}");
+        }
     }
 
     #[test]
