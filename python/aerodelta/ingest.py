@@ -24,7 +24,7 @@ from aerodelta.channel_map import ChannelMap
 from aerodelta.channels import CHANNELS
 from aerodelta.exceptions import DataError
 from aerodelta.preprocess import preprocess_frame
-from aerodelta.readers import RecordSource, find_records, read_manifest, scan_record
+from aerodelta.readers import find_records, read_manifest, scan_record
 from aerodelta.validate import ValidationReport, validate
 
 #: Practical thresholds above which an estimated bias is reported as a warning (and more than
@@ -171,19 +171,29 @@ def ingest(  # noqa: PLR0917
     kept: list[tuple[str, int]] = []
     reports: list[ValidationReport] = []
 
-    def lazy(src: RecordSource) -> pl.LazyFrame:
-        lf = scan_record(src.path)
-        if src.multi:
-            lf = lf.filter(pl.col("maneuver_id").cast(pl.Utf8) == src.maneuver_id)
+    def lazy(path: Path) -> pl.LazyFrame:
+        lf = scan_record(path)
         if cmap is not None:
-            return cmap.apply(lf, str(src.path))
+            return cmap.apply(lf, str(path))
         return lf.select(cs.by_name(*CHANNELS, "maneuver_id", require_all=False))
 
+    # files holding several maneuvers are read once and split by maneuver_id
+    multi: dict[Path, dict[str, pl.DataFrame]] = {}
+
+    def split(path: Path) -> dict[str, pl.DataFrame]:
+        if path not in multi:
+            df = lazy(path).with_columns(pl.col("maneuver_id").cast(pl.Utf8)).collect()
+            parts = df.partition_by("maneuver_id", as_dict=True, maintain_order=True)
+            multi[path] = {str(k[0]): g for k, g in parts.items()}
+        return multi[path]
+
     bar = tqdm(total=len(sources), desc="ingest", unit="maneuver", disable=not progress)
-    chunk = 32  # maneuvers read in parallel by one polars collect_all
+    chunk = 32  # single-maneuver files read in parallel by one polars collect_all
     for i0 in range(0, len(sources), chunk):
         part = sources[i0 : i0 + chunk]
-        for src, raw in zip(part, pl.collect_all([lazy(s) for s in part]), strict=True):
+        singles = iter(pl.collect_all([lazy(s.path) for s in part if not s.multi]))
+        read = [split(s.path)[s.maneuver_id] if s.multi else next(singles) for s in part]
+        for src, raw in zip(part, read, strict=True):
             df = raw.drop("maneuver_id") if "maneuver_id" in raw.columns else raw
             df, rep = validate(df, str(src.path), src.maneuver_id, allow_interpolation)
             reports.append(rep)
