@@ -213,7 +213,7 @@ def ingest(  # noqa: PLR0917
         )
     ids = pl.Series("maneuver_id", [m for m, _ in kept], dtype=pl.Utf8)
     rows = np.repeat(np.arange(len(kept)), [k for _, k in kept])
-    allc = pl.concat(frames, how="diagonal_relaxed").with_columns(ids.gather(rows))
+    allc = pl.concat(frames, how="diagonal_relaxed", rechunk=True).with_columns(ids.gather(rows))
     out, smoothing = preprocess_frame(allc, ac, smooth=smooth)
     compat_df = None
     if compat or apply_compat:

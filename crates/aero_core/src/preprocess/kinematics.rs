@@ -108,20 +108,23 @@ pub fn vanes_to_cg_point(
     let c = cross(w, r_alpha);
     let (sav, cav) = alpha_v.sin_cos();
     let num = c[0] * sav - c[2] * cav;
-    let alpha_of = |b: f64| alpha_v + (num / (v * b.cos())).clamp(-1.0, 1.0).asin();
-    // start from the first-order sideslip correction; one or two steps then suffice
-    let mut b = beta_v - (w[2] * r_beta[0] - w[0] * r_beta[2]) / v;
-    let mut a = alpha_of(b);
+    let alpha_of = |cos_b: f64| alpha_v + (num / (v * cos_b)).clamp(-1.0, 1.0).asin();
+    let sbv = beta_v.sin();
     let cb = cross(w, r_beta);
+    // start from the first-order sideslip correction; Newton steps on sin(beta_vane)
+    // (d sin(beta_v)/d beta = cos(beta) to first order) then converge in one or two steps
+    let mut b = beta_v - (w[2] * r_beta[0] - w[0] * r_beta[2]) / v;
+    let mut cos_b = b.cos();
+    let mut a = alpha_of(cos_b);
     for _ in 0..20 {
-        // beta vane reading for the current (a, b): asin(v_b / |V_b|)
         let (sa, ca) = a.sin_cos();
         let (sb, cbt) = b.sin_cos();
         let vb = [v * ca * cbt + cb[0], v * sb + cb[1], v * sa * cbt + cb[2]];
         let nb = (vb[0] * vb[0] + vb[1] * vb[1] + vb[2] * vb[2]).sqrt();
-        let db = beta_v - (vb[1] / nb).clamp(-1.0, 1.0).asin();
+        let db = (sbv - vb[1] / nb) / cbt;
         b += db;
-        a = alpha_of(b);
+        cos_b = cbt - sb * db; // cos(b + db) to O(db^2)
+        a = alpha_of(cos_b);
         if db.abs() < 1e-9 {
             break;
         }
