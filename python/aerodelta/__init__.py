@@ -7,6 +7,7 @@ this package handles files, schemas, units, orchestration, reports and the CLI.
 from __future__ import annotations
 
 from aerodelta._core import __version__
+from aerodelta.aircraft import Aircraft
 from aerodelta.campaign import (
     CampaignInfo,
     effect_library,
@@ -16,6 +17,7 @@ from aerodelta.campaign import (
     rolloff_draws,
     simulate_campaign,
 )
+from aerodelta.channel_map import ChannelMap
 from aerodelta.daveml import (
     DaveModel,
     check_daveml,
@@ -33,19 +35,25 @@ from aerodelta.exceptions import (
     ParseError,
     TooLittleDataError,
 )
+from aerodelta.ingest import IngestResult, ingest
 from aerodelta.model import DeltaModel
 from aerodelta.partition import AlphaBins, partition_alpha
 from aerodelta.spline import SmoothingSpline, smoothing_spline
 from aerodelta.table import Table
+from aerodelta.validate import Finding, ValidationReport
 
 __all__ = [
     "AeroIOError",
     "AerodeltaError",
+    "Aircraft",
     "AlphaBins",
     "CampaignInfo",
+    "ChannelMap",
     "DataError",
     "DaveModel",
     "DeltaModel",
+    "Finding",
+    "IngestResult",
     "InvalidInputError",
     "NoConvergenceError",
     "OutOfRangeError",
@@ -53,10 +61,12 @@ __all__ = [
     "SmoothingSpline",
     "Table",
     "TooLittleDataError",
+    "ValidationReport",
     "__version__",
     "check_daveml",
     "effect_library",
     "generate_campaign",
+    "ingest",
     "load_daveml",
     "partition_alpha",
     "qualified_model_tables",

@@ -143,3 +143,49 @@ def sim_rolloff_draws(
     flap_deg: float, seed: int, n: int, stream: int = 0
 ) -> dict[str, npt.NDArray[np.float64]]: ...
 def sim_rolloff_config() -> str: ...
+
+# --- preprocessing (crates/py_bindings/src/preprocess.rs) ---
+def smooth(
+    x: npt.NDArray[np.float64], dt: float
+) -> tuple[npt.NDArray[np.float64], float, float]: ...
+def smooth_deriv(
+    x: npt.NDArray[np.float64], dt: float
+) -> tuple[npt.NDArray[np.float64], float]: ...
+def local_poly_deriv(
+    x: npt.NDArray[np.float64], dt: float, half_window: int, order: int
+) -> npt.NDArray[np.float64]: ...
+def accel_to_cg(
+    accel: list[npt.NDArray[np.float64]],
+    rates: list[npt.NDArray[np.float64]],
+    rate_derivs: list[npt.NDArray[np.float64]],
+    position_m: list[float] | tuple[float, float, float],
+) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64], npt.NDArray[np.float64]]: ...
+def vanes_to_cg(
+    alpha_vane: npt.NDArray[np.float64],
+    beta_vane: npt.NDArray[np.float64],
+    tas: npt.NDArray[np.float64],
+    rates: list[npt.NDArray[np.float64]],
+    alpha_vane_m: list[float] | tuple[float, float, float],
+    beta_vane_m: list[float] | tuple[float, float, float],
+) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]: ...
+def preprocess_columns() -> tuple[list[str], list[str], list[str]]: ...
+def preprocess_batch(
+    columns: list[npt.NDArray[np.float64]],
+    offsets: list[int],
+    mass_geometry: list[float],
+    prop_h_per_rpm: float,
+    accel_m: list[float],
+    alpha_vane_m: list[float],
+    beta_vane_m: list[float],
+    smooth: bool = True,
+) -> tuple[list[npt.NDArray[np.float64]], npt.NDArray[np.float64], npt.NDArray[np.float64]]: ...
+def compat_check(
+    t: npt.NDArray[np.float64],
+    accel: list[npt.NDArray[np.float64]],
+    rates: list[npt.NDArray[np.float64]],
+    tas: npt.NDArray[np.float64],
+    alpha: npt.NDArray[np.float64],
+    beta: npt.NDArray[np.float64],
+    euler: list[npt.NDArray[np.float64]],
+    max_iter: int = 20,
+) -> dict[str, object]: ...

@@ -12,6 +12,8 @@
 //! - [`sim`]: the 6-DOF simulator (Eq. 3.1), pilot, sensors and campaign generator;
 //! - [`aircraft`]: the representative turboprop, its qualified and truth models;
 //! - [`rolloff`]: the stochastic roll-off of Section 3.4.3 (runtime model);
+//! - [`preprocess`]: flight-test preprocessing: smoothing, derivatives, CG and
+//!   vane transfers, measured coefficients (Eq. 3.2-3.4), data compatibility;
 //! - [`daveml`]: DAVE-ML (AIAA S-119) models: read, evaluate, run their check
 //!   cases, and write models with self-generated check cases;
 //! - [`spline`]: cubic smoothing splines with MATLAB `csaps` semantics (Eq. 3.13);
@@ -31,6 +33,7 @@ pub mod delta_model;
 pub mod error;
 pub mod fsutil;
 pub mod partition;
+pub mod preprocess;
 pub mod regressor;
 pub mod rolloff;
 pub mod rolloff_detect;

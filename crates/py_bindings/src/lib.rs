@@ -9,6 +9,7 @@ mod daveml;
 mod delta_model;
 mod error;
 mod partition;
+mod preprocess;
 mod sim;
 mod spline;
 mod table;
@@ -24,5 +25,6 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     partition::register(m)?;
     daveml::register(m)?;
     sim::register(m)?;
+    preprocess::register(m)?;
     Ok(())
 }

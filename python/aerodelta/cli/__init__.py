@@ -25,6 +25,7 @@ def _register(name: str, module: str) -> None:
 _register("check-daveml", "check_daveml")
 _register("write-example-model", "write_example_model")
 _register("campaign", "campaign")
+_register("ingest", "ingest")
 
 
 def build_parser() -> argparse.ArgumentParser:

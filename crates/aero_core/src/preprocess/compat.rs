@@ -1,0 +1,464 @@
+//! Data compatibility check / flight path reconstruction (thesis Section 2.4, Eq. 2.23-2.26).
+//!
+//! The specific forces and rates at the CG are inputs; the kinematic equations (thesis Eq.
+//! 3.1a-c, 3.1g-i with the aerodynamic and thrust forces replaced by the measured specific
+//! force; body axes x fwd, y right, z down; $g$ = 9.80665 m/s²)
+//! $$\dot u = rv - qw + a_x - g\sin\theta,\quad \dot v = pw - ru + a_y + g\cos\theta\sin\phi,
+//! \quad \dot w = qu - pv + a_z + g\cos\theta\cos\phi$$
+//! $$\dot\phi = p + \tan\theta(q\sin\phi + r\cos\phi),\quad \dot\theta = q\cos\phi - r\sin\phi,
+//! \quad \dot\psi = (q\sin\phi + r\cos\phi)/\cos\theta$$
+//! are integrated (RK4, inputs linear between samples) and compared with the measured outputs
+//! $V = |(u,v,w)|$, $\alpha = \operatorname{atan2}(w,u)$, $\beta = \arcsin(v/V)$ (Eq. 2.23),
+//! $\phi$, $\theta$, $\psi$. The velocities are air-relative; a constant wind does not change
+//! their derivatives, so steady wind is allowed, gusts are not modelled.
+//!
+//! Error model (all biases are *measured minus true*, so corrected = measured - bias):
+//! $a_{x,E} = a_x + b_{a_x}$ (Eq. 2.25), likewise $a_y, a_z, p, q, r$;
+//! $\alpha_E = \alpha + b_\alpha$, $\beta_E = \beta + b_\beta$,
+//! $V_E = (1+\lambda_V)V$ (Eq. 2.24 with $b_V = 0$: a speed bias and a scale factor are
+//! not separable over a stall's speed range). Unknowns: these 9 plus the 6 initial states.
+//! They are estimated by output error (thesis Section 2.3.2): Gauss-Newton (modified
+//! Newton-Raphson, Eq. 2.21) with finite-difference output sensitivities, the output noise
+//! covariance re-estimated each iteration from the residuals, Levenberg damping when a step
+//! does not lower the cost. Standard errors are the Cramér-Rao bounds
+//! $\sqrt{\operatorname{diag}(\mathbf M^{-1})}$.
+
+use nalgebra::{DMatrix, DVector};
+
+use crate::error::{AeroError, Result};
+
+/// Standard gravity, m/s².
+pub const G0: f64 = 9.80665;
+
+/// Names of the estimated parameters, in order.
+pub const PARAM_NAMES: [&str; 15] = [
+    "b_ax_mps2",
+    "b_ay_mps2",
+    "b_az_mps2",
+    "b_p_rps",
+    "b_q_rps",
+    "b_r_rps",
+    "b_alpha_rad",
+    "b_beta_rad",
+    "lambda_v",
+    "u0_mps",
+    "v0_mps",
+    "w0_mps",
+    "phi0_rad",
+    "theta0_rad",
+    "psi0_rad",
+];
+
+/// Names of the compared outputs, in order.
+pub const OUTPUT_NAMES: [&str; 6] = ["tas", "alpha", "beta", "phi", "theta", "psi"];
+
+/// Measured channels of one maneuver (SI, radians, at the CG).
+#[derive(Debug, Clone, Copy)]
+pub struct CompatInput<'a> {
+    /// Time, s, strictly increasing.
+    pub t: &'a [f64],
+    /// Specific forces at the CG, m/s².
+    pub accel: [&'a [f64]; 3],
+    /// Body rates, rad/s.
+    pub rates: [&'a [f64]; 3],
+    /// True airspeed, m/s.
+    pub tas: &'a [f64],
+    /// Angle of attack and sideslip at the CG, rad.
+    pub alpha: &'a [f64],
+    /// Sideslip at the CG, rad.
+    pub beta: &'a [f64],
+    /// Euler angles phi, theta, psi, rad.
+    pub euler: [&'a [f64]; 3],
+}
+
+/// Result of the compatibility check.
+#[derive(Debug, Clone)]
+pub struct CompatResult {
+    /// Estimates in the order of [`PARAM_NAMES`].
+    pub params: Vec<f64>,
+    /// Cramér-Rao standard errors, same order.
+    pub std_err: Vec<f64>,
+    /// RMS of each output residual before estimation (all parameters zero, initial states
+    /// from the first measured samples), order of [`OUTPUT_NAMES`] (m/s, rad).
+    pub rms_before: Vec<f64>,
+    /// RMS of each output residual at the estimate.
+    pub rms_after: Vec<f64>,
+    /// Gauss-Newton iterations used.
+    pub iterations: usize,
+    /// Whether the relative cost change fell below the tolerance.
+    pub converged: bool,
+}
+
+type State = [f64; 6];
+
+fn rhs(x: &State, a: [f64; 3], w: [f64; 3]) -> State {
+    let [u, v, ww, phi, th, _] = *x;
+    let [p, q, r] = w;
+    let (sf, cf) = phi.sin_cos();
+    let (st, ct) = th.sin_cos();
+    [
+        r * v - q * ww + a[0] - G0 * st,
+        p * ww - r * u + a[1] + G0 * ct * sf,
+        q * u - p * v + a[2] + G0 * ct * cf,
+        p + st / ct * (q * sf + r * cf),
+        q * cf - r * sf,
+        (q * sf + r * cf) / ct,
+    ]
+}
+
+/// Simulate the outputs for parameters `th`; returns 6 output vectors.
+fn simulate(inp: &CompatInput<'_>, th: &[f64]) -> [Vec<f64>; 6] {
+    let n = inp.t.len();
+    let inputs = |i: usize| -> ([f64; 3], [f64; 3]) {
+        (
+            [
+                inp.accel[0][i] - th[0],
+                inp.accel[1][i] - th[1],
+                inp.accel[2][i] - th[2],
+            ],
+            [
+                inp.rates[0][i] - th[3],
+                inp.rates[1][i] - th[4],
+                inp.rates[2][i] - th[5],
+            ],
+        )
+    };
+    let mut out: [Vec<f64>; 6] = Default::default();
+    for o in out.iter_mut() {
+        o.reserve_exact(n);
+    }
+    let mut x: State = [th[9], th[10], th[11], th[12], th[13], th[14]];
+    for i in 0..n {
+        let [u, v, w, phi, theta, psi] = x;
+        let vt = (u * u + v * v + w * w).sqrt();
+        out[0].push((1.0 + th[8]) * vt);
+        out[1].push(w.atan2(u) + th[6]);
+        out[2].push((v / vt).clamp(-1.0, 1.0).asin() + th[7]);
+        out[3].push(phi);
+        out[4].push(theta);
+        out[5].push(psi);
+        if i + 1 == n {
+            break;
+        }
+        let h = inp.t[i + 1] - inp.t[i];
+        let (a0, w0) = inputs(i);
+        let (a1, w1) = inputs(i + 1);
+        let am = [
+            0.5 * (a0[0] + a1[0]),
+            0.5 * (a0[1] + a1[1]),
+            0.5 * (a0[2] + a1[2]),
+        ];
+        let wm = [
+            0.5 * (w0[0] + w1[0]),
+            0.5 * (w0[1] + w1[1]),
+            0.5 * (w0[2] + w1[2]),
+        ];
+        let k1 = rhs(&x, a0, w0);
+        let x2: State = std::array::from_fn(|k| x[k] + 0.5 * h * k1[k]);
+        let k2 = rhs(&x2, am, wm);
+        let x3: State = std::array::from_fn(|k| x[k] + 0.5 * h * k2[k]);
+        let k3 = rhs(&x3, am, wm);
+        let x4: State = std::array::from_fn(|k| x[k] + h * k3[k]);
+        let k4 = rhs(&x4, a1, w1);
+        x = std::array::from_fn(|k| x[k] + h / 6.0 * (k1[k] + 2.0 * k2[k] + 2.0 * k3[k] + k4[k]));
+    }
+    out
+}
+
+fn wrap_pi(a: f64) -> f64 {
+    let tau = std::f64::consts::TAU;
+    a - tau * ((a + std::f64::consts::PI) / tau).floor()
+}
+
+fn residuals(meas: &[&[f64]; 6], sim: &[Vec<f64>; 6]) -> [Vec<f64>; 6] {
+    std::array::from_fn(|k| {
+        meas[k]
+            .iter()
+            .zip(&sim[k])
+            .map(|(m, s)| if k == 5 { wrap_pi(m - s) } else { m - s })
+            .collect()
+    })
+}
+
+fn rms(v: &[f64]) -> f64 {
+    (v.iter().map(|x| x * x).sum::<f64>() / v.len().max(1) as f64).sqrt()
+}
+
+/// Run the compatibility check on one maneuver.
+///
+/// # Errors
+/// `TooLittleData` for fewer than 20 samples; `InvalidInput` for unequal lengths, a
+/// non-positive first airspeed or non-finite samples; `NoConvergence` is never returned (the
+/// result says whether it converged).
+pub fn check(inp: &CompatInput<'_>, max_iter: usize) -> Result<CompatResult> {
+    let n = inp.t.len();
+    let place = "data compatibility check";
+    if n < 20 {
+        return Err(AeroError::too_little(
+            place,
+            format!("{n} samples; need at least 20"),
+        ));
+    }
+    let all: [&[f64]; 12] = [
+        inp.accel[0],
+        inp.accel[1],
+        inp.accel[2],
+        inp.rates[0],
+        inp.rates[1],
+        inp.rates[2],
+        inp.tas,
+        inp.alpha,
+        inp.beta,
+        inp.euler[0],
+        inp.euler[1],
+        inp.euler[2],
+    ];
+    if all.iter().any(|c| c.len() != n) {
+        return Err(AeroError::invalid(place, "channels of unequal length"));
+    }
+    if all.iter().any(|c| c.iter().any(|v| !v.is_finite())) || inp.t.iter().any(|v| !v.is_finite())
+    {
+        return Err(AeroError::invalid(
+            place,
+            "non-finite samples; validate the record first",
+        ));
+    }
+    if inp.tas[0] <= 0.0 {
+        return Err(AeroError::invalid(
+            place,
+            "first airspeed sample is not positive",
+        ));
+    }
+    let meas: [&[f64]; 6] = [
+        inp.tas,
+        inp.alpha,
+        inp.beta,
+        inp.euler[0],
+        inp.euler[1],
+        inp.euler[2],
+    ];
+    let (v0, a0, b0) = (inp.tas[0], inp.alpha[0], inp.beta[0]);
+    let mut th = vec![0.0; 15];
+    th[9] = v0 * a0.cos() * b0.cos();
+    th[10] = v0 * b0.sin();
+    th[11] = v0 * a0.sin() * b0.cos();
+    th[12] = inp.euler[0][0];
+    th[13] = inp.euler[1][0];
+    th[14] = inp.euler[2][0];
+    let np = th.len();
+    let no = 6;
+    // initial output noise scales: 0.5 m/s, 0.2 deg
+    let mut sig = [0.5, 3.5e-3, 3.5e-3, 3.5e-3, 3.5e-3, 3.5e-3];
+    let mut sim = simulate(inp, &th);
+    let mut res = residuals(&meas, &sim);
+    let rms_before: Vec<f64> = res.iter().map(|r| rms(r)).collect();
+    let cost = |res: &[Vec<f64>; 6], sig: &[f64; 6]| -> f64 {
+        (0..no)
+            .map(|k| res[k].iter().map(|e| e * e).sum::<f64>() / (sig[k] * sig[k]))
+            .sum::<f64>()
+    };
+    let steps = [
+        1e-4, 1e-4, 1e-4, 1e-6, 1e-6, 1e-6, 1e-6, 1e-6, 1e-6, 1e-3, 1e-3, 1e-3, 1e-6, 1e-6, 1e-6,
+    ];
+    let mut info = DMatrix::<f64>::zeros(np, np);
+    let mut converged = false;
+    let mut iterations = 0;
+    let mut lm = 0.0_f64;
+    for it in 0..max_iter {
+        iterations = it + 1;
+        // sensitivities dy/dth by forward differences
+        let sens: Vec<[Vec<f64>; 6]> = (0..np)
+            .map(|j| {
+                let mut tp = th.clone();
+                tp[j] += steps[j];
+                let sp = simulate(inp, &tp);
+                std::array::from_fn(|k| {
+                    sp[k]
+                        .iter()
+                        .zip(&sim[k])
+                        .map(|(a, b)| if k == 5 { wrap_pi(a - b) } else { a - b } / steps[j])
+                        .collect()
+                })
+            })
+            .collect();
+        info.fill(0.0);
+        let mut grad = DVector::<f64>::zeros(np);
+        for k in 0..no {
+            let wk = 1.0 / (sig[k] * sig[k]);
+            for a in 0..np {
+                let sa = &sens[a][k];
+                grad[a] += wk * sa.iter().zip(&res[k]).map(|(x, e)| x * e).sum::<f64>();
+                for b in a..np {
+                    let v = wk * sa.iter().zip(&sens[b][k]).map(|(x, y)| x * y).sum::<f64>();
+                    info[(a, b)] += v;
+                    if a != b {
+                        info[(b, a)] += v;
+                    }
+                }
+            }
+        }
+        let j0 = cost(&res, &sig);
+        let mut accepted = false;
+        for _ in 0..8 {
+            let mut m = info.clone();
+            for d in 0..np {
+                m[(d, d)] += lm * info[(d, d)].max(1e-12) + 1e-12 * info[(d, d)].abs().max(1.0);
+            }
+            let Some(step) = m.cholesky().map(|c| c.solve(&grad)) else {
+                lm = (lm * 10.0).max(1e-6);
+                continue;
+            };
+            let cand: Vec<f64> = th.iter().zip(step.iter()).map(|(a, s)| a + s).collect();
+            let sim_c = simulate(inp, &cand);
+            let res_c = residuals(&meas, &sim_c);
+            let jc = cost(&res_c, &sig);
+            if jc.is_finite() && jc <= j0 {
+                th = cand;
+                sim = sim_c;
+                res = res_c;
+                lm *= 0.1;
+                if lm < 1e-9 {
+                    lm = 0.0;
+                }
+                accepted = true;
+                let rel = (j0 - jc) / j0.max(1e-300);
+                if rel < 1e-7 {
+                    converged = true;
+                }
+                break;
+            }
+            lm = (lm * 10.0).max(1e-4);
+        }
+        // re-estimate the output noise from the residuals (floor keeps weights finite)
+        for k in 0..no {
+            let floor = if k == 0 { 1e-4 } else { 1e-7 };
+            sig[k] = rms(&res[k]).max(floor);
+        }
+        if !accepted || converged {
+            converged = true;
+            break;
+        }
+    }
+    // Cramér-Rao bounds at the final weights
+    let mut m = DMatrix::<f64>::zeros(np, np);
+    {
+        let sens: Vec<[Vec<f64>; 6]> = (0..np)
+            .map(|j| {
+                let mut tp = th.clone();
+                tp[j] += steps[j];
+                let sp = simulate(inp, &tp);
+                std::array::from_fn(|k| {
+                    sp[k]
+                        .iter()
+                        .zip(&sim[k])
+                        .map(|(a, b)| (a - b) / steps[j])
+                        .collect()
+                })
+            })
+            .collect();
+        for k in 0..no {
+            let wk = 1.0 / (sig[k] * sig[k]);
+            for a in 0..np {
+                for b in a..np {
+                    let v = wk
+                        * sens[a][k]
+                            .iter()
+                            .zip(&sens[b][k])
+                            .map(|(x, y)| x * y)
+                            .sum::<f64>();
+                    m[(a, b)] += v;
+                    m[(b, a)] = m[(a, b)];
+                }
+            }
+        }
+    }
+    let std_err = match m.clone().try_inverse() {
+        Some(inv) => (0..np).map(|d| inv[(d, d)].abs().sqrt()).collect(),
+        None => vec![f64::INFINITY; np],
+    };
+    let rms_after = res.iter().map(|r| rms(r)).collect();
+    Ok(CompatResult {
+        params: th,
+        std_err,
+        rms_before,
+        rms_after,
+        iterations,
+        converged,
+    })
+}
+
+/// Simulated outputs (V m/s, alpha, beta, phi, theta, psi rad) for given parameters, e.g. to
+/// plot the reconstruction against the measurements.
+pub fn reconstruct(inp: &CompatInput<'_>, params: &[f64]) -> Result<[Vec<f64>; 6]> {
+    if params.len() != PARAM_NAMES.len() {
+        return Err(AeroError::invalid(
+            "compatibility reconstruction",
+            format!(
+                "{} parameters given, {} expected",
+                params.len(),
+                PARAM_NAMES.len()
+            ),
+        ));
+    }
+    Ok(simulate(inp, params))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Closed-form motion: build consistent inputs by integrating a known truth finely,
+    /// then inject biases and check they come back.
+    #[test]
+    fn recovers_alpha_and_ax_biases() {
+        let n = 3001;
+        let dt = 0.02;
+        let t: Vec<f64> = (0..n).map(|i| i as f64 * dt).collect();
+        // truth: rates and specific forces as smooth functions; outputs from simulate() itself
+        let p: Vec<f64> = t.iter().map(|&s| 0.1 * (0.5 * s).sin()).collect();
+        let q: Vec<f64> = t.iter().map(|&s| 0.05 * (0.7 * s).sin()).collect();
+        let r: Vec<f64> = t.iter().map(|&s| 0.04 * (0.3 * s).cos()).collect();
+        let ax: Vec<f64> = t.iter().map(|&s| 1.0 + 0.5 * (0.2 * s).sin()).collect();
+        let ay: Vec<f64> = t.iter().map(|&s| 0.3 * (0.4 * s).sin()).collect();
+        let az: Vec<f64> = t.iter().map(|&s| -9.8 - 2.0 * (0.25 * s).sin()).collect();
+        let truth_inp = CompatInput {
+            t: &t,
+            accel: [&ax, &ay, &az],
+            rates: [&p, &q, &r],
+            tas: &t,
+            alpha: &t,
+            beta: &t,
+            euler: [&t, &t, &t],
+        };
+        let mut th = vec![0.0; 15];
+        th[9] = 70.0;
+        th[11] = 4.0;
+        th[13] = 0.05;
+        th[14] = 1.0;
+        let y = simulate(&truth_inp, &th);
+        let (b_alpha, b_ax) = (1.0_f64.to_radians(), 0.2);
+        let alpha_m: Vec<f64> = y[1].iter().map(|v| v + b_alpha).collect();
+        let ax_m: Vec<f64> = ax.iter().map(|v| v + b_ax).collect();
+        let inp = CompatInput {
+            t: &t,
+            accel: [&ax_m, &ay, &az],
+            rates: [&p, &q, &r],
+            tas: &y[0],
+            alpha: &alpha_m,
+            beta: &y[2],
+            euler: [&y[3], &y[4], &y[5]],
+        };
+        let res = check(&inp, 30).unwrap();
+        assert!(
+            (res.params[6] - b_alpha).abs() < 1e-5,
+            "b_alpha {}",
+            res.params[6]
+        );
+        assert!(
+            (res.params[0] - b_ax).abs() < 1e-4,
+            "b_ax {}",
+            res.params[0]
+        );
+        assert!(res.rms_after[1] < 1e-5 && res.rms_before[1] > 1e-2);
+    }
+}

@@ -1,0 +1,255 @@
+//! Flight test preprocessing (`aero_core::preprocess`): conversion and error mapping only.
+use aero_core::preprocess::coefficients::MassGeometry;
+use aero_core::preprocess::smooth as core_smooth;
+use aero_core::preprocess::{compat, deriv, kinematics, maneuver};
+use aero_core::AeroError;
+use numpy::{IntoPyArray, PyArray1, PyReadonlyArray1};
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+
+use crate::util::detached;
+
+type Arr<'py> = Bound<'py, PyArray1<f64>>;
+
+fn slices<'a>(cols: &'a [PyReadonlyArray1<'_, f64>]) -> PyResult<Vec<&'a [f64]>> {
+    cols.iter()
+        .map(|c| c.as_slice().map_err(PyErr::from))
+        .collect()
+}
+
+/// Optimal Fourier smoother: `(smoothed, cutoff_hz, noise_std)`.
+#[pyfunction]
+fn smooth<'py>(
+    py: Python<'py>,
+    x: PyReadonlyArray1<'py, f64>,
+    dt: f64,
+) -> PyResult<(Arr<'py>, f64, f64)> {
+    let xs = x.as_slice()?;
+    let r = detached(py, || Ok(core_smooth::smooth(xs, dt)))?;
+    Ok((r.values.into_pyarray(py), r.cutoff_hz, r.noise_std))
+}
+
+/// SIDPAC-`deriv`-like smoothed derivative: `(derivative, cutoff_hz)`.
+#[pyfunction]
+fn smooth_deriv<'py>(
+    py: Python<'py>,
+    x: PyReadonlyArray1<'py, f64>,
+    dt: f64,
+) -> PyResult<(Arr<'py>, f64)> {
+    let xs = x.as_slice()?;
+    let (d, fc) = detached(py, || {
+        Ok(deriv::smooth_deriv(
+            &core_smooth::Smoother::new(xs.len()),
+            xs,
+            dt,
+        ))
+    })?;
+    Ok((d.into_pyarray(py), fc))
+}
+
+/// Local polynomial (Savitzky-Golay) derivative.
+#[pyfunction]
+fn local_poly_deriv<'py>(
+    py: Python<'py>,
+    x: PyReadonlyArray1<'py, f64>,
+    dt: f64,
+    half_window: usize,
+    order: usize,
+) -> PyResult<Arr<'py>> {
+    let xs = x.as_slice()?;
+    let d = detached(py, || deriv::local_poly_deriv(xs, dt, half_window, order))?;
+    Ok(d.into_pyarray(py))
+}
+
+/// Accelerometer transfer to the CG (rad/s, rad/s², m/s², m).
+#[pyfunction]
+#[allow(clippy::too_many_arguments)]
+fn accel_to_cg<'py>(
+    py: Python<'py>,
+    accel: Vec<PyReadonlyArray1<'py, f64>>,
+    rates: Vec<PyReadonlyArray1<'py, f64>>,
+    rate_derivs: Vec<PyReadonlyArray1<'py, f64>>,
+    position_m: [f64; 3],
+) -> PyResult<(Arr<'py>, Arr<'py>, Arr<'py>)> {
+    let (a, w, wd) = (slices(&accel)?, slices(&rates)?, slices(&rate_derivs)?);
+    if a.len() != 3 || w.len() != 3 || wd.len() != 3 {
+        return Err(crate::error::to_py(AeroError::invalid(
+            "accel_to_cg",
+            "accel, rates and rate_derivs take three arrays each",
+        )));
+    }
+    let n = a[0].len();
+    if a.iter().chain(&w).chain(&wd).any(|c| c.len() != n) {
+        return Err(crate::error::to_py(AeroError::invalid(
+            "accel_to_cg",
+            "arrays of unequal length",
+        )));
+    }
+    let [x, y, z] = detached(py, || {
+        Ok(kinematics::accel_to_cg(
+            [a[0], a[1], a[2]],
+            [w[0], w[1], w[2]],
+            [wd[0], wd[1], wd[2]],
+            position_m,
+        ))
+    })?;
+    Ok((x.into_pyarray(py), y.into_pyarray(py), z.into_pyarray(py)))
+}
+
+/// Vane angles (rad) to CG angle of attack and sideslip (rad).
+#[pyfunction]
+fn vanes_to_cg<'py>(
+    py: Python<'py>,
+    alpha_vane: PyReadonlyArray1<'py, f64>,
+    beta_vane: PyReadonlyArray1<'py, f64>,
+    tas: PyReadonlyArray1<'py, f64>,
+    rates: Vec<PyReadonlyArray1<'py, f64>>,
+    alpha_vane_m: [f64; 3],
+    beta_vane_m: [f64; 3],
+) -> PyResult<(Arr<'py>, Arr<'py>)> {
+    let (a, b, v) = (
+        alpha_vane.as_slice()?,
+        beta_vane.as_slice()?,
+        tas.as_slice()?,
+    );
+    let w = slices(&rates)?;
+    let n = a.len();
+    if w.len() != 3 || b.len() != n || v.len() != n || w.iter().any(|c| c.len() != n) {
+        return Err(crate::error::to_py(AeroError::invalid(
+            "vanes_to_cg",
+            "alpha, beta, tas and three rate arrays of equal length expected",
+        )));
+    }
+    let (x, y) = detached(py, || {
+        Ok(kinematics::vanes_to_cg(
+            a,
+            b,
+            v,
+            [w[0], w[1], w[2]],
+            alpha_vane_m,
+            beta_vane_m,
+        ))
+    })?;
+    Ok((x.into_pyarray(py), y.into_pyarray(py)))
+}
+
+/// Column names of the batch pipeline: `(inputs, smoothed, outputs)`.
+#[pyfunction]
+fn preprocess_columns() -> (Vec<String>, Vec<String>, Vec<String>) {
+    let s = |v: &[&str]| v.iter().map(|x| x.to_string()).collect::<Vec<_>>();
+    let mut outs = s(&maneuver::OUTPUT_COLUMNS);
+    outs.push(maneuver::CM_COLUMN.to_string());
+    (
+        s(&maneuver::INPUT_COLUMNS[..12]),
+        s(&maneuver::SMOOTHED_COLUMNS),
+        outs,
+    )
+}
+
+/// Preprocess concatenated maneuvers: `(output columns, cutoffs_hz (n_man*9), noise_std (n_man*9))`.
+///
+/// `mass_geometry` = [S, b, cbar, mass, Ixx, Iyy, Izz, Ixz].
+#[pyfunction]
+#[allow(clippy::too_many_arguments)]
+#[pyo3(signature = (columns, offsets, mass_geometry, prop_h_per_rpm, accel_m, alpha_vane_m, beta_vane_m, smooth=true))]
+fn preprocess_batch<'py>(
+    py: Python<'py>,
+    columns: Vec<PyReadonlyArray1<'py, f64>>,
+    offsets: Vec<usize>,
+    mass_geometry: [f64; 8],
+    prop_h_per_rpm: f64,
+    accel_m: [f64; 3],
+    alpha_vane_m: [f64; 3],
+    beta_vane_m: [f64; 3],
+    smooth: bool,
+) -> PyResult<(Vec<Arr<'py>>, Arr<'py>, Arr<'py>)> {
+    let cols = slices(&columns)?;
+    let [s, b, cbar, mass, ixx, iyy, izz, ixz] = mass_geometry;
+    let ac = maneuver::AircraftParams {
+        mg: MassGeometry {
+            s,
+            b,
+            cbar,
+            mass,
+            ixx,
+            iyy,
+            izz,
+            ixz,
+        },
+        prop_h_per_rpm,
+        accel_m,
+        alpha_vane_m,
+        beta_vane_m,
+    };
+    let opts = maneuver::PreprocessOptions { smooth };
+    let out = detached(py, || {
+        maneuver::preprocess_concatenated(&cols, &offsets, &ac, &opts)
+    })?;
+    let arrays = out
+        .columns
+        .into_iter()
+        .map(|c| c.into_pyarray(py))
+        .collect();
+    Ok((
+        arrays,
+        out.cutoffs_hz.into_pyarray(py),
+        out.noise_std.into_pyarray(py),
+    ))
+}
+
+/// Data compatibility check of one maneuver (SI, rad, at the CG). Returns a dict with
+/// `names`, `params`, `std_err`, `outputs`, `rms_before`, `rms_after`, `iterations`, `converged`.
+#[pyfunction]
+#[pyo3(signature = (t, accel, rates, tas, alpha, beta, euler, max_iter=20))]
+#[allow(clippy::too_many_arguments)]
+fn compat_check<'py>(
+    py: Python<'py>,
+    t: PyReadonlyArray1<'py, f64>,
+    accel: Vec<PyReadonlyArray1<'py, f64>>,
+    rates: Vec<PyReadonlyArray1<'py, f64>>,
+    tas: PyReadonlyArray1<'py, f64>,
+    alpha: PyReadonlyArray1<'py, f64>,
+    beta: PyReadonlyArray1<'py, f64>,
+    euler: Vec<PyReadonlyArray1<'py, f64>>,
+    max_iter: usize,
+) -> PyResult<Bound<'py, PyDict>> {
+    let (a, w, e) = (slices(&accel)?, slices(&rates)?, slices(&euler)?);
+    if a.len() != 3 || w.len() != 3 || e.len() != 3 {
+        return Err(crate::error::to_py(AeroError::invalid(
+            "compat_check",
+            "accel, rates and euler take three arrays each",
+        )));
+    }
+    let inp = compat::CompatInput {
+        t: t.as_slice()?,
+        accel: [a[0], a[1], a[2]],
+        rates: [w[0], w[1], w[2]],
+        tas: tas.as_slice()?,
+        alpha: alpha.as_slice()?,
+        beta: beta.as_slice()?,
+        euler: [e[0], e[1], e[2]],
+    };
+    let r = detached(py, || compat::check(&inp, max_iter))?;
+    let d = PyDict::new(py);
+    d.set_item("names", compat::PARAM_NAMES.to_vec())?;
+    d.set_item("params", r.params)?;
+    d.set_item("std_err", r.std_err)?;
+    d.set_item("outputs", compat::OUTPUT_NAMES.to_vec())?;
+    d.set_item("rms_before", r.rms_before)?;
+    d.set_item("rms_after", r.rms_after)?;
+    d.set_item("iterations", r.iterations)?;
+    d.set_item("converged", r.converged)?;
+    Ok(d)
+}
+
+pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_function(wrap_pyfunction!(smooth, m)?)?;
+    m.add_function(wrap_pyfunction!(smooth_deriv, m)?)?;
+    m.add_function(wrap_pyfunction!(local_poly_deriv, m)?)?;
+    m.add_function(wrap_pyfunction!(accel_to_cg, m)?)?;
+    m.add_function(wrap_pyfunction!(vanes_to_cg, m)?)?;
+    m.add_function(wrap_pyfunction!(preprocess_columns, m)?)?;
+    m.add_function(wrap_pyfunction!(preprocess_batch, m)?)?;
+    m.add_function(wrap_pyfunction!(compat_check, m)?)?;
+    Ok(())
+}

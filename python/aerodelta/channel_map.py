@@ -1,0 +1,137 @@
+"""Channel maps (TOML): rename a user's channels onto the canonical schema and convert their
+units once, explicitly.
+
+Format::
+
+    [channels]
+    t = { source = "Time", unit = "s" }
+    alpha_deg = { source = "AOA", unit = "rad" }
+    tas_mps = { source = "KTAS", unit = "kt" }
+    ay_mps2 = { source = "NY", unit = "g", scale = 1.0, offset = 0.0 }
+
+Each entry: ``source`` (the user's column), ``unit`` (declared unit of that column) and
+optional ``scale`` and ``offset`` applied in the declared unit before conversion:
+``canonical = convert(raw * scale + offset, unit -> canonical unit)``. Canonical columns not in
+the map pass through unchanged (they are taken to be in canonical units already).
+"""
+
+from __future__ import annotations
+
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import polars as pl
+
+from aerodelta.channels import CHANNELS
+from aerodelta.exceptions import DataError
+from aerodelta.units import canonical_name, factor_offset
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover
+    import tomli as tomllib
+
+
+@dataclass(frozen=True)
+class ChannelEntry:
+    """One mapped channel: canonical ``name`` <- user ``source`` in ``unit``."""
+
+    name: str
+    source: str
+    unit: str
+    scale: float = 1.0
+    offset: float = 0.0
+
+
+@dataclass(frozen=True)
+class ChannelMap:
+    """A validated channel map; see the module docstring for the TOML format."""
+
+    entries: tuple[ChannelEntry, ...]
+    source: str = "<dict>"
+
+    @classmethod
+    def from_toml(cls, path: str | Path) -> ChannelMap:
+        """Read and validate a channel map TOML file.
+
+        Raises
+        ------
+        DataError
+            Unknown canonical names, units or dimension mismatches, naming the entry.
+        """
+        path = Path(path)
+        try:
+            with path.open("rb") as f:
+                doc = tomllib.load(f)
+        except tomllib.TOMLDecodeError as e:
+            raise DataError(f"{path}: not valid TOML: {e}") from e
+        return cls.from_dict(doc, source=str(path))
+
+    @classmethod
+    def from_dict(cls, doc: dict[str, Any], source: str = "<dict>") -> ChannelMap:
+        """Build from the parsed TOML structure."""
+        chans = doc.get("channels")
+        if not isinstance(chans, dict) or not chans:
+            raise DataError(f"{source}: a [channels] table with at least one entry is required")
+        entries = []
+        problems = []
+        for name, spec in chans.items():
+            if name not in CHANNELS:
+                problems.append(f"'{name}' is not a canonical channel")
+                continue
+            if not isinstance(spec, dict) or "source" not in spec or "unit" not in spec:
+                problems.append(f'\'{name}\' needs source = "..." and unit = "..."')
+                continue
+            try:
+                factor_offset(spec["unit"], CHANNELS[name].unit)
+            except DataError as e:
+                problems.append(f"'{name}': {e}")
+                continue
+            entries.append(
+                ChannelEntry(
+                    name=name,
+                    source=str(spec["source"]),
+                    unit=canonical_name(spec["unit"]),
+                    scale=float(spec.get("scale", 1.0)),
+                    offset=float(spec.get("offset", 0.0)),
+                )
+            )
+        if problems:
+            raise DataError(f"{source}: invalid channel map: " + "; ".join(problems))
+        return cls(tuple(entries), source)
+
+    def apply(self, lf: pl.LazyFrame, file: str) -> pl.LazyFrame:
+        """Rename and convert the mapped columns of ``lf`` (lazily).
+
+        Raises
+        ------
+        DataError
+            When a mapped source column is absent from ``file``.
+        """
+        have = set(lf.collect_schema().names())
+        missing = [f"'{e.source}' (for {e.name})" for e in self.entries if e.source not in have]
+        if missing:
+            raise DataError(
+                f"{file}: channel map {self.source} names columns the file lacks: "
+                + ", ".join(missing)
+                + f"; the file has: {', '.join(sorted(have))}"
+            )
+        mapped = {e.name for e in self.entries}
+        sources = {e.source for e in self.entries}
+        exprs = []
+        for e in self.entries:
+            k, o = factor_offset(e.unit, CHANNELS[e.name].unit)
+            expr = pl.col(e.source).cast(pl.Float64)
+            if e.scale != 1.0 or e.offset != 0.0:
+                expr = expr * e.scale + e.offset
+            if k != 1.0 or o != 0.0:
+                expr = expr * k + o
+            exprs.append(expr.alias(e.name))
+        passthrough = [
+            pl.col(c)
+            for c in sorted(have)
+            if c not in mapped and c not in sources and (c in CHANNELS or c == "maneuver_id")
+        ]
+        return lf.select(exprs + passthrough)

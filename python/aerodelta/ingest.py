@@ -1,0 +1,330 @@
+"""Public ingestion API: read, map, validate and preprocess a campaign of flight test records.
+
+>>> # result = aerodelta.ingest("campaign/", aircraft="campaign/aircraft.toml")
+>>> # result.data.filter(pl.col("alpha_cg_deg") > 12)
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from collections.abc import Sequence
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import polars as pl
+import polars.selectors as cs
+from tqdm import tqdm
+
+from aerodelta import _core
+from aerodelta.aircraft import Aircraft
+from aerodelta.channel_map import ChannelMap
+from aerodelta.channels import CHANNELS
+from aerodelta.exceptions import DataError
+from aerodelta.preprocess import preprocess_frame
+from aerodelta.readers import find_records, read_manifest, scan_record
+from aerodelta.validate import ValidationReport, validate
+
+#: Practical thresholds above which an estimated bias is reported as a warning (and more than
+#: four standard errors from zero): SI units and radians.
+COMPAT_THRESHOLDS = {
+    "b_ax_mps2": 0.05,
+    "b_ay_mps2": 0.05,
+    "b_az_mps2": 0.05,
+    "b_p_rps": 0.2 * np.pi / 180,
+    "b_q_rps": 0.2 * np.pi / 180,
+    "b_r_rps": 0.2 * np.pi / 180,
+    "b_alpha_rad": 0.3 * np.pi / 180,
+    "b_beta_rad": 0.3 * np.pi / 180,
+    "lambda_v": 0.02,
+}
+
+
+@dataclass
+class IngestResult:
+    """What :func:`ingest` returns.
+
+    Attributes
+    ----------
+    data : polars.DataFrame
+        All maneuvers, canonical channels plus the derived columns, and ``maneuver_id``,
+        ``flap_deg``, ``kind``, ``pusher`` from the manifest.
+    reports : list[ValidationReport]
+        One per maneuver (all findings, including compatibility warnings).
+    compat : polars.DataFrame or None
+        Data compatibility estimates: ``maneuver_id, parameter, estimate, std_err, applied``.
+    smoothing : polars.DataFrame
+        Smoother cut-off (Hz) and noise standard deviation per maneuver and channel.
+    """
+
+    data: pl.DataFrame
+    reports: list[ValidationReport]
+    compat: pl.DataFrame | None = None
+    smoothing: pl.DataFrame = field(default_factory=pl.DataFrame)
+
+    def report_frame(self) -> pl.DataFrame:
+        """Every finding of every maneuver as one frame."""
+        frames = [r.to_frame() for r in self.reports]
+        return pl.concat(frames) if frames else ValidationReport("", "").to_frame()
+
+    def write(self, out_dir: str | Path) -> list[Path]:
+        """Write ``data.parquet``, ``validation.json``, ``smoothing.csv`` and ``compat.csv``
+        atomically (temporary file in the same folder, then rename). Returns the paths."""
+        out = Path(out_dir)
+        out.mkdir(parents=True, exist_ok=True)
+        written = []
+
+        def atomic(name: str, write: object) -> None:
+            final = out / name
+            tmp = out / f"{name}.tmp-{os.getpid()}"
+            try:
+                write(tmp)  # type: ignore[operator]
+                os.replace(tmp, final)
+            finally:
+                if tmp.exists():
+                    tmp.unlink()
+            written.append(final)
+
+        atomic("data.parquet", self.data.write_parquet)
+        payload = [json.loads(r.to_json()) for r in self.reports]
+        atomic("validation.json", lambda p: p.write_text(json.dumps(payload, indent=2)))
+        atomic("smoothing.csv", self.smoothing.write_csv)
+        if self.compat is not None:
+            atomic("compat.csv", self.compat.write_csv)  # type: ignore[union-attr]
+        return written
+
+
+def _load_aircraft(aircraft: Aircraft | str | Path | None, data: object) -> Aircraft:
+    if isinstance(aircraft, Aircraft):
+        return aircraft
+    if aircraft is not None:
+        return Aircraft.from_toml(aircraft)
+    if isinstance(data, (str, Path)) and (Path(data) / "aircraft.toml").is_file():
+        return Aircraft.from_toml(Path(data) / "aircraft.toml")
+    raise DataError("no aircraft reference: pass aircraft=PATH (TOML) or put aircraft.toml in DIR")
+
+
+def ingest(  # noqa: PLR0917
+    data: str | Path | Sequence[str | Path],
+    aircraft: Aircraft | str | Path | None = None,
+    channel_map: ChannelMap | str | Path | None = None,
+    manifest: pl.DataFrame | str | Path | None = None,
+    allow_interpolation: bool = False,
+    compat: bool = True,
+    apply_compat: bool = False,
+    smooth: bool = True,
+    progress: bool = True,
+) -> IngestResult:
+    """Read, map, validate and preprocess flight test records.
+
+    Parameters
+    ----------
+    data : path or list of paths
+        A campaign folder (``manifest.csv``, ``aircraft.toml``, ``records/``), one record file,
+        or a list of record files (CSV, Parquet, MATLAB ``.mat``).
+    aircraft : Aircraft, path or None
+        Aircraft reference; default ``DIR/aircraft.toml``.
+    channel_map : ChannelMap, path or None
+        How the user's columns map onto the canonical schema; None: already canonical.
+    manifest : DataFrame, path or None
+        Maneuver metadata; default ``DIR/manifest.csv`` when present.
+    allow_interpolation : bool
+        Fill short NaN dropouts (warned) instead of refusing them.
+    compat : bool
+        Run the data compatibility check (thesis Section 2.4) on every maneuver.
+    apply_compat : bool
+        Remove the estimated biases and airspeed scale factor from the channels and preprocess
+        again (needs ``compat``).
+    smooth : bool
+        Smooth before differentiating (recommended; off only for exact synthetic data).
+    progress : bool
+        tqdm progress bar on stderr.
+
+    Returns
+    -------
+    IngestResult
+
+    Raises
+    ------
+    DataError
+        Every refused finding of every maneuver at once (file, channel and rows named).
+    """
+    ac = _load_aircraft(aircraft, data)
+    cmap = (
+        channel_map
+        if isinstance(channel_map, ChannelMap) or channel_map is None
+        else ChannelMap.from_toml(channel_map)
+    )
+    man: pl.DataFrame | None
+    if isinstance(manifest, pl.DataFrame):
+        man = manifest
+    elif manifest is not None:
+        man = read_manifest(manifest)
+    elif isinstance(data, (str, Path)) and (Path(data) / "manifest.csv").is_file():
+        man = read_manifest(Path(data) / "manifest.csv")
+    else:
+        man = None
+    sources = find_records(list(data) if isinstance(data, (list, tuple)) else data, man)
+    frames: list[pl.DataFrame] = []
+    kept: list[tuple[str, int]] = []
+    reports: list[ValidationReport] = []
+
+    def lazy(path: Path) -> pl.LazyFrame:
+        lf = scan_record(path)
+        if cmap is not None:
+            return cmap.apply(lf, str(path))
+        return lf.select(cs.by_name(*CHANNELS, "maneuver_id", require_all=False))
+
+    # files holding several maneuvers are read once and split by maneuver_id
+    multi: dict[Path, dict[str, pl.DataFrame]] = {}
+
+    def split(path: Path) -> dict[str, pl.DataFrame]:
+        if path not in multi:
+            df = lazy(path).with_columns(pl.col("maneuver_id").cast(pl.Utf8)).collect()
+            parts = df.partition_by("maneuver_id", as_dict=True, maintain_order=True)
+            multi[path] = {str(k[0]): g for k, g in parts.items()}
+        return multi[path]
+
+    bar = tqdm(total=len(sources), desc="ingest", unit="maneuver", disable=not progress)
+    chunk = 32  # single-maneuver files read in parallel by one polars collect_all
+    for i0 in range(0, len(sources), chunk):
+        part = sources[i0 : i0 + chunk]
+        singles = iter(pl.collect_all([lazy(s.path) for s in part if not s.multi]))
+        read = [split(s.path)[s.maneuver_id] if s.multi else next(singles) for s in part]
+        for src, raw in zip(part, read, strict=True):
+            df = raw.drop("maneuver_id") if "maneuver_id" in raw.columns else raw
+            df, rep = validate(df, str(src.path), src.maneuver_id, allow_interpolation)
+            reports.append(rep)
+            if rep.ok:
+                if any(dt != pl.Float64 for dt in df.schema.values()):
+                    df = df.select(pl.all().cast(pl.Float64))
+                frames.append(df)
+                kept.append((src.maneuver_id, df.height))
+            bar.update(1)
+    bar.close()
+    errors = [f for r in reports for f in r.errors]
+    if errors:
+        lines = [str(f) for f in errors[:25]]
+        more = f"\n... and {len(errors) - 25} more" if len(errors) > 25 else ""
+        raise DataError(
+            f"{len(errors)} problem(s) refused the data:\n  " + "\n  ".join(lines) + more
+        )
+    ids = pl.Series("maneuver_id", [m for m, _ in kept], dtype=pl.Utf8)
+    rows = np.repeat(np.arange(len(kept)), [k for _, k in kept])
+    allc = pl.concat(frames, how="diagonal_relaxed", rechunk=True).with_columns(ids.gather(rows))
+    out, smoothing = preprocess_frame(allc, ac, smooth=smooth)
+    compat_df = None
+    if compat or apply_compat:
+        compat_df = _run_compat(out, reports)
+        if apply_compat:
+            allc = _apply_compat(allc, compat_df)
+            out, smoothing = preprocess_frame(allc, ac, smooth=smooth)
+            compat_df = compat_df.with_columns(pl.lit(True).alias("applied"))
+    out = _attach_manifest(out, man, reports)
+    return IngestResult(out, reports, compat_df, smoothing)
+
+
+def _compat_one(g: pl.DataFrame) -> dict[str, object]:
+    d2r = np.pi / 180.0
+
+    def a(c: str, k: float = 1.0) -> np.ndarray:
+        return np.ascontiguousarray(g[c].to_numpy() * k, dtype=np.float64)
+
+    return _core.compat_check(
+        a("t"),
+        [a("ax_cg_mps2"), a("ay_cg_mps2"), a("az_cg_mps2")],
+        [a("p_s_dps", d2r), a("q_s_dps", d2r), a("r_s_dps", d2r)],
+        a("tas_s_mps"),
+        a("alpha_cg_deg", d2r),
+        a("beta_cg_deg", d2r),
+        [a("phi_deg", d2r), a("theta_deg", d2r), a("psi_deg", d2r)],
+    )
+
+
+def _run_compat(out: pl.DataFrame, reports: list[ValidationReport]) -> pl.DataFrame:
+    groups = out.partition_by("maneuver_id", maintain_order=True)
+    with ThreadPoolExecutor(max_workers=os.cpu_count() or 1) as ex:
+        results = list(ex.map(_compat_one, groups))
+    by_id = {r.maneuver_id: r for r in reports}
+    rows = []
+    for g, res in zip(groups, results, strict=False):
+        mid = str(g["maneuver_id"][0])
+        if not res["converged"] and mid in by_id:
+            by_id[mid].add(
+                "warning",
+                "compat",
+                "",
+                f"data compatibility check did not converge in {res['iterations']} iterations "
+                "(inconsistent or unexcited data); its estimates are unreliable",
+            )
+        for name, est, se in zip(res["names"], res["params"], res["std_err"], strict=False):  # type: ignore[call-overload]
+            rows.append((mid, name, float(est), float(se), False))
+            thr = COMPAT_THRESHOLDS.get(name)
+            if thr is not None and abs(est) > thr and abs(est) > 4 * se and mid in by_id:
+                by_id[mid].add(
+                    "warning",
+                    name.split("_")[1],
+                    "",
+                    f"data compatibility check: {name} = {est:.4g} ± {se:.2g} "
+                    "(flight path reconstruction, thesis Section 2.4); the data are not "
+                    "self-consistent: pass apply_compat=True to remove it, or check the sensor",
+                )
+    return pl.DataFrame(
+        rows,
+        schema={
+            "maneuver_id": pl.Utf8,
+            "parameter": pl.Utf8,
+            "estimate": pl.Float64,
+            "std_err": pl.Float64,
+            "applied": pl.Boolean,
+        },
+        orient="row",
+    )
+
+
+def _apply_compat(df: pl.DataFrame, compat: pl.DataFrame) -> pl.DataFrame:
+    wide = compat.pivot(on="parameter", index="maneuver_id", values="estimate")
+    r2d = 180.0 / np.pi
+    j = df.join(wide, on="maneuver_id", how="left", maintain_order="left")
+    fixes = [
+        (pl.col("ax_mps2") - pl.col("b_ax_mps2")).alias("ax_mps2"),
+        (pl.col("ay_mps2") - pl.col("b_ay_mps2")).alias("ay_mps2"),
+        (pl.col("az_mps2") - pl.col("b_az_mps2")).alias("az_mps2"),
+        (pl.col("p_dps") - r2d * pl.col("b_p_rps")).alias("p_dps"),
+        (pl.col("q_dps") - r2d * pl.col("b_q_rps")).alias("q_dps"),
+        (pl.col("r_dps") - r2d * pl.col("b_r_rps")).alias("r_dps"),
+        (pl.col("alpha_deg") - r2d * pl.col("b_alpha_rad")).alias("alpha_deg"),
+        (pl.col("beta_deg") - r2d * pl.col("b_beta_rad")).alias("beta_deg"),
+        (pl.col("tas_mps") / (1.0 + pl.col("lambda_v"))).alias("tas_mps"),
+    ]
+    return j.with_columns(fixes).select(df.columns)
+
+
+def _attach_manifest(
+    out: pl.DataFrame, man: pl.DataFrame | None, reports: list[ValidationReport]
+) -> pl.DataFrame:
+    if man is None:
+        for r in reports:
+            r.add("info", "manifest", "", "no manifest: kind 'other', pusher unknown")
+        flap = (
+            pl.col("flap_deg").median().over("maneuver_id")
+            if "flap_deg" in out.columns
+            else pl.lit(None, dtype=pl.Float64)
+        )
+        return out.with_columns(
+            flap.alias("flap_deg"),
+            pl.lit("other").alias("kind"),
+            pl.lit(None, dtype=pl.Boolean).alias("pusher"),
+        )
+    meta = man.select("maneuver_id", "flap_deg", "kind", "pusher").rename(
+        {"flap_deg": "flap_manifest_deg"}
+    )
+    missing = set(out["maneuver_id"].unique()) - set(meta["maneuver_id"])
+    if missing:
+        raise DataError(f"manifest has no row for maneuver(s) {sorted(missing)}")
+    j = out.join(meta, on="maneuver_id", how="left", maintain_order="left")
+    if "flap_deg" in out.columns:
+        return j.drop("flap_deg").rename({"flap_manifest_deg": "flap_deg"})
+    return j.rename({"flap_manifest_deg": "flap_deg"})

@@ -1,0 +1,122 @@
+"""Preprocessing of validated canonical records: air data, propulsion, and the Rust pipeline
+(smoothing, derivatives, CG transfers, measured coefficients).
+
+Formulas (body axes, Etkin: x forward, y right wing, z down):
+
+- air data when ``tas_mps``/``rho_kgm3`` are absent: :math:`\\rho = p_s/(R T_s)`,
+  :math:`M = \\sqrt{5[(q_c/p_s + 1)^{2/7} - 1]}` with :math:`q_c = p_t - p_s` (subsonic
+  isentropic pitot), :math:`V = M\\sqrt{\\gamma R T_s}`, R = 287.05287 J/(kg K), γ = 1.4;
+- thrust coefficient per engine when ``ct_*`` are absent: :math:`C_T = \\eta Q\\Omega/(V\\bar q S)`
+  from shaft torque Q (N m) and propeller speed Ω (rad/s), η = ``Aircraft.prop_efficiency``;
+- :math:`C_{T,diff} = C_{T,left} - C_{T,right}` (thesis Eq. 3.17),
+  :math:`\\delta_s = \\delta_{s,left} + \\delta_{s,right}` (Eq. 3.18);
+- the engine (``aero_core::preprocess::maneuver``): smoothing (SIDPAC ``smoo``), ṗ, q̇, ṙ,
+  accelerometer and vane transfers to the CG, α̇, β̇, :math:`\\bar q = \\rho V^2/2`,
+  :math:`\\hat p = pb/2V`, :math:`\\hat q = q\\bar c/2V`, :math:`\\hat r = rb/2V`, and
+  Cl, Cn, CY (Eq. 3.2-3.4, gyroscopic term :math:`I_p\\Omega_p q`), CX, CZ, Cm.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import polars as pl
+
+from aerodelta import _core
+from aerodelta.aircraft import Aircraft
+
+R_AIR = 287.05287
+GAMMA = 1.4
+
+
+def add_air_data(df: pl.DataFrame) -> pl.DataFrame:
+    """Add ``tas_mps`` and ``rho_kgm3`` from ``ps_pa``, ``pt_pa``, ``sat_k`` where absent."""
+    exprs = []
+    if "rho_kgm3" not in df.columns:
+        exprs.append((pl.col("ps_pa") / (R_AIR * pl.col("sat_k"))).alias("rho_kgm3"))
+    if "tas_mps" not in df.columns:
+        qc_ps = (pl.col("pt_pa") - pl.col("ps_pa")) / pl.col("ps_pa")
+        mach = (5.0 * ((qc_ps + 1.0) ** (2.0 / 7.0) - 1.0)).clip(lower_bound=0.0).sqrt()
+        exprs.append((mach * (GAMMA * R_AIR * pl.col("sat_k")).sqrt()).alias("tas_mps"))
+    return df.with_columns(exprs) if exprs else df
+
+
+def _prop_rpm(df: pl.DataFrame, ac: Aircraft) -> np.ndarray:
+    if ac.prop_rpm_channel and ac.prop_rpm_channel in df.columns:
+        return df[ac.prop_rpm_channel].cast(pl.Float64).to_numpy()
+    if ac.prop_rpm_fixed is not None:
+        return np.full(df.height, ac.prop_rpm_fixed)
+    return np.zeros(df.height)
+
+
+def preprocess_frame(
+    df: pl.DataFrame, aircraft: Aircraft, smooth: bool = True
+) -> tuple[pl.DataFrame, pl.DataFrame]:
+    """Preprocess validated maneuvers stored back to back (a ``maneuver_id`` column separates
+    them; each maneuver's rows contiguous and in time order).
+
+    Returns
+    -------
+    (polars.DataFrame, polars.DataFrame)
+        The input with the derived columns of :data:`aerodelta.channels.DERIVED` (plus the
+        smoothed ``p_s_dps``, ``q_s_dps``, ``r_s_dps``, ``tas_s_mps``), and the smoother
+        report: one row per maneuver and channel with ``cutoff_hz`` and ``noise_std``.
+    """
+    df = add_air_data(df)
+    ids = df["maneuver_id"].to_numpy()
+    starts = np.flatnonzero(np.concatenate(([True], ids[1:] != ids[:-1])))
+    offsets = [*starts.tolist(), df.height]
+    inputs, smoothed, outputs = _core.preprocess_columns()
+    cols = []
+    for c in inputs:
+        if c == "prop_rpm":
+            cols.append(np.ascontiguousarray(_prop_rpm(df, aircraft), dtype=np.float64))
+        else:
+            cols.append(np.ascontiguousarray(df[c].cast(pl.Float64).to_numpy(), dtype=np.float64))
+    arrays, cut, noise = _core.preprocess_batch(
+        cols,
+        offsets,
+        aircraft.mass_geometry,
+        aircraft.prop_h_per_rpm,
+        list(aircraft.accel_m),
+        list(aircraft.alpha_vane_m),
+        list(aircraft.beta_vane_m),
+        smooth,
+    )
+    out = df.with_columns(pl.Series(name, a) for name, a in zip(outputs, arrays, strict=False))
+    qs = pl.col("qbar_pa") * aircraft.S_m2
+    extra = []
+    for side in ("left", "right"):
+        ct = f"ct_{side}"
+        tq, rpm = f"torque_{side}_nm", f"rpm_{side}"
+        if ct not in out.columns:
+            if tq in out.columns and rpm in out.columns:
+                omega = pl.col(rpm) * (2.0 * math.pi / 60.0)
+                thrust = aircraft.prop_efficiency * pl.col(tq) * omega / pl.col("tas_mps")
+                extra.append((thrust / qs).alias(ct))
+            else:
+                extra.append(pl.lit(None, dtype=pl.Float64).alias(ct))
+    if extra:
+        out = out.with_columns(extra)
+    # Combined roll spoiler (thesis Eq. 3.18 with signed sides): the spoilers deploy one side
+    # at a time, so ds = dsr - dsl keeps the roll direction (positive: right spoiler up,
+    # right wing down, positive Cl), as the virtual flight test's truth model uses it.
+    dsr = pl.col("dsr_deg") if "dsr_deg" in out.columns else pl.lit(0.0)
+    dsl = pl.col("dsl_deg") if "dsl_deg" in out.columns else pl.lit(0.0)
+    ds = dsr - dsl
+    out = out.with_columns(
+        (pl.col("ct_left") - pl.col("ct_right")).alias("ct_diff"),
+        ds.cast(pl.Float64).alias("ds_deg"),
+    )
+    nm = len(offsets) - 1
+    first_ids = [str(ids[s]) for s in starts]
+    report = pl.DataFrame(
+        {
+            "maneuver_id": [m for m in first_ids for _ in smoothed],
+            "channel": smoothed * nm,
+            "cutoff_hz": np.asarray(cut),
+            "noise_std": np.asarray(noise),
+        }
+    )
+    return out, report

@@ -1,0 +1,362 @@
+"""Validation of canonical flight test records: refuse or warn, never guess.
+
+Refused (severity ``error``; :func:`validate` collects them all, ingestion then raises
+:class:`~aerodelta.exceptions.DataError` with every one): missing required channels;
+non-increasing or duplicated time; NaN/inf runs (unless short and interpolation is allowed);
+a sample rate that changes inside the record; values outside physical ranges; unit errors
+betrayed by the data (angles or rates in radians where degrees are declared, found by
+comparing the Euler-angle rates with the kinematic rates from p, q, r; accelerations in g).
+
+Warned (severity ``warning``, with what was done): short dropouts interpolated; stuck
+(constant) sensor channels; clipped sensors (a flat run at the extreme value).
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import asdict, dataclass, field
+
+import numpy as np
+import polars as pl
+
+from aerodelta.channels import ALTERNATIVES, CHANNELS, REQUIRED
+from aerodelta.readers import _rows
+
+#: Longest NaN run (samples) that may be interpolated when the user allows it.
+MAX_INTERP_GAP = 5
+
+
+@dataclass(frozen=True)
+class Finding:
+    """One validation finding.
+
+    Attributes
+    ----------
+    severity : str
+        ``error`` (refused), ``warning`` (accepted, with what was done) or ``info``.
+    file, maneuver_id, channel : str
+        Where.
+    rows : str
+        0-based row ranges within the maneuver, e.g. ``"120-131, 400"`` (empty: whole record).
+    message : str
+        What and how to fix.
+    """
+
+    severity: str
+    file: str
+    maneuver_id: str
+    channel: str
+    rows: str
+    message: str
+
+    def __str__(self) -> str:
+        rows = f", rows {self.rows}" if self.rows else ""
+        return f"{self.file} [{self.maneuver_id}] channel '{self.channel}'{rows}: {self.message}"
+
+
+@dataclass
+class ValidationReport:
+    """Every finding of one maneuver."""
+
+    file: str
+    maneuver_id: str
+    findings: list[Finding] = field(default_factory=list)
+
+    def add(self, severity: str, channel: str, rows: str, message: str) -> None:
+        """Record a finding."""
+        self.findings.append(Finding(severity, self.file, self.maneuver_id, channel, rows, message))
+
+    @property
+    def errors(self) -> list[Finding]:
+        """Findings that refuse the record."""
+        return [f for f in self.findings if f.severity == "error"]
+
+    @property
+    def ok(self) -> bool:
+        """True when nothing was refused."""
+        return not self.errors
+
+    def to_frame(self) -> pl.DataFrame:
+        """One row per finding: severity, file, maneuver_id, channel, rows, message."""
+        schema = {k: pl.Utf8 for k in Finding.__dataclass_fields__}
+        return pl.DataFrame([asdict(f) for f in self.findings], schema=schema)
+
+    def to_json(self) -> str:
+        """JSON with stable keys: ``file``, ``maneuver_id``, ``ok``, ``findings``."""
+        return json.dumps(
+            {
+                "file": self.file,
+                "maneuver_id": self.maneuver_id,
+                "ok": self.ok,
+                "findings": [asdict(f) for f in self.findings],
+            },
+            indent=2,
+        )
+
+
+def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
+    """Inclusive (start, end) of each run of True."""
+    if not mask.any():
+        return []
+    d = np.diff(np.concatenate(([0], mask.view(np.int8), [0])))
+    starts = np.flatnonzero(d == 1)
+    ends = np.flatnonzero(d == -1) - 1
+    return list(zip(starts.tolist(), ends.tolist(), strict=False))
+
+
+def _fmt_runs(runs: list[tuple[int, int]]) -> str:
+    return _rows([i for a, b in runs for i in range(a, b + 1)])
+
+
+def validate(
+    df: pl.DataFrame,
+    file: str,
+    maneuver_id: str,
+    allow_interpolation: bool = False,
+) -> tuple[pl.DataFrame, ValidationReport]:
+    """Validate one maneuver in canonical units.
+
+    Parameters
+    ----------
+    df : polars.DataFrame
+        The maneuver's canonical channels.
+    file, maneuver_id : str
+        Where it came from (for the messages).
+    allow_interpolation : bool
+        Interpolate NaN/inf runs of at most :data:`MAX_INTERP_GAP` samples inside the record
+        (with a warning) instead of refusing them.
+
+    Returns
+    -------
+    (polars.DataFrame, ValidationReport)
+        The record (interpolated where allowed) and the findings. The caller refuses the
+        record when ``report.ok`` is false.
+    """
+    rep = ValidationReport(file, maneuver_id)
+    cols = set(df.columns)
+    for c in REQUIRED:
+        if c not in cols:
+            rep.add("error", c, "", "required channel missing; map it in the channel map")
+    for c, alts in ALTERNATIVES.items():
+        if c not in cols and not all(a in cols for a in alts):
+            rep.add(
+                "error",
+                c,
+                "",
+                f"missing, and cannot be derived (needs {', '.join(alts)}); map one of them",
+            )
+    n = df.height
+    if n < 20:
+        rep.add("error", "t", "", f"{n} samples; a maneuver needs at least 20")
+        return df, rep
+    names = [c for c in df.columns if c in CHANNELS]
+    # one 2-D copy; the checks below run column-wise on it and loop only over columns at fault
+    if names == df.columns and all(t == pl.Float64 for t in df.schema.values()):
+        mat = df.to_numpy()
+    else:
+        mat = df.select(pl.col(names).cast(pl.Float64)).to_numpy()
+    data: dict[str, np.ndarray] = {c: mat[:, i] for i, c in enumerate(names)}
+    fin = np.isfinite(mat)
+    nonfinite_cols = [names[i] for i in np.flatnonzero(~fin.all(axis=0))]
+    # non-finite runs
+    for c in nonfinite_cols:
+        x = data[c]
+        bad = ~np.isfinite(x)
+        runs = _runs(bad)
+        fixable = [(a, b) for a, b in runs if b - a + 1 <= MAX_INTERP_GAP and a > 0 and b < n - 1]
+        if allow_interpolation and c != "t" and len(fixable) == len(runs):
+            idx = np.arange(n)
+            filled = x.copy()
+            filled[bad] = np.interp(idx[bad], idx[~bad], x[~bad])
+            data[c] = filled
+            rep.add(
+                "warning",
+                c,
+                _fmt_runs(runs),
+                f"{int(bad.sum())} NaN/inf samples in {len(runs)} dropout(s) linearly interpolated",
+            )
+        else:
+            hint = (
+                ""
+                if allow_interpolation
+                else f"; pass allow_interpolation=True to fill gaps of <= {MAX_INTERP_GAP} samples"
+            )
+            rep.add(
+                "error",
+                c,
+                _fmt_runs(runs),
+                f"{int(bad.sum())} NaN/inf samples in {len(runs)} run(s){hint}",
+            )
+    t = data.get("t")
+    if t is not None and np.isfinite(t).all():
+        dt = np.diff(t)
+        nonpos = np.flatnonzero(dt <= 0)
+        if nonpos.size:
+            what = "duplicated" if (dt[nonpos] == 0).all() else "non-increasing"
+            rep.add(
+                "error",
+                "t",
+                _rows(sorted({int(i) for k in nonpos for i in (k, k + 1)})),
+                f"time is {what}; sort the record and remove duplicates",
+            )
+        else:
+            jumps = np.flatnonzero(np.abs(np.diff(dt)) > 0.01 * dt[:-1]) + 1
+            if jumps.size:
+                k = int(jumps[0])
+                rep.add(
+                    "error",
+                    "t",
+                    _rows(sorted({int(i) for j in jumps for i in (j, j + 1)})),
+                    f"sample rate changes inside the record (step {dt[k - 1]:.6g} s before row "
+                    f"{k}, {dt[k]:.6g} s at rows {k}-{k + 1}); resample to one rate before "
+                    "ingesting",
+                )
+    # physical ranges (finite samples only)
+    lo = np.array([CHANNELS[c].lo for c in names])
+    hi = np.array([CHANNELS[c].hi for c in names])
+    with np.errstate(invalid="ignore"):
+        outside = fin & ((mat < lo) | (mat > hi))
+    for i in np.flatnonzero(outside.any(axis=0)):
+        c = names[i]
+        x = data[c]
+        spec = CHANNELS[c]
+        out = outside[:, i]
+        if out.any():
+            rep.add(
+                "error",
+                c,
+                _fmt_runs(_runs(out)),
+                f"values {np.nanmin(x):.4g}..{np.nanmax(x):.4g} {spec.unit} outside the physical "
+                f"range [{spec.lo:g}, {spec.hi:g}] {spec.unit}; check the declared unit",
+            )
+    _unit_checks(data, rep)
+    _sensor_health(data, rep)
+    if allow_interpolation:
+        df = df.with_columns(pl.Series(c, data[c]) for c in data if c != "t")
+    return df, rep
+
+
+def _unit_checks(data: dict[str, np.ndarray], rep: ValidationReport) -> None:
+    """Refuse unit errors that the data betrays."""
+    finite = all(np.isfinite(data[c]).all() for c in data if c in REQUIRED)
+    a = data.get("alpha_deg")
+    if a is not None and np.isfinite(a).all() and np.abs(a).max() < 0.6 and np.ptp(a) > 1e-3:
+        rep.add(
+            "error",
+            "alpha_deg",
+            "",
+            f"alpha stays within ±{np.abs(a).max():.3g} deg over the whole record: it looks like "
+            'radians declared as degrees; declare unit = "rad" in the channel map',
+        )
+    az = data.get("az_mps2")
+    if az is not None and np.isfinite(az).all() and 0.3 < abs(float(np.median(az))) < 3.0:
+        rep.add(
+            "error",
+            "az_mps2",
+            "",
+            f"median az is {np.median(az):.3g} m/s²: it looks like g declared as m/s²; "
+            'declare unit = "g"',
+        )
+    need = ("t", "p_dps", "q_dps", "r_dps", "phi_deg", "theta_deg")
+    if not finite or not all(c in data for c in need):
+        return
+    # a scale test needs no more than ~1000 points: every k-th sample
+    k = max(1, len(data["t"]) // 1000)
+    t = data["t"][::k]
+    if (np.diff(t) <= 0).any():
+        return
+    d2r = np.pi / 180.0
+    phi_deg, th_deg = data["phi_deg"][::k], data["theta_deg"][::k]
+    phi, th = phi_deg * d2r, th_deg * d2r
+    p, q, r = data["p_dps"][::k], data["q_dps"][::k], data["r_dps"][::k]
+    sphi, cphi = np.sin(phi), np.cos(phi)
+    # kinematic Euler rates (thesis Eq. 3.1g-h) in the declared units, deg/s
+    phidot_k = p + np.tan(th) * (q * sphi + r * cphi)
+    thdot_k = q * cphi - r * sphi
+    dt = np.diff(t)
+    num = np.concatenate((np.diff(phi_deg) / dt, np.diff(th_deg) / dt))
+    kin = np.concatenate((0.5 * (phidot_k[1:] + phidot_k[:-1]), 0.5 * (thdot_k[1:] + thdot_k[:-1])))
+    den = float(kin @ kin)
+    if den <= 0 or float(num @ num) < 1e-6 * len(num):
+        return
+    k = float(kin @ num) / den
+    corr = float(kin @ num) / np.sqrt(den * float(num @ num))
+    if corr < 0.8:
+        # the attitude does not follow the rates closely enough to judge their units
+        # (the compatibility check reports inconsistent data)
+        return
+    if 20.0 < k < 200.0:
+        rep.add(
+            "error",
+            "p_dps, q_dps, r_dps",
+            "",
+            f"the attitude changes {k:.3g}x faster than the body rates say: the rates look like "
+            'rad/s declared as deg/s; declare unit = "rad/s"',
+        )
+    elif 0.005 < k < 0.05:
+        rep.add(
+            "error",
+            "phi_deg, theta_deg",
+            "",
+            f"the attitude changes {k:.3g}x as fast as the body rates say: attitude looks like "
+            'radians declared as degrees; declare unit = "rad"',
+        )
+
+
+_HEALTH_CHANNELS = (
+    "alpha_deg",
+    "beta_deg",
+    "p_dps",
+    "q_dps",
+    "r_dps",
+    "ax_mps2",
+    "ay_mps2",
+    "az_mps2",
+    "tas_mps",
+)
+
+
+def _sensor_health(data: dict[str, np.ndarray], rep: ValidationReport) -> None:
+    """Warn on stuck or clipped continuous sensors."""
+    n = len(next(iter(data.values())))
+    cols = [c for c in _HEALTH_CHANNELS if c in data and np.isfinite(data[c]).all()]
+    if not cols:
+        return
+    sub = np.stack([data[c] for c in cols], axis=1)
+    flat = np.ptp(sub, axis=0) == 0.0
+    repeats = (np.diff(sub, axis=0) == 0.0).sum(axis=0)
+    min_run = max(25, n // 50)
+    for j, c in enumerate(cols):
+        if not flat[j] and repeats[j] < min_run - 1:
+            continue  # no run of repeated values can be long enough
+        x = data[c]
+        if flat[j]:
+            rep.add(
+                "warning",
+                c,
+                "",
+                f"constant at {x[0]:.6g} over the whole record: the sensor may be stuck; "
+                "its derivatives and coefficients will be meaningless",
+            )
+            continue
+        same = np.concatenate(([False], np.diff(x) == 0.0))
+        long_runs = [(a - 1, b) for a, b in _runs(same) if b - a + 2 >= min_run]
+        hi, lo = x.max(), x.min()
+        clipped = [
+            (a, b) for a, b in long_runs if x[a] in (hi, lo) and b - a + 1 >= max(5, n // 200)
+        ]
+        if clipped:
+            rep.add(
+                "warning",
+                c,
+                _fmt_runs(clipped),
+                f"flat at its extreme value ({x[clipped[0][0]]:.6g}): the sensor looks clipped; "
+                "the samples were kept",
+            )
+        elif long_runs:
+            rep.add(
+                "warning",
+                c,
+                _fmt_runs(long_runs),
+                "repeats the same value for a long run: the sensor may have stuck; kept",
+            )
