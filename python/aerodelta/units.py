@@ -140,7 +140,7 @@ def convert(values: npt.ArrayLike, from_unit: str, to_unit: str) -> npt.NDArray[
 
     Examples
     --------
-    >>> float(convert(100.0, "degC", "degF"))
+    >>> round(float(convert(100.0, "degC", "degF")), 9)
     212.0
     """
     k, o = factor_offset(from_unit, to_unit)
