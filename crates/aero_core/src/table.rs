@@ -149,43 +149,46 @@ impl Axis {
     /// Index `i` of the segment and fraction `f` for input `x`, so that the
     /// value is `(1-f) v[i] + f v[i+1]`. For a single-breakpoint axis `i = 0`,
     /// `f = 0`. Returns `None` for NaN.
-    #[inline]
+    #[inline(always)]
     pub fn locate(&self, x: f64) -> Option<(usize, f64)> {
         if x.is_nan() {
             return None;
         }
-        let mut x = x;
-        if let Some(lo) = self.min {
-            if x < lo {
-                x = lo;
-            }
-        }
-        if let Some(hi) = self.max {
-            if x > hi {
-                x = hi;
-            }
-        }
+        // Input limits first (branch-free clamps; no limit is an infinite one).
+        let x = x
+            .max(self.min.unwrap_or(f64::NEG_INFINITY))
+            .min(self.max.unwrap_or(f64::INFINITY));
         let bp = &self.breakpoints;
         let n = bp.len();
         if n == 1 {
             return Some((0, 0.0));
         }
-        let first = bp[0];
-        let last = bp[n - 1];
-        if x <= first {
-            return Some(match self.below {
-                Extrapolation::Hold => (0, 0.0),
-                Extrapolation::Linear => (0, (x - first) / (bp[1] - first)),
-            });
-        }
-        if x >= last {
-            return Some(match self.above {
-                Extrapolation::Hold => (n - 2, 1.0),
-                Extrapolation::Linear => (n - 2, (x - bp[n - 2]) / (last - bp[n - 2])),
-            });
-        }
-        // bp[0] < x < bp[n-1]: the last index i <= n-2 with bp[i] <= x.
-        let i = match self.uniform {
+        // The segment of the input clamped into the breakpoints' range ...
+        let i = self.segment(x.clamp(bp[0], bp[n - 1]));
+        // ... and the fraction of the unclamped input: inside the range it lies
+        // in [0, 1] (exactly 0 or 1 at nodes); outside, holding clamps it to the
+        // end node and linear extrapolation keeps it.
+        let f = (x - bp[i]) / (bp[i + 1] - bp[i]);
+        let lo = if self.below == Extrapolation::Hold {
+            0.0
+        } else {
+            f64::NEG_INFINITY
+        };
+        let hi = if self.above == Extrapolation::Hold {
+            1.0
+        } else {
+            f64::INFINITY
+        };
+        Some((i, f.max(lo).min(hi)))
+    }
+
+    /// The last segment index `i <= n-2` with `bp[i] <= x`, for `x` within
+    /// the breakpoints' range.
+    #[inline(always)]
+    fn segment(&self, x: f64) -> usize {
+        let bp = &self.breakpoints;
+        let n = bp.len();
+        match self.uniform {
             Some((x0, inv_h)) => {
                 // Computed guess, then an exact fix-up against the breakpoints,
                 // so the result is the same as the search's.
@@ -212,8 +215,7 @@ impl Axis {
                 }
                 base
             }
-        };
-        Some((i, (x - bp[i]) / (bp[i + 1] - bp[i])))
+        }
     }
 }
 
@@ -249,6 +251,9 @@ pub struct Table {
     axes: Vec<Axis>,
     values: Vec<f64>,
     strides: [usize; MAX_DIMS],
+    /// Offset of each of the 2^n cell corners from the cell's first node
+    /// (bit n-1-k of the corner index selects the upper node on axis k).
+    corner_offsets: Vec<usize>,
 }
 
 impl Table {
@@ -286,10 +291,20 @@ impl Table {
             strides[k] = s;
             s *= axes[k].breakpoints.len();
         }
+        let n = axes.len();
+        let corner_offsets = (0..1usize << n)
+            .map(|c| {
+                (0..n)
+                    .filter(|&k| (c >> (n - 1 - k)) & 1 == 1 && axes[k].breakpoints.len() > 1)
+                    .map(|k| strides[k])
+                    .sum()
+            })
+            .collect();
         Ok(Table {
             axes,
             values,
             strides,
+            corner_offsets,
         })
     }
 
@@ -345,31 +360,17 @@ impl Table {
     fn eval_n<const N: usize, const M: usize>(&self, x: &[f64]) -> f64 {
         let mut base = 0usize;
         let mut frac = [0.0f64; N];
-        let mut step = [0usize; N];
         for k in 0..N {
-            let axis = &self.axes[k];
-            let Some((i, f)) = axis.locate(x[k]) else {
+            let Some((i, f)) = self.axes[k].locate(x[k]) else {
                 return f64::NAN;
             };
             base += i * self.strides[k];
             frac[k] = f;
-            step[k] = if axis.breakpoints.len() > 1 {
-                self.strides[k]
-            } else {
-                0
-            };
         }
-        // Gather the 2^N corners (bit N-1-k of the corner index selects the
-        // upper node on axis k), then reduce axis by axis, last axis first.
+        // Gather the 2^N corners, then reduce axis by axis, last axis first.
         let mut corners = [0.0f64; M];
-        for (c, slot) in corners.iter_mut().enumerate() {
-            let mut off = base;
-            for (k, st) in step.iter().enumerate() {
-                if (c >> (N - 1 - k)) & 1 == 1 {
-                    off += st;
-                }
-            }
-            *slot = self.values[off];
+        for (slot, off) in corners.iter_mut().zip(&self.corner_offsets) {
+            *slot = self.values[base + off];
         }
         let mut len = M;
         for k in (0..N).rev() {
