@@ -9,10 +9,14 @@
 //! One concept per module:
 //! - [`table`]: gridded N-D lookup tables, hold or linear extrapolation, a
 //!   batch path and an allocation-free single-point path;
+//! - [`lsq`]: equation-error OLS by QR with covariance, standard errors
+//!   (also corrected for coloured residuals), t/p, partial F, R², PRESS, PSE
+//!   and collinearity diagnostics (Eq. 2.5, 2.12-2.13, 3.10);
 //! - [`error`]: the error kinds every module returns.
 #![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used))]
 
 pub mod error;
+pub mod lsq;
 pub mod table;
 
 pub use error::{AeroError, ErrorKind, Result, ResultExt};
