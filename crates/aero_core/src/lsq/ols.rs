@@ -1,5 +1,8 @@
 //! The OLS fit itself. See [`ols`] for the method and the conventions.
 
+// Index loops over the p columns read closer to the formulas.
+#![allow(clippy::needless_range_loop)]
+
 use std::borrow::Cow;
 
 use faer::Mat;
