@@ -17,6 +17,7 @@ from aerodelta.exceptions import (
     ParseError,
     TooLittleDataError,
 )
+from aerodelta.lsq import OLSResults, ols
 from aerodelta.table import Table
 
 __all__ = [
@@ -25,9 +26,11 @@ __all__ = [
     "DataError",
     "InvalidInputError",
     "NoConvergenceError",
+    "OLSResults",
     "OutOfRangeError",
     "ParseError",
     "Table",
     "TooLittleDataError",
     "__version__",
+    "ols",
 ]

@@ -27,9 +27,11 @@
 //! truncated, not tapered, estimate: `S` is then recomputed from the
 //! truncated sequence and may have negative values).
 
+use std::sync::{Arc, Mutex, OnceLock};
+
 use faer::{Mat, MatRef};
 use realfft::num_complex::Complex;
-use realfft::RealFftPlanner;
+use realfft::{ComplexToReal, RealFftPlanner, RealToComplex};
 
 use crate::error::{AeroError, Result};
 
@@ -58,6 +60,26 @@ pub fn fast_len(n: usize) -> usize {
     best
 }
 
+type Fwd = Arc<dyn RealToComplex<f64>>;
+type Inv = Arc<dyn ComplexToReal<f64>>;
+
+/// One planner for the process: FFT plans (twiddles) are cached by length,
+/// so repeated fits on the same number of rows skip the planning.
+fn plans(l: usize, inverse: bool) -> (Fwd, Option<Inv>) {
+    static PLANNER: OnceLock<Mutex<RealFftPlanner<f64>>> = OnceLock::new();
+    let mut pl = PLANNER
+        .get_or_init(|| Mutex::new(RealFftPlanner::new()))
+        .lock()
+        .unwrap_or_else(|poisoned| poisoned.into_inner());
+    let fwd = pl.plan_fft_forward(l);
+    let inv = inverse.then(|| pl.plan_fft_inverse(l));
+    (fwd, inv)
+}
+
+/// Rows of the half spectrum per block of the Gram product (fixed, so the
+/// summation order does not depend on the number of threads).
+const GRAM_BLOCK: usize = 16_384;
+
 fn fft_err(e: impl std::fmt::Display) -> AeroError {
     AeroError::invalid("coloured-residual covariance", format!("FFT failed: {e}"))
 }
@@ -83,8 +105,8 @@ where
     }
     let l = fast_len(2 * n - 1);
     let kh = l / 2 + 1;
-    let mut planner = RealFftPlanner::<f64>::new();
-    let r2c = planner.plan_fft_forward(l);
+    let truncate = max_lag.is_some_and(|k| k + 1 < n);
+    let (r2c, c2r) = plans(l, truncate);
 
     // Residual power spectrum S = |V|² / N  (DFT of the biased autocorrelation).
     let mut buf = vec![0.0; l];
@@ -94,10 +116,9 @@ where
     let inv_n = 1.0 / n as f64;
     let mut s: Vec<f64> = spec.iter().map(|c| c.norm_sqr() * inv_n).collect();
 
-    if let Some(k) = max_lag {
-        if k + 1 < n {
+    if let (Some(k), Some(c2r)) = (max_lag, c2r) {
+        {
             // Back to lags, zero |lag| > k, forward again.
-            let c2r = planner.plan_fft_inverse(l);
             let mut sc: Vec<Complex<f64>> = s.iter().map(|&x| Complex::new(x, 0.0)).collect();
             let mut r = vec![0.0; l];
             c2r.process(&mut sc, &mut r).map_err(fft_err)?;
@@ -131,15 +152,37 @@ where
     // Column spectra, stored as real and imaginary parts, column-major kh × p.
     let mut re = vec![0.0; kh * p];
     let mut im = vec![0.0; kh * p];
-    let one_col = |b: usize, re_b: &mut [f64], im_b: &mut [f64]| -> Result<()> {
-        let mut buf = vec![0.0; l];
+    // Per-worker buffers, reused across columns (fresh 2N-long buffers per
+    // column would cost as much in page faults as the FFT itself).
+    type Bufs = (Vec<f64>, Vec<Complex<f64>>, Vec<Complex<f64>>);
+    let new_bufs = || -> Bufs {
+        (
+            vec![0.0; l],
+            vec![Complex::new(0.0, 0.0); kh],
+            r2c.make_scratch_vec(),
+        )
+    };
+    let one_col = |bufs: &mut Bufs, b: usize, re_b: &mut [f64], im_b: &mut [f64]| -> Result<()> {
+        let (buf, out, scratch) = bufs;
         fill_col(b, &mut buf[..n]);
-        let mut out = vec![Complex::new(0.0, 0.0); kh];
-        r2c.process(&mut buf, &mut out).map_err(fft_err)?;
-        for k in 0..kh {
-            let scale = if all_nonneg { sw[k] } else { 1.0 };
-            re_b[k] = out[k].re * scale;
-            im_b[k] = out[k].im * scale;
+        buf[n..].iter_mut().for_each(|v| *v = 0.0);
+        r2c.process_with_scratch(buf, out, scratch)
+            .map_err(fft_err)?;
+        if all_nonneg {
+            for (((r, i), o), s) in re_b
+                .iter_mut()
+                .zip(im_b.iter_mut())
+                .zip(out.iter())
+                .zip(&sw)
+            {
+                *r = o.re * s;
+                *i = o.im * s;
+            }
+        } else {
+            for ((r, i), o) in re_b.iter_mut().zip(im_b.iter_mut()).zip(out.iter()) {
+                *r = o.re;
+                *i = o.im;
+            }
         }
         Ok(())
     };
@@ -149,24 +192,42 @@ where
         re.par_chunks_mut(kh)
             .zip(im.par_chunks_mut(kh))
             .enumerate()
-            .try_for_each(|(b, (rb, ib))| one_col(b, rb, ib))?;
+            .try_for_each_init(new_bufs, |bufs, (b, (rb, ib))| one_col(bufs, b, rb, ib))?;
     }
     #[cfg(not(feature = "parallel"))]
     {
+        let mut bufs = new_bufs();
         for (b, (rb, ib)) in re.chunks_mut(kh).zip(im.chunks_mut(kh)).enumerate() {
-            one_col(b, rb, ib)?;
+            one_col(&mut bufs, b, rb, ib)?;
         }
     }
 
     let re_m = MatRef::from_column_major_slice(&re, kh, p);
     let im_m = MatRef::from_column_major_slice(&im, kh, p);
-    let m = if all_nonneg {
-        re_m.transpose() * re_m + im_m.transpose() * im_m
-    } else {
-        let rw = Mat::from_fn(kh, p, |k, b| re_m[(k, b)] * w[k]);
-        let iw = Mat::from_fn(kh, p, |k, b| im_m[(k, b)] * w[k]);
-        re_m.transpose() * &rw + im_m.transpose() * &iw
+    let gram_block = |s: usize, e: usize| -> Mat<f64> {
+        let r = re_m.subrows(s, e - s);
+        let i = im_m.subrows(s, e - s);
+        if all_nonneg {
+            r.transpose() * r + i.transpose() * i
+        } else {
+            let rw = Mat::from_fn(e - s, p, |k, b| r[(k, b)] * w[s + k]);
+            let iw = Mat::from_fn(e - s, p, |k, b| i[(k, b)] * w[s + k]);
+            r.transpose() * &rw + i.transpose() * &iw
+        }
     };
+    let nblocks = kh.div_ceil(GRAM_BLOCK);
+    let run = |c: usize| gram_block(c * GRAM_BLOCK, ((c + 1) * GRAM_BLOCK).min(kh));
+    #[cfg(feature = "parallel")]
+    let grams: Vec<Mat<f64>> = {
+        use rayon::prelude::*;
+        (0..nblocks).into_par_iter().map(run).collect()
+    };
+    #[cfg(not(feature = "parallel"))]
+    let grams: Vec<Mat<f64>> = (0..nblocks).map(run).collect();
+    let mut m = Mat::<f64>::zeros(p, p);
+    for g in &grams {
+        m += g;
+    }
     // Symmetrise (the two triangles differ only by rounding).
     Ok(Mat::from_fn(p, p, |a, b| 0.5 * (m[(a, b)] + m[(b, a)])))
 }

@@ -340,10 +340,75 @@ fn select_rows<'a>(
     ))
 }
 
-/// Upper-triangular R (`n × n`) of `[X | z]` by chunked Householder QR.
-fn tsqr(x: &[f64], p: usize, z: &[f64], rows: &Rows<'_>) -> Mat<f64> {
+/// Count, mean, min, max and centered sum of squares of each column of
+/// `[X | z]`, plus Σz²; merged over chunks by Chan et al.'s pairwise formula
+/// (in chunk order, so deterministic).
+#[derive(Clone)]
+struct ColStats {
+    n: f64,
+    mean: Vec<f64>,
+    min: Vec<f64>,
+    max: Vec<f64>,
+    m2: Vec<f64>,
+    zz: f64,
+}
+
+impl ColStats {
+    fn of_block(a: faer::MatRef<'_, f64>) -> Self {
+        let (rows, n) = a.shape();
+        let mut st = ColStats {
+            n: rows as f64,
+            mean: vec![0.0; n],
+            min: vec![f64::INFINITY; n],
+            max: vec![f64::NEG_INFINITY; n],
+            m2: vec![0.0; n],
+            zz: 0.0,
+        };
+        for j in 0..n {
+            let col = a.col(j);
+            let (mut s, mut lo, mut hi) = (0.0, f64::INFINITY, f64::NEG_INFINITY);
+            for &v in col.iter() {
+                s += v;
+                lo = lo.min(v);
+                hi = hi.max(v);
+            }
+            let mean = s / rows as f64;
+            let (mut m2, mut ss) = (0.0, 0.0);
+            for &v in col.iter() {
+                let d = v - mean;
+                m2 += d * d;
+                ss += v * v;
+            }
+            st.mean[j] = mean;
+            st.min[j] = lo;
+            st.max[j] = hi;
+            st.m2[j] = m2;
+            if j == n - 1 {
+                st.zz = ss;
+            }
+        }
+        st
+    }
+
+    fn merge(&mut self, o: &ColStats) {
+        let n = self.n + o.n;
+        for j in 0..self.mean.len() {
+            let delta = o.mean[j] - self.mean[j];
+            self.m2[j] += o.m2[j] + delta * delta * self.n * o.n / n;
+            self.mean[j] += delta * o.n / n;
+            self.min[j] = self.min[j].min(o.min[j]);
+            self.max[j] = self.max[j].max(o.max[j]);
+        }
+        self.zz += o.zz;
+        self.n = n;
+    }
+}
+
+/// Upper-triangular R (`(p+1) × (p+1)`) of `[X | z]` by a tall-skinny
+/// Householder QR over fixed chunks, and the column statistics.
+fn tsqr(x: &[f64], p: usize, z: &[f64], rows: &Rows<'_>) -> (Mat<f64>, ColStats) {
     let n = p + 1;
-    let chunk_r = |start: usize, end: usize| -> Mat<f64> {
+    let chunk_r = |start: usize, end: usize| -> (Mat<f64>, ColStats) {
         let a = Mat::from_fn(end - start, n, |i, j| {
             let r = rows.get(start + i);
             if j < p {
@@ -352,24 +417,29 @@ fn tsqr(x: &[f64], p: usize, z: &[f64], rows: &Rows<'_>) -> Mat<f64> {
                 z[r]
             }
         });
-        upper(a.qr().thin_R())
+        let st = ColStats::of_block(a.as_ref());
+        (upper(a.qr().thin_R()), st)
     };
-    let rs = chunked(rows.m, CHUNK, chunk_r);
-    if rs.len() == 1 {
-        return pad_square(&rs[0], n);
+    let parts = chunked(rows.m, CHUNK, chunk_r);
+    let mut stats = parts[0].1.clone();
+    for (_, st) in &parts[1..] {
+        stats.merge(st);
     }
-    let total: usize = rs.iter().map(|r| r.nrows()).sum();
+    if parts.len() == 1 {
+        return (pad_square(&parts[0].0, n), stats);
+    }
+    let total: usize = parts.iter().map(|(r, _)| r.nrows()).sum();
     let mut stacked = Mat::zeros(total, n);
     let mut at = 0;
-    for r in &rs {
+    for (r, _) in &parts {
         for i in 0..r.nrows() {
-            for j in 0..n {
+            for j in i..n {
                 stacked[(at + i, j)] = r[(i, j)];
             }
         }
         at += r.nrows();
     }
-    pad_square(&upper(stacked.qr().thin_R()), n)
+    (pad_square(&upper(stacked.qr().thin_R()), n), stats)
 }
 
 fn upper(r: faer::MatRef<'_, f64>) -> Mat<f64> {
@@ -399,92 +469,6 @@ fn inv_upper(r: &Mat<f64>) -> Mat<f64> {
         }
     }
     inv
-}
-
-struct ColStats {
-    mean: Vec<f64>,
-    min: Vec<f64>,
-    max: Vec<f64>,
-    z_mean: f64,
-}
-
-fn column_stats(x: &[f64], p: usize, z: &[f64], rows: &Rows<'_>) -> ColStats {
-    let m = rows.m;
-    let parts = chunked(m, 8 * CHUNK, |s, e| {
-        let mut sum = vec![0.0; p];
-        let mut lo = vec![f64::INFINITY; p];
-        let mut hi = vec![f64::NEG_INFINITY; p];
-        let mut zs = 0.0;
-        for k in s..e {
-            let r = rows.get(k);
-            let xr = &x[r * p..(r + 1) * p];
-            for j in 0..p {
-                sum[j] += xr[j];
-                lo[j] = lo[j].min(xr[j]);
-                hi[j] = hi[j].max(xr[j]);
-            }
-            zs += z[r];
-        }
-        (sum, lo, hi, zs)
-    });
-    let mut mean = vec![0.0; p];
-    let mut min = vec![f64::INFINITY; p];
-    let mut max = vec![f64::NEG_INFINITY; p];
-    let mut zs = 0.0;
-    for (s, lo, hi, z) in parts {
-        for j in 0..p {
-            mean[j] += s[j];
-            min[j] = min[j].min(lo[j]);
-            max[j] = max[j].max(hi[j]);
-        }
-        zs += z;
-    }
-    for v in &mut mean {
-        *v /= m as f64;
-    }
-    ColStats {
-        mean,
-        min,
-        max,
-        z_mean: zs / m as f64,
-    }
-}
-
-/// Centered sums of squares of the columns and of z, and Σz².
-fn centered_ss(
-    x: &[f64],
-    p: usize,
-    z: &[f64],
-    rows: &Rows<'_>,
-    cs: &ColStats,
-) -> (Vec<f64>, f64, f64) {
-    let parts = chunked(rows.m, 8 * CHUNK, |s, e| {
-        let mut ss = vec![0.0; p];
-        let mut zc = 0.0;
-        let mut zz = 0.0;
-        for k in s..e {
-            let r = rows.get(k);
-            let xr = &x[r * p..(r + 1) * p];
-            for j in 0..p {
-                let d = xr[j] - cs.mean[j];
-                ss[j] += d * d;
-            }
-            let d = z[r] - cs.z_mean;
-            zc += d * d;
-            zz += z[r] * z[r];
-        }
-        (ss, zc, zz)
-    });
-    let mut ss = vec![0.0; p];
-    let (mut zc, mut zz) = (0.0, 0.0);
-    for (s, a, b) in parts {
-        for j in 0..p {
-            ss[j] += s[j];
-        }
-        zc += a;
-        zz += b;
-    }
-    (ss, zc, zz)
 }
 
 fn fit(
@@ -532,13 +516,12 @@ fn fit(
         ));
     }
 
-    // Column statistics (constant detection, centered sums for R² and VIF).
-    let cs = column_stats(x, p, z, &rows);
-    let (col_css, z_css, z_ss) = centered_ss(x, p, z, &rows, &cs);
+    // QR of [X | z] and column statistics (constant detection, centered
+    // sums for R² and VIF) in one pass.
+    let (raug, cs) = tsqr(x, p, z, &rows);
+    let col_css = cs.m2[..p].to_vec();
+    let (z_css, z_ss) = (cs.m2[p], cs.zz);
     let const_column = (0..p).find(|&j| cs.min[j] == cs.max[j] && cs.max[j] != 0.0);
-
-    // QR of [X | z].
-    let raug = tsqr(x, p, z, &rows);
     let r = Mat::from_fn(p, p, |i, j| raug[(i, j)]);
     let qtz: Vec<f64> = (0..p).map(|i| raug[(i, p)]).collect();
 
@@ -629,27 +612,28 @@ fn fit(
         (0..nb).map(|k| b[(i, k)] * b[(j, k)]).sum::<f64>()
     });
 
-    // Residuals and leverages.
-    let bt: Vec<f64> = (0..p)
-        .flat_map(|i| (0..nb).map(move |k| (i, k)))
-        .map(|(i, k)| b[(i, k)])
-        .collect();
-    let parts = chunked(m, 8 * CHUNK, |s, e| {
-        let mut res = Vec::with_capacity(e - s);
-        let (mut rss, mut press, mut sum) = (0.0, 0.0, 0.0);
-        let mut q = vec![0.0; nb];
-        for k in s..e {
-            let row = rows.get(k);
-            let xr = &x[row * p..(row + 1) * p];
-            let yhat: f64 = xr.iter().zip(&params).map(|(a, t)| a * t).sum();
-            let v = z[row] - yhat;
-            q.iter_mut().for_each(|qk| *qk = 0.0);
-            for (i, &xi) in xr.iter().enumerate() {
-                for (qk, bik) in q.iter_mut().zip(&bt[i * nb..(i + 1) * nb]) {
-                    *qk += xi * bik;
-                }
+    // Residuals and leverages, chunk by chunk: [ŷ | Q] = X_chunk [θ | B]
+    // (h_i = ‖q_i‖²). The column-major chunks are kept for the FFT stage.
+    let tb = Mat::from_fn(
+        p,
+        1 + nb,
+        |i, k| if k == 0 { params[i] } else { b[(i, k - 1)] },
+    );
+    let keep_blocks = opts.colored;
+    let parts = chunked(m, CHUNK, |s, e| {
+        let rn = e - s;
+        let mut blk = vec![0.0; rn * p];
+        for (j, col) in blk.chunks_mut(rn).enumerate() {
+            for (i, o) in col.iter_mut().enumerate() {
+                *o = x[rows.get(s + i) * p + j];
             }
-            let h: f64 = q.iter().map(|a| a * a).sum();
+        }
+        let w = faer::MatRef::from_column_major_slice(&blk, rn, p) * &tb;
+        let mut res = Vec::with_capacity(rn);
+        let (mut rss, mut press, mut sum) = (0.0, 0.0, 0.0);
+        for i in 0..rn {
+            let v = z[rows.get(s + i)] - w[(i, 0)];
+            let h: f64 = (1..=nb).map(|k| w[(i, k)] * w[(i, k)]).sum();
             let loo = v / (1.0 - h);
             rss += v * v;
             press += if h < 1.0 - 1e-12 {
@@ -660,15 +644,18 @@ fn fit(
             sum += v;
             res.push(v);
         }
-        (res, rss, press, sum)
+        let blk = if keep_blocks { blk } else { Vec::new() };
+        (res, rss, press, sum, blk)
     });
     let mut resid = Vec::with_capacity(m);
     let (mut rss, mut press, mut rsum) = (0.0, 0.0, 0.0);
-    for (r_, a, b_, c) in parts {
+    let mut blocks = Vec::with_capacity(parts.len());
+    for (r_, a, b_, c, blk) in parts {
         resid.extend_from_slice(&r_);
         rss += a;
         press += b_;
         rsum += c;
+        blocks.push(blk);
     }
 
     // Statistics.
@@ -738,8 +725,11 @@ fn fit(
     // Coloured residuals.
     let (cov_colored, std_err_colored) = if opts.colored {
         let fill = |bcol: usize, out: &mut [f64]| {
-            for (k, o) in out.iter_mut().enumerate() {
-                *o = x[rows.get(k) * p + bcol];
+            let mut at = 0;
+            for blk in &blocks {
+                let rn = blk.len() / p;
+                out[at..at + rn].copy_from_slice(&blk[bcol * rn..(bcol + 1) * rn]);
+                at += rn;
             }
         };
         let mid = toeplitz_gram(p, fill, &resid, opts.max_lag)?;
