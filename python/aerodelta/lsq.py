@@ -172,10 +172,17 @@ class OLSResults:
         return self._f.vif
 
     @property
-    def dependencies(self) -> list[tuple[float, list[str], list[float]]]:
-        """(Near) dependencies: (condition index, column names, loadings), worst first."""
+    def dependencies(self) -> list[tuple[float, list[str], list[float], list[float]]]:
+        """(Near) dependencies of the column-normalized X, worst first.
+
+        Each is (condition index, column names, loadings of the unit singular vector,
+        variance-decomposition proportions); exact dependencies have an infinite
+        condition index and NaN proportions.
+        """
         names = self.names
-        return [(ci, [names[j] for j in cols], ld) for ci, cols, ld in self._f.dependencies]
+        return [
+            (ci, [names[j] for j in cols], ld, vdp) for ci, cols, ld, vdp in self._f.dependencies
+        ]
 
     @property
     def identifiable(self) -> npt.NDArray[np.bool_]:

@@ -132,14 +132,23 @@ impl PyOlsFit {
     fn vif<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
         arr1(py, &self.0.collinearity.vif)
     }
-    /// Near dependencies as (condition index, column indices, loadings), worst first.
+    /// Near dependencies as (condition index, column indices, loadings,
+    /// variance-decomposition proportions), worst first.
     #[getter]
-    fn dependencies(&self) -> Vec<(f64, Vec<usize>, Vec<f64>)> {
+    #[allow(clippy::type_complexity)]
+    fn dependencies(&self) -> Vec<(f64, Vec<usize>, Vec<f64>, Vec<f64>)> {
         self.0
             .collinearity
             .dependencies
             .iter()
-            .map(|d| (d.condition_index, d.columns.clone(), d.loadings.clone()))
+            .map(|d| {
+                (
+                    d.condition_index,
+                    d.columns.clone(),
+                    d.loadings.clone(),
+                    d.proportions.clone(),
+                )
+            })
             .collect()
     }
     #[getter]

@@ -17,5 +17,5 @@ pub mod stats;
 
 pub use ols::{
     ols, ols_rows, Collinearity, NearDependency, OlsFit, OlsOptions, COLLINEAR_COND_DEFAULT,
-    LOADING_MIN, VIF_NOTE,
+    LOADING_EXACT_MIN, VDP_MIN, VIF_NOTE,
 };

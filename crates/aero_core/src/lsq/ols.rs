@@ -17,9 +17,15 @@ use crate::error::{AeroError, Result};
 /// identifiable (their variance is inflated by more than ~1e12 relative to
 /// an orthogonal design of the same column norms).
 pub const COLLINEAR_COND_DEFAULT: f64 = 1e6;
-/// A column belongs to a (near) dependency when the absolute loading of the
-/// normalized right singular vector on it is at least this.
-pub const LOADING_MIN: f64 = 0.1;
+/// A column belongs to a near dependency when at least this share of the
+/// variance of its parameter comes from that singular direction (Belsley,
+/// Kuh & Welsch 1980, variance-decomposition proportions of the
+/// column-normalized X). The same share summed over all near dependencies
+/// marks a parameter not identifiable.
+pub const VDP_MIN: f64 = 0.5;
+/// A column belongs to an exact dependency (zero singular value) when the
+/// absolute loading of the unit null vector on it is at least this.
+pub const LOADING_EXACT_MIN: f64 = 1e-6;
 /// Variance inflation factors above this get a note (the usual rule of thumb).
 pub const VIF_NOTE: f64 = 10.0;
 
@@ -68,8 +74,11 @@ impl Default for OlsOptions {
 pub struct NearDependency {
     /// `σ_max / σ_k` of the column-normalized X (infinite for an exact zero).
     pub condition_index: f64,
-    /// Columns loading on the direction (|loading| >= [`LOADING_MIN`]), largest first.
+    /// Columns involved: variance-decomposition proportion >= [`VDP_MIN`]
+    /// (near), or |loading| >= [`LOADING_EXACT_MIN`] (exact); largest loading first.
     pub columns: Vec<usize>,
+    /// Their variance-decomposition proportions (NaN for an exact dependency).
+    pub proportions: Vec<f64>,
     /// Their loadings (components of the unit right singular vector).
     pub loadings: Vec<f64>,
 }
@@ -231,8 +240,10 @@ fn no_convergence(what: &str) -> AeroError {
 /// (the LAPACK/numpy `matrix_rank` tolerance). An exactly rank-deficient X
 /// is refused with an error naming the dependent columns unless
 /// `min_norm` is set. Directions with condition index above
-/// `collinear_cond` are reported in [`Collinearity`] and the parameters of
-/// the columns loading on them marked not identifiable with a note.
+/// `collinear_cond` are reported in [`Collinearity`]; a parameter that takes
+/// at least [`VDP_MIN`] of its variance from such directions (Belsley's
+/// variance-decomposition proportions) is marked not identifiable with a
+/// note naming the columns it is collinear with.
 ///
 /// # Errors
 /// Shapes that do not match, non-finite values (unless `drop_nan`), fewer
@@ -548,6 +559,17 @@ fn fit(
     let condition_number = cond(&sv_scaled);
     let condition_number_unscaled = cond(&sv);
 
+    // Variance-decomposition proportions over the non-null directions.
+    let phi = |j: usize, k: usize| (vs[(j, k)] / sv_scaled[k]).powi(2);
+    let phi_tot: Vec<f64> = (0..p)
+        .map(|j| {
+            (0..p)
+                .filter(|&k| sv_scaled[k] > tol)
+                .map(|k| phi(j, k))
+                .sum()
+        })
+        .collect();
+    let mut near_share = vec![0.0; p];
     let mut dependencies = Vec::new();
     for k in (0..p).rev() {
         let ci = if sv_scaled[k] > 0.0 {
@@ -559,15 +581,24 @@ fn fit(
         if !(exact || ci > opts.collinear_cond) {
             continue;
         }
-        let mut cols: Vec<(usize, f64)> = (0..p)
-            .map(|j| (j, vs[(j, k)]))
-            .filter(|(_, l)| l.abs() >= LOADING_MIN)
-            .collect();
+        let mut cols: Vec<(usize, f64, f64)> = if exact {
+            (0..p)
+                .map(|j| (j, vs[(j, k)], f64::NAN))
+                .filter(|c| c.1.abs() >= LOADING_EXACT_MIN)
+                .collect()
+        } else {
+            (0..p)
+                .map(|j| (j, vs[(j, k)], phi(j, k) / phi_tot[j]))
+                .inspect(|c| near_share[c.0] += c.2)
+                .filter(|c| c.2 >= VDP_MIN)
+                .collect()
+        };
         cols.sort_by(|a, b| b.1.abs().total_cmp(&a.1.abs()));
         dependencies.push(NearDependency {
             condition_index: if exact { f64::INFINITY } else { ci },
             columns: cols.iter().map(|c| c.0).collect(),
             loadings: cols.iter().map(|c| c.1).collect(),
+            proportions: cols.iter().map(|c| c.2).collect(),
         });
     }
     let rank_deficient = rank < p;
@@ -714,6 +745,13 @@ fn fit(
         }
     }
     for j in 0..p {
+        if identifiable[j] && near_share[j] >= VDP_MIN {
+            identifiable[j] = false;
+            notes[j] = format!(
+                "not identifiable: {:.0}% of its variance comes from near-collinear directions",
+                100.0 * near_share[j]
+            );
+        }
         if notes[j].is_empty() && vif[j] > VIF_NOTE {
             notes[j] = format!(
                 "VIF {:.1} > {VIF_NOTE}: correlated with other regressors",
