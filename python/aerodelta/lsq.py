@@ -368,7 +368,7 @@ def ols(
     >>> import numpy as np
     >>> x = np.column_stack([np.ones(5), np.arange(5.0)])
     >>> r = ols(x, 1.0 + 2.0 * np.arange(5.0), names=["bias", "slope"])
-    >>> [round(v, 12) for v in r.params]
+    >>> [round(float(v), 12) for v in r.params]
     [1.0, 2.0]
     """
     if isinstance(X, pl.DataFrame):
