@@ -76,6 +76,91 @@ fn plans(l: usize, inverse: bool) -> (Fwd, Option<Inv>) {
     (fwd, inv)
 }
 
+/// Largest total size (bytes) of work buffers kept between calls.
+const POOL_MAX_BYTES: usize = 1 << 30;
+
+/// Work buffers kept between calls. Long FFTs need several buffers of 2N
+/// values; on first touch every fresh page costs a page fault, which for
+/// N = 10⁶ costs as much as the FFTs themselves, so buffers are recycled
+/// (up to [`POOL_MAX_BYTES`]). A taken buffer holds stale values: every
+/// caller overwrites all of it (results never depend on old contents).
+struct Pool {
+    real: Vec<Vec<f64>>,
+    cplx: Vec<Vec<Complex<f64>>>,
+}
+
+static POOL: Mutex<Pool> = Mutex::new(Pool {
+    real: Vec::new(),
+    cplx: Vec::new(),
+});
+
+fn pool() -> std::sync::MutexGuard<'static, Pool> {
+    POOL.lock().unwrap_or_else(|poisoned| poisoned.into_inner())
+}
+
+fn pool_bytes(p: &Pool) -> usize {
+    p.real.iter().map(|v| v.capacity() * 8).sum::<usize>()
+        + p.cplx.iter().map(|v| v.capacity() * 16).sum::<usize>()
+}
+
+/// A real buffer of `len` values (contents unspecified), recycled if possible.
+fn take_real(len: usize) -> Vec<f64> {
+    let mut v = {
+        let mut pl = pool();
+        match pl.real.iter().position(|b| b.capacity() >= len) {
+            Some(i) => pl.real.swap_remove(i),
+            None => Vec::new(),
+        }
+    };
+    if v.len() >= len {
+        v.truncate(len);
+    } else {
+        v.resize(len, 0.0);
+    }
+    v
+}
+
+/// A complex buffer of `len` values (contents unspecified), recycled if possible.
+fn take_cplx(len: usize) -> Vec<Complex<f64>> {
+    let mut v = {
+        let mut pl = pool();
+        match pl.cplx.iter().position(|b| b.capacity() >= len) {
+            Some(i) => pl.cplx.swap_remove(i),
+            None => Vec::new(),
+        }
+    };
+    if v.len() >= len {
+        v.truncate(len);
+    } else {
+        v.resize(len, Complex::new(0.0, 0.0));
+    }
+    v
+}
+
+fn give_real(v: Vec<f64>) {
+    let mut pl = pool();
+    if pool_bytes(&pl) + v.capacity() * 8 <= POOL_MAX_BYTES {
+        pl.real.push(v);
+    }
+}
+
+/// Per-worker FFT buffers (input, output, scratch), back to the pool on drop.
+struct Bufs(Vec<f64>, Vec<Complex<f64>>, Vec<Complex<f64>>);
+
+impl Drop for Bufs {
+    fn drop(&mut self) {
+        give_real(std::mem::take(&mut self.0));
+        give_cplx(std::mem::take(&mut self.1));
+    }
+}
+
+fn give_cplx(v: Vec<Complex<f64>>) {
+    let mut pl = pool();
+    if pool_bytes(&pl) + v.capacity() * 16 <= POOL_MAX_BYTES {
+        pl.cplx.push(v);
+    }
+}
+
 /// Rows of the half spectrum per block of the Gram product (fixed, so the
 /// summation order does not depend on the number of threads).
 const GRAM_BLOCK: usize = 16_384;
@@ -109,12 +194,16 @@ where
     let (r2c, c2r) = plans(l, truncate);
 
     // Residual power spectrum S = |V|² / N  (DFT of the biased autocorrelation).
-    let mut buf = vec![0.0; l];
+    let mut buf = take_real(l);
     buf[..n].copy_from_slice(v);
-    let mut spec = vec![Complex::new(0.0, 0.0); kh];
+    buf[n..].fill(0.0);
+    let mut spec = take_cplx(kh);
     r2c.process(&mut buf, &mut spec).map_err(fft_err)?;
     let inv_n = 1.0 / n as f64;
-    let mut s: Vec<f64> = spec.iter().map(|c| c.norm_sqr() * inv_n).collect();
+    let mut s = take_real(kh);
+    for (sk, c) in s.iter_mut().zip(&spec) {
+        *sk = c.norm_sqr() * inv_n;
+    }
 
     if let (Some(k), Some(c2r)) = (max_lag, c2r) {
         {
@@ -136,34 +225,25 @@ where
 
     // Parseval weights over the half spectrum: interior bins count twice.
     let inv_l = 1.0 / l as f64;
-    let w: Vec<f64> = (0..kh)
-        .map(|k| {
-            let twice = k != 0 && !(l % 2 == 0 && k == l / 2);
-            s[k] * inv_l * if twice { 2.0 } else { 1.0 }
-        })
-        .collect();
+    for (k, sk) in s.iter_mut().enumerate() {
+        let twice = k != 0 && !(l % 2 == 0 && k == l / 2);
+        *sk *= inv_l * if twice { 2.0 } else { 1.0 };
+    }
+    let w = s;
     let all_nonneg = w.iter().all(|&x| x >= 0.0);
-    let sw: Vec<f64> = if all_nonneg {
-        w.iter().map(|x| x.sqrt()).collect()
-    } else {
-        Vec::new()
-    };
+    let mut sw = take_real(if all_nonneg { kh } else { 0 });
+    for (o, x) in sw.iter_mut().zip(&w) {
+        *o = x.sqrt();
+    }
 
     // Column spectra, stored as real and imaginary parts, column-major kh × p.
-    let mut re = vec![0.0; kh * p];
-    let mut im = vec![0.0; kh * p];
+    let mut re = take_real(kh * p);
+    let mut im = take_real(kh * p);
     // Per-worker buffers, reused across columns (fresh 2N-long buffers per
     // column would cost as much in page faults as the FFT itself).
-    type Bufs = (Vec<f64>, Vec<Complex<f64>>, Vec<Complex<f64>>);
-    let new_bufs = || -> Bufs {
-        (
-            vec![0.0; l],
-            vec![Complex::new(0.0, 0.0); kh],
-            r2c.make_scratch_vec(),
-        )
-    };
+    let new_bufs = || Bufs(take_real(l), take_cplx(kh), r2c.make_scratch_vec());
     let one_col = |bufs: &mut Bufs, b: usize, re_b: &mut [f64], im_b: &mut [f64]| -> Result<()> {
-        let (buf, out, scratch) = bufs;
+        let Bufs(buf, out, scratch) = bufs;
         fill_col(b, &mut buf[..n]);
         buf[n..].iter_mut().for_each(|v| *v = 0.0);
         r2c.process_with_scratch(buf, out, scratch)
@@ -228,6 +308,12 @@ where
     for g in &grams {
         m += g;
     }
+    give_real(re);
+    give_real(im);
+    give_real(w);
+    give_real(sw);
+    give_real(buf);
+    give_cplx(spec);
     // Symmetrise (the two triangles differ only by rounding).
     Ok(Mat::from_fn(p, p, |a, b| 0.5 * (m[(a, b)] + m[(b, a)])))
 }
