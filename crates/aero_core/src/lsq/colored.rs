@@ -33,6 +33,7 @@ use faer::{Mat, MatRef};
 use realfft::num_complex::Complex;
 use realfft::{ComplexToReal, RealFftPlanner, RealToComplex};
 
+use super::pool::{give_cplx, give_real, take_cplx, take_real};
 use crate::error::{AeroError, Result};
 
 /// Smallest `2^a 3^b 5^c 7^d` not below `n` (fast lengths for rustfft).
@@ -76,74 +77,6 @@ fn plans(l: usize, inverse: bool) -> (Fwd, Option<Inv>) {
     (fwd, inv)
 }
 
-/// Largest total size (bytes) of work buffers kept between calls.
-const POOL_MAX_BYTES: usize = 1 << 30;
-
-/// Work buffers kept between calls. Long FFTs need several buffers of 2N
-/// values; on first touch every fresh page costs a page fault, which for
-/// N = 10⁶ costs as much as the FFTs themselves, so buffers are recycled
-/// (up to [`POOL_MAX_BYTES`]). A taken buffer holds stale values: every
-/// caller overwrites all of it (results never depend on old contents).
-struct Pool {
-    real: Vec<Vec<f64>>,
-    cplx: Vec<Vec<Complex<f64>>>,
-}
-
-static POOL: Mutex<Pool> = Mutex::new(Pool {
-    real: Vec::new(),
-    cplx: Vec::new(),
-});
-
-fn pool() -> std::sync::MutexGuard<'static, Pool> {
-    POOL.lock().unwrap_or_else(|poisoned| poisoned.into_inner())
-}
-
-fn pool_bytes(p: &Pool) -> usize {
-    p.real.iter().map(|v| v.capacity() * 8).sum::<usize>()
-        + p.cplx.iter().map(|v| v.capacity() * 16).sum::<usize>()
-}
-
-/// A real buffer of `len` values (contents unspecified), recycled if possible.
-fn take_real(len: usize) -> Vec<f64> {
-    let mut v = {
-        let mut pl = pool();
-        match pl.real.iter().position(|b| b.capacity() >= len) {
-            Some(i) => pl.real.swap_remove(i),
-            None => Vec::new(),
-        }
-    };
-    if v.len() >= len {
-        v.truncate(len);
-    } else {
-        v.resize(len, 0.0);
-    }
-    v
-}
-
-/// A complex buffer of `len` values (contents unspecified), recycled if possible.
-fn take_cplx(len: usize) -> Vec<Complex<f64>> {
-    let mut v = {
-        let mut pl = pool();
-        match pl.cplx.iter().position(|b| b.capacity() >= len) {
-            Some(i) => pl.cplx.swap_remove(i),
-            None => Vec::new(),
-        }
-    };
-    if v.len() >= len {
-        v.truncate(len);
-    } else {
-        v.resize(len, Complex::new(0.0, 0.0));
-    }
-    v
-}
-
-fn give_real(v: Vec<f64>) {
-    let mut pl = pool();
-    if pool_bytes(&pl) + v.capacity() * 8 <= POOL_MAX_BYTES {
-        pl.real.push(v);
-    }
-}
-
 /// Per-worker FFT buffers (input, output, scratch), back to the pool on drop.
 struct Bufs(Vec<f64>, Vec<Complex<f64>>, Vec<Complex<f64>>);
 
@@ -151,13 +84,6 @@ impl Drop for Bufs {
     fn drop(&mut self) {
         give_real(std::mem::take(&mut self.0));
         give_cplx(std::mem::take(&mut self.1));
-    }
-}
-
-fn give_cplx(v: Vec<Complex<f64>>) {
-    let mut pl = pool();
-    if pool_bytes(&pl) + v.capacity() * 16 <= POOL_MAX_BYTES {
-        pl.cplx.push(v);
     }
 }
 

@@ -13,6 +13,7 @@
 
 pub mod colored;
 mod ols;
+mod pool;
 pub mod stats;
 
 pub use ols::{

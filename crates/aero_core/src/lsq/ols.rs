@@ -8,6 +8,7 @@ use std::borrow::Cow;
 use faer::Mat;
 
 use super::colored::toeplitz_gram;
+use super::pool::{give_real, take_real};
 use super::stats::{f_sf, student_t_sf_two_sided};
 use crate::error::{AeroError, Result};
 
@@ -651,15 +652,17 @@ fn fit(
         |i, k| if k == 0 { params[i] } else { b[(i, k - 1)] },
     );
     let keep_blocks = opts.colored;
-    let parts = chunked(m, CHUNK, |s, e| {
+    // With the coloured correction the blocks are written into one recycled
+    // buffer (chunk after chunk, column-major within a chunk) for the FFTs.
+    let pass2 = |c: usize, blk: &mut [f64]| {
+        let (s, e) = (c * CHUNK, ((c + 1) * CHUNK).min(m));
         let rn = e - s;
-        let mut blk = vec![0.0; rn * p];
         for (j, col) in blk.chunks_mut(rn).enumerate() {
             for (i, o) in col.iter_mut().enumerate() {
                 *o = x[rows.get(s + i) * p + j];
             }
         }
-        let w = faer::MatRef::from_column_major_slice(&blk, rn, p) * &tb;
+        let w = faer::MatRef::from_column_major_slice(blk, rn, p) * &tb;
         let mut res = Vec::with_capacity(rn);
         let (mut rss, mut press, mut sum) = (0.0, 0.0, 0.0);
         for i in 0..rn {
@@ -675,18 +678,46 @@ fn fit(
             sum += v;
             res.push(v);
         }
-        let blk = if keep_blocks { blk } else { Vec::new() };
-        (res, rss, press, sum, blk)
-    });
-    let mut resid = Vec::with_capacity(m);
+        (res, rss, press, sum)
+    };
+    let mut xcols = if keep_blocks {
+        take_real(m * p)
+    } else {
+        Vec::new()
+    };
+    let parts: Vec<(Vec<f64>, f64, f64, f64)> = if keep_blocks {
+        #[cfg(feature = "parallel")]
+        {
+            use rayon::prelude::*;
+            xcols
+                .par_chunks_mut(CHUNK * p)
+                .enumerate()
+                .map(|(c, blk)| pass2(c, blk))
+                .collect()
+        }
+        #[cfg(not(feature = "parallel"))]
+        {
+            xcols
+                .chunks_mut(CHUNK * p)
+                .enumerate()
+                .map(|(c, blk)| pass2(c, blk))
+                .collect()
+        }
+    } else {
+        chunked(m, CHUNK, |s, e| {
+            let mut blk = vec![0.0; (e - s) * p];
+            pass2(s / CHUNK, &mut blk)
+        })
+    };
+    let mut resid = take_real(m);
     let (mut rss, mut press, mut rsum) = (0.0, 0.0, 0.0);
-    let mut blocks = Vec::with_capacity(parts.len());
-    for (r_, a, b_, c, blk) in parts {
-        resid.extend_from_slice(&r_);
+    let mut at = 0;
+    for (r_, a, b_, c) in parts {
+        resid[at..at + r_.len()].copy_from_slice(&r_);
+        at += r_.len();
         rss += a;
         press += b_;
         rsum += c;
-        blocks.push(blk);
     }
 
     // Statistics.
@@ -763,11 +794,10 @@ fn fit(
     // Coloured residuals.
     let (cov_colored, std_err_colored) = if opts.colored {
         let fill = |bcol: usize, out: &mut [f64]| {
-            let mut at = 0;
-            for blk in &blocks {
+            for (c, blk) in xcols.chunks(CHUNK * p).enumerate() {
                 let rn = blk.len() / p;
+                let at = c * CHUNK;
                 out[at..at + rn].copy_from_slice(&blk[bcol * rn..(bcol + 1) * rn]);
-                at += rn;
             }
         };
         let mid = toeplitz_gram(p, fill, &resid, opts.max_lag)?;
@@ -780,6 +810,8 @@ fn fit(
     } else {
         (None, None)
     };
+    give_real(xcols);
+    give_real(resid);
 
     Ok(OlsFit {
         names,
