@@ -994,6 +994,25 @@ mod tests {
     }
 
     #[test]
+    fn recycled_buffers_do_not_change_results() {
+        let fit_of = |n: usize, seed: u64| {
+            let p = 3;
+            let x = design(n, p, seed);
+            let z: Vec<f64> = (0..n)
+                .map(|i| x[i * p + 1] - 0.5 * x[i * p + 2] + ((i * 31) % 7) as f64 * 0.1)
+                .collect();
+            ols(&x, n, p, &z, &OlsOptions::default()).unwrap()
+        };
+        let a = fit_of(3000, 1);
+        let _ = fit_of(9000, 2);
+        let _ = fit_of(500, 3);
+        let b = fit_of(3000, 1);
+        assert_eq!(a.params, b.params);
+        assert_eq!(a.std_err_colored, b.std_err_colored);
+        assert_eq!(a.press, b.press);
+    }
+
+    #[test]
     fn too_few_rows() {
         let x = design(3, 3, 1);
         let e = ols(&x, 3, 3, &[1.0, 2.0, 3.0], &OlsOptions::default()).unwrap_err();
