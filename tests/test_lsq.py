@@ -293,6 +293,9 @@ def test_near_collinear_reported_not_silent() -> None:
     assert deps[0][0] > 1e6
     assert all("near-collinear" in r.notes[j] for j in (1, 2, 3))
     assert (r.vif[1:] > 1e10).all()
+    # The coloured correction is computed through Q: no cancellation to zero.
+    ratio = r.std_err_corrected / r.std_err
+    assert np.all((ratio > 0.3) & (ratio < 3.0))
     # The summary carries the same verdict.
     s = r.summary()
     assert s["identifiable"].to_list() == [True, False, False, False]

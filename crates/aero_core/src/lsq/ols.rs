@@ -224,6 +224,11 @@ fn no_convergence(what: &str) -> AeroError {
 /// (parallel with the `parallel` feature, bit-identical whatever the number
 /// of threads), gives `R` and `Qᵀz`; `θ̂ = R⁻¹ Qᵀz` and `(XᵀX)⁻¹ = R⁻¹R⁻ᵀ`.
 /// Leverages for PRESS are `h_i = ‖x_iᵀ R⁻¹‖²` (the rows of the thin Q).
+/// The coloured-residual covariance ([`super::colored`]) is evaluated as
+/// `R⁻¹ (Qᵀ T Q) R⁻ᵀ` with `Q = X R⁻¹`, which equals the textbook
+/// `(XᵀX)⁻¹ Xᵀ T X (XᵀX)⁻¹` but does not cancel for near-collinear X. Long
+/// work buffers are recycled between calls (a process-wide pool of at most
+/// 1 GiB), since first-touch page faults cost as much as the FFTs.
 ///
 /// # Conventions
 /// - R² is centered (`TSS = Σ(z − z̄)²`) when X has a constant column (a
@@ -645,15 +650,18 @@ fn fit(
     });
 
     // Residuals and leverages, chunk by chunk: [ŷ | Q] = X_chunk [θ | B]
-    // (h_i = ‖q_i‖²). The column-major chunks are kept for the FFT stage.
+    // (h_i = ‖q_i‖²). With the coloured correction the Q blocks are kept
+    // for the FFT stage: the correction is computed as B (Qᵀ T Q) Bᵀ, whose
+    // middle factor is well conditioned, rather than (XᵀX)⁻¹ (Xᵀ T X) (XᵀX)⁻¹,
+    // which cancels catastrophically for near-collinear X.
     let tb = Mat::from_fn(
         p,
         1 + nb,
         |i, k| if k == 0 { params[i] } else { b[(i, k - 1)] },
     );
     let keep_blocks = opts.colored;
-    // With the coloured correction the blocks are written into one recycled
-    // buffer (chunk after chunk, column-major within a chunk) for the FFTs.
+    // With the coloured correction the Q blocks go into one recycled buffer
+    // (chunk after chunk, column-major within a chunk) for the FFTs.
     let pass2 = |c: usize, blk: &mut [f64]| {
         let (s, e) = (c * CHUNK, ((c + 1) * CHUNK).min(m));
         let rn = e - s;
@@ -663,6 +671,13 @@ fn fit(
             }
         }
         let w = faer::MatRef::from_column_major_slice(blk, rn, p) * &tb;
+        if keep_blocks {
+            for (k, col) in blk.chunks_mut(rn).take(nb).enumerate() {
+                for (i, o) in col.iter_mut().enumerate() {
+                    *o = w[(i, k + 1)];
+                }
+            }
+        }
         let mut res = Vec::with_capacity(rn);
         let (mut rss, mut press, mut sum) = (0.0, 0.0, 0.0);
         for i in 0..rn {
@@ -800,8 +815,8 @@ fn fit(
                 out[at..at + rn].copy_from_slice(&blk[bcol * rn..(bcol + 1) * rn]);
             }
         };
-        let mid = toeplitz_gram(p, fill, &resid, opts.max_lag)?;
-        let c = &xtx_inv * &mid * &xtx_inv;
+        let mid = toeplitz_gram(nb, fill, &resid, opts.max_lag)?;
+        let c = &b * &mid * b.transpose();
         let cv: Vec<f64> = (0..p * p)
             .map(|ij| 0.5 * (c[(ij / p, ij % p)] + c[(ij % p, ij / p)]))
             .collect();
