@@ -36,6 +36,7 @@ from aerodelta.exceptions import (
     TooLittleDataError,
 )
 from aerodelta.ingest import IngestResult, ingest
+from aerodelta.lsq import OLSResults, ols
 from aerodelta.model import DeltaModel
 from aerodelta.partition import AlphaBins, partition_alpha
 from aerodelta.spline import SmoothingSpline, smoothing_spline
@@ -56,6 +57,7 @@ __all__ = [
     "IngestResult",
     "InvalidInputError",
     "NoConvergenceError",
+    "OLSResults",
     "OutOfRangeError",
     "ParseError",
     "SmoothingSpline",
@@ -68,6 +70,7 @@ __all__ = [
     "generate_campaign",
     "ingest",
     "load_daveml",
+    "ols",
     "partition_alpha",
     "qualified_model_tables",
     "replay",

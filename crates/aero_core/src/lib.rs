@@ -16,6 +16,8 @@
 //!   vane transfers, measured coefficients (Eq. 3.2-3.4), data compatibility;
 //! - [`daveml`]: DAVE-ML (AIAA S-119) models: read, evaluate, run their check
 //!   cases, and write models with self-generated check cases;
+//! - [`lsq`]: equation-error least squares by QR (Eq. 2.12-2.13, 3.10) with
+//!   standard errors (conventional and coloured-residual), collinearity diagnostics;
 //! - [`spline`]: cubic smoothing splines with MATLAB `csaps` semantics (Eq. 3.13);
 //! - [`partition`]: alpha partitioning into bins of enough points (Section 3.3.1);
 //! - [`regressor`]: the expression language of Δ-model regressors
@@ -32,6 +34,7 @@ pub mod daveml;
 pub mod delta_model;
 pub mod error;
 pub mod fsutil;
+pub mod lsq;
 pub mod partition;
 pub mod preprocess;
 pub mod regressor;

@@ -8,6 +8,7 @@ use pyo3::prelude::*;
 mod daveml;
 mod delta_model;
 mod error;
+mod lsq;
 mod partition;
 mod preprocess;
 mod sim;
@@ -26,5 +27,6 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     daveml::register(m)?;
     sim::register(m)?;
     preprocess::register(m)?;
+    lsq::register(m)?;
     Ok(())
 }

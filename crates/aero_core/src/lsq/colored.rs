@@ -1,0 +1,322 @@
+//! Parameter covariance corrected for coloured residuals (Morelli & Klein,
+//! "Aircraft System Identification", Eq. 5.80; SIDPAC `r_colores.m`):
+//!
+//! ```text
+//! Cov(θ) = (XᵀX)⁻¹ M (XᵀX)⁻¹,   M = Σ_i Σ_j x_i R_vv(i−j) x_jᵀ
+//! ```
+//!
+//! with `x_i` the i-th row of the regressor matrix and `R_vv(k) = (1/N) Σ_t
+//! v(t) v(t+k)` the *biased* sample autocorrelation of the residuals `v`
+//! (mean not removed, as MATLAB `xcorr(v, 'biased')` in `r_colores`). No
+//! `s²` factor: the autocorrelation at lag 0 already carries the residual
+//! variance.
+//!
+//! The double sum is never formed (it is O(p² N²)). It is the quadratic
+//! form `Xᵀ T X` with `T` the symmetric Toeplitz matrix of `R_vv`; with
+//! every sequence zero-padded to a length `L >= 2N-1` the circular
+//! convolution equals the linear one, and by Parseval
+//!
+//! ```text
+//! M_ab = (1/L) Σ_k conj(X_a[k]) S[k] X_b[k],   S = DFT_L(R_vv) = |V|²/N,
+//! ```
+//!
+//! where `X_a`, `V` are the length-`L` DFTs of column `a` and of `v`. So one
+//! real FFT per column plus one for the residuals, then one weighted Gram
+//! product of the half spectra: O(p N log N + p² N) time, O(p N) memory.
+//! With a maximum lag `K`, `R_vv(k)` is set to zero for `|k| > K` (a
+//! truncated, not tapered, estimate: `S` is then recomputed from the
+//! truncated sequence and may have negative values).
+
+use std::sync::{Arc, Mutex, OnceLock};
+
+use faer::{Mat, MatRef};
+use realfft::num_complex::Complex;
+use realfft::{ComplexToReal, RealFftPlanner, RealToComplex};
+
+use super::pool::{give_cplx, give_real, take_cplx, take_real};
+use crate::error::{AeroError, Result};
+
+/// Smallest `2^a 3^b 5^c 7^d` not below `n` (fast lengths for rustfft).
+pub fn fast_len(n: usize) -> usize {
+    let mut best = n.next_power_of_two();
+    let mut p7 = 1usize;
+    while p7 < best {
+        let mut p5 = p7;
+        while p5 < best {
+            let mut p3 = p5;
+            while p3 < best {
+                let mut v = p3;
+                while v < n {
+                    v *= 2;
+                }
+                if v < best {
+                    best = v;
+                }
+                p3 *= 3;
+            }
+            p5 *= 5;
+        }
+        p7 *= 7;
+    }
+    best
+}
+
+type Fwd = Arc<dyn RealToComplex<f64>>;
+type Inv = Arc<dyn ComplexToReal<f64>>;
+
+/// One planner for the process: FFT plans (twiddles) are cached by length,
+/// so repeated fits on the same number of rows skip the planning.
+fn plans(l: usize, inverse: bool) -> (Fwd, Option<Inv>) {
+    static PLANNER: OnceLock<Mutex<RealFftPlanner<f64>>> = OnceLock::new();
+    let mut pl = PLANNER
+        .get_or_init(|| Mutex::new(RealFftPlanner::new()))
+        .lock()
+        .unwrap_or_else(|poisoned| poisoned.into_inner());
+    let fwd = pl.plan_fft_forward(l);
+    let inv = inverse.then(|| pl.plan_fft_inverse(l));
+    (fwd, inv)
+}
+
+/// Per-worker FFT buffers (input, output, scratch), back to the pool on drop.
+struct Bufs(Vec<f64>, Vec<Complex<f64>>, Vec<Complex<f64>>);
+
+impl Drop for Bufs {
+    fn drop(&mut self) {
+        give_real(std::mem::take(&mut self.0));
+        give_cplx(std::mem::take(&mut self.1));
+    }
+}
+
+/// Rows of the half spectrum per block of the Gram product (fixed, so the
+/// summation order does not depend on the number of threads).
+const GRAM_BLOCK: usize = 16_384;
+
+fn fft_err(e: impl std::fmt::Display) -> AeroError {
+    AeroError::invalid("coloured-residual covariance", format!("FFT failed: {e}"))
+}
+
+/// The middle matrix `M = Xᵀ T X` of the coloured-residual covariance
+/// (module docs), `p × p`.
+///
+/// `fill_col(b, out)` writes column `b` of the regressor matrix (its `N`
+/// rows, in time order) into `out[..N]`. `v` holds the `N` residuals.
+/// `max_lag` truncates the autocorrelation (`None`: all lags).
+pub fn toeplitz_gram<F>(
+    p: usize,
+    fill_col: F,
+    v: &[f64],
+    max_lag: Option<usize>,
+) -> Result<Mat<f64>>
+where
+    F: Fn(usize, &mut [f64]) + Sync,
+{
+    let n = v.len();
+    if n == 0 || p == 0 {
+        return Ok(Mat::zeros(p, p));
+    }
+    let l = fast_len(2 * n - 1);
+    let kh = l / 2 + 1;
+    let truncate = max_lag.is_some_and(|k| k + 1 < n);
+    let (r2c, c2r) = plans(l, truncate);
+
+    // Residual power spectrum S = |V|² / N  (DFT of the biased autocorrelation).
+    let mut buf = take_real(l);
+    buf[..n].copy_from_slice(v);
+    buf[n..].fill(0.0);
+    let mut spec = take_cplx(kh);
+    r2c.process(&mut buf, &mut spec).map_err(fft_err)?;
+    let inv_n = 1.0 / n as f64;
+    let mut s = take_real(kh);
+    for (sk, c) in s.iter_mut().zip(&spec) {
+        *sk = c.norm_sqr() * inv_n;
+    }
+
+    if let (Some(k), Some(c2r)) = (max_lag, c2r) {
+        {
+            // Back to lags, zero |lag| > k, forward again.
+            let mut sc: Vec<Complex<f64>> = s.iter().map(|&x| Complex::new(x, 0.0)).collect();
+            let mut r = vec![0.0; l];
+            c2r.process(&mut sc, &mut r).map_err(fft_err)?;
+            let inv_l = 1.0 / l as f64;
+            for (tau, val) in r.iter_mut().enumerate() {
+                let lag = tau.min(l - tau);
+                *val = if lag <= k { *val * inv_l } else { 0.0 };
+            }
+            r2c.process(&mut r, &mut spec).map_err(fft_err)?;
+            for (sk, c) in s.iter_mut().zip(&spec) {
+                *sk = c.re;
+            }
+        }
+    }
+
+    // Parseval weights over the half spectrum: interior bins count twice.
+    let inv_l = 1.0 / l as f64;
+    for (k, sk) in s.iter_mut().enumerate() {
+        let twice = k != 0 && !(l % 2 == 0 && k == l / 2);
+        *sk *= inv_l * if twice { 2.0 } else { 1.0 };
+    }
+    let w = s;
+    let all_nonneg = w.iter().all(|&x| x >= 0.0);
+    let mut sw = take_real(if all_nonneg { kh } else { 0 });
+    for (o, x) in sw.iter_mut().zip(&w) {
+        *o = x.sqrt();
+    }
+
+    // Column spectra, stored as real and imaginary parts, column-major kh × p.
+    let mut re = take_real(kh * p);
+    let mut im = take_real(kh * p);
+    // Per-worker buffers, reused across columns (fresh 2N-long buffers per
+    // column would cost as much in page faults as the FFT itself).
+    let new_bufs = || Bufs(take_real(l), take_cplx(kh), r2c.make_scratch_vec());
+    let one_col = |bufs: &mut Bufs, b: usize, re_b: &mut [f64], im_b: &mut [f64]| -> Result<()> {
+        let Bufs(buf, out, scratch) = bufs;
+        fill_col(b, &mut buf[..n]);
+        buf[n..].iter_mut().for_each(|v| *v = 0.0);
+        r2c.process_with_scratch(buf, out, scratch)
+            .map_err(fft_err)?;
+        if all_nonneg {
+            for (((r, i), o), s) in re_b
+                .iter_mut()
+                .zip(im_b.iter_mut())
+                .zip(out.iter())
+                .zip(&sw)
+            {
+                *r = o.re * s;
+                *i = o.im * s;
+            }
+        } else {
+            for ((r, i), o) in re_b.iter_mut().zip(im_b.iter_mut()).zip(out.iter()) {
+                *r = o.re;
+                *i = o.im;
+            }
+        }
+        Ok(())
+    };
+    #[cfg(feature = "parallel")]
+    {
+        use rayon::prelude::*;
+        re.par_chunks_mut(kh)
+            .zip(im.par_chunks_mut(kh))
+            .enumerate()
+            .try_for_each_init(new_bufs, |bufs, (b, (rb, ib))| one_col(bufs, b, rb, ib))?;
+    }
+    #[cfg(not(feature = "parallel"))]
+    {
+        let mut bufs = new_bufs();
+        for (b, (rb, ib)) in re.chunks_mut(kh).zip(im.chunks_mut(kh)).enumerate() {
+            one_col(&mut bufs, b, rb, ib)?;
+        }
+    }
+
+    let re_m = MatRef::from_column_major_slice(&re, kh, p);
+    let im_m = MatRef::from_column_major_slice(&im, kh, p);
+    let gram_block = |s: usize, e: usize| -> Mat<f64> {
+        let r = re_m.subrows(s, e - s);
+        let i = im_m.subrows(s, e - s);
+        if all_nonneg {
+            r.transpose() * r + i.transpose() * i
+        } else {
+            let rw = Mat::from_fn(e - s, p, |k, b| r[(k, b)] * w[s + k]);
+            let iw = Mat::from_fn(e - s, p, |k, b| i[(k, b)] * w[s + k]);
+            r.transpose() * &rw + i.transpose() * &iw
+        }
+    };
+    let nblocks = kh.div_ceil(GRAM_BLOCK);
+    let run = |c: usize| gram_block(c * GRAM_BLOCK, ((c + 1) * GRAM_BLOCK).min(kh));
+    #[cfg(feature = "parallel")]
+    let grams: Vec<Mat<f64>> = {
+        use rayon::prelude::*;
+        (0..nblocks).into_par_iter().map(run).collect()
+    };
+    #[cfg(not(feature = "parallel"))]
+    let grams: Vec<Mat<f64>> = (0..nblocks).map(run).collect();
+    let mut m = Mat::<f64>::zeros(p, p);
+    for g in &grams {
+        m += g;
+    }
+    give_real(re);
+    give_real(im);
+    give_real(w);
+    give_real(sw);
+    give_real(buf);
+    give_cplx(spec);
+    // Symmetrise (the two triangles differ only by rounding).
+    Ok(Mat::from_fn(p, p, |a, b| 0.5 * (m[(a, b)] + m[(b, a)])))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Direct O(N²) double sum, the definition.
+    fn direct(x: &[Vec<f64>], v: &[f64], max_lag: Option<usize>) -> Vec<Vec<f64>> {
+        let n = v.len();
+        let p = x.len();
+        let r: Vec<f64> = (0..n)
+            .map(|k| (0..n - k).map(|t| v[t] * v[t + k]).sum::<f64>() / n as f64)
+            .collect();
+        let mut m = vec![vec![0.0; p]; p];
+        for a in 0..p {
+            for b in 0..p {
+                let mut acc = 0.0;
+                for i in 0..n {
+                    for j in 0..n {
+                        let lag = i.abs_diff(j);
+                        if max_lag.is_some_and(|k| lag > k) {
+                            continue;
+                        }
+                        acc += x[a][i] * r[lag] * x[b][j];
+                    }
+                }
+                m[a][b] = acc;
+            }
+        }
+        m
+    }
+
+    #[test]
+    fn fast_len_is_smooth_and_not_below() {
+        for n in [1, 2, 7, 11, 13, 97, 1000, 1_999_999, 2_000_001] {
+            let l = fast_len(n);
+            assert!(l >= n);
+            let mut r = l;
+            for f in [2, 3, 5, 7] {
+                while r % f == 0 {
+                    r /= f;
+                }
+            }
+            assert_eq!(r, 1, "{l}");
+        }
+        assert_eq!(fast_len(1_999_999), 2_000_000);
+    }
+
+    #[test]
+    fn fft_gram_matches_double_sum() {
+        let n = 53;
+        let x: Vec<Vec<f64>> = (0..3)
+            .map(|a| {
+                (0..n)
+                    .map(|i| ((i * (a + 2)) as f64 * 0.37).sin() + a as f64)
+                    .collect()
+            })
+            .collect();
+        let v: Vec<f64> = (0..n)
+            .map(|i| ((i as f64) * 0.21).cos() * 0.3 + 0.01 * i as f64)
+            .collect();
+        for lag in [None, Some(0), Some(5), Some(60)] {
+            let m = toeplitz_gram(3, |b, out| out.copy_from_slice(&x[b]), &v, lag).unwrap();
+            let d = direct(&x, &v, lag);
+            for a in 0..3 {
+                for b in 0..3 {
+                    let tol = 1e-11 * d[a][a].abs().max(d[b][b].abs());
+                    assert!(
+                        (m[(a, b)] - d[a][b]).abs() <= tol,
+                        "{lag:?} {a} {b} {} {}",
+                        m[(a, b)],
+                        d[a][b]
+                    );
+                }
+            }
+        }
+    }
+}

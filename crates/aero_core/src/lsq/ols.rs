@@ -1,0 +1,1053 @@
+//! The OLS fit itself. See [`ols`] for the method and the conventions.
+
+// Index loops over the p columns read closer to the formulas.
+#![allow(clippy::needless_range_loop)]
+
+use std::borrow::Cow;
+
+use faer::Mat;
+
+use super::colored::toeplitz_gram;
+use super::pool::{give_real, take_real};
+use super::stats::{f_sf, student_t_sf_two_sided};
+use crate::error::{AeroError, Result};
+
+/// Default threshold on the condition index (`σ_max / σ_k`) of the
+/// column-normalized regressor matrix above which a singular direction is a
+/// *near dependency*: the parameters loading on it are marked not
+/// identifiable (their variance is inflated by more than ~1e12 relative to
+/// an orthogonal design of the same column norms).
+pub const COLLINEAR_COND_DEFAULT: f64 = 1e6;
+/// A column belongs to a near dependency when at least this share of the
+/// variance of its parameter comes from that singular direction (Belsley,
+/// Kuh & Welsch 1980, variance-decomposition proportions of the
+/// column-normalized X). The same share summed over all near dependencies
+/// marks a parameter not identifiable.
+pub const VDP_MIN: f64 = 0.5;
+/// A column belongs to an exact dependency (zero singular value) when the
+/// absolute loading of the unit null vector on it is at least this.
+pub const LOADING_EXACT_MIN: f64 = 1e-6;
+/// Variance inflation factors above this get a note (the usual rule of thumb).
+pub const VIF_NOTE: f64 = 10.0;
+
+/// Rows per chunk of the tall-skinny QR (fixed, so results do not depend
+/// on the number of threads).
+const CHUNK: usize = 2048;
+
+/// Options of [`ols`].
+#[derive(Debug, Clone)]
+pub struct OlsOptions {
+    /// Drop rows where X or z is not finite (NaN, ±inf) instead of refusing
+    /// them. Default `false`: an error lists the first bad rows.
+    pub drop_nan: bool,
+    /// Compute the coloured-residual covariance (Morelli & Klein Eq. 5.80).
+    /// Default `true`.
+    pub colored: bool,
+    /// Truncate the residual autocorrelation beyond this lag (samples) in the
+    /// coloured-residual covariance. Default `None`: all lags, as `r_colores`.
+    pub max_lag: Option<usize>,
+    /// Accept an exactly rank-deficient X and return the minimum-norm
+    /// solution (as `numpy.linalg.lstsq`); the parameters of the dependent
+    /// columns are then marked not identifiable. Default `false`: error.
+    pub min_norm: bool,
+    /// Condition-index threshold of a near dependency
+    /// ([`COLLINEAR_COND_DEFAULT`]).
+    pub collinear_cond: f64,
+    /// Column names for messages and notes (empty: `x0, x1, ...`).
+    pub names: Vec<String>,
+}
+
+impl Default for OlsOptions {
+    fn default() -> Self {
+        OlsOptions {
+            drop_nan: false,
+            colored: true,
+            max_lag: None,
+            min_norm: false,
+            collinear_cond: COLLINEAR_COND_DEFAULT,
+            names: Vec::new(),
+        }
+    }
+}
+
+/// One (near) null direction of the column-normalized regressor matrix.
+#[derive(Debug, Clone, PartialEq)]
+pub struct NearDependency {
+    /// `σ_max / σ_k` of the column-normalized X (infinite for an exact zero).
+    pub condition_index: f64,
+    /// Columns involved: variance-decomposition proportion >= [`VDP_MIN`]
+    /// (near), or |loading| >= [`LOADING_EXACT_MIN`] (exact); largest loading first.
+    pub columns: Vec<usize>,
+    /// Their variance-decomposition proportions (NaN for an exact dependency).
+    pub proportions: Vec<f64>,
+    /// Their loadings (components of the unit right singular vector).
+    pub loadings: Vec<f64>,
+}
+
+/// Collinearity diagnostics of a fit.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Collinearity {
+    /// Condition number of the column-normalized X (each column scaled to unit norm).
+    pub condition_number: f64,
+    /// Condition number of X as given.
+    pub condition_number_unscaled: f64,
+    /// Variance inflation factors `1/(1 - R_j²)`, `R_j²` of column j
+    /// regressed on the others (centered when another column is constant,
+    /// as statsmodels' `variance_inflation_factor`).
+    pub vif: Vec<f64>,
+    /// Near and exact dependencies, worst first.
+    pub dependencies: Vec<NearDependency>,
+    /// True when X is numerically rank deficient.
+    pub rank_deficient: bool,
+}
+
+/// The result of [`ols`]. Matrices are row-major `p × p`.
+#[derive(Debug, Clone)]
+pub struct OlsFit {
+    /// Column names.
+    pub names: Vec<String>,
+    /// Estimates θ̂ (thesis Eq. 2.13), units of z per unit of each column.
+    pub params: Vec<f64>,
+    /// Conventional covariance `s² (XᵀX)⁻¹` (pseudo-inverse if minimum-norm).
+    pub cov: Vec<f64>,
+    /// Conventional standard errors.
+    pub std_err: Vec<f64>,
+    /// Coloured-residual covariance (Morelli & Klein Eq. 5.80), if asked.
+    pub cov_colored: Option<Vec<f64>>,
+    /// Standard errors corrected for coloured residuals, if asked.
+    pub std_err_colored: Option<Vec<f64>>,
+    /// t statistics θ̂ / s(θ̂).
+    pub t_values: Vec<f64>,
+    /// Two-sided p-values of the t statistics (Student t, `dof` degrees of freedom).
+    pub p_values: Vec<f64>,
+    /// Partial F per parameter, thesis Eq. 2.5: θ̂² / s²(θ̂).
+    pub partial_f: Vec<f64>,
+    /// Coefficient of determination (centered if X has a constant column, else uncentered).
+    pub r2: f64,
+    /// Adjusted R²: `1 - (N - k_const)/(N - rank) (1 - R²)`.
+    pub r2_adj: f64,
+    /// Overall F statistic of the regression (model vs constant-only or vs zero).
+    pub f_value: f64,
+    /// Its p-value.
+    pub f_pvalue: f64,
+    /// Residual variance `s² = RSS / (N - rank)`.
+    pub s2: f64,
+    /// Residual sum of squares.
+    pub rss: f64,
+    /// Total sum of squares used for R² (centered or not, see `r2`).
+    pub tss: f64,
+    /// Fit error `100 rms(v) / rms(z)`, percent.
+    pub fit_error_pct: f64,
+    /// Predicted residual sum of squares `Σ (v_i / (1 - h_ii))²`.
+    pub press: f64,
+    /// Predicted squared error (Morelli): `RSS/N + σ²_max rank/N`, with
+    /// `σ²_max = Σ (z - z̄)² / N`.
+    pub pse: f64,
+    /// Singular values of X, descending.
+    pub singular_values: Vec<f64>,
+    /// Singular values of the column-normalized X, descending.
+    pub singular_values_scaled: Vec<f64>,
+    /// Condition number of the column-normalized X.
+    pub condition_number: f64,
+    /// Numerical rank.
+    pub rank: usize,
+    /// Collinearity diagnostics.
+    pub collinearity: Collinearity,
+    /// Whether each parameter is identifiable from these data.
+    pub identifiable: Vec<bool>,
+    /// One note per parameter ("" when none): why not identifiable, high VIF.
+    pub notes: Vec<String>,
+    /// Number of rows used.
+    pub nobs: usize,
+    /// Residual degrees of freedom `N - rank`.
+    pub dof: usize,
+    /// Model degrees of freedom `rank - k_const`.
+    pub df_model: usize,
+    /// Index of the constant column, if any.
+    pub const_column: Option<usize>,
+    /// Mean of the residuals.
+    pub residual_mean: f64,
+    /// Rows dropped for non-finite values (with `drop_nan`), input indices.
+    pub dropped_rows: Vec<usize>,
+}
+
+/// The rows a fit uses: all, or a list of input row indices.
+struct Rows<'a> {
+    list: Option<Cow<'a, [usize]>>,
+    m: usize,
+}
+
+impl Rows<'_> {
+    #[inline]
+    fn get(&self, k: usize) -> usize {
+        match &self.list {
+            Some(l) => l[k],
+            None => k,
+        }
+    }
+}
+
+/// Run `f(start, end)` on fixed chunks of `0..m`, in parallel when the
+/// `parallel` feature is on; the results come back in chunk order.
+fn chunked<T: Send, F: Fn(usize, usize) -> T + Sync>(m: usize, chunk: usize, f: F) -> Vec<T> {
+    let nchunks = m.div_ceil(chunk);
+    let run = |c: usize| f(c * chunk, ((c + 1) * chunk).min(m));
+    #[cfg(feature = "parallel")]
+    {
+        use rayon::prelude::*;
+        (0..nchunks).into_par_iter().map(run).collect()
+    }
+    #[cfg(not(feature = "parallel"))]
+    {
+        (0..nchunks).map(run).collect()
+    }
+}
+
+fn no_convergence(what: &str) -> AeroError {
+    AeroError::NoConvergence {
+        place: "least squares".into(),
+        iterations: 0,
+        residual: f64::NAN,
+        message: format!("the SVD of the triangular factor did not converge ({what})"),
+    }
+}
+
+/// Ordinary least squares `z ≈ X θ` on all rows.
+///
+/// `x` is row-major `nrows × ncols` (a C-contiguous numpy array), `z` has
+/// `nrows` values. Intercepts are the caller's: include a column of ones.
+///
+/// # Method
+/// The estimate minimises thesis Eq. 2.12 and equals Eq. 2.13 / 3.10, but
+/// the normal equations are never formed: a Householder QR of `[X | z]`
+/// (faer), computed as a tall-skinny QR over fixed chunks of 2048 rows
+/// (parallel with the `parallel` feature, bit-identical whatever the number
+/// of threads), gives `R` and `Qᵀz`; `θ̂ = R⁻¹ Qᵀz` and `(XᵀX)⁻¹ = R⁻¹R⁻ᵀ`.
+/// Leverages for PRESS are `h_i = ‖x_iᵀ R⁻¹‖²` (the rows of the thin Q).
+/// The coloured-residual covariance ([`super::colored`]) is evaluated as
+/// `R⁻¹ (Qᵀ T Q) R⁻ᵀ` with `Q = X R⁻¹`, which equals the textbook
+/// `(XᵀX)⁻¹ Xᵀ T X (XᵀX)⁻¹` but does not cancel for near-collinear X. Long
+/// work buffers are recycled between calls (a process-wide pool of at most
+/// 1 GiB), since first-touch page faults cost as much as the FFTs.
+///
+/// # Conventions
+/// - R² is centered (`TSS = Σ(z − z̄)²`) when X has a constant column (a
+///   non-zero column with all values equal), uncentered (`TSS = Σz²`)
+///   otherwise, as statsmodels (implicit constants, e.g. dummies summing to
+///   one, are not detected). Adjusted R², overall F and VIFs follow
+///   statsmodels likewise.
+/// - PSE (Morelli & Klein Ch. 5; SIDPAC `lesq`/`pse`): `RSS/N + σ²_max·p/N`
+///   with `σ²_max = Σ(z − z̄)²/N` and `p` the rank.
+/// - Fit error: `100·rms(v)/rms(z)` percent (rms about zero, not the mean).
+///
+/// # Rank and collinearity
+/// Singular values of `R D⁻¹` (D: column norms) are those of the
+/// column-normalized X. The rank counts those above `σ_max·max(N,p)·ε`
+/// (the LAPACK/numpy `matrix_rank` tolerance). An exactly rank-deficient X
+/// is refused with an error naming the dependent columns unless
+/// `min_norm` is set. Directions with condition index above
+/// `collinear_cond` are reported in [`Collinearity`]; a parameter that takes
+/// at least [`VDP_MIN`] of its variance from such directions (Belsley's
+/// variance-decomposition proportions) is marked not identifiable with a
+/// note naming the columns it is collinear with.
+///
+/// # Errors
+/// Shapes that do not match, non-finite values (unless `drop_nan`), fewer
+/// rows than parameters plus one, rank deficiency (unless `min_norm`).
+pub fn ols(x: &[f64], nrows: usize, ncols: usize, z: &[f64], opts: &OlsOptions) -> Result<OlsFit> {
+    fit(x, nrows, ncols, z, None, opts)
+}
+
+/// [`ols`] on a subset of rows of `x`/`z` (input row indices, any order;
+/// the order matters only for the coloured-residual correction, which
+/// treats consecutive listed rows as consecutive samples). Nothing is
+/// copied but the chunks the QR works on.
+pub fn ols_rows(
+    x: &[f64],
+    nrows: usize,
+    ncols: usize,
+    z: &[f64],
+    rows: &[usize],
+    opts: &OlsOptions,
+) -> Result<OlsFit> {
+    if let Some(&bad) = rows.iter().find(|&&r| r >= nrows) {
+        return Err(AeroError::out_of_range(
+            "ols rows",
+            format!("row index {bad} but X has {nrows} rows"),
+        ));
+    }
+    fit(x, nrows, ncols, z, Some(rows), opts)
+}
+
+fn col_name(names: &[String], j: usize) -> String {
+    names.get(j).cloned().unwrap_or_else(|| format!("x{j}"))
+}
+
+fn quoted_list(names: &[String], cols: &[usize]) -> String {
+    cols.iter()
+        .map(|&j| format!("'{}'", col_name(names, j)))
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+/// Refuse or drop non-finite rows; returns the rows to use and the dropped ones.
+fn select_rows<'a>(
+    x: &[f64],
+    p: usize,
+    z: &[f64],
+    rows: Option<&'a [usize]>,
+    opts: &OlsOptions,
+) -> Result<(Rows<'a>, Vec<usize>)> {
+    let m0 = rows.map_or(z.len(), |r| r.len());
+    let row_ok = |r: usize| z[r].is_finite() && x[r * p..(r + 1) * p].iter().all(|v| v.is_finite());
+    let all_finite = match rows {
+        None => x.iter().all(|v| v.is_finite()) && z.iter().all(|v| v.is_finite()),
+        Some(l) => l.iter().all(|&r| row_ok(r)),
+    };
+    if all_finite {
+        return Ok((
+            Rows {
+                list: rows.map(Cow::Borrowed),
+                m: m0,
+            },
+            Vec::new(),
+        ));
+    }
+    let idx = |k: usize| rows.map_or(k, |l| l[k]);
+    let bad: Vec<usize> = (0..m0).map(idx).filter(|&r| !row_ok(r)).collect();
+    if !opts.drop_nan {
+        let shown: Vec<String> = bad
+            .iter()
+            .take(10)
+            .map(|&r| {
+                let what = if !z[r].is_finite() {
+                    "z".to_string()
+                } else {
+                    let j = x[r * p..(r + 1) * p]
+                        .iter()
+                        .position(|v| !v.is_finite())
+                        .unwrap_or(0);
+                    format!("column '{}'", col_name(&opts.names, j))
+                };
+                format!("row {r} ({what})")
+            })
+            .collect();
+        let more = if bad.len() > 10 {
+            format!(" and {} more", bad.len() - 10)
+        } else {
+            String::new()
+        };
+        return Err(AeroError::invalid(
+            "least squares data",
+            format!(
+                "{} rows contain NaN or infinite values: {}{more}; clean them or ask to drop them (drop_nan)",
+                bad.len(),
+                shown.join(", ")
+            ),
+        ));
+    }
+    let kept: Vec<usize> = (0..m0).map(idx).filter(|&r| row_ok(r)).collect();
+    let m = kept.len();
+    Ok((
+        Rows {
+            list: Some(Cow::Owned(kept)),
+            m,
+        },
+        bad,
+    ))
+}
+
+/// Count, mean, min, max and centered sum of squares of each column of
+/// `[X | z]`, plus Σz²; merged over chunks by Chan et al.'s pairwise formula
+/// (in chunk order, so deterministic).
+#[derive(Clone)]
+struct ColStats {
+    n: f64,
+    mean: Vec<f64>,
+    min: Vec<f64>,
+    max: Vec<f64>,
+    m2: Vec<f64>,
+    zz: f64,
+}
+
+impl ColStats {
+    fn of_block(a: faer::MatRef<'_, f64>) -> Self {
+        let (rows, n) = a.shape();
+        let mut st = ColStats {
+            n: rows as f64,
+            mean: vec![0.0; n],
+            min: vec![f64::INFINITY; n],
+            max: vec![f64::NEG_INFINITY; n],
+            m2: vec![0.0; n],
+            zz: 0.0,
+        };
+        for j in 0..n {
+            let col = a.col(j);
+            let (mut s, mut lo, mut hi) = (0.0, f64::INFINITY, f64::NEG_INFINITY);
+            for &v in col.iter() {
+                s += v;
+                lo = lo.min(v);
+                hi = hi.max(v);
+            }
+            let mean = s / rows as f64;
+            let (mut m2, mut ss) = (0.0, 0.0);
+            for &v in col.iter() {
+                let d = v - mean;
+                m2 += d * d;
+                ss += v * v;
+            }
+            st.mean[j] = mean;
+            st.min[j] = lo;
+            st.max[j] = hi;
+            st.m2[j] = m2;
+            if j == n - 1 {
+                st.zz = ss;
+            }
+        }
+        st
+    }
+
+    fn merge(&mut self, o: &ColStats) {
+        let n = self.n + o.n;
+        for j in 0..self.mean.len() {
+            let delta = o.mean[j] - self.mean[j];
+            self.m2[j] += o.m2[j] + delta * delta * self.n * o.n / n;
+            self.mean[j] += delta * o.n / n;
+            self.min[j] = self.min[j].min(o.min[j]);
+            self.max[j] = self.max[j].max(o.max[j]);
+        }
+        self.zz += o.zz;
+        self.n = n;
+    }
+}
+
+/// Upper-triangular R (`(p+1) × (p+1)`) of `[X | z]` by a tall-skinny
+/// Householder QR over fixed chunks, and the column statistics.
+fn tsqr(x: &[f64], p: usize, z: &[f64], rows: &Rows<'_>) -> (Mat<f64>, ColStats) {
+    let n = p + 1;
+    let chunk_r = |start: usize, end: usize| -> (Mat<f64>, ColStats) {
+        let a = Mat::from_fn(end - start, n, |i, j| {
+            let r = rows.get(start + i);
+            if j < p {
+                x[r * p + j]
+            } else {
+                z[r]
+            }
+        });
+        let st = ColStats::of_block(a.as_ref());
+        (upper(a.qr().thin_R()), st)
+    };
+    let parts = chunked(rows.m, CHUNK, chunk_r);
+    let mut stats = parts[0].1.clone();
+    for (_, st) in &parts[1..] {
+        stats.merge(st);
+    }
+    if parts.len() == 1 {
+        return (pad_square(&parts[0].0, n), stats);
+    }
+    let total: usize = parts.iter().map(|(r, _)| r.nrows()).sum();
+    let mut stacked = Mat::zeros(total, n);
+    let mut at = 0;
+    for (r, _) in &parts {
+        for i in 0..r.nrows() {
+            for j in i..n {
+                stacked[(at + i, j)] = r[(i, j)];
+            }
+        }
+        at += r.nrows();
+    }
+    (pad_square(&upper(stacked.qr().thin_R()), n), stats)
+}
+
+fn upper(r: faer::MatRef<'_, f64>) -> Mat<f64> {
+    Mat::from_fn(
+        r.nrows(),
+        r.ncols(),
+        |i, j| if j >= i { r[(i, j)] } else { 0.0 },
+    )
+}
+
+fn pad_square(r: &Mat<f64>, n: usize) -> Mat<f64> {
+    Mat::from_fn(n, n, |i, j| if i < r.nrows() { r[(i, j)] } else { 0.0 })
+}
+
+/// Inverse of a non-singular upper-triangular matrix by back substitution.
+fn inv_upper(r: &Mat<f64>) -> Mat<f64> {
+    let p = r.nrows();
+    let mut inv = Mat::<f64>::zeros(p, p);
+    for j in 0..p {
+        // Solve R x = e_j; x is zero below j.
+        for i in (0..=j).rev() {
+            let mut s = if i == j { 1.0 } else { 0.0 };
+            for k in i + 1..=j {
+                s -= r[(i, k)] * inv[(k, j)];
+            }
+            inv[(i, j)] = s / r[(i, i)];
+        }
+    }
+    inv
+}
+
+fn fit(
+    x: &[f64],
+    nrows: usize,
+    p: usize,
+    z: &[f64],
+    rows: Option<&[usize]>,
+    opts: &OlsOptions,
+) -> Result<OlsFit> {
+    if p == 0 {
+        return Err(AeroError::invalid(
+            "X",
+            "has no columns: give at least one regressor",
+        ));
+    }
+    if x.len() != nrows * p {
+        return Err(AeroError::invalid(
+            "X",
+            format!("has {} values for {nrows} rows x {p} columns", x.len()),
+        ));
+    }
+    if z.len() != nrows {
+        return Err(AeroError::invalid(
+            "z",
+            format!("has {} values but X has {nrows} rows", z.len()),
+        ));
+    }
+    if !opts.names.is_empty() && opts.names.len() != p {
+        return Err(AeroError::invalid(
+            "names",
+            format!("{} names for {p} columns", opts.names.len()),
+        ));
+    }
+    let names: Vec<String> = (0..p).map(|j| col_name(&opts.names, j)).collect();
+    let (rows, dropped) = select_rows(x, p, z, rows, opts)?;
+    let m = rows.m;
+    if m <= p {
+        return Err(AeroError::too_little(
+            "least squares",
+            format!(
+                "{m} usable rows for {p} parameters: need at least {} rows",
+                p + 1
+            ),
+        ));
+    }
+
+    // QR of [X | z] and column statistics (constant detection, centered
+    // sums for R² and VIF) in one pass.
+    let (raug, cs) = tsqr(x, p, z, &rows);
+    let col_css = cs.m2[..p].to_vec();
+    let (z_css, z_ss) = (cs.m2[p], cs.zz);
+    let const_column = (0..p).find(|&j| cs.min[j] == cs.max[j] && cs.max[j] != 0.0);
+    let r = Mat::from_fn(p, p, |i, j| raug[(i, j)]);
+    let qtz: Vec<f64> = (0..p).map(|i| raug[(i, p)]).collect();
+
+    // Column norms and singular values (scaled and not).
+    let d: Vec<f64> = (0..p)
+        .map(|j| (0..=j).map(|i| r[(i, j)] * r[(i, j)]).sum::<f64>().sqrt())
+        .collect();
+    let rs = Mat::from_fn(p, p, |i, j| if d[j] > 0.0 { r[(i, j)] / d[j] } else { 0.0 });
+    let svd_s = rs.svd().map_err(|_| no_convergence("column-normalized"))?;
+    let sv_scaled: Vec<f64> = (0..p).map(|k| svd_s.S()[k]).collect();
+    let vs = svd_s.V();
+    let svd_u = r.svd().map_err(|_| no_convergence("unscaled"))?;
+    let sv: Vec<f64> = (0..p).map(|k| svd_u.S()[k]).collect();
+    let smax = sv_scaled[0];
+    let tol = smax * (m.max(p) as f64) * f64::EPSILON;
+    let rank = sv_scaled.iter().filter(|&&s| s > tol).count();
+    let cond = |s: &[f64]| {
+        if s[p - 1] > 0.0 {
+            s[0] / s[p - 1]
+        } else {
+            f64::INFINITY
+        }
+    };
+    let condition_number = cond(&sv_scaled);
+    let condition_number_unscaled = cond(&sv);
+
+    // Variance-decomposition proportions over the non-null directions.
+    let phi = |j: usize, k: usize| (vs[(j, k)] / sv_scaled[k]).powi(2);
+    let phi_tot: Vec<f64> = (0..p)
+        .map(|j| {
+            (0..p)
+                .filter(|&k| sv_scaled[k] > tol)
+                .map(|k| phi(j, k))
+                .sum()
+        })
+        .collect();
+    let mut near_share = vec![0.0; p];
+    let mut dependencies = Vec::new();
+    for k in (0..p).rev() {
+        let ci = if sv_scaled[k] > 0.0 {
+            smax / sv_scaled[k]
+        } else {
+            f64::INFINITY
+        };
+        let exact = sv_scaled[k] <= tol;
+        if !(exact || ci > opts.collinear_cond) {
+            continue;
+        }
+        let mut cols: Vec<(usize, f64, f64)> = if exact {
+            (0..p)
+                .map(|j| (j, vs[(j, k)], f64::NAN))
+                .filter(|c| c.1.abs() >= LOADING_EXACT_MIN)
+                .collect()
+        } else {
+            (0..p)
+                .map(|j| (j, vs[(j, k)], phi(j, k) / phi_tot[j]))
+                .inspect(|c| near_share[c.0] += c.2)
+                .filter(|c| c.2 >= VDP_MIN)
+                .collect()
+        };
+        cols.sort_by(|a, b| b.1.abs().total_cmp(&a.1.abs()));
+        dependencies.push(NearDependency {
+            condition_index: if exact { f64::INFINITY } else { ci },
+            columns: cols.iter().map(|c| c.0).collect(),
+            loadings: cols.iter().map(|c| c.1).collect(),
+            proportions: cols.iter().map(|c| c.2).collect(),
+        });
+    }
+    let rank_deficient = rank < p;
+    if rank_deficient && !opts.min_norm {
+        let groups: Vec<String> = dependencies
+            .iter()
+            .filter(|dep| dep.condition_index.is_infinite())
+            .map(|dep| format!("[{}]", quoted_list(&names, &dep.columns)))
+            .collect();
+        return Err(AeroError::too_little(
+            "least squares",
+            format!(
+                "X has rank {rank} < {p} columns: linearly dependent columns {}; \
+                 remove or combine them, or ask for the minimum-norm solution (min_norm)",
+                groups.join(", ")
+            ),
+        ));
+    }
+
+    // Solve; B with (XᵀX)⁻¹ = B Bᵀ.
+    let (params, b) = if !rank_deficient {
+        let rinv = inv_upper(&r);
+        let th: Vec<f64> = (0..p)
+            .map(|i| (i..p).map(|k| rinv[(i, k)] * qtz[k]).sum())
+            .collect();
+        (th, rinv)
+    } else {
+        // Truncated SVD of R keeping the `rank` largest singular values.
+        let u = svd_u.U();
+        let v = svd_u.V();
+        let b = Mat::from_fn(p, rank, |i, k| v[(i, k)] / sv[k]);
+        let utc: Vec<f64> = (0..rank)
+            .map(|k| (0..p).map(|i| u[(i, k)] * qtz[i]).sum())
+            .collect();
+        let th: Vec<f64> = (0..p)
+            .map(|i| (0..rank).map(|k| b[(i, k)] * utc[k]).sum())
+            .collect();
+        (th, b)
+    };
+    let nb = b.ncols();
+    let xtx_inv = Mat::from_fn(p, p, |i, j| {
+        (0..nb).map(|k| b[(i, k)] * b[(j, k)]).sum::<f64>()
+    });
+
+    // Residuals and leverages, chunk by chunk: [ŷ | Q] = X_chunk [θ | B]
+    // (h_i = ‖q_i‖²). With the coloured correction the Q blocks are kept
+    // for the FFT stage: the correction is computed as B (Qᵀ T Q) Bᵀ, whose
+    // middle factor is well conditioned, rather than (XᵀX)⁻¹ (Xᵀ T X) (XᵀX)⁻¹,
+    // which cancels catastrophically for near-collinear X.
+    let tb = Mat::from_fn(
+        p,
+        1 + nb,
+        |i, k| if k == 0 { params[i] } else { b[(i, k - 1)] },
+    );
+    let keep_blocks = opts.colored;
+    // With the coloured correction the Q blocks go into one recycled buffer
+    // (chunk after chunk, column-major within a chunk) for the FFTs.
+    let pass2 = |c: usize, blk: &mut [f64]| {
+        let (s, e) = (c * CHUNK, ((c + 1) * CHUNK).min(m));
+        let rn = e - s;
+        for (j, col) in blk.chunks_mut(rn).enumerate() {
+            for (i, o) in col.iter_mut().enumerate() {
+                *o = x[rows.get(s + i) * p + j];
+            }
+        }
+        let w = faer::MatRef::from_column_major_slice(blk, rn, p) * &tb;
+        if keep_blocks {
+            for (k, col) in blk.chunks_mut(rn).take(nb).enumerate() {
+                for (i, o) in col.iter_mut().enumerate() {
+                    *o = w[(i, k + 1)];
+                }
+            }
+        }
+        let mut res = Vec::with_capacity(rn);
+        let (mut rss, mut press, mut sum) = (0.0, 0.0, 0.0);
+        for i in 0..rn {
+            let v = z[rows.get(s + i)] - w[(i, 0)];
+            let h: f64 = (1..=nb).map(|k| w[(i, k)] * w[(i, k)]).sum();
+            let loo = v / (1.0 - h);
+            rss += v * v;
+            press += if h < 1.0 - 1e-12 {
+                loo * loo
+            } else {
+                f64::INFINITY
+            };
+            sum += v;
+            res.push(v);
+        }
+        (res, rss, press, sum)
+    };
+    let mut xcols = if keep_blocks {
+        take_real(m * p)
+    } else {
+        Vec::new()
+    };
+    let parts: Vec<(Vec<f64>, f64, f64, f64)> = if keep_blocks {
+        #[cfg(feature = "parallel")]
+        {
+            use rayon::prelude::*;
+            xcols
+                .par_chunks_mut(CHUNK * p)
+                .enumerate()
+                .map(|(c, blk)| pass2(c, blk))
+                .collect()
+        }
+        #[cfg(not(feature = "parallel"))]
+        {
+            xcols
+                .chunks_mut(CHUNK * p)
+                .enumerate()
+                .map(|(c, blk)| pass2(c, blk))
+                .collect()
+        }
+    } else {
+        chunked(m, CHUNK, |s, e| {
+            let mut blk = vec![0.0; (e - s) * p];
+            pass2(s / CHUNK, &mut blk)
+        })
+    };
+    let mut resid = take_real(m);
+    let (mut rss, mut press, mut rsum) = (0.0, 0.0, 0.0);
+    let mut at = 0;
+    for (r_, a, b_, c) in parts {
+        resid[at..at + r_.len()].copy_from_slice(&r_);
+        at += r_.len();
+        rss += a;
+        press += b_;
+        rsum += c;
+    }
+
+    // Statistics.
+    let dof = m - rank;
+    let s2 = rss / dof as f64;
+    let cov: Vec<f64> = (0..p * p)
+        .map(|ij| s2 * xtx_inv[(ij / p, ij % p)])
+        .collect();
+    let std_err: Vec<f64> = (0..p).map(|j| cov[j * p + j].max(0.0).sqrt()).collect();
+    let t_values: Vec<f64> = params.iter().zip(&std_err).map(|(t, s)| t / s).collect();
+    let p_values: Vec<f64> = t_values
+        .iter()
+        .map(|&t| student_t_sf_two_sided(t, dof as f64))
+        .collect();
+    let partial_f: Vec<f64> = t_values.iter().map(|t| t * t).collect();
+    let k_const = usize::from(const_column.is_some());
+    let tss = if k_const == 1 { z_css } else { z_ss };
+    let r2 = 1.0 - rss / tss;
+    let r2_adj = 1.0 - (m - k_const) as f64 / dof as f64 * (1.0 - r2);
+    let df_model = rank.saturating_sub(k_const);
+    let (f_value, f_pvalue) = if df_model > 0 {
+        let f = ((tss - rss) / df_model as f64) / s2;
+        (f, f_sf(f, df_model as f64, dof as f64))
+    } else {
+        (f64::NAN, f64::NAN)
+    };
+    let fit_error_pct = 100.0 * (rss / z_ss).sqrt();
+    let pse = rss / m as f64 + (z_css / m as f64) * rank as f64 / m as f64;
+    let vif: Vec<f64> = (0..p)
+        .map(|j| {
+            let centered = const_column.is_some_and(|c| c != j);
+            let ss = if centered { col_css[j] } else { d[j] * d[j] };
+            ss * xtx_inv[(j, j)]
+        })
+        .collect();
+
+    // Identifiability and notes.
+    let mut identifiable = vec![true; p];
+    let mut notes = vec![String::new(); p];
+    for dep in &dependencies {
+        for &j in &dep.columns {
+            identifiable[j] = false;
+            let others: Vec<usize> = dep.columns.iter().copied().filter(|&c| c != j).collect();
+            let what = if dep.condition_index.is_infinite() {
+                "linearly dependent on".to_string()
+            } else {
+                format!(
+                    "near-collinear (condition index {:.2e}) with",
+                    dep.condition_index
+                )
+            };
+            let note = format!("not identifiable: {what} {}", quoted_list(&names, &others));
+            if notes[j].is_empty() {
+                notes[j] = note;
+            }
+        }
+    }
+    for j in 0..p {
+        if identifiable[j] && near_share[j] >= VDP_MIN {
+            identifiable[j] = false;
+            notes[j] = format!(
+                "not identifiable: {:.0}% of its variance comes from near-collinear directions",
+                100.0 * near_share[j]
+            );
+        }
+        if notes[j].is_empty() && vif[j] > VIF_NOTE {
+            notes[j] = format!(
+                "VIF {:.1} > {VIF_NOTE}: correlated with other regressors",
+                vif[j]
+            );
+        }
+    }
+
+    // Coloured residuals.
+    let (cov_colored, std_err_colored) = if opts.colored {
+        let fill = |bcol: usize, out: &mut [f64]| {
+            for (c, blk) in xcols.chunks(CHUNK * p).enumerate() {
+                let rn = blk.len() / p;
+                let at = c * CHUNK;
+                out[at..at + rn].copy_from_slice(&blk[bcol * rn..(bcol + 1) * rn]);
+            }
+        };
+        let mid = toeplitz_gram(nb, fill, &resid, opts.max_lag)?;
+        let c = &b * &mid * b.transpose();
+        let cv: Vec<f64> = (0..p * p)
+            .map(|ij| 0.5 * (c[(ij / p, ij % p)] + c[(ij % p, ij / p)]))
+            .collect();
+        let se: Vec<f64> = (0..p).map(|j| cv[j * p + j].max(0.0).sqrt()).collect();
+        (Some(cv), Some(se))
+    } else {
+        (None, None)
+    };
+    give_real(xcols);
+    give_real(resid);
+
+    Ok(OlsFit {
+        names,
+        params,
+        cov,
+        std_err,
+        cov_colored,
+        std_err_colored,
+        t_values,
+        p_values,
+        partial_f,
+        r2,
+        r2_adj,
+        f_value,
+        f_pvalue,
+        s2,
+        rss,
+        tss,
+        fit_error_pct,
+        press,
+        pse,
+        singular_values: sv,
+        singular_values_scaled: sv_scaled,
+        condition_number,
+        rank,
+        collinearity: Collinearity {
+            condition_number,
+            condition_number_unscaled,
+            vif,
+            dependencies,
+            rank_deficient,
+        },
+        identifiable,
+        notes,
+        nobs: m,
+        dof,
+        df_model,
+        const_column,
+        residual_mean: rsum / m as f64,
+        dropped_rows: dropped,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::error::ErrorKind;
+    use proptest::prelude::*;
+
+    fn design(n: usize, p: usize, seed: u64) -> Vec<f64> {
+        // Deterministic pseudo-random design (xorshift), column 0 constant.
+        let mut s = seed.wrapping_mul(6_364_136_223_846_793_005).wrapping_add(1);
+        let mut x = vec![0.0; n * p];
+        for i in 0..n {
+            for j in 0..p {
+                s ^= s << 13;
+                s ^= s >> 7;
+                s ^= s << 17;
+                x[i * p + j] = if j == 0 {
+                    1.0
+                } else {
+                    (s % 10_000) as f64 / 5000.0 - 1.0
+                };
+            }
+        }
+        x
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(32))]
+        #[test]
+        fn recovers_params_on_noise_free_data(
+            seed in 0u64..10_000,
+            n in 20usize..5000,
+            theta in proptest::collection::vec(-100.0f64..100.0, 4),
+        ) {
+            let p = theta.len();
+            let x = design(n, p, seed);
+            let z: Vec<f64> = (0..n).map(|i| (0..p).map(|j| x[i * p + j] * theta[j]).sum()).collect();
+            let f = ols(&x, n, p, &z, &OlsOptions::default()).unwrap();
+            for j in 0..p {
+                prop_assert!((f.params[j] - theta[j]).abs() <= 1e-9 * (1.0 + theta[j].abs()));
+            }
+            prop_assert!(f.rss <= 1e-14 * z.iter().map(|v| v * v).sum::<f64>() + 1e-20);
+            prop_assert!(f.identifiable.iter().all(|&b| b));
+        }
+    }
+
+    #[test]
+    fn chunked_and_single_chunk_agree_and_subset_equals_copy() {
+        let (n, p) = (5000, 3);
+        let x = design(n, p, 7);
+        let z: Vec<f64> = (0..n)
+            .map(|i| x[i * p + 1] * 2.0 - x[i * p + 2] + ((i * 7919) % 13) as f64 * 0.01)
+            .collect();
+        let rows: Vec<usize> = (0..n).filter(|i| i % 3 != 0).collect();
+        let a = ols_rows(&x, n, p, &z, &rows, &OlsOptions::default()).unwrap();
+        let xs: Vec<f64> = rows
+            .iter()
+            .flat_map(|&r| x[r * p..(r + 1) * p].to_vec())
+            .collect();
+        let zs: Vec<f64> = rows.iter().map(|&r| z[r]).collect();
+        let b = ols(&xs, rows.len(), p, &zs, &OlsOptions::default()).unwrap();
+        assert_eq!(a.params, b.params);
+        assert_eq!(a.std_err_colored, b.std_err_colored);
+        // The R² etc. from a 2-chunk and a 1-chunk QR agree closely.
+        let c = ols_rows(&x, n, p, &z, &rows[..1000], &OlsOptions::default()).unwrap();
+        assert!(c.r2 > 0.9);
+    }
+
+    #[test]
+    fn nan_rows_refused_or_dropped() {
+        let (n, p) = (50, 2);
+        let mut x = design(n, p, 3);
+        let mut z: Vec<f64> = (0..n).map(|i| 1.0 + x[i * p + 1]).collect();
+        x[7 * p + 1] = f64::NAN;
+        z[11] = f64::INFINITY;
+        let opts = OlsOptions {
+            names: vec!["one".into(), "beta".into()],
+            ..Default::default()
+        };
+        let e = ols(&x, n, p, &z, &opts).unwrap_err();
+        assert_eq!(e.kind(), ErrorKind::InvalidInput);
+        let msg = e.to_string();
+        assert!(
+            msg.contains("row 7 (column 'beta')") && msg.contains("row 11 (z)"),
+            "{msg}"
+        );
+        let f = ols(
+            &x,
+            n,
+            p,
+            &z,
+            &OlsOptions {
+                drop_nan: true,
+                ..opts
+            },
+        )
+        .unwrap();
+        assert_eq!(f.dropped_rows, vec![7, 11]);
+        assert_eq!(f.nobs, 48);
+        assert!((f.params[1] - 1.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn rank_deficiency_names_columns() {
+        let (n, p) = (40, 4);
+        let mut x = design(n, p, 5);
+        for i in 0..n {
+            x[i * p + 3] = x[i * p + 1] + x[i * p + 2];
+        }
+        let z: Vec<f64> = (0..n).map(|i| x[i * p + 1]).collect();
+        let opts = OlsOptions {
+            names: vec!["c".into(), "a".into(), "b".into(), "s".into()],
+            ..Default::default()
+        };
+        let e = ols(&x, n, p, &z, &opts).unwrap_err();
+        assert_eq!(e.kind(), ErrorKind::TooLittleData);
+        let msg = e.to_string();
+        assert!(
+            msg.contains("'a'")
+                && msg.contains("'b'")
+                && msg.contains("'s'")
+                && !msg.contains("'c'"),
+            "{msg}"
+        );
+        let f = ols(
+            &x,
+            n,
+            p,
+            &z,
+            &OlsOptions {
+                min_norm: true,
+                ..opts
+            },
+        )
+        .unwrap();
+        assert_eq!(f.rank, 3);
+        assert_eq!(f.identifiable, vec![true, false, false, false]);
+    }
+
+    #[test]
+    fn recycled_buffers_do_not_change_results() {
+        let fit_of = |n: usize, seed: u64| {
+            let p = 3;
+            let x = design(n, p, seed);
+            let z: Vec<f64> = (0..n)
+                .map(|i| x[i * p + 1] - 0.5 * x[i * p + 2] + ((i * 31) % 7) as f64 * 0.1)
+                .collect();
+            ols(&x, n, p, &z, &OlsOptions::default()).unwrap()
+        };
+        let a = fit_of(3000, 1);
+        let _ = fit_of(9000, 2);
+        let _ = fit_of(500, 3);
+        let b = fit_of(3000, 1);
+        assert_eq!(a.params, b.params);
+        assert_eq!(a.std_err_colored, b.std_err_colored);
+        assert_eq!(a.press, b.press);
+    }
+
+    #[test]
+    fn too_few_rows() {
+        let x = design(3, 3, 1);
+        let e = ols(&x, 3, 3, &[1.0, 2.0, 3.0], &OlsOptions::default()).unwrap_err();
+        assert_eq!(e.kind(), ErrorKind::TooLittleData);
+    }
+
+    #[test]
+    fn upper_inverse() {
+        let r = Mat::from_fn(
+            3,
+            3,
+            |i, j| if j >= i { (1 + i + 2 * j) as f64 } else { 0.0 },
+        );
+        let inv = inv_upper(&r);
+        let prod = &r * &inv;
+        for i in 0..3 {
+            for j in 0..3 {
+                let e = if i == j { 1.0 } else { 0.0 };
+                assert!((prod[(i, j)] - e).abs() < 1e-14);
+            }
+        }
+    }
+}
