@@ -22,6 +22,8 @@
 //! - [`partition`]: alpha partitioning into bins of enough points (Section 3.3.1);
 //! - [`regressor`]: the expression language of Δ-model regressors
 //!   (dead-band splines of Eq. 3.15-3.16, products, user columns);
+//! - [`identify`]: per-bin equation-error Δ identification with identifiability
+//!   marks, adjacent-bin consistency and smoothing into tables (Sections 3.3-3.4);
 //! - [`delta_model`]: the Δ part of the extended model (Eq. 3.11-3.12, 3.19),
 //!   its versioned file and an allocation-free bound evaluation;
 //! - [`rolloff_detect`]: detection of uncommanded roll-off events (Section 3.4.3);
@@ -34,6 +36,7 @@ pub mod daveml;
 pub mod delta_model;
 pub mod error;
 pub mod fsutil;
+pub mod identify;
 pub mod lsq;
 pub mod partition;
 pub mod preprocess;

@@ -1,0 +1,678 @@
+//! Per-bin equation-error identification of the Δ model (thesis Section
+//! 3.3.2, Eq. 3.5-3.10), adjacent-bin consistency (Section 3.3.4) and the
+//! smoothing of the per-bin parameters into simulator tables (Section 3.4,
+//! Eq. 3.13, 3.19).
+//!
+//! For one coefficient and one flap setting: the qualified-model error
+//! $z = C_{meas} - C_{qual}$ (Eq. 3.5) is regressed on the regressors of the
+//! postulated Δ model (Eq. 3.6-3.9) separately in each angle-of-attack bin
+//! (Section 3.3.1), by least squares (Eq. 3.10, computed by QR in
+//! [`crate::lsq`]). Every parameter of every bin is reported with its
+//! conventional and coloured-residual standard errors and is marked *not
+//! identifiable* — instead of silently kept — when
+//! - the bin has fewer than the required points or maneuvers;
+//! - its regressor hardly varies in the bin (low excitation, Section 3.3.3):
+//!   the regressor's standard deviation in the bin is below
+//!   `min_excitation` times its standard deviation over the flap's data;
+//! - it is collinear with others (the near-dependency diagnostics of
+//!   [`crate::lsq`], Section 3.3.3 "Data Collinearity").
+//!
+//! Rows of a bin are passed to the regression in input order, so the
+//! coloured-residual correction sees each maneuver's samples in time order,
+//! with the segments of different maneuvers spliced one after another.
+
+use crate::error::{AeroError, Result, ResultExt};
+use crate::lsq::{ols_rows, OlsFit, OlsOptions};
+use crate::partition::{partition_alpha, AlphaBins, PartitionOptions};
+use crate::regressor::Expr;
+use crate::spline::{smoothing_spline, Smoothing, SplineExtrapolation};
+
+/// Settings of the per-bin identification.
+#[derive(Debug, Clone)]
+pub struct IdentifyOptions {
+    /// Alpha partitioning (nominal width, points per parameter, maneuvers per bin).
+    pub partition: PartitionOptions,
+    /// Compute coloured-residual standard errors.
+    pub colored: bool,
+    /// Lag truncation of the coloured-residual correction, samples.
+    pub max_lag: Option<usize>,
+    /// A regressor whose in-bin standard deviation is below this fraction of
+    /// its standard deviation over the flap's data is "low excitation".
+    pub min_excitation: f64,
+    /// Condition-index threshold of a near dependency (collinearity).
+    pub collinear_cond: f64,
+}
+
+impl Default for IdentifyOptions {
+    fn default() -> Self {
+        IdentifyOptions {
+            partition: PartitionOptions::default(),
+            colored: true,
+            max_lag: None,
+            min_excitation: 0.05,
+            collinear_cond: OlsOptions::default().collinear_cond,
+        }
+    }
+}
+
+/// A regressor matrix built from expressions over data columns.
+#[derive(Debug, Clone)]
+pub struct Design {
+    /// Parameter names, one per column.
+    pub names: Vec<String>,
+    /// The expressions.
+    pub exprs: Vec<Expr>,
+    /// Row-major values, `nrows × names.len()`.
+    pub values: Vec<f64>,
+    /// Number of rows.
+    pub nrows: usize,
+}
+
+impl Design {
+    /// Evaluate `regressors` (`(name, expression)` pairs) over columns of `n` rows.
+    ///
+    /// # Errors
+    /// [`AeroError::InvalidInput`] naming the regressor that does not parse
+    /// or reads a missing column.
+    pub fn build<'a>(
+        regressors: &[(String, String)],
+        lookup: &dyn Fn(&str) -> Option<&'a [f64]>,
+        n: usize,
+    ) -> Result<Design> {
+        if regressors.is_empty() {
+            return Err(AeroError::invalid(
+                "model structure",
+                "has no regressors; give at least one (e.g. the bias '1')",
+            ));
+        }
+        let p = regressors.len();
+        let mut names = Vec::with_capacity(p);
+        let mut exprs = Vec::with_capacity(p);
+        let mut cols = Vec::with_capacity(p);
+        for (name, src) in regressors {
+            let e = Expr::parse(src).with_context(|| format!("parameter '{name}'"))?;
+            cols.push(
+                e.eval_columns(lookup, n)
+                    .with_context(|| format!("parameter '{name}'"))?,
+            );
+            names.push(name.clone());
+            exprs.push(e);
+        }
+        let mut values = vec![0.0; n * p];
+        for (j, col) in cols.iter().enumerate() {
+            for (i, v) in col.iter().enumerate() {
+                values[i * p + j] = *v;
+            }
+        }
+        Ok(Design {
+            names,
+            exprs,
+            values,
+            nrows: n,
+        })
+    }
+
+    /// Number of parameters.
+    pub fn ncols(&self) -> usize {
+        self.names.len()
+    }
+
+    fn column_std(&self, j: usize, rows: impl Iterator<Item = usize>) -> f64 {
+        let p = self.ncols();
+        let (mut n, mut mean, mut m2) = (0.0f64, 0.0f64, 0.0f64);
+        for r in rows {
+            let v = self.values[r * p + j];
+            if v.is_finite() {
+                n += 1.0;
+                let d = v - mean;
+                mean += d / n;
+                m2 += d * (v - mean);
+            }
+        }
+        if n > 1.0 {
+            (m2 / (n - 1.0)).sqrt()
+        } else {
+            0.0
+        }
+    }
+}
+
+/// The estimate of one bin.
+#[derive(Debug, Clone)]
+pub struct BinFit {
+    /// Lower alpha edge, deg.
+    pub alpha_lo: f64,
+    /// Upper alpha edge, deg.
+    pub alpha_hi: f64,
+    /// Number of samples.
+    pub n: usize,
+    /// Number of distinct maneuvers.
+    pub n_maneuvers: usize,
+    /// Estimates (NaN when the bin could not be fitted).
+    pub params: Vec<f64>,
+    /// Conventional standard errors.
+    pub std_err: Vec<f64>,
+    /// Standard errors corrected for coloured residuals (NaN when not computed).
+    pub std_err_colored: Vec<f64>,
+    /// Partial F per parameter (Eq. 2.5).
+    pub partial_f: Vec<f64>,
+    /// Excitation of each regressor: in-bin std over the flap's std.
+    pub excitation: Vec<f64>,
+    /// Variance inflation factor of each regressor.
+    pub vif: Vec<f64>,
+    /// Whether each parameter is identified in this bin.
+    pub identifiable: Vec<bool>,
+    /// Why not, per parameter ("" when identified).
+    pub notes: Vec<String>,
+    /// R² of the bin's regression.
+    pub r2: f64,
+    /// Condition number of the column-normalized regressors.
+    pub condition_number: f64,
+    /// Residual standard deviation.
+    pub residual_std: f64,
+    /// A note for the whole bin ("" when fitted).
+    pub note: String,
+}
+
+/// Adjacent-bin consistency of one parameter (Section 3.3.4).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Consistency {
+    /// `rms(θ_{k+1} - θ_k) / (√2 rms(θ_k))` over identified neighbours: about
+    /// 1 or more for estimates scattered around zero (not identified), small
+    /// for a parameter that varies smoothly with alpha.
+    pub scatter: f64,
+    /// Median of `|θ_{k+1} - θ_k| / √(s_k² + s_{k+1}²)`: about 0.67 when the
+    /// steps are what the standard errors predict, much larger when the
+    /// standard errors understate the scatter.
+    pub step_z: f64,
+    /// Number of adjacent identified pairs used.
+    pub pairs: usize,
+}
+
+/// All bins of one coefficient and flap setting.
+#[derive(Debug, Clone)]
+pub struct BinnedFit {
+    /// Parameter names.
+    pub names: Vec<String>,
+    /// The bins, in increasing alpha.
+    pub bins: Vec<BinFit>,
+    /// Per parameter.
+    pub consistency: Vec<Consistency>,
+    /// The partition used.
+    pub partition: AlphaBins,
+}
+
+fn fit_one_bin(
+    design: &Design,
+    z: &[f64],
+    rows: &[usize],
+    opts: &IdentifyOptions,
+) -> Result<OlsFit> {
+    let ols_opts = OlsOptions {
+        drop_nan: true,
+        colored: opts.colored,
+        max_lag: opts.max_lag,
+        min_norm: true,
+        collinear_cond: opts.collinear_cond,
+        names: design.names.clone(),
+    };
+    ols_rows(
+        &design.values,
+        design.nrows,
+        design.ncols(),
+        z,
+        rows,
+        &ols_opts,
+    )
+}
+
+/// Identify the Δ parameters bin by bin.
+///
+/// `z` is the qualified-model error (Eq. 3.5), `alpha_deg` the angle of
+/// attack and `maneuver` an integer id per row (for the maneuvers-per-bin
+/// rule and the consistency of the coloured-residual correction).
+///
+/// # Errors
+/// [`AeroError::InvalidInput`] when lengths differ or the data are empty;
+/// partition errors. A bin that cannot be fitted is reported in its
+/// [`BinFit::note`], not as an error.
+pub fn fit_bins(
+    design: &Design,
+    z: &[f64],
+    alpha_deg: &[f64],
+    maneuver: &[u64],
+    opts: &IdentifyOptions,
+) -> Result<BinnedFit> {
+    let n = design.nrows;
+    for (what, len) in [
+        ("z", z.len()),
+        ("alpha_deg", alpha_deg.len()),
+        ("maneuver", maneuver.len()),
+    ] {
+        if len != n {
+            return Err(AeroError::invalid(
+                format!("identification, {what}"),
+                format!("has {len} rows, the regressors have {n}"),
+            ));
+        }
+    }
+    let p = design.ncols();
+    let partition = partition_alpha(alpha_deg, p, Some(maneuver), &opts.partition)?;
+    let nb = partition.counts.len();
+    let mut members: Vec<Vec<usize>> = vec![Vec::new(); nb];
+    for (r, &b) in partition.index.iter().enumerate() {
+        if b >= 0 {
+            members[b as usize].push(r);
+        }
+    }
+    let flap_std: Vec<f64> = (0..p).map(|j| design.column_std(j, 0..n)).collect();
+    let const_col: Vec<bool> = design.exprs.iter().map(Expr::is_constant).collect();
+    let required = opts.partition.min_points_per_param * p;
+
+    let work = |b: usize| -> BinFit {
+        let rows = &members[b];
+        let mut maneuvers: Vec<u64> = rows.iter().map(|&r| maneuver[r]).collect();
+        maneuvers.sort_unstable();
+        maneuvers.dedup();
+        let excitation: Vec<f64> = (0..p)
+            .map(|j| {
+                if const_col[j] {
+                    1.0
+                } else if flap_std[j] > 0.0 {
+                    design.column_std(j, rows.iter().copied()) / flap_std[j]
+                } else {
+                    0.0
+                }
+            })
+            .collect();
+        let nan = vec![f64::NAN; p];
+        let mut bin = BinFit {
+            alpha_lo: partition.edges[b],
+            alpha_hi: partition.edges[b + 1],
+            n: rows.len(),
+            n_maneuvers: maneuvers.len(),
+            params: nan.clone(),
+            std_err: nan.clone(),
+            std_err_colored: nan.clone(),
+            partial_f: nan.clone(),
+            excitation,
+            vif: nan,
+            identifiable: vec![false; p],
+            notes: vec![String::new(); p],
+            r2: f64::NAN,
+            condition_number: f64::NAN,
+            residual_std: f64::NAN,
+            note: String::new(),
+        };
+        if rows.len() < required || maneuvers.len() < opts.partition.min_maneuvers.max(1) {
+            bin.note = format!(
+                "too little data: {} points from {} maneuvers, {} points and {} maneuvers required",
+                rows.len(),
+                maneuvers.len(),
+                required,
+                opts.partition.min_maneuvers.max(1)
+            );
+            bin.notes = vec!["bin not fitted: too little data".into(); p];
+            return bin;
+        }
+        match fit_one_bin(design, z, rows, opts) {
+            Err(e) => {
+                bin.note = format!("not fitted: {e}");
+                bin.notes = vec!["bin not fitted".into(); p];
+            }
+            Ok(fit) => {
+                bin.params = fit.params.clone();
+                bin.std_err = fit.std_err.clone();
+                bin.std_err_colored = fit
+                    .std_err_colored
+                    .clone()
+                    .unwrap_or_else(|| vec![f64::NAN; p]);
+                bin.partial_f = fit.partial_f.clone();
+                bin.vif = fit.collinearity.vif.clone();
+                bin.r2 = fit.r2;
+                bin.condition_number = fit.condition_number;
+                bin.residual_std = fit.s2.sqrt();
+                #[allow(clippy::needless_range_loop)]
+                for j in 0..p {
+                    let mut why = Vec::new();
+                    if !fit.identifiable[j] {
+                        why.push(if fit.notes[j].is_empty() {
+                            "collinear".to_string()
+                        } else {
+                            fit.notes[j].clone()
+                        });
+                    }
+                    if !const_col[j] && bin.excitation[j] < opts.min_excitation {
+                        why.push(format!(
+                            "low excitation: std in bin is {:.1}% of the flap's (minimum {:.1}%)",
+                            100.0 * bin.excitation[j],
+                            100.0 * opts.min_excitation
+                        ));
+                    }
+                    if !bin.params[j].is_finite() || !bin.std_err[j].is_finite() {
+                        why.push("estimate not finite".into());
+                    }
+                    bin.identifiable[j] = why.is_empty();
+                    bin.notes[j] = why.join("; ");
+                }
+            }
+        }
+        bin
+    };
+
+    #[cfg(feature = "parallel")]
+    let bins: Vec<BinFit> = {
+        use rayon::prelude::*;
+        (0..nb).into_par_iter().map(work).collect()
+    };
+    #[cfg(not(feature = "parallel"))]
+    let bins: Vec<BinFit> = (0..nb).map(work).collect();
+
+    let consistency = (0..p).map(|j| adjacent_consistency(&bins, j)).collect();
+    Ok(BinnedFit {
+        names: design.names.clone(),
+        bins,
+        consistency,
+        partition,
+    })
+}
+
+/// Adjacent-bin consistency of parameter `j` (see [`Consistency`]).
+pub fn adjacent_consistency(bins: &[BinFit], j: usize) -> Consistency {
+    let mut diffs = Vec::new();
+    let mut zs = Vec::new();
+    for w in bins.windows(2) {
+        let (a, b) = (&w[0], &w[1]);
+        if a.identifiable[j] && b.identifiable[j] {
+            let d = b.params[j] - a.params[j];
+            diffs.push(d);
+            let s = (a.std_err[j].powi(2) + b.std_err[j].powi(2)).sqrt();
+            if s > 0.0 {
+                zs.push((d / s).abs());
+            }
+        }
+    }
+    let ident: Vec<f64> = bins
+        .iter()
+        .filter(|b| b.identifiable[j])
+        .map(|b| b.params[j])
+        .collect();
+    let rms = |v: &[f64]| (v.iter().map(|x| x * x).sum::<f64>() / v.len().max(1) as f64).sqrt();
+    let scatter = if diffs.is_empty() || rms(&ident) == 0.0 {
+        f64::NAN
+    } else {
+        rms(&diffs) / (std::f64::consts::SQRT_2 * rms(&ident))
+    };
+    zs.sort_by(f64::total_cmp);
+    let step_z = if zs.is_empty() {
+        f64::NAN
+    } else if zs.len() % 2 == 1 {
+        zs[zs.len() / 2]
+    } else {
+        0.5 * (zs[zs.len() / 2 - 1] + zs[zs.len() / 2])
+    };
+    Consistency {
+        scatter,
+        step_z,
+        pairs: diffs.len(),
+    }
+}
+
+/// How the per-bin parameters become a table in alpha (Section 3.4).
+#[derive(Debug, Clone)]
+pub struct SmoothOptions {
+    /// Smoothing parameter p of Eq. 3.13 (thesis: 0.4), alpha in deg.
+    pub p: f64,
+    /// Weight each bin by `1/s²` (normalised to mean one) instead of equally.
+    pub weighted: bool,
+    /// Table breakpoint spacing, deg.
+    pub grid_step_deg: f64,
+    /// Highest alpha of the table, deg (thesis: 10 deg past stall); the table
+    /// holds its last value beyond.
+    pub alpha_max_deg: f64,
+    /// Fewer identified bins than this: the parameter is set to zero (the
+    /// qualified model is kept) and a note says so.
+    pub min_identified_bins: usize,
+}
+
+impl Default for SmoothOptions {
+    fn default() -> Self {
+        SmoothOptions {
+            p: 0.4,
+            weighted: false,
+            grid_step_deg: 0.5,
+            alpha_max_deg: f64::INFINITY,
+            min_identified_bins: 4,
+        }
+    }
+}
+
+/// A parameter smoothed against alpha and resampled on a grid.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SmoothedParameter {
+    /// Parameter name.
+    pub name: String,
+    /// Grid, deg.
+    pub alpha_deg: Vec<f64>,
+    /// Smoothed values on the grid.
+    pub values: Vec<f64>,
+    /// Number of identified bins used.
+    pub bins_used: usize,
+    /// "" or why the parameter was set to zero.
+    pub note: String,
+}
+
+/// The common table grid of a binned fit: from the first bin centre to the
+/// last (or `alpha_max_deg`), every `grid_step_deg`, ends included.
+pub fn table_grid(fit: &BinnedFit, opts: &SmoothOptions) -> Vec<f64> {
+    let centres: Vec<f64> = fit
+        .bins
+        .iter()
+        .map(|b| 0.5 * (b.alpha_lo + b.alpha_hi))
+        .collect();
+    let (Some(&lo), Some(&hi)) = (centres.first(), centres.last()) else {
+        return Vec::new();
+    };
+    let hi = hi.min(opts.alpha_max_deg);
+    if hi.is_nan() || hi <= lo || opts.grid_step_deg <= 0.0 {
+        return vec![lo];
+    }
+    let step = opts.grid_step_deg;
+    let start = (lo / step).ceil() * step;
+    let mut grid = vec![lo];
+    let mut a = start;
+    while a < hi - 1e-9 {
+        if a > lo + 1e-9 {
+            grid.push(a);
+        }
+        a += step;
+    }
+    grid.push(hi);
+    grid
+}
+
+/// Smooth each parameter of a binned fit with a `csaps` spline through its
+/// identified bins (Eq. 3.13) and resample it on [`table_grid`], holding the
+/// end values beyond the identified range (tables clipped past stall,
+/// Section 3.4).
+///
+/// # Errors
+/// Spline errors with the parameter named.
+pub fn smooth_parameters(fit: &BinnedFit, opts: &SmoothOptions) -> Result<Vec<SmoothedParameter>> {
+    let grid = table_grid(fit, opts);
+    let mut out = Vec::with_capacity(fit.names.len());
+    for (j, name) in fit.names.iter().enumerate() {
+        let used: Vec<&BinFit> = fit
+            .bins
+            .iter()
+            .filter(|b| b.identifiable[j] && 0.5 * (b.alpha_lo + b.alpha_hi) <= opts.alpha_max_deg)
+            .collect();
+        if used.len() < opts.min_identified_bins.max(2) {
+            out.push(SmoothedParameter {
+                name: name.clone(),
+                alpha_deg: grid.clone(),
+                values: vec![0.0; grid.len()],
+                bins_used: used.len(),
+                note: format!(
+                    "identified in {} bins (fewer than {}): Δ set to zero, the qualified model is kept",
+                    used.len(),
+                    opts.min_identified_bins.max(2)
+                ),
+            });
+            continue;
+        }
+        let x: Vec<f64> = used
+            .iter()
+            .map(|b| 0.5 * (b.alpha_lo + b.alpha_hi))
+            .collect();
+        let y: Vec<f64> = used.iter().map(|b| b.params[j]).collect();
+        let w: Option<Vec<f64>> = opts.weighted.then(|| {
+            let raw: Vec<f64> = used
+                .iter()
+                .map(|b| 1.0 / b.std_err[j].powi(2).max(f64::MIN_POSITIVE))
+                .collect();
+            let mean = raw.iter().sum::<f64>() / raw.len() as f64;
+            raw.iter().map(|v| v / mean).collect()
+        });
+        let spline = smoothing_spline(&x, &y, w.as_deref(), Smoothing::Fixed(opts.p))
+            .with_context(|| format!("smoothing parameter '{name}'"))?;
+        let (x0, x1) = (x[0], x[x.len() - 1]);
+        let values = grid
+            .iter()
+            .map(|&a| spline.eval(a.clamp(x0, x1), 0, SplineExtrapolation::Hold))
+            .collect();
+        out.push(SmoothedParameter {
+            name: name.clone(),
+            alpha_deg: grid.clone(),
+            values,
+            bins_used: used.len(),
+            note: String::new(),
+        });
+    }
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A truth with alpha-dependent parameters: z = a(α) + b(α) x1 + c x2 + noise.
+    type Columns = (Vec<f64>, Vec<f64>, Vec<f64>, Vec<f64>, Vec<u64>);
+
+    fn truth_data(n: usize, seed: u64) -> Columns {
+        let mut s = seed.wrapping_add(0x9E3779B97F4A7C15);
+        let mut rnd = || {
+            s ^= s << 13;
+            s ^= s >> 7;
+            s ^= s << 17;
+            (s >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let mut alpha = Vec::with_capacity(n);
+        let mut x1 = Vec::with_capacity(n);
+        let mut x2 = Vec::with_capacity(n);
+        let mut z = Vec::with_capacity(n);
+        let mut man = Vec::with_capacity(n);
+        for i in 0..n {
+            let a = 5.0 + 15.0 * rnd();
+            let u1 = 2.0 * rnd() - 1.0;
+            let u2 = 2.0 * rnd() - 1.0;
+            let noise = 0.001 * (rnd() + rnd() + rnd() - 1.5);
+            let b = 0.01 * (a - 12.0).max(0.0);
+            z.push(0.002 + b * u1 - 0.03 * u2 + noise);
+            alpha.push(a);
+            x1.push(u1);
+            x2.push(u2);
+            man.push((i / 500) as u64);
+        }
+        (alpha, x1, x2, z, man)
+    }
+
+    #[test]
+    fn recovers_alpha_dependent_parameters_bin_by_bin() {
+        let (alpha, x1, x2, z, man) = truth_data(40_000, 1);
+        let n = z.len();
+        let lookup = |c: &str| -> Option<&[f64]> {
+            match c {
+                "x1" => Some(&x1),
+                "x2" => Some(&x2),
+                _ => None,
+            }
+        };
+        let regs = vec![
+            ("bias".to_string(), "1".to_string()),
+            ("b".to_string(), "x1".to_string()),
+            ("c".to_string(), "x2".to_string()),
+        ];
+        let design = Design::build(&regs, &lookup, n).expect("design");
+        let fit = fit_bins(&design, &z, &alpha, &man, &IdentifyOptions::default()).expect("fits");
+        assert!(fit.bins.len() > 40, "{} bins", fit.bins.len());
+        let mut inside = 0;
+        let mut total = 0;
+        for bin in &fit.bins {
+            let a = 0.5 * (bin.alpha_lo + bin.alpha_hi);
+            let truth = [0.002, 0.01 * (a - 12.0).max(0.0), -0.03];
+            #[allow(clippy::needless_range_loop)]
+            for j in 0..3 {
+                assert!(bin.identifiable[j], "{:?}", bin.notes);
+                total += 1;
+                // within-bin variation of b(α) is tiny against the 0.2 deg bin width
+                if (bin.params[j] - truth[j]).abs() < 3.0 * bin.std_err[j] + 0.01 * 0.1 {
+                    inside += 1;
+                }
+            }
+        }
+        assert!(inside as f64 >= 0.97 * total as f64, "{inside}/{total}");
+        // c is constant: tiny scatter; b varies smoothly
+        assert!(fit.consistency[2].scatter < 0.1, "{:?}", fit.consistency[2]);
+        let sm = smooth_parameters(&fit, &SmoothOptions::default()).expect("smooths");
+        let b = &sm[1];
+        for (a, v) in b.alpha_deg.iter().zip(&b.values) {
+            let want = 0.01 * (a - 12.0).max(0.0);
+            assert!((v - want).abs() < 0.006, "alpha {a}: {v} vs {want}");
+        }
+    }
+
+    #[test]
+    fn low_excitation_and_sparse_bins_are_marked() {
+        let (alpha, x1, mut x2, z, man) = truth_data(20_000, 2);
+        // x2 barely moves above 15 deg: the pilot held the control still
+        for (i, a) in alpha.iter().enumerate() {
+            if *a > 15.0 {
+                x2[i] = 1e-4 * x2[i];
+            }
+        }
+        let n = z.len();
+        let lookup = |c: &str| -> Option<&[f64]> {
+            match c {
+                "x1" => Some(&x1),
+                "x2" => Some(&x2),
+                _ => None,
+            }
+        };
+        let regs = vec![
+            ("bias".to_string(), "1".to_string()),
+            ("b".to_string(), "x1".to_string()),
+            ("c".to_string(), "x2".to_string()),
+        ];
+        let design = Design::build(&regs, &lookup, n).expect("design");
+        let fit = fit_bins(&design, &z, &alpha, &man, &IdentifyOptions::default()).expect("fits");
+        for bin in &fit.bins {
+            if bin.alpha_lo > 15.05 {
+                assert!(!bin.identifiable[2], "{:?}", bin);
+                assert!(bin.notes[2].contains("low excitation"), "{}", bin.notes[2]);
+            }
+        }
+    }
+
+    #[test]
+    fn errors_name_the_regressor() {
+        let lookup = |_: &str| -> Option<&[f64]> { None };
+        let e = Design::build(&[("dCl_p".into(), "phat".into())], &lookup, 3)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("parameter 'dCl_p'") && e.contains("'phat'"),
+            "{e}"
+        );
+    }
+}
