@@ -638,7 +638,7 @@ mod tests {
         // x2 barely moves above 15 deg: the pilot held the control still
         for (i, a) in alpha.iter().enumerate() {
             if *a > 15.0 {
-                x2[i] = 1e-4 * x2[i];
+                x2[i] *= 1e-4;
             }
         }
         let n = z.len();
