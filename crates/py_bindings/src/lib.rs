@@ -8,6 +8,7 @@ use pyo3::prelude::*;
 mod daveml;
 mod delta_model;
 mod error;
+mod identify;
 mod lsq;
 mod partition;
 mod preprocess;
@@ -21,6 +22,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     error::register(m)?;
     table::register(m)?;
+    identify::register(m)?;
     delta_model::register(m)?;
     spline::register(m)?;
     partition::register(m)?;

@@ -4,5 +4,6 @@
 
 pub mod effects;
 pub mod qualified;
+pub mod records;
 pub mod truth;
 pub mod turboprop;

@@ -1,0 +1,215 @@
+//! The qualified model evaluated along flight records: the simulator's
+//! prediction $C_{i,qualified}$ of thesis Eq. 3.5 at the *measured* states,
+//! exactly what a black-box simulator supplies as `Cl_sim`, `Cn_sim`, `CY_sim`.
+
+use crate::aircraft::qualified::{coef_index, Coef, QualifiedModel};
+use crate::error::{AeroError, Result};
+use crate::sim::aero::{AeroInput, Controls};
+
+/// Speed of sound used for the Mach number when a record has none, m/s (ISA sea level).
+pub const SOUND_SPEED_MPS: f64 = 340.294;
+
+/// Record columns the qualified model reads (angles in deg, rates in deg/s).
+#[derive(Debug, Clone, Copy)]
+pub struct RecordColumns<'a> {
+    /// Angle of attack at the CG, deg.
+    pub alpha_deg: &'a [f64],
+    /// Sideslip at the CG, deg.
+    pub beta_deg: &'a [f64],
+    /// p̂ = p b/(2V).
+    pub phat: &'a [f64],
+    /// q̂ = q c̄/(2V).
+    pub qhat: &'a [f64],
+    /// r̂ = r b/(2V).
+    pub rhat: &'a [f64],
+    /// α̇, deg/s.
+    pub alphadot_dps: &'a [f64],
+    /// β̇, deg/s.
+    pub betadot_dps: &'a [f64],
+    /// Aileron, deg.
+    pub da_deg: &'a [f64],
+    /// Elevator, deg.
+    pub de_deg: &'a [f64],
+    /// Rudder, deg.
+    pub dr_deg: &'a [f64],
+    /// Left spoiler, deg.
+    pub dsl_deg: &'a [f64],
+    /// Right spoiler, deg.
+    pub dsr_deg: &'a [f64],
+    /// Flap, deg.
+    pub flap_deg: &'a [f64],
+    /// Left thrust coefficient.
+    pub ct_left: &'a [f64],
+    /// Right thrust coefficient.
+    pub ct_right: &'a [f64],
+    /// True airspeed, m/s.
+    pub tas_mps: &'a [f64],
+}
+
+/// `[Cl, Cn, CY]` of the qualified model at every row (body axes, total
+/// aero + thrust, as the measured coefficients of Eq. 3.2-3.4).
+///
+/// # Errors
+/// [`AeroError::InvalidInput`] naming a column whose length differs.
+pub fn qualified_lateral(model: &QualifiedModel, c: &RecordColumns<'_>) -> Result<[Vec<f64>; 3]> {
+    let n = c.alpha_deg.len();
+    let cols: [(&str, &[f64]); 16] = [
+        ("alpha_deg", c.alpha_deg),
+        ("beta_deg", c.beta_deg),
+        ("phat", c.phat),
+        ("qhat", c.qhat),
+        ("rhat", c.rhat),
+        ("alphadot_dps", c.alphadot_dps),
+        ("betadot_dps", c.betadot_dps),
+        ("da_deg", c.da_deg),
+        ("de_deg", c.de_deg),
+        ("dr_deg", c.dr_deg),
+        ("dsl_deg", c.dsl_deg),
+        ("dsr_deg", c.dsr_deg),
+        ("flap_deg", c.flap_deg),
+        ("ct_left", c.ct_left),
+        ("ct_right", c.ct_right),
+        ("tas_mps", c.tas_mps),
+    ];
+    for (name, col) in cols {
+        if col.len() != n {
+            return Err(AeroError::invalid(
+                format!("qualified model input '{name}'"),
+                format!("has {} rows, alpha_deg has {n}", col.len()),
+            ));
+        }
+    }
+    let row = |i: usize| -> [f64; 3] {
+        let s = AeroInput {
+            alpha: c.alpha_deg[i].to_radians(),
+            beta: c.beta_deg[i].to_radians(),
+            p_hat: c.phat[i],
+            q_hat: c.qhat[i],
+            r_hat: c.rhat[i],
+            alpha_dot: c.alphadot_dps[i].to_radians(),
+            beta_dot: c.betadot_dps[i].to_radians(),
+            controls: Controls {
+                da: c.da_deg[i].to_radians(),
+                de: c.de_deg[i].to_radians(),
+                dr: c.dr_deg[i].to_radians(),
+                dsl: c.dsl_deg[i].to_radians(),
+                dsr: c.dsr_deg[i].to_radians(),
+            },
+            flap_deg: c.flap_deg[i],
+            ct_left: c.ct_left[i],
+            ct_right: c.ct_right[i],
+            mach: c.tas_mps[i] / SOUND_SPEED_MPS,
+            tas: c.tas_mps[i],
+        };
+        let v = model.evaluate_terms(&s);
+        [
+            v[coef_index(Coef::Cl)],
+            v[coef_index(Coef::Cn)],
+            v[coef_index(Coef::CY)],
+        ]
+    };
+    #[cfg(feature = "parallel")]
+    let rows: Vec<[f64; 3]> = {
+        use rayon::prelude::*;
+        (0..n).into_par_iter().map(row).collect()
+    };
+    #[cfg(not(feature = "parallel"))]
+    let rows: Vec<[f64; 3]> = (0..n).map(row).collect();
+    let mut out = [vec![0.0; n], vec![0.0; n], vec![0.0; n]];
+    for (i, r) in rows.iter().enumerate() {
+        for k in 0..3 {
+            out[k][i] = r[k];
+        }
+    }
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::aircraft::turboprop::adx37;
+
+    #[test]
+    fn rows_equal_single_point_evaluation() {
+        let q = QualifiedModel::adx37(&adx37()).expect("model");
+        let n = 50;
+        let v = |a: f64, b: f64| -> Vec<f64> { (0..n).map(|i| a + b * i as f64).collect() };
+        let (alpha, beta, p, qh, r) = (
+            v(-2.0, 0.5),
+            v(-5.0, 0.2),
+            v(-0.02, 0.001),
+            v(0.0, 0.0),
+            v(0.01, -0.0005),
+        );
+        let (ad, bd, da, de, dr) = (
+            v(0.1, 0.0),
+            v(0.0, 0.01),
+            v(-10.0, 0.4),
+            v(0.0, 0.0),
+            v(3.0, -0.1),
+        );
+        let (dsl, dsr, flap, ctl, ctr, tas) = (
+            v(0.0, 0.0),
+            v(0.0, 0.2),
+            v(10.0, 0.0),
+            v(0.1, 0.0),
+            v(0.12, 0.0),
+            v(60.0, 0.1),
+        );
+        let cols = RecordColumns {
+            alpha_deg: &alpha,
+            beta_deg: &beta,
+            phat: &p,
+            qhat: &qh,
+            rhat: &r,
+            alphadot_dps: &ad,
+            betadot_dps: &bd,
+            da_deg: &da,
+            de_deg: &de,
+            dr_deg: &dr,
+            dsl_deg: &dsl,
+            dsr_deg: &dsr,
+            flap_deg: &flap,
+            ct_left: &ctl,
+            ct_right: &ctr,
+            tas_mps: &tas,
+        };
+        let [cl, cn, cy] = qualified_lateral(&q, &cols).expect("evaluates");
+        let fm = q.at_flap(10.0).expect("slice");
+        for i in 0..n {
+            let s = AeroInput {
+                alpha: alpha[i].to_radians(),
+                beta: beta[i].to_radians(),
+                p_hat: p[i],
+                q_hat: qh[i],
+                r_hat: r[i],
+                alpha_dot: ad[i].to_radians(),
+                beta_dot: bd[i].to_radians(),
+                controls: Controls {
+                    da: da[i].to_radians(),
+                    de: 0.0,
+                    dr: dr[i].to_radians(),
+                    dsl: 0.0,
+                    dsr: dsr[i].to_radians(),
+                },
+                flap_deg: 10.0,
+                ct_left: 0.1,
+                ct_right: 0.12,
+                mach: tas[i] / SOUND_SPEED_MPS,
+                tas: tas[i],
+            };
+            let w = fm.evaluate(&s);
+            assert!((cl[i] - w[coef_index(Coef::Cl)]).abs() < 1e-12);
+            assert!((cn[i] - w[coef_index(Coef::Cn)]).abs() < 1e-12);
+            assert!((cy[i] - w[coef_index(Coef::CY)]).abs() < 1e-12);
+        }
+        let short = RecordColumns {
+            tas_mps: &tas[..3],
+            ..cols
+        };
+        assert!(qualified_lateral(&q, &short)
+            .unwrap_err()
+            .to_string()
+            .contains("tas_mps"));
+    }
+}
