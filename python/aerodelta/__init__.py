@@ -35,6 +35,7 @@ from aerodelta.exceptions import (
     ParseError,
     TooLittleDataError,
 )
+from aerodelta.fit import FitConfig, FitResult, fit, validate_model
 from aerodelta.ingest import IngestResult, ingest
 from aerodelta.lsq import OLSResults, ols
 from aerodelta.model import DeltaModel
@@ -54,6 +55,8 @@ __all__ = [
     "DaveModel",
     "DeltaModel",
     "Finding",
+    "FitConfig",
+    "FitResult",
     "IngestResult",
     "InvalidInputError",
     "NoConvergenceError",
@@ -67,6 +70,7 @@ __all__ = [
     "__version__",
     "check_daveml",
     "effect_library",
+    "fit",
     "generate_campaign",
     "ingest",
     "load_daveml",
@@ -77,6 +81,7 @@ __all__ = [
     "rolloff_draws",
     "simulate_campaign",
     "smoothing_spline",
+    "validate_model",
     "write_daveml",
     "write_example_model",
 ]

@@ -45,7 +45,8 @@ _SPECS = [
     ChannelSpec("r_dps", "deg/s", "sensor", -300.0, 300.0, "yaw rate"),
     ChannelSpec("phi_deg", "deg", "sensor", -180.0, 180.0, "bank angle"),
     ChannelSpec("theta_deg", "deg", "sensor", -90.0, 90.0, "pitch attitude"),
-    ChannelSpec("psi_deg", "deg", "sensor", -360.0, 360.0, "heading"),
+    # heading may be unwrapped (continuous through turns), so its range is wide
+    ChannelSpec("psi_deg", "deg", "sensor", -36000.0, 36000.0, "heading (wrapped or unwrapped)"),
     ChannelSpec("ax_mps2", "m/s2", "sensor", -60.0, 60.0, "specific force x at the sensor"),
     ChannelSpec("ay_mps2", "m/s2", "sensor", -60.0, 60.0, "specific force y at the sensor"),
     ChannelSpec("az_mps2", "m/s2", "sensor", -80.0, 40.0, "specific force z at the sensor"),
