@@ -1,7 +1,6 @@
 #!/usr/bin/env bash
-# The main job, on data and models the project ships itself (no user data needed).
+# The main job, on the built-in virtual flight test campaign (no data of the user's needed):
+# fly the campaign, ingest it, fit the Δ model, validate it on held-out maneuvers.
 set -euo pipefail
 . "$(dirname "${BASH_SOURCE[0]}")/env.sh"
-mkdir -p out
-aerodelta write-example-model out/example_aero.dml
-aerodelta check-daveml out/example_aero.dml "$@"
+aerodelta demo --out out/demo "$@"

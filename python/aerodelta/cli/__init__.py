@@ -25,6 +25,8 @@ def _register(name: str, module: str) -> None:
 _register("check-daveml", "check_daveml")
 _register("write-example-model", "write_example_model")
 _register("campaign", "campaign")
+_register("fit", "fit")
+_register("demo", "demo")
 _register("ingest", "ingest")
 
 
