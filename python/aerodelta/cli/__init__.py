@@ -27,6 +27,7 @@ _register("write-example-model", "write_example_model")
 _register("campaign", "campaign")
 _register("fit", "fit")
 _register("demo", "demo")
+_register("export-qualified", "export_qualified")
 _register("ingest", "ingest")
 
 
