@@ -16,6 +16,7 @@ def test_demo_quick_writes_model_and_validation(
     assert main(["demo", "--quick", "--seed", "2", "--no-progress", "--out", str(tmp_path)]) == 0
     out = capsys.readouterr().out
     assert "held-out maneuvers" in out and "Cl" in out
+    assert "explained" in out, "the demo reports recovery against the truth"
     m = ad.DeltaModel.load(tmp_path / "model.json")
     assert m.coefficients == ["CY", "Cl", "Cn"]
     assert (tmp_path / "validation.csv").exists()
