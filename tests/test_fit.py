@@ -90,3 +90,8 @@ def test_config_errors_name_file_and_key(tmp_path: Path) -> None:
     p.write_text('width_deg = 0.5\n[structures]\nCl = [["dCl_0", "1"], ["dCl_p", "phat"]]\n')
     cfg = ad.FitConfig.from_toml(p)
     assert cfg.width_deg == 0.5 and cfg.structures == {"Cl": [("dCl_0", "1"), ("dCl_p", "phat")]}
+
+
+def test_example_config_is_the_documented_default() -> None:
+    example = Path(__file__).resolve().parent.parent / "examples" / "fit.toml"
+    assert ad.FitConfig.from_toml(example) == ad.FitConfig()
