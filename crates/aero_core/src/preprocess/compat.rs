@@ -184,6 +184,47 @@ fn rms(v: &[f64]) -> f64 {
     (v.iter().map(|x| x * x).sum::<f64>() / v.len().max(1) as f64).sqrt()
 }
 
+/// Output sensitivities dy/dθ: forward differences through the simulation for the input
+/// biases and initial states; exact for the output-only parameters, which enter linearly
+/// ($\alpha_E = \alpha + b_\alpha$, $\beta_E = \beta + b_\beta$, $V_E = (1+\lambda_V)V$,
+/// thesis Eq. 2.24), saving three of the fifteen simulations.
+fn sensitivities(
+    inp: &CompatInput<'_>,
+    th: &[f64],
+    sim: &[Vec<f64>; 6],
+    steps: &[f64; 15],
+) -> Vec<[Vec<f64>; 6]> {
+    let n = inp.t.len();
+    (0..th.len())
+        .map(|j| {
+            if (6..=8).contains(&j) {
+                let mut d: [Vec<f64>; 6] = std::array::from_fn(|_| vec![0.0; n]);
+                match j {
+                    6 => d[1].fill(1.0),
+                    7 => d[2].fill(1.0),
+                    _ => {
+                        let s = 1.0 / (1.0 + th[8]);
+                        for (o, v) in d[0].iter_mut().zip(&sim[0]) {
+                            *o = v * s;
+                        }
+                    }
+                }
+                return d;
+            }
+            let mut tp = th.to_vec();
+            tp[j] += steps[j];
+            let sp = simulate(inp, &tp);
+            std::array::from_fn(|k| {
+                sp[k]
+                    .iter()
+                    .zip(&sim[k])
+                    .map(|(a, b)| if k == 5 { wrap_pi(a - b) } else { a - b } / steps[j])
+                    .collect()
+            })
+        })
+        .collect()
+}
+
 /// Run the compatibility check on one maneuver.
 ///
 /// # Errors
@@ -267,20 +308,7 @@ pub fn check(inp: &CompatInput<'_>, max_iter: usize) -> Result<CompatResult> {
     for it in 0..max_iter {
         iterations = it + 1;
         // sensitivities dy/dth by forward differences
-        let sens: Vec<[Vec<f64>; 6]> = (0..np)
-            .map(|j| {
-                let mut tp = th.clone();
-                tp[j] += steps[j];
-                let sp = simulate(inp, &tp);
-                std::array::from_fn(|k| {
-                    sp[k]
-                        .iter()
-                        .zip(&sim[k])
-                        .map(|(a, b)| if k == 5 { wrap_pi(a - b) } else { a - b } / steps[j])
-                        .collect()
-                })
-            })
-            .collect();
+        let sens = sensitivities(inp, &th, &sim, &steps);
         info.fill(0.0);
         let mut grad = DVector::<f64>::zeros(np);
         for k in 0..no {
@@ -342,20 +370,7 @@ pub fn check(inp: &CompatInput<'_>, max_iter: usize) -> Result<CompatResult> {
     // Cramér-Rao bounds at the final weights
     let mut m = DMatrix::<f64>::zeros(np, np);
     {
-        let sens: Vec<[Vec<f64>; 6]> = (0..np)
-            .map(|j| {
-                let mut tp = th.clone();
-                tp[j] += steps[j];
-                let sp = simulate(inp, &tp);
-                std::array::from_fn(|k| {
-                    sp[k]
-                        .iter()
-                        .zip(&sim[k])
-                        .map(|(a, b)| (a - b) / steps[j])
-                        .collect()
-                })
-            })
-            .collect();
+        let sens = sensitivities(inp, &th, &sim, &steps);
         for k in 0..no {
             let wk = 1.0 / (sig[k] * sig[k]);
             for a in 0..np {
