@@ -229,10 +229,10 @@ def ingest(  # noqa: PLR0917
 
 
 #: The data compatibility check runs on at most this many samples per maneuver (every k-th
-#: sample of the smoothed channels; the RK4 reconstruction keeps its accuracy at 10-25 Hz
+#: sample of the smoothed channels; the RK4 reconstruction keeps its accuracy at 8-25 Hz
 #: for aircraft motion) and at most this many Gauss-Newton iterations: consistent data
 #: converge in 3-6, inconsistent data never do, and more iterations only cost time.
-COMPAT_MAX_SAMPLES = 1000
+COMPAT_MAX_SAMPLES = 500
 COMPAT_MAX_ITER = 8
 
 
