@@ -21,11 +21,11 @@ from tqdm import tqdm
 from aerodelta import _core
 from aerodelta.aircraft import Aircraft
 from aerodelta.channel_map import ChannelMap
-from aerodelta.channels import CHANNELS
+from aerodelta.channels import ALTERNATIVES, CHANNELS, REQUIRED
 from aerodelta.exceptions import DataError
 from aerodelta.preprocess import preprocess_frame
-from aerodelta.readers import find_records, read_manifest, scan_record
-from aerodelta.validate import ValidationReport, validate
+from aerodelta.readers import RecordSource, find_records, read_manifest, scan_record
+from aerodelta.validate import ValidationReport, screen_many, unit_checks_only, validate
 
 #: Practical thresholds above which an estimated bias is reported as a warning (and more than
 #: four standard errors from zero): SI units and radians.
@@ -188,22 +188,28 @@ def ingest(  # noqa: PLR0917
         return multi[path]
 
     bar = tqdm(total=len(sources), desc="ingest", unit="maneuver", disable=not progress)
+    raws: list[pl.DataFrame] = []
     chunk = 64  # single-maneuver files read in parallel by one polars collect_all
     for i0 in range(0, len(sources), chunk):
         part = sources[i0 : i0 + chunk]
         singles = iter(pl.collect_all([lazy(s.path) for s in part if not s.multi]))
-        read = [split(s.path)[s.maneuver_id] if s.multi else next(singles) for s in part]
-        for src, raw in zip(part, read, strict=True):
-            df = raw.drop("maneuver_id") if "maneuver_id" in raw.columns else raw
-            df, rep = validate(df, str(src.path), src.maneuver_id, allow_interpolation)
+        for s in part:
+            raw = split(s.path)[s.maneuver_id] if s.multi else next(singles)
+            raws.append(raw.drop("maneuver_id") if "maneuver_id" in raw.columns else raw)
+            bar.update(1)
+    bar.close()
+    allc = _fast_validate(raws, sources, reports)
+    if allc is None:
+        reports.clear()
+        for src, raw in zip(sources, raws, strict=True):
+            df, rep = validate(raw, str(src.path), src.maneuver_id, allow_interpolation)
             reports.append(rep)
             if rep.ok:
                 if any(dt != pl.Float64 for dt in df.schema.values()):
-                    df = df.select(pl.all().cast(pl.Float64))
-                frames.append(df)
+                    frames.append(df.select(pl.all().cast(pl.Float64)))
+                else:
+                    frames.append(df)
                 kept.append((src.maneuver_id, df.height))
-            bar.update(1)
-    bar.close()
     errors = [f for r in reports for f in r.errors]
     if errors:
         lines = [str(f) for f in errors[:25]]
@@ -211,11 +217,12 @@ def ingest(  # noqa: PLR0917
         raise DataError(
             f"{len(errors)} problem(s) refused the data:\n  " + "\n  ".join(lines) + more
         )
-    ids = pl.Series("maneuver_id", [m for m, _ in kept], dtype=pl.Utf8)
-    rows = np.repeat(np.arange(len(kept)), [k for _, k in kept])
-    same = all(f.schema == frames[0].schema for f in frames)
-    allc = pl.concat(frames, how="vertical" if same else "diagonal_relaxed", rechunk=True)
-    allc = allc.with_columns(ids.gather(rows))
+    if allc is None:
+        ids = pl.Series("maneuver_id", [m for m, _ in kept], dtype=pl.Utf8)
+        rows = np.repeat(np.arange(len(kept)), [k for _, k in kept])
+        same = all(f.schema == frames[0].schema for f in frames)
+        allc = pl.concat(frames, how="vertical" if same else "diagonal_relaxed", rechunk=True)
+        allc = allc.with_columns(ids.gather(rows))
     out, smoothing = preprocess_frame(allc, ac, smooth=smooth)
     compat_df = None
     if compat or apply_compat:
@@ -234,6 +241,44 @@ def ingest(  # noqa: PLR0917
 #: converge in 3-6, inconsistent data never do, and more iterations only cost time.
 COMPAT_MAX_SAMPLES = 500
 COMPAT_MAX_ITER = 8
+
+
+def _fast_validate(
+    raws: list[pl.DataFrame], sources: Sequence[RecordSource], reports: list[ValidationReport]
+) -> pl.DataFrame | None:
+    """Validate every maneuver at once over the concatenated columns when all records share
+    one canonical float64 schema with the required channels (the usual campaign). Returns the
+    concatenated frame with ``maneuver_id`` and fills ``reports`` when every maneuver passed
+    the vectorised screen; None (reports untouched) when any needs the detailed per-record
+    :func:`validate` (it then runs on all, so the findings are exactly its own)."""
+    if not raws:
+        return None
+    schema = raws[0].schema
+    cols = set(schema)
+    if (
+        any(c not in CHANNELS for c in schema)
+        or any(dt != pl.Float64 for dt in schema.values())
+        or any(c not in cols for c in REQUIRED)
+        or any(
+            c not in cols and not all(a in cols for a in alts) for c, alts in ALTERNATIVES.items()
+        )
+        or any(r.height < 20 or r.schema != schema for r in raws)
+    ):
+        return None
+    big = pl.concat(raws, how="vertical", rechunk=True)
+    arrays = {c: big[c].to_numpy() for c in big.columns}
+    lengths = np.array([r.height for r in raws])
+    offsets = np.concatenate(([0], np.cumsum(lengths)))
+    clean, views = screen_many(arrays, offsets)
+    if not clean.all():
+        return None
+    for src, data in zip(sources, views, strict=True):
+        reports.append(unit_checks_only(data, str(src.path), src.maneuver_id))
+    if any(not r.ok for r in reports):
+        reports.clear()
+        return None
+    ids = pl.Series("maneuver_id", [s.maneuver_id for s in sources], dtype=pl.Utf8)
+    return big.with_columns(ids.gather(np.repeat(np.arange(len(raws)), lengths)))
 
 
 def _compat_one(g: pl.DataFrame) -> dict[str, object]:

@@ -442,3 +442,69 @@ def _sensor_health(data: dict[str, np.ndarray], rep: ValidationReport) -> None:
                 _fmt_runs(long_runs),
                 "repeats the same value for a long run: the sensor may have stuck; kept",
             )
+
+
+def screen_many(
+    cols: dict[str, np.ndarray], offsets: np.ndarray
+) -> tuple[np.ndarray, list[dict[str, np.ndarray]]]:
+    """Vectorised screen of many maneuvers stored back to back (canonical float64 columns,
+    every maneuver at least 20 rows and every required channel present).
+
+    Runs the checks of :func:`validate` that can only refuse or warn (non-finite samples,
+    time steps, physical ranges, candidates for stuck/clipped sensors, alpha within ±0.6 deg)
+    over the whole columns at once, reduced per maneuver.
+
+    Returns
+    -------
+    (numpy.ndarray, list[dict])
+        ``clean[m]``: True when maneuver ``m`` passed every screened check, so that
+        :func:`validate` would only add unit-check findings (run :func:`unit_checks_only`);
+        False: run :func:`validate` on it for the detailed findings. And the per-maneuver
+        column views (no copies).
+    """
+    starts = offsets[:-1]
+    lengths = np.diff(offsets)
+    nm = len(lengths)
+    clean = np.ones(nm, dtype=bool)
+    for c, x in cols.items():
+        spec = CHANNELS[c]
+        with np.errstate(invalid="ignore"):
+            bad = ~np.isfinite(x) | (x < spec.lo) | (x > spec.hi)
+        if bad.any():
+            clean &= ~np.logical_or.reduceat(bad, starts)
+    t = cols["t"]
+    dt = np.diff(t)
+    # steps inside each maneuver (the step across a boundary is dropped)
+    inner = np.ones(len(dt), dtype=bool)
+    inner[starts[1:] - 1] = False
+    with np.errstate(invalid="ignore"):
+        nonpos = (dt <= 0) & inner
+        jump = np.zeros(len(dt), dtype=bool)
+        jump[1:] = (np.abs(np.diff(dt)) > 0.01 * dt[:-1]) & inner[1:] & inner[:-1]
+    badt = np.concatenate((nonpos | jump, [False]))
+    if badt.any():
+        clean &= ~np.logical_or.reduceat(badt, starts)
+    min_run = np.maximum(25, lengths // 50)
+    for c in _HEALTH_CHANNELS:
+        x = cols.get(c)
+        if x is None:
+            continue
+        ptp = np.maximum.reduceat(x, starts) - np.minimum.reduceat(x, starts)
+        same = np.concatenate((np.diff(x) == 0.0, [False]))
+        same[starts[1:] - 1] = False
+        repeats = np.add.reduceat(same.view(np.int8).astype(np.int64), starts)
+        with np.errstate(invalid="ignore"):
+            clean &= ~((ptp == 0.0) | (repeats >= min_run - 1))
+    a = cols.get("alpha_deg")
+    if a is not None:
+        with np.errstate(invalid="ignore"):
+            clean &= ~(np.maximum.reduceat(np.abs(a), starts) < 0.6)
+    views = [{c: x[s:e] for c, x in cols.items()} for s, e in zip(starts, offsets[1:], strict=True)]
+    return clean, views
+
+
+def unit_checks_only(data: dict[str, np.ndarray], file: str, maneuver_id: str) -> ValidationReport:
+    """The findings :func:`validate` gives a maneuver that :func:`screen_many` passed."""
+    rep = ValidationReport(file, maneuver_id)
+    _unit_checks(data, rep)
+    return rep
