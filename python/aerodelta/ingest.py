@@ -237,10 +237,16 @@ def ingest(  # noqa: PLR0917
 
 #: The data compatibility check runs on at most this many samples per maneuver (every k-th
 #: sample of the smoothed channels; the RK4 reconstruction keeps its accuracy at 8-25 Hz
-#: for aircraft motion) and at most this many Gauss-Newton iterations: consistent data
-#: converge in 3-6, inconsistent data never do, and more iterations only cost time.
+#: for aircraft motion) and at most this many Gauss-Newton iterations (consistent data
+#: converge in 3-5; inconsistent data gain nothing from more), so that a campaign of 200
+#: one-minute maneuvers is checked in seconds.
 COMPAT_MAX_SAMPLES = 500
-COMPAT_MAX_ITER = 8
+COMPAT_MAX_ITER = 10
+
+
+#: RMS output residuals after the reconstruction above which the data are reported as not
+#: kinematically consistent: tas (m/s), alpha, beta, phi, theta, psi (deg).
+_COMPAT_RMS_LIMITS = (1.0, 0.5, 0.5, 1.0, 1.0, 2.0)
 
 
 def _fast_validate(
@@ -315,6 +321,23 @@ def _run_compat(out: pl.DataFrame, reports: list[ValidationReport]) -> pl.DataFr
                 "",
                 f"data compatibility check did not converge in {res['iterations']} iterations "
                 "(inconsistent or unexcited data); its estimates are unreliable",
+            )
+        worst = []
+        for o, r, lim in zip(res["outputs"], res["rms_after"], _COMPAT_RMS_LIMITS, strict=False):  # type: ignore[call-overload]
+            v = float(r) * (1.0 if o == "tas" else 180.0 / np.pi)
+            if v > lim:
+                worst.append((o, v, lim))
+        if worst and mid in by_id:
+            what = ", ".join(
+                f"{o} {v:.3g} {'m/s' if o == 'tas' else 'deg'} RMS" for o, v, _ in worst
+            )
+            by_id[mid].add(
+                "warning",
+                "compat",
+                "",
+                f"the flight path reconstruction leaves {what}: the data are not kinematically "
+                "consistent (check time alignment between channels, units, sensor positions, "
+                "gusts); the compatibility estimates are unreliable",
             )
         for name, est, se in zip(res["names"], res["params"], res["std_err"], strict=False):  # type: ignore[call-overload]
             rows.append((mid, name, float(est), float(se), False))
