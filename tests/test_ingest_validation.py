@@ -12,7 +12,7 @@ import pytest
 import aerodelta
 from _ingest_synth import AIRCRAFT_TOML, canonical_frame, motion
 from aerodelta import DataError
-from aerodelta.validate import validate
+from aerodelta.validate import az_medians, screen_many, unit_checks_only, validate
 
 T = np.arange(0.0, 20.0, 0.02)
 BASE = motion(T, seed=11)
@@ -203,3 +203,38 @@ def test_aircraft_and_manifest_errors(tmp_path: Path) -> None:
 
     with pytest.raises(DataError, match=r"column 'kind', rows 1: unknown kind"):
         read_manifest(m)
+
+
+def test_vectorised_screen_agrees_with_validate() -> None:
+    """The campaign fast path (screen_many + unit checks) flags every record that validate
+    finds anything wrong with, and gives exactly validate's findings for the ones it passes."""
+    q_nan = BASE["q_dps"].copy()
+    q_nan[300] = np.nan
+    p_stuck = BASE["p_dps"].copy()
+    p_stuck[400:460] = p_stuck[400]
+    t_jump = T.copy()
+    t_jump[600:] += 0.005
+    variants = {
+        "good": BASE,
+        "nan": {**BASE, "q_dps": q_nan},
+        "stuck": {**BASE, "p_dps": p_stuck},
+        "time": {**BASE, "t": t_jump},
+        "alpha_rad": {**BASE, "alpha_deg": np.radians(BASE["alpha_deg"])},
+        "rates_rad": {**BASE, **{c: np.radians(BASE[c]) for c in ("p_dps", "q_dps", "r_dps")}},
+        "good2": motion(T, seed=12),
+    }
+    frames = [canonical_frame(m) for m in variants.values()]
+    big = pl.concat(frames, rechunk=True)
+    cols = {c: big[c].to_numpy() for c in big.columns}
+    offsets = np.concatenate(([0], np.cumsum([f.height for f in frames])))
+    clean, views = screen_many(cols, offsets)
+    med = az_medians(cols, offsets)
+    assert med is not None
+    for i, (name, f) in enumerate(zip(variants, frames, strict=True)):
+        _, rep = validate(f, "x.csv", name)
+        if clean[i]:
+            fast = unit_checks_only(views[i], "x.csv", name, float(med[i]))
+            assert fast.findings == rep.findings, name
+        else:
+            assert rep.findings, name
+    assert clean.tolist() == [True, False, False, False, False, True, True]

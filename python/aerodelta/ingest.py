@@ -25,7 +25,13 @@ from aerodelta.channels import ALTERNATIVES, CHANNELS, REQUIRED
 from aerodelta.exceptions import DataError
 from aerodelta.preprocess import preprocess_frame
 from aerodelta.readers import RecordSource, find_records, read_manifest, scan_record
-from aerodelta.validate import ValidationReport, screen_many, unit_checks_only, validate
+from aerodelta.validate import (
+    ValidationReport,
+    az_medians,
+    screen_many,
+    unit_checks_only,
+    validate,
+)
 
 #: Practical thresholds above which an estimated bias is reported as a warning (and more than
 #: four standard errors from zero): SI units and radians.
@@ -260,26 +266,34 @@ def _fast_validate(
     if not raws:
         return None
     schema = raws[0].schema
-    cols = set(schema)
+    names = raws[0].columns
+    cols = set(names)
     if (
-        any(c not in CHANNELS for c in schema)
+        any(c not in CHANNELS for c in names)
         or any(dt != pl.Float64 for dt in schema.values())
         or any(c not in cols for c in REQUIRED)
         or any(
             c not in cols and not all(a in cols for a in alts) for c, alts in ALTERNATIVES.items()
         )
-        or any(r.height < 20 or r.schema != schema for r in raws)
+        or any(r.height < 20 or r.columns != names for r in raws)
     ):
         return None
-    big = pl.concat(raws, how="vertical", rechunk=True)
+    try:  # a vertical concat refuses any other column type
+        big = pl.concat(raws, how="vertical", rechunk=True)
+    except pl.exceptions.PolarsError:
+        return None
+    if big.schema != schema:
+        return None
     arrays = {c: big[c].to_numpy() for c in big.columns}
     lengths = np.array([r.height for r in raws])
     offsets = np.concatenate(([0], np.cumsum(lengths)))
     clean, views = screen_many(arrays, offsets)
     if not clean.all():
         return None
-    for src, data in zip(sources, views, strict=True):
-        reports.append(unit_checks_only(data, str(src.path), src.maneuver_id))
+    med = az_medians(arrays, offsets)
+    for i, (src, data) in enumerate(zip(sources, views, strict=True)):
+        m = None if med is None else float(med[i])
+        reports.append(unit_checks_only(data, str(src.path), src.maneuver_id, m))
     if any(not r.ok for r in reports):
         reports.clear()
         return None

@@ -13,6 +13,7 @@ Warned (severity ``warning``, with what was done): short dropouts interpolated; 
 
 from __future__ import annotations
 
+import itertools
 import json
 from dataclasses import asdict, dataclass, field
 
@@ -236,19 +237,28 @@ def validate(
     return df, rep
 
 
-def _unit_checks(data: dict[str, np.ndarray], rep: ValidationReport) -> None:
-    """Refuse unit errors that the data betrays."""
-    finite = all(np.isfinite(data[c]).all() for c in data if c in REQUIRED)
+def _unit_checks(
+    data: dict[str, np.ndarray],
+    rep: ValidationReport,
+    finite: bool | None = None,
+    az_median: float | None = None,
+) -> None:
+    """Refuse unit errors that the data betrays (``finite``: every required channel known to
+    be finite; ``az_median``: the median of az when already known)."""
+    if finite is None:
+        finite = all(np.isfinite(data[c]).all() for c in data if c in REQUIRED)
     a = data.get("alpha_deg")
     if a is not None and np.isfinite(a).all() and np.abs(a).max() < 0.6 and np.ptp(a) > 1e-3:
         _alpha_unit_check(data, rep)
     az = data.get("az_mps2")
-    if az is not None and np.isfinite(az).all() and 0.3 < abs(float(np.median(az))) < 3.0:
+    if az is not None and az_median is None and np.isfinite(az).all():
+        az_median = float(np.median(az))
+    if az is not None and az_median is not None and 0.3 < abs(az_median) < 3.0:
         rep.add(
             "error",
             "az_mps2",
             "",
-            f"median az is {np.median(az):.3g} m/s²: it looks like g declared as m/s²; "
+            f"median az is {az_median:.3g} m/s²: it looks like g declared as m/s²; "
             'declare unit = "g"',
         )
     need = ("t", "p_dps", "q_dps", "r_dps", "phi_deg", "theta_deg")
@@ -503,8 +513,22 @@ def screen_many(
     return clean, views
 
 
-def unit_checks_only(data: dict[str, np.ndarray], file: str, maneuver_id: str) -> ValidationReport:
-    """The findings :func:`validate` gives a maneuver that :func:`screen_many` passed."""
+def az_medians(cols: dict[str, np.ndarray], offsets: np.ndarray) -> np.ndarray | None:
+    """Median of ``az_mps2`` per maneuver (one call when all maneuvers have one length)."""
+    az = cols.get("az_mps2")
+    if az is None:
+        return None
+    lengths = np.diff(offsets)
+    if (lengths == lengths[0]).all():
+        return np.median(az.reshape(len(lengths), int(lengths[0])), axis=1)
+    return np.array([np.median(az[s:e]) for s, e in itertools.pairwise(offsets)])
+
+
+def unit_checks_only(
+    data: dict[str, np.ndarray], file: str, maneuver_id: str, az_median: float | None = None
+) -> ValidationReport:
+    """The findings :func:`validate` gives a maneuver that :func:`screen_many` passed
+    (every sample finite)."""
     rep = ValidationReport(file, maneuver_id)
-    _unit_checks(data, rep)
+    _unit_checks(data, rep, finite=True, az_median=az_median)
     return rep
