@@ -117,6 +117,8 @@ def test_compat_recovers_injected_alpha_and_ax_biases(tmp_path: Path, truth: dic
     # the inconsistency was reported, and applying the estimate restores the truth
     warned = {f.channel for f in res.reports[0].findings if f.severity == "warning"}
     assert {"alpha", "ax"} <= warned
+    # consistent data converge (default iteration limit) and are not called inconsistent
+    assert [f.message for f in res.reports[0].findings if f.channel == "compat"] == []
     np.testing.assert_allclose(
         res.data["alpha_cg_deg"].to_numpy(), truth["alpha_cg_true"], atol=5e-3
     )

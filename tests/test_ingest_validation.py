@@ -12,7 +12,7 @@ import pytest
 import aerodelta
 from _ingest_synth import AIRCRAFT_TOML, canonical_frame, motion
 from aerodelta import DataError
-from aerodelta.validate import validate
+from aerodelta.validate import az_medians, screen_many, unit_checks_only, validate
 
 T = np.arange(0.0, 20.0, 0.02)
 BASE = motion(T, seed=11)
@@ -87,6 +87,51 @@ def test_alpha_in_radians_declared_as_degrees(tmp_path: Path) -> None:
     assert "'alpha_deg'" in msg and "radians" in msg
 
 
+def _low_alpha_cruise(seed: int = 3) -> dict[str, np.ndarray]:
+    """A legitimate, kinematically exact cruise record with alpha within ±0.4 deg (degrees):
+    V = 80 m/s, wings level, gentle pitch and alpha oscillations; specific forces from thesis
+    Eq. 3.1a, 3.1c (u = V cos α, w = V sin α, a = V̇ + ω×V − g_body), small sensor noise."""
+    rng = np.random.default_rng(seed)
+    t = T
+    vt = 80.0
+    al = np.radians(0.1 + 0.3 * np.sin(0.5 * t))
+    ald = np.radians(0.3 * 0.5 * np.cos(0.5 * t))
+    th = np.radians(2.0 + 1.0 * np.sin(0.3 * t))
+    q = np.radians(1.0 * 0.3 * np.cos(0.3 * t))
+    u, w = vt * np.cos(al), vt * np.sin(al)
+    ud, wd = -vt * np.sin(al) * ald, vt * np.cos(al) * ald
+    ax = ud + q * w + 9.80665 * np.sin(th)
+    az = wd - q * u - 9.80665 * np.cos(th)
+    zero = np.zeros_like(t)
+    m = dict(BASE)
+    m.update(
+        alpha_deg=np.degrees(al) + 0.01 * rng.standard_normal(len(t)),
+        beta_deg=zero + 0.01 * rng.standard_normal(len(t)),
+        p_dps=zero + 0.05 * rng.standard_normal(len(t)),
+        q_dps=np.degrees(q) + 0.05 * rng.standard_normal(len(t)),
+        r_dps=zero + 0.05 * rng.standard_normal(len(t)),
+        phi_deg=zero,
+        theta_deg=np.degrees(th),
+        psi_deg=zero + 30.0,
+        ax_mps2=ax + 0.02 * rng.standard_normal(len(t)),
+        ay_mps2=zero + 0.02 * rng.standard_normal(len(t)),
+        az_mps2=az + 0.02 * rng.standard_normal(len(t)),
+        tas_mps=np.full_like(t, vt) + 0.1 * rng.standard_normal(len(t)),
+    )
+    return m
+
+
+def test_low_alpha_cruise_in_degrees_is_accepted(tmp_path: Path) -> None:
+    m = _low_alpha_cruise()
+    assert np.abs(m["alpha_deg"]).max() < 0.6  # the old value-only detector refused this
+    p = _write(tmp_path, canonical_frame(m), name="cruise.csv")
+    res = aerodelta.ingest(p, aircraft=tmp_path / "aircraft.toml", compat=False, progress=False)
+    assert [f for f in res.reports[0].findings if f.channel == "alpha_deg"] == []
+    # the same cruise with alpha in radians declared as degrees is refused
+    msg = _refused(tmp_path, canonical_frame({**m, "alpha_deg": np.radians(m["alpha_deg"])}))
+    assert "'alpha_deg'" in msg and "radians" in msg
+
+
 def test_rates_in_rad_per_s_declared_as_deg_per_s(tmp_path: Path) -> None:
     m = {**BASE, **{c: np.radians(BASE[c]) for c in ("p_dps", "q_dps", "r_dps")}}
     msg = _refused(tmp_path, canonical_frame(m))
@@ -158,3 +203,38 @@ def test_aircraft_and_manifest_errors(tmp_path: Path) -> None:
 
     with pytest.raises(DataError, match=r"column 'kind', rows 1: unknown kind"):
         read_manifest(m)
+
+
+def test_vectorised_screen_agrees_with_validate() -> None:
+    """The campaign fast path (screen_many + unit checks) flags every record that validate
+    finds anything wrong with, and gives exactly validate's findings for the ones it passes."""
+    q_nan = BASE["q_dps"].copy()
+    q_nan[300] = np.nan
+    p_stuck = BASE["p_dps"].copy()
+    p_stuck[400:460] = p_stuck[400]
+    t_jump = T.copy()
+    t_jump[600:] += 0.005
+    variants = {
+        "good": BASE,
+        "nan": {**BASE, "q_dps": q_nan},
+        "stuck": {**BASE, "p_dps": p_stuck},
+        "time": {**BASE, "t": t_jump},
+        "alpha_rad": {**BASE, "alpha_deg": np.radians(BASE["alpha_deg"])},
+        "rates_rad": {**BASE, **{c: np.radians(BASE[c]) for c in ("p_dps", "q_dps", "r_dps")}},
+        "good2": motion(T, seed=12),
+    }
+    frames = [canonical_frame(m) for m in variants.values()]
+    big = pl.concat(frames, rechunk=True)
+    cols = {c: big[c].to_numpy() for c in big.columns}
+    offsets = np.concatenate(([0], np.cumsum([f.height for f in frames])))
+    clean, views = screen_many(cols, offsets)
+    med = az_medians(cols, offsets)
+    assert med is not None
+    for i, (name, f) in enumerate(zip(variants, frames, strict=True)):
+        _, rep = validate(f, "x.csv", name)
+        if clean[i]:
+            fast = unit_checks_only(views[i], "x.csv", name, float(med[i]))
+            assert fast.findings == rep.findings, name
+        else:
+            assert rep.findings, name
+    assert clean.tolist() == [True, False, False, False, False, True, True]

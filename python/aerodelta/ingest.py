@@ -21,11 +21,17 @@ from tqdm import tqdm
 from aerodelta import _core
 from aerodelta.aircraft import Aircraft
 from aerodelta.channel_map import ChannelMap
-from aerodelta.channels import CHANNELS
+from aerodelta.channels import ALTERNATIVES, CHANNELS, REQUIRED
 from aerodelta.exceptions import DataError
 from aerodelta.preprocess import preprocess_frame
-from aerodelta.readers import find_records, read_manifest, scan_record
-from aerodelta.validate import ValidationReport, validate
+from aerodelta.readers import RecordSource, find_records, read_manifest, scan_record
+from aerodelta.validate import (
+    ValidationReport,
+    az_medians,
+    screen_many,
+    unit_checks_only,
+    validate,
+)
 
 #: Practical thresholds above which an estimated bias is reported as a warning (and more than
 #: four standard errors from zero): SI units and radians.
@@ -188,22 +194,28 @@ def ingest(  # noqa: PLR0917
         return multi[path]
 
     bar = tqdm(total=len(sources), desc="ingest", unit="maneuver", disable=not progress)
-    chunk = 32  # single-maneuver files read in parallel by one polars collect_all
+    raws: list[pl.DataFrame] = []
+    chunk = 64  # single-maneuver files read in parallel by one polars collect_all
     for i0 in range(0, len(sources), chunk):
         part = sources[i0 : i0 + chunk]
         singles = iter(pl.collect_all([lazy(s.path) for s in part if not s.multi]))
-        read = [split(s.path)[s.maneuver_id] if s.multi else next(singles) for s in part]
-        for src, raw in zip(part, read, strict=True):
-            df = raw.drop("maneuver_id") if "maneuver_id" in raw.columns else raw
-            df, rep = validate(df, str(src.path), src.maneuver_id, allow_interpolation)
+        for s in part:
+            raw = split(s.path)[s.maneuver_id] if s.multi else next(singles)
+            raws.append(raw.drop("maneuver_id") if "maneuver_id" in raw.columns else raw)
+            bar.update(1)
+    bar.close()
+    allc = _fast_validate(raws, sources, reports)
+    if allc is None:
+        reports.clear()
+        for src, raw in zip(sources, raws, strict=True):
+            df, rep = validate(raw, str(src.path), src.maneuver_id, allow_interpolation)
             reports.append(rep)
             if rep.ok:
                 if any(dt != pl.Float64 for dt in df.schema.values()):
-                    df = df.select(pl.all().cast(pl.Float64))
-                frames.append(df)
+                    frames.append(df.select(pl.all().cast(pl.Float64)))
+                else:
+                    frames.append(df)
                 kept.append((src.maneuver_id, df.height))
-            bar.update(1)
-    bar.close()
     errors = [f for r in reports for f in r.errors]
     if errors:
         lines = [str(f) for f in errors[:25]]
@@ -211,9 +223,12 @@ def ingest(  # noqa: PLR0917
         raise DataError(
             f"{len(errors)} problem(s) refused the data:\n  " + "\n  ".join(lines) + more
         )
-    ids = pl.Series("maneuver_id", [m for m, _ in kept], dtype=pl.Utf8)
-    rows = np.repeat(np.arange(len(kept)), [k for _, k in kept])
-    allc = pl.concat(frames, how="diagonal_relaxed", rechunk=True).with_columns(ids.gather(rows))
+    if allc is None:
+        ids = pl.Series("maneuver_id", [m for m, _ in kept], dtype=pl.Utf8)
+        rows = np.repeat(np.arange(len(kept)), [k for _, k in kept])
+        same = all(f.schema == frames[0].schema for f in frames)
+        allc = pl.concat(frames, how="vertical" if same else "diagonal_relaxed", rechunk=True)
+        allc = allc.with_columns(ids.gather(rows))
     out, smoothing = preprocess_frame(allc, ac, smooth=smooth)
     compat_df = None
     if compat or apply_compat:
@@ -226,11 +241,72 @@ def ingest(  # noqa: PLR0917
     return IngestResult(out, reports, compat_df, smoothing)
 
 
+#: The data compatibility check runs on at most this many samples per maneuver (every k-th
+#: sample of the smoothed channels; the RK4 reconstruction keeps its accuracy at 8-25 Hz
+#: for aircraft motion) and at most this many Gauss-Newton iterations (consistent data
+#: converge in 3-5; inconsistent data gain nothing from more), so that a campaign of 200
+#: one-minute maneuvers is checked in seconds.
+COMPAT_MAX_SAMPLES = 500
+COMPAT_MAX_ITER = 10
+
+
+#: RMS output residuals after the reconstruction above which the data are reported as not
+#: kinematically consistent: tas (m/s), alpha, beta, phi, theta, psi (deg).
+_COMPAT_RMS_LIMITS = (1.0, 0.5, 0.5, 1.0, 1.0, 2.0)
+
+
+def _fast_validate(
+    raws: list[pl.DataFrame], sources: Sequence[RecordSource], reports: list[ValidationReport]
+) -> pl.DataFrame | None:
+    """Validate every maneuver at once over the concatenated columns when all records share
+    one canonical float64 schema with the required channels (the usual campaign). Returns the
+    concatenated frame with ``maneuver_id`` and fills ``reports`` when every maneuver passed
+    the vectorised screen; None (reports untouched) when any needs the detailed per-record
+    :func:`validate` (it then runs on all, so the findings are exactly its own)."""
+    if not raws:
+        return None
+    schema = raws[0].schema
+    names = raws[0].columns
+    cols = set(names)
+    if (
+        any(c not in CHANNELS for c in names)
+        or any(dt != pl.Float64 for dt in schema.values())
+        or any(c not in cols for c in REQUIRED)
+        or any(
+            c not in cols and not all(a in cols for a in alts) for c, alts in ALTERNATIVES.items()
+        )
+        or any(r.height < 20 or r.columns != names for r in raws)
+    ):
+        return None
+    try:  # a vertical concat refuses any other column type
+        big = pl.concat(raws, how="vertical", rechunk=True)
+    except pl.exceptions.PolarsError:
+        return None
+    if big.schema != schema:
+        return None
+    arrays = {c: big[c].to_numpy() for c in big.columns}
+    lengths = np.array([r.height for r in raws])
+    offsets = np.concatenate(([0], np.cumsum(lengths)))
+    clean, views = screen_many(arrays, offsets)
+    if not clean.all():
+        return None
+    med = az_medians(arrays, offsets)
+    for i, (src, data) in enumerate(zip(sources, views, strict=True)):
+        m = None if med is None else float(med[i])
+        reports.append(unit_checks_only(data, str(src.path), src.maneuver_id, m))
+    if any(not r.ok for r in reports):
+        reports.clear()
+        return None
+    ids = pl.Series("maneuver_id", [s.maneuver_id for s in sources], dtype=pl.Utf8)
+    return big.with_columns(ids.gather(np.repeat(np.arange(len(raws)), lengths)))
+
+
 def _compat_one(g: pl.DataFrame) -> dict[str, object]:
     d2r = np.pi / 180.0
+    step = -(-g.height // COMPAT_MAX_SAMPLES)
 
     def a(c: str, k: float = 1.0) -> np.ndarray:
-        return np.ascontiguousarray(g[c].to_numpy() * k, dtype=np.float64)
+        return np.ascontiguousarray(g[c].to_numpy()[::step] * k, dtype=np.float64)
 
     return _core.compat_check(
         a("t"),
@@ -240,6 +316,7 @@ def _compat_one(g: pl.DataFrame) -> dict[str, object]:
         a("alpha_cg_deg", d2r),
         a("beta_cg_deg", d2r),
         [a("phi_deg", d2r), a("theta_deg", d2r), a("psi_deg", d2r)],
+        max_iter=COMPAT_MAX_ITER,
     )
 
 
@@ -258,6 +335,23 @@ def _run_compat(out: pl.DataFrame, reports: list[ValidationReport]) -> pl.DataFr
                 "",
                 f"data compatibility check did not converge in {res['iterations']} iterations "
                 "(inconsistent or unexcited data); its estimates are unreliable",
+            )
+        worst = []
+        for o, r, lim in zip(res["outputs"], res["rms_after"], _COMPAT_RMS_LIMITS, strict=False):  # type: ignore[call-overload]
+            v = float(r) * (1.0 if o == "tas" else 180.0 / np.pi)
+            if v > lim:
+                worst.append((o, v, lim))
+        if worst and mid in by_id:
+            what = ", ".join(
+                f"{o} {v:.3g} {'m/s' if o == 'tas' else 'deg'} RMS" for o, v, _ in worst
+            )
+            by_id[mid].add(
+                "warning",
+                "compat",
+                "",
+                f"the flight path reconstruction leaves {what}: the data are not kinematically "
+                "consistent (check time alignment between channels, units, sensor positions, "
+                "gusts); the compatibility estimates are unreliable",
             )
         for name, est, se in zip(res["names"], res["params"], res["std_err"], strict=False):  # type: ignore[call-overload]
             rows.append((mid, name, float(est), float(se), False))
@@ -324,7 +418,16 @@ def _attach_manifest(
     missing = set(out["maneuver_id"].unique()) - set(meta["maneuver_id"])
     if missing:
         raise DataError(f"manifest has no row for maneuver(s) {sorted(missing)}")
-    j = out.join(meta, on="maneuver_id", how="left", maintain_order="left")
+    # maneuvers are contiguous: join the manifest on the run values, then repeat each row
+    runs = out.select(pl.col("maneuver_id").rle()).unnest("maneuver_id")
+    per = runs.select(pl.col("value").alias("maneuver_id")).join(
+        meta, on="maneuver_id", how="left", maintain_order="left"
+    )
+    if per.height == runs.height:
+        idx = np.repeat(np.arange(per.height), runs["len"].to_numpy())
+        j = pl.concat([out, per.drop("maneuver_id")[idx]], how="horizontal")
+    else:  # duplicated manifest rows: the plain join (rows repeated as the manifest says)
+        j = out.join(meta, on="maneuver_id", how="left", maintain_order="left")
     if "flap_deg" in out.columns:
         return j.drop("flap_deg").rename({"flap_manifest_deg": "flap_deg"})
     return j.rename({"flap_manifest_deg": "flap_deg"})

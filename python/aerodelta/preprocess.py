@@ -64,8 +64,10 @@ def preprocess_frame(
         report: one row per maneuver and channel with ``cutoff_hz`` and ``noise_std``.
     """
     df = add_air_data(df)
-    ids = df["maneuver_id"].to_numpy()
-    starts = np.flatnonzero(np.concatenate(([True], ids[1:] != ids[:-1])))
+    # maneuver boundaries from the run lengths of maneuver_id (no per-row Python objects)
+    runs = df.select(pl.col("maneuver_id").rle()).unnest("maneuver_id")
+    lengths = runs["len"].to_numpy()
+    starts = np.concatenate(([0], np.cumsum(lengths)[:-1])).astype(np.int64)
     offsets = [*starts.tolist(), df.height]
     inputs, smoothed, outputs = _core.preprocess_columns()
     cols = []
@@ -110,7 +112,7 @@ def preprocess_frame(
         ds.cast(pl.Float64).alias("ds_deg"),
     )
     nm = len(offsets) - 1
-    first_ids = [str(ids[s]) for s in starts]
+    first_ids = [str(v) for v in runs["value"].to_list()]
     report = pl.DataFrame(
         {
             "maneuver_id": [m for m in first_ids for _ in smoothed],

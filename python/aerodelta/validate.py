@@ -13,6 +13,7 @@ Warned (severity ``warning``, with what was done): short dropouts interpolated; 
 
 from __future__ import annotations
 
+import itertools
 import json
 from dataclasses import asdict, dataclass, field
 
@@ -236,25 +237,28 @@ def validate(
     return df, rep
 
 
-def _unit_checks(data: dict[str, np.ndarray], rep: ValidationReport) -> None:
-    """Refuse unit errors that the data betrays."""
-    finite = all(np.isfinite(data[c]).all() for c in data if c in REQUIRED)
+def _unit_checks(
+    data: dict[str, np.ndarray],
+    rep: ValidationReport,
+    finite: bool | None = None,
+    az_median: float | None = None,
+) -> None:
+    """Refuse unit errors that the data betrays (``finite``: every required channel known to
+    be finite; ``az_median``: the median of az when already known)."""
+    if finite is None:
+        finite = all(np.isfinite(data[c]).all() for c in data if c in REQUIRED)
     a = data.get("alpha_deg")
     if a is not None and np.isfinite(a).all() and np.abs(a).max() < 0.6 and np.ptp(a) > 1e-3:
-        rep.add(
-            "error",
-            "alpha_deg",
-            "",
-            f"alpha stays within ±{np.abs(a).max():.3g} deg over the whole record: it looks like "
-            'radians declared as degrees; declare unit = "rad" in the channel map',
-        )
+        _alpha_unit_check(data, rep)
     az = data.get("az_mps2")
-    if az is not None and np.isfinite(az).all() and 0.3 < abs(float(np.median(az))) < 3.0:
+    if az is not None and az_median is None and np.isfinite(az).all():
+        az_median = float(np.median(az))
+    if az is not None and az_median is not None and 0.3 < abs(az_median) < 3.0:
         rep.add(
             "error",
             "az_mps2",
             "",
-            f"median az is {np.median(az):.3g} m/s²: it looks like g declared as m/s²; "
+            f"median az is {az_median:.3g} m/s²: it looks like g declared as m/s²; "
             'declare unit = "g"',
         )
     need = ("t", "p_dps", "q_dps", "r_dps", "phi_deg", "theta_deg")
@@ -301,6 +305,94 @@ def _unit_checks(data: dict[str, np.ndarray], rep: ValidationReport) -> None:
             f"the attitude changes {k:.3g}x as fast as the body rates say: attitude looks like "
             'radians declared as degrees; declare unit = "rad"',
         )
+
+
+def _alpha_kinematic_scale(data: dict[str, np.ndarray]) -> tuple[float, float] | None:
+    """Scale and fit of the measured alpha against the alpha that the other channels imply.
+
+    The angle-of-attack rate implied by the rates, specific forces, airspeed and attitude
+    (thesis Eq. 3.1a, 3.1c with :math:`\\alpha = \\operatorname{atan2}(w, u)`):
+    :math:`\\dot\\alpha = (u\\dot w - w\\dot u)/(u^2 + w^2)`,
+    :math:`\\dot u = rv - qw + a_x - g\\sin\\theta`,
+    :math:`\\dot w = qu - pv + a_z + g\\cos\\theta\\cos\\phi`, is integrated (trapezoids)
+    to :math:`A(t)`, and the measured alpha (rad, as declared) is regressed on
+    :math:`[1, t, A]` (the trend absorbs sensor biases). Returns ``(k, r2)``: the coefficient of
+    A (1 when alpha is in the declared degrees, 1/57.3 when it is in radians) and the share of
+    alpha's detrended variance that A explains; None when a channel is missing, the time is
+    not increasing, or A does not vary (nothing to judge by).
+    """
+    need = ("t", "alpha_deg", "q_dps", "az_mps2", "ax_mps2", "tas_mps", "theta_deg")
+    if not all(c in data and np.isfinite(data[c]).all() for c in need):
+        return None
+    k = max(1, len(data["t"]) // 2000)
+    t = data["t"][::k]
+    if len(t) < 20 or (np.diff(t) <= 0).any():
+        return None
+    d2r = np.pi / 180.0
+
+    def col(c: str, scale: float = 1.0) -> np.ndarray:
+        x = data.get(c)
+        return np.zeros_like(t) if x is None or not np.isfinite(x).all() else x[::k] * scale
+
+    alpha = col("alpha_deg", d2r)
+    beta = col("beta_deg", d2r)
+    p, q, r = col("p_dps", d2r), col("q_dps", d2r), col("r_dps", d2r)
+    phi, th = col("phi_deg", d2r), col("theta_deg", d2r)
+    ax, az, vt = col("ax_mps2"), col("az_mps2"), col("tas_mps")
+    u = vt * np.cos(alpha) * np.cos(beta)
+    v = vt * np.sin(beta)
+    w = vt * np.sin(alpha) * np.cos(beta)
+    g = 9.80665
+    ud = r * v - q * w + ax - g * np.sin(th)
+    wd = q * u - p * v + az + g * np.cos(th) * np.cos(phi)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        adot = (u * wd - w * ud) / (u * u + w * w)
+    if not np.isfinite(adot).all():
+        return None
+    big_a = np.concatenate(([0.0], np.cumsum(0.5 * (adot[1:] + adot[:-1]) * np.diff(t))))
+    tc = t - t.mean()
+    trend = np.stack([np.ones_like(t), tc], axis=1)
+
+    def detrend(y: np.ndarray) -> np.ndarray:
+        return y - trend @ np.linalg.lstsq(trend, y, rcond=None)[0]
+
+    ad, yd = detrend(big_a), detrend(alpha)
+    den = float(ad @ ad)
+    yy = float(yd @ yd)
+    if den <= 1e-12 * len(t) or yy <= 0.0:
+        return None
+    kk = float(ad @ yd) / den
+    r2 = float(ad @ yd) ** 2 / (den * yy)
+    return kk, r2
+
+
+def _alpha_unit_check(data: dict[str, np.ndarray], rep: ValidationReport) -> None:
+    """Alpha within ±0.6 deg over a whole record: radians declared as degrees, or a genuine
+    low-alpha record? Refuse only when alpha follows the kinematics at 1/57.3 of the declared
+    scale (consistent with radians, inconsistent with degrees); warn when the other channels
+    cannot tell."""
+    a = data["alpha_deg"]
+    amax = float(np.abs(a).max())
+    fit = _alpha_kinematic_scale(data)
+    if fit is not None and fit[1] > 0.8:
+        k, _ = fit
+        if 0.005 < k < 0.05:
+            rep.add(
+                "error",
+                "alpha_deg",
+                "",
+                f"alpha stays within ±{amax:.3g} deg and changes {k:.3g}x as fast as the rates, "
+                "accelerations and airspeed say: it looks like radians declared as degrees; "
+                'declare unit = "rad" in the channel map',
+            )
+        return
+    rep.add(
+        "warning",
+        "alpha_deg",
+        "",
+        f"alpha stays within ±{amax:.3g} deg over the whole record and the other channels "
+        'cannot confirm its unit; if it is in radians, declare unit = "rad" in the channel map',
+    )
 
 
 _HEALTH_CHANNELS = (
@@ -360,3 +452,83 @@ def _sensor_health(data: dict[str, np.ndarray], rep: ValidationReport) -> None:
                 _fmt_runs(long_runs),
                 "repeats the same value for a long run: the sensor may have stuck; kept",
             )
+
+
+def screen_many(
+    cols: dict[str, np.ndarray], offsets: np.ndarray
+) -> tuple[np.ndarray, list[dict[str, np.ndarray]]]:
+    """Vectorised screen of many maneuvers stored back to back (canonical float64 columns,
+    every maneuver at least 20 rows and every required channel present).
+
+    Runs the checks of :func:`validate` that can only refuse or warn (non-finite samples,
+    time steps, physical ranges, candidates for stuck/clipped sensors, alpha within ±0.6 deg)
+    over the whole columns at once, reduced per maneuver.
+
+    Returns
+    -------
+    (numpy.ndarray, list[dict])
+        ``clean[m]``: True when maneuver ``m`` passed every screened check, so that
+        :func:`validate` would only add unit-check findings (run :func:`unit_checks_only`);
+        False: run :func:`validate` on it for the detailed findings. And the per-maneuver
+        column views (no copies).
+    """
+    starts = offsets[:-1]
+    lengths = np.diff(offsets)
+    nm = len(lengths)
+    clean = np.ones(nm, dtype=bool)
+    for c, x in cols.items():
+        spec = CHANNELS[c]
+        with np.errstate(invalid="ignore"):
+            bad = ~np.isfinite(x) | (x < spec.lo) | (x > spec.hi)
+        if bad.any():
+            clean &= ~np.logical_or.reduceat(bad, starts)
+    t = cols["t"]
+    dt = np.diff(t)
+    # steps inside each maneuver (the step across a boundary is dropped)
+    inner = np.ones(len(dt), dtype=bool)
+    inner[starts[1:] - 1] = False
+    with np.errstate(invalid="ignore"):
+        nonpos = (dt <= 0) & inner
+        jump = np.zeros(len(dt), dtype=bool)
+        jump[1:] = (np.abs(np.diff(dt)) > 0.01 * dt[:-1]) & inner[1:] & inner[:-1]
+    badt = np.concatenate((nonpos | jump, [False]))
+    if badt.any():
+        clean &= ~np.logical_or.reduceat(badt, starts)
+    min_run = np.maximum(25, lengths // 50)
+    for c in _HEALTH_CHANNELS:
+        x = cols.get(c)
+        if x is None:
+            continue
+        ptp = np.maximum.reduceat(x, starts) - np.minimum.reduceat(x, starts)
+        same = np.concatenate((np.diff(x) == 0.0, [False]))
+        same[starts[1:] - 1] = False
+        repeats = np.add.reduceat(same.view(np.int8).astype(np.int64), starts)
+        with np.errstate(invalid="ignore"):
+            clean &= ~((ptp == 0.0) | (repeats >= min_run - 1))
+    a = cols.get("alpha_deg")
+    if a is not None:
+        with np.errstate(invalid="ignore"):
+            clean &= ~(np.maximum.reduceat(np.abs(a), starts) < 0.6)
+    views = [{c: x[s:e] for c, x in cols.items()} for s, e in zip(starts, offsets[1:], strict=True)]
+    return clean, views
+
+
+def az_medians(cols: dict[str, np.ndarray], offsets: np.ndarray) -> np.ndarray | None:
+    """Median of ``az_mps2`` per maneuver (one call when all maneuvers have one length)."""
+    az = cols.get("az_mps2")
+    if az is None:
+        return None
+    lengths = np.diff(offsets)
+    if (lengths == lengths[0]).all():
+        return np.median(az.reshape(len(lengths), int(lengths[0])), axis=1)
+    return np.array([np.median(az[s:e]) for s, e in itertools.pairwise(offsets)])
+
+
+def unit_checks_only(
+    data: dict[str, np.ndarray], file: str, maneuver_id: str, az_median: float | None = None
+) -> ValidationReport:
+    """The findings :func:`validate` gives a maneuver that :func:`screen_many` passed
+    (every sample finite)."""
+    rep = ValidationReport(file, maneuver_id)
+    _unit_checks(data, rep, finite=True, az_median=az_median)
+    return rep
