@@ -11,10 +11,12 @@ fn main() {
     match what {
         "table" => {
             let axes = vec![
-                Axis::new("alpha", (0..30).map(|i| -10.0 + i as f64 * 45.0 / 29.0).collect())
-                    .expect("axis"),
-                Axis::new("beta", (0..13).map(|i| -30.0 + i as f64 * 5.0).collect())
-                    .expect("axis"),
+                Axis::new(
+                    "alpha",
+                    (0..30).map(|i| -10.0 + i as f64 * 45.0 / 29.0).collect(),
+                )
+                .expect("axis"),
+                Axis::new("beta", (0..13).map(|i| -30.0 + i as f64 * 5.0).collect()).expect("axis"),
                 Axis::new("flap", vec![0.0, 5.0, 10.0, 15.0, 35.0]).expect("axis"),
                 Axis::new("da", (0..9).map(|i| -20.0 + i as f64 * 5.0).collect()).expect("axis"),
             ];
@@ -26,7 +28,9 @@ fn main() {
             let cols: Vec<Vec<f64>> = (0..4)
                 .map(|k| {
                     (0..n)
-                        .map(|i| lo[k] + span[k] * (((i * (2 * k + 7919)) % 10007) as f64 / 10007.0))
+                        .map(|i| {
+                            lo[k] + span[k] * (((i * (2 * k + 7919)) % 10007) as f64 / 10007.0)
+                        })
                         .collect()
                 })
                 .collect();
