@@ -210,16 +210,36 @@ where
 
     let re_m = MatRef::from_column_major_slice(&re, kh, p);
     let im_m = MatRef::from_column_major_slice(&im, kh, p);
+    // Only the lower triangle of each block Gram is formed (the product is
+    // symmetric): half the multiply-adds of the full product.
     let gram_block = |s: usize, e: usize| -> Mat<f64> {
+        use faer::linalg::matmul::triangular::{matmul, BlockStructure};
         let r = re_m.subrows(s, e - s);
         let i = im_m.subrows(s, e - s);
+        let mut g = Mat::<f64>::zeros(p, p);
+        let mut acc = |lhs: MatRef<'_, f64>, rhs: MatRef<'_, f64>| {
+            matmul(
+                g.as_mut(),
+                BlockStructure::TriangularLower,
+                faer::Accum::Add,
+                lhs.transpose(),
+                BlockStructure::Rectangular,
+                rhs,
+                BlockStructure::Rectangular,
+                1.0,
+                faer::Par::Seq,
+            );
+        };
         if all_nonneg {
-            r.transpose() * r + i.transpose() * i
+            acc(r, r);
+            acc(i, i);
         } else {
             let rw = Mat::from_fn(e - s, p, |k, b| r[(k, b)] * w[s + k]);
             let iw = Mat::from_fn(e - s, p, |k, b| i[(k, b)] * w[s + k]);
-            r.transpose() * &rw + i.transpose() * &iw
+            acc(r, rw.as_ref());
+            acc(i, iw.as_ref());
         }
+        g
     };
     let nblocks = kh.div_ceil(GRAM_BLOCK);
     let run = |c: usize| gram_block(c * GRAM_BLOCK, ((c + 1) * GRAM_BLOCK).min(kh));
@@ -240,8 +260,8 @@ where
     give_real(sw);
     give_real(buf);
     give_cplx(spec);
-    // Symmetrise (the two triangles differ only by rounding).
-    Ok(Mat::from_fn(p, p, |a, b| 0.5 * (m[(a, b)] + m[(b, a)])))
+    // Mirror the lower triangle.
+    Ok(Mat::from_fn(p, p, |a, b| m[(a.max(b), a.min(b))]))
 }
 
 #[cfg(test)]
