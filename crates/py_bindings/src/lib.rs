@@ -11,6 +11,7 @@ mod error;
 mod lsq;
 mod partition;
 mod preprocess;
+mod rolloff;
 mod sim;
 mod spline;
 mod table;
@@ -28,5 +29,6 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     sim::register(m)?;
     preprocess::register(m)?;
     lsq::register(m)?;
+    rolloff::register(m)?;
     Ok(())
 }
