@@ -39,6 +39,7 @@ from aerodelta.ingest import IngestResult, ingest
 from aerodelta.lsq import OLSResults, ols
 from aerodelta.model import DeltaModel
 from aerodelta.partition import AlphaBins, partition_alpha
+from aerodelta.rolloff import detect_rolloff, rolloff_statistics
 from aerodelta.spline import SmoothingSpline, smoothing_spline
 from aerodelta.table import Table
 from aerodelta.validate import Finding, ValidationReport
@@ -66,6 +67,7 @@ __all__ = [
     "ValidationReport",
     "__version__",
     "check_daveml",
+    "detect_rolloff",
     "effect_library",
     "generate_campaign",
     "ingest",
@@ -74,6 +76,7 @@ __all__ = [
     "partition_alpha",
     "qualified_model_tables",
     "replay",
+    "rolloff_statistics",
     "rolloff_draws",
     "simulate_campaign",
     "smoothing_spline",
