@@ -384,6 +384,8 @@ def monte_carlo(
     config: Mapping[str, Any] | None = None,
     noise: float = 1.0,
     turbulence: float = 0.5,
+    record_hz: float = 10.0,
+    chunk: int = 256,
 ) -> pl.DataFrame:
     """Many straight stalls of the 6-DOF simulator with the roll-off on.
 
@@ -397,6 +399,13 @@ def monte_carlo(
         Flap setting (one of the five of the representative aircraft).
     config
         Roll-off configuration (``None``: thesis Table 3.2).
+    noise, turbulence
+        Sensor noise scale and gust RMS, m/s (as the campaign).
+    record_hz
+        Rate of the kept samples, Hz (a divisor of 100); only the truth alpha and roll-off
+        contribution are read from them.
+    chunk
+        Stalls flown per engine call (bounds the memory of the returned records).
 
     Returns
     -------
@@ -422,29 +431,31 @@ def monte_carlo(
         turbulence=turbulence,
         rolloff=True,
         excitation=1.0,
-        only=only,
+        record_hz=record_hz,
     )
     if config is not None:
         spec["rolloff"] = dict(config)
     rows = []
-    for m in _core.sim_run_campaign(json.dumps(spec)):
-        meta = json.loads(m["meta"])
-        tr = m["truth"]
-        ro = np.asarray(tr["dCl_stochastic_rolloff"])
-        alpha = np.asarray(tr["alpha_true_deg"])
-        k = int(np.argmax(np.abs(ro))) if ro.size else 0
-        big = float(ro[k]) if ro.size else 0.0
-        hit = np.nonzero(np.abs(ro) >= 0.2 * abs(big))[0] if big != 0.0 else np.array([])
-        rows.append(
-            {
-                "maneuver_id": m["id"],
-                "pusher": bool(meta["plan"]["pusher"]),
-                "max_bank_deg": float(meta["max_bank_deg"]),
-                "max_alpha_deg": float(meta["max_alpha_deg"]),
-                "onset_alpha_deg": float(alpha[hit[0]]) if hit.size else float("nan"),
-                "peak": big,
-            }
-        )
+    for start in range(0, len(only), chunk):
+        spec["only"] = only[start : start + chunk]
+        for m in _core.sim_run_campaign(json.dumps(spec)):
+            meta = json.loads(m["meta"])
+            tr = m["truth"]
+            d = np.asarray(tr["dCl_stochastic_rolloff"])
+            alpha = np.asarray(tr["alpha_true_deg"])
+            k = int(np.argmax(np.abs(d))) if d.size else 0
+            big = float(d[k]) if d.size else 0.0
+            hit = np.nonzero(np.abs(d) >= 0.2 * abs(big))[0] if big != 0.0 else np.array([])
+            rows.append(
+                {
+                    "maneuver_id": m["id"],
+                    "pusher": bool(meta["plan"]["pusher"]),
+                    "max_bank_deg": float(meta["max_bank_deg"]),
+                    "max_alpha_deg": float(meta["max_alpha_deg"]),
+                    "onset_alpha_deg": float(alpha[hit[0]]) if hit.size else float("nan"),
+                    "peak": big,
+                }
+            )
     return pl.DataFrame(rows)
 
 
