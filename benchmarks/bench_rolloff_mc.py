@@ -17,12 +17,12 @@ import time
 
 import numpy as np
 
+import aerodelta.rolloff as ro
+
 TARGET_S = 60.0
 
 
 def run(n: int) -> float:
-    import aerodelta.rolloff as ro
-
     t0 = time.perf_counter()
     mc = ro.monte_carlo(n, seed=1, flap_deg=0.0)
     dt = time.perf_counter() - t0

@@ -139,13 +139,12 @@ def _score(ev: pl.DataFrame, truth: pl.DataFrame) -> tuple[int, int, int, int, p
     acc = ev.filter(pl.col("accepted"))
     j = acc.join(truth, on="maneuver_id", how="left")
     matched = j.filter(
-        (pl.col("peak_true").abs() >= PARTIAL_MIN) & ((pl.col("t_peak") - pl.col("t_true")).abs() < 3.0)
+        (pl.col("peak_true").abs() >= PARTIAL_MIN)
+        & ((pl.col("t_peak") - pl.col("t_true")).abs() < 3.0)
     )
     false = j.height - matched.height
     injected = truth.filter(pl.col("peak_true").abs() >= INJECTED_MIN)
-    found = injected.join(
-        matched.select("maneuver_id"), on="maneuver_id", how="semi"
-    ).height
+    found = injected.join(matched.select("maneuver_id"), on="maneuver_id", how="semi").height
     return injected.height, found, j.height, false, matched
 
 
@@ -181,9 +180,16 @@ def test_detection_recall_and_false_rate_on_a_virtual_campaign(
     row = st.row(0, named=True)
     assert row["p_right_lo"] <= 0.58 <= row["p_right_hi"], row
     ratio = pl.DataFrame(
-        {"flap_deg": [0.0] * rel.size, "alpha_onset_deg": rel, "peak": rel, "direction": [1] * rel.size}
+        {
+            "flap_deg": [0.0] * rel.size,
+            "alpha_onset_deg": rel,
+            "peak": rel,
+            "direction": [1] * rel.size,
+        }
     )
-    r = ro.rolloff_statistics(ratio.with_columns(pl.col("direction").cast(pl.Int8))).row(0, named=True)
+    r = ro.rolloff_statistics(ratio.with_columns(pl.col("direction").cast(pl.Int8))).row(
+        0, named=True
+    )
     assert r["alpha_mean_lo"] <= 1.0 <= r["alpha_mean_hi"] or abs(r["alpha_mean_deg"] - 1) < 0.1, r
 
 

@@ -24,6 +24,7 @@ import numpy.typing as npt
 import polars as pl
 
 from aerodelta import _core
+from aerodelta.campaign import _spec
 from aerodelta.exceptions import DataError, InvalidInputError
 
 FloatArray = npt.NDArray[np.float64]
@@ -124,8 +125,8 @@ def detect_rolloff(
         else {c: 2.0 for c in quiet_channels}
     )
     rows: list[dict[str, Any]] = []
-    for (mid,), g in frame.group_by(["maneuver_id"], maintain_order=True):
-        g = g.sort("t")
+    for (mid,), g0 in frame.group_by(["maneuver_id"], maintain_order=True):
+        g = g0.sort("t")
         t = g["t"].to_numpy().astype(np.float64)
         alpha = g["alpha_deg"].to_numpy().astype(np.float64)
         qs = [
@@ -165,8 +166,21 @@ def detect_rolloff(
 
 
 def normal_ppf(p: float) -> float:
-    """Standard normal quantile (Student t with 10^12 degrees of freedom, engine)."""
-    return float(_core.student_t_ppf(float(p), 1e12))
+    """Standard normal quantile: Newton on ``Φ(x) = erfc(-x/√2)/2`` from 0.
+
+    Φ is concave above 0 and convex below, so the iterates approach the root
+    monotonically; converged to 1e-12 within a dozen steps for 1e-12 < p < 1 - 1e-12.
+    """
+    if not 0.0 < p < 1.0:
+        raise InvalidInputError(f"normal_ppf: probability {p} must lie in (0, 1)")
+    x = 0.0
+    for _ in range(100):
+        f = 0.5 * math.erfc(-x / math.sqrt(2.0)) - p
+        step = f / (math.exp(-0.5 * x * x) / math.sqrt(2.0 * math.pi))
+        x -= step
+        if abs(step) < 1e-12:
+            break
+    return x
 
 
 def chi2_ppf(p: float, df: float) -> float:
@@ -414,8 +428,6 @@ def monte_carlo(
         onset_alpha_deg`` (true alpha where the injected ΔC_l first reaches 20 % of its
         largest value; NaN when alpha never reached the spike), ``peak`` (signed largest ΔC_l).
     """
-    from aerodelta.campaign import _spec  # the campaign's spec builder
-
     flaps = [0.0, 5.0, 10.0, 15.0, 35.0]
     if flap_deg not in flaps:
         raise InvalidInputError(f"monte_carlo: flap_deg {flap_deg} is not one of {flaps}")
