@@ -154,7 +154,9 @@ def campaigns(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     out = {}
     for name, on in (("on", True), ("off", False)):
         out[name] = base / name
-        ad.generate_campaign(out[name], effects="none", seed=21, size=2, rolloff=on)
+        # no pilot excitation (doublets, stick noise): a roll-off preceded by a commanded
+        # aileron or rudder input is rejected by design (thesis step 2), which is not a miss
+        ad.generate_campaign(out[name], effects="none", seed=21, size=2, rolloff=on, excitation=0.0)
     return out
 
 
@@ -170,27 +172,36 @@ def test_detection_recall_and_false_rate_on_a_virtual_campaign(
     assert n_inj >= 10
     assert found >= 0.9 * n_inj
     assert false <= 0.1 * max(n_acc, len(ids))
-    # the estimates agree with the injected events: direction always, size within noise
-    assert (np.sign(matched["peak"]) == np.sign(matched["peak_true"])).all()
-    rel = (matched["peak"].abs() / matched["peak_true"].abs()).to_numpy()
-    assert abs(np.median(rel) - 1) < 0.25, rel
-    # statistics: the right-roll probability's interval holds the configured 0.58 and the
-    # pooled magnitude ratio's t-interval holds 1 (magnitudes differ by flap)
+    # the estimates agree with the injected spike at the detected peak time: direction always,
+    # size within noise (the first roll-off is reported, the truth maximum may be a later one)
+    inj = []
+    for mid, tp in matched.select("maneuver_id", "t_peak").iter_rows():
+        tr = pl.read_parquet(campaigns["on"] / "truth" / f"{mid}.parquet")
+        inj.append(
+            float(np.interp(tp, tr["t"].to_numpy(), tr["dCl_stochastic_rolloff"].to_numpy()))
+        )
+    inj_a = np.array(inj)
+    assert (np.sign(matched["peak"].to_numpy()) == np.sign(inj_a)).all()
+    rel = np.abs(matched["peak"].to_numpy()) / np.abs(inj_a)
+    print("detected / injected peak:", np.round(rel, 3))
+    # statistics: the right-roll probability's Wilson interval holds the configured 0.58, and
+    # the t-interval of the detected/injected magnitude ratio holds 1
     st = ro.rolloff_statistics(ev.with_columns(pl.lit(0.0).alias("flap_deg")))
     row = st.row(0, named=True)
+    print(row)
     assert row["p_right_lo"] <= 0.58 <= row["p_right_hi"], row
+    # pooled over flaps (means differ by < 1 deg) the alpha spread's interval holds 1.31 deg
+    assert row["alpha_std_lo"] <= 1.31 <= row["alpha_std_hi"], row
     ratio = pl.DataFrame(
         {
-            "flap_deg": [0.0] * rel.size,
+            "flap_deg": np.zeros(rel.size),
             "alpha_onset_deg": rel,
             "peak": rel,
-            "direction": [1] * rel.size,
+            "direction": np.ones(rel.size, np.int8),
         }
     )
-    r = ro.rolloff_statistics(ratio.with_columns(pl.col("direction").cast(pl.Int8))).row(
-        0, named=True
-    )
-    assert r["alpha_mean_lo"] <= 1.0 <= r["alpha_mean_hi"] or abs(r["alpha_mean_deg"] - 1) < 0.1, r
+    r = ro.rolloff_statistics(ratio).row(0, named=True)
+    assert r["alpha_mean_lo"] <= 1.0 <= r["alpha_mean_hi"], r
 
 
 def test_no_rolloff_no_events_beyond_the_false_rate(campaigns: dict[str, Path]) -> None:
