@@ -40,6 +40,7 @@ from aerodelta.ingest import IngestResult, ingest
 from aerodelta.lsq import OLSResults, ols
 from aerodelta.model import DeltaModel
 from aerodelta.partition import AlphaBins, partition_alpha
+from aerodelta.rolloff import detect_rolloff, rolloff_statistics
 from aerodelta.spline import SmoothingSpline, smoothing_spline
 from aerodelta.table import Table
 from aerodelta.validate import Finding, ValidationReport
@@ -69,6 +70,7 @@ __all__ = [
     "ValidationReport",
     "__version__",
     "check_daveml",
+    "detect_rolloff",
     "effect_library",
     "fit",
     "generate_campaign",
@@ -79,6 +81,7 @@ __all__ = [
     "qualified_model_tables",
     "replay",
     "rolloff_draws",
+    "rolloff_statistics",
     "simulate_campaign",
     "smoothing_spline",
     "validate_model",

@@ -299,3 +299,17 @@ def identify_bins(
     alpha_max_deg: float,
     min_identified_bins: int,
 ) -> dict[str, object]: ...
+
+# roll-off detection and configurable runtime draws (crates/py_bindings/src/rolloff.rs)
+def rolloff_detect_defaults() -> dict[str, float | bool]: ...
+def rolloff_detect(
+    t: npt.NDArray[np.float64],
+    alpha_deg: npt.NDArray[np.float64],
+    cl_residual: npt.NDArray[np.float64],
+    da_deg: npt.NDArray[np.float64],
+    quiet: list[tuple[str, npt.NDArray[np.float64], float]],
+    config: dict[str, float | bool] | None = None,
+) -> dict[str, object]: ...
+def rolloff_sample_draws(
+    config_json: str, flap_deg: float, seed: int, n: int, stream: int = 0
+) -> dict[str, npt.NDArray[np.float64]]: ...

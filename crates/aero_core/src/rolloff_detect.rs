@@ -59,8 +59,11 @@ impl Default for DetectConfig {
             min_magnitude: 0.003,
             min_alpha_deg: 10.0,
             onset_fraction: 0.2,
-            quiet_window_s: 1.0,
-            max_aileron_change_deg: 2.0,
+            // tuned on virtual campaigns (tests/test_rolloff.py): the pilot's
+            // aileron works within ~0.5 s of a roll-off's onset at 20 % of its
+            // peak, and its stick noise moves the aileron 2-3 deg over 1 s
+            quiet_window_s: 0.5,
+            max_aileron_change_deg: 4.0,
             max_duration_s: 6.0,
             first_only: true,
         }

@@ -12,6 +12,7 @@ mod identify;
 mod lsq;
 mod partition;
 mod preprocess;
+mod rolloff;
 mod sim;
 mod spline;
 mod table;
@@ -30,5 +31,6 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     sim::register(m)?;
     preprocess::register(m)?;
     lsq::register(m)?;
+    rolloff::register(m)?;
     Ok(())
 }

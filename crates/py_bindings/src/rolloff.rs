@@ -1,0 +1,164 @@
+//! Roll-off detection (`aero_core::rolloff_detect`) and runtime-model draws
+//! with a given configuration (`aero_core::rolloff`). Conversion and error
+//! mapping only.
+use aero_core::rolloff::{sample_draws, RollOffConfig};
+use aero_core::rolloff_detect::{detect, DetectConfig, QuietChannel, RecordSignals};
+use aero_core::AeroError;
+use numpy::{IntoPyArray, PyReadonlyArray1};
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+
+use crate::error::to_py;
+use crate::util::detached;
+
+/// The detector's default thresholds as a dict.
+#[pyfunction]
+fn rolloff_detect_defaults<'py>(py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+    let c = DetectConfig::default();
+    let d = PyDict::new(py);
+    d.set_item("trend_window_s", c.trend_window_s)?;
+    d.set_item("threshold_sigma", c.threshold_sigma)?;
+    d.set_item("min_magnitude", c.min_magnitude)?;
+    d.set_item("min_alpha_deg", c.min_alpha_deg)?;
+    d.set_item("onset_fraction", c.onset_fraction)?;
+    d.set_item("quiet_window_s", c.quiet_window_s)?;
+    d.set_item("max_aileron_change_deg", c.max_aileron_change_deg)?;
+    d.set_item("max_duration_s", c.max_duration_s)?;
+    d.set_item("first_only", c.first_only)?;
+    Ok(d)
+}
+
+fn config_from(d: Option<&Bound<'_, PyDict>>) -> PyResult<DetectConfig> {
+    let mut c = DetectConfig::default();
+    let Some(d) = d else { return Ok(c) };
+    for (k, v) in d.iter() {
+        let key: String = k.extract()?;
+        match key.as_str() {
+            "trend_window_s" => c.trend_window_s = v.extract()?,
+            "threshold_sigma" => c.threshold_sigma = v.extract()?,
+            "min_magnitude" => c.min_magnitude = v.extract()?,
+            "min_alpha_deg" => c.min_alpha_deg = v.extract()?,
+            "onset_fraction" => c.onset_fraction = v.extract()?,
+            "quiet_window_s" => c.quiet_window_s = v.extract()?,
+            "max_aileron_change_deg" => c.max_aileron_change_deg = v.extract()?,
+            "max_duration_s" => c.max_duration_s = v.extract()?,
+            "first_only" => c.first_only = v.extract()?,
+            other => {
+                return Err(to_py(AeroError::invalid(
+                    format!("roll-off detection config key '{other}'"),
+                    "is unknown; rolloff_detect_defaults() lists the keys",
+                )))
+            }
+        }
+    }
+    Ok(c)
+}
+
+/// Detect roll-off candidates in one record: dict of arrays (onset_index,
+/// peak_index, t_onset, t_peak, alpha_onset_deg, peak, direction, duration_s,
+/// noise_sigma) and a list `rejected` (empty string = accepted).
+#[pyfunction]
+#[pyo3(signature = (t, alpha_deg, cl_residual, da_deg, quiet, config=None))]
+fn rolloff_detect<'py>(
+    py: Python<'py>,
+    t: PyReadonlyArray1<'py, f64>,
+    alpha_deg: PyReadonlyArray1<'py, f64>,
+    cl_residual: PyReadonlyArray1<'py, f64>,
+    da_deg: PyReadonlyArray1<'py, f64>,
+    quiet: Vec<(String, PyReadonlyArray1<'py, f64>, f64)>,
+    config: Option<&Bound<'py, PyDict>>,
+) -> PyResult<Bound<'py, PyDict>> {
+    let cfg = config_from(config)?;
+    let sig = RecordSignals {
+        t: t.as_slice()?,
+        alpha_deg: alpha_deg.as_slice()?,
+        cl_residual: cl_residual.as_slice()?,
+        da_deg: da_deg.as_slice()?,
+    };
+    let others = quiet
+        .iter()
+        .map(|(name, v, m)| {
+            Ok(QuietChannel {
+                name: name.as_str(),
+                values: v.as_slice()?,
+                max_change: *m,
+            })
+        })
+        .collect::<PyResult<Vec<_>>>()?;
+    let ev = detached(py, || detect(&sig, &others, &cfg))?;
+    let d = PyDict::new(py);
+    let f = |g: &dyn Fn(&aero_core::rolloff_detect::RolloffEvent) -> f64| {
+        ev.iter().map(g).collect::<Vec<f64>>()
+    };
+    d.set_item(
+        "onset_index",
+        ev.iter()
+            .map(|e| e.onset_index as i64)
+            .collect::<Vec<_>>()
+            .into_pyarray(py),
+    )?;
+    d.set_item(
+        "peak_index",
+        ev.iter()
+            .map(|e| e.peak_index as i64)
+            .collect::<Vec<_>>()
+            .into_pyarray(py),
+    )?;
+    d.set_item("t_onset", f(&|e| e.t_onset).into_pyarray(py))?;
+    d.set_item("t_peak", f(&|e| e.t_peak).into_pyarray(py))?;
+    d.set_item(
+        "alpha_onset_deg",
+        f(&|e| e.alpha_onset_deg).into_pyarray(py),
+    )?;
+    d.set_item("peak", f(&|e| e.peak).into_pyarray(py))?;
+    d.set_item("direction", f(&|e| f64::from(e.direction)).into_pyarray(py))?;
+    d.set_item("duration_s", f(&|e| e.duration_s).into_pyarray(py))?;
+    d.set_item("noise_sigma", f(&|e| e.noise_sigma).into_pyarray(py))?;
+    d.set_item(
+        "rejected",
+        ev.iter().map(|e| e.rejected.clone()).collect::<Vec<_>>(),
+    )?;
+    Ok(d)
+}
+
+/// `n` roll-off draws of the runtime model with a configuration given as JSON
+/// (`RollOffConfig`): dict of arrays sign, factor, alpha_shift_deg, center_deg, peak.
+#[pyfunction]
+#[pyo3(signature = (config_json, flap_deg, seed, n, stream=0))]
+fn rolloff_sample_draws<'py>(
+    py: Python<'py>,
+    config_json: &str,
+    flap_deg: f64,
+    seed: u64,
+    n: usize,
+    stream: u64,
+) -> PyResult<Bound<'py, PyDict>> {
+    let cfg: RollOffConfig = serde_json::from_str(config_json).map_err(|e| {
+        to_py(AeroError::parse(
+            "roll-off config (JSON)",
+            e.line(),
+            e.to_string(),
+        ))
+    })?;
+    let draws = detached(py, || sample_draws(&cfg, flap_deg, seed, stream, n))?;
+    let d = PyDict::new(py);
+    let col = |f: &dyn Fn(&aero_core::rolloff::RollOffDraw) -> f64| {
+        draws.iter().map(f).collect::<Vec<f64>>()
+    };
+    d.set_item("sign", col(&|r| r.sign).into_pyarray(py))?;
+    d.set_item("factor", col(&|r| r.factor).into_pyarray(py))?;
+    d.set_item(
+        "alpha_shift_deg",
+        col(&|r| r.alpha_shift_deg).into_pyarray(py),
+    )?;
+    d.set_item("center_deg", col(&|r| r.center_deg).into_pyarray(py))?;
+    d.set_item("peak", col(&|r| r.peak).into_pyarray(py))?;
+    Ok(d)
+}
+
+pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_function(wrap_pyfunction!(rolloff_detect_defaults, m)?)?;
+    m.add_function(wrap_pyfunction!(rolloff_detect, m)?)?;
+    m.add_function(wrap_pyfunction!(rolloff_sample_draws, m)?)?;
+    Ok(())
+}

@@ -1,0 +1,489 @@
+"""Stochastic roll-off: detection in flight records, statistics, runtime model, metrics.
+
+Thesis Section 3.4.3 (Table 3.2, Figures 3.12-3.14, Eq. 3.20). The detector
+runs in the engine (``aero_core::rolloff_detect``); the runtime model too
+(``aero_core::rolloff``). This module arranges the records, computes the
+per-flap statistics with confidence intervals (numpy only) and the dynamic
+roll-control metrics.
+
+>>> import aerodelta.rolloff as ro
+>>> cfg = ro.default_config()
+>>> round(cfg["alpha_std_deg"], 2), round(cfg["magnitude_cv"], 3)
+(1.31, 0.225)
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+import polars as pl
+
+from aerodelta import _core
+from aerodelta.campaign import _spec
+from aerodelta.exceptions import DataError, InvalidInputError
+
+FloatArray = npt.NDArray[np.float64]
+
+#: FAR 25.203(c): the bank angle in a straight stall must not exceed 20 deg.
+FAR25_203_MAX_ROLL_DEG = 20.0
+
+_EVENT_SCHEMA = {
+    "maneuver_id": pl.String,
+    "flap_deg": pl.Float64,
+    "kind": pl.String,
+    "t_onset": pl.Float64,
+    "t_peak": pl.Float64,
+    "alpha_onset_deg": pl.Float64,
+    "alpha_peak_deg": pl.Float64,
+    "peak": pl.Float64,
+    "direction": pl.Int8,
+    "duration_s": pl.Float64,
+    "noise_sigma": pl.Float64,
+    "accepted": pl.Boolean,
+    "reason": pl.String,
+}
+
+
+def detect_defaults() -> dict[str, Any]:
+    """The detector's default thresholds (keys accepted by ``config``)."""
+    return dict(_core.rolloff_detect_defaults())
+
+
+def _residual(data: pl.DataFrame, residual: str | FloatArray | None) -> FloatArray:
+    cl = data["Cl_meas"].to_numpy().astype(np.float64)
+    if residual is None:
+        for model in ("Cl_qual", "Cl_sim"):
+            if model in data.columns:
+                return cl - data[model].to_numpy().astype(np.float64)
+        return cl
+    if isinstance(residual, str):
+        if residual not in data.columns:
+            raise DataError(f"roll-off detection: residual column '{residual}' is not in the data")
+        return data[residual].to_numpy().astype(np.float64)
+    r = np.asarray(residual, dtype=np.float64)
+    if r.shape != (data.height,):
+        raise DataError(
+            f"roll-off detection: residual has shape {r.shape}, the data {data.height} rows"
+        )
+    return r
+
+
+def detect_rolloff(
+    data: pl.DataFrame,
+    *,
+    residual: str | FloatArray | None = None,
+    config: Mapping[str, Any] | None = None,
+    quiet_channels: Sequence[str] | Mapping[str, float] = ("dr_deg", "ds_deg"),
+    kinds: Sequence[str] | None = ("straight",),
+) -> pl.DataFrame:
+    """Detect roll-off events in flight records (thesis Section 3.4.3, Table 3.2 procedure).
+
+    Parameters
+    ----------
+    data
+        Ingested records (``aerodelta.ingest(...).data``): ``maneuver_id``, ``t`` [s],
+        ``alpha_deg``, ``Cl_meas``, ``da_deg`` and the quiet channels; ``flap_deg`` and
+        ``kind`` when present.
+    residual
+        The rolling-moment signal searched for spikes: ``None`` (default) uses
+        ``Cl_meas - Cl_qual`` or ``Cl_meas - Cl_sim`` when such a model column is
+        present, else ``Cl_meas`` itself (its slow stall trend is removed by the
+        detector's running median); a column name holding a residual (e.g. the
+        residual of a fitted Δ model); or an array aligned with the rows of ``data``.
+    config
+        Detector thresholds overriding :func:`detect_defaults`.
+    quiet_channels
+        Channels that must stay quasi-constant before an event (step 2 of the
+        procedure): names (allowed change 2 deg) or ``{name: allowed change}``.
+        Missing channels are skipped.
+    kinds
+        Maneuver kinds searched (``None``: all).
+
+    Returns
+    -------
+    polars.DataFrame
+        One row per candidate: ``maneuver_id, flap_deg, kind, t_onset, t_peak`` [s],
+        ``alpha_onset_deg, alpha_peak_deg, peak`` (signed ΔC_l), ``direction`` (+1
+        right wing down), ``duration_s, noise_sigma, accepted, reason`` (why rejected).
+    """
+    need = ["maneuver_id", "t", "alpha_deg", "Cl_meas", "da_deg"]
+    missing = [c for c in need if c not in data.columns]
+    if missing and not (residual is not None and missing == ["Cl_meas"]):
+        raise DataError(f"roll-off detection: channels {missing} are missing from the data")
+    res = _residual(data, residual) if "Cl_meas" in data.columns or residual is not None else None
+    frame = data.with_columns(pl.Series("__res", res)).with_row_index("__row")
+    if kinds is not None and "kind" in frame.columns:
+        frame = frame.filter(pl.col("kind").is_in(list(kinds)))
+    quiet = (
+        dict(quiet_channels)
+        if isinstance(quiet_channels, Mapping)
+        else {c: 2.0 for c in quiet_channels}
+    )
+    rows: list[dict[str, Any]] = []
+    for (mid,), g0 in frame.group_by(["maneuver_id"], maintain_order=True):
+        g = g0.sort("t")
+        t = g["t"].to_numpy().astype(np.float64)
+        alpha = g["alpha_deg"].to_numpy().astype(np.float64)
+        qs = [
+            (name, g[name].to_numpy().astype(np.float64), float(lim))
+            for name, lim in quiet.items()
+            if name in g.columns
+        ]
+        ev = _core.rolloff_detect(
+            t,
+            alpha,
+            g["__res"].to_numpy().astype(np.float64),
+            g["da_deg"].to_numpy().astype(np.float64),
+            qs,
+            dict(config) if config else None,
+        )
+        flap = float(g["flap_deg"][0]) if "flap_deg" in g.columns else float("nan")
+        kind = str(g["kind"][0]) if "kind" in g.columns else ""
+        for k in range(len(ev["t_onset"])):
+            rows.append(
+                {
+                    "maneuver_id": str(mid),
+                    "flap_deg": flap,
+                    "kind": kind,
+                    "t_onset": float(ev["t_onset"][k]),
+                    "t_peak": float(ev["t_peak"][k]),
+                    "alpha_onset_deg": float(ev["alpha_onset_deg"][k]),
+                    "alpha_peak_deg": float(alpha[int(ev["peak_index"][k])]),
+                    "peak": float(ev["peak"][k]),
+                    "direction": int(ev["direction"][k]),
+                    "duration_s": float(ev["duration_s"][k]),
+                    "noise_sigma": float(ev["noise_sigma"][k]),
+                    "accepted": ev["rejected"][k] == "",
+                    "reason": ev["rejected"][k],
+                }
+            )
+    return pl.DataFrame(rows, schema=_EVENT_SCHEMA)
+
+
+def normal_ppf(p: float) -> float:
+    """Standard normal quantile: Newton on ``Φ(x) = erfc(-x/√2)/2`` from 0.
+
+    Φ is concave above 0 and convex below, so the iterates approach the root
+    monotonically; converged to 1e-12 within a dozen steps for 1e-12 < p < 1 - 1e-12.
+    """
+    if not 0.0 < p < 1.0:
+        raise InvalidInputError(f"normal_ppf: probability {p} must lie in (0, 1)")
+    x = 0.0
+    for _ in range(100):
+        f = 0.5 * math.erfc(-x / math.sqrt(2.0)) - p
+        step = f / (math.exp(-0.5 * x * x) / math.sqrt(2.0 * math.pi))
+        x -= step
+        if abs(step) < 1e-12:
+            break
+    return x
+
+
+def chi2_ppf(p: float, df: float) -> float:
+    """Chi-square quantile by the Wilson-Hilferty cube (relative error < 0.5 % for df >= 5).
+
+    ``df (1 - 2/(9 df) + z sqrt(2/(9 df)))^3`` with ``z`` the normal quantile.
+    """
+    z = normal_ppf(p)
+    c = 2.0 / (9.0 * df)
+    return df * max(1.0 - c + z * math.sqrt(c), 0.0) ** 3
+
+
+def wilson_interval(k: int, n: int, level: float = 0.95) -> tuple[float, float]:
+    """Wilson score interval of a binomial proportion ``k / n``."""
+    if n == 0:
+        return (float("nan"), float("nan"))
+    z = normal_ppf(0.5 + level / 2)
+    p = k / n
+    den = 1 + z * z / n
+    centre = (p + z * z / (2 * n)) / den
+    half = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / den
+    return (max(centre - half, 0.0), min(centre + half, 1.0))
+
+
+def _mean_ci(x: FloatArray, level: float) -> tuple[float, float, float]:
+    n = x.size
+    m = float(x.mean()) if n else float("nan")
+    if n < 2:
+        return (m, float("nan"), float("nan"))
+    h = float(_core.student_t_ppf(0.5 + level / 2, n - 1)) * float(x.std(ddof=1)) / math.sqrt(n)
+    return (m, m - h, m + h)
+
+
+def _std_ci(x: FloatArray, level: float) -> tuple[float, float, float]:
+    n = x.size
+    if n < 2:
+        return (float("nan"),) * 3
+    s = float(x.std(ddof=1))
+    a = 1 - level
+    lo = s * math.sqrt((n - 1) / chi2_ppf(1 - a / 2, n - 1))
+    hi = s * math.sqrt((n - 1) / chi2_ppf(a / 2, n - 1))
+    return (s, lo, hi)
+
+
+def rolloff_statistics(events: pl.DataFrame, *, level: float = 0.95) -> pl.DataFrame:
+    """Roll-off statistics per flap setting (thesis Table 3.2) with confidence intervals.
+
+    Only accepted events count. Intervals at ``level``: Student t for the means,
+    chi-square (Wilson-Hilferty quantiles) for the alpha standard deviation,
+    Wilson score for the right-roll probability. The magnitude coefficient of
+    variation is ``std(|peak|) / mean(|peak|)``, its interval the chi-square
+    interval of the standard deviation divided by the mean (approximate).
+
+    Returns
+    -------
+    polars.DataFrame
+        Per flap: ``n, alpha_mean_deg (+_lo, _hi), alpha_std_deg (+_lo, _hi),
+        alpha_peak_mean_deg, magnitude_mean (+_lo, _hi), magnitude_cv (+_lo, _hi),
+        n_right, n_left, p_right (+_lo, _hi)``.
+    """
+    ev = events.filter(pl.col("accepted")) if "accepted" in events.columns else events
+    rows = []
+    for flap in sorted(set(ev["flap_deg"].to_list())):
+        g = ev.filter(pl.col("flap_deg") == flap)
+        a = g["alpha_onset_deg"].to_numpy().astype(np.float64)
+        mag = np.abs(g["peak"].to_numpy().astype(np.float64))
+        d = g["direction"].to_numpy()
+        n = int(a.size)
+        am, alo, ahi = _mean_ci(a, level)
+        sd, slo, shi = _std_ci(a, level)
+        mm, mlo, mhi = _mean_ci(mag, level)
+        ms, mslo, mshi = _std_ci(mag, level)
+        nr = int((d > 0).sum())
+        plo, phi = wilson_interval(nr, n, level)
+        apk = g["alpha_peak_deg"] if "alpha_peak_deg" in g.columns else g["alpha_onset_deg"]
+        rows.append(
+            {
+                "flap_deg": float(flap),
+                "n": n,
+                "alpha_mean_deg": am,
+                "alpha_mean_lo": alo,
+                "alpha_mean_hi": ahi,
+                "alpha_std_deg": sd,
+                "alpha_std_lo": slo,
+                "alpha_std_hi": shi,
+                "alpha_peak_mean_deg": float(apk.mean()),  # type: ignore[arg-type]
+                "magnitude_mean": mm,
+                "magnitude_lo": mlo,
+                "magnitude_hi": mhi,
+                "magnitude_cv": ms / mm,
+                "magnitude_cv_lo": mslo / mm,
+                "magnitude_cv_hi": mshi / mm,
+                "n_right": nr,
+                "n_left": n - nr,
+                "p_right": nr / n if n else float("nan"),
+                "p_right_lo": plo,
+                "p_right_hi": phi,
+            }
+        )
+    return pl.DataFrame(rows)
+
+
+def default_config() -> dict[str, Any]:
+    """The runtime model's default configuration (thesis Table 3.2) as a dict."""
+    out: dict[str, Any] = json.loads(_core.sim_rolloff_config())
+    return out
+
+
+def config_from_statistics(
+    stats: pl.DataFrame, *, width_deg: float = 0.5, rearm_alpha_deg: float = 15.0
+) -> dict[str, Any]:
+    """A runtime-model configuration (``aero_core::rolloff::RollOffConfig``) from statistics.
+
+    Per flap: the Gaussian centre is the mean alpha at the spike's peak
+    (``alpha_peak_mean_deg``; the onset lies ``width sqrt(2 ln 5)`` below it at
+    the detector's 20 % onset fraction), the magnitude the mean ``|peak|``, the
+    right probability ``p_right``. The alpha spread and magnitude coefficient of
+    variation are pooled over flaps, weighted by ``n - 1`` (thesis: one value
+    for all settings).
+    """
+    s = stats.filter(pl.col("n") >= 2)
+    if s.height == 0:
+        raise InvalidInputError("config_from_statistics: no flap setting has 2 or more events")
+    w = (s["n"].to_numpy() - 1).astype(np.float64)
+    var_a = s["alpha_std_deg"].to_numpy() ** 2
+    cv = s["magnitude_cv"].to_numpy()
+    return {
+        "flaps": [
+            {
+                "flap_deg": float(r["flap_deg"]),
+                "mean_alpha_deg": float(r["alpha_peak_mean_deg"]),
+                "magnitude": float(r["magnitude_mean"]),
+                "p_right": float(r["p_right"]),
+            }
+            for r in s.iter_rows(named=True)
+        ],
+        "width_deg": float(width_deg),
+        "alpha_std_deg": float(math.sqrt((w * var_a).sum() / w.sum())),
+        "magnitude_cv": float(math.sqrt((w * cv**2).sum() / w.sum())),
+        "rearm_alpha_deg": float(rearm_alpha_deg),
+        "scale": 1.0,
+    }
+
+
+def sample_draws(
+    config: Mapping[str, Any] | None, flap_deg: float, seed: int, n: int, stream: int = 0
+) -> pl.DataFrame:
+    """``n`` successive draws of the runtime model (engine ``sample_draws``) for a configuration.
+
+    Returns
+    -------
+    polars.DataFrame
+        ``sign`` (+1 right), ``factor``, ``alpha_shift_deg``, ``center_deg``, ``peak``.
+    """
+    cfg = json.dumps(dict(config) if config is not None else default_config())
+    return pl.DataFrame(
+        _core.rolloff_sample_draws(cfg, float(flap_deg), int(seed), int(n), int(stream))
+    )
+
+
+def euler_roll_rate(
+    p_dps: npt.ArrayLike,
+    q_dps: npt.ArrayLike,
+    r_dps: npt.ArrayLike,
+    phi_deg: npt.ArrayLike,
+    theta_deg: npt.ArrayLike,
+) -> FloatArray:
+    """φ̇ = p + (q sin φ + r cos φ) tan θ (Euler kinematics), deg/s."""
+    ph = np.radians(np.asarray(phi_deg, dtype=np.float64))
+    th = np.radians(np.asarray(theta_deg, dtype=np.float64))
+    q = np.asarray(q_dps, dtype=np.float64)
+    r = np.asarray(r_dps, dtype=np.float64)
+    return np.asarray(p_dps, dtype=np.float64) + (q * np.sin(ph) + r * np.cos(ph)) * np.tan(th)
+
+
+def dynamic_roll(phi_deg: npt.ArrayLike, phidot_dps: npt.ArrayLike) -> FloatArray:
+    """Dynamic roll attitude φ' = φ + φ̇ · (1 s) (thesis Eq. 3.20), deg.
+
+    ``phidot_dps`` is the Euler roll rate [deg/s] (see :func:`euler_roll_rate`;
+    ``p`` is a close substitute near wings level). The one-second lead makes φ'
+    the bank angle reached one second later at the current rate.
+    """
+    return np.asarray(phi_deg, dtype=np.float64) + np.asarray(phidot_dps, dtype=np.float64)
+
+
+def max_roll_straight_stalls(
+    data: pl.DataFrame, *, limit_deg: float = FAR25_203_MAX_ROLL_DEG
+) -> pl.DataFrame:
+    """Maximum |φ| of each straight stall against FAR 25.203 (thesis Figure 3.13).
+
+    Returns
+    -------
+    polars.DataFrame
+        ``maneuver_id, flap_deg, max_roll_deg, max_dynamic_roll_deg`` (|φ + p|), ``passed``
+        (max |φ| <= ``limit_deg``).
+    """
+    d = data.filter(pl.col("kind") == "straight") if "kind" in data.columns else data
+    keys = ["maneuver_id"] + (["flap_deg"] if "flap_deg" in d.columns else [])
+    out = (
+        d.group_by(keys, maintain_order=True)
+        .agg(
+            pl.col("phi_deg").abs().max().alias("max_roll_deg"),
+            (pl.col("phi_deg") + pl.col("p_dps")).abs().max().alias("max_dynamic_roll_deg"),
+        )
+        .with_columns((pl.col("max_roll_deg") <= limit_deg).alias("passed"))
+    )
+    return out
+
+
+def monte_carlo(
+    n: int,
+    seed: int = 0,
+    *,
+    flap_deg: float = 0.0,
+    config: Mapping[str, Any] | None = None,
+    noise: float = 1.0,
+    turbulence: float = 0.5,
+    record_hz: float = 10.0,
+    chunk: int = 256,
+) -> pl.DataFrame:
+    """Many straight stalls of the 6-DOF simulator with the roll-off on.
+
+    Parameters
+    ----------
+    n
+        Number of stalls (half with the stick pusher, half without).
+    seed
+        Campaign seed.
+    flap_deg
+        Flap setting (one of the five of the representative aircraft).
+    config
+        Roll-off configuration (``None``: thesis Table 3.2).
+    noise, turbulence
+        Sensor noise scale and gust RMS, m/s (as the campaign).
+    record_hz
+        Rate of the kept samples, Hz (a divisor of 100); only the truth alpha and roll-off
+        contribution are read from them.
+    chunk
+        Stalls flown per engine call (bounds the memory of the returned records).
+
+    Returns
+    -------
+    polars.DataFrame
+        Per stall: ``maneuver_id, pusher, max_bank_deg, max_alpha_deg,
+        onset_alpha_deg`` (true alpha where the injected ΔC_l first reaches 20 % of its
+        largest value; NaN when alpha never reached the spike), ``peak`` (signed largest ΔC_l).
+    """
+    flaps = [0.0, 5.0, 10.0, 15.0, 35.0]
+    if flap_deg not in flaps:
+        raise InvalidInputError(f"monte_carlo: flap_deg {flap_deg} is not one of {flaps}")
+    reps = (n + 1) // 2
+    fi = flaps.index(flap_deg)
+    # plan order: rep, flap, kind (straight first), pusher (true, false)
+    only = [r * 40 + fi * 8 + p for r in range(reps) for p in (0, 1)][:n]
+    spec = _spec(
+        {},
+        seed=seed,
+        size=reps,
+        noise=noise,
+        turbulence=turbulence,
+        rolloff=True,
+        excitation=1.0,
+        record_hz=record_hz,
+    )
+    if config is not None:
+        spec["rolloff"] = dict(config)
+    rows = []
+    for start in range(0, len(only), chunk):
+        spec["only"] = only[start : start + chunk]
+        for m in _core.sim_run_campaign(json.dumps(spec)):
+            meta = json.loads(m["meta"])
+            tr = m["truth"]
+            d = np.asarray(tr["dCl_stochastic_rolloff"])
+            alpha = np.asarray(tr["alpha_true_deg"])
+            k = int(np.argmax(np.abs(d))) if d.size else 0
+            big = float(d[k]) if d.size else 0.0
+            hit = np.nonzero(np.abs(d) >= 0.2 * abs(big))[0] if big != 0.0 else np.array([])
+            rows.append(
+                {
+                    "maneuver_id": m["id"],
+                    "pusher": bool(meta["plan"]["pusher"]),
+                    "max_bank_deg": float(meta["max_bank_deg"]),
+                    "max_alpha_deg": float(meta["max_alpha_deg"]),
+                    "onset_alpha_deg": float(alpha[hit[0]]) if hit.size else float("nan"),
+                    "peak": big,
+                }
+            )
+    return pl.DataFrame(rows)
+
+
+__all__ = [
+    "FAR25_203_MAX_ROLL_DEG",
+    "chi2_ppf",
+    "config_from_statistics",
+    "default_config",
+    "detect_defaults",
+    "detect_rolloff",
+    "dynamic_roll",
+    "euler_roll_rate",
+    "max_roll_straight_stalls",
+    "monte_carlo",
+    "normal_ppf",
+    "rolloff_statistics",
+    "sample_draws",
+    "wilson_interval",
+]
