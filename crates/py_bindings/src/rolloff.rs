@@ -141,6 +141,14 @@ fn rolloff_sample_draws<'py>(
         ))
     })?;
     let draws = detached(py, || sample_draws(&cfg, flap_deg, seed, stream, n))?;
+    draws_dict(py, &draws)
+}
+
+/// Roll-off draws as a dict of numpy columns (shared with the simulator bindings).
+pub(crate) fn draws_dict<'py>(
+    py: Python<'py>,
+    draws: &[aero_core::rolloff::RollOffDraw],
+) -> PyResult<Bound<'py, PyDict>> {
     let d = PyDict::new(py);
     let col = |f: &dyn Fn(&aero_core::rolloff::RollOffDraw) -> f64| {
         draws.iter().map(f).collect::<Vec<f64>>()

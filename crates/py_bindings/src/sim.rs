@@ -162,19 +162,7 @@ fn sim_rolloff_draws<'py>(
     let draws = detached(py, || {
         sample_draws(&RollOffConfig::default(), flap_deg, seed, stream, n)
     })?;
-    let d = PyDict::new(py);
-    let col = |f: &dyn Fn(&aero_core::rolloff::RollOffDraw) -> f64| {
-        draws.iter().map(f).collect::<Vec<f64>>()
-    };
-    d.set_item("sign", col(&|r| r.sign).into_pyarray(py))?;
-    d.set_item("factor", col(&|r| r.factor).into_pyarray(py))?;
-    d.set_item(
-        "alpha_shift_deg",
-        col(&|r| r.alpha_shift_deg).into_pyarray(py),
-    )?;
-    d.set_item("center_deg", col(&|r| r.center_deg).into_pyarray(py))?;
-    d.set_item("peak", col(&|r| r.peak).into_pyarray(py))?;
-    Ok(d)
+    crate::rolloff::draws_dict(py, &draws)
 }
 
 /// The default roll-off configuration (thesis Table 3.2) as JSON.
