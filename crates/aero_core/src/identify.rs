@@ -587,14 +587,12 @@ mod tests {
         (alpha, x1, x2, z, man)
     }
 
-    #[test]
-    fn recovers_alpha_dependent_parameters_bin_by_bin() {
-        let (alpha, x1, x2, z, man) = truth_data(40_000, 1);
-        let n = z.len();
+    /// Fit `z ~ bias + b x1 + c x2` bin by bin with the default options.
+    fn fit_truth(alpha: &[f64], x1: &[f64], x2: &[f64], z: &[f64], man: &[u64]) -> BinnedFit {
         let lookup = |c: &str| -> Option<&[f64]> {
             match c {
-                "x1" => Some(&x1),
-                "x2" => Some(&x2),
+                "x1" => Some(x1),
+                "x2" => Some(x2),
                 _ => None,
             }
         };
@@ -603,8 +601,14 @@ mod tests {
             ("b".to_string(), "x1".to_string()),
             ("c".to_string(), "x2".to_string()),
         ];
-        let design = Design::build(&regs, &lookup, n).expect("design");
-        let fit = fit_bins(&design, &z, &alpha, &man, &IdentifyOptions::default()).expect("fits");
+        let design = Design::build(&regs, &lookup, z.len()).expect("design");
+        fit_bins(&design, z, alpha, man, &IdentifyOptions::default()).expect("fits")
+    }
+
+    #[test]
+    fn recovers_alpha_dependent_parameters_bin_by_bin() {
+        let (alpha, x1, x2, z, man) = truth_data(40_000, 1);
+        let fit = fit_truth(&alpha, &x1, &x2, &z, &man);
         assert!(fit.bins.len() > 40, "{} bins", fit.bins.len());
         let mut inside = 0;
         let mut total = 0;
@@ -641,21 +645,7 @@ mod tests {
                 x2[i] *= 1e-4;
             }
         }
-        let n = z.len();
-        let lookup = |c: &str| -> Option<&[f64]> {
-            match c {
-                "x1" => Some(&x1),
-                "x2" => Some(&x2),
-                _ => None,
-            }
-        };
-        let regs = vec![
-            ("bias".to_string(), "1".to_string()),
-            ("b".to_string(), "x1".to_string()),
-            ("c".to_string(), "x2".to_string()),
-        ];
-        let design = Design::build(&regs, &lookup, n).expect("design");
-        let fit = fit_bins(&design, &z, &alpha, &man, &IdentifyOptions::default()).expect("fits");
+        let fit = fit_truth(&alpha, &x1, &x2, &z, &man);
         for bin in &fit.bins {
             if bin.alpha_lo > 15.05 {
                 assert!(!bin.identifiable[2], "{:?}", bin);
