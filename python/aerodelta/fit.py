@@ -348,21 +348,21 @@ def fit(
         d = df.filter(pl.col("flap_deg") == flap)
         stall[flap] = float(cfg.stall_alpha_deg.get(flap, stall_alpha(d)))
         alpha_max = stall[flap] + cfg.past_stall_deg
+        # every numeric column as float64 once per flap; each coefficient takes its rows
+        full = {
+            c: d[c].cast(pl.Float64).fill_null(np.nan).to_numpy()
+            for c in d.columns
+            if d[c].dtype.is_numeric() and c != "maneuver_id"
+        }
+        codes = _maneuver_codes(d)
         for coef in cfg.structures:
             regs = [(str(n), str(e)) for n, e in cfg.structures[coef]]
-            z_all = (d[f"{coef}_meas"] - d[f"{coef}_qual"]).to_numpy()
-            cols_used = sorted(
-                {c for c in d.columns if d[c].dtype.is_numeric() and c != "maneuver_id"}
-            )
-            keep = np.isfinite(z_all) & np.isfinite(d["alpha_deg"].to_numpy())
-            dd = d.filter(pl.Series(keep))
-            cols = {
-                c: np.ascontiguousarray(dd[c].cast(pl.Float64).fill_null(np.nan).to_numpy())
-                for c in cols_used
-            }
+            z_all = full[f"{coef}_meas"] - full[f"{coef}_qual"]
+            keep = np.isfinite(z_all) & np.isfinite(full["alpha_deg"])
+            cols = {c: np.ascontiguousarray(v[keep]) for c, v in full.items()}
             z = np.ascontiguousarray(z_all[keep])
             out = _core.identify_bins(
-                regs, cols, z, cols["alpha_deg"], _maneuver_codes(dd),
+                regs, cols, z, cols["alpha_deg"], np.ascontiguousarray(codes[keep]),
                 cfg.width_deg, cfg.min_points_per_param, cfg.min_maneuvers, cfg.max_width_deg,
                 cfg.colored, cfg.min_excitation, cfg.p, cfg.weighted, cfg.grid_step_deg,
                 alpha_max, cfg.min_identified_bins,
