@@ -113,6 +113,10 @@ pub enum EffRegressor {
     CtDiff,
     /// β̇, rad/s.
     BetaDot,
+    /// β (rad) · r̂: an unlisted coupling, for the diagnosis's out-of-list tests.
+    BetaRHat,
+    /// α̇, rad/s: an unlisted term, for the diagnosis's out-of-list tests.
+    AlphaDot,
 }
 
 /// Thesis Eq. 3.15-3.16 dead band, in radians, with the 2° break.
@@ -139,6 +143,8 @@ impl EffRegressor {
             EffRegressor::CtSum => s.ct_sum(),
             EffRegressor::CtDiff => s.ct_diff(),
             EffRegressor::BetaDot => s.beta_dot,
+            EffRegressor::BetaRHat => s.beta * s.r_hat,
+            EffRegressor::AlphaDot => s.alpha_dot,
         }
     }
 }
@@ -194,6 +200,11 @@ pub const AERO_EFFECTS: [&str; 14] = [
     "yaw_due_to_roll_rate",
     "sideslip_rate",
 ];
+
+/// Aerodynamic effects the truth aircraft can carry that are NOT in the vocabulary of
+/// DESIGN.md: the diagnosis's candidate list does not name them, so a campaign with one
+/// withheld tests that the gap is shown as unexplained, not pinned on a wrong effect.
+pub const UNLISTED_EFFECTS: [&str; 2] = ["beta_rhat_coupling", "alphadot_roll"];
 
 /// Names of the measurement effects (applied by the sensor model).
 pub const MEASUREMENT_EFFECTS: [&str; 5] = [
@@ -358,12 +369,31 @@ pub fn effect(name: &str) -> Result<EffectDef> {
             AlphaShape::ramp(14.0, 20.0),
             flat,
         ),
+        // Not in the vocabulary (see UNLISTED_EFFECTS): a β·r̂ rolling moment of the separated
+        // wing in a turning stall, ΔC_l = 1.5 β r̂ (≈ 0.002 at β = 5°, r̂ = 0.02).
+        "beta_rhat_coupling" => d(
+            "beta_rhat_coupling",
+            "unlisted: rolling moment in beta*rhat past stall (out-of-vocabulary test effect)",
+            vec![t(Cl, R::BetaRHat, 1.5)],
+            AlphaShape::ramp(14.0, 20.0),
+            flat,
+        ),
+        // Not in the vocabulary: an α̇ rolling moment (asymmetric dynamic stall), ΔC_l =
+        // 0.008 α̇ (≈ 0.0016 at α̇ = 0.2 rad/s).
+        "alphadot_roll" => d(
+            "alphadot_roll",
+            "unlisted: rolling moment in alphadot past stall (out-of-vocabulary test effect)",
+            vec![t(Cl, R::AlphaDot, 0.008)],
+            AlphaShape::ramp(14.0, 20.0),
+            flat,
+        ),
         other => {
             return Err(AeroError::invalid(
                 "effect",
                 format!(
-                    "unknown aerodynamic effect '{other}'; known: {}, stochastic_rolloff, {}",
+                    "unknown aerodynamic effect '{other}'; known: {}, {}, stochastic_rolloff, {}",
                     AERO_EFFECTS.join(", "),
+                    UNLISTED_EFFECTS.join(", "),
                     MEASUREMENT_EFFECTS.join(", ")
                 ),
             ))
@@ -424,11 +454,11 @@ impl ActiveEffect {
 /// Design magnitudes of the measurement effects (applied by the sensor model).
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct MeasurementEffects {
-    /// Alpha vane bias, deg (0 = off); design 0.5 deg.
+    /// Alpha vane bias, deg (0 = off); design 1 deg (issue 7).
     pub alpha_vane_bias_deg: f64,
-    /// Beta vane bias, deg; design 0.5 deg.
+    /// Beta vane bias, deg; design 1 deg.
     pub beta_vane_bias_deg: f64,
-    /// Undeclared accelerometer displacement from its declared position, m; design [0, 0.3, 0.4].
+    /// Undeclared accelerometer displacement from its declared position, m; design [0.09, 0, 0.12] (0.15 m).
     pub accelerometer_offset_m: [f64; 3],
     /// Recorded controls lead the acting ones by this delay, s; design 0.10 s.
     pub control_lag_s: f64,
@@ -454,9 +484,10 @@ impl MeasurementEffects {
     /// [`AeroError::InvalidInput`] if `name` is not a measurement effect.
     pub fn set(&mut self, name: &str, m: f64) -> Result<()> {
         match name {
-            "alpha_vane_bias" => self.alpha_vane_bias_deg = 0.5 * m,
-            "beta_vane_bias" => self.beta_vane_bias_deg = 0.5 * m,
-            "accelerometer_offset" => self.accelerometer_offset_m = [0.0, 0.3 * m, 0.4 * m],
+            "alpha_vane_bias" => self.alpha_vane_bias_deg = m,
+            "beta_vane_bias" => self.beta_vane_bias_deg = m,
+            // 0.15 m aft-and-down mix so a_y picks up both ṙ x and −ṗ z (ω̇ × r).
+            "accelerometer_offset" => self.accelerometer_offset_m = [0.09 * m, 0.0, 0.12 * m],
             "control_lag" => self.control_lag_s = 0.10 * m,
             "time_skew" => self.time_skew_s = 0.04 * m,
             other => {
@@ -489,11 +520,11 @@ pub fn library_json() -> String {
         }
     }
     let meas = [
-        ("alpha_vane_bias", "alpha vane bias, 0.5 deg", "alpha_deg"),
-        ("beta_vane_bias", "beta vane bias, 0.5 deg", "beta_deg"),
+        ("alpha_vane_bias", "alpha vane bias, 1 deg", "alpha_deg"),
+        ("beta_vane_bias", "beta vane bias, 1 deg", "beta_deg"),
         (
             "accelerometer_offset",
-            "accelerometer 0.3 m right, 0.4 m down of its declared position",
+            "accelerometer 0.09 m forward, 0.12 m down of its declared position (0.15 m)",
             "ay_mps2, az_mps2",
         ),
         (
@@ -507,6 +538,16 @@ pub fn library_json() -> String {
             "alpha_deg, beta_deg, tas_mps",
         ),
     ];
+    for name in UNLISTED_EFFECTS {
+        if let Ok(e) = effect(name) {
+            let (lo, hi) = e.shape.support();
+            items.push(serde_json::json!({
+                "name": e.name, "kind": "unlisted", "description": e.description,
+                "terms": e.terms, "flap_factor": e.flap_factor, "shape": e.shape,
+                "alpha_range_deg": [lo, hi],
+            }));
+        }
+    }
     for (name, description, channels) in meas {
         items.push(serde_json::json!({
             "name": name, "kind": "measurement", "description": description, "channels": channels,
