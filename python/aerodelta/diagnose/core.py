@@ -1,0 +1,456 @@
+"""The sim-to-real gap diagnosis: where the gap lies, which effect causes it, how far it shrinks.
+
+See DESIGN.md ("The sim-to-real gap diagnosis") and issue 7. The diagnosis reads the flight
+records and the simulator only; it never opens a campaign's ``truth/`` folder (enforced by
+:func:`aerodelta.diagnose.data.read_parquet_guarded`).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import polars as pl
+from tqdm import tqdm
+
+from aerodelta._core import __version__
+from aerodelta.diagnose.cv import (
+    Design,
+    FoldStats,
+    HatGrid,
+    build_design,
+    fold_stats,
+    row_prediction,
+    solve,
+)
+from aerodelta.diagnose.data import load_inputs
+from aerodelta.diagnose.regressors import design_columns, measurement_columns
+from aerodelta.diagnose.report import summary_text
+from aerodelta.diagnose.select import (
+    PRACTICAL_FLOOR,
+    Selection,
+    SelectionConfig,
+    columns_for,
+    forward_select,
+)
+from aerodelta.diagnose.simulator import load_simulator
+from aerodelta.diagnose.stochastic import rolloff_finding
+from aerodelta.diagnose.vocabulary import (
+    COEFFICIENTS,
+    NEEDS_MODEL,
+    Candidate,
+    Vocabulary,
+    default_vocabulary,
+)
+from aerodelta.diagnose.where import gap_map, phases, region_of, stall_alphas, worst_segments
+from aerodelta.exceptions import DataError
+from aerodelta.fit import theil_inequality
+
+SCHEMA = "aerodelta.diagnosis/1"
+
+
+@dataclass(frozen=True)
+class DiagnoseConfig:
+    """Settings of :func:`diagnose` (defaults are the tested ones).
+
+    Attributes
+    ----------
+    folds
+        Cross-validation folds over maneuvers.
+    knot_deg
+        Spacing of the alpha knots of the aerodynamic candidates, deg.
+    selection
+        Thresholds of the greedy selection (:class:`SelectionConfig`).
+    where_bin_deg
+        Alpha bin width of the gap map, deg.
+    where_alpha
+        Familywise level of the gap map's tests (Bonferroni over its cells).
+    measurement
+        Test the measurement effects (vane biases, control lag, time skew, accelerometer).
+    per_flap
+        Fit each candidate's alpha curve per flap (default: one curve shared by all flaps,
+        five times the data per parameter; the gap map is per flap either way).
+    seed
+        Seed of the fold assignment and of the randomization tests.
+    """
+
+    folds: int = 5
+    knot_deg: float = 2.0
+    selection: SelectionConfig = field(default_factory=SelectionConfig)
+    where_bin_deg: float = 2.0
+    where_alpha: float = 0.01
+    measurement: bool = True
+    per_flap: bool = False
+    seed: int = 0
+
+
+@dataclass
+class Diagnosis:
+    """The diagnosis (``to_dict()`` is the ``diagnosis.json`` contract).
+
+    Attributes
+    ----------
+    result
+        The JSON-ready dictionary (schema ``aerodelta.diagnosis/1``).
+    predictions
+        Per row: ``maneuver_id``, ``t``, ``alpha_deg``, ``flap_deg``, ``phase`` and per
+        coefficient the gap and the held-out prediction of the selected effects.
+    """
+
+    result: dict[str, Any]
+    predictions: pl.DataFrame
+
+    def to_dict(self) -> dict[str, Any]:
+        """The ``diagnosis.json`` content."""
+        return self.result
+
+    def verdict(self, coefficient: str) -> str:
+        """The top effect for ``coefficient``, or ``"none"``."""
+        return str(self.result["coefficients"][coefficient]["verdict"])
+
+    def significant_effects(self, coefficient: str) -> list[str]:
+        """Effects reported significant for ``coefficient``, in selection order."""
+        return [
+            e["effect"]
+            for e in self.result["coefficients"][coefficient]["effects"]
+            if e["significant"]
+        ]
+
+    def summary(self) -> str:
+        """A plain-text summary (what ``aerodelta diagnose`` prints)."""
+        return summary_text(self.result)
+
+
+def _fold_ids(maneuvers: pl.DataFrame, n_folds: int, seed: int) -> np.ndarray:
+    """Stratified fold per maneuver (by flap and kind), deterministic for a seed."""
+    rng = np.random.default_rng(seed)
+    keys = maneuvers.with_columns(pl.Series("__r", rng.random(maneuvers.height)))
+    keys = keys.with_row_index("__i").sort(["flap_deg", "kind", "__r"])
+    folds = np.zeros(maneuvers.height, dtype=np.int64)
+    folds[keys["__i"].to_numpy()] = np.arange(maneuvers.height) % n_folds
+    return folds
+
+
+def _rms(x: np.ndarray) -> float:
+    return float(np.sqrt(np.mean(x * x))) if x.size else float("nan")
+
+
+def _alpha_range(alpha: np.ndarray, contrib: np.ndarray, frac: float = 0.2) -> list[float]:
+    """Alpha interval where an effect acts: the 1-deg bins whose RMS contribution is at least
+    ``frac`` of the largest bin's (bins with 20 points or more)."""
+    b = np.floor(alpha).astype(np.int64)
+    df = (
+        pl.DataFrame({"b": b, "c2": contrib * contrib})
+        .group_by("b")
+        .agg(pl.col("c2").mean().sqrt().alias("rms"), pl.len().alias("n"))
+    )
+    df = df.filter(pl.col("n") >= 20).sort("b")
+    if df.height == 0 or float(df["rms"].max()) <= 0:  # type: ignore[arg-type]
+        return [float("nan"), float("nan")]
+    on = df.filter(pl.col("rms") >= frac * float(df["rms"].max()))  # type: ignore[arg-type]
+    return [float(on["b"].min()), float(on["b"].max()) + 1.0]  # type: ignore[arg-type]
+
+
+def _cv_prediction(
+    design: Design, stats: FoldStats, rows: dict[str, np.ndarray], model: Sequence[Candidate]
+) -> np.ndarray:
+    """Held-out prediction per row of a model (each row predicted by its fold's complement)."""
+    cols = columns_for(design, model)
+    pred = np.zeros(rows["y"].size)
+    for q in range(len(stats.train_gram)):
+        th = solve(design, stats.train_gram[q], stats.train_xty[q], cols)
+        m = rows["fold"] == q
+        pred[m] = row_prediction(
+            design, th, rows["flap"][m], rows["alpha"][m], rows["aero"][m], rows["glob"][m]
+        )
+    return pred
+
+
+def _effect_rows(
+    sel: Selection,
+    design: Design,
+    stats: FoldStats,
+    rows: dict[str, np.ndarray],
+) -> tuple[list[dict[str, Any]], list[tuple[str, np.ndarray]]]:
+    """The ranked effect list and the cumulative held-out predictions per step (a first
+    ``timing_alignment`` step when the timing nuisance terms are in the model)."""
+    total0 = float(sel.sse0.sum())
+    n = float(design.n_rows.sum())
+    out: list[dict[str, Any]] = []
+    steps: list[tuple[str, np.ndarray]] = []
+    base = list(sel.nuisance)
+    if base:
+        steps.append(("timing_alignment", _cv_prediction(design, stats, rows, base)))
+    chosen: list[Candidate] = []
+    full_model = base + [s.candidate for s in sel.selected if s.candidate not in base]
+    theta_full = solve(design, stats.total_gram, stats.total_xty, columns_for(design, full_model))
+    for s in sel.selected:
+        if s.candidate not in base:
+            chosen.append(s.candidate)
+            steps.append((s.candidate.name, _cv_prediction(design, stats, rows, base + chosen)))
+        # this effect's own contribution in the full-data fit of the final model
+        ce = np.concatenate(columns_for(design, [s.candidate]))
+        th_e = [np.zeros_like(t) for t in theta_full]
+        for t_e, t_f in zip(th_e, theta_full, strict=True):
+            t_e[ce] = t_f[ce]
+        contrib = row_prediction(
+            design, th_e, rows["flap"], rows["alpha"], rows["aero"], rows["glob"]
+        )
+        before, after = float(s.sse_before.sum()), float(s.sse_after.sum())
+        out.append(
+            {
+                "effect": s.candidate.name,
+                "kind": s.candidate.kind,
+                "rank": s.rank,
+                "significant": True,
+                "ambiguous_with": list(s.ambiguous_with),
+                "alpha_range_deg": _alpha_range(rows["alpha"], contrib),
+                "gap_rms_before": math.sqrt(before / n),
+                "gap_rms_after": math.sqrt(after / n),
+                "shrink_fraction": (before - after) / total0 if total0 > 0 else 0.0,
+                "statistic": s.statistic,
+                "p_value": s.p_value,
+                "parameters": _global_params(design, theta_full, s.candidate),
+            }
+        )
+    # every other candidate, ranked by what it would remove at the last step
+    rest = sorted(sel.final_scores.values(), key=lambda st: -st.gain)
+    if sel.selected:
+        last = sel.selected[-1].sse_after
+    else:
+        last = sel.sse_nuisance if sel.sse_nuisance is not None else sel.sse0
+    for i, st in enumerate(rest):
+        before, after = float(last.sum()), float(st.sse.sum())
+        out.append(
+            {
+                "effect": st.candidate.name,
+                "kind": st.candidate.kind,
+                "rank": len(sel.selected) + i + 1,
+                "significant": False,
+                "ambiguous_with": [],
+                "alpha_range_deg": [float("nan"), float("nan")],
+                "gap_rms_before": math.sqrt(before / n),
+                "gap_rms_after": math.sqrt(after / n),
+                "shrink_fraction": (before - after) / total0 if total0 > 0 else 0.0,
+                "statistic": st.statistic,
+                "p_value": st.p_value,
+                "parameters": st.parameters,
+                "note": "" if st.material else "significant or not, below its practical floor",
+            }
+        )
+    return out, steps
+
+
+def _global_params(design: Design, theta: list[np.ndarray], cand: Candidate) -> dict[str, float]:
+    """Estimated global parameters of a measurement effect (bias deg, lag s, offset m)."""
+    if not cand.global_:
+        return {}
+    base = design.grid.n * len(design.aero_names)
+    return {r: float(theta[0][base + design.global_names.index(r)]) for r in cand.regressors}
+
+
+def _shrink_table(
+    y: np.ndarray,
+    meas: np.ndarray,
+    region: np.ndarray,
+    steps: Sequence[tuple[str, np.ndarray]],
+) -> list[dict[str, Any]]:
+    """Held-out gap before and after each step (timing alignment, then each selected
+    effect), cumulatively, per alpha region."""
+    out = []
+    prev = np.zeros_like(y)
+    for k, (name, pred) in enumerate(steps):
+        for reg in ("all", "pre_stall", "stall", "post_stall"):
+            m = np.ones(y.size, bool) if reg == "all" else region == reg
+            if not m.any():
+                continue
+            sim_b = meas[m] - (y[m] - prev[m])
+            sim_a = meas[m] - (y[m] - pred[m])
+            out.append(
+                {
+                    "step": k + 1,
+                    "effect": name,
+                    "region": reg,
+                    "n_points": int(m.sum()),
+                    "rms_before": _rms(y[m] - prev[m]),
+                    "rms_after": _rms(y[m] - pred[m]),
+                    "tic_before": theil_inequality(meas[m], sim_b),
+                    "tic_after": theil_inequality(meas[m], sim_a),
+                }
+            )
+        prev = pred
+    return out
+
+
+def diagnose(
+    data: pl.DataFrame | str | Path,
+    model: str | Path | None = None,
+    *,
+    vocabulary: Vocabulary | None = None,
+    config: DiagnoseConfig | None = None,
+    aircraft: str | Path | None = None,
+    progress: bool = False,
+) -> Diagnosis:
+    """Diagnose the gap between a simulator and flight records.
+
+    Parameters
+    ----------
+    data
+        Ingested records (``aerodelta.ingest(...).data``), an ingest output folder
+        (``data.parquet``) or a campaign folder (ingested on the fly). Needs
+        ``maneuver_id``, ``t`` [s], ``flap_deg``, ``alpha_deg``/``beta_deg`` (or their CG
+        versions), the Δ-model regressors and ``Cl_meas``, ``Cn_meas``, ``CY_meas``.
+    model
+        The simulator: a DAVE-ML file, an aerodelta model file, or ``None`` for the records'
+        ``*_sim`` columns (else the built-in ADX-37 qualified model).
+    vocabulary
+        Candidate effects (default: DESIGN.md's vocabulary); add your own with
+        :meth:`Vocabulary.with_user_effects`.
+    config
+        Thresholds and cross-validation settings.
+    aircraft
+        Aircraft reference TOML (mass, wing area, chord); default ``DIR/aircraft.toml`` or the
+        built-in ADX-37.
+    progress
+        Progress bars on stderr.
+
+    Returns
+    -------
+    Diagnosis
+    """
+    cfg = config or DiagnoseConfig()
+    vocab = vocabulary or default_vocabulary(cfg.measurement)
+    frame, ac, notes = load_inputs(data, aircraft, progress=progress)
+    sim = load_simulator(model, frame, ac.cbar_m)
+    sim_c = sim.predict(frame)
+    meas_cols = measurement_columns(frame, sim, ac)
+    man = (
+        frame.group_by("maneuver_id", maintain_order=True)
+        .agg(pl.col("flap_deg").first(), pl.col("kind").first())
+        .sort("maneuver_id")
+    )
+    if man.height < cfg.folds:
+        raise DataError(
+            f"the diagnosis needs at least {cfg.folds} maneuvers for {cfg.folds}-fold "
+            f"cross-validation by maneuver; the data hold {man.height}"
+        )
+    code = {m: i for i, m in enumerate(man["maneuver_id"].to_list())}
+    mcode = np.array([code[m] for m in frame["maneuver_id"].to_list()], dtype=np.int64)
+    flaps = sorted(set(man["flap_deg"].to_list()))
+    fidx = np.searchsorted(np.array(flaps), frame["flap_deg"].to_numpy())
+    folds_m = _fold_ids(man, cfg.folds, cfg.seed)
+    alpha = frame["alpha_deg"].to_numpy()
+    stall = stall_alphas(frame)
+    phase = phases(frame, stall)
+    region = region_of(alpha, frame["flap_deg"].to_numpy(), stall)
+    grid = HatGrid.covering(alpha, cfg.knot_deg)
+    dflap = fidx if cfg.per_flap else np.zeros_like(fidx)
+    n_dflaps = len(flaps) if cfg.per_flap else 1
+    steps = tqdm(COEFFICIENTS, desc="diagnose", disable=not progress, file=None)
+    coefs: dict[str, Any] = {}
+    pred_cols: dict[str, np.ndarray] = {}
+    not_testable: list[str] = []
+    for coef in steps:
+        cands = vocab.for_coefficient(coef)
+        if not sim.differentiable:
+            skip = [c.name for c in cands if c.name in NEEDS_MODEL]
+            not_testable += [s for s in skip if s not in not_testable]
+            cands = [c for c in cands if c.name not in NEEDS_MODEL]
+        aero_names = sorted({r for c in cands if not c.global_ for r in c.regressors})
+        glob_names = sorted({r for c in cands if c.global_ for r in c.regressors})
+        aero_x, glob_x = design_columns(
+            frame, coef, aero_names=aero_names, glob_names=glob_names, vocab=vocab, meas=meas_cols
+        )
+        # a global regressor that cannot move the coefficient by 1e-7 at its practical floor
+        # is untestable for this coefficient (e.g. dC_Y/dalpha of a lateral model is ~0)
+        for gi, g in enumerate(glob_names):
+            if _rms(glob_x[:, gi]) * PRACTICAL_FLOOR.get(g, 1.0) < 1e-7:
+                glob_x[:, gi] = 0.0
+        meas = frame[f"{coef}_meas"].to_numpy()
+        y = meas - sim_c[coef]
+        design = build_design(
+            y, mcode, dflap, alpha, aero_x, glob_x, aero_names, glob_names, grid,
+            man.height, n_dflaps,
+        )  # fmt: skip
+        stats = fold_stats(design, folds_m)
+        sel = forward_select(design, stats, cands, cfg.selection)
+        rows = {
+            "y": y, "fold": folds_m[mcode], "flap": dflap, "alpha": alpha,
+            "aero": aero_x, "glob": glob_x,
+        }  # fmt: skip
+        effects, steps_ = _effect_rows(sel, design, stats, rows)
+        final_pred = steps_[-1][1] if steps_ else np.zeros_like(y)
+        pred_cols[f"{coef}_gap"] = y
+        pred_cols[f"{coef}_explained"] = final_pred
+        sig = [e for e in effects if e["significant"]]
+        coefs[coef] = {
+            "verdict": sig[0]["effect"] if sig else "none",
+            "gap": {
+                "rms": _rms(y),
+                "bias": float(np.mean(y)),
+                "tic": theil_inequality(meas, sim_c[coef]),
+                "n_points": int(y.size),
+            },
+            "remaining_gap": {
+                "rms": _rms(y - final_pred),
+                "tic": theil_inequality(meas, sim_c[coef] + final_pred),
+            },
+            "where": gap_map(frame, y, phase, cfg.where_bin_deg, cfg.where_alpha),
+            "worst_segments": worst_segments(frame, y),
+            "effects": effects,
+            "shrink": _shrink_table(y, meas, region, steps_),
+        }
+    ro = rolloff_finding(frame, pred_cols["Cl_gap"] - pred_cols["Cl_explained"])
+    coefs["Cl"]["rolloff"] = ro
+    if ro["detected"]:
+        coefs["Cl"]["effects"].append(
+            {
+                "effect": "stochastic_rolloff",
+                "kind": "stochastic",
+                "rank": len(coefs["Cl"]["effects"]) + 1,
+                "significant": True,
+                "ambiguous_with": [],
+                "alpha_range_deg": ro["alpha_range_deg"],
+                "gap_rms_before": coefs["Cl"]["remaining_gap"]["rms"],
+                "gap_rms_after": coefs["Cl"]["remaining_gap"]["rms"],
+                "shrink_fraction": 0.0,
+                "statistic": float(ro["n_events"]),
+                "p_value": ro["p_value"],
+            }
+        )
+        if coefs["Cl"]["verdict"] == "none":
+            coefs["Cl"]["verdict"] = "stochastic_rolloff"
+    result = {
+        "schema": SCHEMA,
+        "aerodelta_version": __version__,
+        "simulator": sim.name,
+        "data": {
+            "n_points": int(frame.height),
+            "n_maneuvers": int(man.height),
+            "flaps_deg": [float(f) for f in flaps],
+            "folds": cfg.folds,
+            "notes": notes,
+        },
+        "settings": {
+            "knot_deg": cfg.knot_deg,
+            "per_flap": cfg.per_flap,
+            "alpha": cfg.selection.alpha,
+            "min_shrink": cfg.selection.min_shrink,
+            "ambiguity_p": cfg.selection.ambiguity_p,
+            "n_perm": cfg.selection.n_perm,
+            "seed": cfg.seed,
+        },
+        "stall_alpha_deg": {str(k): v for k, v in stall.items()},
+        "not_testable": not_testable,
+        "coefficients": coefs,
+    }
+    preds = frame.select("maneuver_id", "t", "alpha_deg", "flap_deg").with_columns(
+        pl.Series("phase", phase),
+        pl.Series("region", region),
+        *[pl.Series(k, v) for k, v in pred_cols.items()],
+    )
+    return Diagnosis(result, preds)

@@ -1,0 +1,106 @@
+"""Inputs of the diagnosis: the records (never the truth) and the aircraft reference."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import polars as pl
+
+from aerodelta.aircraft import Aircraft
+from aerodelta.campaign import aircraft_toml
+from aerodelta.exceptions import DataError
+from aerodelta.fit import model_frame
+from aerodelta.ingest import ingest
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover
+    import tomli as tomllib
+
+#: Columns the diagnosis needs in every row.
+REQUIRED = (
+    "maneuver_id", "t", "flap_deg", "alpha_deg", "beta_deg", "phat", "rhat", "tas_mps",
+    "Cl_meas", "Cn_meas", "CY_meas",
+)  # fmt: skip
+
+
+def _guard(path: Path) -> Path:
+    """Refuse any path inside a campaign's ``truth/`` folder: the diagnosis must never see
+    the answer it is tested against."""
+    if "truth" in Path(path).resolve().parts:
+        raise DataError(
+            f"{path}: the diagnosis never reads a campaign's truth files; point it at the "
+            "records (the campaign folder or the ingest output)"
+        )
+    return path
+
+
+def read_parquet_guarded(path: Path) -> pl.DataFrame:
+    """``pl.read_parquet`` that refuses the truth folder."""
+    return pl.read_parquet(_guard(path))
+
+
+def _aircraft(aircraft: str | Path | None, folder: Path | None) -> tuple[Aircraft, str]:
+    if aircraft is not None:
+        return Aircraft.from_toml(_guard(Path(aircraft))), f"aircraft from {aircraft}"
+    if folder is not None and (folder / "aircraft.toml").is_file():
+        return Aircraft.from_toml(folder / "aircraft.toml"), f"aircraft from {folder}/aircraft.toml"
+    doc = tomllib.loads(aircraft_toml())
+    return Aircraft.from_dict(doc, "built-in ADX-37"), "aircraft: built-in ADX-37 reference"
+
+
+def load_inputs(
+    data: pl.DataFrame | str | Path, aircraft: str | Path | None, *, progress: bool = False
+) -> tuple[pl.DataFrame, Aircraft, list[str]]:
+    """The model frame (CG angles as ``alpha_deg``/``beta_deg``), the aircraft, and notes.
+
+    ``data`` is an ingested DataFrame, an ingest output folder (``data.parquet``) or a campaign
+    folder (``manifest.csv``, ingested here without the compatibility check).
+    """
+    notes: list[str] = []
+    folder: Path | None = None
+    if isinstance(data, pl.DataFrame):
+        df = data
+    else:
+        folder = _guard(Path(data))
+        if (folder / "data.parquet").is_file():
+            df = read_parquet_guarded(folder / "data.parquet")
+            notes.append(f"records from {folder / 'data.parquet'}")
+        elif (folder / "manifest.csv").is_file():
+            df = ingest(folder, compat=False, progress=progress).data
+            notes.append(f"records ingested from the campaign {folder}")
+        elif folder.is_file() and folder.suffix == ".parquet":
+            df = read_parquet_guarded(folder)
+            folder = folder.parent
+        else:
+            raise DataError(
+                f"{folder}: neither an ingest output (data.parquet) nor a campaign "
+                "(manifest.csv); run `aerodelta ingest` first or point at the campaign"
+            )
+    ac, note = _aircraft(aircraft, folder)
+    notes.append(note)
+    frame = model_frame(df)
+    if "kind" not in frame.columns:
+        frame = frame.with_columns(pl.lit("other").alias("kind"))
+    missing = [c for c in REQUIRED if c not in frame.columns]
+    if missing:
+        raise DataError(
+            f"the records lack {missing}; the diagnosis needs ingested data "
+            "(`aerodelta ingest` adds the measured coefficients and rates)"
+        )
+    for c in ("da_deg", "dr_deg", "ds_deg", "ct_left", "ct_right", "alphadot_dps", "betadot_dps",
+              "pdot_dps2", "rdot_dps2", "qbar_pa"):  # fmt: skip
+        if c not in frame.columns:
+            frame = frame.with_columns(pl.lit(0.0).alias(c))
+            notes.append(f"channel {c} absent: taken as 0")
+    if "ct_diff" not in frame.columns:
+        frame = frame.with_columns((pl.col("ct_left") - pl.col("ct_right")).alias("ct_diff"))
+    num = [c for c in frame.columns if frame[c].dtype.is_float()]
+    before = frame.height
+    frame = frame.filter(pl.all_horizontal([pl.col(c).is_finite() for c in REQUIRED if c in num]))
+    if frame.height < before:
+        notes.append(f"{before - frame.height} rows with non-finite values dropped")
+    if frame.height == 0:
+        raise DataError("no usable rows: every row has a missing required channel")
+    return frame.sort(["maneuver_id", "t"]), ac, notes

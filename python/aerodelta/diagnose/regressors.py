@@ -1,0 +1,100 @@
+"""Regressor columns of the candidate effects (see :mod:`aerodelta.diagnose.vocabulary`)."""
+
+from __future__ import annotations
+
+import numpy as np
+import polars as pl
+
+from aerodelta.aircraft import Aircraft
+from aerodelta.diagnose.simulator import Simulator, deg_step
+from aerodelta.diagnose.vocabulary import AERO_REGRESSORS, COEFFICIENTS, Vocabulary
+
+
+def _rate(frame: pl.DataFrame, col: str) -> np.ndarray:
+    """d(col)/dt per maneuver, unit/s: central differences of a 5-point moving average."""
+    sm = pl.col(col).rolling_mean(5, center=True, min_samples=1)
+    s = frame.select(
+        ((sm.shift(-1) - sm.shift(1)) / (pl.col("t").shift(-1) - pl.col("t").shift(1)))
+        .over("maneuver_id")
+        .fill_null(0.0)
+        .alias("d"),
+    )
+    d = s["d"].to_numpy()
+    return np.where(np.isfinite(d), d, 0.0)
+
+
+#: Time step of the directional differences of the lag and skew regressors, s.
+_EPS_S = 0.02
+
+
+def _directional(
+    sim: Simulator, frame: pl.DataFrame, rates: dict[str, np.ndarray], eps: float
+) -> dict[str, np.ndarray]:
+    """``d/d(tau) C(x + tau * xdot)`` at ``tau = 0`` by central differences: the change of the
+    simulator's output per second of delay of the channels in ``rates``."""
+    cols = [c for c in rates if c in frame.columns]
+    if not cols:
+        return {c: np.zeros(frame.height) for c in COEFFICIENTS}
+    up = sim.predict(frame.with_columns([(pl.col(c) + eps * rates[c]).alias(c) for c in cols]))
+    dn = sim.predict(frame.with_columns([(pl.col(c) - eps * rates[c]).alias(c) for c in cols]))
+    return {c: (up[c] - dn[c]) / (2.0 * eps) for c in COEFFICIENTS}
+
+
+def measurement_columns(
+    frame: pl.DataFrame, sim: Simulator, aircraft: Aircraft
+) -> dict[str, dict[str, np.ndarray]]:
+    """The measurement regressors per coefficient (computed once: nine simulator calls).
+
+    ``m_alpha_bias``/``m_beta_bias``: ``-dC/d(angle)`` per deg of vane bias; ``m_control_lag``:
+    ``-dC/dtau`` with every control delayed by tau (s); ``m_time_skew``: ``+dC/dtau`` with the
+    air data (alpha, beta) delayed; ``m_acc_dx``/``m_acc_dz``: the side-force coefficient
+    picked up per metre of accelerometer displacement (``m/(qbar S) rdot`` and
+    ``-m/(qbar S) pdot``; C_Y only, zero for C_l and C_n).
+    """
+    out: dict[str, dict[str, np.ndarray]] = {}
+    if sim.differentiable:
+        sa = sim.sensitivity(frame, "alpha_deg", deg_step())
+        sb = sim.sensitivity(frame, "beta_deg", deg_step())
+        out["m_alpha_bias"] = {c: -v for c, v in sa.items()}
+        out["m_beta_bias"] = {c: -v for c, v in sb.items()}
+        air = {
+            "alpha_deg": frame["alphadot_dps"].to_numpy(),
+            "beta_deg": frame["betadot_dps"].to_numpy(),
+        }
+        skew = _directional(sim, frame, air, _EPS_S)
+        out["m_time_skew"] = skew
+        ctrl = {
+            ch: _rate(frame, ch)
+            for ch in ("da_deg", "dr_deg", "dsl_deg", "dsr_deg")
+            if ch in frame.columns
+        }
+        lag = _directional(sim, frame, ctrl, _EPS_S)
+        out["m_control_lag"] = {c: -v for c, v in lag.items()}
+    qs = np.maximum(frame["qbar_pa"].to_numpy(), 1.0) * aircraft.S_m2
+    k = aircraft.mass_kg / qs
+    zero = np.zeros(frame.height)
+    dx = k * np.radians(frame["rdot_dps2"].to_numpy())
+    dz = -k * np.radians(frame["pdot_dps2"].to_numpy())
+    out["m_acc_dx"] = {"Cl": zero, "Cn": zero, "CY": dx}
+    out["m_acc_dz"] = {"Cl": zero, "Cn": zero, "CY": dz}
+    return out
+
+
+def design_columns(
+    frame: pl.DataFrame,
+    coef: str,
+    *,
+    aero_names: list[str],
+    glob_names: list[str],
+    vocab: Vocabulary,
+    meas: dict[str, dict[str, np.ndarray]],
+) -> tuple[np.ndarray, np.ndarray]:
+    """The aerodynamic (``n x R``) and global (``n x Gn``) regressor matrices of ``coef``."""
+    exprs = {**AERO_REGRESSORS, **vocab.user_regressors}
+    aero = frame.select([exprs[a].cast(pl.Float64).alias(a) for a in aero_names])
+    aero_x = np.ascontiguousarray(aero.to_numpy(), dtype=np.float64).reshape(frame.height, -1)
+    aero_x = np.where(np.isfinite(aero_x), aero_x, 0.0)
+    cols = [meas[g][coef] for g in glob_names]
+    glob_x = np.column_stack(cols) if cols else np.zeros((frame.height, 0))
+    glob_x = np.where(np.isfinite(glob_x), glob_x, 0.0)
+    return aero_x, glob_x

@@ -1,0 +1,127 @@
+"""Writing the diagnosis: ``diagnosis.json`` (stable keys), a plain-text report, CSV tables."""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from pathlib import Path
+from typing import Any
+
+import polars as pl
+
+from aerodelta.diagnose.vocabulary import COEFFICIENTS
+
+_LIST_KEYS = ("ambiguous_with", "alpha_range_deg", "parameters")
+
+
+def _clean(x: Any) -> Any:
+    """JSON-safe: NaN/inf become null."""
+    if isinstance(x, float):
+        return x if math.isfinite(x) else None
+    if isinstance(x, dict):
+        return {str(k): _clean(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_clean(v) for v in x]
+    return x
+
+
+def _atomic_write(path: Path, text: str) -> None:
+    tmp = path.with_name(f"{path.name}.tmp-{os.getpid()}")
+    tmp.write_text(text)
+    tmp.replace(path)
+
+
+def summary_text(result: dict[str, Any]) -> str:
+    """Human-readable report of a diagnosis dictionary."""
+    lines = [
+        "aerodelta diagnosis: the sim-to-real gap",
+        f"simulator: {result['simulator']}",
+        f"data: {result['data']['n_maneuvers']} maneuvers, {result['data']['n_points']} points, "
+        f"flaps {result['data']['flaps_deg']}; {result['data']['folds']}-fold cross-validation "
+        "by maneuver",
+    ]
+    if result.get("not_testable"):
+        lines.append("not testable without a loadable model: " + ", ".join(result["not_testable"]))
+    for c in COEFFICIENTS:
+        r = result["coefficients"][c]
+        g = r["gap"]
+        lines.append("")
+        lines.append(
+            f"{c}: verdict {r['verdict']}   gap rms {g['rms']:.5f}  bias {g['bias']:+.5f}  "
+            f"TIC {g['tic']:.3f}  ->  remaining rms {r['remaining_gap']['rms']:.5f}  "
+            f"TIC {r['remaining_gap']['tic']:.3f}"
+        )
+        sig = [e for e in r["effects"] if e["significant"]]
+        if not sig:
+            lines.append("  no significant unmodelled effect")
+        for e in sig:
+            lo, hi = e["alpha_range_deg"]
+            amb = (
+                f"  (ambiguous with {', '.join(e['ambiguous_with'])})"
+                if e["ambiguous_with"]
+                else ""
+            )
+            ok = lo is not None and math.isfinite(lo)
+            rng = f"alpha {lo:.0f}..{hi:.0f} deg" if ok else "alpha ?"
+            lines.append(
+                f"  {e['rank']}. {e['effect']:<24} {rng:<18} held-out rms "
+                f"{e['gap_rms_before']:.5f} -> {e['gap_rms_after']:.5f} "
+                f"(shrink {100 * e['shrink_fraction']:.0f}% of the gap), "
+                f"p = {e['p_value']:.2g}{amb}"
+            )
+        cells = [w for w in r["where"] if w["significant"]]
+        if cells:
+            spans = sorted({(w["flap_deg"], w["alpha_lo_deg"], w["phase"]) for w in cells})
+            lines.append(
+                f"  significant gap in {len(cells)} of {len(r['where'])} cells (flap, alpha, "
+                "phase): "
+                + ", ".join(f"{f:g}/{a:g}/{p}" for f, a, p in spans[:12])
+                + (" ..." if len(spans) > 12 else "")
+            )
+    return "\n".join(lines)
+
+
+def write_outputs(result: dict[str, Any], predictions: pl.DataFrame, out: str | Path) -> list[Path]:
+    """Write ``diagnosis.json``, ``diagnosis.txt``, ``gap_map.csv``, ``effects.csv``,
+    ``shrink.csv`` and ``predictions.parquet`` into ``out`` (atomically, file by file)."""
+    d = Path(out)
+    d.mkdir(parents=True, exist_ok=True)
+    paths = []
+    p = d / "diagnosis.json"
+    _atomic_write(p, json.dumps(_clean(result), indent=2))
+    paths.append(p)
+    p = d / "diagnosis.txt"
+    _atomic_write(p, summary_text(result) + "\n")
+    paths.append(p)
+    tables: dict[str, list[dict[str, Any]]] = {"gap_map": [], "effects": [], "shrink": []}
+    for c in COEFFICIENTS:
+        r = result["coefficients"][c]
+        tables["gap_map"] += [{"coefficient": c, **w} for w in r["where"]]
+        tables["effects"] += [
+            {
+                "coefficient": c,
+                **{
+                    k: v
+                    for k, v in e.items()
+                    if k not in ("ambiguous_with", "alpha_range_deg", "parameters")
+                },
+                "ambiguous_with": ";".join(e["ambiguous_with"]),
+                "alpha_lo_deg": e["alpha_range_deg"][0],
+                "alpha_hi_deg": e["alpha_range_deg"][1],
+            }
+            for e in r["effects"]
+        ]
+        tables["shrink"] += [{"coefficient": c, **s} for s in r["shrink"]]
+    for name, rows in tables.items():
+        p = d / f"{name}.csv"
+        tmp = p.with_name(f"{p.name}.tmp-{os.getpid()}")
+        pl.DataFrame(rows, infer_schema_length=None).write_csv(tmp)
+        tmp.replace(p)
+        paths.append(p)
+    p = d / "predictions.parquet"
+    tmp = p.with_name(f"{p.name}.tmp-{os.getpid()}")
+    predictions.write_parquet(tmp)
+    tmp.replace(p)
+    paths.append(p)
+    return paths

@@ -1,0 +1,240 @@
+"""Greedy forward selection of candidate effects by held-out (cross-validated) gap reduction.
+
+At each step every remaining candidate is added in turn to the effects already selected; the
+one that lowers the held-out squared gap most is kept if
+
+1. the improvement is real: a sign-flip randomization test over maneuvers of the per-maneuver
+   held-out improvement (Wilcoxon's signed ranks; maneuvers are the independent units, so
+   coloured residuals inside a maneuver do not inflate the evidence), Bonferroni-corrected
+   for the candidates tried at that step, is below ``alpha``; and
+2. it matters: the improvement is at least ``min_shrink`` of the held-out gap's squared error,
+   and a measurement effect's parameter is above its practical floor (:data:`PRACTICAL_FLOOR`),
+   so a statistically significant but negligible change, such as a few milliseconds of time
+   skew, is not reported as an effect.
+
+Candidates that were significant on their own at the step an effect was chosen, but whose
+held-out error cannot be told apart from the chosen one's (paired sign-flip test over maneuvers,
+``p > ambiguity_p``) and that add nothing once it is in, are reported as ambiguous with it.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from aerodelta.diagnose.cv import (
+    Design,
+    FloatArray,
+    FoldStats,
+    IntArray,
+    heldout_sse,
+    local_columns,
+    sign_flip_pvalue,
+    solve,
+)
+from aerodelta.diagnose.vocabulary import Candidate
+
+#: Practical floors of the measurement effects' parameters: below these an effect is
+#: negligible however significant (0.1 deg of vane bias; 8 ms of lag or skew, under one frame
+#: of a 100 Hz simulator and about the half-sample delay that zero-order-held controls and
+#: numerically differentiated rates always carry; 3 cm of accelerometer displacement).
+PRACTICAL_FLOOR: dict[str, float] = {
+    "m_alpha_bias": 0.1,
+    "m_beta_bias": 0.1,
+    "m_control_lag": 0.008,
+    "m_time_skew": 0.008,
+    "m_acc_dx": 0.03,
+    "m_acc_dz": 0.03,
+}
+
+
+@dataclass(frozen=True)
+class SelectionConfig:
+    """Thresholds of the selection.
+
+    Attributes
+    ----------
+    alpha
+        Familywise significance level per step (Bonferroni over the candidates tried).
+    min_shrink
+        Effect-size floor: the fraction of the held-out gap's squared error an effect must
+        remove to be reported.
+    ambiguity_p
+        A rival whose held-out error is not significantly worse than the chosen effect's at
+        this level (paired test) is ambiguous with it.
+    n_perm
+        Sign-flip draws of the randomization tests.
+    max_effects
+        Most effects selected per coefficient.
+    seed
+        Seed of the randomization tests.
+    """
+
+    alpha: float = 0.01
+    min_shrink: float = 0.03
+    ambiguity_p: float = 0.05
+    n_perm: int = 4000
+    max_effects: int = 6
+    seed: int = 0
+
+
+@dataclass
+class Step:
+    """One candidate's score at one step."""
+
+    candidate: Candidate
+    sse: FloatArray  # held-out SSE per maneuver with the candidate added
+    gain: float  # total held-out SSE removed
+    statistic: float
+    p_value: float  # Bonferroni-corrected
+    thetas: list[list[FloatArray]]
+    parameters: dict[str, float] = field(default_factory=dict)  # global ones, full data
+    material: bool = True  # parameters above their practical floors
+
+
+@dataclass
+class Selected:
+    """An effect kept by the selection."""
+
+    candidate: Candidate
+    rank: int
+    sse_before: FloatArray
+    sse_after: FloatArray
+    statistic: float
+    p_value: float
+    ambiguous_with: list[str] = field(default_factory=list)
+
+
+@dataclass
+class Selection:
+    """Outcome of :func:`forward_select`."""
+
+    selected: list[Selected]
+    final_scores: dict[str, Step]  # every unselected candidate scored at the last step
+    sse0: FloatArray
+    nuisance: list[Candidate] = field(default_factory=list)  # always in the model
+    sse_nuisance: FloatArray | None = None
+
+
+#: Timing candidates kept in every model as nuisance terms: data always carry a small lag
+#: between channels (zero-order-held controls, differentiated rates); they are reported as
+#: effects only when their estimate passes the practical floor and the tests.
+NUISANCE = frozenset({"control_lag", "time_skew"})
+
+
+def _cols(design: Design, cands: Sequence[Candidate]) -> tuple[IntArray, IntArray]:
+    aero = [r for c in cands if not c.global_ for r in c.regressors]
+    glob = [r for c in cands if c.global_ for r in c.regressors]
+    return local_columns(design, sorted(set(aero)), sorted(set(glob)))
+
+
+def score(  # noqa: PLR0917 - internal scoring step
+    design: Design,
+    stats: FoldStats,
+    base: Sequence[Candidate],
+    cand: Candidate,
+    sse_before: FloatArray,
+    cfg: SelectionConfig,
+    n_tests: int,
+    seed: int,
+) -> Step:
+    """Held-out score of adding ``cand`` to ``base``."""
+    sse, thetas = heldout_sse(design, stats, _cols(design, [*base, cand]))
+    t, p = sign_flip_pvalue(sse_before - sse, cfg.n_perm, seed)
+    params: dict[str, float] = {}
+    material = True
+    if cand.global_:
+        cols = _cols(design, [*base, cand])
+        th = solve(design, stats.total_gram, stats.total_xty, cols)[0]
+        k0 = design.grid.n * len(design.aero_names)
+        params = {r: float(th[k0 + design.global_names.index(r)]) for r in cand.regressors}
+        size = float(np.sqrt(sum(v * v for v in params.values())))
+        floor = max(PRACTICAL_FLOOR.get(r, 0.0) for r in cand.regressors)
+        material = size >= floor
+    gain = float((sse_before - sse).sum())
+    return Step(cand, sse, gain, t, min(1.0, p * n_tests), thetas, params, material)
+
+
+def forward_select(
+    design: Design, stats: FoldStats, candidates: Sequence[Candidate], cfg: SelectionConfig
+) -> Selection:
+    """Greedy forward selection (see the module doc)."""
+    sse0 = design.yty.copy()
+    total0 = float(sse0.sum())
+    nuis = [c for c in candidates if c.name in NUISANCE]
+    current: list[Candidate] = list(nuis)
+    sse_cur = sse0
+    selected: list[Selected] = []
+    nuis_scores: dict[str, Step] = {}
+    if nuis:
+        sse_cur = heldout_sse(design, stats, _cols(design, nuis))[0]
+        for i, c in enumerate(nuis):
+            rest = [x for x in nuis if x is not c]
+            sse_wo = heldout_sse(design, stats, _cols(design, rest))[0] if rest else sse0
+            st = score(design, stats, rest, c, sse_wo, cfg, len(candidates), cfg.seed + 101 + i)
+            if st.material and st.p_value < cfg.alpha and st.gain >= cfg.min_shrink * total0:
+                selected.append(
+                    Selected(c, len(selected) + 1, sse_wo, st.sse, st.statistic, st.p_value)
+                )
+            else:
+                nuis_scores[c.name] = st
+    sse_nuis = sse_cur.copy() if nuis else None
+    remaining = [c for c in candidates if c.name not in NUISANCE]
+    scores: dict[str, Step] = {}
+    step_i = 0
+    while remaining:
+        n_tests = len(remaining)
+        scores = {
+            c.name: score(
+                design, stats, current, c, sse_cur, cfg, n_tests, cfg.seed + 7919 * step_i + i
+            )
+            for i, c in enumerate(remaining)
+        }
+        eligible = [s for s in scores.values() if s.material]
+        if not eligible:
+            break
+        best = max(eligible, key=lambda s: s.gain)
+        ok = (
+            best.p_value < cfg.alpha
+            and best.gain >= cfg.min_shrink * total0
+            and len(selected) < cfg.max_effects
+        )
+        if not ok:
+            break
+        rivals = []
+        for name, s in scores.items():
+            if name == best.candidate.name:
+                continue
+            if s.material and s.p_value < cfg.alpha and s.gain >= cfg.min_shrink * total0:
+                d = s.sse - best.sse
+                _, p_pair = sign_flip_pvalue(d, cfg.n_perm, cfg.seed + 31 + step_i)
+                if p_pair > cfg.ambiguity_p:
+                    rivals.append(name)
+        selected.append(
+            Selected(
+                best.candidate,
+                len(selected) + 1,
+                sse_cur,
+                best.sse,
+                best.statistic,
+                best.p_value,
+                rivals,
+            )
+        )
+        current.append(best.candidate)
+        sse_cur = best.sse
+        remaining = [c for c in remaining if c.name != best.candidate.name]
+        step_i += 1
+    # A rival that was itself selected later is not ambiguous: both are real.
+    chosen = {s.candidate.name for s in selected}
+    for s in selected:
+        s.ambiguous_with = [r for r in s.ambiguous_with if r not in chosen]
+    final = {**nuis_scores, **{k: v for k, v in scores.items() if k not in chosen}}
+    return Selection(selected, final, sse0, nuis, sse_nuis)
+
+
+def columns_for(design: Design, cands: Sequence[Candidate]) -> tuple[IntArray, IntArray]:
+    """Full-layout columns of a set of candidates."""
+    return _cols(design, cands)
