@@ -35,6 +35,7 @@ from aerodelta.exceptions import (
     ParseError,
     TooLittleDataError,
 )
+from aerodelta.diagnosis import DiagnoseConfig, Diagnosis, diagnose
 from aerodelta.fit import FitConfig, FitResult, fit, validate_model
 from aerodelta.ingest import IngestResult, ingest
 from aerodelta.lsq import OLSResults, ols
@@ -55,6 +56,8 @@ __all__ = [
     "DataError",
     "DaveModel",
     "DeltaModel",
+    "DiagnoseConfig",
+    "Diagnosis",
     "Finding",
     "FitConfig",
     "FitResult",
@@ -71,6 +74,7 @@ __all__ = [
     "__version__",
     "check_daveml",
     "detect_rolloff",
+    "diagnose",
     "effect_library",
     "fit",
     "generate_campaign",

@@ -24,7 +24,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from aerodelta.diagnose.cv import (
+from aerodelta.diagnosis.cv import (
     Design,
     FloatArray,
     FoldStats,
@@ -34,7 +34,7 @@ from aerodelta.diagnose.cv import (
     sign_flip_pvalue,
     solve,
 )
-from aerodelta.diagnose.vocabulary import Candidate
+from aerodelta.diagnosis.vocabulary import Candidate
 
 #: Practical floors of the measurement effects' parameters: below these an effect is
 #: negligible however significant (0.1 deg of vane bias; 8 ms of lag or skew, under one frame
@@ -73,7 +73,7 @@ class SelectionConfig:
     """
 
     alpha: float = 0.01
-    min_shrink: float = 0.03
+    min_shrink: float = 0.01
     ambiguity_p: float = 0.05
     n_perm: int = 4000
     max_effects: int = 6

@@ -1,4 +1,4 @@
-"""Regressor columns of the candidate effects (see :mod:`aerodelta.diagnose.vocabulary`)."""
+"""Regressor columns of the candidate effects (see :mod:`aerodelta.diagnosis.vocabulary`)."""
 
 from __future__ import annotations
 
@@ -6,8 +6,8 @@ import numpy as np
 import polars as pl
 
 from aerodelta.aircraft import Aircraft
-from aerodelta.diagnose.simulator import Simulator, deg_step
-from aerodelta.diagnose.vocabulary import AERO_REGRESSORS, COEFFICIENTS, Vocabulary
+from aerodelta.diagnosis.simulator import Simulator, deg_step
+from aerodelta.diagnosis.vocabulary import AERO_REGRESSORS, COEFFICIENTS, Vocabulary
 
 
 def _rate(frame: pl.DataFrame, col: str) -> np.ndarray:

@@ -2,7 +2,7 @@
 
 See DESIGN.md ("The sim-to-real gap diagnosis") and issue 7. The diagnosis reads the flight
 records and the simulator only; it never opens a campaign's ``truth/`` folder (enforced by
-:func:`aerodelta.diagnose.data.read_parquet_guarded`).
+:func:`aerodelta.diagnosis.data.read_parquet_guarded`).
 """
 
 from __future__ import annotations
@@ -18,7 +18,7 @@ import polars as pl
 from tqdm import tqdm
 
 from aerodelta._core import __version__
-from aerodelta.diagnose.cv import (
+from aerodelta.diagnosis.cv import (
     Design,
     FoldStats,
     HatGrid,
@@ -27,26 +27,26 @@ from aerodelta.diagnose.cv import (
     row_prediction,
     solve,
 )
-from aerodelta.diagnose.data import load_inputs
-from aerodelta.diagnose.regressors import design_columns, measurement_columns
-from aerodelta.diagnose.report import summary_text
-from aerodelta.diagnose.select import (
+from aerodelta.diagnosis.data import load_inputs
+from aerodelta.diagnosis.regressors import design_columns, measurement_columns
+from aerodelta.diagnosis.report import summary_text
+from aerodelta.diagnosis.select import (
     PRACTICAL_FLOOR,
     Selection,
     SelectionConfig,
     columns_for,
     forward_select,
 )
-from aerodelta.diagnose.simulator import load_simulator
-from aerodelta.diagnose.stochastic import rolloff_finding
-from aerodelta.diagnose.vocabulary import (
+from aerodelta.diagnosis.simulator import load_simulator
+from aerodelta.diagnosis.stochastic import event_mask, rolloff_finding
+from aerodelta.diagnosis.vocabulary import (
     COEFFICIENTS,
     NEEDS_MODEL,
     Candidate,
     Vocabulary,
     default_vocabulary,
 )
-from aerodelta.diagnose.where import gap_map, phases, region_of, stall_alphas, worst_segments
+from aerodelta.diagnosis.where import gap_map, phases, region_of, stall_alphas, worst_segments
 from aerodelta.exceptions import DataError
 from aerodelta.fit import theil_inequality
 
@@ -354,6 +354,10 @@ def diagnose(
     coefs: dict[str, Any] = {}
     pred_cols: dict[str, np.ndarray] = {}
     not_testable: list[str] = []
+    # Roll-off spikes are stochastic, not deterministic: found in the raw C_l gap first, their
+    # windows are left out of the C_l fits and reported on their own (thesis Section 3.4.3).
+    ro = rolloff_finding(frame, frame["Cl_meas"].to_numpy() - sim_c["Cl"])
+    cl_keep = event_mask(frame, ro["windows"])
     for coef in steps:
         cands = vocab.for_coefficient(coef)
         if not sim.differentiable:
@@ -372,9 +376,10 @@ def diagnose(
                 glob_x[:, gi] = 0.0
         meas = frame[f"{coef}_meas"].to_numpy()
         y = meas - sim_c[coef]
+        keep = cl_keep if coef == "Cl" else np.ones(frame.height, bool)
         design = build_design(
-            y, mcode, dflap, alpha, aero_x, glob_x, aero_names, glob_names, grid,
-            man.height, n_dflaps,
+            np.where(keep, y, 0.0), mcode, dflap, alpha, aero_x * keep[:, None],
+            glob_x * keep[:, None], aero_names, glob_names, grid, man.height, n_dflaps,
         )  # fmt: skip
         stats = fold_stats(design, folds_m)
         sel = forward_select(design, stats, cands, cfg.selection)
@@ -404,8 +409,7 @@ def diagnose(
             "effects": effects,
             "shrink": _shrink_table(y, meas, region, steps_),
         }
-    ro = rolloff_finding(frame, pred_cols["Cl_gap"] - pred_cols["Cl_explained"])
-    coefs["Cl"]["rolloff"] = ro
+    coefs["Cl"]["rolloff"] = {k: v for k, v in ro.items() if k != "windows"}
     if ro["detected"]:
         coefs["Cl"]["effects"].append(
             {

@@ -27,17 +27,30 @@ def _binom_sf(k: int, n: int, p: float) -> float:
     return float(sum(math.comb(n, i) * p**i * (1 - p) ** (n - i) for i in range(k, n + 1)))
 
 
+def event_mask(frame: pl.DataFrame, windows: list[tuple[str, float, float]]) -> np.ndarray:
+    """True for the rows outside every roll-off event window (maneuver, t0, t1)."""
+    keep = np.ones(frame.height, dtype=bool)
+    if not windows:
+        return keep
+    ids = frame["maneuver_id"].to_numpy()
+    t = frame["t"].to_numpy()
+    for m, t0, t1 in windows:
+        keep &= ~((ids == m) & (t >= t0) & (t <= t1))
+    return keep
+
+
 def rolloff_finding(frame: pl.DataFrame, residual: np.ndarray) -> dict[str, Any]:
     """Roll-off events in the unexplained C_l gap, and whether they are more than chance."""
     need = {"maneuver_id", "t", "alpha_deg", "da_deg"}
     if not need <= set(frame.columns):
         return {"detected": False, "n_events": 0, "n_searched": 0, "p_value": 1.0,
-                "alpha_range_deg": [float("nan")] * 2, "events": []}  # fmt: skip
+                "alpha_range_deg": [float("nan")] * 2, "events": [], "windows": []}  # fmt: skip
     try:
         ev = detect_rolloff(frame, residual=np.asarray(residual, dtype=np.float64), kinds=None)
     except Exception as exc:
         return {"detected": False, "n_events": 0, "n_searched": 0, "p_value": 1.0,
-                "alpha_range_deg": [float("nan")] * 2, "events": [], "error": str(exc)}  # fmt: skip
+                "alpha_range_deg": [float("nan")] * 2, "events": [], "windows": [],
+                "error": str(exc)}  # fmt: skip
     acc = ev.filter(pl.col("accepted")) if ev.height else ev
     n_man = int(frame["maneuver_id"].n_unique())
     k = int(acc["maneuver_id"].n_unique()) if acc.height else 0
@@ -48,6 +61,16 @@ def rolloff_finding(frame: pl.DataFrame, residual: np.ndarray) -> dict[str, Any]
         if acc.height
         else [float("nan"), float("nan")]
     )
+    # every spike-shaped candidate is left out of the deterministic fits, accepted or not: a
+    # roll-off that coincides with a control input is still a spike no regressor predicts
+    windows = [
+        (
+            r["maneuver_id"],
+            float(r["t_onset"]) - 1.0,
+            float(r["t_onset"]) + max(float(r["duration_s"]), 1.0) + 2.0,
+        )
+        for r in ev.iter_rows(named=True)
+    ]
     events = [
         {
             "maneuver_id": r["maneuver_id"],
@@ -65,4 +88,5 @@ def rolloff_finding(frame: pl.DataFrame, residual: np.ndarray) -> dict[str, Any]
         "p_value": p,
         "alpha_range_deg": rng,
         "events": events,
+        "windows": windows,
     }

@@ -10,7 +10,7 @@ from typing import Any
 
 import polars as pl
 
-from aerodelta.diagnose.vocabulary import COEFFICIENTS
+from aerodelta.diagnosis.vocabulary import COEFFICIENTS
 
 _LIST_KEYS = ("ambiguous_with", "alpha_range_deg", "parameters")
 

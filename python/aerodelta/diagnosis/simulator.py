@@ -24,7 +24,7 @@ import numpy as np
 import polars as pl
 
 from aerodelta.daveml import DaveModel
-from aerodelta.diagnose.vocabulary import COEFFICIENTS
+from aerodelta.diagnosis.vocabulary import COEFFICIENTS
 from aerodelta.exceptions import DataError
 from aerodelta.fit import qualified_coefficients
 from aerodelta.model import DeltaModel

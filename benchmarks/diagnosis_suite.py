@@ -1,0 +1,126 @@
+"""The withheld-effect suite of issue 7: virtual campaigns whose truth aircraft carries effects
+the simulator lacks, diagnosed and scored against the truth (see
+``aerodelta.diagnosis.withheld``). Prints the confusion matrix of singles and the rates the
+issue's floors are about; writes every case to JSON.
+
+    python benchmarks/diagnosis_suite.py [--quick] [--size quick|N] [--seeds 1] [--out FILE]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+
+from tqdm import tqdm
+
+from aerodelta.campaign import effect_library
+from aerodelta.diagnosis.withheld import CaseResult, dumps, run_case, summarize
+
+CONDITIONS = [
+    {"noise": 1.0, "turbulence": 0.5, "rolloff": False},
+    {"noise": 2.0, "turbulence": 1.0, "rolloff": True},
+]
+PAIRS = [
+    {"dihedral": 1.0, "rudder_effectiveness": 1.0},
+    {"roll_damping": 1.0, "directional_stability": 1.0},
+    {"aileron_effectiveness": 1.0, "beta_vane_bias": 1.0},
+    {"lateral_asymmetry": 1.0, "yaw_damping": 1.0},
+    {"dihedral": 1.0, "roll_damping": 1.0, "rudder_effectiveness": 1.0},
+    {"aileron_effectiveness": 1.0, "directional_stability": 1.0, "control_lag": 1.0},
+]
+
+
+def cases(quick: bool, seeds: int) -> list[tuple[dict[str, float], int, dict[str, object]]]:
+    """(effects, seed, condition) of every case."""
+    lib = effect_library()
+    aero = [e["name"] for e in lib if e["kind"] == "aerodynamic"]
+    meas = [e["name"] for e in lib if e["kind"] == "measurement"]
+    unlisted = [e["name"] for e in lib if e["kind"] == "unlisted"]
+    out: list[tuple[dict[str, float], int, dict[str, object]]] = []
+    if quick:
+        for e in ("dihedral", "rudder_effectiveness", "beta_vane_bias", "roll_damping"):
+            out.append(({e: 1.0}, 1, CONDITIONS[0]))
+        out.append(({"dihedral": 0.25}, 2, CONDITIONS[0]))
+        out.append((PAIRS[0], 3, CONDITIONS[0]))
+        out.append(({unlisted[0]: 1.0}, 4, CONDITIONS[0]))
+        for s in range(3):
+            out.append(({}, 100 + s, CONDITIONS[s % 2]))
+        out.append(({"time_skew": 0.1}, 110, CONDITIONS[0]))
+        return out
+    for seed in range(1, seeds + 1):
+        for ci, cond in enumerate(CONDITIONS):
+            for e in aero + meas:
+                for m in (1.0, 0.5, 0.25):
+                    out.append(({e: m}, seed * 1000 + ci * 100 + int(m * 8), cond))
+            for i, p in enumerate(PAIRS):
+                out.append((p, seed * 1000 + 500 + i, cond))
+            for i, u in enumerate(unlisted):
+                out.append(({u: 1.0}, seed * 1000 + 600 + i, cond))
+    for s in range(20):
+        eff = {"time_skew": 0.1} if s % 2 else {}  # 4 ms of skew: real but negligible
+        out.append((eff, 9000 + s, CONDITIONS[s % 2]))
+    return out
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__)
+    ap.add_argument("--quick", action="store_true", help="a dozen cases instead of the sweep")
+    ap.add_argument("--size", default="quick", help="campaign size (quick = 40 maneuvers, or N)")
+    ap.add_argument("--seeds", type=int, default=1)
+    ap.add_argument("--out", default="diagnosis_suite.json")
+    args = ap.parse_args()
+    size: str | int = int(args.size) if args.size.isdigit() else args.size
+    todo = cases(args.quick, args.seeds)
+    results: list[CaseResult] = []
+    t0 = time.perf_counter()
+    for effects, seed, cond in tqdm(todo, desc="withheld-effect suite", file=sys.stderr):
+        r = run_case(effects, seed=seed, size=size, **cond)  # type: ignore[arg-type]
+        # a null with only a few ms of skew is a null: the skew must not be reported
+        if set(effects) == {"time_skew"} and effects["time_skew"] < 0.2:
+            r.effects = {}
+            r.false_alarms = [f for f in r.false_alarms if not f.endswith("time_skew")] + [
+                f"{c}:time_skew" for c in ("Cl", "Cn", "CY") if "time_skew" in r.significant[c]
+            ]
+        results.append(r)
+    dt = time.perf_counter() - t0
+    s = summarize(results)
+    print(f"withheld-effect suite: {len(results)} cases in {dt:.0f} s (campaign size {size})")
+    print("singles: verdict rate by magnitude (floors: design, half 100 %; quarter >= 85 %)")
+    for k in ("design", "half", "quarter"):
+        if k in s["singles_found"]:
+            print(f"  {k:<8} {100 * s['singles_found'][k]:5.1f} %  of {s['singles_n'][k]}")
+
+    def pct(x: float | None) -> str:
+        return "  n/a" if x is None else f"{100 * x:5.1f} %"
+
+    print(
+        f"pairs/triples: each effect among the significant ones {pct(s['multi_found'])} "
+        f"of {s['multi_n']} (floor >= 95 %)"
+    )
+    print(
+        f"unlisted effects misattributed with significance {pct(s['unlisted_misattributed'])} "
+        f"of {s['unlisted_n']} (floor <= 5 %)"
+    )
+    print(
+        f"null cases with a false alarm {pct(s['null_false_alarms'])} of {s['null_n']} "
+        "(floor <= 5 %)"
+    )
+    print(f"alpha range onset within 1.5 deg {pct(s['onset_within_1p5'])} of {s['onset_n']}")
+    print(
+        f"held-out shrink >= 90 % of the oracle's {pct(s['shrink_ge_90pct_of_oracle'])} of "
+        f"{s['shrink_n']} (floor: in >= 90 % of cases)"
+    )
+    print("confusion (withheld effect -> verdict of each coefficient it affects):")
+    for e, row in sorted(s["confusion"].items()):
+        print(f"  {e:<24} " + ", ".join(f"{v}: {n}" for v, n in sorted(row.items())))
+    with open(args.out, "w") as fh:
+        fh.write(dumps(results))
+    print(f"wrote {args.out}")
+    _ = json
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
