@@ -79,7 +79,7 @@ class DiagnoseConfig:
     """
 
     folds: int = 5
-    knot_deg: float = 2.0
+    knot_deg: float = 1.0
     selection: SelectionConfig = field(default_factory=SelectionConfig)
     where_bin_deg: float = 2.0
     where_alpha: float = 0.01
@@ -357,7 +357,7 @@ def diagnose(
     # Roll-off spikes are stochastic, not deterministic: found in the raw C_l gap first, their
     # windows are left out of the C_l fits and reported on their own (thesis Section 3.4.3).
     ro = rolloff_finding(frame, frame["Cl_meas"].to_numpy() - sim_c["Cl"])
-    cl_keep = event_mask(frame, ro["windows"])
+    cl_keep = event_mask(frame, ro["windows"]) if ro["detected"] else np.ones(frame.height, bool)
     for coef in steps:
         cands = vocab.for_coefficient(coef)
         if not sim.differentiable:
@@ -391,6 +391,9 @@ def diagnose(
         final_pred = steps_[-1][1] if steps_ else np.zeros_like(y)
         pred_cols[f"{coef}_gap"] = y
         pred_cols[f"{coef}_explained"] = final_pred
+        pred_cols[f"{coef}_timing"] = (
+            steps_[0][1] if steps_ and steps_[0][0] == "timing_alignment" else np.zeros_like(y)
+        )
         sig = [e for e in effects if e["significant"]]
         coefs[coef] = {
             "verdict": sig[0]["effect"] if sig else "none",

@@ -152,10 +152,10 @@ def build_design(  # noqa: PLR0917 - the reduction's inputs, all positional by d
 
 #: Ridge on each alpha-dependent parameter, relative to its regressor's mean excitation in the
 #: flap: a knot the data barely reach is pulled to zero (no correction) instead of extrapolated.
-RIDGE_REL = 0.05
+RIDGE_REL = 0.01
 #: Second-difference (roughness) penalty along the knots, relative to the same scale: the
 #: per-bin parameters of the thesis are smoothed in alpha (Eq. 3.13); this is its analogue.
-SMOOTH_REL = 1.0
+SMOOTH_REL = 0.1
 
 
 def penalty(design: Design) -> list[FloatArray]:

@@ -73,7 +73,7 @@ class SelectionConfig:
     """
 
     alpha: float = 0.01
-    min_shrink: float = 0.01
+    min_shrink: float = 0.02
     ambiguity_p: float = 0.05
     n_perm: int = 4000
     max_effects: int = 6
@@ -86,7 +86,7 @@ class Step:
 
     candidate: Candidate
     sse: FloatArray  # held-out SSE per maneuver with the candidate added
-    gain: float  # total held-out SSE removed
+    gain: float  # total held-out SSE removed, each maneuver's share capped (robust_gain)
     statistic: float
     p_value: float  # Bonferroni-corrected
     thetas: list[list[FloatArray]]
@@ -130,6 +130,26 @@ def _cols(design: Design, cands: Sequence[Candidate]) -> tuple[IntArray, IntArra
     return local_columns(design, sorted(set(aero)), sorted(set(glob)))
 
 
+def robust_gain(d: FloatArray) -> float:
+    """Total held-out improvement with each maneuver's share capped at the 90th percentile of
+    the absolute improvements: an effect must help many maneuvers, not one or two whose
+    gap holds an unmasked transient (a roll-off spike the detector rejected)."""
+    nz = np.abs(d[d != 0.0])
+    if nz.size == 0:
+        return 0.0
+    q = float(np.quantile(nz, 0.9))
+    return float(np.clip(d, -np.inf, q).sum())
+
+
+def _material_change(sse_before: FloatArray, sse_after: FloatArray) -> FloatArray:
+    """Per-maneuver held-out improvement, with changes under 0.1 % of the maneuver's own
+    squared gap set to zero: a candidate whose regressor is zero in a maneuver (thrust
+    difference in a symmetric-thrust stall) moves that maneuver's error only through the
+    refit of the other terms, which is no evidence either way (a tie, left out of the ranks)."""
+    d = sse_before - sse_after
+    return np.where(np.abs(d) < 1e-3 * np.maximum(sse_before, 1e-300), 0.0, d)
+
+
 def score(  # noqa: PLR0917 - internal scoring step
     design: Design,
     stats: FoldStats,
@@ -142,7 +162,7 @@ def score(  # noqa: PLR0917 - internal scoring step
 ) -> Step:
     """Held-out score of adding ``cand`` to ``base``."""
     sse, thetas = heldout_sse(design, stats, _cols(design, [*base, cand]))
-    t, p = sign_flip_pvalue(sse_before - sse, cfg.n_perm, seed)
+    t, p = sign_flip_pvalue(_material_change(sse_before, sse), cfg.n_perm, seed)
     params: dict[str, float] = {}
     material = True
     if cand.global_:
@@ -153,7 +173,7 @@ def score(  # noqa: PLR0917 - internal scoring step
         size = float(np.sqrt(sum(v * v for v in params.values())))
         floor = max(PRACTICAL_FLOOR.get(r, 0.0) for r in cand.regressors)
         material = size >= floor
-    gain = float((sse_before - sse).sum())
+    gain = robust_gain(sse_before - sse)
     return Step(cand, sse, gain, t, min(1.0, p * n_tests), thetas, params, material)
 
 
@@ -208,7 +228,7 @@ def forward_select(
             if name == best.candidate.name:
                 continue
             if s.material and s.p_value < cfg.alpha and s.gain >= cfg.min_shrink * total0:
-                d = s.sse - best.sse
+                d = _material_change(s.sse, best.sse)
                 _, p_pair = sign_flip_pvalue(d, cfg.n_perm, cfg.seed + 31 + step_i)
                 if p_pair > cfg.ambiguity_p:
                     rivals.append(name)
