@@ -13,6 +13,7 @@
 //! truth of the campaign maneuver (checked in the tests).
 
 use crate::error::{AeroError, Result};
+use crate::rolloff::RollOffDraw;
 use crate::sim::campaign::{adx37_models, resolve_effects, CampaignSpec, Flight, ManeuverPlan};
 use crate::sim::eom::ix;
 use crate::sim::pilot::Kind;
@@ -127,10 +128,14 @@ pub struct StallSummary {
     pub peak: f64,
     /// Direction of the roll-off met: +1 right wing down, −1 left, 0 none.
     pub direction: i8,
-    /// Signed peak drawn for the stall (s k A_f, reached only if alpha gets to the centre).
+    /// Signed peak of the draw that made the roll-off met (s k A_f, reached only if
+    /// alpha gets to the centre); with no roll-off met, of the draw at the first
+    /// crossing of the re-arm alpha (else the initial draw).
     pub drawn_peak: f64,
-    /// Centre of the drawn Gaussian, deg.
+    /// Centre of that draw's Gaussian, deg.
     pub drawn_center_deg: f64,
+    /// Upward crossings of the re-arm alpha (each made new draws).
+    pub crossings: usize,
 }
 
 /// Fly stall `k` of `spec` and summarise it.
@@ -158,6 +163,7 @@ fn fly(
     let mut trace: Vec<(f64, f64, f64)> = Vec::with_capacity(f.max_steps.min(8192));
     let (mut max_alpha, mut max_bank, mut max_drc) = (f64::NEG_INFINITY, 0.0f64, 0.0f64);
     let (mut big, mut big_abs) = (0.0f64, 0.0f64);
+    let mut met: Option<RollOffDraw> = None;
     loop {
         let st = f.command();
         let x = &f.sim.x;
@@ -168,11 +174,14 @@ fn fly(
         max_alpha = max_alpha.max(a_deg);
         max_bank = max_bank.max(phi.abs().to_degrees());
         max_drc = max_drc.max((phi + phidot).abs().to_degrees());
-        let d = f.model.rolloff.as_ref().map_or(0.0, |r| r.delta_cl(a_deg));
-        if d != 0.0 {
-            trace.push((f.sim.t, a_deg, d));
-            if d.abs() > big_abs {
-                (big, big_abs) = (d, d.abs());
+        if let Some(r) = f.model.rolloff.as_ref() {
+            let d = r.delta_cl(a_deg);
+            if d != 0.0 {
+                trace.push((f.sim.t, a_deg, d));
+                if d.abs() > big_abs {
+                    (big, big_abs) = (d, d.abs());
+                    met = Some(r.current());
+                }
             }
         }
         if f.done() {
@@ -183,8 +192,9 @@ fn fly(
     let onset = trace
         .iter()
         .find(|(_, _, d)| big_abs > 0.0 && d.abs() >= spec.onset_fraction * big_abs);
-    // the draw made at the stall's crossing of the re-arm alpha (else the initial one)
-    let draw = f.model.rolloff.as_ref().map(|r| r.current());
+    let history = f.model.rolloff.as_ref().map_or(&[][..], |r| &r.history[..]);
+    // history[0] is the initial draw, then one per upward crossing of the re-arm alpha
+    let draw = met.or_else(|| history.get(1).or(history.first()).copied());
     Ok(StallSummary {
         stall: k,
         maneuver_index: m.index,
@@ -207,6 +217,7 @@ fn fly(
         },
         drawn_peak: draw.map_or(0.0, |d| d.peak),
         drawn_center_deg: draw.map_or(f64::NAN, |d| d.center_deg),
+        crossings: history.len().saturating_sub(1),
     })
 }
 
