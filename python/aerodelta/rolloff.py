@@ -453,7 +453,8 @@ def monte_carlo(
         stall never met the spike), ``onset_t`` [s], ``peak`` (signed largest injected
         ΔC_l, the roll-off magnitude met), ``direction`` (+1 right, -1 left, 0 none),
         ``drawn_peak`` and ``drawn_center_deg`` (the draw that made the roll-off met, else
-        the draw at the first 15 deg crossing), ``crossings`` (upward crossings of the
+        the draw at the first 15 deg crossing), ``drawn_t`` (its time [s]; 0 for the initial
+        draw, active before the first crossing), ``crossings`` (upward crossings of the
         re-arm alpha, each a new draw).
     """
     del noise, record_hz

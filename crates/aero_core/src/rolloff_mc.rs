@@ -134,6 +134,9 @@ pub struct StallSummary {
     pub drawn_peak: f64,
     /// Centre of that draw's Gaussian, deg.
     pub drawn_center_deg: f64,
+    /// Time of that draw, s (0: the initial draw, active from the start until the
+    /// first crossing of the re-arm alpha).
+    pub drawn_t: f64,
     /// Upward crossings of the re-arm alpha (each made new draws).
     pub crossings: usize,
 }
@@ -217,6 +220,7 @@ fn fly(
         },
         drawn_peak: draw.map_or(0.0, |d| d.peak),
         drawn_center_deg: draw.map_or(f64::NAN, |d| d.center_deg),
+        drawn_t: draw.map_or(f64::NAN, |d| d.t),
         crossings: history.len().saturating_sub(1),
     })
 }
@@ -361,7 +365,13 @@ mod tests {
         let width = s.campaign.rolloff.width_deg;
         let mut checked = 0;
         for a in &mc {
-            if a.max_alpha_deg > a.drawn_center_deg + 0.5 && a.drawn_peak != 0.0 {
+            // the draw made at the stall's only crossing of the re-arm alpha (the initial
+            // draw, active before it, may also be met at alphas below the re-arm alpha)
+            if a.crossings == 1
+                && a.drawn_t > 0.0
+                && a.max_alpha_deg > a.drawn_center_deg + 0.5
+                && a.drawn_peak != 0.0
+            {
                 assert!((a.peak / a.drawn_peak - 1.0).abs() < 0.01, "{a:?}");
                 let z = (2.0 * 5f64.ln()).sqrt() * width;
                 assert!(

@@ -208,6 +208,7 @@ fn rolloff_monte_carlo<'py>(
         "drawn_center_deg",
         f(&|r| r.drawn_center_deg).into_pyarray(py),
     )?;
+    d.set_item("drawn_t", f(&|r| r.drawn_t).into_pyarray(py))?;
     d.set_item("crossings", i(&|r| r.crossings as i64).into_pyarray(py))?;
     Ok(d)
 }
