@@ -56,24 +56,24 @@ def test_stall_is_the_campaign_straight_stall_with_the_same_seed() -> None:
 
 
 def test_draws_and_onsets_follow_the_configuration() -> None:
+    # centres N(16.8, 0.3^2): the 20 % onset (0.9 deg below the centre) stays above the
+    # 15 deg re-arm alpha, where a new draw starts (below it the onset would be the crossing)
     cfg = ro.default_config()
     for f in cfg["flaps"]:
-        f["mean_alpha_deg"] = 16.0
+        f["mean_alpha_deg"] = 16.8
         f["p_right"] = 0.7
-    cfg["alpha_std_deg"] = 0.5
+    cfg["alpha_std_deg"] = 0.3
     n = 60
     mc = ro.monte_carlo(n, seed=2, flap_deg=0.0, config=cfg, turbulence=0.0)
-    # stalls crossing the re-arm alpha once make one draw: centres N(16, 0.5^2)
-    one = mc.filter(pl.col("crossings") == 1)
+    # stalls crossing the re-arm alpha once make one draw there: centres N(16.8, 0.3^2)
+    one = mc.filter((pl.col("crossings") == 1) & (pl.col("drawn_t") > 0))
     assert one.height >= 0.5 * n
     c = one["drawn_center_deg"].to_numpy()
-    assert stats.kstest((c - 16.0) / 0.5, "norm").pvalue > 0.001
-    # those meeting the draw of their crossing (not the initial draw, active before it) pass
-    # its centre (alpha_max - 1 = 18.5 deg at flap 0), so they meet the drawn peak and the
-    # onset lies sqrt(2 ln 5) widths below the centre (closed form)
-    crossing = one.filter(pl.col("drawn_t") > 0)
-    met = crossing.filter(pl.col("max_alpha_deg") > pl.col("drawn_center_deg") + 1.0)
-    assert met.height >= 0.9 * crossing.height >= 0.7 * one.height
+    assert stats.kstest((c - 16.8) / 0.3, "norm").pvalue > 0.001
+    # they pass the centre (alpha_max - 1 = 18.5 deg at flap 0), so they meet the drawn
+    # peak, and the onset lies sqrt(2 ln 5) widths below the centre (closed form)
+    met = one.filter(pl.col("max_alpha_deg") > pl.col("drawn_center_deg") + 1.0)
+    assert met.height >= 0.9 * one.height
     np.testing.assert_allclose(met["peak"], met["drawn_peak"], rtol=2e-3)
     np.testing.assert_allclose(
         met["onset_alpha_deg"], met["drawn_center_deg"] - ONSET_OFFSET * 0.5, atol=0.05
@@ -91,6 +91,25 @@ def test_monte_carlo_rejects_an_unknown_flap() -> None:
         ro.monte_carlo(2, flap_deg=12.0)
 
 
+def test_chi2_quantile_small_df_matches_scipy() -> None:
+    # the interval of a standard deviation from 2 to 5 events (df 1 to 4): exact quantiles
+    for df in (1, 2, 3, 4):
+        for p in (0.0005, 0.025, 0.5, 0.975, 0.9995):
+            assert ro.chi2_ppf(p, df) == pytest.approx(stats.chi2.ppf(p, df), rel=1e-9)
+    ev = pl.DataFrame(
+        {
+            "flap_deg": [0.0, 0.0],
+            "alpha_onset_deg": [15.0, 18.0],
+            "peak": [0.01, -0.012],
+            "direction": [1, -1],
+        }
+    )
+    s = ro.rolloff_statistics(ev).row(0, named=True)
+    sd = np.std([15.0, 18.0], ddof=1)
+    ref = (sd / math.sqrt(stats.chi2.ppf(0.975, 1)), sd / math.sqrt(stats.chi2.ppf(0.025, 1)))
+    assert (s["alpha_std_lo"], s["alpha_std_hi"]) == pytest.approx(ref, rel=1e-9)
+
+
 def test_ks_2samp_matches_scipy() -> None:
     rng = np.random.default_rng(4)
     for n, m, shift in ((200, 150, 0.0), (300, 400, 0.3), (60, 80, 0.5)):
@@ -101,7 +120,9 @@ def test_ks_2samp_matches_scipy() -> None:
         assert d == pytest.approx(ref.statistic, abs=1e-12)
         # asymptotic Kolmogorov distribution: scipy.special.kolmogorov (independent series)
         assert p == pytest.approx(special.kolmogorov(math.sqrt(n * m / (n + m)) * d), abs=1e-9)
-        assert p == pytest.approx(ref.pvalue, abs=0.02)
+        # scipy's "asymp" uses the finite-n one-sample distribution at round(n m/(n+m)):
+        # close to the limit at these sizes
+        assert p == pytest.approx(ref.pvalue, abs=0.05)
     assert ro.ks_2samp([1.0, float("nan")], [2.0, 3.0])[0] == pytest.approx(1.0)
     assert math.isnan(ro.ks_2samp([], [1.0])[0])
 
@@ -201,18 +222,20 @@ def _straight_records(cfg: dict, flaps: tuple[int, ...], reps: int, seed: int) -
 
 
 def test_per_flap_statistics_of_detected_events_hold_the_configured_values() -> None:
-    # every stall passes the whole spike (centres at 15.8 +- 0.4 deg, the pusher at
-    # alpha_max - 1 >= 17 deg): the detected events sample the configured distributions
+    # every stall passes the whole spike (centres at 17 +- 0.25 deg: 4 widths above the
+    # 15 deg re-arm alpha, below which the initial draw acts; below the pusher at
+    # alpha_max - 1 = 18.5 and 18 deg at flaps 0 and 5): the detected events sample the
+    # configured distributions
     cfg = ro.default_config()
     for f in cfg["flaps"]:
-        f["mean_alpha_deg"] = 15.8
-    cfg["alpha_std_deg"] = 0.4
-    data = _straight_records(cfg, flaps=(0, 4), reps=8, seed=31)
+        f["mean_alpha_deg"] = 17.0
+    cfg["alpha_std_deg"] = 0.25
+    data = _straight_records(cfg, flaps=(0, 1), reps=8, seed=31)
     ev = ro.detect_rolloff(data)
     acc = ev.filter(pl.col("accepted"))
     assert acc.height >= 0.9 * data["maneuver_id"].n_unique()
     st = ro.rolloff_statistics(ev, level=0.999)
-    assert st["flap_deg"].to_list() == [0.0, 35.0]
+    assert st["flap_deg"].to_list() == [0.0, 5.0]
     chk = ro.check_statistics(st, cfg)
     print(chk)
     assert chk["inside"].all(), chk.filter(~pl.col("inside"))
