@@ -148,3 +148,32 @@ def test_event_max_roll_and_histogram_figures() -> None:
     assert len(fig.axes) == 2
     with pytest.raises(ad.DataError, match="missing"):
         rp.event_figure(rec.drop("da_deg"))
+
+
+def test_cli_rolloff_removes_a_delta_model(campaign: Path, tmp_path: Path) -> None:
+    # the --model path: a Δ model that adds nothing leaves the events byte-identical
+    zero = {
+        "schema": "aerodelta.model/1",
+        "flaps_deg": [0.0, 35.0],
+        "coefficients": {
+            "Cl": {
+                "terms": [
+                    {
+                        "name": "dCl_0",
+                        "regressor": "1",
+                        "alpha_deg": [10.0, 20.0],
+                        "values": [[0.0, 0.0], [0.0, 0.0]],
+                    }
+                ],
+                "alpha_l_deg": [8.0, 8.0],
+                "alpha_u_deg": [10.0, 10.0],
+            }
+        },
+    }
+    model = tmp_path / "zero.json"
+    ad.DeltaModel.from_spec(zero).save(model)
+    base = ["rolloff", "--data", str(campaign), "--no-progress", "--no-figures"]
+    assert main([*base, "--out", str(tmp_path / "a")]) == 0
+    assert main([*base, "--out", str(tmp_path / "b"), "--model", str(model)]) == 0
+    a = (tmp_path / "a" / "events.csv").read_bytes()
+    assert a == (tmp_path / "b" / "events.csv").read_bytes()
