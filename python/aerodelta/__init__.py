@@ -41,7 +41,12 @@ from aerodelta.ingest import IngestResult, ingest
 from aerodelta.lsq import OLSResults, ols
 from aerodelta.model import DeltaModel
 from aerodelta.partition import AlphaBins, partition_alpha
-from aerodelta.rolloff import detect_rolloff, rolloff_statistics
+from aerodelta.rolloff import (
+    compare_with_records,
+    detect_rolloff,
+    rolloff_statistics,
+)
+from aerodelta.rolloff import monte_carlo as rolloff_monte_carlo
 from aerodelta.spline import SmoothingSpline, smoothing_spline
 from aerodelta.table import Table
 from aerodelta.validate import Finding, ValidationReport
@@ -73,6 +78,7 @@ __all__ = [
     "ValidationReport",
     "__version__",
     "check_daveml",
+    "compare_with_records",
     "detect_rolloff",
     "diagnose",
     "effect_library",
@@ -85,6 +91,7 @@ __all__ = [
     "qualified_model_tables",
     "replay",
     "rolloff_draws",
+    "rolloff_monte_carlo",
     "rolloff_statistics",
     "simulate_campaign",
     "smoothing_spline",

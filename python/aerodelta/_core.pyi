@@ -313,3 +313,9 @@ def rolloff_detect(
 def rolloff_sample_draws(
     config_json: str, flap_deg: float, seed: int, n: int, stream: int = 0
 ) -> dict[str, npt.NDArray[np.float64]]: ...
+
+# Monte Carlo of straight stalls (crates/py_bindings/src/rolloff.rs, aero_core::rolloff_mc)
+def rolloff_monte_carlo(
+    spec_json: str, threads: int | None = None
+) -> dict[str, npt.NDArray[np.generic]]: ...
+def rolloff_mc_default_spec() -> str: ...

@@ -183,14 +183,45 @@ def normal_ppf(p: float) -> float:
     return x
 
 
-def chi2_ppf(p: float, df: float) -> float:
-    """Chi-square quantile by the Wilson-Hilferty cube (relative error < 0.5 % for df >= 5).
+def _chi2_cdf(x: float, df: float) -> float:
+    """Chi-square CDF: the regularized lower incomplete gamma ``P(df/2, x/2)`` by its series
+    ``e^{-y} y^a / Γ(a+1) Σ_n y^n / ((a+1)…(a+n))`` (converges for every ``y = x/2``)."""
+    if x <= 0.0:
+        return 0.0
+    a, y = 0.5 * df, 0.5 * x
+    term = total = 1.0
+    n = 0
+    while term > 1e-16 * total and n < 10_000:
+        n += 1
+        term *= y / (a + n)
+        total += term
+    return min(1.0, math.exp(a * math.log(y) - y - math.lgamma(a + 1.0)) * total)
 
-    ``df (1 - 2/(9 df) + z sqrt(2/(9 df)))^3`` with ``z`` the normal quantile.
+
+def chi2_ppf(p: float, df: float) -> float:
+    """Chi-square quantile.
+
+    For ``df >= 5`` the Wilson-Hilferty cube ``df (1 - 2/(9 df) + z sqrt(2/(9 df)))^3``
+    with ``z`` the normal quantile (relative error < 0.5 %); below, where that
+    approximation fails (it reaches 0 at small ``p``), bisection on the exact CDF
+    (:func:`_chi2_cdf`) to 1e-12 relative.
     """
-    z = normal_ppf(p)
-    c = 2.0 / (9.0 * df)
-    return df * max(1.0 - c + z * math.sqrt(c), 0.0) ** 3
+    if not 0.0 < p < 1.0:
+        raise InvalidInputError(f"chi2_ppf: probability {p} must lie in (0, 1)")
+    if df >= 5:
+        z = normal_ppf(p)
+        c = 2.0 / (9.0 * df)
+        return df * max(1.0 - c + z * math.sqrt(c), 0.0) ** 3
+    lo, hi = 0.0, max(10.0, 10.0 * df)
+    while _chi2_cdf(hi, df) < p:
+        hi *= 2.0
+    while hi - lo > 1e-12 * hi:
+        mid = 0.5 * (lo + hi)
+        if _chi2_cdf(mid, df) < p:
+            lo = mid
+        else:
+            hi = mid
+    return 0.5 * (lo + hi)
 
 
 def wilson_interval(k: int, n: int, level: float = 0.95) -> tuple[float, float]:
@@ -390,6 +421,9 @@ def max_roll_straight_stalls(
     return out
 
 
+_MC_FLAPS = (0.0, 5.0, 10.0, 15.0, 35.0)
+
+
 def monte_carlo(
     n: int,
     seed: int = 0,
@@ -399,9 +433,19 @@ def monte_carlo(
     noise: float = 1.0,
     turbulence: float = 0.5,
     record_hz: float = 10.0,
-    chunk: int = 256,
+    chunk: int | None = None,
+    excitation: float = 1.0,
+    threads: int | None = None,
+    first: int = 0,
+    progress: bool = False,
 ) -> pl.DataFrame:
-    """Many straight stalls of the 6-DOF simulator with the roll-off on.
+    """Many straight stalls of the 6-DOF simulator with the roll-off on (engine ``rolloff_mc``).
+
+    Stall ``k`` is the straight stall of repetition ``k // 2`` (stick pusher on for even
+    ``k``) at ``flap_deg`` of the campaign with the same seed (``simulate_campaign``):
+    same flight, same random streams. The stalls run in parallel in the engine (rayon),
+    each reduced to a summary (no time history); the result does not depend on the
+    thread count.
 
     Parameters
     ----------
@@ -410,62 +454,249 @@ def monte_carlo(
     seed
         Campaign seed.
     flap_deg
-        Flap setting (one of the five of the representative aircraft).
+        Flap setting (one of the five of the representative aircraft), deg.
     config
-        Roll-off configuration (``None``: thesis Table 3.2).
-    noise, turbulence
-        Sensor noise scale and gust RMS, m/s (as the campaign).
-    record_hz
-        Rate of the kept samples, Hz (a divisor of 100); only the truth alpha and roll-off
-        contribution are read from them.
+        Roll-off configuration (``None``: thesis Table 3.2; see :func:`config_from_statistics`).
+    noise, record_hz
+        Unused (nothing is recorded); kept for compatibility.
+    turbulence
+        Dryden gust RMS, m/s (as the campaign).
     chunk
-        Stalls flown per engine call (bounds the memory of the returned records).
+        Stalls per engine call (``None``: all at once, or 20 calls with ``progress``).
+    excitation
+        Pilot excitation scale (doublets, stick noise), as the campaign.
+    threads
+        Size of a dedicated thread pool (``None``: all cores, or ``RAYON_NUM_THREADS``).
+    first
+        Index of the first stall (a continuation of an earlier run).
+    progress
+        tqdm progress bar on stderr (per chunk).
 
     Returns
     -------
     polars.DataFrame
-        Per stall: ``maneuver_id, pusher, max_bank_deg, max_alpha_deg,
-        onset_alpha_deg`` (true alpha where the injected ΔC_l first reaches 20 % of its
-        largest value; NaN when alpha never reached the spike), ``peak`` (signed largest ΔC_l).
+        Per stall: ``maneuver_id`` (the campaign's id of the same maneuver), ``flap_deg``,
+        ``stall``,
+        ``pusher``, ``pusher_fired``, ``duration_s`` [s], ``max_bank_deg`` (max |φ|),
+        ``max_alpha_deg``, ``max_dynamic_roll_deg`` (max |φ + φ̇ · 1 s|, Eq. 3.20, the DRC
+        peak), ``far25_203_pass`` (max |φ| <= 20 deg), ``onset_alpha_deg`` (true alpha
+        where the injected ΔC_l first reaches 20 % of its largest value; NaN when the
+        stall never met the spike), ``onset_t`` [s], ``peak`` (signed largest injected
+        ΔC_l, the roll-off magnitude met), ``direction`` (+1 right, -1 left, 0 none),
+        ``drawn_peak`` and ``drawn_center_deg`` (the draw that made the roll-off met, else
+        the draw at the first 15 deg crossing), ``drawn_t`` (its time [s]; 0 for the initial
+        draw, active before the first crossing), ``crossings`` (upward crossings of the
+        re-arm alpha, each a new draw).
     """
-    flaps = [0.0, 5.0, 10.0, 15.0, 35.0]
-    if flap_deg not in flaps:
-        raise InvalidInputError(f"monte_carlo: flap_deg {flap_deg} is not one of {flaps}")
-    reps = (n + 1) // 2
-    fi = flaps.index(flap_deg)
-    # plan order: rep, flap, kind (straight first), pusher (true, false)
-    only = [r * 40 + fi * 8 + p for r in range(reps) for p in (0, 1)][:n]
-    spec = _spec(
+    del noise, record_hz
+    if flap_deg not in _MC_FLAPS:
+        raise InvalidInputError(f"monte_carlo: flap_deg {flap_deg} is not one of {list(_MC_FLAPS)}")
+    if n < 0 or first < 0:
+        raise InvalidInputError(f"monte_carlo: n ({n}) and first ({first}) must be >= 0")
+    campaign = _spec(
         {},
         seed=seed,
-        size=reps,
-        noise=noise,
+        size=1,
+        noise=0.0,
         turbulence=turbulence,
         rolloff=True,
-        excitation=1.0,
-        record_hz=record_hz,
+        excitation=excitation,
     )
     if config is not None:
-        spec["rolloff"] = dict(config)
+        campaign["rolloff"] = dict(config)
+    step = chunk or (max(1, -(-n // 20)) if progress else max(n, 1))
+    parts: list[pl.DataFrame] = []
+    from tqdm import tqdm  # noqa: PLC0415  (only when flying)
+
+    with tqdm(total=n, unit="stall", disable=not progress, desc="Monte Carlo") as bar:
+        for start in range(first, first + n, step):
+            spec = {
+                "campaign": campaign,
+                "flap_deg": float(flap_deg),
+                "first": start,
+                "n": min(step, first + n - start),
+            }
+            parts.append(pl.DataFrame(_core.rolloff_monte_carlo(json.dumps(spec), threads)))
+            bar.update(spec["n"])
+    if not parts:
+        parts.append(pl.DataFrame(_core.rolloff_monte_carlo(json.dumps({"n": 0}), threads)))
+    df = pl.concat(parts)
+    ident = (
+        pl.format(
+            "m{}_f{}_straight_{}",
+            pl.col("maneuver_index").cast(pl.String).str.zfill(3),
+            pl.lit(f"{int(flap_deg):02d}"),
+            pl.when(pl.col("pusher")).then(pl.lit("p")).otherwise(pl.lit("n")),
+        )
+    ).alias("maneuver_id")
+    flap = pl.lit(float(flap_deg)).alias("flap_deg")
+    return df.select(ident, flap, pl.all().exclude("maneuver_index"))
+
+
+def ks_2samp(x: npt.ArrayLike, y: npt.ArrayLike) -> tuple[float, float]:
+    """Two-sample Kolmogorov-Smirnov test (NaNs dropped).
+
+    ``D = max |F_x - F_y|`` over the pooled sample; the p-value is the asymptotic
+    Kolmogorov distribution ``Q(√(n m / (n + m)) D)``,
+    ``Q(λ) = 2 Σ_{k>=1} (-1)^{k-1} exp(-2 k² λ²)`` (Smirnov 1948), good for ``n, m >= 30``.
+
+    Returns
+    -------
+    (float, float)
+        ``(D, p)``; ``(nan, nan)`` when a sample is empty.
+    """
+    a = np.sort(np.asarray(x, dtype=np.float64))
+    b = np.sort(np.asarray(y, dtype=np.float64))
+    a, b = a[~np.isnan(a)], b[~np.isnan(b)]
+    n, m = a.size, b.size
+    if n == 0 or m == 0:
+        return (float("nan"), float("nan"))
+    z = np.concatenate([a, b])
+    d = float(
+        np.max(np.abs(np.searchsorted(a, z, side="right") / n - np.searchsorted(b, z, "right") / m))
+    )
+    lam = math.sqrt(n * m / (n + m)) * d
+    if lam < 0.2:
+        return (d, 1.0)
+    k = np.arange(1, 101, dtype=np.float64)
+    q = 2.0 * float(np.sum((-1.0) ** (k - 1) * np.exp(-2.0 * k * k * lam * lam)))
+    return (d, min(max(q, 0.0), 1.0))
+
+
+#: Quantile levels of the comparison tables.
+QUANTILES = (0.05, 0.25, 0.5, 0.75, 0.95)
+
+
+def compare_distributions(
+    samples: Mapping[str, tuple[npt.ArrayLike, npt.ArrayLike]],
+    *,
+    labels: tuple[str, str] = ("mc", "records"),
+    quantiles: Sequence[float] = QUANTILES,
+) -> pl.DataFrame:
+    """Compare pairs of samples: sizes, means, quantiles and the two-sample KS test.
+
+    Parameters
+    ----------
+    samples
+        ``{quantity: (first sample, second sample)}`` (NaNs dropped).
+    labels
+        Names of the two samples in the column names.
+    quantiles
+        Quantile levels (linear interpolation, numpy's default).
+
+    Returns
+    -------
+    polars.DataFrame
+        One row per quantity: ``quantity, n_<a>, n_<b>, mean_<a>, mean_<b>``,
+        ``q<pct>_<a>, q<pct>_<b>`` per level, ``ks_statistic, ks_pvalue``.
+    """
+    la, lb = labels
     rows = []
-    for start in range(0, len(only), chunk):
-        spec["only"] = only[start : start + chunk]
-        for m in _core.sim_run_campaign(json.dumps(spec)):
-            meta = json.loads(m["meta"])
-            tr = m["truth"]
-            d = np.asarray(tr["dCl_stochastic_rolloff"])
-            alpha = np.asarray(tr["alpha_true_deg"])
-            k = int(np.argmax(np.abs(d))) if d.size else 0
-            big = float(d[k]) if d.size else 0.0
-            hit = np.nonzero(np.abs(d) >= 0.2 * abs(big))[0] if big != 0.0 else np.array([])
+    for name, (x, y) in samples.items():
+        a = np.asarray(x, dtype=np.float64)
+        b = np.asarray(y, dtype=np.float64)
+        a, b = a[~np.isnan(a)], b[~np.isnan(b)]
+        row: dict[str, Any] = {"quantity": name, f"n_{la}": a.size, f"n_{lb}": b.size}
+        row[f"mean_{la}"] = float(a.mean()) if a.size else float("nan")
+        row[f"mean_{lb}"] = float(b.mean()) if b.size else float("nan")
+        for q in quantiles:
+            tag = f"q{round(100 * q):02d}"
+            row[f"{tag}_{la}"] = float(np.quantile(a, q)) if a.size else float("nan")
+            row[f"{tag}_{lb}"] = float(np.quantile(b, q)) if b.size else float("nan")
+        row["ks_statistic"], row["ks_pvalue"] = ks_2samp(a, b)
+        rows.append(row)
+    return pl.DataFrame(rows)
+
+
+def compare_with_records(
+    mc: pl.DataFrame,
+    events: pl.DataFrame,
+    max_roll: pl.DataFrame,
+    *,
+    quantiles: Sequence[float] = QUANTILES,
+) -> pl.DataFrame:
+    """The Monte Carlo against the flight records, per flap setting.
+
+    Onset alpha: the Monte Carlo's ``onset_alpha_deg`` against the accepted detected
+    events' ``alpha_onset_deg``; maximum bank: ``max_bank_deg`` against the straight
+    stalls' ``max_roll_deg`` (:func:`max_roll_straight_stalls`).
+
+    Parameters
+    ----------
+    mc
+        :func:`monte_carlo` results with a ``flap_deg`` column (one or several flaps).
+    events
+        :func:`detect_rolloff` output of the records.
+    max_roll
+        :func:`max_roll_straight_stalls` of the records.
+
+    Returns
+    -------
+    polars.DataFrame
+        :func:`compare_distributions` rows with ``flap_deg`` first; quantities
+        ``onset_alpha_deg`` and ``max_bank_deg``.
+    """
+    ev = events.filter(pl.col("accepted")) if "accepted" in events.columns else events
+    out = []
+    for flap in sorted(set(mc["flap_deg"].to_list())):
+        m = mc.filter(pl.col("flap_deg") == flap)
+        e = ev.filter(pl.col("flap_deg") == flap)
+        r = max_roll.filter(pl.col("flap_deg") == flap)
+        t = compare_distributions(
+            {
+                "onset_alpha_deg": (
+                    m["onset_alpha_deg"].to_numpy(),
+                    e["alpha_onset_deg"].to_numpy(),
+                ),
+                "max_bank_deg": (m["max_bank_deg"].to_numpy(), r["max_roll_deg"].to_numpy()),
+            },
+            quantiles=quantiles,
+        )
+        out.append(t.select(pl.lit(float(flap)).alias("flap_deg"), pl.all()))
+    return pl.concat(out) if out else pl.DataFrame()
+
+
+def check_statistics(stats: pl.DataFrame, config: Mapping[str, Any] | None = None) -> pl.DataFrame:
+    """Estimated roll-off statistics (:func:`rolloff_statistics`) against a configuration.
+
+    Per flap and quantity, the configured value, the estimate, its interval and whether
+    the interval holds the configured value. Quantities: ``alpha_onset_deg`` (the mean
+    detected onset; configured: the Gaussian centre less ``width sqrt(2 ln 5)``, where the
+    spike reaches the detector's 20 % onset fraction), ``alpha_std_deg`` (configured
+    centre shift spread), ``magnitude`` (mean |peak|), ``magnitude_cv`` and ``p_right``.
+
+    Returns
+    -------
+    polars.DataFrame
+        ``flap_deg, quantity, configured, estimate, lo, hi, inside, n``.
+    """
+    cfg = dict(config) if config is not None else default_config()
+    scale = float(cfg.get("scale", 1.0))
+    onset_offset = float(cfg["width_deg"]) * math.sqrt(2.0 * math.log(5.0))
+    rows = []
+    for r in stats.iter_rows(named=True):
+        f = min(cfg["flaps"], key=lambda x: abs(float(x["flap_deg"]) - r["flap_deg"]))
+        # (quantity, configured value, estimate column, interval column prefix)
+        checks = (
+            ("alpha_onset_deg", float(f["mean_alpha_deg"]) - onset_offset, "alpha_mean_deg",
+             "alpha_mean"),
+            ("alpha_std_deg", float(cfg["alpha_std_deg"]), "alpha_std_deg", "alpha_std"),
+            ("magnitude", float(f["magnitude"]) * scale, "magnitude_mean", "magnitude"),
+            ("magnitude_cv", float(cfg["magnitude_cv"]), "magnitude_cv", "magnitude_cv"),
+            ("p_right", float(f["p_right"]), "p_right", "p_right"),
+        )  # fmt: skip
+        for name, conf, col, ci in checks:
+            lo, hi = float(r[f"{ci}_lo"]), float(r[f"{ci}_hi"])
             rows.append(
                 {
-                    "maneuver_id": m["id"],
-                    "pusher": bool(meta["plan"]["pusher"]),
-                    "max_bank_deg": float(meta["max_bank_deg"]),
-                    "max_alpha_deg": float(meta["max_alpha_deg"]),
-                    "onset_alpha_deg": float(alpha[hit[0]]) if hit.size else float("nan"),
-                    "peak": big,
+                    "flap_deg": float(r["flap_deg"]),
+                    "quantity": name,
+                    "configured": conf,
+                    "estimate": float(r[col]),
+                    "lo": lo,
+                    "hi": hi,
+                    "inside": bool(lo <= conf <= hi),
+                    "n": int(r["n"]),
                 }
             )
     return pl.DataFrame(rows)
@@ -473,13 +704,18 @@ def monte_carlo(
 
 __all__ = [
     "FAR25_203_MAX_ROLL_DEG",
+    "QUANTILES",
+    "check_statistics",
     "chi2_ppf",
+    "compare_distributions",
+    "compare_with_records",
     "config_from_statistics",
     "default_config",
     "detect_defaults",
     "detect_rolloff",
     "dynamic_roll",
     "euler_roll_rate",
+    "ks_2samp",
     "max_roll_straight_stalls",
     "monte_carlo",
     "normal_ppf",

@@ -27,6 +27,8 @@
 //! - [`delta_model`]: the Δ part of the extended model (Eq. 3.11-3.12, 3.19),
 //!   its versioned file and an allocation-free bound evaluation;
 //! - [`rolloff_detect`]: detection of uncommanded roll-off events (Section 3.4.3);
+//! - [`rolloff_mc`]: parallel Monte Carlo of straight stalls with the roll-off,
+//!   per-stall summaries (max bank, onset alpha, DRC peak, FAR 25.203);
 //! - [`fsutil`]: atomic writes;
 //! - [`error`]: the error kinds every module returns.
 #![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used))]
@@ -43,6 +45,7 @@ pub mod preprocess;
 pub mod regressor;
 pub mod rolloff;
 pub mod rolloff_detect;
+pub mod rolloff_mc;
 pub mod sim;
 pub mod spline;
 pub mod table;

@@ -3,6 +3,7 @@
 //! mapping only.
 use aero_core::rolloff::{sample_draws, RollOffConfig};
 use aero_core::rolloff_detect::{detect, DetectConfig, QuietChannel, RecordSignals};
+use aero_core::rolloff_mc::{run_monte_carlo, MonteCarloSpec, StallSummary};
 use aero_core::AeroError;
 use numpy::{IntoPyArray, PyReadonlyArray1};
 use pyo3::prelude::*;
@@ -164,7 +165,64 @@ pub(crate) fn draws_dict<'py>(
     Ok(d)
 }
 
+/// Monte Carlo of straight stalls (`aero_core::rolloff_mc`) from a JSON
+/// `MonteCarloSpec`; `threads` sizes a dedicated rayon pool (None: global pool).
+/// Returns a dict of numpy columns, one row per stall.
+#[pyfunction]
+#[pyo3(signature = (spec_json, threads=None))]
+fn rolloff_monte_carlo<'py>(
+    py: Python<'py>,
+    spec_json: &str,
+    threads: Option<usize>,
+) -> PyResult<Bound<'py, PyDict>> {
+    let spec = MonteCarloSpec::from_json(spec_json).map_err(to_py)?;
+    let rows = detached(py, || run_monte_carlo(&spec, threads))?;
+    let d = PyDict::new(py);
+    let f = |g: &dyn Fn(&StallSummary) -> f64| rows.iter().map(g).collect::<Vec<f64>>();
+    let i = |g: &dyn Fn(&StallSummary) -> i64| rows.iter().map(g).collect::<Vec<i64>>();
+    let b = |g: &dyn Fn(&StallSummary) -> bool| rows.iter().map(g).collect::<Vec<bool>>();
+    d.set_item("stall", i(&|r| r.stall as i64).into_pyarray(py))?;
+    d.set_item(
+        "maneuver_index",
+        i(&|r| r.maneuver_index as i64).into_pyarray(py),
+    )?;
+    d.set_item("pusher", b(&|r| r.pusher).into_pyarray(py))?;
+    d.set_item("pusher_fired", b(&|r| r.pusher_fired).into_pyarray(py))?;
+    d.set_item("duration_s", f(&|r| r.duration_s).into_pyarray(py))?;
+    d.set_item("max_alpha_deg", f(&|r| r.max_alpha_deg).into_pyarray(py))?;
+    d.set_item("max_bank_deg", f(&|r| r.max_bank_deg).into_pyarray(py))?;
+    d.set_item(
+        "max_dynamic_roll_deg",
+        f(&|r| r.max_dynamic_roll_deg).into_pyarray(py),
+    )?;
+    d.set_item("far25_203_pass", b(&|r| r.far25_203_pass).into_pyarray(py))?;
+    d.set_item(
+        "onset_alpha_deg",
+        f(&|r| r.onset_alpha_deg).into_pyarray(py),
+    )?;
+    d.set_item("onset_t", f(&|r| r.onset_t).into_pyarray(py))?;
+    d.set_item("peak", f(&|r| r.peak).into_pyarray(py))?;
+    d.set_item("direction", i(&|r| i64::from(r.direction)).into_pyarray(py))?;
+    d.set_item("drawn_peak", f(&|r| r.drawn_peak).into_pyarray(py))?;
+    d.set_item(
+        "drawn_center_deg",
+        f(&|r| r.drawn_center_deg).into_pyarray(py),
+    )?;
+    d.set_item("drawn_t", f(&|r| r.drawn_t).into_pyarray(py))?;
+    d.set_item("crossings", i(&|r| r.crossings as i64).into_pyarray(py))?;
+    Ok(d)
+}
+
+/// The default Monte Carlo spec, as JSON.
+#[pyfunction]
+fn rolloff_mc_default_spec() -> PyResult<String> {
+    serde_json::to_string(&MonteCarloSpec::default())
+        .map_err(|e| to_py(AeroError::invalid("Monte Carlo spec", e.to_string())))
+}
+
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_function(wrap_pyfunction!(rolloff_monte_carlo, m)?)?;
+    m.add_function(wrap_pyfunction!(rolloff_mc_default_spec, m)?)?;
     m.add_function(wrap_pyfunction!(rolloff_detect_defaults, m)?)?;
     m.add_function(wrap_pyfunction!(rolloff_detect, m)?)?;
     m.add_function(wrap_pyfunction!(rolloff_sample_draws, m)?)?;

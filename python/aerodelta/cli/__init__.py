@@ -30,6 +30,7 @@ _register("demo", "demo")
 _register("export-qualified", "export_qualified")
 _register("ingest", "ingest")
 _register("diagnose", "diagnose")
+_register("rolloff", "rolloff")
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -9,7 +9,7 @@
 use nalgebra::Vector3;
 
 use crate::aircraft::effects::{ActiveEffect, MeasurementEffects};
-use crate::aircraft::qualified::{FlapModel, QualifiedModel, FLAP_STALL};
+use crate::aircraft::qualified::{FlapModel, FlapStall, QualifiedModel, FLAP_STALL};
 use crate::aircraft::truth::{active_effects, EffectSpec, TruthAero};
 use crate::aircraft::turboprop::{adx37, AircraftRef};
 use crate::error::{AeroError, Result, ResultExt};
@@ -19,7 +19,7 @@ use crate::sim::aero::{AeroModel, Controls};
 use crate::sim::atmosphere::{isa, G0};
 use crate::sim::engine::{Engine, EngineSpec};
 use crate::sim::eom::ix;
-use crate::sim::maneuver::{trim, Simulator};
+use crate::sim::maneuver::{trim, AirData, Simulator};
 use crate::sim::pilot::{Command, Kind, Observation, Pilot, PilotParams, Pusher};
 use crate::sim::rng::{derive_seed, Stream};
 use crate::sim::sensors::{record, NoiseSpec, TrueSample, CHANNELS};
@@ -194,6 +194,256 @@ fn actuators(c0: &Controls) -> [Actuator; 5] {
     ]
 }
 
+/// One maneuver in flight: the truth aircraft, its pilot, pusher, actuators,
+/// engines and gusts, advanced one fixed step at a time. [`run_maneuver`]
+/// records it; [`crate::rolloff_mc`] only summarises it (same flight, same
+/// random streams).
+#[derive(Debug, Clone)]
+pub struct Flight {
+    /// The 6-DOF simulator.
+    pub sim: Simulator,
+    /// The truth aerodynamic model (with the roll-off when on).
+    pub model: TruthAero,
+    /// The pilot.
+    pub pilot: Pilot,
+    /// The stick pusher (when the plan has it).
+    pub pusher: Option<Pusher>,
+    /// Stall parameters of the flap setting.
+    pub stall: FlapStall,
+    /// Weight, N.
+    pub weight_n: f64,
+    /// Surface positions acting over the current step, rad.
+    pub surfaces: Controls,
+    /// Steps flown.
+    pub step_index: usize,
+    /// Last step allowed (150 s).
+    pub max_steps: usize,
+    acts: [Actuator; 5],
+    engines: [Engine; 2],
+    gusts: Dryden,
+    sigma_gust: f64,
+}
+
+/// The state of a flight at the start of a step, after the pilot's command.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StepState {
+    /// Air data (gusts included).
+    pub air: AirData,
+    /// Thrust per engine, N.
+    pub thrust_n: [f64; 2],
+}
+
+impl Flight {
+    /// Trim the truth aircraft and set up the pilot, pusher, engines and gusts of
+    /// maneuver `m` (the setup stream's draws in a fixed order).
+    ///
+    /// # Errors
+    /// When the trim fails or the roll-off configuration is invalid.
+    pub fn new(
+        spec: &CampaignSpec,
+        qual: &QualifiedModel,
+        effects: &[ActiveEffect],
+        rolloff_on: bool,
+        m: &ManeuverPlan,
+    ) -> Result<Flight> {
+        let ac = qual.aircraft.clone();
+        let fi = FLAP_STALL
+            .iter()
+            .position(|f| f.flap_deg == m.flap_deg)
+            .unwrap_or(0);
+        let stall = FLAP_STALL[fi];
+        let mut setup = Stream::new(m.seed, stream::SETUP);
+        let h0 = 3000.0 + setup.range(-300.0, 300.0);
+        let air0 = isa(h0);
+        let w = ac.mass_kg * G0;
+        let vs = (2.0 * w / (air0.density_kgm3 * ac.s_m2 * stall.cl_max)).sqrt();
+        let v0 = match m.kind {
+            Kind::Accelerated => 1.55,
+            Kind::Turning => 1.35 * 1.075,
+            _ => 1.35,
+        } * vs
+            * setup.range(0.97, 1.05);
+        let bank_sign = if setup.bernoulli(0.5) { 1.0 } else { -1.0 };
+        let bank = match m.kind {
+            Kind::Turning => setup.range(27.0, 33.0),
+            Kind::Accelerated => setup.range(30.0, 40.0),
+            _ => 0.0,
+        }
+        .to_radians()
+            * bank_sign;
+        let dt = 1.0 / spec.sim_hz;
+
+        let rolloff = if rolloff_on {
+            Some(RollOff::new(
+                spec.rolloff.clone(),
+                m.flap_deg,
+                m.seed,
+                stream::ROLLOFF,
+            )?)
+        } else {
+            None
+        };
+        let model = TruthAero::new(slice(qual, m.flap_deg)?, effects.to_vec(), rolloff);
+        let mut sim = Simulator::new(ac.clone(), m.flap_deg, nalgebra::SVector::zeros(), dt);
+        let tr = trim(&sim, &model, v0, h0).context(format!("maneuver {}", m.index))?;
+        let t_each = tr.thrust_n;
+        sim.x = tr.x;
+        let sigma = air0.density_kgm3 / 1.225;
+        let espec = engine_spec(&ac);
+        let probe = Engine::settled(espec, 0.0, sigma);
+        let p_trim = probe.power_for_thrust(t_each, v0);
+        let lever_trim = probe.lever_for_power(p_trim, sigma);
+        let engines = [
+            Engine {
+                spec: espec,
+                power_w: p_trim,
+            },
+            Engine {
+                spec: espec,
+                power_w: p_trim,
+            },
+        ];
+        let levers = match m.kind {
+            Kind::AsymmetricThrust => {
+                if setup.bernoulli(0.5) {
+                    [0.85, 0.0]
+                } else {
+                    [0.0, 0.85]
+                }
+            }
+            Kind::Accelerated => [lever_trim.clamp(0.0, 1.0); 2],
+            _ => [(lever_trim * setup.range(0.6, 1.1)).clamp(0.0, 1.0); 2],
+        };
+        let params = PilotParams {
+            kind: m.kind,
+            bank,
+            delay_s: setup.range(0.15, 0.35),
+            gain: setup.range(0.75, 1.3),
+            decel: 0.514 * setup.range(0.8, 1.25),
+            pull_rate_dps: match m.kind {
+                Kind::Accelerated => setup.range(0.6, 1.0),
+                _ => setup.range(0.5, 1.0),
+            },
+            stall_margin_deg: setup.range(0.5, 3.0),
+            levers,
+            trim_error: setup.range(-0.5, 0.5).to_radians(),
+            excitation: spec.excitation,
+            recovery_s: setup.range(7.0, 10.0),
+            wing_drop_deg: setup.range(15.0, 30.0),
+            aileron_in_stall: setup.bernoulli(0.5),
+        };
+        let alpha0 = sim.air(&sim.x).alpha.to_degrees();
+        let pilot = Pilot::new(
+            params,
+            stall,
+            w / ac.s_m2,
+            v0,
+            alpha0,
+            dt,
+            m.seed,
+            stream::PILOT,
+        );
+        let pusher = m.pusher.then(|| Pusher::new(stall.alpha_max_deg - 1.0));
+        let acts = actuators(&tr.controls);
+        let sig = spec.turbulence_mps;
+        let gusts = Dryden::new([sig, sig, sig], m.seed, stream::GUST);
+        Ok(Flight {
+            sim,
+            model,
+            pilot,
+            pusher,
+            stall,
+            weight_n: w,
+            surfaces: tr.controls,
+            step_index: 0,
+            max_steps: (150.0 * spec.sim_hz) as usize,
+            acts,
+            engines,
+            gusts,
+            sigma_gust: sig,
+        })
+    }
+
+    /// Start a step: gusts of this step, then what the pilot sees, then the
+    /// surfaces and thrust acting over this step (a sample taken now records
+    /// exactly those, so a replay of the record reproduces the flight, Section 4.3).
+    pub fn command(&mut self) -> StepState {
+        let dt = self.sim.dt;
+        let sim = &mut self.sim;
+        if self.sigma_gust > 0.0 {
+            let tas = sim.air(&sim.x).tas;
+            sim.gust = self.gusts.advance(tas, dt);
+        }
+        let ad = sim.air(&sim.x);
+        let qs = ad.qbar * sim.aircraft.s_m2;
+        let engines = &mut self.engines;
+        let o = Observation {
+            t: sim.t,
+            alpha: ad.alpha,
+            beta: ad.beta,
+            p: sim.x[ix::P],
+            q: sim.x[ix::Q],
+            r: sim.x[ix::R],
+            phi: sim.x[ix::PHI],
+            tas: ad.tas,
+            rho: ad.rho,
+            ct_sum: (engines[0].thrust(ad.tas) + engines[1].thrust(ad.tas)) / qs,
+        };
+        let push = self
+            .pusher
+            .as_mut()
+            .map_or(0.0, |p| p.update(sim.t, ad.alpha.to_degrees()));
+        let fired = self.pusher.as_ref().is_some_and(Pusher::has_fired);
+        let Command {
+            controls: c,
+            levers,
+        } = self.pilot.command(&o, fired, dt);
+        if self.step_index > 0 {
+            let acts = &mut self.acts;
+            self.surfaces = Controls {
+                da: acts[0].advance(c.da, dt),
+                de: acts[1].advance(c.de + push, dt),
+                dr: acts[2].advance(c.dr, dt),
+                dsl: acts[3].advance(c.dsl, dt),
+                dsr: acts[4].advance(c.dsr, dt),
+            };
+            for (e, l) in engines.iter_mut().zip(levers) {
+                e.advance(l, ad.rho / 1.225, dt);
+            }
+        }
+        StepState {
+            air: ad,
+            thrust_n: [engines[0].thrust(ad.tas), engines[1].thrust(ad.tas)],
+        }
+    }
+
+    /// Whether the pilot has finished the maneuver (recovery complete) or the time is up.
+    pub fn done(&self) -> bool {
+        self.pilot.done(self.sim.t) || self.step_index + 1 >= self.max_steps
+    }
+
+    /// Finish the step started by [`Flight::command`]: integrate over `dt`.
+    ///
+    /// # Errors
+    /// When the state is no longer finite (the simulation diverged).
+    pub fn integrate(&mut self, s: &StepState, index: usize) -> Result<()> {
+        self.sim.step(&mut self.model, &self.surfaces, s.thrust_n);
+        self.step_index += 1;
+        if !self.sim.x.iter().all(|v| v.is_finite()) {
+            return Err(AeroError::invalid(
+                format!("maneuver {index}"),
+                format!("the simulation diverged at t = {:.2} s", self.sim.t),
+            ));
+        }
+        Ok(())
+    }
+
+    /// Whether the pusher has fired.
+    pub fn pusher_fired(&self) -> bool {
+        self.pusher.as_ref().is_some_and(Pusher::has_fired)
+    }
+}
+
 /// Fly one maneuver of `plan` on the truth aircraft.
 ///
 /// # Errors
@@ -207,160 +457,20 @@ pub fn run_maneuver(
     m: &ManeuverPlan,
 ) -> Result<ManeuverResult> {
     let ac = qual.aircraft.clone();
-    let fi = FLAP_STALL
-        .iter()
-        .position(|f| f.flap_deg == m.flap_deg)
-        .unwrap_or(0);
-    let stall = FLAP_STALL[fi];
-    let mut setup = Stream::new(m.seed, stream::SETUP);
-    let h0 = 3000.0 + setup.range(-300.0, 300.0);
-    let air0 = isa(h0);
-    let w = ac.mass_kg * G0;
-    let vs = (2.0 * w / (air0.density_kgm3 * ac.s_m2 * stall.cl_max)).sqrt();
-    let v0 = match m.kind {
-        Kind::Accelerated => 1.55,
-        Kind::Turning => 1.35 * 1.075,
-        _ => 1.35,
-    } * vs
-        * setup.range(0.97, 1.05);
-    let bank_sign = if setup.bernoulli(0.5) { 1.0 } else { -1.0 };
-    let bank = match m.kind {
-        Kind::Turning => setup.range(27.0, 33.0),
-        Kind::Accelerated => setup.range(30.0, 40.0),
-        _ => 0.0,
-    }
-    .to_radians()
-        * bank_sign;
-    let dt = 1.0 / spec.sim_hz;
+    let mut f = Flight::new(spec, qual, effects, rolloff_on, m)?;
     let decim = ((spec.sim_hz / spec.record_hz).round() as usize).max(1);
-
-    let rolloff = if rolloff_on {
-        Some(RollOff::new(
-            spec.rolloff.clone(),
-            m.flap_deg,
-            m.seed,
-            stream::ROLLOFF,
-        )?)
-    } else {
-        None
-    };
-    let mut model = TruthAero::new(slice(qual, m.flap_deg)?, effects.to_vec(), rolloff);
-    let mut sim = Simulator::new(ac.clone(), m.flap_deg, nalgebra::SVector::zeros(), dt);
-    let tr = trim(&sim, &model, v0, h0).context(format!("maneuver {}", m.index))?;
-    let t_each = tr.thrust_n;
-    sim.x = tr.x;
-    let sigma = air0.density_kgm3 / 1.225;
-    let espec = engine_spec(&ac);
-    let probe = Engine::settled(espec, 0.0, sigma);
-    let p_trim = probe.power_for_thrust(t_each, v0);
-    let lever_trim = probe.lever_for_power(p_trim, sigma);
-    let mut engines = [
-        Engine {
-            spec: espec,
-            power_w: p_trim,
-        },
-        Engine {
-            spec: espec,
-            power_w: p_trim,
-        },
-    ];
-    let levers = match m.kind {
-        Kind::AsymmetricThrust => {
-            if setup.bernoulli(0.5) {
-                [0.85, 0.0]
-            } else {
-                [0.0, 0.85]
-            }
-        }
-        Kind::Accelerated => [lever_trim.clamp(0.0, 1.0); 2],
-        _ => [(lever_trim * setup.range(0.6, 1.1)).clamp(0.0, 1.0); 2],
-    };
-    let params = PilotParams {
-        kind: m.kind,
-        bank,
-        delay_s: setup.range(0.15, 0.35),
-        gain: setup.range(0.75, 1.3),
-        decel: 0.514 * setup.range(0.8, 1.25),
-        pull_rate_dps: match m.kind {
-            Kind::Accelerated => setup.range(0.6, 1.0),
-            _ => setup.range(0.5, 1.0),
-        },
-        stall_margin_deg: setup.range(0.5, 3.0),
-        levers,
-        trim_error: setup.range(-0.5, 0.5).to_radians(),
-        excitation: spec.excitation,
-        recovery_s: setup.range(7.0, 10.0),
-        wing_drop_deg: setup.range(15.0, 30.0),
-        aileron_in_stall: setup.bernoulli(0.5),
-    };
-    let alpha0 = sim.air(&sim.x).alpha.to_degrees();
-    let mut pilot = Pilot::new(
-        params,
-        stall,
-        w / ac.s_m2,
-        v0,
-        alpha0,
-        dt,
-        m.seed,
-        stream::PILOT,
-    );
-    let mut pusher = m.pusher.then(|| Pusher::new(stall.alpha_max_deg - 1.0));
-    let mut acts = actuators(&tr.controls);
-    let sig = spec.turbulence_mps;
-    let mut gusts = Dryden::new([sig, sig, sig], m.seed, stream::GUST);
-
-    let max_steps = (150.0 * spec.sim_hz) as usize;
+    let (stall, w, max_steps) = (f.stall, f.weight_n, f.max_steps);
     let mut samples: Vec<TrueSample> = Vec::with_capacity(max_steps / decim + 2);
     let mut truth_rows: Vec<[f64; 8]> = Vec::with_capacity(max_steps / decim + 2);
     let mut eff_rows: Vec<[f64; 3]> = Vec::with_capacity((max_steps / decim + 2) * effects.len());
     let mut contrib = vec![[0.0; 3]; effects.len()];
     let (mut max_alpha, mut n_at, mut max_bank) = (f64::NEG_INFINITY, 1.0, 0.0f64);
-    let mut surfaces = tr.controls;
     for step in 0..max_steps {
-        // gusts of this step, then what the pilot sees, then the surfaces and
-        // thrust acting over this step: the sample at t_k records exactly those
-        // (so a replay of the record reproduces the flight, Section 4.3)
-        if sig > 0.0 {
-            let tas = sim.air(&sim.x).tas;
-            sim.gust = gusts.advance(tas, dt);
-        }
-        let ad = sim.air(&sim.x);
-        let qs = ad.qbar * ac.s_m2;
-        let o = Observation {
-            t: sim.t,
-            alpha: ad.alpha,
-            beta: ad.beta,
-            p: sim.x[ix::P],
-            q: sim.x[ix::Q],
-            r: sim.x[ix::R],
-            phi: sim.x[ix::PHI],
-            tas: ad.tas,
-            rho: ad.rho,
-            ct_sum: (engines[0].thrust(ad.tas) + engines[1].thrust(ad.tas)) / qs,
-        };
-        let push = pusher
-            .as_mut()
-            .map_or(0.0, |p| p.update(sim.t, ad.alpha.to_degrees()));
-        let fired = pusher.as_ref().is_some_and(Pusher::has_fired);
-        let Command {
-            controls: c,
-            levers,
-        } = pilot.command(&o, fired, dt);
-        if step > 0 {
-            surfaces = Controls {
-                da: acts[0].advance(c.da, dt),
-                de: acts[1].advance(c.de + push, dt),
-                dr: acts[2].advance(c.dr, dt),
-                dsl: acts[3].advance(c.dsl, dt),
-                dsr: acts[4].advance(c.dsr, dt),
-            };
-            for (e, l) in engines.iter_mut().zip(levers) {
-                e.advance(l, ad.rho / 1.225, dt);
-            }
-        }
-        let thrust = [engines[0].thrust(ad.tas), engines[1].thrust(ad.tas)];
+        let st = f.command();
+        let (ad, thrust) = (st.air, st.thrust_n);
+        let (sim, model, surfaces) = (&f.sim, &f.model, f.surfaces);
         if step % decim == 0 {
-            let (xd, loads) = sim.derivative(&model, &surfaces, thrust);
+            let (xd, loads) = sim.derivative(model, &surfaces, thrust);
             let (inp, _) = sim.aero_input(&sim.x, &surfaces, thrust);
             let coeffs = model.coefficients(&inp);
             let qc = model.qualified_coeffs(&inp);
@@ -400,16 +510,10 @@ pub fn run_maneuver(
             max_alpha = max_alpha.max(a_deg);
             max_bank = max_bank.max(x[ix::PHI].abs().to_degrees());
         }
-        if pilot.done(sim.t) {
+        if f.pilot.done(f.sim.t) {
             break;
         }
-        sim.step(&mut model, &surfaces, thrust);
-        if !sim.x.iter().all(|v| v.is_finite()) {
-            return Err(AeroError::invalid(
-                format!("maneuver {}", m.index),
-                format!("the simulation diverged at t = {:.2} s", sim.t),
-            ));
-        }
+        f.integrate(&st, m.index)?;
     }
     let meas_cols = record(
         &samples,
@@ -476,14 +580,15 @@ pub fn run_maneuver(
         record: meas_cols,
         truth_names,
         truth,
-        rolloff_draws: model
+        rolloff_draws: f
+            .model
             .rolloff
             .as_ref()
             .map(|r| r.history.clone())
             .unwrap_or_default(),
         max_alpha_deg: max_alpha,
         load_factor_at_stall: n_at,
-        pusher_fired: pusher.as_ref().is_some_and(Pusher::has_fired),
+        pusher_fired: f.pusher_fired(),
         max_bank_deg: max_bank,
     })
 }
