@@ -24,6 +24,7 @@
 
 pub mod check;
 pub mod mathml;
+pub mod merge;
 pub mod model;
 pub mod parse;
 pub mod write;
@@ -32,8 +33,9 @@ pub mod write;
 mod tests;
 
 pub use check::{CheckKind, CheckRow, Shot};
+pub use merge::merge_xml;
 pub use model::{DaveModel, Variable};
-pub use write::{to_xml, write_model, ModelSpec};
+pub use write::{mathml_of, to_xml, write_model, CalcSpec, ModelSpec};
 
 use crate::error::AeroError;
 
