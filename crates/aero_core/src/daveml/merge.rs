@@ -106,7 +106,22 @@ pub fn merge_xml(base: &str, base_name: &str, add: &ModelSpec) -> Result<String>
         .find(|n| n.tag_name().name() == "checkData")
         .map(|n| n.range());
 
-    let parts = sections(add, &shared);
+    // Breakpoint and table ids of the addition must not clash with the base's.
+    let taken: Vec<&str> = doc
+        .descendants()
+        .filter_map(|n| n.attribute("bpID").or_else(|| n.attribute("gtID")))
+        .collect();
+    let prefix = (1..)
+        .map(|k| {
+            if k == 1 {
+                "ad_".to_string()
+            } else {
+                format!("ad{k}_")
+            }
+        })
+        .find(|p| !taken.iter().any(|t| t.starts_with(p.as_str())))
+        .unwrap_or_default();
+    let parts = sections(add, &shared, &prefix);
     let mut edits: Vec<(usize, usize, String)> = vec![
         (
             vars_at,
@@ -180,11 +195,11 @@ mod tests {
     <isOutput/>
   </variableDef>
   <variableDef name="ClA" varID="ClA" units="nd"/>
-  <breakpointDef bpID="a_bp"><bpVals>0, 10</bpVals></breakpointDef>
+  <breakpointDef bpID="alpha_deg_bp"><bpVals>0, 10</bpVals></breakpointDef>
   <function name="ClA">
     <independentVarRef varID="alpha_deg"/>
     <dependentVarRef varID="ClA"/>
-    <functionDefn><griddedTableDef><breakpointRefs><bpRef bpID="a_bp"/></breakpointRefs>
+    <functionDefn><griddedTableDef><breakpointRefs><bpRef bpID="alpha_deg_bp"/></breakpointRefs>
       <dataTable>-0.1, -0.2</dataTable></griddedTableDef></functionDefn>
   </function>
   <checkData><staticShot name="old"><checkInputs>

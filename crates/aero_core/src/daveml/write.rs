@@ -389,7 +389,7 @@ fn body(spec: &ModelSpec) -> String {
         );
     }
     let _ = writeln!(x, "  </fileHeader>");
-    let parts = sections(spec, &[]);
+    let parts = sections(spec, &[], "");
     x.push_str(&parts.variables);
     x.push_str(&parts.breakpoints);
     x.push_str(&parts.functions);
@@ -407,8 +407,9 @@ pub(crate) struct Sections {
 }
 
 /// The elements of `spec`, leaving out the `variableDef` of the inputs in
-/// `skip_inputs` (declared by the model the elements are merged into).
-pub(crate) fn sections(spec: &ModelSpec, skip_inputs: &[&str]) -> Sections {
+/// `skip_inputs` (declared by the model the elements are merged into), every
+/// `bpID` and `gtID` led by `id_prefix`.
+pub(crate) fn sections(spec: &ModelSpec, skip_inputs: &[&str], id_prefix: &str) -> Sections {
     let mut x = String::new();
     for i in spec
         .inputs
@@ -512,9 +513,9 @@ pub(crate) fn sections(spec: &ModelSpec, skip_inputs: &[&str]) -> Sections {
             let id = found.unwrap_or_else(|| {
                 let k = bps.iter().filter(|(_, va, _)| *va == a.as_str()).count();
                 let id = if k == 0 {
-                    format!("{a}_bp")
+                    format!("{id_prefix}{a}_bp")
                 } else {
-                    format!("{a}_bp{}", k + 1)
+                    format!("{id_prefix}{a}_bp{}", k + 1)
                 };
                 bps.push((id.clone(), a.as_str(), b));
                 id
@@ -574,8 +575,9 @@ pub(crate) fn sections(spec: &ModelSpec, skip_inputs: &[&str]) -> Sections {
         let _ = writeln!(x, "    <functionDefn name=\"{}_fn\">", esc(&t.id));
         let _ = writeln!(
             x,
-            "      <griddedTableDef name=\"{0}_table\" gtID=\"{0}_table\">",
-            esc(&t.id)
+            "      <griddedTableDef name=\"{0}_table\" gtID=\"{1}{0}_table\">",
+            esc(&t.id),
+            esc(id_prefix)
         );
         let _ = writeln!(x, "        <breakpointRefs>");
         for id in ids {
