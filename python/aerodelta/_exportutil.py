@@ -33,8 +33,8 @@ _FUNCS = {
 
 @dataclass(frozen=True)
 class Node:
-    """A regressor expression node: ``op`` is ``const`` (value), ``col`` (name), ``neg``,
-    ``+ - * / ^`` (two args) or a function name."""
+    """A regressor expression node: ``op`` is ``const`` (value), ``col`` (name), ``minus``
+    (negation), ``+ - * / ^`` (two args) or a function name (``pos``, ``neg``, ...)."""
 
     op: str
     args: tuple[Node, ...] = ()
@@ -61,7 +61,7 @@ def parse_regressor(src: str) -> Node:
         if isinstance(n, ast.Name):
             return Node("col", name=n.id)
         if isinstance(n, ast.UnaryOp) and isinstance(n.op, ast.USub):
-            return Node("neg", (walk(n.operand),))
+            return Node("minus", (walk(n.operand),))
         if isinstance(n, ast.UnaryOp) and isinstance(n.op, ast.UAdd):
             return walk(n.operand)
         ops = {ast.Add: "+", ast.Sub: "-", ast.Mult: "*", ast.Div: "/", ast.Pow: "^"}

@@ -28,6 +28,7 @@ _register("campaign", "campaign")
 _register("fit", "fit")
 _register("demo", "demo")
 _register("export-qualified", "export_qualified")
+_register("export", "export")
 _register("ingest", "ingest")
 
 

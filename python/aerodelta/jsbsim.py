@@ -1,0 +1,294 @@
+"""Export the blended Δ model (thesis Eq. 3.11-3.12) as a JSBSim ``<aerodynamics>`` file.
+
+JSBSim sums every ``<function>`` of an ``<axis>``, so the export adds the extended model's
+increments ``w(alpha) ΔC`` to an aircraft whose own aerodynamics already hold the qualified model:
+
+- ``SIDE``: ``qbar S w_CY ΔCY`` (lbf; body-axis side force, as the Δ model's ``CY``),
+- ``ROLL``: ``qbar S b w_Cl ΔCl`` (ft lbf), ``YAW``: ``qbar S b w_Cn ΔCn`` (ft lbf).
+
+``ΔC = Σ θ(alpha, flap) x`` is a ``<sum>`` of ``<product>``\\s of a 2-D ``<table>`` (rows: angle
+of attack, columns: flap; linear in both, ends held, as ``aero_core::table``) and the regressor
+written as JSBSim function elements (``deadband(x, k)`` as ``max(x-k, 0) + min(x+k, 0)``,
+thesis Eq. 3.15-3.16). The blend weight is ``min(1, max(0, (alpha - alpha_l(flap)) /
+max(alpha_u(flap) - alpha_l(flap), 1e-300)))``, exactly the engine's Eq. 3.12 weight.
+
+Each Δ-model channel reads a JSBSim property, or a product of properties and numbers
+(:data:`DEFAULT_PROPERTIES`; override with ``properties=``). Channels whose sign convention
+differs between aircraft (controls, thrust coefficients) default to ``aerodelta/...``
+properties that the file declares (value 0) and the aircraft must drive, e.g. from a
+``<system>``. Intermediate values are published as ``aero/aerodelta/<C>/...`` properties.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from os import PathLike
+from typing import Any
+from xml.sax.saxutils import escape
+
+from aerodelta._exportutil import DERIVED_CHANNELS, Node, parse_regressor
+from aerodelta.exceptions import DataError
+from aerodelta.model import DeltaModel
+
+__all__ = ["DEFAULT_PROPERTIES", "export_jsbsim", "jsbsim_properties", "jsbsim_xml"]
+
+_R2D = repr(180.0 / math.pi)
+
+#: Δ-model channel -> JSBSim property (or ``*``-separated product of properties and numbers).
+#: Angles in deg, rates non-dimensional (``p b/(2V)`` = ``p [rad/s] * aero/bi2vel``).
+#: Controls follow the project's convention (Etkin: positive aileron rolls left, positive
+#: rudder yaws left), so they default to ``aerodelta/...`` properties the aircraft must set.
+DEFAULT_PROPERTIES: dict[str, str] = {
+    "alpha_deg": "aero/alpha-deg",
+    "beta_deg": "aero/beta-deg",
+    "flap_deg": "fcs/flap-pos-deg",
+    "phat": "velocities/p-aero-rad_sec * aero/bi2vel",
+    "qhat": "velocities/q-aero-rad_sec * aero/ci2vel",
+    "rhat": "velocities/r-aero-rad_sec * aero/bi2vel",
+    "alphadot_dps": "aero/alphadot-deg_sec",
+    "betadot_dps": "aero/betadot-deg_sec",
+    "da_deg": "aerodelta/da-deg",
+    "de_deg": "aerodelta/de-deg",
+    "dr_deg": "aerodelta/dr-deg",
+    "dsl_deg": "aerodelta/dsl-deg",
+    "dsr_deg": "aerodelta/dsr-deg",
+    "ct_left": "aerodelta/ct-left",
+    "ct_right": "aerodelta/ct-right",
+}
+
+#: Coefficient -> (JSBSim axis, reference-length property or None for a force).
+_AXES = {"CY": ("SIDE", None), "Cl": ("ROLL", "metrics/bw-ft"), "Cn": ("YAW", "metrics/bw-ft")}
+
+
+def _num(x: float) -> str:
+    return repr(float(x))
+
+
+def _factors(expr: str) -> list[str]:
+    out = [f.strip() for f in expr.split("*")]
+    if not out or any(not f for f in out):
+        raise DataError(f"JSBSim property mapping '{expr}': give properties/numbers joined by '*'")
+    return out
+
+
+def _is_number(s: str) -> bool:
+    try:
+        float(s)
+    except ValueError:
+        return False
+    return True
+
+
+class _Writer:
+    """Translates the model into JSBSim function elements, tracking the channels it reads."""
+
+    def __init__(self, model: DeltaModel, properties: Mapping[str, str]) -> None:
+        self.spec = model.to_spec()
+        self.props = {**DEFAULT_PROPERTIES, **properties}
+        self.channel_fns: list[str] = []  # functions defining channels (mapped or derived)
+        self.channel_prop: dict[str, str] = {}
+        self.declared: list[str] = []  # aerodelta/... properties the file declares
+        flaps = [float(f) for f in self.spec["flaps_deg"]]
+        # JSBSim tables need two breakpoints per axis: repeat a lone flap row (same values).
+        self.flaps = flaps if len(flaps) > 1 else [flaps[0], flaps[0] + 1.0]
+        self.pad = len(flaps) == 1
+
+    def channel(self, ch: str) -> str:
+        """The property holding channel ``ch`` (defining a function for it when needed)."""
+        if ch in self.channel_prop:
+            return self.channel_prop[ch]
+        name = f"aero/aerodelta/in/{ch}"
+        if ch in self.props:
+            fs = _factors(self.props[ch])
+            for f in fs:
+                if f.startswith("aerodelta/") and f not in self.declared:
+                    self.declared.append(f)
+            if len(fs) == 1 and not _is_number(fs[0]):
+                self.channel_prop[ch] = fs[0]
+                return fs[0]
+            body = "".join(
+                f"<value>{_num(float(f))}</value>" if _is_number(f) else f"<property>{f}</property>"
+                for f in fs
+            )
+            inner = body if len(fs) == 1 else f"<product>{body}</product>"
+        elif ch in DERIVED_CHANNELS:
+            inner = self.expr(parse_regressor(DERIVED_CHANNELS[ch]))
+        else:
+            raise DataError(
+                f"Δ-model channel '{ch}' has no JSBSim property: map it with "
+                f"properties={{'{ch}': 'some/property'}} (CLI --property {ch}=some/property)"
+            )
+        self.channel_fns.append(
+            f'  <function name="{name}">\n    <description>Δ-model channel {ch}</description>\n'
+            f"    {inner}\n  </function>"
+        )
+        self.channel_prop[ch] = name
+        return name
+
+    def expr(self, n: Node) -> str:
+        """JSBSim function elements of a regressor expression."""
+        zero = "<value>0</value>"
+        a = [self.expr(x) for x in n.args]
+        if n.op == "const":
+            return f"<value>{_num(n.value)}</value>"
+        if n.op == "col":
+            return f"<property>{self.channel(n.name)}</property>"
+        simple = {"+": "sum", "-": "difference", "*": "product", "/": "quotient", "^": "pow",
+                  "abs": "abs", "sin": "sin", "cos": "cos", "exp": "exp", "min": "min",
+                  "max": "max"}  # fmt: skip
+        if n.op in simple:
+            t = simple[n.op]
+            return f"<{t}>{''.join(a)}</{t}>"
+        if n.op == "minus":
+            return f"<product><value>-1</value>{a[0]}</product>"
+        if n.op == "pos":
+            return f"<max>{a[0]}{zero}</max>"
+        if n.op == "neg":
+            return f"<min>{a[0]}{zero}</min>"
+        if n.op == "deadband":
+            x, k = a
+            return (
+                f"<sum><max><difference>{x}{k}</difference>{zero}</max>"
+                f"<min><sum>{x}{k}</sum>{zero}</min></sum>"
+            )
+        if n.op == "step":
+            return f"<ifthen><gt>{a[0]}{zero}</gt><value>1</value>{zero}</ifthen>"
+        if n.op == "sqrt":
+            return f"<pow>{a[0]}<value>0.5</value></pow>"
+        raise DataError(f"regressor function '{n.op}' has no JSBSim form")
+
+    def table2(self, term: dict[str, Any], alpha_p: str, flap_p: str) -> str:
+        rows = term["values"] * 2 if self.pad else term["values"]
+        lines = ["        " + " ".join(f"{_num(f):>10}" for f in self.flaps)]
+        for j, a in enumerate(term["alpha_deg"]):
+            vals = " ".join(_num(r[j]) for r in rows)
+            lines.append(f"        {_num(a)} {vals}")
+        body = "\n".join(lines)
+        return (
+            f'<table>\n      <independentVar lookup="row">{alpha_p}</independentVar>\n'
+            f'      <independentVar lookup="column">{flap_p}</independentVar>\n'
+            f"      <tableData>\n{body}\n      </tableData>\n    </table>"
+        )
+
+    def table1(self, values: list[float], flap_p: str) -> str:
+        vals = values * 2 if self.pad else values
+        rows = "\n".join(f"        {_num(f)} {_num(v)}" for f, v in zip(self.flaps, vals, strict=True))
+        return (
+            f"<table>\n      <independentVar>{flap_p}</independentVar>\n"
+            f"      <tableData>\n{rows}\n      </tableData>\n    </table>"
+        )
+
+
+def jsbsim_xml(model: DeltaModel, properties: Mapping[str, str] | None = None) -> str:
+    """The JSBSim ``<aerodynamics>`` text of the blended Δ model (see the module docstring).
+
+    Parameters
+    ----------
+    model
+        The fitted Δ model.
+    properties
+        Overrides of :data:`DEFAULT_PROPERTIES`: channel -> property, or a ``*``-separated
+        product of properties and numbers (e.g. ``{"da_deg": "-1 * fcs/left-aileron-pos-deg"}``).
+
+    Raises
+    ------
+    DataError
+        A channel without a property, or a coefficient other than ``CY``, ``Cl``, ``Cn``.
+    """
+    w = _Writer(model, properties or {})
+    spec = w.spec
+    alpha_p = w.channel(spec.get("alpha_channel", "alpha_deg"))
+    flap_p = w.channel(spec.get("flap_channel", "flap_deg"))
+    fns: list[str] = []
+    axes: dict[str, list[str]] = {}
+    for cname, c in spec["coefficients"].items():
+        if cname not in _AXES:
+            raise DataError(f"coefficient '{cname}': the JSBSim export knows CY, Cl and Cn")
+        base = f"aero/aerodelta/{cname}"
+        prods = []
+        for t in c["terms"]:
+            node = parse_regressor(t["regressor"])
+            tab = w.table2(t, alpha_p, flap_p)
+            if node.op == "const" and node.value == 1.0:
+                prods.append(f"    <!-- {t['name']} * 1 -->\n    {tab}")
+            else:
+                prods.append(
+                    f"    <!-- {t['name']} * {escape(t['regressor'])} -->\n"
+                    f"    <product>{tab}\n      {w.expr(node)}</product>"
+                )
+        fns.append(
+            f'  <function name="{base}/delta">\n    <description>Δ{cname} before blending '
+            f"(thesis Eq. 3.11)</description>\n    <sum>\n" + "\n".join(prods) + "\n    </sum>\n"
+            "  </function>"
+        )
+        fns.append(
+            f'  <function name="{base}/alpha_l">\n    {w.table1(c["alpha_l_deg"], flap_p)}\n'
+            f'  </function>\n  <function name="{base}/alpha_u">\n'
+            f"    {w.table1(c['alpha_u_deg'], flap_p)}\n  </function>"
+        )
+        la, ua = f"<property>{base}/alpha_l</property>", f"<property>{base}/alpha_u</property>"
+        fns.append(
+            f'  <function name="{base}/w">\n    <description>blend weight (thesis Eq. 3.12)'
+            "</description>\n    <min><value>1</value><max><value>0</value><quotient>"
+            f"<difference><property>{alpha_p}</property>{la}</difference>"
+            f"<max><difference>{ua}{la}</difference><value>1e-300</value></max>"
+            "</quotient></max></min>\n  </function>"
+        )
+        fns.append(
+            f'  <function name="{base}/delta-blended">\n    <description>w Δ{cname}: the '
+            f"increment to add to the qualified {cname}</description>\n    <product>"
+            f"<property>{base}/w</property><property>{base}/delta</property></product>\n"
+            "  </function>"
+        )
+        axis, length = _AXES[cname]
+        ref = "<property>aero/qbar-psf</property><property>metrics/Sw-sqft</property>"
+        if length:
+            ref += f"<property>{length}</property>"
+        kind = "moment" if length else "force"
+        unit = "ft lbf" if length else "lbf"
+        axes.setdefault(axis, []).append(
+            f'    <function name="aero/{kind}/aerodelta-{cname}">\n'
+            f"      <description>extended-model increment of {cname} ({unit})</description>\n"
+            f"      <product>{ref}<property>{base}/delta-blended</property></product>\n"
+            "    </function>"
+        )
+    mapping = "\n".join(
+        f"    {ch:<14} {w.channel_prop[ch]}"
+        + (f"  = {w.props[ch]}" if ch in w.props and w.channel_prop[ch].startswith("aero/aerodelta") else "")
+        for ch in w.channel_prop
+    )
+    decl = "\n".join(f'  <property value="0">{p}</property>' for p in w.declared)
+    prov = spec.get("provenance", {})
+    header = (
+        '<?xml version="1.0"?>\n<!--\n  aerodelta extended-model increments (thesis Eq. 3.12), '
+        f"written by {escape(str(prov.get('library', 'aerodelta')))}; model data sha256 "
+        f"{escape(str(prov.get('data_sha256', '?')))}.\n  Add these functions to the aircraft's "
+        "own aerodynamics (the qualified model).\n  Channels and the JSBSim properties they "
+        "read (aerodelta/... ones are declared here with value 0:\n  drive them from the "
+        "aircraft, signs as in the Etkin convention):\n" + escape(mapping) + "\n-->\n"
+    )
+    axes_xml = "\n".join(
+        f'  <axis name="{a}">\n' + "\n".join(fs) + "\n  </axis>" for a, fs in axes.items()
+    )
+    parts = [decl, *w.channel_fns, *fns, axes_xml]
+    return header + "<aerodynamics>\n" + "\n".join(p for p in parts if p) + "\n</aerodynamics>\n"
+
+
+def jsbsim_properties(model: DeltaModel, properties: Mapping[str, str] | None = None) -> dict[str, str]:
+    """Channel -> JSBSim property (or defining function) the export of ``model`` reads."""
+    w = _Writer(model, properties or {})
+    for ch in model.input_columns:
+        w.channel(ch)
+    return dict(w.channel_prop)
+
+
+def export_jsbsim(
+    path: str | PathLike[str], model: DeltaModel, properties: Mapping[str, str] | None = None
+) -> str:
+    """Write :func:`jsbsim_xml` to ``path`` atomically; returns the text."""
+    from aerodelta.export import write_atomic
+
+    text = jsbsim_xml(model, properties)
+    write_atomic(path, text)
+    return text
