@@ -10,12 +10,28 @@
 from __future__ import annotations
 
 import ast
+import itertools
+import os
 from dataclasses import dataclass
+from os import PathLike
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from aerodelta.exceptions import DataError
+
+
+def write_atomic(path: str | PathLike[str], text: str) -> None:
+    """Write ``text`` to ``path`` via ``path.tmp-<pid>`` in the same folder, then rename."""
+    p = Path(path)
+    tmp = p.with_name(f"{p.name}.tmp-{os.getpid()}")
+    try:
+        tmp.write_text(text, encoding="utf-8")
+        os.replace(tmp, p)
+    finally:
+        tmp.unlink(missing_ok=True)
+
 
 #: Channels of the Δ model that are computed from other channels (as in
 #: ``aerodelta.preprocess``: ``ct_diff = ct_left - ct_right``; the combined roll spoiler
@@ -142,7 +158,7 @@ def check_states(
     """
     rng = np.random.default_rng(seed)
     f = sorted(flaps_deg)
-    mids = [0.5 * (a + b) for a, b in zip(f[:-1], f[1:], strict=True)]
+    mids = [0.5 * (a + b) for a, b in itertools.pairwise(f)]
     flap_cases = [*f, *mids, f[0] - 5.0, f[-1] + 5.0]
     states = []
     for flap in flap_cases:

@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import json
 import math
-import os
 from collections.abc import Mapping
 from dataclasses import dataclass
 from os import PathLike
@@ -35,6 +34,7 @@ from aerodelta._exportutil import (
     columns,
     parse_regressor,
     units_of,
+    write_atomic,
 )
 from aerodelta.campaign import qualified_model_tables
 from aerodelta.daveml import DaveModel, daveml_text, write_daveml
@@ -147,17 +147,6 @@ def export_qualified_daveml(path: str | PathLike[str]) -> DaveModel:
 # -- The extended model --------------------------------------------------------------------
 
 _RAD2DEG = 180.0 / math.pi
-
-
-def write_atomic(path: str | PathLike[str], text: str) -> None:
-    """Write ``text`` to ``path`` via ``path.tmp-<pid>`` in the same folder, then rename."""
-    p = Path(path)
-    tmp = p.with_name(f"{p.name}.tmp-{os.getpid()}")
-    try:
-        tmp.write_text(text, encoding="utf-8")
-        os.replace(tmp, p)
-    finally:
-        tmp.unlink(missing_ok=True)
 
 
 def qualified_base(qualified: str | PathLike[str] | None) -> tuple[str, str, DaveModel]:

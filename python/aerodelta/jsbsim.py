@@ -27,7 +27,7 @@ from os import PathLike
 from typing import Any
 from xml.sax.saxutils import escape
 
-from aerodelta._exportutil import DERIVED_CHANNELS, Node, parse_regressor
+from aerodelta._exportutil import DERIVED_CHANNELS, Node, parse_regressor, write_atomic
 from aerodelta.exceptions import DataError
 from aerodelta.model import DeltaModel
 
@@ -173,7 +173,9 @@ class _Writer:
 
     def table1(self, values: list[float], flap_p: str) -> str:
         vals = values * 2 if self.pad else values
-        rows = "\n".join(f"        {_num(f)} {_num(v)}" for f, v in zip(self.flaps, vals, strict=True))
+        rows = "\n".join(
+            f"        {_num(f)} {_num(v)}" for f, v in zip(self.flaps, vals, strict=True)
+        )
         return (
             f"<table>\n      <independentVar>{flap_p}</independentVar>\n"
             f"      <tableData>\n{rows}\n      </tableData>\n    </table>"
@@ -254,12 +256,10 @@ def jsbsim_xml(model: DeltaModel, properties: Mapping[str, str] | None = None) -
             "    </function>"
         )
     mapping = "\n".join(
-        f"    {ch:<14} {w.channel_prop[ch]}"
-        + (f"  = {w.props[ch]}" if ch in w.props and w.channel_prop[ch].startswith("aero/aerodelta") else "")
-        for ch in w.channel_prop
+        f"    {ch:<14} {p}" for ch, p in jsbsim_properties(model, properties).items()
     )
     decl = "\n".join(f'  <property value="0">{p}</property>' for p in w.declared)
-    prov = spec.get("provenance", {})
+    prov = spec.get("provenance") or {}
     header = (
         '<?xml version="1.0"?>\n<!--\n  aerodelta extended-model increments (thesis Eq. 3.12), '
         f"written by {escape(str(prov.get('library', 'aerodelta')))}; model data sha256 "
@@ -275,20 +275,29 @@ def jsbsim_xml(model: DeltaModel, properties: Mapping[str, str] | None = None) -
     return header + "<aerodynamics>\n" + "\n".join(p for p in parts if p) + "\n</aerodynamics>\n"
 
 
-def jsbsim_properties(model: DeltaModel, properties: Mapping[str, str] | None = None) -> dict[str, str]:
-    """Channel -> JSBSim property (or defining function) the export of ``model`` reads."""
+def jsbsim_properties(
+    model: DeltaModel, properties: Mapping[str, str] | None = None
+) -> dict[str, str]:
+    """Channel -> the JSBSim property the export of ``model`` reads for it, followed by
+    ``= definition`` when the export defines that property as a function (a product of
+    mapped properties, or a derived channel such as ``ct_diff``)."""
     w = _Writer(model, properties or {})
     for ch in model.input_columns:
         w.channel(ch)
-    return dict(w.channel_prop)
+    out = {}
+    for ch, prop in w.channel_prop.items():
+        if prop.startswith("aero/aerodelta/in/"):
+            defn = w.props.get(ch) or DERIVED_CHANNELS.get(ch, "")
+            out[ch] = f"{prop} = {defn}"
+        else:
+            out[ch] = prop
+    return out
 
 
 def export_jsbsim(
     path: str | PathLike[str], model: DeltaModel, properties: Mapping[str, str] | None = None
 ) -> str:
     """Write :func:`jsbsim_xml` to ``path`` atomically; returns the text."""
-    from aerodelta.export import write_atomic
-
     text = jsbsim_xml(model, properties)
     write_atomic(path, text)
     return text
