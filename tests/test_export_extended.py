@@ -282,3 +282,30 @@ def test_cli_export_of_a_fitted_model(fitted: Path, tmp_path: Path, capsys) -> N
     assert (
         main(["export", "--model", str(fitted), "--qualified", str(q), "--daveml", str(dml)]) == 0
     )
+
+
+def test_jsbsim_body_axis_side_force_and_moments(fitted: Path, tmp_path: Path) -> None:
+    """With ``side_axis="Y"`` JSBSim's total body-axis aero force and moments (only the export's
+    functions act on the fixture; AERORP at the CG) equal qbar S (b) w ΔC of the engine."""
+    model = DeltaModel.load(fitted)
+    fdm = _load_jsbsim(tmp_path, jsbsim_xml(model, side_axis="Y"))
+    fdm["ic/vt-kts"], fdm["ic/h-sl-ft"] = 110.0, 3000.0
+    fdm["ic/alpha-deg"], fdm["ic/beta-deg"], fdm["ic/p-rad_sec"] = 16.0, 5.0, 0.1
+    fdm["aerodelta/dr-deg"] = 4.0
+    fdm["fcs/flap-pos-deg"] = 10.0
+    assert fdm.run_ic()
+    st = {
+        "alpha_deg": [fdm["aero/alpha-deg"]], "beta_deg": [fdm["aero/beta-deg"]],
+        "flap_deg": [10.0], "phat": [fdm["velocities/p-aero-rad_sec"] * fdm["aero/bi2vel"]],
+        "rhat": [fdm["velocities/r-aero-rad_sec"] * fdm["aero/bi2vel"]],
+        "alphadot_dps": [fdm["aero/alphadot-deg_sec"]],
+        "betadot_dps": [fdm["aero/betadot-deg_sec"]], "da_deg": [0.0], "dr_deg": [4.0],
+        "dsl_deg": [0.0], "dsr_deg": [0.0], "ct_left": [0.0], "ct_right": [0.0],
+    }  # fmt: skip
+    d = engine_delta(model, {k: np.asarray(v) for k, v in st.items()})
+    qs = fdm["aero/qbar-psf"] * fdm["metrics/Sw-sqft"]
+    b = fdm["metrics/bw-ft"]
+    assert qs > 0
+    np.testing.assert_allclose(fdm["forces/fby-aero-lbs"], qs * d["dCY_blended"][0], rtol=1e-9)
+    np.testing.assert_allclose(fdm["moments/l-aero-lbsft"], qs * b * d["dCl_blended"][0], rtol=1e-9)
+    np.testing.assert_allclose(fdm["moments/n-aero-lbsft"], qs * b * d["dCn_blended"][0], rtol=1e-9)

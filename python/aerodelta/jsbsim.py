@@ -182,7 +182,9 @@ class _Writer:
         )
 
 
-def jsbsim_xml(model: DeltaModel, properties: Mapping[str, str] | None = None) -> str:
+def jsbsim_xml(
+    model: DeltaModel, properties: Mapping[str, str] | None = None, *, side_axis: str = "SIDE"
+) -> str:
     """The JSBSim ``<aerodynamics>`` text of the blended Δ model (see the module docstring).
 
     Parameters
@@ -192,12 +194,19 @@ def jsbsim_xml(model: DeltaModel, properties: Mapping[str, str] | None = None) -
     properties
         Overrides of :data:`DEFAULT_PROPERTIES`: channel -> property, or a ``*``-separated
         product of properties and numbers (e.g. ``{"da_deg": "-1 * fcs/left-aileron-pos-deg"}``).
+    side_axis
+        Axis of the side force: ``"SIDE"`` (aircraft using AXIAL/SIDE/NORMAL body axes, where
+        it is exactly the body-axis ``CY``, or DRAG/SIDE/LIFT wind axes, where JSBSim takes it
+        as the wind-axis side force: a difference of order ``1 - cos(beta)``) or ``"Y"``
+        (aircraft using X/Y/Z body axes).
 
     Raises
     ------
     DataError
         A channel without a property, or a coefficient other than ``CY``, ``Cl``, ``Cn``.
     """
+    if side_axis not in ("SIDE", "Y"):
+        raise DataError(f"side_axis '{side_axis}': use 'SIDE' or 'Y' (JSBSim axis names)")
     w = _Writer(model, properties or {})
     spec = w.spec
     alpha_p = w.channel(spec.get("alpha_channel", "alpha_deg"))
@@ -244,6 +253,7 @@ def jsbsim_xml(model: DeltaModel, properties: Mapping[str, str] | None = None) -
             "  </function>"
         )
         axis, length = _AXES[cname]
+        axis = side_axis if axis == "SIDE" else axis
         ref = "<property>aero/qbar-psf</property><property>metrics/Sw-sqft</property>"
         if length:
             ref += f"<property>{length}</property>"
@@ -295,9 +305,13 @@ def jsbsim_properties(
 
 
 def export_jsbsim(
-    path: str | PathLike[str], model: DeltaModel, properties: Mapping[str, str] | None = None
+    path: str | PathLike[str],
+    model: DeltaModel,
+    properties: Mapping[str, str] | None = None,
+    *,
+    side_axis: str = "SIDE",
 ) -> str:
     """Write :func:`jsbsim_xml` to ``path`` atomically; returns the text."""
-    text = jsbsim_xml(model, properties)
+    text = jsbsim_xml(model, properties, side_axis=side_axis)
     write_atomic(path, text)
     return text

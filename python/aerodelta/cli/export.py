@@ -58,6 +58,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="JSBSim: the property (or '*'-product of properties and numbers) of a channel, "
         "e.g. da_deg=-1*fcs/left-aileron-pos-deg (repeatable)",
     )
+    parser.add_argument(
+        "--side-axis",
+        default="SIDE",
+        choices=["SIDE", "Y"],
+        help="JSBSim: axis of the side force (SIDE for AXIAL/NORMAL or DRAG/LIFT aircraft, "
+        "Y for X/Y/Z aircraft)",
+    )
     parser.add_argument("--seed", type=int, default=0, help="seed of the sampled check states")
 
 
@@ -82,7 +89,7 @@ def run(args: argparse.Namespace) -> int:
         )
     if args.jsbsim:
         props = _pairs(args.property, "--property")
-        export_jsbsim(args.jsbsim, model, props)
+        export_jsbsim(args.jsbsim, model, props, side_axis=args.side_axis)
         print(f"wrote {args.jsbsim}: channels read from JSBSim properties:")
         for ch, p in jsbsim_properties(model, props).items():
             print(f"  {ch:<14} {p}")
