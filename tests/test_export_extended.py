@@ -9,6 +9,7 @@ import shutil
 from pathlib import Path
 from typing import Any
 
+import jsbsim
 import numpy as np
 import polars as pl
 import pytest
@@ -182,7 +183,6 @@ _TEST_PROPS = {ch: f"test/{ch}" for ch in DEFAULT_PROPERTIES}
 
 
 def _load_jsbsim(tmp: Path, xml: str) -> Any:
-    jsbsim = pytest.importorskip("jsbsim")
     root = tmp / "jsbsim"
     dest = root / "aircraft" / "aerodelta_fixture"
     dest.mkdir(parents=True)
