@@ -16,7 +16,10 @@
 //! - [`model`]: evaluation in a topological order computed at load;
 //! - [`check`]: the file's static shots, run against the model;
 //! - [`write`](mod@write): a [`ModelSpec`] (inputs, gridded tables, sums of products)
-//!   written as DAVE-ML with check cases generated from the model itself.
+//!   written as DAVE-ML with check cases generated from the model itself;
+//!   calculations in the regressor language become MathML;
+//! - [`merge`]: a [`ModelSpec`] merged into an existing DAVE-ML file (the Δ of
+//!   the extended model added to a qualified model), with new check cases.
 //!
 //! Table lookups use [`crate::table`]: `extrapolate="neither"` holds the end
 //! values, `min`/`max` extrapolate linearly below/above, `both` on both sides;
