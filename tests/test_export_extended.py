@@ -276,6 +276,9 @@ def test_cli_export_of_a_fitted_model(fitted: Path, tmp_path: Path, capsys) -> N
     assert "Cl_ext" in text and "da_deg" in text and "fcs/left-aileron-pos-deg" in text
     assert main(["check-daveml", str(dml)]) == 0
     assert '<axis name="ROLL">' in xml.read_text()
+    assert main([*args, "--jsbsim-qualified", "--side-axis", "Y"]) == 0
+    assert "aero/aerodelta/Cl/qualified" in xml.read_text()
+    assert '<axis name="Y">' in xml.read_text()
     assert not list(tmp_path.glob("*.tmp-*"))
     assert main(["export-qualified", str(tmp_path / "q.dml")]) == 0
     q = tmp_path / "q.dml"
@@ -309,3 +312,30 @@ def test_jsbsim_body_axis_side_force_and_moments(fitted: Path, tmp_path: Path) -
     np.testing.assert_allclose(fdm["forces/fby-aero-lbs"], qs * d["dCY_blended"][0], rtol=1e-9)
     np.testing.assert_allclose(fdm["moments/l-aero-lbsft"], qs * b * d["dCl_blended"][0], rtol=1e-9)
     np.testing.assert_allclose(fdm["moments/n-aero-lbsft"], qs * b * d["dCn_blended"][0], rtol=1e-9)
+
+
+def test_jsbsim_with_the_qualified_model(model: DeltaModel, tmp_path: Path) -> None:
+    """``qualified=True``: the ADX-37 qualified CY, Cl, Cn (2-D and 3-D tables, clamped
+    sideslip and thrust coefficients) evaluated by JSBSim equal the engine's
+    (``aero_core::aircraft``), and the extended coefficient is qualified + w ΔC."""
+    fdm = _load_jsbsim(tmp_path, jsbsim_xml(model, _TEST_PROPS, qualified=True))
+    n = 200
+    s = random_states(n, seed=13)
+    s["beta_deg"] = np.random.default_rng(2).uniform(-50.0, 50.0, n)  # beyond the 40 deg clamp
+    s["ct_left"] = np.random.default_rng(3).uniform(-0.3, 1.8, n)
+    s["beta_rad"] = np.radians(s["beta_deg"])
+    cols = {k: np.ascontiguousarray(v) for k, v in s.items() if k != "beta_rad"}
+    cl, cn, cy = _core.qualified_lateral_adx37({**cols, "alphadot_dps": np.zeros(n)})
+    d = engine_delta(model, s)
+    got: dict[str, list[float]] = {f"{c}/{k}": [] for c in model.coefficients
+                                   for k in ("qualified", "extended")}  # fmt: skip
+    for i in range(n):
+        for ch in DEFAULT_PROPERTIES:
+            if ch in s:
+                fdm[f"test/{ch}"] = float(s[ch][i])
+        for k, vals in got.items():
+            vals.append(fdm[f"aero/aerodelta/{k}"])
+    for c, q in (("Cl", cl), ("Cn", cn), ("CY", cy)):
+        np.testing.assert_allclose(got[f"{c}/qualified"], q, rtol=1e-9, atol=1e-14)
+        want = q + d[f"d{c}_blended"].to_numpy()
+        np.testing.assert_allclose(got[f"{c}/extended"], want, rtol=1e-9, atol=1e-14)

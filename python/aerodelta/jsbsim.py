@@ -27,8 +27,11 @@ from os import PathLike
 from typing import Any
 from xml.sax.saxutils import escape
 
+import numpy as np
+
 from aerodelta._exportutil import DERIVED_CHANNELS, Node, parse_regressor, write_atomic
 from aerodelta.exceptions import DataError
+from aerodelta.export import qualified_daveml_spec
 from aerodelta.model import DeltaModel
 
 __all__ = ["DEFAULT_PROPERTIES", "export_jsbsim", "jsbsim_properties", "jsbsim_xml"]
@@ -42,6 +45,7 @@ _R2D = repr(180.0 / math.pi)
 DEFAULT_PROPERTIES: dict[str, str] = {
     "alpha_deg": "aero/alpha-deg",
     "beta_deg": "aero/beta-deg",
+    "beta_rad": "aero/beta-rad",
     "flap_deg": "fcs/flap-pos-deg",
     "phat": "velocities/p-aero-rad_sec * aero/bi2vel",
     "qhat": "velocities/q-aero-rad_sec * aero/ci2vel",
@@ -171,6 +175,66 @@ class _Writer:
             f"      <tableData>\n{body}\n      </tableData>\n    </table>"
         )
 
+    def limited(self, ch: str, lo: float | None, hi: float | None) -> str:
+        """The property of channel ``ch`` clamped to ``[lo, hi]`` (DAVE-ML min/maxValue)."""
+        prop = self.channel(ch)
+        if lo is None and hi is None:
+            return prop
+        name = f"aero/aerodelta/in/{ch}-limited"
+        if name not in self.channel_prop.values():
+            inner = f"<property>{prop}</property>"
+            if lo is not None:
+                inner = f"<max>{inner}<value>{_num(lo)}</value></max>"
+            if hi is not None:
+                inner = f"<min>{inner}<value>{_num(hi)}</value></min>"
+            self.channel_fns.append(
+                f'  <function name="{name}">\n    <description>{ch} within the qualified '
+                f"model's limits</description>\n    {inner}\n  </function>"
+            )
+            self.channel_prop[f"{ch} (limited)"] = name
+        return name
+
+    def gridded(self, props: list[str], breakpoints: list[list[float]], values: list[float]) -> str:
+        """A JSBSim table of 1-3 dimensions (row, column, table), values row-major with the
+        last axis fastest as the DAVE-ML writer's."""
+        bps = [list(map(float, b)) for b in breakpoints]
+        v = np.asarray(values, dtype=np.float64).reshape([len(b) for b in bps])
+        # JSBSim lookups: 1-D row; 2-D row, column; 3-D table, row, column.
+        if v.ndim == 1:
+            rows = "\n".join(f"        {_num(a)} {_num(x)}" for a, x in zip(bps[0], v, strict=True))
+            return (
+                f"<table>\n      <independentVar>{props[0]}</independentVar>\n"
+                f"      <tableData>\n{rows}\n      </tableData>\n    </table>"
+            )
+
+        def block(m: np.ndarray, rb: list[float], cb: list[float]) -> str:
+            lines = ["        " + " ".join(_num(c) for c in cb)]
+            lines += [
+                f"        {_num(r)} " + " ".join(_num(x) for x in row)
+                for r, row in zip(rb, m, strict=True)
+            ]
+            return "\n".join(lines)
+
+        if v.ndim == 2:
+            return (
+                f'<table>\n      <independentVar lookup="row">{props[0]}</independentVar>\n'
+                f'      <independentVar lookup="column">{props[1]}</independentVar>\n'
+                f"      <tableData>\n{block(v, bps[0], bps[1])}\n      </tableData>\n    </table>"
+            )
+        if v.ndim == 3:
+            data = "\n".join(
+                f'      <tableData breakPoint="{_num(t)}">\n{block(v[k], bps[1], bps[2])}\n'
+                "      </tableData>"
+                for k, t in enumerate(bps[0])
+            )
+            return (
+                f'<table>\n      <independentVar lookup="row">{props[1]}</independentVar>\n'
+                f'      <independentVar lookup="column">{props[2]}</independentVar>\n'
+                f'      <independentVar lookup="table">{props[0]}</independentVar>\n'
+                f"{data}\n    </table>"
+            )
+        raise DataError(f"a {v.ndim}-D table has no JSBSim form here (1-3 dimensions)")
+
     def table1(self, values: list[float], flap_p: str) -> str:
         vals = values * 2 if self.pad else values
         rows = "\n".join(
@@ -182,8 +246,52 @@ class _Writer:
         )
 
 
+def _qualified_functions(w: _Writer, cname: str, qspec: dict[str, Any], done: set[str]) -> str:
+    """``aero/aerodelta/<C>/qualified``: a coefficient of a writer spec (sum of products of
+    tables and inputs, e.g. the built-in ADX-37 qualified model) as JSBSim functions."""
+    inputs = {i["id"]: i for i in qspec["inputs"]}
+    tables = {t["id"]: t for t in qspec["tables"]}
+    out = {o["id"]: o for o in qspec["outputs"]}
+    if cname not in out:
+        raise DataError(f"the qualified model has no output '{cname}'")
+    fns: list[str] = []
+
+    def prop(vid: str) -> str:
+        if vid in tables:
+            name = f"aero/aerodelta/qualified/{vid}"
+            if vid not in done:
+                done.add(vid)
+                t = tables[vid]
+                args = [w.limited(a, inputs[a].get("min"), inputs[a].get("max")) for a in t["args"]]
+                fns.append(
+                    f'  <function name="{name}">\n    '
+                    f"{w.gridded(args, t['breakpoints'], t['values'])}\n  </function>"
+                )
+            return name
+        if vid in inputs:
+            return w.limited(vid, inputs[vid].get("min"), inputs[vid].get("max"))
+        raise DataError(f"qualified output {cname}: factor '{vid}' has no JSBSim form")
+
+    prods = []
+    for term in out[cname]["terms"]:
+        facs = [f"<property>{prop(f)}</property>" for f in term["factors"]]
+        if term.get("coef", 1.0) != 1.0 or not facs:
+            facs.insert(0, f"<value>{_num(term.get('coef', 1.0))}</value>")
+        prods.append(facs[0] if len(facs) == 1 else f"<product>{''.join(facs)}</product>")
+    fns.append(
+        f'  <function name="aero/aerodelta/{cname}/qualified">\n    <description>qualified '
+        f"{cname}</description>\n    <sum>\n      " + "\n      ".join(prods) + "\n    </sum>\n"
+        "  </function>"
+    )
+    return "\n".join(fns)
+
+
 def jsbsim_xml(
-    model: DeltaModel, properties: Mapping[str, str] | None = None, *, side_axis: str = "SIDE"
+    model: DeltaModel,
+    properties: Mapping[str, str] | None = None,
+    *,
+    side_axis: str = "SIDE",
+    qualified: bool = False,
 ) -> str:
     """The JSBSim ``<aerodynamics>`` text of the blended Δ model (see the module docstring).
 
@@ -199,6 +307,11 @@ def jsbsim_xml(
         it is exactly the body-axis ``CY``, or DRAG/SIDE/LIFT wind axes, where JSBSim takes it
         as the wind-axis side force: a difference of order ``1 - cos(beta)``) or ``"Y"``
         (aircraft using X/Y/Z body axes).
+    qualified
+        Also write the built-in ADX-37 qualified model's CY, Cl, Cn
+        (``aero/aerodelta/<C>/qualified``, ``.../extended`` = qualified + w ΔC) and put the
+        extended coefficients on the axes: the file is then the aircraft's whole
+        lateral-directional aerodynamics.
 
     Raises
     ------
@@ -209,6 +322,8 @@ def jsbsim_xml(
         raise DataError(f"side_axis '{side_axis}': use 'SIDE' or 'Y' (JSBSim axis names)")
     w = _Writer(model, properties or {})
     spec = w.spec
+    qspec = qualified_daveml_spec() if qualified else None
+    done: set[str] = set()
     alpha_p = w.channel(spec.get("alpha_channel", "alpha_deg"))
     flap_p = w.channel(spec.get("flap_channel", "flap_deg"))
     fns: list[str] = []
@@ -252,6 +367,15 @@ def jsbsim_xml(
             f"<property>{base}/w</property><property>{base}/delta</property></product>\n"
             "  </function>"
         )
+        total = "delta-blended"
+        if qspec is not None:
+            fns.append(_qualified_functions(w, cname, qspec, done))
+            fns.append(
+                f'  <function name="{base}/extended">\n    <description>extended {cname} '
+                f"(thesis Eq. 3.12)</description>\n    <sum><property>{base}/qualified</property>"
+                f"<property>{base}/delta-blended</property></sum>\n  </function>"
+            )
+            total = "extended"
         axis, length = _AXES[cname]
         axis = side_axis if axis == "SIDE" else axis
         ref = "<property>aero/qbar-psf</property><property>metrics/Sw-sqft</property>"
@@ -261,8 +385,9 @@ def jsbsim_xml(
         unit = "ft lbf" if length else "lbf"
         axes.setdefault(axis, []).append(
             f'    <function name="aero/{kind}/aerodelta-{cname}">\n'
-            f"      <description>extended-model increment of {cname} ({unit})</description>\n"
-            f"      <product>{ref}<property>{base}/delta-blended</property></product>\n"
+            f"      <description>{'extended' if qspec else 'extended-model increment of'} "
+            f"{cname} ({unit})</description>\n"
+            f"      <product>{ref}<property>{base}/{total}</property></product>\n"
             "    </function>"
         )
     mapping = "\n".join(
@@ -310,8 +435,9 @@ def export_jsbsim(
     properties: Mapping[str, str] | None = None,
     *,
     side_axis: str = "SIDE",
+    qualified: bool = False,
 ) -> str:
     """Write :func:`jsbsim_xml` to ``path`` atomically; returns the text."""
-    text = jsbsim_xml(model, properties, side_axis=side_axis)
+    text = jsbsim_xml(model, properties, side_axis=side_axis, qualified=qualified)
     write_atomic(path, text)
     return text

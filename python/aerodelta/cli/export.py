@@ -4,8 +4,8 @@ DAVE-ML (--daveml): the qualified DAVE-ML file (--qualified, default the built-i
 model) with the Δ tables, regressors and blend weights merged in, outputs dC, w_C and C_ext
 per coefficient, and check cases at sampled states verified against the engine; check it with
 ``aerodelta check-daveml``. JSBSim (--jsbsim): an <aerodynamics> file adding w ΔC to the
-SIDE, ROLL and YAW axes of an aircraft that holds the qualified model; see docs/export.md for
-the properties it reads."""
+SIDE, ROLL and YAW axes of an aircraft that holds the qualified model (with --jsbsim-qualified:
+the built-in qualified CY, Cl, Cn too); see docs/export.md for the properties it reads."""
 
 from __future__ import annotations
 
@@ -65,6 +65,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="JSBSim: axis of the side force (SIDE for AXIAL/NORMAL or DRAG/LIFT aircraft, "
         "Y for X/Y/Z aircraft)",
     )
+    parser.add_argument(
+        "--jsbsim-qualified",
+        action="store_true",
+        help="JSBSim: also write the built-in ADX-37 qualified CY, Cl, Cn, so the axes carry "
+        "the whole extended lateral-directional model",
+    )
     parser.add_argument("--seed", type=int, default=0, help="seed of the sampled check states")
 
 
@@ -72,6 +78,13 @@ def run(args: argparse.Namespace) -> int:
     """Run ``aerodelta export``."""
     if not args.daveml and not args.jsbsim:
         print("aerodelta export: give --daveml OUT.dml and/or --jsbsim OUT.xml", file=sys.stderr)
+        return 2
+    if args.jsbsim_qualified and args.qualified:
+        print(
+            "aerodelta export: --jsbsim-qualified writes the built-in ADX-37 qualified model; "
+            "a --qualified DAVE-ML file is not translated to JSBSim",
+            file=sys.stderr,
+        )
         return 2
     model = DeltaModel.load(args.model)
     if args.daveml:
@@ -89,7 +102,13 @@ def run(args: argparse.Namespace) -> int:
         )
     if args.jsbsim:
         props = _pairs(args.property, "--property")
-        export_jsbsim(args.jsbsim, model, props, side_axis=args.side_axis)
+        export_jsbsim(
+            args.jsbsim,
+            model,
+            props,
+            side_axis=args.side_axis,
+            qualified=args.jsbsim_qualified,
+        )
         print(f"wrote {args.jsbsim}: channels read from JSBSim properties:")
         for ch, p in jsbsim_properties(model, props).items():
             print(f"  {ch:<14} {p}")
