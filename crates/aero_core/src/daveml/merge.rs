@@ -266,6 +266,17 @@ mod tests {
         let e = merge_xml(BASE, "base.dml", &a).unwrap_err().to_string();
         assert!(e.contains("'ClA'") && e.contains("already defined"), "{e}");
         let mut a = addition();
+        a.calculations[1].expr = "deadband(aileron, 2)".into();
+        let e = merge_xml(BASE, "base.dml", &a).unwrap_err().to_string();
+        assert!(
+            e.contains("calculation 'x_da'") && e.contains("'aileron'"),
+            "{e}"
+        );
+        let e = merge_xml("<DAVEfunc><oops></DAVEfunc>", "bad.dml", &addition())
+            .unwrap_err()
+            .to_string();
+        assert!(e.starts_with("bad.dml:1"), "{e}");
+        let mut a = addition();
         a.inputs[0].units = "rad".into();
         let e = merge_xml(BASE, "base.dml", &a).unwrap_err().to_string();
         assert!(e.contains("alpha_deg") && e.contains("units 'deg'"), "{e}");
