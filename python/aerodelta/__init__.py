@@ -36,8 +36,10 @@ from aerodelta.exceptions import (
     TooLittleDataError,
 )
 from aerodelta.diagnosis import DiagnoseConfig, Diagnosis, diagnose
+from aerodelta.export import export_extended_daveml, export_qualified_daveml
 from aerodelta.fit import FitConfig, FitResult, fit, validate_model
 from aerodelta.ingest import IngestResult, ingest
+from aerodelta.jsbsim import export_jsbsim, jsbsim_xml
 from aerodelta.lsq import OLSResults, ols
 from aerodelta.model import DeltaModel
 from aerodelta.partition import AlphaBins, partition_alpha
@@ -82,9 +84,13 @@ __all__ = [
     "detect_rolloff",
     "diagnose",
     "effect_library",
+    "export_extended_daveml",
+    "export_jsbsim",
+    "export_qualified_daveml",
     "fit",
     "generate_campaign",
     "ingest",
+    "jsbsim_xml",
     "load_daveml",
     "ols",
     "partition_alpha",

@@ -1,20 +1,45 @@
-"""Export the representative aircraft's qualified model to DAVE-ML (AIAA S-119).
+"""Export aero models to DAVE-ML (AIAA S-119): the qualified model and the extended model.
 
 The ADX-37 qualified model is a sum of gridded tables times regressors (see
 ``aero_core::aircraft::qualified``); DAVE-ML expresses it directly: one gridded-table variable per
 (table, inputs) pair, and each output ``CL, CD, CY, Cl, Cm, Cn`` as a sum of products of tables
 and inputs. Check cases are generated from the model itself, so any DAVE-ML tool can verify the
 file (``aerodelta check-daveml``).
+
+The extended model (thesis Eq. 3.12) adds the blended Δ to a qualified DAVE-ML model without
+rewriting it: :func:`export_extended_daveml` merges the Δ tables, regressors and blend weights
+into the qualified file (the user's, or the built-in ADX-37 one), writes outputs ``dC``, ``w_C``
+and ``C_ext = C + w_C dC`` per coefficient, and generates check cases at sampled states that
+are verified against the engine (``aero_core::delta_model`` plus the qualified model) before the
+file is written.
 """
 
 from __future__ import annotations
 
+import json
 import math
+from collections.abc import Mapping
+from dataclasses import dataclass
 from os import PathLike
+from pathlib import Path
 from typing import Any
 
+import numpy as np
+import polars as pl
+
+from aerodelta import _core
+from aerodelta._exportutil import (
+    DERIVED_CHANNELS,
+    check_states,
+    columns,
+    parse_regressor,
+    units_of,
+    write_atomic,
+)
 from aerodelta.campaign import qualified_model_tables
-from aerodelta.daveml import DaveModel, write_daveml
+from aerodelta.daveml import DaveModel, daveml_text, write_daveml
+from aerodelta.exceptions import DataError
+from aerodelta.model import DeltaModel
 
 #: Table inputs of the qualified model and their DAVE-ML variables.
 _TABLE_INPUTS = {
@@ -117,3 +142,282 @@ def qualified_daveml_spec() -> dict[str, Any]:
 def export_qualified_daveml(path: str | PathLike[str]) -> DaveModel:
     """Write the ADX-37 qualified model as DAVE-ML (atomic, with its own check cases)."""
     return write_daveml(path, qualified_daveml_spec())
+
+
+# -- The extended model --------------------------------------------------------------------
+
+_RAD2DEG = 180.0 / math.pi
+
+
+def qualified_base(qualified: str | PathLike[str] | None) -> tuple[str, str, DaveModel]:
+    """The qualified model's DAVE-ML text, its name for messages, and the model.
+
+    ``None`` gives the built-in ADX-37 qualified model (:func:`qualified_daveml_spec`).
+    """
+    if qualified is None:
+        text = daveml_text(qualified_daveml_spec())
+        name = "built-in ADX-37 qualified model"
+    else:
+        try:
+            text = Path(qualified).read_text(encoding="utf-8")
+        except OSError as e:
+            raise DataError(f"{qualified}: cannot read the qualified DAVE-ML file ({e})") from e
+        name = str(qualified)
+    return text, name, DaveModel.from_string(text, name)
+
+
+def extended_daveml_spec(
+    model: DeltaModel,
+    base: DaveModel,
+    *,
+    channel_map: Mapping[str, str] | None = None,
+    coefficients: Mapping[str, str] | None = None,
+    seed: int = 0,
+) -> dict[str, Any]:
+    """The Δ part of the extended model as a DAVE-ML spec to merge into ``base``.
+
+    Parameters
+    ----------
+    model
+        The fitted Δ model (``aerodelta fit``).
+    base
+        The qualified DAVE-ML model the Δ is added to.
+    channel_map
+        Δ-model channel -> expression over ``base`` variables (regressor language), for channels
+        the base names differently, e.g. ``{"alpha_deg": "alpha"}``. Built in:
+        ``ct_diff = ct_left - ct_right``, ``ds_deg = dsr_deg - dsl_deg`` and ``X_deg = X_rad *
+        180/pi`` when the base has ``X_rad``. Channels neither in the base nor derivable become
+        new inputs (default 0).
+    coefficients
+        Δ coefficient -> the base variable holding the qualified value (default the same name,
+        e.g. ``Cl``).
+    seed
+        Seed of the sampled check states.
+
+    Returns
+    -------
+    dict
+        A spec for ``aerodelta._core.daveml_merge_xml`` (the writer's spec with calculations).
+    """
+    spec = model.to_spec()
+    flaps = [float(f) for f in spec["flaps_deg"]]
+    alpha_ch, flap_ch = spec.get("alpha_channel", "alpha_deg"), spec.get("flap_channel", "flap_deg")
+    bvars = base.variables()
+    bunits = dict(zip(bvars["id"].to_list(), bvars["units"].to_list(), strict=True))
+    cmap = dict(channel_map or {})
+    inputs: list[dict[str, Any]] = []
+    calcs: list[dict[str, Any]] = []
+    resolved: set[str] = set()
+
+    def derivation(ch: str) -> str | None:
+        if ch in cmap:
+            return cmap[ch]
+        if ch in DERIVED_CHANNELS:
+            return DERIVED_CHANNELS[ch]
+        if ch.endswith("_deg") and f"{ch[:-4]}_rad" in bunits:
+            return f"{ch[:-4]}_rad * {_RAD2DEG!r}"
+        return None
+
+    def resolve(ch: str) -> None:
+        if ch in resolved:
+            return
+        resolved.add(ch)
+        if ch in bunits and ch not in cmap:
+            inputs.append({"id": ch, "units": bunits[ch]})
+            return
+        expr = derivation(ch)
+        if expr is None:
+            inputs.append(
+                {"id": ch, "units": units_of(ch), "initial": 0.0,
+                 "description": f"Δ-model channel {ch} (not in the qualified model)"}
+            )  # fmt: skip
+            return
+        for c in columns(parse_regressor(expr)):
+            resolve(c)
+        calcs.append(
+            {"id": ch, "units": units_of(ch), "expr": expr,
+             "description": f"Δ-model channel {ch} = {expr}"}
+        )  # fmt: skip
+
+    for ch in (alpha_ch, flap_ch):
+        resolve(ch)
+    tables: list[dict[str, Any]] = []
+    outputs: list[dict[str, Any]] = []
+    cnames = coefficients or {}
+    for cname, c in spec["coefficients"].items():
+        qual = cnames.get(cname, cname)
+        if qual not in bunits:
+            raise DataError(
+                f"qualified model has no variable '{qual}' for coefficient {cname}; its outputs "
+                f"are {base.outputs}: give the mapping (coefficients={{'{cname}': ...}}, CLI "
+                f"--coef {cname}=ID)"
+            )
+        if qual not in resolved:
+            resolved.add(qual)
+            inputs.append({"id": qual, "units": bunits[qual]})
+        terms = []
+        for t in c["terms"]:
+            node = parse_regressor(t["regressor"])
+            tables.append(
+                {"id": t["name"], "units": "nd",
+                 "description": f"Δ parameter of {cname} multiplying {t['regressor']} "
+                                "(thesis Eq. 3.19), held beyond the last alpha",
+                 "args": [flap_ch, alpha_ch], "breakpoints": [flaps, t["alpha_deg"]],
+                 "values": [v for row in t["values"] for v in row]}
+            )  # fmt: skip
+            for col in columns(node):
+                resolve(col)
+            if node.op == "const":
+                terms.append({"coef": node.value, "factors": [t["name"]]})
+            elif node.op == "col":
+                terms.append({"factors": [t["name"], node.name]})
+            else:
+                xid = f"x_{t['name']}"
+                calcs.append(
+                    {"id": xid, "expr": t["regressor"],
+                     "description": f"regressor of {t['name']}"}
+                )  # fmt: skip
+                terms.append({"factors": [t["name"], xid]})
+        for side, key in (("l", "alpha_l_deg"), ("u", "alpha_u_deg")):
+            tables.append(
+                {"id": f"{cname}_alpha_{side}", "units": "deg",
+                 "description": f"blend {'start' if side == 'l' else 'end'} of {cname} per "
+                                "flap (thesis Eq. 3.12)",
+                 "args": [flap_ch], "breakpoints": [flaps], "values": c[key]}
+            )  # fmt: skip
+        al, au = f"{cname}_alpha_l", f"{cname}_alpha_u"
+        calcs.append(
+            {"id": f"w_{cname}", "is_output": True,
+             "expr": f"min(1, max(0, ({alpha_ch} - {al}) / max({au} - {al}, 1e-300)))",
+             "description": f"blend weight of {cname}, 0 below alpha_l, 1 above alpha_u "
+                            "(thesis Eq. 3.12)"}
+        )  # fmt: skip
+        outputs.append(
+            {"id": f"d{cname}", "terms": terms,
+             "description": f"Δ{cname} before blending (thesis Eq. 3.11)"}
+        )  # fmt: skip
+        outputs.append(
+            {"id": f"{cname}_ext",
+             "terms": [{"factors": [qual]}, {"factors": [f"w_{cname}", f"d{cname}"]}],
+             "description": f"extended {cname} = {qual} + w_{cname} d{cname} (thesis Eq. 3.12)"}
+        )  # fmt: skip
+    alpha_max = max(max(t["alpha_deg"]) for c in spec["coefficients"].values() for t in c["terms"])
+    blend = {k: (c["alpha_l_deg"], c["alpha_u_deg"]) for k, c in spec["coefficients"].items()}
+    all_inputs = [*base.inputs, *(i["id"] for i in inputs if i["id"] not in bunits)]
+    initial = dict(zip(bvars["id"].to_list(), bvars["initial_value"].to_list(), strict=True))
+    checks = check_states(flaps, blend, alpha_max, all_inputs, seed=seed)
+    for cp in checks:
+        for i in base.inputs:
+            if i not in cp["inputs"] and initial.get(i) is None:
+                cp["inputs"][i] = 0.0
+        cp["inputs"] = {k: v for k, v in cp["inputs"].items() if k in all_inputs}
+    return {
+        "name": "aerodelta extended model (qualified + blended Δ)",
+        "inputs": inputs,
+        "calculations": calcs,
+        "tables": tables,
+        "outputs": outputs,
+        "checks": checks,
+        "check_tolerance": 1e-9,
+    }
+
+
+@dataclass(frozen=True)
+class ExtendedExport:
+    """What :func:`extended_daveml_text` produced: the text, the model read back, and the
+    largest relative difference between the file's check values and the engine's."""
+
+    text: str
+    model: DaveModel
+    n_checks: int
+    max_rel_error: float
+
+
+def _engine_reference(
+    model: DeltaModel,
+    base: DaveModel,
+    merged: DaveModel,
+    states: list[dict[str, Any]],
+    coefficients: Mapping[str, str],
+) -> dict[str, np.ndarray]:
+    """``C_ext`` by the engine: the base model's ``C`` plus ``w dC`` from ``aero_core``'s
+    Δ model, at the states (Δ channels derived in the merged file read back by varID)."""
+    ids = merged.variables()["id"].to_list()
+    keys = sorted({k for s in states for k in s["inputs"]})
+    data = {k: [s["inputs"].get(k, np.nan) for s in states] for k in keys}
+    frame = merged.evaluate(data, outputs=[c for c in model.input_columns if c in ids])
+    delta = model.evaluate(frame)
+    binputs = set(base.inputs)
+    qual = base.evaluate(
+        {k: v for k, v in data.items() if k in binputs}, outputs=list(coefficients.values())
+    )
+    return {
+        f"{c}_ext": qual[coefficients[c]].to_numpy() + delta[f"d{c}_blended"].to_numpy()
+        for c in model.coefficients
+    } | {f"d{c}": delta[f"d{c}"].to_numpy() for c in model.coefficients}
+
+
+def extended_daveml_text(
+    model: DeltaModel,
+    qualified: str | PathLike[str] | None = None,
+    *,
+    channel_map: Mapping[str, str] | None = None,
+    coefficients: Mapping[str, str] | None = None,
+    seed: int = 0,
+    rtol: float = 1e-12,
+) -> ExtendedExport:
+    """The extended model as DAVE-ML text, verified against the engine.
+
+    Parameters are those of :func:`extended_daveml_spec`; ``qualified`` is a DAVE-ML file
+    (default: the built-in ADX-37 qualified model). Every check output ``dC`` and ``C_ext`` of
+    the generated file is compared with the engine (``DeltaModel.evaluate`` plus the qualified
+    model) to relative tolerance ``rtol``.
+
+    Raises
+    ------
+    DataError
+        The qualified model lacks a coefficient or a mapping refers to unknown variables.
+    RuntimeError
+        The file disagrees with the engine (a bug: please report it).
+    """
+    text, name, base = qualified_base(qualified)
+    spec = extended_daveml_spec(
+        model, base, channel_map=channel_map, coefficients=coefficients, seed=seed
+    )
+    merged_text = _core.daveml_merge_xml(text, name, json.dumps(spec))
+    merged = DaveModel.from_string(merged_text, name)
+    cmap = {c: (coefficients or {}).get(c, c) for c in model.coefficients}
+    ref = _engine_reference(model, base, merged, spec["checks"], cmap)
+    keys = sorted({k for s in spec["checks"] for k in s["inputs"]})
+    data = {k: [s["inputs"].get(k, np.nan) for s in spec["checks"]] for k in keys}
+    got = merged.evaluate(data, outputs=list(ref))
+    worst = 0.0
+    for k, want in ref.items():
+        err = np.abs(got[k].to_numpy() - want) / np.maximum(np.abs(want), 1e-3)
+        worst = max(worst, float(err.max()))
+        if not np.all(err <= rtol):
+            raise RuntimeError(
+                f"extended DAVE-ML output {k} differs from the engine by {err.max():.3e} "
+                f"(relative) at check '{spec['checks'][int(err.argmax())]['name']}'"
+            )
+    checks = merged.run_checks()
+    if not checks["pass"].all():
+        bad = checks.filter(~pl.col("pass")).row(0, named=True)
+        raise RuntimeError(f"extended DAVE-ML fails its own check: {bad}")
+    return ExtendedExport(merged_text, merged, len(spec["checks"]), worst)
+
+
+def export_extended_daveml(
+    path: str | PathLike[str],
+    model: DeltaModel,
+    qualified: str | PathLike[str] | None = None,
+    **kwargs: Any,
+) -> ExtendedExport:
+    """Write the extended model (qualified + blended Δ, thesis Eq. 3.12) as DAVE-ML, atomically.
+
+    See :func:`extended_daveml_text` for the parameters and the verification done before
+    writing; verify the file with ``aerodelta check-daveml``.
+    """
+    out = extended_daveml_text(model, qualified, **kwargs)
+    write_atomic(path, out.text)
+    return out

@@ -15,7 +15,8 @@
 //! - [`preprocess`]: flight-test preprocessing: smoothing, derivatives, CG and
 //!   vane transfers, measured coefficients (Eq. 3.2-3.4), data compatibility;
 //! - [`daveml`]: DAVE-ML (AIAA S-119) models: read, evaluate, run their check
-//!   cases, and write models with self-generated check cases;
+//!   cases, write models with self-generated check cases, and merge a model
+//!   into an existing file (the extended model: qualified + blended Δ);
 //! - [`lsq`]: equation-error least squares by QR (Eq. 2.12-2.13, 3.10) with
 //!   standard errors (conventional and coloured-residual), collinearity diagnostics;
 //! - [`spline`]: cubic smoothing splines with MATLAB `csaps` semantics (Eq. 3.13);

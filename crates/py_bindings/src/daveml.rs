@@ -158,9 +158,24 @@ fn daveml_to_xml(py: Python<'_>, spec_json: String) -> PyResult<String> {
     detached(py, || daveml::to_xml(&ModelSpec::from_json(&spec_json)?))
 }
 
+/// The DAVE-ML text of `base_text` extended by a model spec (JSON text), with
+/// new check cases generated from the merged model.
+#[pyfunction]
+fn daveml_merge_xml(
+    py: Python<'_>,
+    base_text: String,
+    base_name: String,
+    spec_json: String,
+) -> PyResult<String> {
+    detached(py, || {
+        daveml::merge_xml(&base_text, &base_name, &ModelSpec::from_json(&spec_json)?)
+    })
+}
+
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyDaveModel>()?;
     m.add_function(wrap_pyfunction!(daveml_write, m)?)?;
     m.add_function(wrap_pyfunction!(daveml_to_xml, m)?)?;
+    m.add_function(wrap_pyfunction!(daveml_merge_xml, m)?)?;
     Ok(())
 }

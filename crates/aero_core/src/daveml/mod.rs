@@ -16,7 +16,10 @@
 //! - [`model`]: evaluation in a topological order computed at load;
 //! - [`check`]: the file's static shots, run against the model;
 //! - [`write`](mod@write): a [`ModelSpec`] (inputs, gridded tables, sums of products)
-//!   written as DAVE-ML with check cases generated from the model itself.
+//!   written as DAVE-ML with check cases generated from the model itself;
+//!   calculations in the regressor language become MathML;
+//! - [`merge`]: a [`ModelSpec`] merged into an existing DAVE-ML file (the Δ of
+//!   the extended model added to a qualified model), with new check cases.
 //!
 //! Table lookups use [`crate::table`]: `extrapolate="neither"` holds the end
 //! values, `min`/`max` extrapolate linearly below/above, `both` on both sides;
@@ -24,6 +27,7 @@
 
 pub mod check;
 pub mod mathml;
+pub mod merge;
 pub mod model;
 pub mod parse;
 pub mod write;
@@ -32,8 +36,9 @@ pub mod write;
 mod tests;
 
 pub use check::{CheckKind, CheckRow, Shot};
+pub use merge::merge_xml;
 pub use model::{DaveModel, Variable};
-pub use write::{to_xml, write_model, ModelSpec};
+pub use write::{mathml_of, to_xml, write_model, CalcSpec, ModelSpec};
 
 use crate::error::AeroError;
 

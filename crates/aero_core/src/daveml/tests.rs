@@ -185,6 +185,7 @@ fn spec() -> ModelSpec {
             input("a", "deg", -10.0, 30.0),
             input("b", "deg", -20.0, 20.0),
         ],
+        calculations: vec![],
         tables: vec![
             TableSpec {
                 id: "Ta".into(),

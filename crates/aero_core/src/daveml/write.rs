@@ -43,6 +43,10 @@ pub struct ModelSpec {
     pub date: Option<String>,
     /// Input variables.
     pub inputs: Vec<InputSpec>,
+    /// Calculated variables: expressions in the regressor language
+    /// ([`crate::regressor`]), written as MathML.
+    #[serde(default)]
+    pub calculations: Vec<CalcSpec>,
     /// Gridded tables, each defining one variable.
     #[serde(default)]
     pub tables: Vec<TableSpec>,
@@ -133,6 +137,28 @@ pub struct TableSpec {
     pub is_output: bool,
 }
 
+/// A variable computed from others by an expression of the regressor language
+/// ([`crate::regressor`]: `+ - * / ^`, `pos`, `neg`, `deadband`, `step`, `abs`,
+/// `sqrt`, `sin`, `cos`, `exp`, `min`, `max`), written as a MathML-2
+/// `calculation`. Names in the expression are `varID`s of inputs, other
+/// calculations or tables.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CalcSpec {
+    pub id: String,
+    #[serde(default)]
+    pub name: String,
+    #[serde(default = "default_units")]
+    pub units: String,
+    #[serde(default)]
+    pub description: String,
+    /// The expression, e.g. `deadband(da_deg, 2)` or `ct_left - ct_right`.
+    pub expr: String,
+    /// Also flag the variable `isOutput`.
+    #[serde(default)]
+    pub is_output: bool,
+}
+
 /// One product term $c \prod_j x_j$ of an output.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -177,7 +203,7 @@ impl ModelSpec {
             .map_err(|e| AeroError::invalid("model spec (JSON)", e.to_string()))
     }
 
-    fn validate(&self) -> Result<()> {
+    pub(crate) fn validate(&self) -> Result<()> {
         let mut known: Vec<&str> = Vec::new();
         let place = |what: &str, id: &str| format!("model spec '{}', {what} '{id}'", self.name);
         let declare = |what: &str, id: &str, known: &mut Vec<&str>| -> Result<()> {
@@ -209,6 +235,10 @@ impl ModelSpec {
                     ));
                 }
             }
+        }
+        for c in &self.calculations {
+            declare("calculation", &c.id, &mut known)?;
+            known.push(&c.id);
         }
         for t in &self.tables {
             declare("table", &t.id, &mut known)?;
@@ -246,6 +276,18 @@ impl ModelSpec {
             crate::table::Table::new(axes, t.values.clone())
                 .map_err(|e| e.context(place("table", &t.id)))?;
             known.push(&t.id);
+        }
+        for c in &self.calculations {
+            let e = crate::regressor::Expr::parse(&c.expr)
+                .map_err(|e| e.context(place("calculation", &c.id)))?;
+            for col in e.columns() {
+                if col == c.id || !known.contains(&col.as_str()) {
+                    return Err(AeroError::invalid(
+                        place("calculation", &c.id),
+                        format!("'{col}' is not an input, another calculation or a table"),
+                    ));
+                }
+            }
         }
         for o in &self.outputs {
             declare("output", &o.id, &mut known)?;
@@ -347,8 +389,33 @@ fn body(spec: &ModelSpec) -> String {
         );
     }
     let _ = writeln!(x, "  </fileHeader>");
+    let parts = sections(spec, &[], "");
+    x.push_str(&parts.variables);
+    x.push_str(&parts.breakpoints);
+    x.push_str(&parts.functions);
+    x
+}
 
-    for i in &spec.inputs {
+/// The three groups of DAVE-ML elements a spec adds, each in DTD order.
+pub(crate) struct Sections {
+    /// `variableDef`s: inputs (less `skip_inputs`), calculations, tables, outputs.
+    pub variables: String,
+    /// `breakpointDef`s.
+    pub breakpoints: String,
+    /// `function`s (one per table).
+    pub functions: String,
+}
+
+/// The elements of `spec`, leaving out the `variableDef` of the inputs in
+/// `skip_inputs` (declared by the model the elements are merged into), every
+/// `bpID` and `gtID` led by `id_prefix`.
+pub(crate) fn sections(spec: &ModelSpec, skip_inputs: &[&str], id_prefix: &str) -> Sections {
+    let mut x = String::new();
+    for i in spec
+        .inputs
+        .iter()
+        .filter(|i| !skip_inputs.contains(&i.id.as_str()))
+    {
         let mut attrs = format!(
             "name=\"{}\" varID=\"{}\" units=\"{}\"",
             esc(or(&i.name, &i.id)),
@@ -369,6 +436,30 @@ fn body(spec: &ModelSpec) -> String {
             let _ = writeln!(x, "    <description>{}</description>", esc(&i.description));
         }
         let _ = writeln!(x, "    <isInput/>\n  </variableDef>");
+    }
+    for c in &spec.calculations {
+        let _ = writeln!(
+            x,
+            "  <variableDef name=\"{}\" varID=\"{}\" units=\"{}\">",
+            esc(or(&c.name, &c.id)),
+            esc(&c.id),
+            esc(&c.units)
+        );
+        if !c.description.is_empty() {
+            let _ = writeln!(x, "    <description>{}</description>", esc(&c.description));
+        }
+        // Validated before writing: a parse error cannot happen here.
+        let math = crate::regressor::Expr::parse(&c.expr)
+            .map(|e| mathml_of(&e))
+            .unwrap_or_else(|_| "<notanumber/>".to_string());
+        let _ = writeln!(
+            x,
+            "    <calculation>\n      <math xmlns=\"http://www.w3.org/1998/Math/MathML\">\n        {math}\n      </math>\n    </calculation>"
+        );
+        if c.is_output {
+            let _ = writeln!(x, "    <isOutput/>");
+        }
+        let _ = writeln!(x, "  </variableDef>");
     }
     for t in &spec.tables {
         let _ = writeln!(
@@ -408,6 +499,7 @@ fn body(spec: &ModelSpec) -> String {
         );
     }
 
+    let variables = std::mem::take(&mut x);
     // One breakpointDef per distinct (variable, breakpoints).
     let mut bps: Vec<(String, &str, &Vec<f64>)> = Vec::new();
     let mut table_bps: Vec<Vec<String>> = Vec::new();
@@ -421,9 +513,9 @@ fn body(spec: &ModelSpec) -> String {
             let id = found.unwrap_or_else(|| {
                 let k = bps.iter().filter(|(_, va, _)| *va == a.as_str()).count();
                 let id = if k == 0 {
-                    format!("{a}_bp")
+                    format!("{id_prefix}{a}_bp")
                 } else {
-                    format!("{a}_bp{}", k + 1)
+                    format!("{id_prefix}{a}_bp{}", k + 1)
                 };
                 bps.push((id.clone(), a.as_str(), b));
                 id
@@ -460,6 +552,7 @@ fn body(spec: &ModelSpec) -> String {
             v.join(", ")
         );
     }
+    let breakpoints = std::mem::take(&mut x);
     for (t, ids) in spec.tables.iter().zip(&table_bps) {
         let _ = writeln!(x, "  <function name=\"{}\">", esc(or(&t.name, &t.id)));
         for a in &t.args {
@@ -482,8 +575,9 @@ fn body(spec: &ModelSpec) -> String {
         let _ = writeln!(x, "    <functionDefn name=\"{}_fn\">", esc(&t.id));
         let _ = writeln!(
             x,
-            "      <griddedTableDef name=\"{0}_table\" gtID=\"{0}_table\">",
-            esc(&t.id)
+            "      <griddedTableDef name=\"{0}_table\" gtID=\"{1}{0}_table\">",
+            esc(&t.id),
+            esc(id_prefix)
         );
         let _ = writeln!(x, "        <breakpointRefs>");
         for id in ids {
@@ -500,7 +594,63 @@ fn body(spec: &ModelSpec) -> String {
             "        </dataTable>\n      </griddedTableDef>\n    </functionDefn>\n  </function>"
         );
     }
-    x
+    Sections {
+        variables,
+        breakpoints,
+        functions: x,
+    }
+}
+
+/// MathML-2 content markup of a regressor expression ([`crate::regressor`]):
+/// `deadband(x, k)` becomes `max(x - k, 0) + min(x + k, 0)` (thesis Eq.
+/// 3.15-3.16), `pos`/`neg` a `max`/`min` with 0, `step(x)` a `piecewise`
+/// (1 where x > 0, else 0).
+pub fn mathml_of(e: &crate::regressor::Expr) -> String {
+    use crate::regressor::{BinOp, Expr, Func};
+    let ap = |op: &str, args: &[String]| format!("<apply><{op}/>{}</apply>", args.concat());
+    match e {
+        Expr::Const(c) => format!("<cn>{}</cn>", num(*c)),
+        Expr::Column(n) => format!("<ci>{}</ci>", esc(n)),
+        Expr::Neg(a) => ap("minus", &[mathml_of(a)]),
+        Expr::Bin(op, a, b) => {
+            let tag = match op {
+                BinOp::Add => "plus",
+                BinOp::Sub => "minus",
+                BinOp::Mul => "times",
+                BinOp::Div => "divide",
+                BinOp::Pow => "power",
+            };
+            ap(tag, &[mathml_of(a), mathml_of(b)])
+        }
+        Expr::Call(f, args) => {
+            let a: Vec<String> = args.iter().map(mathml_of).collect();
+            let first = a.first().cloned().unwrap_or_else(|| "<notanumber/>".into());
+            let second = a.get(1).cloned().unwrap_or_else(|| "<cn>0</cn>".into());
+            let zero = "<cn>0</cn>".to_string();
+            match f {
+                Func::Pos => ap("max", &[first, zero]),
+                Func::Neg => ap("min", &[first, zero]),
+                Func::Deadband => ap(
+                    "plus",
+                    &[
+                        ap("max", &[ap("minus", &[first.clone(), second.clone()]), zero.clone()]),
+                        ap("min", &[ap("plus", &[first, second]), zero]),
+                    ],
+                ),
+                Func::Step => format!(
+                    "<piecewise><piece><cn>1</cn>{}</piece><otherwise><cn>0</cn></otherwise></piecewise>",
+                    ap("gt", &[first, zero])
+                ),
+                Func::Abs => ap("abs", &[first]),
+                Func::Sqrt => ap("root", &[first]),
+                Func::Sin => ap("sin", &[first]),
+                Func::Cos => ap("cos", &[first]),
+                Func::Exp => ap("exp", &[first]),
+                Func::Min => ap("min", &[first, second]),
+                Func::Max => ap("max", &[first, second]),
+            }
+        }
+    }
 }
 
 fn sum_of_products(terms: &[Term], ind: &str) -> String {
@@ -540,53 +690,75 @@ pub fn to_xml(spec: &ModelSpec) -> Result<String> {
     let mut x = body(spec);
     if !spec.checks.is_empty() {
         let model = DaveModel::from_str(&format!("{x}</DAVEfunc>\n"), &spec.name)?;
-        let vars = model.variables();
-        let _ = writeln!(x, "  <checkData>");
-        for cp in &spec.checks {
-            let given: Vec<(&str, f64)> = cp.inputs.iter().map(|(k, v)| (k.as_str(), *v)).collect();
-            let values = model.evaluate(&given).map_err(|e| {
-                e.context(format!(
-                    "model spec '{}', check point '{}'",
-                    spec.name, cp.name
-                ))
-            })?;
-            let _ = writeln!(
-                x,
-                "    <staticShot name=\"{}\">\n      <checkInputs>",
-                esc(&cp.name)
-            );
-            for i in &spec.inputs {
-                let Some(k) = model.index_of(&i.id) else {
-                    continue;
-                };
-                let _ = writeln!(
-                    x,
-                    "        <signal> <signalName>{}</signalName> <signalUnits>{}</signalUnits> <signalValue>{}</signalValue> </signal>",
-                    esc(&vars[k].name), esc(&vars[k].units), num(cp.inputs.get(&i.id).copied().unwrap_or(values[k]))
-                );
-            }
-            let _ = writeln!(x, "      </checkInputs>\n      <internalValues>");
-            for (k, v) in vars.iter().enumerate() {
-                let _ = writeln!(
-                    x,
-                    "        <signal> <varID>{}</varID> <signalValue>{}</signalValue> </signal>",
-                    esc(&v.id),
-                    num(values[k])
-                );
-            }
-            let _ = writeln!(x, "      </internalValues>\n      <checkOutputs>");
-            for (k, v) in vars.iter().enumerate().filter(|(_, v)| v.is_output) {
-                let _ = writeln!(
-                    x,
-                    "        <signal> <signalName>{}</signalName> <signalUnits>{}</signalUnits> <signalValue>{}</signalValue> <tol>{}</tol> </signal>",
-                    esc(&v.name), esc(&v.units), num(values[k]), num(spec.check_tolerance)
-                );
-            }
-            let _ = writeln!(x, "      </checkOutputs>\n    </staticShot>");
-        }
-        let _ = writeln!(x, "  </checkData>");
+        let inputs: Vec<&str> = spec.inputs.iter().map(|i| i.id.as_str()).collect();
+        x.push_str(&check_data(
+            &model,
+            &inputs,
+            &spec.checks,
+            spec.check_tolerance,
+            &spec.name,
+        )?);
     }
     x.push_str("</DAVEfunc>\n");
+    Ok(x)
+}
+
+/// The `checkData` element: one static shot per check point, its expected
+/// values computed by evaluating `model` (inputs listed in the order of
+/// `inputs`, every variable as an internal value, outputs with `tolerance`).
+pub(crate) fn check_data(
+    model: &DaveModel,
+    inputs: &[&str],
+    checks: &[CheckPoint],
+    tolerance: f64,
+    spec_name: &str,
+) -> Result<String> {
+    let mut x = String::new();
+    let vars = model.variables();
+    let _ = writeln!(x, "  <checkData>");
+    for cp in checks {
+        let given: Vec<(&str, f64)> = cp.inputs.iter().map(|(k, v)| (k.as_str(), *v)).collect();
+        let values = model.evaluate(&given).map_err(|e| {
+            e.context(format!(
+                "model spec '{spec_name}', check point '{}'",
+                cp.name
+            ))
+        })?;
+        let _ = writeln!(
+            x,
+            "    <staticShot name=\"{}\">\n      <checkInputs>",
+            esc(&cp.name)
+        );
+        for id in inputs {
+            let Some(k) = model.index_of(id) else {
+                continue;
+            };
+            let _ = writeln!(
+                x,
+                "        <signal> <signalName>{}</signalName> <signalUnits>{}</signalUnits> <signalValue>{}</signalValue> </signal>",
+                esc(&vars[k].name), esc(&vars[k].units), num(cp.inputs.get(*id).copied().unwrap_or(values[k]))
+            );
+        }
+        let _ = writeln!(x, "      </checkInputs>\n      <internalValues>");
+        for (k, v) in vars.iter().enumerate() {
+            let _ = writeln!(
+                x,
+                "        <signal> <varID>{}</varID> <signalValue>{}</signalValue> </signal>",
+                esc(&v.id),
+                num(values[k])
+            );
+        }
+        let _ = writeln!(x, "      </internalValues>\n      <checkOutputs>");
+        for (k, v) in vars.iter().enumerate().filter(|(_, v)| v.is_output) {
+            let _ = writeln!(
+                x,
+                "        <signal> <signalName>{}</signalName> <signalUnits>{}</signalUnits> <signalValue>{}</signalValue> <tol>{}</tol> </signal>",
+                esc(&v.name), esc(&v.units), num(values[k]), num(tolerance)
+            );
+        }
+        let _ = writeln!(x, "      </checkOutputs>\n    </staticShot>");
+    }
+    let _ = writeln!(x, "  </checkData>");
     Ok(x)
 }
 

@@ -1,0 +1,115 @@
+"""Export a fitted extended model (qualified + blended Δ, thesis Eq. 3.12).
+
+DAVE-ML (--daveml): the qualified DAVE-ML file (--qualified, default the built-in ADX-37
+model) with the Δ tables, regressors and blend weights merged in, outputs dC, w_C and C_ext
+per coefficient, and check cases at sampled states verified against the engine; check it with
+``aerodelta check-daveml``. JSBSim (--jsbsim): an <aerodynamics> file adding w ΔC to the
+SIDE, ROLL and YAW axes of an aircraft that holds the qualified model (with --jsbsim-qualified:
+the built-in qualified CY, Cl, Cn too); see docs/export.md for the properties it reads."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from aerodelta.exceptions import DataError
+from aerodelta.export import export_extended_daveml
+from aerodelta.jsbsim import export_jsbsim, jsbsim_properties
+from aerodelta.model import DeltaModel
+
+HELP = "export the extended model to DAVE-ML and/or JSBSim"
+
+
+def _pairs(items: list[str] | None, what: str) -> dict[str, str]:
+    out = {}
+    for item in items or []:
+        key, sep, value = item.partition("=")
+        if not sep or not key.strip() or not value.strip():
+            raise DataError(f"{what} '{item}': write NAME=VALUE")
+        out[key.strip()] = value.strip()
+    return out
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Options of ``aerodelta export``."""
+    parser.add_argument("--model", required=True, help="Δ model file from aerodelta fit (.json)")
+    parser.add_argument(
+        "--qualified", help="qualified model as DAVE-ML (default: the built-in ADX-37 model)"
+    )
+    parser.add_argument("--daveml", help="extended model to write as DAVE-ML (.dml)")
+    parser.add_argument("--jsbsim", help="Δ increments to write as JSBSim <aerodynamics> (.xml)")
+    parser.add_argument(
+        "--map",
+        action="append",
+        metavar="CHANNEL=EXPR",
+        help="DAVE-ML: a Δ-model channel as an expression of qualified-model variables, "
+        "e.g. alpha_deg=alpha (repeatable)",
+    )
+    parser.add_argument(
+        "--coef",
+        action="append",
+        metavar="C=VARID",
+        help="DAVE-ML: the qualified-model variable of a coefficient, e.g. Cl=Cl_total",
+    )
+    parser.add_argument(
+        "--property",
+        action="append",
+        metavar="CHANNEL=PROP",
+        help="JSBSim: the property (or '*'-product of properties and numbers) of a channel, "
+        "e.g. da_deg=-1*fcs/left-aileron-pos-deg (repeatable)",
+    )
+    parser.add_argument(
+        "--side-axis",
+        default="SIDE",
+        choices=["SIDE", "Y"],
+        help="JSBSim: axis of the side force (SIDE for AXIAL/NORMAL or DRAG/LIFT aircraft, "
+        "Y for X/Y/Z aircraft)",
+    )
+    parser.add_argument(
+        "--jsbsim-qualified",
+        action="store_true",
+        help="JSBSim: also write the built-in ADX-37 qualified CY, Cl, Cn, so the axes carry "
+        "the whole extended lateral-directional model",
+    )
+    parser.add_argument("--seed", type=int, default=0, help="seed of the sampled check states")
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run ``aerodelta export``."""
+    if not args.daveml and not args.jsbsim:
+        print("aerodelta export: give --daveml OUT.dml and/or --jsbsim OUT.xml", file=sys.stderr)
+        return 2
+    if args.jsbsim_qualified and args.qualified:
+        print(
+            "aerodelta export: --jsbsim-qualified writes the built-in ADX-37 qualified model; "
+            "a --qualified DAVE-ML file is not translated to JSBSim",
+            file=sys.stderr,
+        )
+        return 2
+    model = DeltaModel.load(args.model)
+    if args.daveml:
+        out = export_extended_daveml(
+            args.daveml,
+            model,
+            args.qualified,
+            channel_map=_pairs(args.map, "--map"),
+            coefficients=_pairs(args.coef, "--coef"),
+            seed=args.seed,
+        )
+        print(
+            f"wrote {args.daveml}: outputs {', '.join(out.model.outputs)}; {out.n_checks} check "
+            f"cases, largest relative difference to the engine {out.max_rel_error:.2e}"
+        )
+    if args.jsbsim:
+        props = _pairs(args.property, "--property")
+        export_jsbsim(
+            args.jsbsim,
+            model,
+            props,
+            side_axis=args.side_axis,
+            qualified=args.jsbsim_qualified,
+        )
+        print(f"wrote {args.jsbsim}: channels read from JSBSim properties:")
+        for ch, p in jsbsim_properties(model, props).items():
+            print(f"  {ch:<14} {p}")
+    return 0

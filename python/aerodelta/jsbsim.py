@@ -1,0 +1,443 @@
+"""Export the blended Δ model (thesis Eq. 3.11-3.12) as a JSBSim ``<aerodynamics>`` file.
+
+JSBSim sums every ``<function>`` of an ``<axis>``, so the export adds the extended model's
+increments ``w(alpha) ΔC`` to an aircraft whose own aerodynamics already hold the qualified model:
+
+- ``SIDE``: ``qbar S w_CY ΔCY`` (lbf; body-axis side force, as the Δ model's ``CY``),
+- ``ROLL``: ``qbar S b w_Cl ΔCl`` (ft lbf), ``YAW``: ``qbar S b w_Cn ΔCn`` (ft lbf).
+
+``ΔC = Σ θ(alpha, flap) x`` is a ``<sum>`` of ``<product>``\\s of a 2-D ``<table>`` (rows: angle
+of attack, columns: flap; linear in both, ends held, as ``aero_core::table``) and the regressor
+written as JSBSim function elements (``deadband(x, k)`` as ``max(x-k, 0) + min(x+k, 0)``,
+thesis Eq. 3.15-3.16). The blend weight is ``min(1, max(0, (alpha - alpha_l(flap)) /
+max(alpha_u(flap) - alpha_l(flap), 1e-300)))``, exactly the engine's Eq. 3.12 weight.
+
+Each Δ-model channel reads a JSBSim property, or a product of properties and numbers
+(:data:`DEFAULT_PROPERTIES`; override with ``properties=``). Channels whose sign convention
+differs between aircraft (controls, thrust coefficients) default to ``aerodelta/...``
+properties that the file declares (value 0) and the aircraft must drive, e.g. from a
+``<system>``. Intermediate values are published as ``aero/aerodelta/<C>/...`` properties.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from os import PathLike
+from typing import Any
+from xml.sax.saxutils import escape
+
+import numpy as np
+
+from aerodelta._exportutil import DERIVED_CHANNELS, Node, parse_regressor, write_atomic
+from aerodelta.exceptions import DataError
+from aerodelta.export import qualified_daveml_spec
+from aerodelta.model import DeltaModel
+
+__all__ = ["DEFAULT_PROPERTIES", "export_jsbsim", "jsbsim_properties", "jsbsim_xml"]
+
+_R2D = repr(180.0 / math.pi)
+
+#: Δ-model channel -> JSBSim property (or ``*``-separated product of properties and numbers).
+#: Angles in deg, rates non-dimensional (``p b/(2V)`` = ``p [rad/s] * aero/bi2vel``).
+#: Controls follow the project's convention (Etkin: positive aileron rolls left, positive
+#: rudder yaws left), so they default to ``aerodelta/...`` properties the aircraft must set.
+DEFAULT_PROPERTIES: dict[str, str] = {
+    "alpha_deg": "aero/alpha-deg",
+    "beta_deg": "aero/beta-deg",
+    "beta_rad": "aero/beta-rad",
+    "flap_deg": "fcs/flap-pos-deg",
+    "phat": "velocities/p-aero-rad_sec * aero/bi2vel",
+    "qhat": "velocities/q-aero-rad_sec * aero/ci2vel",
+    "rhat": "velocities/r-aero-rad_sec * aero/bi2vel",
+    "alphadot_dps": "aero/alphadot-deg_sec",
+    "betadot_dps": "aero/betadot-deg_sec",
+    "da_deg": "aerodelta/da-deg",
+    "de_deg": "aerodelta/de-deg",
+    "dr_deg": "aerodelta/dr-deg",
+    "dsl_deg": "aerodelta/dsl-deg",
+    "dsr_deg": "aerodelta/dsr-deg",
+    "ct_left": "aerodelta/ct-left",
+    "ct_right": "aerodelta/ct-right",
+}
+
+#: Coefficient -> (JSBSim axis, reference-length property or None for a force).
+_AXES = {"CY": ("SIDE", None), "Cl": ("ROLL", "metrics/bw-ft"), "Cn": ("YAW", "metrics/bw-ft")}
+
+
+def _num(x: float) -> str:
+    return repr(float(x))
+
+
+def _factors(expr: str) -> list[str]:
+    out = [f.strip() for f in expr.split("*")]
+    if not out or any(not f for f in out):
+        raise DataError(f"JSBSim property mapping '{expr}': give properties/numbers joined by '*'")
+    return out
+
+
+def _is_number(s: str) -> bool:
+    try:
+        float(s)
+    except ValueError:
+        return False
+    return True
+
+
+class _Writer:
+    """Translates the model into JSBSim function elements, tracking the channels it reads."""
+
+    def __init__(self, model: DeltaModel, properties: Mapping[str, str]) -> None:
+        self.spec = model.to_spec()
+        self.props = {**DEFAULT_PROPERTIES, **properties}
+        self.channel_fns: list[str] = []  # functions defining channels (mapped or derived)
+        self.channel_prop: dict[str, str] = {}
+        self.declared: list[str] = []  # aerodelta/... properties the file declares
+        flaps = [float(f) for f in self.spec["flaps_deg"]]
+        # JSBSim tables need two breakpoints per axis: repeat a lone flap row (same values).
+        self.flaps = flaps if len(flaps) > 1 else [flaps[0], flaps[0] + 1.0]
+        self.pad = len(flaps) == 1
+
+    def channel(self, ch: str) -> str:
+        """The property holding channel ``ch`` (defining a function for it when needed)."""
+        if ch in self.channel_prop:
+            return self.channel_prop[ch]
+        name = f"aero/aerodelta/in/{ch}"
+        if ch in self.props:
+            fs = _factors(self.props[ch])
+            for f in fs:
+                if f.startswith("aerodelta/") and f not in self.declared:
+                    self.declared.append(f)
+            if len(fs) == 1 and not _is_number(fs[0]):
+                self.channel_prop[ch] = fs[0]
+                return fs[0]
+            body = "".join(
+                f"<value>{_num(float(f))}</value>" if _is_number(f) else f"<property>{f}</property>"
+                for f in fs
+            )
+            inner = body if len(fs) == 1 else f"<product>{body}</product>"
+        elif ch in DERIVED_CHANNELS:
+            inner = self.expr(parse_regressor(DERIVED_CHANNELS[ch]))
+        else:
+            raise DataError(
+                f"Δ-model channel '{ch}' has no JSBSim property: map it with "
+                f"properties={{'{ch}': 'some/property'}} (CLI --property {ch}=some/property)"
+            )
+        self.channel_fns.append(
+            f'  <function name="{name}">\n    <description>Δ-model channel {ch}</description>\n'
+            f"    {inner}\n  </function>"
+        )
+        self.channel_prop[ch] = name
+        return name
+
+    def expr(self, n: Node) -> str:
+        """JSBSim function elements of a regressor expression."""
+        zero = "<value>0</value>"
+        a = [self.expr(x) for x in n.args]
+        if n.op == "const":
+            return f"<value>{_num(n.value)}</value>"
+        if n.op == "col":
+            return f"<property>{self.channel(n.name)}</property>"
+        simple = {"+": "sum", "-": "difference", "*": "product", "/": "quotient", "^": "pow",
+                  "abs": "abs", "sin": "sin", "cos": "cos", "exp": "exp", "min": "min",
+                  "max": "max"}  # fmt: skip
+        if n.op in simple:
+            t = simple[n.op]
+            return f"<{t}>{''.join(a)}</{t}>"
+        if n.op == "minus":
+            return f"<product><value>-1</value>{a[0]}</product>"
+        if n.op == "pos":
+            return f"<max>{a[0]}{zero}</max>"
+        if n.op == "neg":
+            return f"<min>{a[0]}{zero}</min>"
+        if n.op == "deadband":
+            x, k = a
+            return (
+                f"<sum><max><difference>{x}{k}</difference>{zero}</max>"
+                f"<min><sum>{x}{k}</sum>{zero}</min></sum>"
+            )
+        if n.op == "step":
+            return f"<ifthen><gt>{a[0]}{zero}</gt><value>1</value>{zero}</ifthen>"
+        if n.op == "sqrt":
+            return f"<pow>{a[0]}<value>0.5</value></pow>"
+        raise DataError(f"regressor function '{n.op}' has no JSBSim form")
+
+    def table2(self, term: dict[str, Any], alpha_p: str, flap_p: str) -> str:
+        rows = term["values"] * 2 if self.pad else term["values"]
+        lines = ["        " + " ".join(f"{_num(f):>10}" for f in self.flaps)]
+        for j, a in enumerate(term["alpha_deg"]):
+            vals = " ".join(_num(r[j]) for r in rows)
+            lines.append(f"        {_num(a)} {vals}")
+        body = "\n".join(lines)
+        return (
+            f'<table>\n      <independentVar lookup="row">{alpha_p}</independentVar>\n'
+            f'      <independentVar lookup="column">{flap_p}</independentVar>\n'
+            f"      <tableData>\n{body}\n      </tableData>\n    </table>"
+        )
+
+    def limited(self, ch: str, lo: float | None, hi: float | None) -> str:
+        """The property of channel ``ch`` clamped to ``[lo, hi]`` (DAVE-ML min/maxValue)."""
+        prop = self.channel(ch)
+        if lo is None and hi is None:
+            return prop
+        name = f"aero/aerodelta/in/{ch}-limited"
+        if name not in self.channel_prop.values():
+            inner = f"<property>{prop}</property>"
+            if lo is not None:
+                inner = f"<max>{inner}<value>{_num(lo)}</value></max>"
+            if hi is not None:
+                inner = f"<min>{inner}<value>{_num(hi)}</value></min>"
+            self.channel_fns.append(
+                f'  <function name="{name}">\n    <description>{ch} within the qualified '
+                f"model's limits</description>\n    {inner}\n  </function>"
+            )
+            self.channel_prop[f"{ch} (limited)"] = name
+        return name
+
+    def gridded(self, props: list[str], breakpoints: list[list[float]], values: list[float]) -> str:
+        """A JSBSim table of 1-3 dimensions (row, column, table), values row-major with the
+        last axis fastest as the DAVE-ML writer's."""
+        bps = [list(map(float, b)) for b in breakpoints]
+        v = np.asarray(values, dtype=np.float64).reshape([len(b) for b in bps])
+        # JSBSim lookups: 1-D row; 2-D row, column; 3-D table, row, column.
+        if v.ndim == 1:
+            rows = "\n".join(f"        {_num(a)} {_num(x)}" for a, x in zip(bps[0], v, strict=True))
+            return (
+                f"<table>\n      <independentVar>{props[0]}</independentVar>\n"
+                f"      <tableData>\n{rows}\n      </tableData>\n    </table>"
+            )
+
+        def block(m: np.ndarray, rb: list[float], cb: list[float]) -> str:
+            lines = ["        " + " ".join(_num(c) for c in cb)]
+            lines += [
+                f"        {_num(r)} " + " ".join(_num(x) for x in row)
+                for r, row in zip(rb, m, strict=True)
+            ]
+            return "\n".join(lines)
+
+        if v.ndim == 2:
+            return (
+                f'<table>\n      <independentVar lookup="row">{props[0]}</independentVar>\n'
+                f'      <independentVar lookup="column">{props[1]}</independentVar>\n'
+                f"      <tableData>\n{block(v, bps[0], bps[1])}\n      </tableData>\n    </table>"
+            )
+        if v.ndim == 3:
+            data = "\n".join(
+                f'      <tableData breakPoint="{_num(t)}">\n{block(v[k], bps[1], bps[2])}\n'
+                "      </tableData>"
+                for k, t in enumerate(bps[0])
+            )
+            return (
+                f'<table>\n      <independentVar lookup="row">{props[1]}</independentVar>\n'
+                f'      <independentVar lookup="column">{props[2]}</independentVar>\n'
+                f'      <independentVar lookup="table">{props[0]}</independentVar>\n'
+                f"{data}\n    </table>"
+            )
+        raise DataError(f"a {v.ndim}-D table has no JSBSim form here (1-3 dimensions)")
+
+    def table1(self, values: list[float], flap_p: str) -> str:
+        vals = values * 2 if self.pad else values
+        rows = "\n".join(
+            f"        {_num(f)} {_num(v)}" for f, v in zip(self.flaps, vals, strict=True)
+        )
+        return (
+            f"<table>\n      <independentVar>{flap_p}</independentVar>\n"
+            f"      <tableData>\n{rows}\n      </tableData>\n    </table>"
+        )
+
+
+def _qualified_functions(w: _Writer, cname: str, qspec: dict[str, Any], done: set[str]) -> str:
+    """``aero/aerodelta/<C>/qualified``: a coefficient of a writer spec (sum of products of
+    tables and inputs, e.g. the built-in ADX-37 qualified model) as JSBSim functions."""
+    inputs = {i["id"]: i for i in qspec["inputs"]}
+    tables = {t["id"]: t for t in qspec["tables"]}
+    out = {o["id"]: o for o in qspec["outputs"]}
+    if cname not in out:
+        raise DataError(f"the qualified model has no output '{cname}'")
+    fns: list[str] = []
+
+    def prop(vid: str) -> str:
+        if vid in tables:
+            name = f"aero/aerodelta/qualified/{vid}"
+            if vid not in done:
+                done.add(vid)
+                t = tables[vid]
+                args = [w.limited(a, inputs[a].get("min"), inputs[a].get("max")) for a in t["args"]]
+                fns.append(
+                    f'  <function name="{name}">\n    '
+                    f"{w.gridded(args, t['breakpoints'], t['values'])}\n  </function>"
+                )
+            return name
+        if vid in inputs:
+            return w.limited(vid, inputs[vid].get("min"), inputs[vid].get("max"))
+        raise DataError(f"qualified output {cname}: factor '{vid}' has no JSBSim form")
+
+    prods = []
+    for term in out[cname]["terms"]:
+        facs = [f"<property>{prop(f)}</property>" for f in term["factors"]]
+        if term.get("coef", 1.0) != 1.0 or not facs:
+            facs.insert(0, f"<value>{_num(term.get('coef', 1.0))}</value>")
+        prods.append(facs[0] if len(facs) == 1 else f"<product>{''.join(facs)}</product>")
+    fns.append(
+        f'  <function name="aero/aerodelta/{cname}/qualified">\n    <description>qualified '
+        f"{cname}</description>\n    <sum>\n      " + "\n      ".join(prods) + "\n    </sum>\n"
+        "  </function>"
+    )
+    return "\n".join(fns)
+
+
+def jsbsim_xml(
+    model: DeltaModel,
+    properties: Mapping[str, str] | None = None,
+    *,
+    side_axis: str = "SIDE",
+    qualified: bool = False,
+) -> str:
+    """The JSBSim ``<aerodynamics>`` text of the blended Δ model (see the module docstring).
+
+    Parameters
+    ----------
+    model
+        The fitted Δ model.
+    properties
+        Overrides of :data:`DEFAULT_PROPERTIES`: channel -> property, or a ``*``-separated
+        product of properties and numbers (e.g. ``{"da_deg": "-1 * fcs/left-aileron-pos-deg"}``).
+    side_axis
+        Axis of the side force: ``"SIDE"`` (aircraft using AXIAL/SIDE/NORMAL body axes, where
+        it is exactly the body-axis ``CY``, or DRAG/SIDE/LIFT wind axes, where JSBSim takes it
+        as the wind-axis side force: a difference of order ``1 - cos(beta)``) or ``"Y"``
+        (aircraft using X/Y/Z body axes).
+    qualified
+        Also write the built-in ADX-37 qualified model's CY, Cl, Cn
+        (``aero/aerodelta/<C>/qualified``, ``.../extended`` = qualified + w ΔC) and put the
+        extended coefficients on the axes: the file is then the aircraft's whole
+        lateral-directional aerodynamics.
+
+    Raises
+    ------
+    DataError
+        A channel without a property, or a coefficient other than ``CY``, ``Cl``, ``Cn``.
+    """
+    if side_axis not in ("SIDE", "Y"):
+        raise DataError(f"side_axis '{side_axis}': use 'SIDE' or 'Y' (JSBSim axis names)")
+    w = _Writer(model, properties or {})
+    spec = w.spec
+    qspec = qualified_daveml_spec() if qualified else None
+    done: set[str] = set()
+    alpha_p = w.channel(spec.get("alpha_channel", "alpha_deg"))
+    flap_p = w.channel(spec.get("flap_channel", "flap_deg"))
+    fns: list[str] = []
+    axes: dict[str, list[str]] = {}
+    for cname, c in spec["coefficients"].items():
+        if cname not in _AXES:
+            raise DataError(f"coefficient '{cname}': the JSBSim export knows CY, Cl and Cn")
+        base = f"aero/aerodelta/{cname}"
+        prods = []
+        for t in c["terms"]:
+            node = parse_regressor(t["regressor"])
+            tab = w.table2(t, alpha_p, flap_p)
+            if node.op == "const" and node.value == 1.0:
+                prods.append(f"    <!-- {t['name']} * 1 -->\n    {tab}")
+            else:
+                prods.append(
+                    f"    <!-- {t['name']} * {escape(t['regressor'])} -->\n"
+                    f"    <product>{tab}\n      {w.expr(node)}</product>"
+                )
+        fns.append(
+            f'  <function name="{base}/delta">\n    <description>Δ{cname} before blending '
+            f"(thesis Eq. 3.11)</description>\n    <sum>\n" + "\n".join(prods) + "\n    </sum>\n"
+            "  </function>"
+        )
+        fns.append(
+            f'  <function name="{base}/alpha_l">\n    {w.table1(c["alpha_l_deg"], flap_p)}\n'
+            f'  </function>\n  <function name="{base}/alpha_u">\n'
+            f"    {w.table1(c['alpha_u_deg'], flap_p)}\n  </function>"
+        )
+        la, ua = f"<property>{base}/alpha_l</property>", f"<property>{base}/alpha_u</property>"
+        fns.append(
+            f'  <function name="{base}/w">\n    <description>blend weight (thesis Eq. 3.12)'
+            "</description>\n    <min><value>1</value><max><value>0</value><quotient>"
+            f"<difference><property>{alpha_p}</property>{la}</difference>"
+            f"<max><difference>{ua}{la}</difference><value>1e-300</value></max>"
+            "</quotient></max></min>\n  </function>"
+        )
+        fns.append(
+            f'  <function name="{base}/delta-blended">\n    <description>w Δ{cname}: the '
+            f"increment to add to the qualified {cname}</description>\n    <product>"
+            f"<property>{base}/w</property><property>{base}/delta</property></product>\n"
+            "  </function>"
+        )
+        total = "delta-blended"
+        if qspec is not None:
+            fns.append(_qualified_functions(w, cname, qspec, done))
+            fns.append(
+                f'  <function name="{base}/extended">\n    <description>extended {cname} '
+                f"(thesis Eq. 3.12)</description>\n    <sum><property>{base}/qualified</property>"
+                f"<property>{base}/delta-blended</property></sum>\n  </function>"
+            )
+            total = "extended"
+        axis, length = _AXES[cname]
+        axis = side_axis if axis == "SIDE" else axis
+        ref = "<property>aero/qbar-psf</property><property>metrics/Sw-sqft</property>"
+        if length:
+            ref += f"<property>{length}</property>"
+        kind = "moment" if length else "force"
+        unit = "ft lbf" if length else "lbf"
+        axes.setdefault(axis, []).append(
+            f'    <function name="aero/{kind}/aerodelta-{cname}">\n'
+            f"      <description>{'extended' if qspec else 'extended-model increment of'} "
+            f"{cname} ({unit})</description>\n"
+            f"      <product>{ref}<property>{base}/{total}</property></product>\n"
+            "    </function>"
+        )
+    mapping = "\n".join(
+        f"    {ch:<14} {p}" for ch, p in jsbsim_properties(model, properties).items()
+    )
+    decl = "\n".join(f'  <property value="0">{p}</property>' for p in w.declared)
+    prov = spec.get("provenance") or {}
+    header = (
+        '<?xml version="1.0"?>\n<!--\n  aerodelta extended-model increments (thesis Eq. 3.12), '
+        f"written by {escape(str(prov.get('library', 'aerodelta')))}; model data sha256 "
+        f"{escape(str(prov.get('data_sha256', '?')))}.\n  Add these functions to the aircraft's "
+        "own aerodynamics (the qualified model).\n  Channels and the JSBSim properties they "
+        "read (aerodelta/... ones are declared here with value 0:\n  drive them from the "
+        "aircraft, signs as in the Etkin convention):\n" + escape(mapping) + "\n-->\n"
+    )
+    axes_xml = "\n".join(
+        f'  <axis name="{a}">\n' + "\n".join(fs) + "\n  </axis>" for a, fs in axes.items()
+    )
+    parts = [decl, *w.channel_fns, *fns, axes_xml]
+    return header + "<aerodynamics>\n" + "\n".join(p for p in parts if p) + "\n</aerodynamics>\n"
+
+
+def jsbsim_properties(
+    model: DeltaModel, properties: Mapping[str, str] | None = None
+) -> dict[str, str]:
+    """Channel -> the JSBSim property the export of ``model`` reads for it, followed by
+    ``= definition`` when the export defines that property as a function (a product of
+    mapped properties, or a derived channel such as ``ct_diff``)."""
+    w = _Writer(model, properties or {})
+    for ch in model.input_columns:
+        w.channel(ch)
+    out = {}
+    for ch, prop in w.channel_prop.items():
+        if prop.startswith("aero/aerodelta/in/"):
+            defn = w.props.get(ch) or DERIVED_CHANNELS.get(ch, "")
+            out[ch] = f"{prop} = {defn}"
+        else:
+            out[ch] = prop
+    return out
+
+
+def export_jsbsim(
+    path: str | PathLike[str],
+    model: DeltaModel,
+    properties: Mapping[str, str] | None = None,
+    *,
+    side_axis: str = "SIDE",
+    qualified: bool = False,
+) -> str:
+    """Write :func:`jsbsim_xml` to ``path`` atomically; returns the text."""
+    text = jsbsim_xml(model, properties, side_axis=side_axis, qualified=qualified)
+    write_atomic(path, text)
+    return text

@@ -1,0 +1,341 @@
+"""The extended model (qualified + blended Δ, thesis Eq. 3.12) exported to DAVE-ML and JSBSim
+equals the engine: the engine's ADX-37 qualified model (``aero_core::aircraft``) plus
+``aero_core::delta_model`` at random states, checked by reading the DAVE-ML file back and by
+evaluating the JSBSim functions inside JSBSim itself (the ``jsbsim`` package)."""
+
+from __future__ import annotations
+
+import shutil
+from pathlib import Path
+from typing import Any
+
+import jsbsim
+import numpy as np
+import polars as pl
+import pytest
+
+import aerodelta as ad
+from aerodelta import _core
+from aerodelta.cli import main
+from aerodelta.daveml import write_example_model
+from aerodelta.export import export_extended_daveml, extended_daveml_text
+from aerodelta.fit import DEFAULT_STRUCTURES
+from aerodelta.jsbsim import DEFAULT_PROPERTIES, export_jsbsim, jsbsim_xml
+from aerodelta.model import DeltaModel
+
+FIXTURE = Path(__file__).parent / "data" / "jsbsim" / "aircraft" / "aerodelta_fixture"
+FLAPS = [0.0, 10.0, 20.0]
+
+
+def synthetic_model(flaps: list[float] = FLAPS, extra: bool = False) -> DeltaModel:
+    """Every default structure term with seeded random tables; blend limits vary per flap,
+    one flap with alpha_l == alpha_u (a step). ``extra`` adds terms using every regressor
+    function."""
+    rng = np.random.default_rng(7)
+    coefs: dict[str, Any] = {}
+    for c, terms in DEFAULT_STRUCTURES.items():
+        ts = list(terms)
+        if extra and c == "Cl":
+            ts += [
+                ("dCl_f1", "pos(beta_deg - 2) + neg(da_deg) * step(rhat)"),
+                ("dCl_f2", "-min(phat, 0.01) / 2 + max(dr_deg, -1) ^ 2"),
+                ("dCl_f3", "abs(beta_deg) * sqrt(abs(rhat)) + sin(phat) - cos(rhat) * exp(phat)"),
+            ]
+        out = []
+        for name, reg in ts:
+            alpha = np.sort(np.concatenate([[-4.0, 24.0], rng.uniform(-3.0, 23.0, 9)]))
+            scale = 0.001 if reg != "1" else 0.01
+            out.append(
+                {"name": name, "regressor": reg, "alpha_deg": alpha.tolist(),
+                 "values": (scale * rng.normal(size=(len(flaps), alpha.size))).tolist()}
+            )  # fmt: skip
+        lo = [8.0 + 0.5 * k for k in range(len(flaps))]
+        hi = [v + (0.0 if k == 1 else 2.0 + k) for k, v in enumerate(lo)]
+        coefs[c] = {"terms": out, "alpha_l_deg": lo, "alpha_u_deg": hi}
+    return DeltaModel.from_spec(
+        {"schema": "aerodelta.model/1", "flaps_deg": flaps, "coefficients": coefs}
+    )
+
+
+def random_states(n: int, seed: int = 1, flaps: list[float] = FLAPS) -> dict[str, np.ndarray]:
+    """States spread over and beyond the tables, flaps at and between settings."""
+    rng = np.random.default_rng(seed)
+    return {
+        "alpha_deg": rng.uniform(-8.0, 30.0, n),
+        "flap_deg": rng.choice([*flaps, 5.0, 13.0, -3.0, flaps[-1] + 4.0], n),
+        "beta_deg": rng.uniform(-15.0, 15.0, n),
+        "phat": rng.normal(0.0, 0.02, n),
+        "qhat": rng.normal(0.0, 0.01, n),
+        "rhat": rng.normal(0.0, 0.02, n),
+        "alphadot_dps": rng.uniform(-10.0, 10.0, n),
+        "betadot_dps": rng.uniform(-10.0, 10.0, n),
+        "da_deg": rng.uniform(-20.0, 20.0, n),
+        "de_deg": rng.uniform(-10.0, 10.0, n),
+        "dr_deg": rng.uniform(-20.0, 20.0, n),
+        "dsl_deg": np.where(rng.random(n) < 0.5, rng.uniform(0.0, 30.0, n), 0.0),
+        "dsr_deg": np.where(rng.random(n) < 0.5, rng.uniform(0.0, 30.0, n), 0.0),
+        "ct_left": rng.uniform(0.0, 0.6, n),
+        "ct_right": rng.uniform(0.0, 0.6, n),
+        "tas_mps": rng.uniform(50.0, 110.0, n),
+    }
+
+
+def engine_delta(model: DeltaModel, s: dict[str, np.ndarray]) -> pl.DataFrame:
+    """The engine's Δ with derived channels computed here (as ``aerodelta.preprocess``)."""
+    frame = pl.DataFrame(
+        {**s, "ct_diff": s["ct_left"] - s["ct_right"], "ds_deg": s["dsr_deg"] - s["dsl_deg"]}
+    )
+    return model.evaluate(frame)
+
+
+@pytest.fixture(scope="module")
+def model() -> DeltaModel:
+    return synthetic_model()
+
+
+@pytest.fixture(scope="module")
+def fitted(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A model written by ``aerodelta fit`` (through the quick demo)."""
+    out = tmp_path_factory.mktemp("demo")
+    assert main(["demo", "--quick", "--out", str(out)]) == 0
+    return out / "model.json"
+
+
+def test_daveml_equals_engine_qualified_plus_blended_delta(model: DeltaModel, tmp_path: Path):
+    out = export_extended_daveml(tmp_path / "ext.dml", model)
+    assert out.max_rel_error <= 1e-12
+    checks = ad.check_daveml(tmp_path / "ext.dml")
+    assert checks["pass"].all() and checks.filter(pl.col("kind") == "output").height > 100
+    # The check cases cover the blend ramp, both sides of it and flaps between settings.
+    dave = ad.load_daveml(tmp_path / "ext.dml")
+    shots = [s for s in checks["shot"].unique().to_list()]
+    assert any("flap 5," in s for s in shots) and any("beyond tables" in s for s in shots)
+    s = random_states(4000)
+    got = dave.evaluate(
+        {
+            "alpha_deg": s["alpha_deg"], "beta_rad": np.radians(s["beta_deg"]),
+            "phat": s["phat"], "qhat": s["qhat"], "rhat": s["rhat"], "alphadot_hat": 0.0,
+            "alphadot_dps": s["alphadot_dps"], "betadot_dps": s["betadot_dps"],
+            "de_rad": np.radians(s["de_deg"]), "da_deg": s["da_deg"], "dr_deg": s["dr_deg"],
+            "dsl_deg": s["dsl_deg"], "dsr_deg": s["dsr_deg"], "flap_deg": s["flap_deg"],
+            "ct_left": s["ct_left"], "ct_right": s["ct_right"],
+        },
+        outputs=["Cl_ext", "Cn_ext", "CY_ext", "w_Cl", "dCl"],
+    )  # fmt: skip
+    cl, cn, cy = _core.qualified_lateral_adx37(
+        {**{k: np.ascontiguousarray(v) for k, v in s.items()}, "alphadot_dps": np.zeros(4000)}
+    )
+    d = engine_delta(model, s)
+    w = d["w_Cl"].to_numpy()
+    assert ((w > 0) & (w < 1)).sum() > 50 and (w == 0).any() and (w == 1).any()
+    for c, q in (("Cl", cl), ("Cn", cn), ("CY", cy)):
+        want = q + d[f"d{c}_blended"].to_numpy()
+        np.testing.assert_allclose(got[f"{c}_ext"].to_numpy(), want, rtol=1e-12, atol=1e-15)
+    np.testing.assert_allclose(got["w_Cl"].to_numpy(), w, rtol=0, atol=1e-15)
+
+
+def test_daveml_user_qualified_file_with_mapping(tmp_path: Path) -> None:
+    base = tmp_path / "example.dml"
+    write_example_model(base)  # names its rates p_hat, r_hat
+    model = synthetic_model()
+    out = extended_daveml_text(model, base, channel_map={"phat": "p_hat", "rhat": "r_hat"})
+    dave = ad.DaveModel.from_string(out.text, "merged")
+    assert dave.run_checks()["pass"].all()
+    assert {"p_hat", "beta_deg", "ct_left", "dsl_deg"} <= set(dave.inputs)
+    assert "phat" not in dave.inputs  # computed from p_hat
+    s = random_states(500, seed=3)
+    inputs = {
+        k: s[k]
+        for k in ("alpha_deg", "beta_deg", "da_deg", "dr_deg", "flap_deg", "ct_left", "ct_right",
+                  "dsl_deg", "dsr_deg", "alphadot_dps", "betadot_dps")
+    } | {"p_hat": s["phat"], "r_hat": s["rhat"]}  # fmt: skip
+    got = dave.evaluate(inputs, outputs=["Cl_ext", "Cn_ext", "CY_ext"])
+    qual = ad.DaveModel(base).evaluate(
+        {k: inputs[k] for k in ("alpha_deg", "beta_deg", "p_hat", "r_hat", "da_deg", "dr_deg")}
+    )
+    d = engine_delta(model, s)
+    for c in ("Cl", "Cn", "CY"):
+        want = qual[c].to_numpy() + d[f"d{c}_blended"].to_numpy()
+        np.testing.assert_allclose(got[f"{c}_ext"].to_numpy(), want, rtol=1e-12, atol=1e-15)
+
+
+def test_daveml_errors_name_the_problem(tmp_path: Path) -> None:
+    base = tmp_path / "example.dml"
+    write_example_model(base)
+    with pytest.raises(ad.DataError, match=r"no variable 'Cl_total' for coefficient Cl"):
+        extended_daveml_text(synthetic_model(), base, coefficients={"Cl": "Cl_total"})
+
+
+def test_every_regressor_function_single_flap(tmp_path: Path) -> None:
+    """DAVE-ML MathML and JSBSim forms of pos, neg, step, min, max, ^, /, unary minus, abs,
+    sqrt, sin, cos, exp; a model of one flap setting (JSBSim tables padded)."""
+    model = synthetic_model(flaps=[10.0], extra=True)
+    out = extended_daveml_text(model)
+    assert out.max_rel_error <= 1e-12
+    jsb = _load_jsbsim(tmp_path, jsbsim_xml(model, _TEST_PROPS))
+    s = random_states(40, seed=5, flaps=[10.0])
+    _compare_jsbsim(jsb, model, s)
+
+
+# -- JSBSim -------------------------------------------------------------------------------
+
+_TEST_PROPS = {ch: f"test/{ch}" for ch in DEFAULT_PROPERTIES}
+
+
+def _load_jsbsim(tmp: Path, xml: str) -> Any:
+    root = tmp / "jsbsim"
+    dest = root / "aircraft" / "aerodelta_fixture"
+    dest.mkdir(parents=True)
+    shutil.copy(FIXTURE / "aerodelta_fixture.xml", dest)
+    (dest / "delta.xml").write_text(xml)
+    fdm = jsbsim.FGFDMExec(str(root))
+    fdm.set_debug_level(0)
+    assert fdm.load_model("aerodelta_fixture")
+    return fdm
+
+
+def _compare_jsbsim(fdm: Any, model: DeltaModel, s: dict[str, np.ndarray]) -> None:
+    n = len(s["alpha_deg"])
+    want = engine_delta(model, s)
+    for c in model.coefficients:
+        got = {"delta": [], "w": [], "delta-blended": []}
+        for i in range(n):
+            for ch in DEFAULT_PROPERTIES:
+                if ch in s:
+                    fdm[f"test/{ch}"] = float(s[ch][i])
+            for k, vals in got.items():
+                vals.append(fdm[f"aero/aerodelta/{c}/{k}"])
+        np.testing.assert_allclose(got["delta"], want[f"d{c}"], rtol=1e-9, atol=1e-14)
+        np.testing.assert_allclose(got["w"], want[f"w_{c}"], rtol=0, atol=1e-12)
+        np.testing.assert_allclose(
+            got["delta-blended"], want[f"d{c}_blended"], rtol=1e-9, atol=1e-14
+        )
+
+
+def test_jsbsim_functions_equal_engine(model: DeltaModel, tmp_path: Path) -> None:
+    """The exported functions evaluated by JSBSim (FGFunction/FGTable) at states set on the
+    property tree, against ``aero_core``."""
+    fdm = _load_jsbsim(tmp_path, jsbsim_xml(model, _TEST_PROPS))
+    _compare_jsbsim(fdm, model, random_states(300, seed=11))
+
+
+def test_jsbsim_default_properties_in_a_flying_state(fitted: Path, tmp_path: Path) -> None:
+    """Default property names: JSBSim's own alpha, beta, p b/2V, r b/2V and qbar after its
+    initial conditions; the axis moments equal qbar S b w ΔC of the engine."""
+    model = DeltaModel.load(fitted)
+    export_jsbsim(tmp_path / "delta.xml", model)
+    fdm = _load_jsbsim(tmp_path, (tmp_path / "delta.xml").read_text())
+    rows = []
+    for alpha, beta, flap, p, r, da in [
+        (4.0, 2.0, 0.0, 0.05, -0.02, 3.0),
+        (9.0, -4.0, 7.5, -0.1, 0.04, -6.0),
+        (14.0, 6.0, 15.0, 0.2, 0.1, 12.0),
+        (19.0, -8.0, 35.0, -0.05, 0.0, -3.0),
+    ]:
+        fdm["ic/vt-kts"] = 120.0
+        fdm["ic/h-sl-ft"] = 5000.0
+        fdm["ic/alpha-deg"] = alpha
+        fdm["ic/beta-deg"] = beta
+        fdm["ic/p-rad_sec"] = p
+        fdm["ic/r-rad_sec"] = r
+        fdm["aerodelta/da-deg"] = da
+        fdm["aerodelta/ct-left"] = 0.2
+        fdm["aerodelta/ct-right"] = 0.1
+        fdm["fcs/flap-pos-deg"] = flap
+        assert fdm.run_ic()
+        fdm["fcs/flap-pos-deg"] = flap
+        st = {
+            "alpha_deg": fdm["aero/alpha-deg"], "beta_deg": fdm["aero/beta-deg"],
+            "flap_deg": fdm["fcs/flap-pos-deg"],
+            "phat": fdm["velocities/p-aero-rad_sec"] * fdm["aero/bi2vel"],
+            "rhat": fdm["velocities/r-aero-rad_sec"] * fdm["aero/bi2vel"],
+            "alphadot_dps": fdm["aero/alphadot-deg_sec"],
+            "betadot_dps": fdm["aero/betadot-deg_sec"], "da_deg": da, "dr_deg": 0.0,
+            "dsl_deg": 0.0, "dsr_deg": 0.0, "ct_left": 0.2, "ct_right": 0.1,
+        }  # fmt: skip
+        assert abs(st["alpha_deg"] - alpha) < 1e-6 and abs(st["phat"]) > 0
+        qsb = fdm["aero/qbar-psf"] * fdm["metrics/Sw-sqft"] * fdm["metrics/bw-ft"]
+        rows.append(
+            st | {"roll": fdm["aero/moment/aerodelta-Cl"] / qsb,
+                  "yaw": fdm["aero/moment/aerodelta-Cn"] / qsb,
+                  "side": fdm["aero/force/aerodelta-CY"] * fdm["metrics/bw-ft"] / qsb}
+        )  # fmt: skip
+    df = pl.DataFrame(rows)
+    d = engine_delta(model, {k: df[k].to_numpy() for k in df.columns})
+    np.testing.assert_allclose(df["roll"], d["dCl_blended"], rtol=1e-9, atol=1e-14)
+    np.testing.assert_allclose(df["yaw"], d["dCn_blended"], rtol=1e-9, atol=1e-14)
+    np.testing.assert_allclose(df["side"], d["dCY_blended"], rtol=1e-9, atol=1e-14)
+    assert np.abs(d["dCl_blended"].to_numpy()).max() > 1e-4
+
+
+def test_cli_export_of_a_fitted_model(fitted: Path, tmp_path: Path, capsys) -> None:
+    dml, xml = tmp_path / "ext.dml", tmp_path / "ext.xml"
+    args = ["export", "--model", str(fitted), "--daveml", str(dml), "--jsbsim", str(xml)]
+    assert main([*args, "--property", "da_deg=-1*fcs/left-aileron-pos-deg"]) == 0
+    text = capsys.readouterr().out
+    assert "Cl_ext" in text and "da_deg" in text and "fcs/left-aileron-pos-deg" in text
+    assert main(["check-daveml", str(dml)]) == 0
+    assert '<axis name="ROLL">' in xml.read_text()
+    assert main([*args, "--jsbsim-qualified", "--side-axis", "Y"]) == 0
+    assert "aero/aerodelta/Cl/qualified" in xml.read_text()
+    assert '<axis name="Y">' in xml.read_text()
+    assert not list(tmp_path.glob("*.tmp-*"))
+    assert main(["export-qualified", str(tmp_path / "q.dml")]) == 0
+    q = tmp_path / "q.dml"
+    assert (
+        main(["export", "--model", str(fitted), "--qualified", str(q), "--daveml", str(dml)]) == 0
+    )
+
+
+def test_jsbsim_body_axis_side_force_and_moments(fitted: Path, tmp_path: Path) -> None:
+    """With ``side_axis="Y"`` JSBSim's total body-axis aero force and moments (only the export's
+    functions act on the fixture; AERORP at the CG) equal qbar S (b) w ΔC of the engine."""
+    model = DeltaModel.load(fitted)
+    fdm = _load_jsbsim(tmp_path, jsbsim_xml(model, side_axis="Y"))
+    fdm["ic/vt-kts"], fdm["ic/h-sl-ft"] = 110.0, 3000.0
+    fdm["ic/alpha-deg"], fdm["ic/beta-deg"], fdm["ic/p-rad_sec"] = 16.0, 5.0, 0.1
+    fdm["aerodelta/dr-deg"] = 4.0
+    fdm["fcs/flap-pos-deg"] = 10.0
+    assert fdm.run_ic()
+    st = {
+        "alpha_deg": [fdm["aero/alpha-deg"]], "beta_deg": [fdm["aero/beta-deg"]],
+        "flap_deg": [10.0], "phat": [fdm["velocities/p-aero-rad_sec"] * fdm["aero/bi2vel"]],
+        "rhat": [fdm["velocities/r-aero-rad_sec"] * fdm["aero/bi2vel"]],
+        "alphadot_dps": [fdm["aero/alphadot-deg_sec"]],
+        "betadot_dps": [fdm["aero/betadot-deg_sec"]], "da_deg": [0.0], "dr_deg": [4.0],
+        "dsl_deg": [0.0], "dsr_deg": [0.0], "ct_left": [0.0], "ct_right": [0.0],
+    }  # fmt: skip
+    d = engine_delta(model, {k: np.asarray(v) for k, v in st.items()})
+    qs = fdm["aero/qbar-psf"] * fdm["metrics/Sw-sqft"]
+    b = fdm["metrics/bw-ft"]
+    assert qs > 0
+    np.testing.assert_allclose(fdm["forces/fby-aero-lbs"], qs * d["dCY_blended"][0], rtol=1e-9)
+    np.testing.assert_allclose(fdm["moments/l-aero-lbsft"], qs * b * d["dCl_blended"][0], rtol=1e-9)
+    np.testing.assert_allclose(fdm["moments/n-aero-lbsft"], qs * b * d["dCn_blended"][0], rtol=1e-9)
+
+
+def test_jsbsim_with_the_qualified_model(model: DeltaModel, tmp_path: Path) -> None:
+    """``qualified=True``: the ADX-37 qualified CY, Cl, Cn (2-D and 3-D tables, clamped
+    sideslip and thrust coefficients) evaluated by JSBSim equal the engine's
+    (``aero_core::aircraft``), and the extended coefficient is qualified + w ΔC."""
+    fdm = _load_jsbsim(tmp_path, jsbsim_xml(model, _TEST_PROPS, qualified=True))
+    n = 200
+    s = random_states(n, seed=13)
+    s["beta_deg"] = np.random.default_rng(2).uniform(-50.0, 50.0, n)  # beyond the 40 deg clamp
+    s["ct_left"] = np.random.default_rng(3).uniform(-0.3, 1.8, n)
+    s["beta_rad"] = np.radians(s["beta_deg"])
+    cols = {k: np.ascontiguousarray(v) for k, v in s.items() if k != "beta_rad"}
+    cl, cn, cy = _core.qualified_lateral_adx37({**cols, "alphadot_dps": np.zeros(n)})
+    d = engine_delta(model, s)
+    got: dict[str, list[float]] = {f"{c}/{k}": [] for c in model.coefficients
+                                   for k in ("qualified", "extended")}  # fmt: skip
+    for i in range(n):
+        for ch in DEFAULT_PROPERTIES:
+            if ch in s:
+                fdm[f"test/{ch}"] = float(s[ch][i])
+        for k, vals in got.items():
+            vals.append(fdm[f"aero/aerodelta/{k}"])
+    for c, q in (("Cl", cl), ("Cn", cn), ("CY", cy)):
+        np.testing.assert_allclose(got[f"{c}/qualified"], q, rtol=1e-9, atol=1e-14)
+        want = q + d[f"d{c}_blended"].to_numpy()
+        np.testing.assert_allclose(got[f"{c}/extended"], want, rtol=1e-9, atol=1e-14)
