@@ -21,9 +21,8 @@ from pathlib import Path
 import numpy as np
 import statsmodels.api as sm
 
-import aerodelta.diagnosis.core as core
 from aerodelta.campaign import generate_campaign
-from aerodelta.diagnosis import diagnose
+from aerodelta.diagnosis import core, diagnose
 from aerodelta.diagnosis.cv import HatGrid
 from aerodelta.diagnosis.data import load_inputs
 from aerodelta.diagnosis.regressors import design_columns, measurement_columns
