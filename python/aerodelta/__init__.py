@@ -25,6 +25,7 @@ from aerodelta.daveml import (
     write_daveml,
     write_example_model,
 )
+from aerodelta.diagnosis import DiagnoseConfig, Diagnosis, diagnose
 from aerodelta.exceptions import (
     AerodeltaError,
     AeroIOError,
@@ -35,7 +36,6 @@ from aerodelta.exceptions import (
     ParseError,
     TooLittleDataError,
 )
-from aerodelta.diagnosis import DiagnoseConfig, Diagnosis, diagnose
 from aerodelta.export import export_extended_daveml, export_qualified_daveml
 from aerodelta.fit import FitConfig, FitResult, fit, validate_model
 from aerodelta.ingest import IngestResult, ingest
