@@ -68,7 +68,7 @@ class DiagnoseConfig:
     where_bin_deg
         Alpha bin width of the gap map, deg.
     where_alpha
-        Familywise level of the gap map's tests (Bonferroni over its cells).
+        False-discovery rate of the gap map's tests (Benjamini-Hochberg over its cells).
     measurement
         Test the measurement effects (vane biases, control lag, time skew, accelerometer).
     per_flap
@@ -82,7 +82,7 @@ class DiagnoseConfig:
     knot_deg: float = 1.0
     selection: SelectionConfig = field(default_factory=SelectionConfig)
     where_bin_deg: float = 2.0
-    where_alpha: float = 0.01
+    where_alpha: float = 0.05
     measurement: bool = True
     per_flap: bool = False
     seed: int = 0

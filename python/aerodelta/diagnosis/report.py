@@ -84,7 +84,8 @@ def summary_text(result: dict[str, Any]) -> str:
 
 def write_outputs(result: dict[str, Any], predictions: pl.DataFrame, out: str | Path) -> list[Path]:
     """Write ``diagnosis.json``, ``diagnosis.txt``, ``gap_map.csv``, ``effects.csv``,
-    ``shrink.csv`` and ``predictions.parquet`` into ``out`` (atomically, file by file)."""
+    ``shrink.csv``, the figures ``gap_map.png`` and ``shrink.png`` and ``predictions.parquet``
+    into ``out`` (atomically, file by file)."""
     d = Path(out)
     d.mkdir(parents=True, exist_ok=True)
     paths = []
@@ -119,6 +120,11 @@ def write_outputs(result: dict[str, Any], predictions: pl.DataFrame, out: str | 
         pl.DataFrame(rows, infer_schema_length=None).write_csv(tmp)
         tmp.replace(p)
         paths.append(p)
+    from aerodelta.diagnosis.plots import gap_map_figure, shrink_figure  # noqa: PLC0415
+    from aerodelta.rolloff_plots import save_figure  # noqa: PLC0415 - matplotlib on demand
+
+    paths.append(save_figure(gap_map_figure(result), d / "gap_map.png"))
+    paths.append(save_figure(shrink_figure(result), d / "shrink.png"))
     p = d / "predictions.parquet"
     tmp = p.with_name(f"{p.name}.tmp-{os.getpid()}")
     predictions.write_parquet(tmp)

@@ -77,8 +77,9 @@ def gap_map(
     the cell; a t test over maneuvers), which is honest under coloured residuals; the RMS is
     tested against the noise floor, the flap's pre-stall mean square gap after removing each
     maneuver's mean, by a t test over maneuvers of the excess mean square. Cells are
-    significant when either test passes at ``alpha`` Bonferroni-corrected over the cells, and
-    the effect is material (|bias| or RMS excess at least half the noise floor's RMS).
+    significant when the smaller p (doubled for the two tests) passes the Benjamini-Hochberg
+    rule at false-discovery rate ``alpha`` over all cells, and the effect is material (|bias|
+    at least half the noise floor's RMS, or a mean square 25 % above the floor).
     """
     df = pl.DataFrame(
         {
@@ -123,7 +124,7 @@ def gap_map(
         se_e = float(ex.std(ddof=1) / np.sqrt(k)) if k > 1 else float("inf")
         t_e = float(ex.mean()) / se_e if se_e > 0 else 0.0
         p_e = float(student_t_sf(t_e, k - 1))
-        p = min(1.0, min(p_b, p_e) * n_cells)
+        p = min(1.0, 2.0 * min(p_b, p_e))  # two tests per cell: Bonferroni over the pair
         material = abs(bias) >= 0.5 * np.sqrt(floor) or (rms * rms - floor) >= 0.25 * floor
         out.append(
             {
@@ -137,9 +138,18 @@ def gap_map(
                 "bias": bias,
                 "noise_floor_rms": float(np.sqrt(floor)),
                 "p_value": p,
-                "significant": bool(p < alpha and material),
+                "material": bool(material),
             }
         )
+    # Benjamini-Hochberg over the cells: the false-discovery rate among the cells called
+    # significant is at most ``alpha`` (the number of bins tested is accounted for).
+    ps = np.array([c["p_value"] for c in out])
+    order = np.argsort(ps)
+    passed = ps[order] <= alpha * (np.arange(1, ps.size + 1) / max(n_cells, 1))
+    k = int(np.max(np.flatnonzero(passed))) + 1 if passed.any() else 0
+    cut = ps[order][k - 1] if k else -1.0
+    for c in out:
+        c["significant"] = bool(c["p_value"] <= cut and c.pop("material"))
     return out
 
 
