@@ -217,6 +217,11 @@ def _effect_rows(
                 "parameters": _global_params(design, theta_full, s.candidate),
             }
         )
+    # the significant effects ranked by the share of the gap each removes (a timing effect
+    # reported from the nuisance terms competes with the greedy steps on equal terms)
+    out.sort(key=lambda e: -e["shrink_fraction"])
+    for i, e in enumerate(out):
+        e["rank"] = i + 1
     # every other candidate, ranked by what it would remove at the last step
     rest = sorted(sel.final_scores.values(), key=lambda st: -st.gain)
     if sel.selected:
