@@ -112,6 +112,11 @@ def main() -> int:
         f"held-out shrink >= 90 % of the oracle's {pct(s['shrink_ge_90pct_of_oracle'])} of "
         f"{s['shrink_n']} (floor: in >= 90 % of cases)"
     )
+    if s["unmeasurable_singles"]:
+        print(
+            "singles with no measurable effect on C_l, C_n, C_Y (left out of the rates): "
+            + ", ".join(f"{k} ({v})" for k, v in s["unmeasurable_singles"].items())
+        )
     print("confusion (withheld effect -> verdict of each coefficient it affects):")
     for e, row in sorted(s["confusion"].items()):
         print(f"  {e:<24} " + ", ".join(f"{v}: {n}" for v, n in sorted(row.items())))

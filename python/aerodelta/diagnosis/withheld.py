@@ -202,8 +202,14 @@ def summarize(cases: list[CaseResult]) -> dict[str, Any]:
     ]
     by_mag: dict[str, list[bool]] = {}
     confusion: dict[str, dict[str, int]] = {}
+    unmeasurable: dict[str, int] = {}
     for c in singles:
         ((e, m),) = c.effects.items()
+        if not c.affected.get(e):
+            # no coefficient moves measurably (e.g. an alpha vane bias on a lateral model):
+            # not counted as found; listed apart
+            unmeasurable[e] = unmeasurable.get(e, 0) + 1
+            continue
         key = "design" if m >= 0.99 else ("half" if m >= 0.49 else "quarter")
         by_mag.setdefault(key, []).append(c.found.get(e, False))
         row = confusion.setdefault(e, {})
@@ -232,6 +238,7 @@ def summarize(cases: list[CaseResult]) -> dict[str, Any]:
         "shrink_ge_90pct_of_oracle": rate([v >= 0.9 for v in shrink]),
         "shrink_n": len(shrink),
         "confusion": confusion,
+        "unmeasurable_singles": unmeasurable,
     }
 
 
