@@ -40,8 +40,12 @@
 //! regressions, the folds and the bootstrap of [`crate::bootstrap`] cost
 //! $O(p^3)$ per bin, independent of the number of samples.
 
-use crate::error::{AeroError, Result};
-use crate::identify::{BinnedFit, Design};
+use crate::bootstrap::{bootstrap_smoothed, Bootstrap, BootstrapOptions};
+use crate::error::{AeroError, Result, ResultExt};
+use crate::identify::{
+    fit_bins, smooth_parameters, BinnedFit, Design, IdentifyOptions, SmoothOptions,
+    SmoothedParameter,
+};
 use crate::sim::rng::Stream;
 
 /// Per-maneuver sufficient statistics of one bin.
@@ -843,10 +847,79 @@ pub fn subset_design(design: &Design, cols: &[usize]) -> Design {
     }
 }
 
+/// The identification of one coefficient at one flap setting with an optional
+/// structure selection and bootstrap: what [`identify_flap`] returns.
+#[derive(Debug, Clone)]
+pub struct FlapFit {
+    /// The selection over the pool (`None`: the pool is the structure).
+    pub selection: Option<Selection>,
+    /// The pool's per-bin fit the selection worked on (`None` without selection).
+    pub pool_fit: Option<BinnedFit>,
+    /// Pool columns of the final structure, increasing.
+    pub chosen: Vec<usize>,
+    /// Per-bin fit of the final structure.
+    pub fit: BinnedFit,
+    /// Its smoothed parameters.
+    pub smoothed: Vec<SmoothedParameter>,
+    /// Bootstrap bands (`None` when not asked).
+    pub bootstrap: Option<Bootstrap>,
+}
+
+/// Identify one coefficient at one flap setting: optionally select the
+/// structure from the `pool` ([`select_structure`]), fit the chosen
+/// regressors bin by bin ([`fit_bins`]), smooth them
+/// ([`smooth_parameters`]) and optionally bootstrap the smoothed parameters
+/// over maneuvers ([`bootstrap_smoothed`]).
+///
+/// # Errors
+/// Those of the steps, with the step named.
+#[allow(clippy::too_many_arguments)]
+pub fn identify_flap(
+    pool: &Design,
+    z: &[f64],
+    alpha_deg: &[f64],
+    maneuver: &[u64],
+    identify: &IdentifyOptions,
+    select: Option<&SelectOptions>,
+    smooth: &SmoothOptions,
+    boot: Option<&BootstrapOptions>,
+) -> Result<FlapFit> {
+    let (selection, pool_fit, chosen) = match select {
+        Some(so) => {
+            let pf = fit_bins(pool, z, alpha_deg, maneuver, identify)
+                .context("structure selection, fit of the candidate pool")?;
+            let sel = select_structure(pool, z, maneuver, &pf, so)?;
+            let chosen = sel.chosen.clone();
+            (Some(sel), Some(pf), chosen)
+        }
+        None => (None, None, (0..pool.ncols()).collect()),
+    };
+    let design = if chosen.len() == pool.ncols() {
+        pool.clone()
+    } else {
+        subset_design(pool, &chosen)
+    };
+    let fit = fit_bins(&design, z, alpha_deg, maneuver, identify)?;
+    let smoothed = smooth_parameters(&fit, smooth)?;
+    let bootstrap = match boot {
+        Some(bo) => Some(
+            bootstrap_smoothed(&design, z, maneuver, &fit, smooth, bo).context("bootstrap")?,
+        ),
+        None => None,
+    };
+    Ok(FlapFit {
+        selection,
+        pool_fit,
+        chosen,
+        fit,
+        smoothed,
+        bootstrap,
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::identify::{fit_bins, IdentifyOptions};
 
     /// z = 0.002 + b(α) x1 - 0.03 x2 + noise, with x3, x4 pure noise regressors.
     fn data(n: usize, seed: u64) -> (Design, Vec<f64>, Vec<f64>, Vec<u64>) {
