@@ -902,9 +902,9 @@ pub fn identify_flap(
     let fit = fit_bins(&design, z, alpha_deg, maneuver, identify)?;
     let smoothed = smooth_parameters(&fit, smooth)?;
     let bootstrap = match boot {
-        Some(bo) => Some(
-            bootstrap_smoothed(&design, z, maneuver, &fit, smooth, bo).context("bootstrap")?,
-        ),
+        Some(bo) => {
+            Some(bootstrap_smoothed(&design, z, maneuver, &fit, smooth, bo).context("bootstrap")?)
+        }
         None => None,
     };
     Ok(FlapFit {

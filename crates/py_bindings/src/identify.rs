@@ -9,10 +9,10 @@ use aero_core::identify::{
     fit_bins, smooth_parameters, BinnedFit, Design, IdentifyOptions, SmoothOptions,
     SmoothedParameter,
 };
+use aero_core::partition::PartitionOptions;
 use aero_core::select::{
     identify_flap as identify_flap_core, CvScore, Method, SelectOptions, Selection,
 };
-use aero_core::partition::PartitionOptions;
 use aero_core::AeroError;
 use numpy::{IntoPyArray, PyArray1, PyReadonlyArray1};
 use pyo3::prelude::*;
@@ -131,7 +131,6 @@ fn identify_bins<'py>(
     })?;
     fit_dict(py, &fit, smoothed)
 }
-
 
 /// The per-bin fit and its smoothed parameters as a dict of flat arrays.
 fn fit_dict<'py>(
@@ -260,9 +259,15 @@ fn selection_dict<'py>(
     d.set_item("kappa", sel.kappa.clone().into_pyarray(py))?;
     d.set_item("fitted", sel.fitted.clone())?;
     d.set_item("count", sel.count.clone())?;
-    d.set_item("nested", sel.nested.iter().map(score_tuple).collect::<Vec<_>>())?;
+    d.set_item(
+        "nested",
+        sel.nested.iter().map(score_tuple).collect::<Vec<_>>(),
+    )?;
     d.set_item("full", score_tuple(&sel.full))?;
-    d.set_item("extra", sel.extra.iter().map(score_tuple).collect::<Vec<_>>())?;
+    d.set_item(
+        "extra",
+        sel.extra.iter().map(score_tuple).collect::<Vec<_>>(),
+    )?;
     d.set_item("chosen_k", sel.chosen_k)?;
     d.set_item("pool", fit_dict(py, pool, Vec::new())?)?;
     Ok(d)
