@@ -220,6 +220,8 @@ class FitConfig:
                 raise DataError(f"{p}: unknown setting '{k}'; valid settings are {sorted(known)}")
             if k in ("structures", "candidates"):
                 kwargs[k] = {c: [tuple(t) for t in terms] for c, terms in v.items()}
+            elif k == "selection":
+                kwargs[k] = None if str(v).lower() == "none" else v
             elif k == "stall_alpha_deg":
                 kwargs[k] = {float(f): float(a) for f, a in v.items()}
             else:
@@ -525,7 +527,7 @@ def _selection_rows(
         for j in range(npar)
     ]  # fmt: skip
     cv = []
-    labelled = [("selected", sel["nested"][sel["chosen_k"]]), ("full", sel["full"])]
+    labelled = [("selected", sel["pruned"]), ("full", sel["full"])]
     if default:
         labelled.append(("default", sel["extra"][0]))
     for label, (cols, rms, tic, mse, mse_se) in labelled:

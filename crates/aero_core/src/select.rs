@@ -33,7 +33,9 @@
 //!    structures "forced + the k most frequent", bin by bin; the smallest k
 //!    whose CV mean squared error is within one standard error of the best is
 //!    kept (the one-standard-error rule, Hastie, Tibshirani & Friedman 2009,
-//!    Section 7.10).
+//!    Section 7.10); then kept candidates are dropped one at a time while
+//!    that lowers the cross-validated error (backward elimination on the
+//!    held-out error).
 //!
 //! Everything after the per-bin row pass works on per-(bin, maneuver)
 //! augmented Gram matrices $[X\ z]^T[X\ z]$ ([`BinGrams`]), so the subset
@@ -522,8 +524,10 @@ pub struct Selection {
     pub extra: Vec<CvScore>,
     /// Chosen columns (increasing).
     pub chosen: Vec<usize>,
-    /// Index into `nested` of the chosen structure.
+    /// Index into `nested` of the structure chosen by the one-standard-error rule.
     pub chosen_k: usize,
+    /// Score of the final structure (`chosen`, after the backward pruning).
+    pub pruned: CvScore,
 }
 
 fn median(mut v: Vec<f64>) -> f64 {
@@ -809,12 +813,36 @@ pub fn select_structure(
             0.0
         };
     let chosen_k = nested.iter().position(|s| s.mse <= limit).unwrap_or(best);
+    // backward pruning by cross-validation: drop a kept candidate while its removal lowers
+    // the held-out error (confounded pairs, e.g. rudder and thrust asymmetry held against
+    // each other by the pilot, enter together by frequency but predict worse than one)
     let mut chosen = nested[chosen_k].columns.clone();
+    let mut current = nested[chosen_k].mse;
+    loop {
+        let trial = chosen
+            .iter()
+            .filter(|c| !opts.forced.contains(c))
+            .map(|&c| {
+                let cols: Vec<usize> = chosen.iter().copied().filter(|&x| x != c).collect();
+                score(&cols)
+            })
+            .filter(|s| s.mse.is_finite())
+            .min_by(|a, b| a.mse.total_cmp(&b.mse));
+        match trial {
+            Some(s) if s.mse < current => {
+                current = s.mse;
+                chosen = s.columns;
+            }
+            _ => break,
+        }
+    }
+    let pruned = score(&chosen);
     chosen.sort_unstable();
     let all: Vec<usize> = (0..p).collect();
     let full = score(&all);
     let extra = opts.extra.iter().map(|c| score(c)).collect();
     Ok(Selection {
+        pruned,
         selected,
         partial_f,
         correlation,

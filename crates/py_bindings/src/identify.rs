@@ -269,6 +269,7 @@ fn selection_dict<'py>(
         sel.extra.iter().map(score_tuple).collect::<Vec<_>>(),
     )?;
     d.set_item("chosen_k", sel.chosen_k)?;
+    d.set_item("pruned", score_tuple(&sel.pruned))?;
     d.set_item("pool", fit_dict(py, pool, Vec::new())?)?;
     Ok(d)
 }
