@@ -20,11 +20,16 @@
 //!
 //!    Neighbouring samples are correlated (the residuals are coloured), so the
 //!    white-residual F and PSE penalty overstate the information in $N$
-//!    samples. Both are scaled by the bin's variance inflation
-//!    $\kappa = \mathrm{median}_j\,(s_{colored,j}/s_j)^2 \ge 1$ of the full
-//!    pool fit (the coloured-residual standard errors of Morelli & Klein,
-//!    Eq. 5.80): $F/\kappa$ is compared with $F_{in}$, and the PSE penalty is
-//!    $\kappa\,\sigma^2_{max} k/N$ (the effective sample size is $N/\kappa$).
+//!    samples. Both are scaled by the bin's variance inflation $\kappa \ge 1$
+//!    of the full pool fit: $F/\kappa$ is compared with $F_{in}$, and the PSE
+//!    penalty is $\kappa\,\sigma^2_{max} k/N$ (the effective sample size is
+//!    $N/\kappa$). With coloured-residual standard errors in the pool fit
+//!    (Morelli & Klein, Eq. 5.80), $\kappa = \mathrm{median}_j\,(s_{colored,j}/s_j)^2$;
+//!    without (the fast path of [`identify_flap`]), the integrated
+//!    autocorrelation of the pool fit's residuals within maneuver segments,
+//!    $\kappa = 1 + 2\sum_{k=1}^{L}(1-\tfrac{k}{L+1})\rho_k$, $L = 50$ samples
+//!    (Bartlett window): the inflation of the variance of a mean, the case of
+//!    slowly varying regressors.
 //! 2. **Per flap**, each candidate's *selection frequency* (share of fitted
 //!    bins that selected it) orders the pool; candidates selected in fewer
 //!    than `min_bins` bins are dropped.
@@ -45,9 +50,10 @@
 use crate::bootstrap::{bootstrap_smoothed, Bootstrap, BootstrapOptions};
 use crate::error::{AeroError, Result, ResultExt};
 use crate::identify::{
-    fit_bins, smooth_parameters, BinnedFit, Design, IdentifyOptions, SmoothOptions,
-    SmoothedParameter,
+    adjacent_consistency, fit_bins, smooth_parameters, BinFit, BinnedFit, Design, IdentifyOptions,
+    SmoothOptions, SmoothedParameter,
 };
+use crate::partition::partition_alpha;
 use crate::sim::rng::Stream;
 
 /// Per-maneuver sufficient statistics of one bin.
@@ -560,6 +566,66 @@ pub fn bin_kappa(fit: &BinnedFit, b: usize) -> f64 {
     }
 }
 
+/// Largest lag of the residual autocorrelation in [`residual_kappa`], samples.
+pub const KAPPA_MAX_LAG: usize = 50;
+
+/// Variance inflation from the residuals of one bin's fit (see the module
+/// doc): `rows` in time order within each maneuver, `theta` the bin's
+/// estimates. Lags only pair consecutive rows of the same maneuver.
+pub fn residual_kappa(
+    design: &Design,
+    z: &[f64],
+    maneuver: &[u64],
+    rows: &[usize],
+    theta: &[f64],
+) -> f64 {
+    let p = design.ncols();
+    if theta.len() != p || theta.iter().any(|t| !t.is_finite()) {
+        return 1.0;
+    }
+    let r: Vec<f64> = rows
+        .iter()
+        .map(|&i| {
+            let x = &design.values[i * p..(i + 1) * p];
+            z[i] - x.iter().zip(theta).map(|(a, b)| a * b).sum::<f64>()
+        })
+        .collect();
+    let ok: Vec<bool> = r.iter().map(|v| v.is_finite()).collect();
+    let mean = {
+        let (s, c) = r
+            .iter()
+            .zip(&ok)
+            .filter(|(_, o)| **o)
+            .fold((0.0, 0.0), |(s, c), (v, _)| (s + v, c + 1.0));
+        if c > 0.0 {
+            s / c
+        } else {
+            return 1.0;
+        }
+    };
+    let g0: f64 = r
+        .iter()
+        .zip(&ok)
+        .filter(|(_, o)| **o)
+        .map(|(v, _)| (v - mean).powi(2))
+        .sum();
+    if g0 <= 0.0 {
+        return 1.0;
+    }
+    let mut k_sum = 0.0;
+    for k in 1..=KAPPA_MAX_LAG.min(rows.len().saturating_sub(1)) {
+        let mut g = 0.0;
+        for m in 0..rows.len() - k {
+            let (a, b) = (rows[m], rows[m + k]);
+            if b == a + k && maneuver[a] == maneuver[b] && ok[m] && ok[m + k] {
+                g += (r[m] - mean) * (r[m + k] - mean);
+            }
+        }
+        k_sum += (1.0 - k as f64 / (KAPPA_MAX_LAG as f64 + 1.0)) * g / g0;
+    }
+    (1.0 + 2.0 * k_sum).max(1.0)
+}
+
 /// Rows of each bin of a binned fit.
 pub fn bin_members(fit: &BinnedFit) -> Vec<Vec<usize>> {
     let mut members = vec![Vec::new(); fit.bins.len()];
@@ -709,7 +775,18 @@ pub fn select_structure(
     let fitted: Vec<bool> = pool_fit.bins.iter().map(|b| b.note.is_empty()).collect();
     let totals: Vec<(Vec<f64>, Vec<f64>, f64)> =
         grams.bins.iter().map(|b| b.total(dim, None)).collect();
-    let kappa: Vec<f64> = (0..nb).map(|b| bin_kappa(pool_fit, b)).collect();
+    let kappa: Vec<f64> = (0..nb)
+        .map(|b| {
+            let bin = &pool_fit.bins[b];
+            if bin.std_err_colored.iter().any(|v| v.is_finite()) {
+                bin_kappa(pool_fit, b)
+            } else if fitted[b] {
+                residual_kappa(design, z, maneuver, &members[b], &bin.params)
+            } else {
+                1.0
+            }
+        })
+        .collect();
 
     let mut selected = vec![vec![false; p]; nb];
     let mut partial_f = vec![vec![f64::NAN; p]; nb];
@@ -857,6 +934,156 @@ pub fn select_structure(
     })
 }
 
+/// The candidate pool's per-bin least squares from the Gram matrices alone
+/// (the fast path of [`identify_flap`]): the partition of
+/// [`crate::identify::fit_bins`] for the pool's column count, the same
+/// too-little-data and low-excitation rules, and estimates from the columns
+/// that keep the normal equations positive definite, taken in pool order
+/// (a column dependent on earlier ones is marked not identifiable,
+/// "linearly dependent"). Standard errors are not computed (NaN).
+///
+/// # Errors
+/// Partition errors; lengths that differ.
+pub fn pool_bins(
+    design: &Design,
+    z: &[f64],
+    alpha_deg: &[f64],
+    maneuver: &[u64],
+    identify: &IdentifyOptions,
+) -> Result<BinnedFit> {
+    let n = design.nrows;
+    if z.len() != n || alpha_deg.len() != n || maneuver.len() != n {
+        return Err(AeroError::invalid(
+            "structure selection, candidate pool",
+            format!(
+                "z, alpha_deg and maneuver have {}, {} and {} rows, the regressors {n}",
+                z.len(),
+                alpha_deg.len(),
+                maneuver.len()
+            ),
+        ));
+    }
+    let p = design.ncols();
+    let partition = partition_alpha(alpha_deg, p, Some(maneuver), &identify.partition)?;
+    let mut members = vec![Vec::new(); partition.counts.len()];
+    for (r, &b) in partition.index.iter().enumerate() {
+        if b >= 0 {
+            members[b as usize].push(r);
+        }
+    }
+    let grams = bin_grams(design, z, &members, maneuver);
+    let dim = grams.dim;
+    let totals: Vec<(Vec<f64>, Vec<f64>, f64)> =
+        grams.bins.iter().map(|b| b.total(dim, None)).collect();
+    // flap-wide column variances (scaled units) from the sum over bins
+    let (mut gf, mut sf, mut nf) = (vec![0.0; dim * dim], vec![0.0; dim], 0.0);
+    for (g, s, c) in &totals {
+        gf.iter_mut().zip(g).for_each(|(a, b)| *a += b);
+        sf.iter_mut().zip(s).for_each(|(a, b)| *a += b);
+        nf += c;
+    }
+    let var = |g: &[f64], s: &[f64], c: f64, j: usize| {
+        if c > 1.0 {
+            ((g[j * dim + j] - s[j] * s[j] / c) / (c - 1.0)).max(0.0)
+        } else {
+            0.0
+        }
+    };
+    let flap_sd: Vec<f64> = (0..p).map(|j| var(&gf, &sf, nf, j).sqrt()).collect();
+    let const_col: Vec<bool> = design
+        .exprs
+        .iter()
+        .map(crate::regressor::Expr::is_constant)
+        .collect();
+    let required = identify.partition.min_points_per_param * p;
+    let min_man = identify.partition.min_maneuvers.max(1);
+    let bins: Vec<BinFit> = (0..members.len())
+        .map(|b| {
+            let (g, s, c) = &totals[b];
+            let n_man = grams.bins[b].maneuvers.len();
+            let excitation: Vec<f64> = (0..p)
+                .map(|j| {
+                    if const_col[j] {
+                        1.0
+                    } else if flap_sd[j] > 0.0 {
+                        var(g, s, *c, j).sqrt() / flap_sd[j]
+                    } else {
+                        0.0
+                    }
+                })
+                .collect();
+            let nan = vec![f64::NAN; p];
+            let mut bin = BinFit {
+                alpha_lo: partition.edges[b],
+                alpha_hi: partition.edges[b + 1],
+                n: members[b].len(),
+                n_maneuvers: n_man,
+                params: nan.clone(),
+                std_err: nan.clone(),
+                std_err_colored: nan.clone(),
+                partial_f: nan.clone(),
+                excitation,
+                vif: nan,
+                identifiable: vec![false; p],
+                notes: vec![String::new(); p],
+                r2: f64::NAN,
+                condition_number: f64::NAN,
+                residual_std: f64::NAN,
+                note: String::new(),
+            };
+            if members[b].len() < required || n_man < min_man {
+                bin.note = format!(
+                    "too little data: {} points from {n_man} maneuvers, {required} points and \
+                     {min_man} maneuvers required",
+                    members[b].len()
+                );
+                bin.notes = vec!["bin not fitted: too little data".into(); p];
+                return bin;
+            }
+            let mut cols: Vec<usize> = Vec::new();
+            for j in 0..p {
+                cols.push(j);
+                if solve_subset(g, dim, &cols).is_none() {
+                    cols.pop();
+                }
+            }
+            if let Some((th, sse)) = solve_subset(g, dim, &cols) {
+                bin.params = vec![0.0; p];
+                for (i, &j) in cols.iter().enumerate() {
+                    bin.params[j] = th[i] * grams.scale[p] / grams.scale[j];
+                }
+                let dof = (*c - cols.len() as f64).max(1.0);
+                bin.residual_std = (sse / dof).sqrt() * grams.scale[p];
+            }
+            for j in 0..p {
+                let mut why = Vec::new();
+                if !cols.contains(&j) {
+                    why.push(
+                        "not identifiable: linearly dependent on other regressors".to_string(),
+                    );
+                }
+                if !const_col[j] && bin.excitation[j] < identify.min_excitation {
+                    why.push(format!(
+                        "low excitation: std in bin is {:.1}% of the flap's (minimum {:.1}%)",
+                        100.0 * bin.excitation[j],
+                        100.0 * identify.min_excitation
+                    ));
+                }
+                bin.identifiable[j] = why.is_empty();
+                bin.notes[j] = why.join("; ");
+            }
+            bin
+        })
+        .collect();
+    let consistency = (0..p).map(|j| adjacent_consistency(&bins, j)).collect();
+    Ok(BinnedFit {
+        names: design.names.clone(),
+        bins,
+        consistency,
+        partition,
+    })
+}
+
 /// The design restricted to columns `cols` (in that order).
 pub fn subset_design(design: &Design, cols: &[usize]) -> Design {
     let p = design.ncols();
@@ -914,8 +1141,10 @@ pub fn identify_flap(
 ) -> Result<FlapFit> {
     let (selection, pool_fit, chosen) = match select {
         Some(so) => {
-            let pf = fit_bins(pool, z, alpha_deg, maneuver, identify)
-                .context("structure selection, fit of the candidate pool")?;
+            // the pool's bins, excitation and residuals (for κ) from Gram matrices: the
+            // pool's standard errors and collinearity diagnostics are not needed here
+            let pf = pool_bins(pool, z, alpha_deg, maneuver, identify)
+                .context("structure selection, candidate pool")?;
             let sel = select_structure(pool, z, maneuver, &pf, so)?;
             let chosen = sel.chosen.clone();
             (Some(sel), Some(pf), chosen)
@@ -986,6 +1215,50 @@ mod tests {
         .collect();
         let design = Design::build(&regs, &lookup, n).expect("design");
         (design, z, alpha, man)
+    }
+
+    #[test]
+    fn residual_kappa_is_one_for_white_and_large_for_correlated_residuals() {
+        let n = 4000;
+        let mut rng = Stream::new(5, 2);
+        let white: Vec<f64> = (0..n).map(|_| rng.normal()).collect();
+        // AR(1) with phi = 0.9: integrated autocorrelation (1 + phi) / (1 - phi) = 19
+        let mut ar = vec![0.0; n];
+        for i in 1..n {
+            ar[i] = 0.9 * ar[i - 1] + rng.normal();
+        }
+        let ones = vec![1.0; n];
+        let lookup = |c: &str| -> Option<&[f64]> { (c == "one").then_some(&ones[..]) };
+        let design = Design::build(&[("b".into(), "one".into())], &lookup, n).expect("design");
+        let rows: Vec<usize> = (0..n).collect();
+        let man = vec![0u64; n];
+        let kw = residual_kappa(&design, &white, &man, &rows, &[0.0]);
+        let ka = residual_kappa(&design, &ar, &man, &rows, &[0.0]);
+        assert!((kw - 1.0).abs() < 0.3, "{kw}");
+        // the Bartlett window and the 50-lag truncation shrink 19 somewhat
+        assert!(ka > 8.0 && ka < 19.0, "{ka}");
+    }
+
+    #[test]
+    fn pool_bins_agree_with_the_qr_fit_of_every_bin() {
+        let (design, z, alpha, man) = data(20_000, 4);
+        let opts = IdentifyOptions::default();
+        let qr = fit_bins(&design, &z, &alpha, &man, &opts).expect("fit");
+        let gram = pool_bins(&design, &z, &alpha, &man, &opts).expect("pool");
+        assert_eq!(qr.bins.len(), gram.bins.len());
+        for (a, b) in qr.bins.iter().zip(&gram.bins) {
+            assert_eq!(
+                (a.alpha_lo, a.n, a.note.is_empty()),
+                (b.alpha_lo, b.n, b.note.is_empty())
+            );
+            assert_eq!(a.identifiable, b.identifiable);
+            for (x, y) in a.params.iter().zip(&b.params) {
+                assert!((x - y).abs() <= 1e-8 * (1.0 + x.abs()), "{x} vs {y}");
+            }
+            for (x, y) in a.excitation.iter().zip(&b.excitation) {
+                assert!((x - y).abs() <= 1e-9, "{x} vs {y}");
+            }
+        }
     }
 
     #[test]
