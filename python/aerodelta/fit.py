@@ -627,7 +627,12 @@ def fit(
             extra = [sorted(c for c in extra_cols if c is not None)] if cfg.selection else []
             z_all = full[f"{coef}_meas"] - full[f"{coef}_qual"]
             keep = np.isfinite(z_all) & np.isfinite(full["alpha_deg"])
-            cols = {c: np.ascontiguousarray(v[keep]) for c, v in full.items()}
+            # only the columns the regressors can read (names appearing in their expressions)
+            used = [c for c in full if c == "alpha_deg" or any(c in e for _, e in regs)]
+            if keep.all():
+                cols = {c: np.ascontiguousarray(full[c]) for c in used}
+            else:
+                cols = {c: np.ascontiguousarray(full[c][keep]) for c in used}
             z = np.ascontiguousarray(z_all[keep])
             out = _core.identify_flap(
                 regs, cols, z, cols["alpha_deg"], np.ascontiguousarray(codes[keep]),

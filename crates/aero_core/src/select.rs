@@ -729,21 +729,13 @@ fn cv_score(
     }
 }
 
-/// Select the structure of one coefficient at one flap setting from a pool
-/// (see the module doc). `pool_fit` is [`crate::identify::fit_bins`] of the
-/// whole pool `design` over the same `z` and `maneuver` (it gives the bins,
-/// their coloured-residual inflation and the excitation of each candidate).
-///
-/// # Errors
-/// [`AeroError::InvalidInput`] for lengths that differ, an empty pool, a
-/// forced column out of range or fewer than 2 folds.
-pub fn select_structure(
+fn check_inputs(
     design: &Design,
     z: &[f64],
     maneuver: &[u64],
     pool_fit: &BinnedFit,
     opts: &SelectOptions,
-) -> Result<Selection> {
+) -> Result<()> {
     let p = design.ncols();
     if z.len() != design.nrows || maneuver.len() != design.nrows {
         return Err(AeroError::invalid(
@@ -768,8 +760,62 @@ pub fn select_structure(
             format!("is {}; cross-validation needs at least 2 folds", opts.folds),
         ));
     }
+    if pool_fit.partition.index.len() != design.nrows {
+        return Err(AeroError::invalid(
+            "structure selection, pool fit",
+            format!(
+                "covers {} rows, the regressors have {}",
+                pool_fit.partition.index.len(),
+                design.nrows
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// Select the structure of one coefficient at one flap setting from a pool
+/// (see the module doc). `pool_fit` is [`crate::identify::fit_bins`] of the
+/// whole pool `design` over the same `z` and `maneuver` (it gives the bins,
+/// their coloured-residual inflation and the excitation of each candidate).
+///
+/// # Errors
+/// [`AeroError::InvalidInput`] for lengths that differ, an empty pool, a
+/// forced column out of range or fewer than 2 folds.
+pub fn select_structure(
+    design: &Design,
+    z: &[f64],
+    maneuver: &[u64],
+    pool_fit: &BinnedFit,
+    opts: &SelectOptions,
+) -> Result<Selection> {
+    check_inputs(design, z, maneuver, pool_fit, opts)?;
     let members = bin_members(pool_fit);
     let grams = bin_grams(design, z, &members, maneuver);
+    select_with_grams(design, z, maneuver, pool_fit, &grams, opts)
+}
+
+/// [`select_structure`] with the Gram matrices of `pool_fit`'s bins already
+/// computed ([`bin_grams`] over [`bin_members`]).
+///
+/// # Errors
+/// As [`select_structure`].
+pub fn select_with_grams(
+    design: &Design,
+    z: &[f64],
+    maneuver: &[u64],
+    pool_fit: &BinnedFit,
+    grams: &BinGrams,
+    opts: &SelectOptions,
+) -> Result<Selection> {
+    check_inputs(design, z, maneuver, pool_fit, opts)?;
+    if grams.bins.len() != pool_fit.bins.len() || grams.dim != design.ncols() + 1 {
+        return Err(AeroError::invalid(
+            "structure selection, Gram matrices",
+            "do not match the pool fit; compute them with bin_grams over bin_members(pool_fit)",
+        ));
+    }
+    let p = design.ncols();
+    let members = bin_members(pool_fit);
     let dim = grams.dim;
     let nb = members.len();
     let fitted: Vec<bool> = pool_fit.bins.iter().map(|b| b.note.is_empty()).collect();
@@ -863,7 +909,7 @@ pub fn select_structure(
     order.sort_by(|a, b| count[*b].cmp(&count[*a]).then(a.cmp(b)));
     let score = |cols: &[usize]| {
         cv_score(
-            &grams,
+            grams,
             &totals,
             &folds,
             &fitted,
@@ -951,6 +997,20 @@ pub fn pool_bins(
     maneuver: &[u64],
     identify: &IdentifyOptions,
 ) -> Result<BinnedFit> {
+    pool_bins_grams(design, z, alpha_deg, maneuver, identify).map(|(f, _)| f)
+}
+
+/// [`pool_bins`] and the per-(bin, maneuver) Gram matrices it was computed from.
+///
+/// # Errors
+/// As [`pool_bins`].
+pub fn pool_bins_grams(
+    design: &Design,
+    z: &[f64],
+    alpha_deg: &[f64],
+    maneuver: &[u64],
+    identify: &IdentifyOptions,
+) -> Result<(BinnedFit, BinGrams)> {
     let n = design.nrows;
     if z.len() != n || alpha_deg.len() != n || maneuver.len() != n {
         return Err(AeroError::invalid(
@@ -1076,12 +1136,15 @@ pub fn pool_bins(
         })
         .collect();
     let consistency = (0..p).map(|j| adjacent_consistency(&bins, j)).collect();
-    Ok(BinnedFit {
-        names: design.names.clone(),
-        bins,
-        consistency,
-        partition,
-    })
+    Ok((
+        BinnedFit {
+            names: design.names.clone(),
+            bins,
+            consistency,
+            partition,
+        },
+        grams,
+    ))
 }
 
 /// The design restricted to columns `cols` (in that order).
@@ -1143,9 +1206,9 @@ pub fn identify_flap(
         Some(so) => {
             // the pool's bins, excitation and residuals (for κ) from Gram matrices: the
             // pool's standard errors and collinearity diagnostics are not needed here
-            let pf = pool_bins(pool, z, alpha_deg, maneuver, identify)
+            let (pf, grams) = pool_bins_grams(pool, z, alpha_deg, maneuver, identify)
                 .context("structure selection, candidate pool")?;
-            let sel = select_structure(pool, z, maneuver, &pf, so)?;
+            let sel = select_with_grams(pool, z, maneuver, &pf, &grams, so)?;
             let chosen = sel.chosen.clone();
             (Some(sel), Some(pf), chosen)
         }
