@@ -17,8 +17,10 @@ from __future__ import annotations
 
 import hashlib
 import math
+import os
 import sys
 from collections.abc import Mapping, Sequence
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -607,93 +609,112 @@ def fit(
     bar = None
     if progress:
         bar = tqdm(total=len(tasks), desc="fit", unit="fit", file=sys.stderr)
-    for flap in flaps:
-        d = df.filter(pl.col("flap_deg") == flap)
-        stall[flap] = float(cfg.stall_alpha_deg.get(flap, stall_alpha(d)))
-        alpha_max = stall[flap] + cfg.past_stall_deg
-        # every numeric column as float64 once per flap; each coefficient takes its rows
-        full = {
-            c: d[c].cast(pl.Float64).fill_null(np.nan).to_numpy()
-            for c in d.columns
-            if d[c].dtype.is_numeric() and c != "maneuver_id"
-        }
-        codes = _maneuver_codes(d)
-        for coef in coefs:
-            default = [(str(n), str(e)) for n, e in cfg.structures[coef]]
-            regs = default if cfg.selection is None else [(str(n), str(e)) for n, e in pools[coef]]
-            forced = [i for i, (_, e) in enumerate(regs) if e.strip() == "1"]
-            by_expr = {e.replace(" ", ""): i for i, (_, e) in enumerate(regs)}
-            extra_cols = [by_expr.get(e.replace(" ", "")) for _, e in default]
-            extra = [sorted(c for c in extra_cols if c is not None)] if cfg.selection else []
-            z_all = full[f"{coef}_meas"] - full[f"{coef}_qual"]
-            keep = np.isfinite(z_all) & np.isfinite(full["alpha_deg"])
-            # only the columns the regressors can read (names appearing in their expressions)
-            used = [c for c in full if c == "alpha_deg" or any(c in e for _, e in regs)]
-            if keep.all():
-                cols = {c: np.ascontiguousarray(full[c]) for c in used}
-            else:
-                cols = {c: np.ascontiguousarray(full[c][keep]) for c in used}
-            z = np.ascontiguousarray(z_all[keep])
-            out = _core.identify_flap(
-                regs, cols, z, cols["alpha_deg"], np.ascontiguousarray(codes[keep]),
-                cfg.width_deg, cfg.min_points_per_param, cfg.min_maneuvers, cfg.max_width_deg,
-                cfg.colored, cfg.min_excitation, cfg.p, cfg.weighted, cfg.grid_step_deg,
-                alpha_max, cfg.min_identified_bins, cfg.selection, cfg.f_in, cfg.f_out, forced,
-                cfg.min_selected_bins, cfg.cv_folds, cfg.seed, extra, cfg.bootstrap,
-                cfg.band_level,
+
+    def collect(
+        job: tuple[float, str, list[tuple[str, str]], list[tuple[str, str]], list, Future],
+    ) -> None:
+        flap, coef, regs, default, extra, fut = job
+        out = fut.result()
+        chosen: list[int] = list(out["chosen"])
+        final = [regs[i] for i in chosen]
+        regressors[coef].update(dict(final))
+        b_rows, p_rows = _bin_rows(coef, flap, out, final)
+        bins_rows.extend(b_rows)
+        param_rows.extend(p_rows)
+        if out["selection"] is not None:
+            st, sb, cv = _selection_rows(
+                coef,
+                flap=flap,
+                sel=out["selection"],
+                pool=regs,
+                chosen=chosen,
+                default=default if extra else [],
+            )
+            struct_rows.extend(st)
+            selbin_rows.extend(sb)
+            cv_rows.extend(cv)
+        names: list[str] = out["names"]
+        for j, name in enumerate(names):
+            cons_rows.append(
+                {
+                    "coefficient": coef, "flap_deg": flap, "param": name,
+                    "scatter": out["consistency_scatter"][j],
+                    "step_z": out["consistency_step_z"][j],
+                    "pairs": out["consistency_pairs"][j],
+                }
             )  # fmt: skip
-            chosen: list[int] = list(out["chosen"])
-            final = [regs[i] for i in chosen]
-            regressors[coef].update(dict(final))
-            b_rows, p_rows = _bin_rows(coef, flap, out, final)
-            bins_rows += b_rows
-            param_rows += p_rows
-            if out["selection"] is not None:
-                st, sb, cv = _selection_rows(
-                    coef,
-                    flap=flap,
-                    sel=out["selection"],
-                    pool=regs,
-                    chosen=chosen,
-                    default=default if extra else [],
-                )
-                struct_rows += st
-                selbin_rows += sb
-                cv_rows += cv
-            names: list[str] = out["names"]
-            for j, name in enumerate(names):
-                cons_rows.append(
+        boot = out["bootstrap"]
+        if boot is not None:
+            ng = len(boot["alpha_deg"])
+            nrep = int(boot["n_replicates"])
+            lower = np.asarray(boot["lower"]).reshape(len(names), ng)
+            upper = np.asarray(boot["upper"]).reshape(len(names), ng)
+            reps = np.asarray(boot["replicates"]).reshape(len(names), nrep, ng)
+        for j, (name, grid, values, nused, note) in enumerate(out["smoothed"]):
+            g, v = np.asarray(grid), np.asarray(values)
+            lo = lower[j] if boot is not None else np.full(len(g), np.nan)
+            hi = upper[j] if boot is not None else np.full(len(g), np.nan)
+            tables.setdefault(coef, {}).setdefault(name, {})[flap] = (g, v, lo, hi)
+            if boot is not None:
+                replicates[(coef, name, flap)] = (g, reps[j])
+            for a, val, lv, hv in zip(g, v, lo, hi, strict=True):
+                smooth_rows.append(
                     {
                         "coefficient": coef, "flap_deg": flap, "param": name,
-                        "scatter": out["consistency_scatter"][j],
-                        "step_z": out["consistency_step_z"][j],
-                        "pairs": out["consistency_pairs"][j],
+                        "alpha_deg": a, "value": val, "lower": lv, "upper": hv,
+                        "bins_used": nused, "note": note,
                     }
                 )  # fmt: skip
-            boot = out["bootstrap"]
-            if boot is not None:
-                ng = len(boot["alpha_deg"])
-                nrep = int(boot["n_replicates"])
-                lower = np.asarray(boot["lower"]).reshape(len(names), ng)
-                upper = np.asarray(boot["upper"]).reshape(len(names), ng)
-                reps = np.asarray(boot["replicates"]).reshape(len(names), nrep, ng)
-            for j, (name, grid, values, used, note) in enumerate(out["smoothed"]):
-                g, v = np.asarray(grid), np.asarray(values)
-                lo = lower[j] if boot is not None else np.full(len(g), np.nan)
-                hi = upper[j] if boot is not None else np.full(len(g), np.nan)
-                tables.setdefault(coef, {}).setdefault(name, {})[flap] = (g, v, lo, hi)
-                if boot is not None:
-                    replicates[(coef, name, flap)] = (g, reps[j])
-                for a, val, lv, hv in zip(g, v, lo, hi, strict=True):
-                    smooth_rows.append(
-                        {
-                            "coefficient": coef, "flap_deg": flap, "param": name,
-                            "alpha_deg": a, "value": val, "lower": lv, "upper": hv,
-                            "bins_used": used, "note": note,
-                        }
-                    )  # fmt: skip
-            if bar is not None:
-                bar.update(1)
+        if bar is not None:
+            bar.update(1)
+
+    # the engine releases the GIL: the (flap, coefficient) fits run side by side, and their
+    # results are assembled in a fixed order (the same output for any number of threads)
+    jobs: list[tuple[float, str, list[tuple[str, str]], list[tuple[str, str]], list, Future]] = []
+    with ThreadPoolExecutor(max_workers=max(1, min(4, os.cpu_count() or 1))) as ex:
+        for flap in flaps:
+            d = df.filter(pl.col("flap_deg") == flap)
+            stall[flap] = float(cfg.stall_alpha_deg.get(flap, stall_alpha(d)))
+            alpha_max = stall[flap] + cfg.past_stall_deg
+            # every numeric column as float64 once per flap; each coefficient takes its rows
+            full = {
+                c: d[c].cast(pl.Float64).fill_null(np.nan).to_numpy()
+                for c in d.columns
+                if d[c].dtype.is_numeric() and c != "maneuver_id"
+            }
+            codes = _maneuver_codes(d)
+            for coef in coefs:
+                default = [(str(n), str(e)) for n, e in cfg.structures[coef]]
+                regs = (
+                    default if cfg.selection is None else [(str(n), str(e)) for n, e in pools[coef]]
+                )
+                forced = [i for i, (_, e) in enumerate(regs) if e.strip() == "1"]
+                by_expr = {e.replace(" ", ""): i for i, (_, e) in enumerate(regs)}
+                extra_cols = [by_expr.get(e.replace(" ", "")) for _, e in default]
+                extra = [sorted(c for c in extra_cols if c is not None)] if cfg.selection else []
+                z_all = full[f"{coef}_meas"] - full[f"{coef}_qual"]
+                keep = np.isfinite(z_all) & np.isfinite(full["alpha_deg"])
+                # only the columns the regressors can read (names appearing in their expressions)
+                used = [c for c in full if c == "alpha_deg" or any(c in e for _, e in regs)]
+                if keep.all():
+                    cols = {c: np.ascontiguousarray(full[c]) for c in used}
+                else:
+                    cols = {c: np.ascontiguousarray(full[c][keep]) for c in used}
+                z = np.ascontiguousarray(z_all[keep])
+                fut = ex.submit(
+                    _core.identify_flap, regs, cols, z, cols["alpha_deg"],
+                    np.ascontiguousarray(codes[keep]),
+                    cfg.width_deg, cfg.min_points_per_param, cfg.min_maneuvers, cfg.max_width_deg,
+                    cfg.colored, cfg.min_excitation, cfg.p, cfg.weighted, cfg.grid_step_deg,
+                    alpha_max, cfg.min_identified_bins, cfg.selection, cfg.f_in, cfg.f_out, forced,
+                    cfg.min_selected_bins, cfg.cv_folds, cfg.seed, extra, cfg.bootstrap,
+                    cfg.band_level,
+                )  # fmt: skip
+                jobs.append((flap, coef, regs, default, extra, fut))
+            while len(jobs) > 2 * len(coefs):  # bounded memory: about three flaps in flight
+                collect(jobs.pop(0))
+        for job in jobs:
+            collect(job)
     if bar is not None:
         bar.close()
 
