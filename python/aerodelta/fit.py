@@ -289,7 +289,13 @@ def qualified_coefficients(data: pl.DataFrame, qualified: str = "auto") -> pl.Da
             cols[n] = np.ascontiguousarray(data[n].cast(pl.Float64).fill_null(0.0).to_numpy())
         elif n in ("dsl_deg", "dsr_deg", "de_deg"):
             cols[n] = np.zeros(data.height)
-    cl, cn, cy = _core.qualified_lateral_adx37(cols)
+    # row chunks side by side (the engine releases the GIL; row-wise, so chunking is exact)
+    n = data.height
+    step = max(50_000, -(-n // max(1, min(4, os.cpu_count() or 1))))
+    chunks = [{k: v[i : i + step] for k, v in cols.items()} for i in range(0, max(n, 1), step)]
+    with ThreadPoolExecutor(max_workers=len(chunks)) as ex:
+        parts = list(ex.map(_core.qualified_lateral_adx37, chunks))
+    cl, cn, cy = (np.concatenate([p[k] for p in parts]) for k in range(3))
     return pl.DataFrame({"Cl_qual": cl, "Cn_qual": cn, "CY_qual": cy})
 
 
