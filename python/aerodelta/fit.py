@@ -503,8 +503,8 @@ def _selection_rows(
     pool: Sequence[tuple[str, str]],
     chosen: Sequence[int],
     default: Sequence[tuple[str, str]],
-) -> tuple[list[dict[str, Any]], list[dict[str, Any]], list[dict[str, Any]]]:
-    """Rows of ``structure``, ``selection_bins`` and ``cross_validation``."""
+) -> tuple[list[dict[str, Any]], pl.DataFrame, list[dict[str, Any]]]:
+    """Rows of ``structure``, the ``selection_bins`` frame and ``cross_validation`` rows."""
     pf = sel["pool"]
     nb, npar = len(pf["alpha_lo"]), len(pool)
     shape = (nb, npar)
@@ -515,17 +515,23 @@ def _selection_rows(
     ident = np.asarray(pf["identifiable"], dtype=bool).reshape(shape)
     fitted = np.asarray(sel["fitted"], dtype=bool)
     kappa = np.asarray(sel["kappa"])
-    bin_rows = [
+    bin_rows = pl.DataFrame(
         {
-            "coefficient": coef, "flap_deg": flap, "param": pool[j][0], "regressor": pool[j][1],
-            "alpha_lo_deg": pf["alpha_lo"][b], "alpha_hi_deg": pf["alpha_hi"][b],
-            "fitted": bool(fitted[b]), "kappa": kappa[b], "correlation": corr[b, j],
-            "partial_f": fpart[b, j], "selected": bool(selected[b, j]),
-            "excitation": exc[b, j], "identifiable_in_pool": bool(ident[b, j]),
+            "coefficient": [coef] * (nb * npar),
+            "flap_deg": np.full(nb * npar, flap),
+            "param": [pool[j][0] for _ in range(nb) for j in range(npar)],
+            "regressor": [pool[j][1] for _ in range(nb) for j in range(npar)],
+            "alpha_lo_deg": np.repeat(np.asarray(pf["alpha_lo"]), npar),
+            "alpha_hi_deg": np.repeat(np.asarray(pf["alpha_hi"]), npar),
+            "fitted": np.repeat(fitted, npar),
+            "kappa": np.repeat(kappa, npar),
+            "correlation": corr.ravel(),
+            "partial_f": fpart.ravel(),
+            "selected": selected.ravel(),
+            "excitation": exc.ravel(),
+            "identifiable_in_pool": ident.ravel(),
         }
-        for b in range(nb)
-        for j in range(npar)
-    ]  # fmt: skip
+    )
     structure = [
         {
             "coefficient": coef, "flap_deg": flap, "param": pool[j][0], "regressor": pool[j][1],
@@ -604,7 +610,7 @@ def fit(
     cons_rows: list[dict[str, Any]] = []
     smooth_rows: list[dict[str, Any]] = []
     struct_rows: list[dict[str, Any]] = []
-    selbin_rows: list[dict[str, Any]] = []
+    selbin_rows: list[pl.DataFrame] = []
     cv_rows: list[dict[str, Any]] = []
     stall: dict[float, float] = {}
     tables: dict[str, dict[str, dict[float, tuple[np.ndarray, ...]]]] = {}
@@ -637,7 +643,7 @@ def fit(
                 default=default if extra else [],
             )
             struct_rows.extend(st)
-            selbin_rows.extend(sb)
+            selbin_rows.append(sb)
             cv_rows.extend(cv)
         names: list[str] = out["names"]
         for j, name in enumerate(names):
@@ -683,11 +689,9 @@ def fit(
             stall[flap] = float(cfg.stall_alpha_deg.get(flap, stall_alpha(d)))
             alpha_max = stall[flap] + cfg.past_stall_deg
             # every numeric column as float64 once per flap; each coefficient takes its rows
-            full = {
-                c: d[c].cast(pl.Float64).fill_null(np.nan).to_numpy()
-                for c in d.columns
-                if d[c].dtype.is_numeric() and c != "maneuver_id"
-            }
+            num = [c for c in d.columns if d[c].dtype.is_numeric() and c != "maneuver_id"]
+            conv = d.select(pl.col(num).cast(pl.Float64).fill_null(np.nan))
+            full = {c: conv[c].to_numpy() for c in num}
             codes = _maneuver_codes(d)
             for coef in coefs:
                 default = [(str(n), str(e)) for n, e in cfg.structures[coef]]
@@ -735,7 +739,7 @@ def fit(
         smoothed=pl.DataFrame(smooth_rows),
         stall_alpha_deg=stall,
         structure=pl.DataFrame(struct_rows),
-        selection_bins=pl.DataFrame(selbin_rows),
+        selection_bins=pl.concat(selbin_rows) if selbin_rows else pl.DataFrame(),
         cross_validation=pl.DataFrame(cv_rows),
         replicates=replicates,
     )
@@ -752,7 +756,10 @@ def _data_hash(data: pl.DataFrame) -> str:
                 np.ascontiguousarray(s.cast(pl.Float64).fill_null(np.nan).to_numpy()).tobytes()
             )
         else:
-            h.update("\x1f".join(map(str, s.to_list())).encode())
+            if s.dtype in (pl.Utf8, pl.Categorical):  # fast path, the same bytes
+                h.update(s.cast(pl.Utf8).fill_null("None").str.join("\x1f")[0].encode())
+            else:
+                h.update("\x1f".join(map(str, s.to_list())).encode())
     return h.hexdigest()
 
 
