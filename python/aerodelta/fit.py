@@ -755,11 +755,10 @@ def _data_hash(data: pl.DataFrame) -> str:
             h.update(
                 np.ascontiguousarray(s.cast(pl.Float64).fill_null(np.nan).to_numpy()).tobytes()
             )
+        elif s.dtype in (pl.Utf8, pl.Categorical):  # fast path, the same bytes
+            h.update(s.cast(pl.Utf8).fill_null("None").str.join("\x1f")[0].encode())
         else:
-            if s.dtype in (pl.Utf8, pl.Categorical):  # fast path, the same bytes
-                h.update(s.cast(pl.Utf8).fill_null("None").str.join("\x1f")[0].encode())
-            else:
-                h.update("\x1f".join(map(str, s.to_list())).encode())
+            h.update("\x1f".join(map(str, s.to_list())).encode())
     return h.hexdigest()
 
 
