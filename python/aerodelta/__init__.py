@@ -43,6 +43,7 @@ from aerodelta.partition import AlphaBins, partition_alpha
 from aerodelta.rolloff import detect_rolloff, rolloff_statistics
 from aerodelta.spline import SmoothingSpline, smoothing_spline
 from aerodelta.table import Table
+from aerodelta.truth import band_check, campaign_effects, true_parameter
 from aerodelta.validate import Finding, ValidationReport
 
 __all__ = [
@@ -69,6 +70,8 @@ __all__ = [
     "TooLittleDataError",
     "ValidationReport",
     "__version__",
+    "band_check",
+    "campaign_effects",
     "check_daveml",
     "detect_rolloff",
     "effect_library",
@@ -84,6 +87,7 @@ __all__ = [
     "rolloff_statistics",
     "simulate_campaign",
     "smoothing_spline",
+    "true_parameter",
     "validate_model",
     "write_daveml",
     "write_example_model",
