@@ -14,10 +14,17 @@
 //! was identified there in the estimate and the resampled bin still holds
 //! enough points and maneuvers and is not singular.
 
+// Index loops over the p columns read closer to the formulas.
+#![allow(clippy::needless_range_loop)]
+
 use crate::error::{AeroError, Result};
 use crate::identify::{smooth_parameters, BinnedFit, Design, SmoothOptions};
 use crate::select::{bin_grams, bin_members, solve_subset};
 use crate::sim::rng::{derive_seed, Stream};
+
+/// One replicate: smoothed values per parameter on the grid, and the bin
+/// estimates per bin and parameter (NaN where not refitted).
+type Replicate = (Vec<Vec<f64>>, Vec<Vec<f64>>);
 
 /// Settings of [`bootstrap_smoothed`].
 #[derive(Debug, Clone)]
@@ -128,7 +135,7 @@ pub fn bootstrap_smoothed(
     let required = (opts.min_points_per_param * p) as f64;
     let base = smooth_parameters(fit, smooth)?;
 
-    let one = |rep: usize| -> Result<(Vec<Vec<f64>>, Vec<Vec<f64>>)> {
+    let one = |rep: usize| -> Result<Replicate> {
         let mut rng = Stream::new(derive_seed(opts.seed, rep as u64), 0xb007);
         let mut count = vec![0.0f64; m];
         for _ in 0..m {
@@ -189,7 +196,7 @@ pub fn bootstrap_smoothed(
         Ok((values, per_bin))
     };
     #[cfg(feature = "parallel")]
-    let reps: Vec<(Vec<Vec<f64>>, Vec<Vec<f64>>)> = {
+    let reps: Vec<Replicate> = {
         use rayon::prelude::*;
         (0..opts.replicates)
             .into_par_iter()
@@ -197,8 +204,7 @@ pub fn bootstrap_smoothed(
             .collect::<Result<_>>()?
     };
     #[cfg(not(feature = "parallel"))]
-    let reps: Vec<(Vec<Vec<f64>>, Vec<Vec<f64>>)> =
-        (0..opts.replicates).map(one).collect::<Result<_>>()?;
+    let reps: Vec<Replicate> = (0..opts.replicates).map(one).collect::<Result<_>>()?;
 
     let grid = base
         .first()

@@ -47,6 +47,9 @@
 //! regressions, the folds and the bootstrap of [`crate::bootstrap`] cost
 //! $O(p^3)$ per bin, independent of the number of samples.
 
+// Index loops over the p columns read closer to the formulas.
+#![allow(clippy::needless_range_loop)]
+
 use crate::bootstrap::{bootstrap_smoothed, Bootstrap, BootstrapOptions};
 use crate::error::{AeroError, Result, ResultExt};
 use crate::identify::{
@@ -217,7 +220,7 @@ pub fn solve_subset(g: &[f64], dim: usize, cols: &[usize]) -> Option<(Vec<f64>, 
             }
             if i == j {
                 let d = g[cols[i] * dim + cols[i]];
-                if !(s > 1e-10 * d) || d <= 0.0 {
+                if s.is_nan() || s <= 1e-10 * d || d <= 0.0 {
                     return None;
                 }
                 l[i * k + i] = s.sqrt();
@@ -271,6 +274,7 @@ pub fn held_out(g: &[f64], dim: usize, cols: &[usize], theta: &[f64]) -> (f64, f
 /// selected columns (forced first, then in order of entry) and, per column
 /// of the Gram matrix, its final partial F (to remove for a selected column,
 /// to enter for the others; NaN when not computable).
+#[allow(clippy::too_many_arguments)]
 pub fn stepwise(
     g: &[f64],
     dim: usize,
@@ -1244,7 +1248,7 @@ mod tests {
     /// z = 0.002 + b(α) x1 - 0.03 x2 + noise, with x3, x4 pure noise regressors.
     fn data(n: usize, seed: u64) -> (Design, Vec<f64>, Vec<f64>, Vec<u64>) {
         let mut rng = Stream::new(seed, 1);
-        let mut cols = vec![Vec::with_capacity(n); 4];
+        let mut cols: Vec<Vec<f64>> = (0..4).map(|_| Vec::with_capacity(n)).collect();
         let (mut alpha, mut z, mut man) = (Vec::new(), Vec::new(), Vec::new());
         for i in 0..n {
             let a = 5.0 + 15.0 * rng.uniform();

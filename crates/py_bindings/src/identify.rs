@@ -380,7 +380,7 @@ fn identify_flap<'py>(
             alpha_max_deg,
             min_identified_bins,
         };
-        let bo = (bootstrap > 0).then(|| BootstrapOptions {
+        let bo = (bootstrap > 0).then_some(BootstrapOptions {
             replicates: bootstrap,
             seed,
             level,
