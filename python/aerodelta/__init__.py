@@ -51,6 +51,7 @@ from aerodelta.rolloff import (
 from aerodelta.rolloff import monte_carlo as rolloff_monte_carlo
 from aerodelta.spline import SmoothingSpline, smoothing_spline
 from aerodelta.table import Table
+from aerodelta.truth import band_check, campaign_effects, true_parameter
 from aerodelta.validate import Finding, ValidationReport
 
 __all__ = [
@@ -79,6 +80,8 @@ __all__ = [
     "TooLittleDataError",
     "ValidationReport",
     "__version__",
+    "band_check",
+    "campaign_effects",
     "check_daveml",
     "compare_with_records",
     "detect_rolloff",
@@ -101,6 +104,7 @@ __all__ = [
     "rolloff_statistics",
     "simulate_campaign",
     "smoothing_spline",
+    "true_parameter",
     "validate_model",
     "write_daveml",
     "write_example_model",

@@ -1,5 +1,7 @@
 # Type stub of the Rust extension module aerodelta._core (crates/py_bindings).
 # Keep in step with the #[pymethods] there; tests/test_stub.py checks names.
+from typing import Any
+
 import numpy as np
 import numpy.typing as npt
 
@@ -300,6 +302,34 @@ def identify_bins(
     alpha_max_deg: float,
     min_identified_bins: int,
 ) -> dict[str, object]: ...
+def identify_flap(
+    regressors: list[tuple[str, str]],
+    columns: dict[str, npt.NDArray[np.float64]],
+    z: npt.NDArray[np.float64],
+    alpha_deg: npt.NDArray[np.float64],
+    maneuver: npt.NDArray[np.uint64],
+    width_deg: float,
+    min_points_per_param: int,
+    min_maneuvers: int,
+    max_width_deg: float | None,
+    colored: bool,
+    min_excitation: float,
+    p: float,
+    weighted: bool,
+    grid_step_deg: float,
+    alpha_max_deg: float,
+    min_identified_bins: int,
+    selection: str | None,
+    f_in: float,
+    f_out: float,
+    forced: list[int],
+    min_bins: int,
+    folds: int,
+    seed: int,
+    extra: list[list[int]],
+    bootstrap: int,
+    level: float,
+) -> dict[str, Any]: ...
 
 # roll-off detection and configurable runtime draws (crates/py_bindings/src/rolloff.rs)
 def rolloff_detect_defaults() -> dict[str, float | bool]: ...

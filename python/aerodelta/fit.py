@@ -17,8 +17,10 @@ from __future__ import annotations
 
 import hashlib
 import math
+import os
 import sys
 from collections.abc import Mapping, Sequence
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -83,6 +85,37 @@ DEFAULT_STRUCTURES: dict[str, list[tuple[str, str]]] = {
 }
 
 
+#: Trial regressors of the structure selection, per coefficient ``C``: named ``dC_<suffix>``.
+#: The union of the thesis structures (Eq. 3.14, 3.21, 3.22) and of Klein's trial pool
+#: for lateral stall modelling (thesis Section 2.2: beta, p, r, delta_a, delta_r, beta^2,
+#: beta^3). Klein's products with alpha (beta*alpha, p*alpha^2, alpha^3, ...) are left out:
+#: alpha is nearly constant inside a 0.2 deg bin, so each is collinear with its alpha-free
+#: term; the bin-by-bin fit gives every parameter its alpha dependence instead.
+CANDIDATE_TERMS: list[tuple[str, str]] = [
+    ("0", "1"),
+    ("beta", "beta_deg"),
+    ("p", "phat"),
+    ("r", "rhat"),
+    ("da", "deadband(da_deg, 2)"),
+    ("dr", "dr_deg"),
+    ("ct", "ct_left + ct_right"),
+    ("ctdiff", "ct_diff"),
+    ("ds", "ds_deg"),
+    ("betadot", "betadot_dps"),
+    ("alphadot_ds", "alphadot_dps * ds_deg"),
+    ("alphadot_beta", "alphadot_dps * beta_deg"),
+    ("alphadot_betadot", "alphadot_dps * betadot_dps"),
+    ("beta_ds", "beta_deg * ds_deg"),
+    ("beta2", "beta_deg^2"),
+    ("beta3", "beta_deg^3"),
+]
+
+#: Default candidate pools of the structure selection.
+DEFAULT_CANDIDATES: dict[str, list[tuple[str, str]]] = {
+    c: [(f"d{c}_{k}", e) for k, e in CANDIDATE_TERMS] for c in ("Cl", "Cn", "CY")
+}
+
+
 @dataclass(frozen=True)
 class FitConfig:
     """Settings of :func:`fit` (all optional; defaults follow the thesis).
@@ -118,6 +151,28 @@ class FitConfig:
         Blending limits of Eq. 3.12, deg (one value for all flaps, or per flap).
     min_identified_bins
         A parameter identified in fewer bins is set to zero (the qualified model is kept).
+    selection
+        Structure selection per coefficient and flap (:mod:`aero_core::select`):
+        ``"stepwise"`` (forward stepwise regression with partial F, Klein & Morelli 2006
+        Section 5.4.2), ``"mof"`` (multivariate orthogonal functions with the predicted squared
+        error, Morelli 1995) or ``None`` to fit ``structures`` as given. The number of
+        regressors kept is chosen by cross-validation over maneuvers.
+    candidates
+        Trial regressors per coefficient for the selection (``None``: :data:`DEFAULT_CANDIDATES`).
+    f_in, f_out
+        Partial F to enter and to stay in the stepwise regression (SIDPAC: 4), after scaling by
+        the bin's coloured-residual variance inflation.
+    min_selected_bins
+        A candidate selected in fewer bins of a flap is not kept for that flap.
+    cv_folds
+        Folds of whole maneuvers of the cross-validation.
+    seed
+        Seed of the fold assignment and of the bootstrap.
+    bootstrap
+        Bootstrap replicates over maneuvers for confidence bands (0: none, the fast default;
+        100-200 give stable 95 % bands).
+    band_level
+        Confidence level of the bands.
     """
 
     structures: Mapping[str, Sequence[tuple[str, str]]] = field(
@@ -137,14 +192,23 @@ class FitConfig:
     alpha_l_deg: float | Mapping[float, float] = 8.0
     alpha_u_deg: float | Mapping[float, float] = 10.0
     min_identified_bins: int = 4
+    selection: str | None = "stepwise"
+    candidates: Mapping[str, Sequence[tuple[str, str]]] | None = None
+    f_in: float = 4.0
+    f_out: float = 4.0
+    min_selected_bins: int = 4
+    cv_folds: int = 5
+    seed: int = 0
+    bootstrap: int = 0
+    band_level: float = 0.95
 
     @classmethod
     def from_toml(cls, path: str | Path) -> FitConfig:
         """Read a configuration file.
 
-        The file may hold the scalar settings at top level and a ``[structures]`` table of
-        ``coefficient = [["name", "expression"], ...]``; ``[stall_alpha_deg]`` maps flap
-        (as a string key) to alpha.
+        The file may hold the scalar settings at top level, ``[structures]`` and
+        ``[candidates]`` tables of ``coefficient = [["name", "expression"], ...]``;
+        ``[stall_alpha_deg]`` maps flap (as a string key) to alpha.
         """
         p = Path(path)
         try:
@@ -156,8 +220,10 @@ class FitConfig:
         for k, v in raw.items():
             if k not in known:
                 raise DataError(f"{p}: unknown setting '{k}'; valid settings are {sorted(known)}")
-            if k == "structures":
+            if k in ("structures", "candidates"):
                 kwargs[k] = {c: [tuple(t) for t in terms] for c, terms in v.items()}
+            elif k == "selection":
+                kwargs[k] = None if str(v).lower() == "none" else v
             elif k == "stall_alpha_deg":
                 kwargs[k] = {float(f): float(a) for f, a in v.items()}
             else:
@@ -223,7 +289,13 @@ def qualified_coefficients(data: pl.DataFrame, qualified: str = "auto") -> pl.Da
             cols[n] = np.ascontiguousarray(data[n].cast(pl.Float64).fill_null(0.0).to_numpy())
         elif n in ("dsl_deg", "dsr_deg", "de_deg"):
             cols[n] = np.zeros(data.height)
-    cl, cn, cy = _core.qualified_lateral_adx37(cols)
+    # row chunks side by side (the engine releases the GIL; row-wise, so chunking is exact)
+    n = data.height
+    step = max(50_000, -(-n // max(1, min(4, os.cpu_count() or 1))))
+    chunks = [{k: v[i : i + step] for k, v in cols.items()} for i in range(0, max(n, 1), step)]
+    with ThreadPoolExecutor(max_workers=len(chunks)) as ex:
+        parts = list(ex.map(_core.qualified_lateral_adx37, chunks))
+    cl, cn, cy = (np.concatenate([p[k] for p in parts]) for k in range(3))
     return pl.DataFrame({"Cl_qual": cl, "Cn_qual": cn, "CY_qual": cy})
 
 
@@ -254,20 +326,35 @@ class FitResult:
     Attributes
     ----------
     model
-        The Δ model (save it with ``result.model.save(path)``).
+        The Δ model (save it with ``result.model.save(path)``); with a bootstrap its terms carry
+        confidence bands (``band``: level, lower, upper per flap).
     bins
         One row per coefficient, flap and alpha bin: edges (deg), points, maneuvers, R²,
         condition number, residual std, note.
     params
         One row per coefficient, flap, bin and parameter: estimate, standard errors
-        (conventional and corrected for coloured residuals), t, partial F, excitation, VIF,
-        ``identifiable`` and a ``note`` saying why not.
+        (conventional, corrected for coloured residuals and, with a bootstrap, over
+        maneuvers), t, partial F, excitation, VIF, ``identifiable`` and a ``note`` saying why not.
     consistency
         Adjacent-bin consistency per coefficient, flap and parameter (Section 3.3.4).
     smoothed
-        The smoothed parameter tables per coefficient, flap and parameter.
+        The smoothed parameter tables per coefficient, flap and parameter; with a bootstrap
+        also ``lower``/``upper`` (the confidence band at ``band_level``).
     stall_alpha_deg
         Stall alpha used per flap, deg.
+    structure
+        Structure selection per coefficient, flap and candidate: bins fitted, bins that
+        selected it, ``kept`` (empty without selection).
+    selection_bins
+        Per coefficient, flap, bin of the candidate-pool fit and candidate: correlation of the
+        model error with the regressor, κ-scaled partial F, ``selected``, excitation and
+        identifiability in the pool fit, κ (empty without selection).
+    cross_validation
+        Per coefficient and flap, held-out (cross-validated over maneuvers) RMS and Theil
+        inequality of the per-bin Δ fits with the ``selected`` structure, the ``full`` pool
+        and the thesis ``default`` structure (empty without selection).
+    replicates
+        Bootstrap replicates ``{(coefficient, param, flap): (alpha_grid, values[B, grid])}``.
     """
 
     model: DeltaModel
@@ -276,6 +363,12 @@ class FitResult:
     consistency: pl.DataFrame
     smoothed: pl.DataFrame
     stall_alpha_deg: dict[float, float]
+    structure: pl.DataFrame = field(default_factory=pl.DataFrame)
+    selection_bins: pl.DataFrame = field(default_factory=pl.DataFrame)
+    cross_validation: pl.DataFrame = field(default_factory=pl.DataFrame)
+    replicates: dict[tuple[str, str, float], tuple[np.ndarray, np.ndarray]] = field(
+        default_factory=dict, repr=False
+    )
 
     def summary(self) -> pl.DataFrame:
         """Per-parameter table (statsmodels-like), sorted by coefficient, flap, alpha."""
@@ -289,12 +382,177 @@ class FitResult:
             .sort(["coefficient", "flap_deg", "param"])
         )
 
+    def delta_band(self, data: pl.DataFrame, *, level: float = 0.95) -> pl.DataFrame:
+        """Bootstrap confidence band of the blended Δ along records.
+
+        Parameters
+        ----------
+        data
+            Ingested records (as given to :func:`fit`).
+        level
+            Confidence level.
+
+        Returns
+        -------
+        polars.DataFrame
+            Per coefficient ``C``: ``dC_blended`` (the model's correction), ``dC_lower`` and
+            ``dC_upper`` (percentile band of the replicates, NaN on flaps the model was not
+            fitted at). The extended coefficient's band is ``C_qualified +`` the band.
+
+        Raises
+        ------
+        DataError
+            If the fit ran without a bootstrap.
+        """
+        if not self.replicates:
+            raise DataError(
+                "delta_band: the fit has no bootstrap; fit with FitConfig(bootstrap=200)"
+            )
+        df = model_frame(data)
+        spec = self.model.to_spec()
+        for c in spec["coefficients"].values():
+            for t in c["terms"]:
+                t["values"] = [[1.0] * len(t["alpha_deg"]) for _ in t["values"]]
+                t.pop("band", None)
+        unit = DeltaModel.from_spec(spec, "unit regressors").evaluate(df, terms=True)
+        ev = self.model.evaluate(df)
+        alpha = df["alpha_deg"].cast(pl.Float64).to_numpy()
+        flap = df["flap_deg"].cast(pl.Float64).to_numpy()
+        q = [(1.0 - level) / 2.0, (1.0 + level) / 2.0]
+        out: dict[str, np.ndarray] = {}
+        for coef in self.model.coefficients:
+            lo = np.full(df.height, np.nan)
+            hi = np.full(df.height, np.nan)
+            w = unit[f"w_{coef}"].to_numpy()
+            keys = [k for k in self.replicates if k[0] == coef]
+            for f in sorted({k[2] for k in keys}):
+                rows = np.flatnonzero(flap == f)
+                for start in range(0, rows.size, 20_000):
+                    r = rows[start : start + 20_000]
+                    acc = None
+                    for _, name, _ in (k for k in keys if k[2] == f):
+                        grid, reps = self.replicates[(coef, name, f)]
+                        x = unit[name].to_numpy()[r]
+                        th = np.stack([np.interp(alpha[r], grid, v) for v in reps])
+                        acc = th * x if acc is None else acc + th * x
+                    if acc is not None:
+                        qs = np.quantile(acc, q, axis=0)
+                        lo[r], hi[r] = qs[0] * w[r], qs[1] * w[r]
+            out[f"d{coef}_blended"] = ev[f"d{coef}_blended"].to_numpy()
+            out[f"d{coef}_lower"] = lo
+            out[f"d{coef}_upper"] = hi
+        return pl.DataFrame(out)
+
 
 def _maneuver_codes(data: pl.DataFrame) -> np.ndarray:
     return np.ascontiguousarray(
         data["maneuver_id"].cast(pl.Utf8).cast(pl.Categorical).to_physical().to_numpy(),
         dtype=np.uint64,
     )
+
+
+def _bin_rows(
+    coef: str, flap: float, out: Mapping[str, Any], regs: Sequence[tuple[str, str]]
+) -> tuple[list[dict[str, Any]], list[dict[str, Any]]]:
+    """Rows of the ``bins`` and ``params`` tables from one ``identify`` output."""
+    names: list[str] = out["names"]
+    nb, npar = len(out["alpha_lo"]), len(names)
+    shape = (nb, npar)
+    est = np.asarray(out["params"]).reshape(shape)
+    se = np.asarray(out["std_err"]).reshape(shape)
+    sec = np.asarray(out["std_err_colored"]).reshape(shape)
+    pf = np.asarray(out["partial_f"]).reshape(shape)
+    exc = np.asarray(out["excitation"]).reshape(shape)
+    vif = np.asarray(out["vif"]).reshape(shape)
+    ident = np.asarray(out["identifiable"], dtype=bool).reshape(shape)
+    notes = np.asarray(out["notes"], dtype=object).reshape(shape)
+    boot = out.get("bootstrap")
+    seb = np.asarray(boot["bin_std"]).reshape(shape) if boot is not None else np.full(shape, np.nan)
+    bins_rows, param_rows = [], []
+    for b in range(nb):
+        bins_rows.append(
+            {
+                "coefficient": coef, "flap_deg": flap,
+                "alpha_lo_deg": out["alpha_lo"][b], "alpha_hi_deg": out["alpha_hi"][b],
+                "n": int(out["n"][b]), "n_maneuvers": int(out["n_maneuvers"][b]),
+                "r2": out["r2"][b], "condition_number": out["condition_number"][b],
+                "residual_std": out["residual_std"][b], "note": out["bin_note"][b],
+            }
+        )  # fmt: skip
+        for j, name in enumerate(names):
+            param_rows.append(
+                {
+                    "coefficient": coef, "flap_deg": flap, "param": name,
+                    "regressor": regs[j][1],
+                    "alpha_lo_deg": out["alpha_lo"][b], "alpha_hi_deg": out["alpha_hi"][b],
+                    "estimate": est[b, j], "std_err": se[b, j],
+                    "std_err_colored": sec[b, j], "std_err_bootstrap": seb[b, j],
+                    "t": est[b, j] / se[b, j] if se[b, j] > 0 else math.nan,
+                    "partial_f": pf[b, j], "excitation": exc[b, j], "vif": vif[b, j],
+                    "identifiable": bool(ident[b, j]), "note": str(notes[b, j]),
+                }
+            )  # fmt: skip
+    return bins_rows, param_rows
+
+
+def _selection_rows(
+    coef: str,
+    *,
+    flap: float,
+    sel: Mapping[str, Any],
+    pool: Sequence[tuple[str, str]],
+    chosen: Sequence[int],
+    default: Sequence[tuple[str, str]],
+) -> tuple[list[dict[str, Any]], pl.DataFrame, list[dict[str, Any]]]:
+    """Rows of ``structure``, the ``selection_bins`` frame and ``cross_validation`` rows."""
+    pf = sel["pool"]
+    nb, npar = len(pf["alpha_lo"]), len(pool)
+    shape = (nb, npar)
+    selected = np.asarray(sel["selected"], dtype=bool).reshape(shape)
+    fpart = np.asarray(sel["partial_f"]).reshape(shape)
+    corr = np.asarray(sel["correlation"]).reshape(shape)
+    exc = np.asarray(pf["excitation"]).reshape(shape)
+    ident = np.asarray(pf["identifiable"], dtype=bool).reshape(shape)
+    fitted = np.asarray(sel["fitted"], dtype=bool)
+    kappa = np.asarray(sel["kappa"])
+    bin_rows = pl.DataFrame(
+        {
+            "coefficient": [coef] * (nb * npar),
+            "flap_deg": np.full(nb * npar, flap),
+            "param": [pool[j][0] for _ in range(nb) for j in range(npar)],
+            "regressor": [pool[j][1] for _ in range(nb) for j in range(npar)],
+            "alpha_lo_deg": np.repeat(np.asarray(pf["alpha_lo"]), npar),
+            "alpha_hi_deg": np.repeat(np.asarray(pf["alpha_hi"]), npar),
+            "fitted": np.repeat(fitted, npar),
+            "kappa": np.repeat(kappa, npar),
+            "correlation": corr.ravel(),
+            "partial_f": fpart.ravel(),
+            "selected": selected.ravel(),
+            "excitation": exc.ravel(),
+            "identifiable_in_pool": ident.ravel(),
+        }
+    )
+    structure = [
+        {
+            "coefficient": coef, "flap_deg": flap, "param": pool[j][0], "regressor": pool[j][1],
+            "bins_fitted": int(fitted.sum()), "bins_selected": int(sel["count"][j]),
+            "kept": j in chosen,
+        }
+        for j in range(npar)
+    ]  # fmt: skip
+    cv = []
+    labelled = [("selected", sel["pruned"]), ("full", sel["full"])]
+    if default:
+        labelled.append(("default", sel["extra"][0]))
+    for label, (cols, rms, tic, mse, mse_se) in labelled:
+        cv.append(
+            {
+                "coefficient": coef, "flap_deg": flap, "structure": label,
+                "n_params": len(cols), "params": ",".join(pool[c][0] for c in sorted(cols)),
+                "cv_rms": rms, "cv_tic": tic, "cv_mse": mse, "cv_mse_se": mse_se,
+            }
+        )  # fmt: skip
+    return structure, bin_rows, cv
 
 
 def fit(
@@ -305,6 +563,10 @@ def fit(
     progress: bool = False,
 ) -> FitResult:
     """Identify the Δ model from ingested flight records.
+
+    Per flap and coefficient: select the structure from the candidate pool (unless
+    ``config.selection`` is ``None``), fit the kept regressors bin by bin, smooth them and,
+    with ``config.bootstrap > 0``, bootstrap them over maneuvers for confidence bands.
 
     Parameters
     ----------
@@ -323,11 +585,21 @@ def fit(
     FitResult
     """
     cfg = config or FitConfig()
-    for c in cfg.structures:
+    coefs = list(cfg.structures)
+    for c in coefs:
         if c not in COEFFICIENTS:
             raise DataError(f"structures: unknown coefficient '{c}'; use {list(COEFFICIENTS)}")
+    if cfg.selection not in (None, "stepwise", "mof"):
+        raise DataError(f"selection='{cfg.selection}': use 'stepwise', 'mof' or None")
+    pools = cfg.candidates if cfg.candidates is not None else DEFAULT_CANDIDATES
+    if cfg.selection is not None:
+        missing = [c for c in coefs if c not in pools]
+        if missing:
+            raise DataError(
+                f"candidates: no candidate pool for {missing}; give one per coefficient"
+            )
     df = model_frame(data)
-    needed = ["alpha_deg", "flap_deg", "maneuver_id"] + [f"{c}_meas" for c in cfg.structures]
+    needed = ["alpha_deg", "flap_deg", "maneuver_id"] + [f"{c}_meas" for c in coefs]
     missing = [c for c in needed if c not in df.columns]
     if missing:
         raise DataError(f"fit: the data lack {missing}; run aerodelta.ingest first")
@@ -337,97 +609,128 @@ def fit(
     param_rows: list[dict[str, Any]] = []
     cons_rows: list[dict[str, Any]] = []
     smooth_rows: list[dict[str, Any]] = []
+    struct_rows: list[dict[str, Any]] = []
+    selbin_rows: list[pl.DataFrame] = []
+    cv_rows: list[dict[str, Any]] = []
     stall: dict[float, float] = {}
-    tables: dict[str, dict[str, dict[float, tuple[np.ndarray, np.ndarray]]]] = {}
+    tables: dict[str, dict[str, dict[float, tuple[np.ndarray, ...]]]] = {}
+    regressors: dict[str, dict[str, str]] = {c: {} for c in coefs}
+    replicates: dict[tuple[str, str, float], tuple[np.ndarray, np.ndarray]] = {}
 
-    tasks = [(f, c) for f in flaps for c in cfg.structures]
+    tasks = [(f, c) for f in flaps for c in coefs]
     bar = None
     if progress:
         bar = tqdm(total=len(tasks), desc="fit", unit="fit", file=sys.stderr)
-    for flap in flaps:
-        d = df.filter(pl.col("flap_deg") == flap)
-        stall[flap] = float(cfg.stall_alpha_deg.get(flap, stall_alpha(d)))
-        alpha_max = stall[flap] + cfg.past_stall_deg
-        # every numeric column as float64 once per flap; each coefficient takes its rows
-        full = {
-            c: d[c].cast(pl.Float64).fill_null(np.nan).to_numpy()
-            for c in d.columns
-            if d[c].dtype.is_numeric() and c != "maneuver_id"
-        }
-        codes = _maneuver_codes(d)
-        for coef in cfg.structures:
-            regs = [(str(n), str(e)) for n, e in cfg.structures[coef]]
-            z_all = full[f"{coef}_meas"] - full[f"{coef}_qual"]
-            keep = np.isfinite(z_all) & np.isfinite(full["alpha_deg"])
-            cols = {c: np.ascontiguousarray(v[keep]) for c, v in full.items()}
-            z = np.ascontiguousarray(z_all[keep])
-            out = _core.identify_bins(
-                regs, cols, z, cols["alpha_deg"], np.ascontiguousarray(codes[keep]),
-                cfg.width_deg, cfg.min_points_per_param, cfg.min_maneuvers, cfg.max_width_deg,
-                cfg.colored, cfg.min_excitation, cfg.p, cfg.weighted, cfg.grid_step_deg,
-                alpha_max, cfg.min_identified_bins,
+
+    def collect(
+        job: tuple[float, str, list[tuple[str, str]], list[tuple[str, str]], list, Future],
+    ) -> None:
+        flap, coef, regs, default, extra, fut = job
+        out = fut.result()
+        chosen: list[int] = list(out["chosen"])
+        final = [regs[i] for i in chosen]
+        regressors[coef].update(dict(final))
+        b_rows, p_rows = _bin_rows(coef, flap, out, final)
+        bins_rows.extend(b_rows)
+        param_rows.extend(p_rows)
+        if out["selection"] is not None:
+            st, sb, cv = _selection_rows(
+                coef,
+                flap=flap,
+                sel=out["selection"],
+                pool=regs,
+                chosen=chosen,
+                default=default if extra else [],
+            )
+            struct_rows.extend(st)
+            selbin_rows.append(sb)
+            cv_rows.extend(cv)
+        names: list[str] = out["names"]
+        for j, name in enumerate(names):
+            cons_rows.append(
+                {
+                    "coefficient": coef, "flap_deg": flap, "param": name,
+                    "scatter": out["consistency_scatter"][j],
+                    "step_z": out["consistency_step_z"][j],
+                    "pairs": out["consistency_pairs"][j],
+                }
             )  # fmt: skip
-            names: list[str] = out["names"]
-            nb, npar = len(out["alpha_lo"]), len(names)
-            shape = (nb, npar)
-            est = np.asarray(out["params"]).reshape(shape)
-            se = np.asarray(out["std_err"]).reshape(shape)
-            sec = np.asarray(out["std_err_colored"]).reshape(shape)
-            pf = np.asarray(out["partial_f"]).reshape(shape)
-            exc = np.asarray(out["excitation"]).reshape(shape)
-            vif = np.asarray(out["vif"]).reshape(shape)
-            ident = np.asarray(out["identifiable"], dtype=bool).reshape(shape)
-            notes = np.asarray(out["notes"], dtype=object).reshape(shape)
-            for b in range(nb):
-                bins_rows.append(
-                    {
-                        "coefficient": coef, "flap_deg": flap,
-                        "alpha_lo_deg": out["alpha_lo"][b], "alpha_hi_deg": out["alpha_hi"][b],
-                        "n": int(out["n"][b]), "n_maneuvers": int(out["n_maneuvers"][b]),
-                        "r2": out["r2"][b], "condition_number": out["condition_number"][b],
-                        "residual_std": out["residual_std"][b], "note": out["bin_note"][b],
-                    }
-                )  # fmt: skip
-                for j, name in enumerate(names):
-                    param_rows.append(
-                        {
-                            "coefficient": coef, "flap_deg": flap, "param": name,
-                            "regressor": regs[j][1],
-                            "alpha_lo_deg": out["alpha_lo"][b], "alpha_hi_deg": out["alpha_hi"][b],
-                            "estimate": est[b, j], "std_err": se[b, j],
-                            "std_err_colored": sec[b, j],
-                            "t": est[b, j] / se[b, j] if se[b, j] > 0 else math.nan,
-                            "partial_f": pf[b, j], "excitation": exc[b, j], "vif": vif[b, j],
-                            "identifiable": bool(ident[b, j]), "note": str(notes[b, j]),
-                        }
-                    )  # fmt: skip
-            for j, name in enumerate(names):
-                cons_rows.append(
+        boot = out["bootstrap"]
+        if boot is not None:
+            ng = len(boot["alpha_deg"])
+            nrep = int(boot["n_replicates"])
+            lower = np.asarray(boot["lower"]).reshape(len(names), ng)
+            upper = np.asarray(boot["upper"]).reshape(len(names), ng)
+            reps = np.asarray(boot["replicates"]).reshape(len(names), nrep, ng)
+        for j, (name, grid, values, nused, note) in enumerate(out["smoothed"]):
+            g, v = np.asarray(grid), np.asarray(values)
+            lo = lower[j] if boot is not None else np.full(len(g), np.nan)
+            hi = upper[j] if boot is not None else np.full(len(g), np.nan)
+            tables.setdefault(coef, {}).setdefault(name, {})[flap] = (g, v, lo, hi)
+            if boot is not None:
+                replicates[(coef, name, flap)] = (g, reps[j])
+            for a, val, lv, hv in zip(g, v, lo, hi, strict=True):
+                smooth_rows.append(
                     {
                         "coefficient": coef, "flap_deg": flap, "param": name,
-                        "scatter": out["consistency_scatter"][j],
-                        "step_z": out["consistency_step_z"][j],
-                        "pairs": out["consistency_pairs"][j],
+                        "alpha_deg": a, "value": val, "lower": lv, "upper": hv,
+                        "bins_used": nused, "note": note,
                     }
                 )  # fmt: skip
-            for name, grid, values, used, note in out["smoothed"]:
-                tables.setdefault(coef, {}).setdefault(name, {})[flap] = (
-                    np.asarray(grid),
-                    np.asarray(values),
+        if bar is not None:
+            bar.update(1)
+
+    # the engine releases the GIL: the (flap, coefficient) fits run side by side, and their
+    # results are assembled in a fixed order (the same output for any number of threads)
+    jobs: list[tuple[float, str, list[tuple[str, str]], list[tuple[str, str]], list, Future]] = []
+    with ThreadPoolExecutor(max_workers=max(1, min(4, os.cpu_count() or 1))) as ex:
+        for flap in flaps:
+            d = df.filter(pl.col("flap_deg") == flap)
+            stall[flap] = float(cfg.stall_alpha_deg.get(flap, stall_alpha(d)))
+            alpha_max = stall[flap] + cfg.past_stall_deg
+            # every numeric column as float64 once per flap; each coefficient takes its rows
+            num = [c for c in d.columns if d[c].dtype.is_numeric() and c != "maneuver_id"]
+            conv = d.select(pl.col(num).cast(pl.Float64).fill_null(np.nan))
+            full = {c: conv[c].to_numpy() for c in num}
+            codes = _maneuver_codes(d)
+            for coef in coefs:
+                default = [(str(n), str(e)) for n, e in cfg.structures[coef]]
+                regs = (
+                    default if cfg.selection is None else [(str(n), str(e)) for n, e in pools[coef]]
                 )
-                for a, v in zip(grid, values, strict=True):
-                    smooth_rows.append(
-                        {
-                            "coefficient": coef, "flap_deg": flap, "param": name,
-                            "alpha_deg": a, "value": v, "bins_used": used, "note": note,
-                        }
-                    )  # fmt: skip
-            if bar is not None:
-                bar.update(1)
+                forced = [i for i, (_, e) in enumerate(regs) if e.strip() == "1"]
+                by_expr = {e.replace(" ", ""): i for i, (_, e) in enumerate(regs)}
+                extra_cols = [by_expr.get(e.replace(" ", "")) for _, e in default]
+                extra = [sorted(c for c in extra_cols if c is not None)] if cfg.selection else []
+                z_all = full[f"{coef}_meas"] - full[f"{coef}_qual"]
+                keep = np.isfinite(z_all) & np.isfinite(full["alpha_deg"])
+                # only the columns the regressors can read (names appearing in their expressions)
+                used = [c for c in full if c == "alpha_deg" or any(c in e for _, e in regs)]
+                if keep.all():
+                    cols = {c: np.ascontiguousarray(full[c]) for c in used}
+                else:
+                    cols = {c: np.ascontiguousarray(full[c][keep]) for c in used}
+                z = np.ascontiguousarray(z_all[keep])
+                fut = ex.submit(
+                    _core.identify_flap, regs, cols, z, cols["alpha_deg"],
+                    np.ascontiguousarray(codes[keep]),
+                    cfg.width_deg, cfg.min_points_per_param, cfg.min_maneuvers, cfg.max_width_deg,
+                    cfg.colored, cfg.min_excitation, cfg.p, cfg.weighted, cfg.grid_step_deg,
+                    alpha_max, cfg.min_identified_bins, cfg.selection, cfg.f_in, cfg.f_out, forced,
+                    cfg.min_selected_bins, cfg.cv_folds, cfg.seed, extra, cfg.bootstrap,
+                    cfg.band_level,
+                )  # fmt: skip
+                jobs.append((flap, coef, regs, default, extra, fut))
+            while len(jobs) > 2 * len(coefs):  # bounded memory: about three flaps in flight
+                collect(jobs.pop(0))
+        for job in jobs:
+            collect(job)
     if bar is not None:
         bar.close()
 
-    spec = _model_spec(cfg, flaps, tables, stall, data)
+    spec = _model_spec(
+        cfg, flaps=flaps, tables=tables, regressors=regressors, stall=stall, data=data
+    )
     return FitResult(
         model=DeltaModel.from_spec(spec, "fitted model"),
         bins=pl.DataFrame(bins_rows),
@@ -435,6 +738,10 @@ def fit(
         consistency=pl.DataFrame(cons_rows),
         smoothed=pl.DataFrame(smooth_rows),
         stall_alpha_deg=stall,
+        structure=pl.DataFrame(struct_rows),
+        selection_bins=pl.concat(selbin_rows) if selbin_rows else pl.DataFrame(),
+        cross_validation=pl.DataFrame(cv_rows),
+        replicates=replicates,
     )
 
 
@@ -448,6 +755,8 @@ def _data_hash(data: pl.DataFrame) -> str:
             h.update(
                 np.ascontiguousarray(s.cast(pl.Float64).fill_null(np.nan).to_numpy()).tobytes()
             )
+        elif s.dtype in (pl.Utf8, pl.Categorical):  # fast path, the same bytes
+            h.update(s.cast(pl.Utf8).fill_null("None").str.join("\x1f")[0].encode())
         else:
             h.update("\x1f".join(map(str, s.to_list())).encode())
     return h.hexdigest()
@@ -455,25 +764,41 @@ def _data_hash(data: pl.DataFrame) -> str:
 
 def _model_spec(
     cfg: FitConfig,
+    *,
     flaps: list[float],
-    tables: dict[str, dict[str, dict[float, tuple[np.ndarray, np.ndarray]]]],
+    tables: dict[str, dict[str, dict[float, tuple[np.ndarray, ...]]]],
+    regressors: Mapping[str, Mapping[str, str]],
     stall: dict[float, float],
     data: pl.DataFrame,
 ) -> dict[str, Any]:
     coefficients: dict[str, Any] = {}
     for coef, params in tables.items():
         terms = []
-        regs = dict(cfg.structures[coef])
+        regs = regressors[coef]
         for name, per_flap in params.items():
-            grid = np.unique(np.concatenate([g for g, _ in per_flap.values()]))
-            # np.interp holds the end values: each flap's table is reproduced at its own nodes
-            rows = [
-                np.interp(grid, *per_flap[f]).tolist() if f in per_flap else [0.0] * len(grid)
-                for f in flaps
-            ]
-            terms.append(
-                {"name": name, "regressor": regs[name], "alpha_deg": grid.tolist(), "values": rows}
-            )
+            grid = np.unique(np.concatenate([t[0] for t in per_flap.values()]))
+
+            def resample(
+                k: int,
+                per_flap: Mapping[float, tuple[np.ndarray, ...]] = per_flap,
+                grid: np.ndarray = grid,
+            ) -> list[list[float]]:
+                # np.interp holds the end values: each flap's table is reproduced at its nodes;
+                # a flap where the parameter is not in the structure gets zeros
+                return [
+                    np.interp(grid, per_flap[f][0], per_flap[f][k]).tolist()
+                    if f in per_flap
+                    else [0.0] * len(grid)
+                    for f in flaps
+                ]
+
+            term: dict[str, Any] = {
+                "name": name, "regressor": regs[name], "alpha_deg": grid.tolist(),
+                "values": resample(1),
+            }  # fmt: skip
+            if cfg.bootstrap > 0 and all(np.isfinite(t[2]).all() for t in per_flap.values()):
+                term["band"] = {"level": cfg.band_level, "lower": resample(2), "upper": resample(3)}
+            terms.append(term)
         coefficients[coef] = {
             "terms": terms,
             "alpha_l_deg": [_per_flap(cfg.alpha_l_deg, f, "alpha_l_deg") for f in flaps],

@@ -25,6 +25,9 @@
 //!   (dead-band splines of Eq. 3.15-3.16, products, user columns);
 //! - [`identify`]: per-bin equation-error Δ identification with identifiability
 //!   marks, adjacent-bin consistency and smoothing into tables (Sections 3.3-3.4);
+//! - [`select`]: structure selection of the Δ model per coefficient and flap
+//!   (stepwise partial F, orthogonal functions with PSE, cross-validation over maneuvers);
+//! - [`bootstrap`]: confidence bands on the smoothed parameters by resampling maneuvers;
 //! - [`delta_model`]: the Δ part of the extended model (Eq. 3.11-3.12, 3.19),
 //!   its versioned file and an allocation-free bound evaluation;
 //! - [`rolloff_detect`]: detection of uncommanded roll-off events (Section 3.4.3);
@@ -35,6 +38,7 @@
 #![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used))]
 
 pub mod aircraft;
+pub mod bootstrap;
 pub mod daveml;
 pub mod delta_model;
 pub mod error;
@@ -47,6 +51,7 @@ pub mod regressor;
 pub mod rolloff;
 pub mod rolloff_detect;
 pub mod rolloff_mc;
+pub mod select;
 pub mod sim;
 pub mod spline;
 pub mod table;

@@ -4,17 +4,26 @@ use std::collections::HashMap;
 use aero_core::aircraft::qualified::QualifiedModel;
 use aero_core::aircraft::records::{qualified_lateral, RecordColumns};
 use aero_core::aircraft::turboprop::adx37;
-use aero_core::identify::{fit_bins, smooth_parameters, Design, IdentifyOptions, SmoothOptions};
+use aero_core::bootstrap::{Bootstrap, BootstrapOptions};
+use aero_core::identify::{
+    fit_bins, smooth_parameters, BinnedFit, Design, IdentifyOptions, SmoothOptions,
+    SmoothedParameter,
+};
 use aero_core::partition::PartitionOptions;
+use aero_core::select::{
+    identify_flap as identify_flap_core, CvScore, Method, SelectOptions, Selection,
+};
 use aero_core::AeroError;
 use numpy::{IntoPyArray, PyArray1, PyReadonlyArray1};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
+use crate::error::to_py;
 use crate::util::detached;
 
 type Array<'py> = Bound<'py, PyArray1<f64>>;
 type SmoothedRow = (String, Vec<f64>, Vec<f64>, usize, String);
+type CvTuple = (Vec<usize>, f64, f64, f64, f64);
 
 fn column<'a>(cols: &'a HashMap<String, &'a [f64]>, name: &str) -> Result<&'a [f64], AeroError> {
     cols.get(name).copied().ok_or_else(|| {
@@ -120,6 +129,15 @@ fn identify_bins<'py>(
         )?;
         Ok((fit, sm))
     })?;
+    fit_dict(py, &fit, smoothed)
+}
+
+/// The per-bin fit and its smoothed parameters as a dict of flat arrays.
+fn fit_dict<'py>(
+    py: Python<'py>,
+    fit: &BinnedFit,
+    smoothed: Vec<SmoothedParameter>,
+) -> PyResult<Bound<'py, PyDict>> {
     let d = PyDict::new(py);
     let bins = &fit.bins;
     let flat = |f: &dyn Fn(&aero_core::identify::BinFit) -> &Vec<f64>| -> Vec<f64> {
@@ -223,8 +241,179 @@ fn identify_bins<'py>(
     Ok(d)
 }
 
+fn score_tuple(s: &CvScore) -> CvTuple {
+    (s.columns.clone(), s.rms, s.tic, s.mse, s.mse_se)
+}
+
+fn selection_dict<'py>(
+    py: Python<'py>,
+    sel: &Selection,
+    pool: &BinnedFit,
+) -> PyResult<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+    let flat_b = |v: &Vec<Vec<bool>>| v.iter().flatten().copied().collect::<Vec<bool>>();
+    let flat_f = |v: &Vec<Vec<f64>>| v.iter().flatten().copied().collect::<Vec<f64>>();
+    d.set_item("selected", flat_b(&sel.selected))?;
+    d.set_item("partial_f", flat_f(&sel.partial_f).into_pyarray(py))?;
+    d.set_item("correlation", flat_f(&sel.correlation).into_pyarray(py))?;
+    d.set_item("kappa", sel.kappa.clone().into_pyarray(py))?;
+    d.set_item("fitted", sel.fitted.clone())?;
+    d.set_item("count", sel.count.clone())?;
+    d.set_item(
+        "nested",
+        sel.nested.iter().map(score_tuple).collect::<Vec<_>>(),
+    )?;
+    d.set_item("full", score_tuple(&sel.full))?;
+    d.set_item(
+        "extra",
+        sel.extra.iter().map(score_tuple).collect::<Vec<_>>(),
+    )?;
+    d.set_item("chosen_k", sel.chosen_k)?;
+    d.set_item("pruned", score_tuple(&sel.pruned))?;
+    d.set_item("pool", fit_dict(py, pool, Vec::new())?)?;
+    Ok(d)
+}
+
+fn bootstrap_dict<'py>(py: Python<'py>, b: &Bootstrap) -> PyResult<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+    let flat = |v: &Vec<Vec<f64>>| v.iter().flatten().copied().collect::<Vec<f64>>();
+    d.set_item("alpha_deg", b.alpha_deg.clone().into_pyarray(py))?;
+    d.set_item("lower", flat(&b.lower).into_pyarray(py))?;
+    d.set_item("upper", flat(&b.upper).into_pyarray(py))?;
+    d.set_item("bin_std", flat(&b.bin_std).into_pyarray(py))?;
+    d.set_item(
+        "replicates",
+        b.replicates
+            .iter()
+            .flatten()
+            .flatten()
+            .copied()
+            .collect::<Vec<f64>>()
+            .into_pyarray(py),
+    )?;
+    d.set_item("n_replicates", b.replicates.first().map_or(0, Vec::len))?;
+    d.set_item("level", b.level)?;
+    Ok(d)
+}
+
+/// Per-bin identification of one coefficient at one flap setting with an optional
+/// structure selection over a candidate pool and an optional bootstrap over maneuvers.
+#[pyfunction]
+#[pyo3(signature = (regressors, columns, z, alpha_deg, maneuver, width_deg, min_points_per_param, min_maneuvers, max_width_deg, colored, min_excitation, p, weighted, grid_step_deg, alpha_max_deg, min_identified_bins, selection, f_in, f_out, forced, min_bins, folds, seed, extra, bootstrap, level))]
+#[allow(clippy::too_many_arguments)]
+fn identify_flap<'py>(
+    py: Python<'py>,
+    regressors: Vec<(String, String)>,
+    columns: HashMap<String, PyReadonlyArray1<'py, f64>>,
+    z: PyReadonlyArray1<'py, f64>,
+    alpha_deg: PyReadonlyArray1<'py, f64>,
+    maneuver: PyReadonlyArray1<'py, u64>,
+    width_deg: f64,
+    min_points_per_param: usize,
+    min_maneuvers: usize,
+    max_width_deg: Option<f64>,
+    colored: bool,
+    min_excitation: f64,
+    p: f64,
+    weighted: bool,
+    grid_step_deg: f64,
+    alpha_max_deg: f64,
+    min_identified_bins: usize,
+    selection: Option<String>,
+    f_in: f64,
+    f_out: f64,
+    forced: Vec<usize>,
+    min_bins: usize,
+    folds: usize,
+    seed: u64,
+    extra: Vec<Vec<usize>>,
+    bootstrap: usize,
+    level: f64,
+) -> PyResult<Bound<'py, PyDict>> {
+    let mut cols: HashMap<String, &[f64]> = HashMap::new();
+    for (k, v) in &columns {
+        cols.insert(k.clone(), v.as_slice()?);
+    }
+    let (z, alpha, man) = (z.as_slice()?, alpha_deg.as_slice()?, maneuver.as_slice()?);
+    let method = match selection.as_deref() {
+        None => None,
+        Some("stepwise") => Some(Method::Stepwise),
+        Some("mof") => Some(Method::Mof),
+        Some(other) => {
+            return Err(to_py(AeroError::invalid(
+                "selection",
+                format!("is '{other}'; use 'stepwise', 'mof' or None"),
+            )))
+        }
+    };
+    let out = detached(py, || {
+        let lookup = |name: &str| cols.get(name).copied();
+        let design = Design::build(&regressors, &lookup, z.len())?;
+        let identify = IdentifyOptions {
+            partition: PartitionOptions {
+                width_deg,
+                min_points_per_param,
+                min_maneuvers,
+                max_width_deg,
+                ..PartitionOptions::default()
+            },
+            colored,
+            min_excitation,
+            ..IdentifyOptions::default()
+        };
+        let so = method.map(|method| SelectOptions {
+            method,
+            f_in,
+            f_out,
+            forced: forced.clone(),
+            min_bins,
+            folds,
+            seed,
+            min_excitation,
+            min_points_per_param,
+            extra: extra.clone(),
+        });
+        let smooth = SmoothOptions {
+            p,
+            weighted,
+            grid_step_deg,
+            alpha_max_deg,
+            min_identified_bins,
+        };
+        let bo = (bootstrap > 0).then_some(BootstrapOptions {
+            replicates: bootstrap,
+            seed,
+            level,
+            min_points_per_param,
+            min_maneuvers,
+        });
+        identify_flap_core(
+            &design,
+            z,
+            alpha,
+            man,
+            &identify,
+            so.as_ref(),
+            &smooth,
+            bo.as_ref(),
+        )
+    })?;
+    let d = fit_dict(py, &out.fit, out.smoothed)?;
+    d.set_item("chosen", out.chosen.clone())?;
+    match (&out.selection, &out.pool_fit) {
+        (Some(sel), Some(pf)) => d.set_item("selection", selection_dict(py, sel, pf)?)?,
+        _ => d.set_item("selection", py.None())?,
+    }
+    match &out.bootstrap {
+        Some(b) => d.set_item("bootstrap", bootstrap_dict(py, b)?)?,
+        None => d.set_item("bootstrap", py.None())?,
+    }
+    Ok(d)
+}
+
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(qualified_lateral_adx37, m)?)?;
     m.add_function(wrap_pyfunction!(identify_bins, m)?)?;
+    m.add_function(wrap_pyfunction!(identify_flap, m)?)?;
     Ok(())
 }

@@ -13,8 +13,17 @@ import numpy as np
 import polars as pl
 
 from aerodelta.campaign import generate_campaign
-from aerodelta.fit import fit, model_frame, validate_model
+from aerodelta.fit import (
+    COEFFICIENTS,
+    FitConfig,
+    fit,
+    model_frame,
+    qualified_coefficients,
+    theil_inequality,
+    validate_model,
+)
 from aerodelta.ingest import ingest
+from aerodelta.truth import band_check, campaign_effects
 
 HELP = "run the whole method on the built-in virtual flight test campaign"
 
@@ -25,6 +34,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--seed", type=int, default=0, help="campaign seed")
     parser.add_argument("--quick", action="store_true", help="40 maneuvers instead of 200")
     parser.add_argument("--no-progress", action="store_true", help="no progress bars")
+    parser.add_argument(
+        "--bootstrap", type=int, default=100, help="bootstrap replicates for the bands (0: none)"
+    )
 
 
 def run(args: argparse.Namespace) -> int:
@@ -41,7 +53,7 @@ def run(args: argparse.Namespace) -> int:
     held = set(ids[::5])
     train = data.filter(~pl.col("maneuver_id").is_in(held))
     test = data.filter(pl.col("maneuver_id").is_in(held))
-    result = fit(train, progress=progress)
+    result = fit(train, config=FitConfig(bootstrap=args.bootstrap), progress=progress)
     result.model.save(out / "model.json")
     result.summary().write_parquet(out / "model.params.parquet")
     v = validate_model(result.model, test)
@@ -69,10 +81,19 @@ def run(args: argparse.Namespace) -> int:
             for m in sorted(held)
         ]
     )
-    ev = result.model.evaluate(model_frame(test)).with_columns(test["maneuver_id"], test["t"])
+    meas_cols = [f"{c}_meas" for c in COEFFICIENTS]
+    mf = model_frame(test)
+    qual = qualified_coefficients(mf).rename({f"{c}_qual": f"{c}_fitqual" for c in COEFFICIENTS})
+    ev = pl.concat(
+        [result.model.evaluate(mf), qual, test.select("maneuver_id", "t", *meas_cols)],
+        how="horizontal",
+    )
     j = ev.join(truth, on=["maneuver_id", "t"], how="inner")
     print("held-out maneuvers: fitted Δ vs the truth aircraft's Δ (C_true - C_qual)")
-    print(f"{'coef':<5} {'rms true Δ':>11} {'rms error':>10} {'explained':>10}")
+    print(
+        f"{'coef':<5} {'rms true Δ':>11} {'rms error':>10} {'explained':>10} "
+        f"{'TIC ratio of the true Δ':>24}"
+    )
     for c in ("Cl", "Cn", "CY"):
         d_true = (j[f"{c}_true"] - j[f"{c}_qual"]).to_numpy()
         err = d_true - j[f"d{c}_blended"].to_numpy()
@@ -80,6 +101,52 @@ def run(args: argparse.Namespace) -> int:
         rms_t = float(np.sqrt(np.mean(d_true[ok] ** 2)))
         rms_e = float(np.sqrt(np.mean(err[ok] ** 2)))
         expl = 1.0 - (rms_e / rms_t) ** 2 if rms_t > 0 else float("nan")
-        print(f"{c:<5} {rms_t:>11.5f} {rms_e:>10.5f} {100 * expl:>9.0f}%")
+        # the best any Δ model can do against the noisy measurements: qualified + true Δ
+        meas, qual = j[f"{c}_meas"].to_numpy(), j[f"{c}_fitqual"].to_numpy()
+        oracle = theil_inequality(meas, qual + d_true) / theil_inequality(meas, qual)
+        print(f"{c:<5} {rms_t:>11.5f} {rms_e:>10.5f} {100 * expl:>9.0f}% {oracle:>24.2f}")
+    _print_identification(result, camp)
     print(f"outputs in {out}/ (campaign/, model.json, model.params.parquet)", file=sys.stderr)
     return 0
+
+
+def _print_identification(result: object, camp: Path) -> None:
+    """Structure selection, its cross-validation and the bootstrap bands against the truth."""
+    r = result
+    print("structure selection (stepwise, partial F >= 4, CV over maneuvers): kept per flap")
+    kept = (
+        r.structure.filter(pl.col("kept"))  # type: ignore[attr-defined]
+        .group_by(["coefficient", "flap_deg"], maintain_order=True)
+        .agg(pl.col("param"))
+        .sort(["coefficient", "flap_deg"])
+    )
+    for row in kept.iter_rows(named=True):
+        names = ", ".join(p.split("_", 1)[1] for p in row["param"])
+        print(f"  {row['coefficient']:<3} flap {row['flap_deg']:>4g}: {names}")
+    cv = (
+        r.cross_validation.group_by(["coefficient", "structure"])  # type: ignore[attr-defined]
+        .agg(pl.col("cv_rms").mean(), pl.col("cv_tic").mean(), pl.col("n_params").mean())
+        .sort(["coefficient", "structure"])
+    )
+    print(
+        "cross-validated per-bin Δ fit (mean over flaps): selected vs full pool vs thesis default"
+    )
+    print(f"{'coef':<5} {'structure':<9} {'params':>6} {'CV rms':>10} {'CV TIC':>7}")
+    for row in cv.iter_rows(named=True):
+        print(
+            f"{row['coefficient']:<5} {row['structure']:<9} {row['n_params']:>6.1f} "
+            f"{row['cv_rms']:>10.5f} {row['cv_tic']:>7.3f}"
+        )
+    if not r.replicates:  # type: ignore[attr-defined]
+        return
+    bc = band_check(r, campaign_effects(camp))
+    print("bootstrap 95% bands vs the true Δ derivatives (identified bins, alpha >= alpha_l)")
+    print(f"{'coef':<5} {'bins':>6} {'in band':>8} {'in bin band':>12} {'width/max|truth|':>17}")
+    for c in ("Cl", "Cn", "CY"):
+        g = bc.filter(pl.col("coefficient") == c)
+        n = g["bins"].to_numpy()
+        ib = float(np.sum(n * g["inside_band"].to_numpy()) / n.sum())
+        ibb = float(np.nansum(n * g["inside_bin_band"].to_numpy()) / n.sum())
+        t = g.filter(pl.col("max_abs_truth") > 0)
+        rel = float(np.median(t["median_width"].to_numpy() / t["max_abs_truth"].to_numpy()))
+        print(f"{c:<5} {int(n.sum()):>6} {100 * ib:>7.0f}% {100 * ibb:>11.0f}% {rel:>17.3f}")

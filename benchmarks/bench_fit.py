@@ -1,0 +1,125 @@
+"""Benchmark: the whole Δ fit of a 200-maneuver campaign (5 flaps, 3 coefficients).
+
+``aerodelta.fit`` (default settings: structure selection over the 16-candidate pool with
+cross-validation over maneuvers, per-bin fits with coloured-residual standard errors, smoothing,
+the model) against a straightforward per-bin loop in the same run: numpy builds the default
+structures' regressors, ``statsmodels.OLS`` fits every 0.2 deg bin (bins with fewer than 10
+points per parameter skipped), ``csaps`` smooths each parameter. The peer does less work (no
+selection, no coloured-residual errors); the ratio is the floor the engine must beat (>= 10x),
+and the engine's time must be under 3 s.
+
+Run: ``python benchmarks/bench_fit.py [--campaign DIR]`` (generates the default campaign in a
+temporary folder when no folder is given).
+"""
+
+from __future__ import annotations
+
+import argparse
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+import polars as pl
+import statsmodels.api as sm
+from csaps import csaps
+
+import aerodelta as ad
+from aerodelta.fit import DEFAULT_STRUCTURES, model_frame, qualified_coefficients
+
+
+def _regressor(df: pl.DataFrame, expr: str) -> np.ndarray:
+    """The default structures' expressions, written out in numpy."""
+    col = {c: df[c].cast(pl.Float64).to_numpy() for c in df.columns if df[c].dtype.is_numeric()}
+    n = df.height
+
+    def deadband(x: np.ndarray, k: float) -> np.ndarray:
+        return np.maximum(x - k, 0.0) + np.minimum(x + k, 0.0)
+
+    table = {
+        "1": lambda: np.ones(n),
+        "deadband(da_deg, 2)": lambda: deadband(col["da_deg"], 2.0),
+        "ct_left + ct_right": lambda: col["ct_left"] + col["ct_right"],
+        "alphadot_dps * ds_deg": lambda: col["alphadot_dps"] * col["ds_deg"],
+        "alphadot_dps * beta_deg": lambda: col["alphadot_dps"] * col["beta_deg"],
+        "alphadot_dps * betadot_dps": lambda: col["alphadot_dps"] * col["betadot_dps"],
+        "beta_deg * ds_deg": lambda: col["beta_deg"] * col["ds_deg"],
+    }
+    return table[expr]() if expr in table else col[expr]
+
+
+def peer_fit(data: pl.DataFrame) -> int:
+    """Per-bin statsmodels OLS of the default structures and csaps smoothing; bins fitted."""
+    df = model_frame(data)
+    df = pl.concat([df, qualified_coefficients(df)], how="horizontal")
+    fitted = 0
+    for flap in sorted(df["flap_deg"].unique().to_list()):
+        d = df.filter(pl.col("flap_deg") == flap)
+        alpha = d["alpha_deg"].to_numpy()
+        for coef, terms in DEFAULT_STRUCTURES.items():
+            x = np.column_stack([_regressor(d, e) for _, e in terms])
+            z = (d[f"{coef}_meas"] - d[f"{coef}_qual"]).to_numpy()
+            b = np.floor(alpha / 0.2).astype(np.int64)
+            centres, params = [], []
+            for k in np.unique(b):
+                rows = np.flatnonzero(b == k)
+                if rows.size < 10 * x.shape[1]:
+                    continue
+                res = sm.OLS(z[rows], x[rows]).fit()
+                centres.append((k + 0.5) * 0.2)
+                params.append(res.params)
+                fitted += 1
+            if len(centres) > 3:
+                p = np.asarray(params)
+                for j in range(p.shape[1]):
+                    csaps(np.asarray(centres), p[:, j], smooth=0.4)
+    return fitted
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--campaign", type=Path, default=None)
+    ap.add_argument("--repeat", type=int, default=3)
+    args = ap.parse_args()
+    with tempfile.TemporaryDirectory() as tmp:
+        camp = args.campaign or Path(tmp) / "campaign"
+        if args.campaign is None:
+            t0 = time.perf_counter()
+            ad.generate_campaign(camp, seed=0)
+            print(f"campaign generated in {time.perf_counter() - t0:.1f} s")
+        data = ad.ingest(camp, compat=False).data
+        n_man = data["maneuver_id"].n_unique()
+        n_flap = data["flap_deg"].n_unique()
+        print(f"data: {data.height} rows, {n_man} maneuvers, {n_flap} flaps, 3 coefficients")
+        ad.fit(data)  # warm-up
+        times = []
+        for _ in range(args.repeat):
+            t0 = time.perf_counter()
+            r = ad.fit(data)
+            times.append(time.perf_counter() - t0)
+        t_ad = min(times)
+        kept = int(r.structure["kept"].sum())
+        print(
+            f"aerodelta.fit (selection + CV + per-bin fits + smoothing): {t_ad:.3f} s "
+            f"(best of {args.repeat}; {r.bins.height} final bins, {kept} regressors kept)"
+        )
+        plain = []
+        for _ in range(args.repeat):
+            t0 = time.perf_counter()
+            ad.fit(data, config=ad.FitConfig(selection=None))
+            plain.append(time.perf_counter() - t0)
+        t_plain = min(plain)
+        print(f"aerodelta.fit, default structures, no selection (like for like): {t_plain:.3f} s")
+        t0 = time.perf_counter()
+        nb = peer_fit(data)
+        t_peer = time.perf_counter() - t0
+        print(
+            "numpy/statsmodels per-bin loop + csaps (default structures, no selection): "
+            f"{t_peer:.3f} s ({nb} bins)"
+        )
+        print(f"ratio (peer / aerodelta default fit): {t_peer / t_ad:.1f}x   floors: >= 10x, < 3 s")
+        print(f"ratio (peer / aerodelta like for like): {t_peer / t_plain:.1f}x")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,1373 @@
+//! Model-structure selection of the Δ model per coefficient and flap setting
+//! (thesis Section 2.2 and 3.3.2), validated by cross-validation over maneuvers.
+//!
+//! The identification regresses the qualified-model error $z$ (Eq. 3.5) bin by
+//! bin in alpha. Which regressors of a candidate pool enter the model is
+//! decided here, once for all bins of a flap setting (as the thesis keeps one
+//! structure per coefficient and flap), in three steps:
+//!
+//! 1. **Per bin**, a candidate generator orders and cuts the pool:
+//!    - *forward stepwise regression* (Klein, Batterson & Murphy 1981; Klein &
+//!      Morelli 2006, Section 5.4.2; SIDPAC `swr`): start from the forced
+//!      terms (the bias), add the candidate of largest partial F (Eq. 2.5)
+//!      while it exceeds $F_{in}$, drop a term whose partial F fell below
+//!      $F_{out}$; default $F_{in} = F_{out} = 4$ (SIDPAC's cut-off);
+//!    - *multivariate orthogonal functions* (Morelli 1995): orthogonalise the
+//!      candidates greedily in order of the largest reduction of the residual
+//!      sum of squares and keep the prefix minimising the predicted squared
+//!      error $PSE = \frac{1}{N}(z-\hat y)^T(z-\hat y) + \sigma^2_{max}\frac{k}{N}$,
+//!      $\sigma^2_{max} = \frac{1}{N}\sum (z - \bar z)^2$ (Morelli 1995, Eq. 28-29).
+//!
+//!    Neighbouring samples are correlated (the residuals are coloured), so the
+//!    white-residual F and PSE penalty overstate the information in $N$
+//!    samples. Both are scaled by the bin's variance inflation $\kappa \ge 1$
+//!    of the full pool fit: $F/\kappa$ is compared with $F_{in}$, and the PSE
+//!    penalty is $\kappa\,\sigma^2_{max} k/N$ (the effective sample size is
+//!    $N/\kappa$). With coloured-residual standard errors in the pool fit
+//!    (Morelli & Klein, Eq. 5.80), $\kappa = \mathrm{median}_j\,(s_{colored,j}/s_j)^2$;
+//!    without (the fast path of [`identify_flap`]), the integrated
+//!    autocorrelation of the pool fit's residuals within maneuver segments,
+//!    $\kappa = 1 + 2\sum_{k=1}^{L}(1-\tfrac{k}{L+1})\rho_k$, $L = 50$ samples
+//!    (Bartlett window): the inflation of the variance of a mean, the case of
+//!    slowly varying regressors.
+//! 2. **Per flap**, each candidate's *selection frequency* (share of fitted
+//!    bins that selected it) orders the pool; candidates selected in fewer
+//!    than `min_bins` bins are dropped.
+//! 3. **Cross-validation over maneuvers** (K folds of whole maneuvers, never
+//!    of samples: neighbouring samples are correlated) scores the nested
+//!    structures "forced + the k most frequent", bin by bin; the smallest k
+//!    whose CV mean squared error is within one standard error of the best is
+//!    kept (the one-standard-error rule, Hastie, Tibshirani & Friedman 2009,
+//!    Section 7.10); then kept candidates are dropped one at a time while
+//!    that lowers the cross-validated error (backward elimination on the
+//!    held-out error).
+//!
+//! Everything after the per-bin row pass works on per-(bin, maneuver)
+//! augmented Gram matrices $[X\ z]^T[X\ z]$ ([`BinGrams`]), so the subset
+//! regressions, the folds and the bootstrap of [`crate::bootstrap`] cost
+//! $O(p^3)$ per bin, independent of the number of samples.
+
+// Index loops over the p columns read closer to the formulas.
+#![allow(clippy::needless_range_loop)]
+
+use crate::bootstrap::{bootstrap_smoothed, Bootstrap, BootstrapOptions};
+use crate::error::{AeroError, Result, ResultExt};
+use crate::identify::{
+    adjacent_consistency, fit_bins, smooth_parameters, BinFit, BinnedFit, Design, IdentifyOptions,
+    SmoothOptions, SmoothedParameter,
+};
+use crate::partition::partition_alpha;
+use crate::sim::rng::Stream;
+
+/// Per-maneuver sufficient statistics of one bin.
+#[derive(Debug, Clone, Default)]
+pub struct BinStats {
+    /// Maneuver ids present in the bin, increasing.
+    pub maneuvers: Vec<u64>,
+    /// Samples per maneuver.
+    pub n: Vec<usize>,
+    /// Per maneuver, the `dim × dim` augmented Gram matrix of the scaled
+    /// columns (the last column is z), row-major, concatenated.
+    pub gram: Vec<f64>,
+    /// Per maneuver, the column sums of the scaled columns (`dim` each).
+    pub sums: Vec<f64>,
+}
+
+/// The sufficient statistics of all bins of a binned fit.
+#[derive(Debug, Clone)]
+pub struct BinGrams {
+    /// Number of regressor columns plus one (z).
+    pub dim: usize,
+    /// Column scales (RMS over the flap's rows; 1 for an all-zero column), the last for z.
+    pub scale: Vec<f64>,
+    /// Per bin.
+    pub bins: Vec<BinStats>,
+}
+
+impl BinStats {
+    /// Weighted sum over maneuvers (`weights[k]` for the k-th maneuver of the
+    /// bin, or all ones): Gram matrix, sums and number of samples.
+    pub fn total(&self, dim: usize, weights: Option<&[f64]>) -> (Vec<f64>, Vec<f64>, f64) {
+        let mut g = vec![0.0; dim * dim];
+        let mut s = vec![0.0; dim];
+        let mut n = 0.0;
+        for k in 0..self.maneuvers.len() {
+            let w = weights.map_or(1.0, |w| w[k]);
+            if w == 0.0 {
+                continue;
+            }
+            n += w * self.n[k] as f64;
+            for (a, b) in g
+                .iter_mut()
+                .zip(&self.gram[k * dim * dim..(k + 1) * dim * dim])
+            {
+                *a += w * b;
+            }
+            for (a, b) in s.iter_mut().zip(&self.sums[k * dim..(k + 1) * dim]) {
+                *a += w * b;
+            }
+        }
+        (g, s, n)
+    }
+}
+
+/// Accumulate the per-(bin, maneuver) augmented Gram matrices of `design`
+/// and `z` over the bins' rows (`members[b]`: row indices of bin b). Rows with
+/// a non-finite regressor or z are skipped (as the per-bin fit drops them).
+pub fn bin_grams(design: &Design, z: &[f64], members: &[Vec<usize>], maneuver: &[u64]) -> BinGrams {
+    let p = design.ncols();
+    let dim = p + 1;
+    let row_ok = |r: usize| {
+        z[r].is_finite()
+            && design.values[r * p..(r + 1) * p]
+                .iter()
+                .all(|v| v.is_finite())
+    };
+    // column scales over every binned row
+    let mut ss = vec![0.0; dim];
+    let mut cnt = 0.0f64;
+    for rows in members {
+        for &r in rows {
+            if !row_ok(r) {
+                continue;
+            }
+            cnt += 1.0;
+            for j in 0..p {
+                ss[j] += design.values[r * p + j].powi(2);
+            }
+            ss[p] += z[r] * z[r];
+        }
+    }
+    let scale: Vec<f64> = ss
+        .iter()
+        .map(|s| {
+            let r = (s / cnt.max(1.0)).sqrt();
+            if r > 0.0 && r.is_finite() {
+                r
+            } else {
+                1.0
+            }
+        })
+        .collect();
+    let work = |rows: &Vec<usize>| -> BinStats {
+        let mut order: Vec<usize> = rows.iter().copied().filter(|&r| row_ok(r)).collect();
+        order.sort_by_key(|&r| maneuver[r]);
+        let mut st = BinStats::default();
+        let mut v = vec![0.0; dim];
+        for r in order {
+            let m = maneuver[r];
+            if st.maneuvers.last() != Some(&m) {
+                st.maneuvers.push(m);
+                st.n.push(0);
+                st.gram.extend(std::iter::repeat_n(0.0, dim * dim));
+                st.sums.extend(std::iter::repeat_n(0.0, dim));
+            }
+            let k = st.maneuvers.len() - 1;
+            st.n[k] += 1;
+            for j in 0..p {
+                v[j] = design.values[r * p + j] / scale[j];
+            }
+            v[p] = z[r] / scale[p];
+            let g = &mut st.gram[k * dim * dim..(k + 1) * dim * dim];
+            for a in 0..dim {
+                let va = v[a];
+                for b in a..dim {
+                    g[a * dim + b] += va * v[b];
+                }
+            }
+            for (s, x) in st.sums[k * dim..(k + 1) * dim].iter_mut().zip(&v) {
+                *s += x;
+            }
+        }
+        for k in 0..st.maneuvers.len() {
+            let g = &mut st.gram[k * dim * dim..(k + 1) * dim * dim];
+            for a in 0..dim {
+                for b in 0..a {
+                    g[a * dim + b] = g[b * dim + a];
+                }
+            }
+        }
+        st
+    };
+    #[cfg(feature = "parallel")]
+    let bins = {
+        use rayon::prelude::*;
+        members.par_iter().map(work).collect()
+    };
+    #[cfg(not(feature = "parallel"))]
+    let bins = members.iter().map(work).collect();
+    BinGrams { dim, scale, bins }
+}
+
+/// Least squares on the columns `cols` from an augmented Gram matrix `g`
+/// (`dim × dim`, z last), by Cholesky of the normal equations (the columns
+/// are scaled to unit RMS, so their condition is that of the data's
+/// correlation). Returns the estimates (scaled units) and the residual sum
+/// of squares, or `None` when the columns are (numerically) dependent: a
+/// Cholesky pivot below `1e-10` of its diagonal.
+pub fn solve_subset(g: &[f64], dim: usize, cols: &[usize]) -> Option<(Vec<f64>, f64)> {
+    let k = cols.len();
+    let zc = dim - 1;
+    if k == 0 {
+        return Some((Vec::new(), g[zc * dim + zc].max(0.0)));
+    }
+    let mut l = vec![0.0; k * k];
+    for i in 0..k {
+        for j in 0..=i {
+            let mut s = g[cols[i] * dim + cols[j]];
+            for m in 0..j {
+                s -= l[i * k + m] * l[j * k + m];
+            }
+            if i == j {
+                let d = g[cols[i] * dim + cols[i]];
+                if s.is_nan() || s <= 1e-10 * d || d <= 0.0 {
+                    return None;
+                }
+                l[i * k + i] = s.sqrt();
+            } else {
+                l[i * k + j] = s / l[j * k + j];
+            }
+        }
+    }
+    let b: Vec<f64> = cols.iter().map(|&c| g[c * dim + zc]).collect();
+    let mut y = vec![0.0; k];
+    for i in 0..k {
+        let mut s = b[i];
+        for m in 0..i {
+            s -= l[i * k + m] * y[m];
+        }
+        y[i] = s / l[i * k + i];
+    }
+    let mut th = vec![0.0; k];
+    for i in (0..k).rev() {
+        let mut s = y[i];
+        for m in i + 1..k {
+            s -= l[m * k + i] * th[m];
+        }
+        th[i] = s / l[i * k + i];
+    }
+    let fit: f64 = th.iter().zip(&b).map(|(t, b)| t * b).sum();
+    let sse = (g[zc * dim + zc] - fit).max(0.0);
+    th.iter().all(|v| v.is_finite()).then_some((th, sse))
+}
+
+/// Held-out sums of a fit `theta` on `cols` against another augmented Gram
+/// matrix: `(Σ(z-ẑ)², Σz², Σẑ²)` in scaled units.
+pub fn held_out(g: &[f64], dim: usize, cols: &[usize], theta: &[f64]) -> (f64, f64, f64) {
+    let zc = dim - 1;
+    let zz = g[zc * dim + zc];
+    let mut cross = 0.0;
+    let mut yy = 0.0;
+    for (i, &a) in cols.iter().enumerate() {
+        cross += theta[i] * g[a * dim + zc];
+        for (j, &b) in cols.iter().enumerate() {
+            yy += theta[i] * theta[j] * g[a * dim + b];
+        }
+    }
+    ((zz - 2.0 * cross + yy).max(0.0), zz, yy.max(0.0))
+}
+
+/// Forward stepwise regression with partial-F entry and removal (Klein &
+/// Morelli 2006, Section 5.4.2), on one bin's Gram matrix. `n`: samples;
+/// `forced`: always kept; `candidates`: may enter; `kappa`: variance
+/// inflation dividing every partial F (see the module doc). Returns the
+/// selected columns (forced first, then in order of entry) and, per column
+/// of the Gram matrix, its final partial F (to remove for a selected column,
+/// to enter for the others; NaN when not computable).
+#[allow(clippy::too_many_arguments)]
+pub fn stepwise(
+    g: &[f64],
+    dim: usize,
+    n: f64,
+    forced: &[usize],
+    candidates: &[usize],
+    kappa: f64,
+    f_in: f64,
+    f_out: f64,
+) -> (Vec<usize>, Vec<f64>) {
+    let mut sel: Vec<usize> = Vec::new();
+    for &c in forced {
+        sel.push(c);
+        if solve_subset(g, dim, &sel).is_none() {
+            sel.pop();
+        }
+    }
+    let forced_kept = sel.clone();
+    let kappa = kappa.max(1.0);
+    let sse_of = |s: &[usize]| solve_subset(g, dim, s).map(|(_, e)| e);
+    let Some(mut sse) = sse_of(&sel) else {
+        return (sel, vec![f64::NAN; dim - 1]);
+    };
+    for _ in 0..4 * dim {
+        // entry
+        let dof = n - sel.len() as f64 - 1.0;
+        if dof <= 0.0 {
+            break;
+        }
+        let mut best: Option<(usize, f64, f64)> = None;
+        for &c in candidates {
+            if sel.contains(&c) {
+                continue;
+            }
+            let mut trial = sel.clone();
+            trial.push(c);
+            if let Some(e) = sse_of(&trial) {
+                let f = if e > 0.0 {
+                    (sse - e) / (e / dof) / kappa
+                } else {
+                    f64::INFINITY
+                };
+                if best.is_none_or(|(_, bf, _)| f > bf) {
+                    best = Some((c, f, e));
+                }
+            }
+        }
+        match best {
+            Some((c, f, e)) if f > f_in => {
+                sel.push(c);
+                sse = e;
+            }
+            _ => break,
+        }
+        // removal
+        loop {
+            let dof = n - sel.len() as f64;
+            let mut worst: Option<(usize, f64, f64)> = None;
+            for (i, &c) in sel.iter().enumerate() {
+                if forced_kept.contains(&c) {
+                    continue;
+                }
+                let mut trial = sel.clone();
+                trial.remove(i);
+                if let Some(e) = sse_of(&trial) {
+                    let f = if sse > 0.0 {
+                        (e - sse) / (sse / dof) / kappa
+                    } else {
+                        f64::INFINITY
+                    };
+                    if worst.is_none_or(|(_, wf, _)| f < wf) {
+                        worst = Some((i, f, e));
+                    }
+                }
+            }
+            match worst {
+                Some((i, f, e)) if f < f_out && i < sel.len() - 1 => {
+                    sel.remove(i);
+                    sse = e;
+                }
+                _ => break,
+            }
+        }
+    }
+    // final partial F of every column
+    let dof_in = n - sel.len() as f64;
+    let dof_out = dof_in - 1.0;
+    let partial: Vec<f64> = (0..dim - 1)
+        .map(|c| {
+            if let Some(i) = sel.iter().position(|&s| s == c) {
+                let mut t = sel.clone();
+                t.remove(i);
+                match sse_of(&t) {
+                    Some(e) if sse > 0.0 && dof_in > 0.0 => (e - sse) / (sse / dof_in) / kappa,
+                    _ => f64::NAN,
+                }
+            } else {
+                let mut t = sel.clone();
+                t.push(c);
+                match sse_of(&t) {
+                    Some(e) if e > 0.0 && dof_out > 0.0 => (sse - e) / (e / dof_out) / kappa,
+                    _ => f64::NAN,
+                }
+            }
+        })
+        .collect();
+    (sel, partial)
+}
+
+/// Multivariate orthogonal functions with the predicted squared error
+/// (Morelli 1995): greedy orthogonalisation in order of the largest residual
+/// reduction, cut at the minimum of the (κ-scaled) PSE. Returns the selected
+/// columns (forced first).
+pub fn mof_pse(
+    g: &[f64],
+    dim: usize,
+    n: f64,
+    forced: &[usize],
+    candidates: &[usize],
+    kappa: f64,
+) -> Vec<usize> {
+    let mut sel: Vec<usize> = Vec::new();
+    for &c in forced {
+        sel.push(c);
+        if solve_subset(g, dim, &sel).is_none() {
+            sel.pop();
+        }
+    }
+    let Some((_, sse0)) = solve_subset(g, dim, &sel) else {
+        return sel;
+    };
+    if n <= 0.0 {
+        return sel;
+    }
+    // σ²_max about the mean when the bias is forced, else about zero
+    let s2max = sse0 / n;
+    let pen = kappa.max(1.0) * s2max / n;
+    let pse = |sse: f64, k: usize| sse / n + pen * k as f64;
+    let mut best_len = sel.len();
+    let mut best = pse(sse0, sel.len());
+    let mut order = sel.clone();
+    loop {
+        let mut next: Option<(usize, f64)> = None;
+        for &c in candidates {
+            if order.contains(&c) {
+                continue;
+            }
+            let mut t = order.clone();
+            t.push(c);
+            if let Some((_, e)) = solve_subset(g, dim, &t) {
+                if next.is_none_or(|(_, be)| e < be) {
+                    next = Some((c, e));
+                }
+            }
+        }
+        let Some((c, e)) = next else { break };
+        order.push(c);
+        let v = pse(e, order.len());
+        if v < best {
+            best = v;
+            best_len = order.len();
+        }
+    }
+    order.truncate(best_len);
+    order
+}
+
+/// Candidate generator of the per-bin step.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Method {
+    /// Forward stepwise regression with partial F.
+    Stepwise,
+    /// Multivariate orthogonal functions with PSE.
+    Mof,
+}
+
+/// Settings of [`select_structure`].
+#[derive(Debug, Clone)]
+pub struct SelectOptions {
+    /// Per-bin candidate generator.
+    pub method: Method,
+    /// Partial F to enter (after the κ scaling; SIDPAC: 4).
+    pub f_in: f64,
+    /// Partial F to stay.
+    pub f_out: f64,
+    /// Columns always in the model (e.g. the bias).
+    pub forced: Vec<usize>,
+    /// A candidate must be selected in at least this many bins of the flap.
+    pub min_bins: usize,
+    /// Number of cross-validation folds (whole maneuvers).
+    pub folds: usize,
+    /// Seed of the maneuvers' assignment to folds.
+    pub seed: u64,
+    /// A candidate with in-bin excitation below this (see
+    /// [`crate::identify::IdentifyOptions::min_excitation`]) may not enter in that bin.
+    pub min_excitation: f64,
+    /// Training points per parameter a fold's bin regression needs; with
+    /// fewer, the fold predicts zero Δ in that bin.
+    pub min_points_per_param: usize,
+    /// Extra structures to score by cross-validation (column lists), e.g.
+    /// the thesis's default structure.
+    pub extra: Vec<Vec<usize>>,
+}
+
+impl Default for SelectOptions {
+    fn default() -> Self {
+        SelectOptions {
+            method: Method::Stepwise,
+            f_in: 4.0,
+            f_out: 4.0,
+            forced: vec![0],
+            min_bins: 4,
+            folds: 5,
+            seed: 0,
+            min_excitation: 0.05,
+            min_points_per_param: 10,
+            extra: Vec::new(),
+        }
+    }
+}
+
+/// Cross-validated score of one structure.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CvScore {
+    /// Columns of the structure.
+    pub columns: Vec<usize>,
+    /// Held-out RMS of z - ẑ (units of z).
+    pub rms: f64,
+    /// Held-out Theil inequality coefficient of ẑ against z.
+    pub tic: f64,
+    /// Held-out mean squared error (units of z squared).
+    pub mse: f64,
+    /// Standard error of `mse` over the folds.
+    pub mse_se: f64,
+}
+
+/// The outcome of [`select_structure`].
+#[derive(Debug, Clone)]
+pub struct Selection {
+    /// Per bin of the pool fit, per pool column: selected in that bin.
+    pub selected: Vec<Vec<bool>>,
+    /// Per bin, per pool column: final partial F (κ-scaled; NaN when not computed).
+    pub partial_f: Vec<Vec<f64>>,
+    /// Per bin, per pool column: correlation of z with the regressor.
+    pub correlation: Vec<Vec<f64>>,
+    /// Per bin: variance inflation κ used.
+    pub kappa: Vec<f64>,
+    /// Per bin: the bin was fitted (enough data) and took part.
+    pub fitted: Vec<bool>,
+    /// Per pool column: number of fitted bins that selected it.
+    pub count: Vec<usize>,
+    /// The nested structures scored (forced + the k most frequent), k = 0, 1, ...
+    pub nested: Vec<CvScore>,
+    /// The full pool's score.
+    pub full: CvScore,
+    /// Scores of [`SelectOptions::extra`].
+    pub extra: Vec<CvScore>,
+    /// Chosen columns (increasing).
+    pub chosen: Vec<usize>,
+    /// Index into `nested` of the structure chosen by the one-standard-error rule.
+    pub chosen_k: usize,
+    /// Score of the final structure (`chosen`, after the backward pruning).
+    pub pruned: CvScore,
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    if v.is_empty() {
+        return f64::NAN;
+    }
+    v.sort_by(f64::total_cmp);
+    let m = v.len() / 2;
+    if v.len() % 2 == 1 {
+        v[m]
+    } else {
+        0.5 * (v[m - 1] + v[m])
+    }
+}
+
+/// Variance inflation of coloured residuals in one bin of a fit:
+/// `median_j (s_colored,j / s_j)²`, at least 1 (1 when not available).
+pub fn bin_kappa(fit: &BinnedFit, b: usize) -> f64 {
+    let bin = &fit.bins[b];
+    let r: Vec<f64> = (0..bin.params.len())
+        .filter(|&j| bin.identifiable[j])
+        .map(|j| (bin.std_err_colored[j] / bin.std_err[j]).powi(2))
+        .filter(|v| v.is_finite())
+        .collect();
+    let k = median(r);
+    if k.is_finite() {
+        k.max(1.0)
+    } else {
+        1.0
+    }
+}
+
+/// Largest lag of the residual autocorrelation in [`residual_kappa`], samples.
+pub const KAPPA_MAX_LAG: usize = 50;
+
+/// Variance inflation from the residuals of one bin's fit (see the module
+/// doc): `rows` in time order within each maneuver, `theta` the bin's
+/// estimates. Lags only pair consecutive rows of the same maneuver.
+pub fn residual_kappa(
+    design: &Design,
+    z: &[f64],
+    maneuver: &[u64],
+    rows: &[usize],
+    theta: &[f64],
+) -> f64 {
+    let p = design.ncols();
+    if theta.len() != p || theta.iter().any(|t| !t.is_finite()) {
+        return 1.0;
+    }
+    let r: Vec<f64> = rows
+        .iter()
+        .map(|&i| {
+            let x = &design.values[i * p..(i + 1) * p];
+            z[i] - x.iter().zip(theta).map(|(a, b)| a * b).sum::<f64>()
+        })
+        .collect();
+    let ok: Vec<bool> = r.iter().map(|v| v.is_finite()).collect();
+    let mean = {
+        let (s, c) = r
+            .iter()
+            .zip(&ok)
+            .filter(|(_, o)| **o)
+            .fold((0.0, 0.0), |(s, c), (v, _)| (s + v, c + 1.0));
+        if c > 0.0 {
+            s / c
+        } else {
+            return 1.0;
+        }
+    };
+    let g0: f64 = r
+        .iter()
+        .zip(&ok)
+        .filter(|(_, o)| **o)
+        .map(|(v, _)| (v - mean).powi(2))
+        .sum();
+    if g0 <= 0.0 {
+        return 1.0;
+    }
+    let mut k_sum = 0.0;
+    for k in 1..=KAPPA_MAX_LAG.min(rows.len().saturating_sub(1)) {
+        let mut g = 0.0;
+        for m in 0..rows.len() - k {
+            let (a, b) = (rows[m], rows[m + k]);
+            if b == a + k && maneuver[a] == maneuver[b] && ok[m] && ok[m + k] {
+                g += (r[m] - mean) * (r[m + k] - mean);
+            }
+        }
+        k_sum += (1.0 - k as f64 / (KAPPA_MAX_LAG as f64 + 1.0)) * g / g0;
+    }
+    (1.0 + 2.0 * k_sum).max(1.0)
+}
+
+/// Rows of each bin of a binned fit.
+pub fn bin_members(fit: &BinnedFit) -> Vec<Vec<usize>> {
+    let mut members = vec![Vec::new(); fit.bins.len()];
+    for (r, &b) in fit.partition.index.iter().enumerate() {
+        if b >= 0 {
+            members[b as usize].push(r);
+        }
+    }
+    members
+}
+
+/// Cross-validation folds: fold index of each maneuver id (sorted ids,
+/// seeded shuffle, round robin).
+fn fold_of(maneuver: &[u64], folds: usize, seed: u64) -> std::collections::HashMap<u64, usize> {
+    let mut ids: Vec<u64> = maneuver.to_vec();
+    ids.sort_unstable();
+    ids.dedup();
+    let mut rng = Stream::new(seed, 0x5e1ec7);
+    for i in (1..ids.len()).rev() {
+        let j = (rng.next_u64() % (i as u64 + 1)) as usize;
+        ids.swap(i, j);
+    }
+    ids.iter()
+        .enumerate()
+        .map(|(i, &m)| (m, i % folds.max(1)))
+        .collect()
+}
+
+/// Per bin and fold: the fold's Gram matrix and its sample count.
+type FoldGrams = Vec<Vec<(Vec<f64>, f64)>>;
+
+fn cv_score(
+    grams: &BinGrams,
+    totals: &[(Vec<f64>, Vec<f64>, f64)],
+    folds: &FoldGrams,
+    fitted: &[bool],
+    cols: &[usize],
+    min_points: usize,
+) -> CvScore {
+    let dim = grams.dim;
+    let nf = folds.first().map_or(0, Vec::len);
+    let mut per_fold = vec![(0.0, 0.0); nf]; // (sse, n)
+    let (mut sse, mut zz, mut yy, mut n) = (0.0, 0.0, 0.0, 0.0);
+    for (b, fg) in folds.iter().enumerate() {
+        if !fitted[b] {
+            continue;
+        }
+        let (gt, _, nt) = &totals[b];
+        for (f, (gf, nfold)) in fg.iter().enumerate() {
+            if *nfold == 0.0 {
+                continue;
+            }
+            let train: Vec<f64> = gt.iter().zip(gf).map(|(a, b)| a - b).collect();
+            let ntrain = nt - nfold;
+            let fit = if ntrain >= (min_points * cols.len().max(1)) as f64 {
+                solve_subset(&train, dim, cols)
+            } else {
+                None
+            };
+            let (e, z2, y2) = match fit {
+                Some((th, _)) => held_out(gf, dim, cols, &th),
+                None => {
+                    let z2 = gf[dim * dim - 1];
+                    (z2, z2, 0.0)
+                }
+            };
+            sse += e;
+            zz += z2;
+            yy += y2;
+            n += nfold;
+            per_fold[f].0 += e;
+            per_fold[f].1 += nfold;
+        }
+    }
+    let s2 = grams.scale[dim - 1].powi(2);
+    let mse = if n > 0.0 { s2 * sse / n } else { f64::NAN };
+    let fold_mse: Vec<f64> = per_fold
+        .iter()
+        .filter(|(_, c)| *c > 0.0)
+        .map(|(e, c)| s2 * e / c)
+        .collect();
+    let k = fold_mse.len() as f64;
+    let mse_se = if k > 1.0 {
+        let m = fold_mse.iter().sum::<f64>() / k;
+        (fold_mse.iter().map(|v| (v - m).powi(2)).sum::<f64>() / (k - 1.0) / k).sqrt()
+    } else {
+        f64::NAN
+    };
+    let den = (zz / n.max(1.0)).sqrt() + (yy / n.max(1.0)).sqrt();
+    let tic = if den > 0.0 {
+        (sse / n.max(1.0)).sqrt() / den
+    } else {
+        f64::NAN
+    };
+    CvScore {
+        columns: cols.to_vec(),
+        rms: mse.sqrt(),
+        tic,
+        mse,
+        mse_se,
+    }
+}
+
+fn check_inputs(
+    design: &Design,
+    z: &[f64],
+    maneuver: &[u64],
+    pool_fit: &BinnedFit,
+    opts: &SelectOptions,
+) -> Result<()> {
+    let p = design.ncols();
+    if z.len() != design.nrows || maneuver.len() != design.nrows {
+        return Err(AeroError::invalid(
+            "structure selection",
+            format!(
+                "z has {} rows and maneuver {}, the regressors {}",
+                z.len(),
+                maneuver.len(),
+                design.nrows
+            ),
+        ));
+    }
+    if let Some(&c) = opts.forced.iter().find(|&&c| c >= p) {
+        return Err(AeroError::invalid(
+            "structure selection, forced",
+            format!("column {c} is out of the pool's {p} columns"),
+        ));
+    }
+    if opts.folds < 2 {
+        return Err(AeroError::invalid(
+            "structure selection, folds",
+            format!("is {}; cross-validation needs at least 2 folds", opts.folds),
+        ));
+    }
+    if pool_fit.partition.index.len() != design.nrows {
+        return Err(AeroError::invalid(
+            "structure selection, pool fit",
+            format!(
+                "covers {} rows, the regressors have {}",
+                pool_fit.partition.index.len(),
+                design.nrows
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// Select the structure of one coefficient at one flap setting from a pool
+/// (see the module doc). `pool_fit` is [`crate::identify::fit_bins`] of the
+/// whole pool `design` over the same `z` and `maneuver` (it gives the bins,
+/// their coloured-residual inflation and the excitation of each candidate).
+///
+/// # Errors
+/// [`AeroError::InvalidInput`] for lengths that differ, an empty pool, a
+/// forced column out of range or fewer than 2 folds.
+pub fn select_structure(
+    design: &Design,
+    z: &[f64],
+    maneuver: &[u64],
+    pool_fit: &BinnedFit,
+    opts: &SelectOptions,
+) -> Result<Selection> {
+    check_inputs(design, z, maneuver, pool_fit, opts)?;
+    let members = bin_members(pool_fit);
+    let grams = bin_grams(design, z, &members, maneuver);
+    select_with_grams(design, z, maneuver, pool_fit, &grams, opts)
+}
+
+/// [`select_structure`] with the Gram matrices of `pool_fit`'s bins already
+/// computed ([`bin_grams`] over [`bin_members`]).
+///
+/// # Errors
+/// As [`select_structure`].
+pub fn select_with_grams(
+    design: &Design,
+    z: &[f64],
+    maneuver: &[u64],
+    pool_fit: &BinnedFit,
+    grams: &BinGrams,
+    opts: &SelectOptions,
+) -> Result<Selection> {
+    check_inputs(design, z, maneuver, pool_fit, opts)?;
+    if grams.bins.len() != pool_fit.bins.len() || grams.dim != design.ncols() + 1 {
+        return Err(AeroError::invalid(
+            "structure selection, Gram matrices",
+            "do not match the pool fit; compute them with bin_grams over bin_members(pool_fit)",
+        ));
+    }
+    let p = design.ncols();
+    let members = bin_members(pool_fit);
+    let dim = grams.dim;
+    let nb = members.len();
+    let fitted: Vec<bool> = pool_fit.bins.iter().map(|b| b.note.is_empty()).collect();
+    let totals: Vec<(Vec<f64>, Vec<f64>, f64)> =
+        grams.bins.iter().map(|b| b.total(dim, None)).collect();
+    let kappa: Vec<f64> = (0..nb)
+        .map(|b| {
+            let bin = &pool_fit.bins[b];
+            if bin.std_err_colored.iter().any(|v| v.is_finite()) {
+                bin_kappa(pool_fit, b)
+            } else if fitted[b] {
+                residual_kappa(design, z, maneuver, &members[b], &bin.params)
+            } else {
+                1.0
+            }
+        })
+        .collect();
+
+    let mut selected = vec![vec![false; p]; nb];
+    let mut partial_f = vec![vec![f64::NAN; p]; nb];
+    let mut correlation = vec![vec![f64::NAN; p]; nb];
+    for b in 0..nb {
+        let (g, s, n) = &totals[b];
+        if *n > 1.0 {
+            let zc = dim - 1;
+            let vz = g[zc * dim + zc] - s[zc] * s[zc] / n;
+            for j in 0..p {
+                let vx = g[j * dim + j] - s[j] * s[j] / n;
+                let cxz = g[j * dim + zc] - s[j] * s[zc] / n;
+                if vx > 1e-12 * g[j * dim + j].max(f64::MIN_POSITIVE) && vz > 0.0 {
+                    correlation[b][j] = cxz / (vx * vz).sqrt();
+                }
+            }
+        }
+        if !fitted[b] {
+            continue;
+        }
+        let bin = &pool_fit.bins[b];
+        let candidates: Vec<usize> = (0..p)
+            .filter(|&j| !opts.forced.contains(&j))
+            .filter(|&j| design.exprs[j].is_constant() || bin.excitation[j] >= opts.min_excitation)
+            .collect();
+        let sel = match opts.method {
+            Method::Stepwise => {
+                let (sel, f) = stepwise(
+                    g,
+                    dim,
+                    *n,
+                    &opts.forced,
+                    &candidates,
+                    kappa[b],
+                    opts.f_in,
+                    opts.f_out,
+                );
+                partial_f[b] = f;
+                sel
+            }
+            Method::Mof => mof_pse(g, dim, *n, &opts.forced, &candidates, kappa[b]),
+        };
+        for c in sel {
+            selected[b][c] = true;
+        }
+    }
+    let count: Vec<usize> = (0..p)
+        .map(|j| (0..nb).filter(|&b| fitted[b] && selected[b][j]).count())
+        .collect();
+
+    // folds: per bin and fold, the fold's Gram matrix
+    let fold_map = fold_of(maneuver, opts.folds, opts.seed);
+    let folds: FoldGrams = grams
+        .bins
+        .iter()
+        .map(|bs| {
+            (0..opts.folds)
+                .map(|f| {
+                    let w: Vec<f64> = bs
+                        .maneuvers
+                        .iter()
+                        .map(|m| f64::from(u8::from(fold_map.get(m) == Some(&f))))
+                        .collect();
+                    let (g, _, n) = bs.total(dim, Some(&w));
+                    (g, n)
+                })
+                .collect()
+        })
+        .collect();
+
+    let mut order: Vec<usize> = (0..p)
+        .filter(|j| !opts.forced.contains(j) && count[*j] >= opts.min_bins.max(1))
+        .collect();
+    order.sort_by(|a, b| count[*b].cmp(&count[*a]).then(a.cmp(b)));
+    let score = |cols: &[usize]| {
+        cv_score(
+            grams,
+            &totals,
+            &folds,
+            &fitted,
+            cols,
+            opts.min_points_per_param,
+        )
+    };
+    let mut nested = Vec::with_capacity(order.len() + 1);
+    for k in 0..=order.len() {
+        let mut cols: Vec<usize> = opts.forced.clone();
+        cols.extend_from_slice(&order[..k]);
+        nested.push(score(&cols));
+    }
+    let best = nested
+        .iter()
+        .enumerate()
+        .filter(|(_, s)| s.mse.is_finite())
+        .min_by(|a, b| a.1.mse.total_cmp(&b.1.mse))
+        .map_or(0, |(i, _)| i);
+    let limit = nested[best].mse
+        + if nested[best].mse_se.is_finite() {
+            nested[best].mse_se
+        } else {
+            0.0
+        };
+    let chosen_k = nested.iter().position(|s| s.mse <= limit).unwrap_or(best);
+    // backward pruning by cross-validation: drop a kept candidate while its removal lowers
+    // the held-out error (confounded pairs, e.g. rudder and thrust asymmetry held against
+    // each other by the pilot, enter together by frequency but predict worse than one)
+    let mut chosen = nested[chosen_k].columns.clone();
+    let mut current = nested[chosen_k].mse;
+    loop {
+        let trial = chosen
+            .iter()
+            .filter(|c| !opts.forced.contains(c))
+            .map(|&c| {
+                let cols: Vec<usize> = chosen.iter().copied().filter(|&x| x != c).collect();
+                score(&cols)
+            })
+            .filter(|s| s.mse.is_finite())
+            .min_by(|a, b| a.mse.total_cmp(&b.mse));
+        match trial {
+            Some(s) if s.mse < current => {
+                current = s.mse;
+                chosen = s.columns;
+            }
+            _ => break,
+        }
+    }
+    let pruned = score(&chosen);
+    chosen.sort_unstable();
+    let all: Vec<usize> = (0..p).collect();
+    let full = score(&all);
+    let extra = opts.extra.iter().map(|c| score(c)).collect();
+    Ok(Selection {
+        pruned,
+        selected,
+        partial_f,
+        correlation,
+        kappa,
+        fitted,
+        count,
+        nested,
+        full,
+        extra,
+        chosen,
+        chosen_k,
+    })
+}
+
+/// The candidate pool's per-bin least squares from the Gram matrices alone
+/// (the fast path of [`identify_flap`]): the partition of
+/// [`crate::identify::fit_bins`] for the pool's column count, the same
+/// too-little-data and low-excitation rules, and estimates from the columns
+/// that keep the normal equations positive definite, taken in pool order
+/// (a column dependent on earlier ones is marked not identifiable,
+/// "linearly dependent"). Standard errors are not computed (NaN).
+///
+/// # Errors
+/// Partition errors; lengths that differ.
+pub fn pool_bins(
+    design: &Design,
+    z: &[f64],
+    alpha_deg: &[f64],
+    maneuver: &[u64],
+    identify: &IdentifyOptions,
+) -> Result<BinnedFit> {
+    pool_bins_grams(design, z, alpha_deg, maneuver, identify).map(|(f, _)| f)
+}
+
+/// [`pool_bins`] and the per-(bin, maneuver) Gram matrices it was computed from.
+///
+/// # Errors
+/// As [`pool_bins`].
+pub fn pool_bins_grams(
+    design: &Design,
+    z: &[f64],
+    alpha_deg: &[f64],
+    maneuver: &[u64],
+    identify: &IdentifyOptions,
+) -> Result<(BinnedFit, BinGrams)> {
+    let n = design.nrows;
+    if z.len() != n || alpha_deg.len() != n || maneuver.len() != n {
+        return Err(AeroError::invalid(
+            "structure selection, candidate pool",
+            format!(
+                "z, alpha_deg and maneuver have {}, {} and {} rows, the regressors {n}",
+                z.len(),
+                alpha_deg.len(),
+                maneuver.len()
+            ),
+        ));
+    }
+    let p = design.ncols();
+    let partition = partition_alpha(alpha_deg, p, Some(maneuver), &identify.partition)?;
+    let mut members = vec![Vec::new(); partition.counts.len()];
+    for (r, &b) in partition.index.iter().enumerate() {
+        if b >= 0 {
+            members[b as usize].push(r);
+        }
+    }
+    let grams = bin_grams(design, z, &members, maneuver);
+    let dim = grams.dim;
+    let totals: Vec<(Vec<f64>, Vec<f64>, f64)> =
+        grams.bins.iter().map(|b| b.total(dim, None)).collect();
+    // flap-wide column variances (scaled units) from the sum over bins
+    let (mut gf, mut sf, mut nf) = (vec![0.0; dim * dim], vec![0.0; dim], 0.0);
+    for (g, s, c) in &totals {
+        gf.iter_mut().zip(g).for_each(|(a, b)| *a += b);
+        sf.iter_mut().zip(s).for_each(|(a, b)| *a += b);
+        nf += c;
+    }
+    let var = |g: &[f64], s: &[f64], c: f64, j: usize| {
+        if c > 1.0 {
+            ((g[j * dim + j] - s[j] * s[j] / c) / (c - 1.0)).max(0.0)
+        } else {
+            0.0
+        }
+    };
+    let flap_sd: Vec<f64> = (0..p).map(|j| var(&gf, &sf, nf, j).sqrt()).collect();
+    let const_col: Vec<bool> = design
+        .exprs
+        .iter()
+        .map(crate::regressor::Expr::is_constant)
+        .collect();
+    let required = identify.partition.min_points_per_param * p;
+    let min_man = identify.partition.min_maneuvers.max(1);
+    let bins: Vec<BinFit> = (0..members.len())
+        .map(|b| {
+            let (g, s, c) = &totals[b];
+            let n_man = grams.bins[b].maneuvers.len();
+            let excitation: Vec<f64> = (0..p)
+                .map(|j| {
+                    if const_col[j] {
+                        1.0
+                    } else if flap_sd[j] > 0.0 {
+                        var(g, s, *c, j).sqrt() / flap_sd[j]
+                    } else {
+                        0.0
+                    }
+                })
+                .collect();
+            let nan = vec![f64::NAN; p];
+            let mut bin = BinFit {
+                alpha_lo: partition.edges[b],
+                alpha_hi: partition.edges[b + 1],
+                n: members[b].len(),
+                n_maneuvers: n_man,
+                params: nan.clone(),
+                std_err: nan.clone(),
+                std_err_colored: nan.clone(),
+                partial_f: nan.clone(),
+                excitation,
+                vif: nan,
+                identifiable: vec![false; p],
+                notes: vec![String::new(); p],
+                r2: f64::NAN,
+                condition_number: f64::NAN,
+                residual_std: f64::NAN,
+                note: String::new(),
+            };
+            if members[b].len() < required || n_man < min_man {
+                bin.note = format!(
+                    "too little data: {} points from {n_man} maneuvers, {required} points and \
+                     {min_man} maneuvers required",
+                    members[b].len()
+                );
+                bin.notes = vec!["bin not fitted: too little data".into(); p];
+                return bin;
+            }
+            let mut cols: Vec<usize> = Vec::new();
+            for j in 0..p {
+                cols.push(j);
+                if solve_subset(g, dim, &cols).is_none() {
+                    cols.pop();
+                }
+            }
+            if let Some((th, sse)) = solve_subset(g, dim, &cols) {
+                bin.params = vec![0.0; p];
+                for (i, &j) in cols.iter().enumerate() {
+                    bin.params[j] = th[i] * grams.scale[p] / grams.scale[j];
+                }
+                let dof = (*c - cols.len() as f64).max(1.0);
+                bin.residual_std = (sse / dof).sqrt() * grams.scale[p];
+            }
+            for j in 0..p {
+                let mut why = Vec::new();
+                if !cols.contains(&j) {
+                    why.push(
+                        "not identifiable: linearly dependent on other regressors".to_string(),
+                    );
+                }
+                if !const_col[j] && bin.excitation[j] < identify.min_excitation {
+                    why.push(format!(
+                        "low excitation: std in bin is {:.1}% of the flap's (minimum {:.1}%)",
+                        100.0 * bin.excitation[j],
+                        100.0 * identify.min_excitation
+                    ));
+                }
+                bin.identifiable[j] = why.is_empty();
+                bin.notes[j] = why.join("; ");
+            }
+            bin
+        })
+        .collect();
+    let consistency = (0..p).map(|j| adjacent_consistency(&bins, j)).collect();
+    Ok((
+        BinnedFit {
+            names: design.names.clone(),
+            bins,
+            consistency,
+            partition,
+        },
+        grams,
+    ))
+}
+
+/// The design restricted to columns `cols` (in that order).
+pub fn subset_design(design: &Design, cols: &[usize]) -> Design {
+    let p = design.ncols();
+    let k = cols.len();
+    let mut values = vec![0.0; design.nrows * k];
+    for r in 0..design.nrows {
+        for (i, &c) in cols.iter().enumerate() {
+            values[r * k + i] = design.values[r * p + c];
+        }
+    }
+    Design {
+        names: cols.iter().map(|&c| design.names[c].clone()).collect(),
+        exprs: cols.iter().map(|&c| design.exprs[c].clone()).collect(),
+        values,
+        nrows: design.nrows,
+    }
+}
+
+/// The identification of one coefficient at one flap setting with an optional
+/// structure selection and bootstrap: what [`identify_flap`] returns.
+#[derive(Debug, Clone)]
+pub struct FlapFit {
+    /// The selection over the pool (`None`: the pool is the structure).
+    pub selection: Option<Selection>,
+    /// The pool's per-bin fit the selection worked on (`None` without selection).
+    pub pool_fit: Option<BinnedFit>,
+    /// Pool columns of the final structure, increasing.
+    pub chosen: Vec<usize>,
+    /// Per-bin fit of the final structure.
+    pub fit: BinnedFit,
+    /// Its smoothed parameters.
+    pub smoothed: Vec<SmoothedParameter>,
+    /// Bootstrap bands (`None` when not asked).
+    pub bootstrap: Option<Bootstrap>,
+}
+
+/// Identify one coefficient at one flap setting: optionally select the
+/// structure from the `pool` ([`select_structure`]), fit the chosen
+/// regressors bin by bin ([`fit_bins`]), smooth them
+/// ([`smooth_parameters`]) and optionally bootstrap the smoothed parameters
+/// over maneuvers ([`bootstrap_smoothed`]).
+///
+/// # Errors
+/// Those of the steps, with the step named.
+#[allow(clippy::too_many_arguments)]
+pub fn identify_flap(
+    pool: &Design,
+    z: &[f64],
+    alpha_deg: &[f64],
+    maneuver: &[u64],
+    identify: &IdentifyOptions,
+    select: Option<&SelectOptions>,
+    smooth: &SmoothOptions,
+    boot: Option<&BootstrapOptions>,
+) -> Result<FlapFit> {
+    let (selection, pool_fit, chosen) = match select {
+        Some(so) => {
+            // the pool's bins, excitation and residuals (for κ) from Gram matrices: the
+            // pool's standard errors and collinearity diagnostics are not needed here
+            let (pf, grams) = pool_bins_grams(pool, z, alpha_deg, maneuver, identify)
+                .context("structure selection, candidate pool")?;
+            let sel = select_with_grams(pool, z, maneuver, &pf, &grams, so)?;
+            let chosen = sel.chosen.clone();
+            (Some(sel), Some(pf), chosen)
+        }
+        None => (None, None, (0..pool.ncols()).collect()),
+    };
+    let design = if chosen.len() == pool.ncols() {
+        pool.clone()
+    } else {
+        subset_design(pool, &chosen)
+    };
+    let fit = fit_bins(&design, z, alpha_deg, maneuver, identify)?;
+    let smoothed = smooth_parameters(&fit, smooth)?;
+    let bootstrap = match boot {
+        Some(bo) => {
+            Some(bootstrap_smoothed(&design, z, maneuver, &fit, smooth, bo).context("bootstrap")?)
+        }
+        None => None,
+    };
+    Ok(FlapFit {
+        selection,
+        pool_fit,
+        chosen,
+        fit,
+        smoothed,
+        bootstrap,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// z = 0.002 + b(α) x1 - 0.03 x2 + noise, with x3, x4 pure noise regressors.
+    fn data(n: usize, seed: u64) -> (Design, Vec<f64>, Vec<f64>, Vec<u64>) {
+        let mut rng = Stream::new(seed, 1);
+        let mut cols: Vec<Vec<f64>> = (0..4).map(|_| Vec::with_capacity(n)).collect();
+        let (mut alpha, mut z, mut man) = (Vec::new(), Vec::new(), Vec::new());
+        for i in 0..n {
+            let a = 5.0 + 15.0 * rng.uniform();
+            let x: Vec<f64> = (0..4).map(|_| rng.range(-1.0, 1.0)).collect();
+            let b = 0.01 * (a - 12.0).max(0.0);
+            z.push(0.002 + b * x[0] - 0.03 * x[1] + 0.002 * rng.normal());
+            for j in 0..4 {
+                cols[j].push(x[j]);
+            }
+            alpha.push(a);
+            man.push((i / 400) as u64);
+        }
+        let lookup = |c: &str| -> Option<&[f64]> {
+            match c {
+                "x1" => Some(&cols[0]),
+                "x2" => Some(&cols[1]),
+                "x3" => Some(&cols[2]),
+                "x4" => Some(&cols[3]),
+                _ => None,
+            }
+        };
+        let regs: Vec<(String, String)> = [
+            ("bias", "1"),
+            ("b", "x1"),
+            ("c", "x2"),
+            ("d", "x3"),
+            ("e", "x4"),
+        ]
+        .iter()
+        .map(|(a, b)| (a.to_string(), b.to_string()))
+        .collect();
+        let design = Design::build(&regs, &lookup, n).expect("design");
+        (design, z, alpha, man)
+    }
+
+    #[test]
+    fn residual_kappa_is_one_for_white_and_large_for_correlated_residuals() {
+        let n = 4000;
+        let mut rng = Stream::new(5, 2);
+        let white: Vec<f64> = (0..n).map(|_| rng.normal()).collect();
+        // AR(1) with phi = 0.9: integrated autocorrelation (1 + phi) / (1 - phi) = 19
+        let mut ar = vec![0.0; n];
+        for i in 1..n {
+            ar[i] = 0.9 * ar[i - 1] + rng.normal();
+        }
+        let ones = vec![1.0; n];
+        let lookup = |c: &str| -> Option<&[f64]> { (c == "one").then_some(&ones[..]) };
+        let design = Design::build(&[("b".into(), "one".into())], &lookup, n).expect("design");
+        let rows: Vec<usize> = (0..n).collect();
+        let man = vec![0u64; n];
+        let kw = residual_kappa(&design, &white, &man, &rows, &[0.0]);
+        let ka = residual_kappa(&design, &ar, &man, &rows, &[0.0]);
+        assert!((kw - 1.0).abs() < 0.3, "{kw}");
+        // the Bartlett window and the 50-lag truncation shrink 19 somewhat
+        assert!(ka > 8.0 && ka < 19.0, "{ka}");
+    }
+
+    #[test]
+    fn pool_bins_agree_with_the_qr_fit_of_every_bin() {
+        let (design, z, alpha, man) = data(20_000, 4);
+        let opts = IdentifyOptions::default();
+        let qr = fit_bins(&design, &z, &alpha, &man, &opts).expect("fit");
+        let gram = pool_bins(&design, &z, &alpha, &man, &opts).expect("pool");
+        assert_eq!(qr.bins.len(), gram.bins.len());
+        for (a, b) in qr.bins.iter().zip(&gram.bins) {
+            assert_eq!(
+                (a.alpha_lo, a.n, a.note.is_empty()),
+                (b.alpha_lo, b.n, b.note.is_empty())
+            );
+            assert_eq!(a.identifiable, b.identifiable);
+            for (x, y) in a.params.iter().zip(&b.params) {
+                assert!((x - y).abs() <= 1e-8 * (1.0 + x.abs()), "{x} vs {y}");
+            }
+            for (x, y) in a.excitation.iter().zip(&b.excitation) {
+                assert!((x - y).abs() <= 1e-9, "{x} vs {y}");
+            }
+        }
+    }
+
+    #[test]
+    fn solve_subset_matches_the_normal_equations_of_a_small_case() {
+        // z = 1 + 2 x exactly on x = 0, 1, 2: Gram of [1, x, z]
+        let rows = [[1.0, 0.0, 1.0], [1.0, 1.0, 3.0], [1.0, 2.0, 5.0]];
+        let mut g = vec![0.0; 9];
+        for r in rows {
+            for a in 0..3 {
+                for b in 0..3 {
+                    g[a * 3 + b] += r[a] * r[b];
+                }
+            }
+        }
+        let (th, sse) = solve_subset(&g, 3, &[0, 1]).expect("solves");
+        assert!((th[0] - 1.0).abs() < 1e-12 && (th[1] - 2.0).abs() < 1e-12);
+        assert!(sse < 1e-12);
+        // a column duplicated is dependent
+        assert!(solve_subset(&g, 3, &[0, 0]).is_none());
+    }
+
+    #[test]
+    fn stepwise_and_mof_keep_the_true_terms_and_drop_noise_terms() {
+        let (design, z, alpha, man) = data(30_000, 3);
+        let pool = fit_bins(&design, &z, &alpha, &man, &IdentifyOptions::default()).expect("fit");
+        for method in [Method::Stepwise, Method::Mof] {
+            let opts = SelectOptions {
+                method,
+                ..SelectOptions::default()
+            };
+            let sel = select_structure(&design, &z, &man, &pool, &opts).expect("selects");
+            assert_eq!(sel.chosen, vec![0, 1, 2], "{method:?}: {:?}", sel.count);
+            // the noise regressors are rarely selected (about 5 % of bins at F_in = 4)
+            let nfit = sel.fitted.iter().filter(|f| **f).count();
+            assert!(
+                sel.count[3] * 5 < nfit && sel.count[4] * 5 < nfit,
+                "{:?}",
+                sel.count
+            );
+            // the selected structure predicts held-out maneuvers better than the bias alone
+            assert!(sel.nested[sel.chosen_k].mse < sel.nested[0].mse);
+            assert!(sel.nested[sel.chosen_k].mse <= sel.full.mse + sel.full.mse_se);
+        }
+    }
+}
