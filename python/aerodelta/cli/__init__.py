@@ -29,6 +29,7 @@ _register("fit", "fit")
 _register("demo", "demo")
 _register("export-qualified", "export_qualified")
 _register("ingest", "ingest")
+_register("report", "report")
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -15,6 +15,7 @@ import polars as pl
 from aerodelta.campaign import generate_campaign
 from aerodelta.fit import fit, model_frame, validate_model
 from aerodelta.ingest import ingest
+from aerodelta.report import build_report
 
 HELP = "run the whole method on the built-in virtual flight test campaign"
 
@@ -81,5 +82,8 @@ def run(args: argparse.Namespace) -> int:
         rms_e = float(np.sqrt(np.mean(err[ok] ** 2)))
         expl = 1.0 - (rms_e / rms_t) ** 2 if rms_t > 0 else float("nan")
         print(f"{c:<5} {rms_t:>11.5f} {rms_e:>10.5f} {100 * expl:>9.0f}%")
-    print(f"outputs in {out}/ (campaign/, model.json, model.params.parquet)", file=sys.stderr)
+    rep = build_report(out / "model.json", data, out / "report", held_out=sorted(held),
+                       progress=progress)  # fmt: skip
+    print(f"validation report: {rep.html}")
+    print(f"outputs in {out}/ (campaign/, model.json, model.params.parquet, report/)", file=sys.stderr)
     return 0
