@@ -1,0 +1,186 @@
+"""The validation report on a quick campaign: every section, self-contained HTML, figures on
+disk, the diagnosis renderer on a hand-made document, the envelope rule, the replay geometry,
+and the effect derivatives against a model with known parameters."""
+
+from __future__ import annotations
+
+import math
+import re
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import polars as pl
+import pytest
+from _report_data import quick_fit
+
+from aerodelta.cli import main
+from aerodelta.model import DeltaModel
+from aerodelta.plots import FigureSink
+from aerodelta.report import ReportResult, build_report
+from aerodelta.report import diagnosis as diag
+from aerodelta.report.context import ReportContext
+from aerodelta.report.effects import derivative
+from aerodelta.report.envelope import LEVELS, classify
+from aerodelta.report.replay import divergence, initial_state, states_frame
+
+SECTIONS = ("timehistory", "effects", "params", "replay", "rolloff", "envelope", "diagnosis")
+
+
+def diagnosis_fixture() -> dict[str, Any]:
+    """A hand-made diagnosis following schema aerodelta.diagnosis/1 (with an unknown key and a
+    missing optional one)."""
+    def eff(name: str, rank: int, before: float, after: float, sig: bool) -> dict[str, Any]:
+        return {
+            "effect": name, "rank": rank, "significant": sig, "ambiguous_with": ["time_skew"],
+            "alpha_range_deg": [12.0, 20.0], "gap_rms_before": before, "gap_rms_after": after,
+            "shrink_fraction": 1 - after / before, "statistic": 12.5, "p_value": 1e-4,
+            "extra_key": "ignored",
+        }  # fmt: skip
+    where = [
+        {"flap_deg": f, "alpha_lo_deg": lo, "alpha_hi_deg": lo + 2.0, "phase": ph,
+         "rms": 0.001 * lo, "bias": 0.0002, "significant": lo > 12}
+        for f in (0.0, 10.0) for lo in (8.0, 10.0, 12.0, 14.0) for ph in ("stall", "recovery")
+    ]  # fmt: skip
+    return {
+        "schema": "aerodelta.diagnosis/1",
+        "coefficients": {
+            "Cl": {"verdict": "aileron_reversal", "gap": {"rms": 0.004, "bias": 0.0, "tic": 0.3},
+                   "where": where,
+                   "effects": [eff("aileron_reversal", 1, 0.004, 0.002, True),
+                               eff("roll_damping_loss", 2, 0.002, 0.0019, False)]},
+            "Cn": {"verdict": "none", "gap": {"rms": 0.001}, "where": [], "effects": []},
+        },
+        "future_key": {"anything": 1},
+    }  # fmt: skip
+
+
+@pytest.fixture(scope="module")
+def report(tmp_path_factory: pytest.TempPathFactory) -> ReportResult:
+    root, data, _, held = quick_fit()
+    out = tmp_path_factory.mktemp("report")
+    return build_report(root / "model.json", data, out, held_out=held,
+                        diagnosis_doc=diagnosis_fixture(), replay_count=2)  # fmt: skip
+
+
+def test_report_has_every_section_and_a_summary_first(report: ReportResult) -> None:
+    text = report.html.read_text(encoding="utf-8")
+    first = text.index('id="summary"')
+    for key in SECTIONS:
+        assert f'<section id="{key}">' in text, key
+        assert text.index(f'<section id="{key}">') > first
+    for word in ("Theil", "held out", "FAR 25.203", "Part 60", "aileron_reversal",
+                 "Shrink table", "Gap map", "Table 3.2"):  # fmt: skip
+        assert word in text, word
+    assert [s.key for s in report.sections][1:] == list(SECTIONS)
+
+
+def test_html_is_self_contained(report: ReportResult) -> None:
+    text = report.html.read_text(encoding="utf-8")
+    assert not re.search(r"""(src|href)\s*=\s*["']?\s*(https?:)?//""", text, re.I)
+    assert "<script" not in text.lower()
+    assert "<link" not in text.lower()
+    assert text.count("data:image/png;base64,") >= 15
+
+
+def test_figures_are_written_as_png_and_svg(report: ReportResult) -> None:
+    pngs = [f for f in report.figures if f.suffix == ".png"]
+    svgs = [f for f in report.figures if f.suffix == ".svg"]
+    assert len(pngs) == len(svgs) >= 15
+    assert all(f.exists() and f.stat().st_size > 1000 for f in report.figures)
+    assert pngs[0].read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert b"<svg" in svgs[0].read_bytes()[:2000]
+
+
+def test_time_history_metrics_rank_and_score_held_out(report: ReportResult) -> None:
+    th = next(s for s in report.sections if s.key == "timehistory")
+    per, overall = th.tables["per_maneuver"], th.tables["overall"]
+    _, data, _, held = quick_fit()
+    assert set(per.filter(pl.col("held_out"))["maneuver_id"]) == set(held)
+    assert per["maneuver_id"].n_unique() == data["maneuver_id"].n_unique()
+    # the extended model fits better than the qualified one on the maneuvers it was fitted to
+    fitted = overall.filter((pl.col("subset") == "fitted") & (pl.col("coefficient") == "Cl"))
+    assert fitted["rms_ext"][0] < fitted["rms_qual"][0]
+
+
+def test_replays_are_bounded(report: ReportResult) -> None:
+    rp = next(s for s in report.sections if s.key == "replay").tables["replay"]
+    assert rp.height == 2
+    assert rp["bounded"].all(), rp
+
+
+def test_diagnosis_renderer_reads_the_schema_and_tolerates_gaps(tmp_path: Path) -> None:
+    sec = diag.section(diagnosis_fixture(), FigureSink(None))
+    eff = sec.tables["effects"]
+    assert eff["effect"].to_list() == ["aileron_reversal", "roll_damping_loss"]
+    assert eff["shrink_fraction"][0] == pytest.approx(0.5)
+    assert sec.tables["where"].height == 16
+    body = "".join(sec.body)
+    assert body.count("<figure") == 2  # gap map and shrink plot
+    assert ("Cl diagnosis", "<b>aileron_reversal</b>") in sec.summary
+    bare = diag.section({"schema": diag.SCHEMA, "coefficients": {"CY": {}}}, FigureSink(None))
+    assert bare.tables["effects"].height == 0
+    p = tmp_path / "d.json"
+    p.write_text('{"schema": "other/1"}')
+    with pytest.raises(Exception, match="aerodelta.diagnosis/1"):
+        diag.load_diagnosis(p)
+
+
+def test_envelope_rule() -> None:
+    n = np.array([0, 5, 20, 20, 100, 100, 100])
+    m = np.array([0, 1, 2, 2, 5, 5, 5])
+    f = np.array([1, 1, 0.5, 0.3, 0.9, 0.9, np.nan])
+    beyond = np.array([False] * 5 + [True, False])
+    got = [LEVELS[k] for k in classify(n, m, f, beyond)]
+    assert got == ["none", "low", "moderate", "low", "high", "low", "high"]
+
+
+def test_replay_initial_state_round_trips_the_record_angles() -> None:
+    rec = pl.DataFrame({
+        "tas_mps": [70.0], "alpha_deg": [12.0], "beta_deg": [-3.0], "p_dps": [1.0],
+        "q_dps": [2.0], "r_dps": [-1.0], "phi_deg": [10.0], "theta_deg": [5.0],
+        "psi_deg": [30.0], "h_m": [2500.0],
+    })  # fmt: skip
+    x = np.array([initial_state(rec)])
+    s = states_frame(x, np.array([0.0])).row(0, named=True)
+    assert s["V_mps"] == pytest.approx(70.0)
+    assert s["alpha_deg"] == pytest.approx(12.0)
+    assert s["beta_deg"] == pytest.approx(-3.0)
+    assert s["phi_deg"] == pytest.approx(10.0)
+    assert x[0, 11] == 2500.0
+    ok, _ = divergence(states_frame(np.repeat(x, 3, axis=0), np.arange(3.0)))
+    assert ok
+    x[0, 6] = math.radians(150.0)
+    assert divergence(states_frame(x, np.array([0.0])))[0] is False
+
+
+def test_effect_derivative_of_a_known_model() -> None:
+    # dCl_beta = 0.01 /deg, blended in between 10 and 12 deg: the Δ derivative is w(α) 0.01
+    spec = {
+        "schema": "aerodelta.model/1", "flaps_deg": [0.0],
+        "coefficients": {"Cl": {
+            "terms": [{"name": "dCl_beta", "regressor": "beta_deg", "alpha_deg": [0.0, 30.0],
+                       "values": [[0.01, 0.01]]}],
+            "alpha_l_deg": [10.0], "alpha_u_deg": [12.0]}},
+    }  # fmt: skip
+    model = DeltaModel.from_spec(spec)
+    ctx = ReportContext(model=model, data=pl.DataFrame(), params=None, coefficients=["Cl"],
+                        held_out=[], qualified="adx37")  # fmt: skip
+    alpha = np.array([5.0, 11.0, 20.0])
+    dq, dd = derivative(ctx, "Cl", "beta_deg", 1.0, 0.0, alpha)
+    np.testing.assert_allclose(dd, [0.0, 0.005, 0.01], atol=1e-12)
+    assert dq is not None and np.all(np.isfinite(dq))
+
+
+def test_cli_report(tmp_path: Path) -> None:
+    root, _, _, held = quick_fit()
+    (tmp_path / "held.txt").write_text("\n".join(held) + "\n# comment\n")
+    rc = main([
+        "report", "--model", str(root / "model.json"), "--data", str(root / "campaign"),
+        "--out", str(tmp_path / "out"), "--held-out", f"@{tmp_path / 'held.txt'}",
+        "--replays", "1", "--no-svg", "--no-progress",
+    ])  # fmt: skip
+    assert rc == 0
+    html = (tmp_path / "out" / "report.html").read_text(encoding="utf-8")
+    assert "No diagnosis given" in html
+    assert not list((tmp_path / "out" / "figures").glob("*.svg"))
