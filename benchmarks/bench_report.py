@@ -34,8 +34,10 @@ def main() -> None:
         t = time.perf_counter()
         generate_campaign(root / "campaign", seed=0, size=args.size)
         data = ingest(root / "campaign", compat=False).data
-        print(f"campaign + ingest: {time.perf_counter() - t:.1f} s, "
-              f"{data['maneuver_id'].n_unique()} maneuvers, {data.height} samples")  # fmt: skip
+        print(
+            f"campaign + ingest: {time.perf_counter() - t:.1f} s, "
+            f"{data['maneuver_id'].n_unique()} maneuvers, {data.height} samples"
+        )
         ids = data["maneuver_id"].unique().sort().to_list()
         held = ids[::5]
         t = time.perf_counter()
@@ -44,13 +46,16 @@ def main() -> None:
         res.model.save(root / "model.json")
         res.summary().write_parquet(root / "model.params.parquet")
         print(f"fit (peer): {t_fit:.1f} s")
-        rep = build_report(root / "model.json", data, root / "report", held_out=held,
-                           svg=not args.no_svg)  # fmt: skip
+        rep = build_report(
+            root / "model.json", data, root / "report", held_out=held, svg=not args.no_svg
+        )
         size = rep.html.stat().st_size / 1e6
-        print(f"report: {rep.seconds:.1f} s (target {TARGET_S:.0f} s: "
-              f"{'met' if rep.seconds < TARGET_S else 'MISSED'}), "
-              f"{rep.seconds / t_fit:.2f}x the fit, {len(rep.figures)} figure files, "
-              f"HTML {size:.1f} MB")  # fmt: skip
+        print(
+            f"report: {rep.seconds:.1f} s (target {TARGET_S:.0f} s: "
+            f"{'met' if rep.seconds < TARGET_S else 'MISSED'}), "
+            f"{rep.seconds / t_fit:.2f}x the fit, {len(rep.figures)} figure files, "
+            f"HTML {size:.1f} MB"
+        )
         for k, v in rep.timings().items():
             print(f"  {k:<12} {v:6.2f} s  {100 * v / rep.seconds:5.1f} %")
 

@@ -12,8 +12,8 @@ from typing import Any
 import numpy as np
 import polars as pl
 import pytest
-from _report_data import quick_fit
 
+from _report_data import quick_fit
 from aerodelta.cli import main
 from aerodelta.model import DeltaModel
 from aerodelta.plots import FigureSink
@@ -30,37 +30,66 @@ SECTIONS = ("timehistory", "effects", "params", "replay", "rolloff", "envelope",
 def diagnosis_fixture() -> dict[str, Any]:
     """A hand-made diagnosis following schema aerodelta.diagnosis/1 (with an unknown key and a
     missing optional one)."""
+
     def eff(name: str, rank: int, before: float, after: float, sig: bool) -> dict[str, Any]:
         return {
-            "effect": name, "rank": rank, "significant": sig, "ambiguous_with": ["time_skew"],
-            "alpha_range_deg": [12.0, 20.0], "gap_rms_before": before, "gap_rms_after": after,
-            "shrink_fraction": 1 - after / before, "statistic": 12.5, "p_value": 1e-4,
+            "effect": name,
+            "rank": rank,
+            "significant": sig,
+            "ambiguous_with": ["time_skew"],
+            "alpha_range_deg": [12.0, 20.0],
+            "gap_rms_before": before,
+            "gap_rms_after": after,
+            "shrink_fraction": 1 - after / before,
+            "statistic": 12.5,
+            "p_value": 1e-4,
             "extra_key": "ignored",
-        }  # fmt: skip
+        }
+
     where = [
-        {"flap_deg": f, "alpha_lo_deg": lo, "alpha_hi_deg": lo + 2.0, "phase": ph,
-         "rms": 0.001 * lo, "bias": 0.0002, "significant": lo > 12}
-        for f in (0.0, 10.0) for lo in (8.0, 10.0, 12.0, 14.0) for ph in ("stall", "recovery")
-    ]  # fmt: skip
+        {
+            "flap_deg": f,
+            "alpha_lo_deg": lo,
+            "alpha_hi_deg": lo + 2.0,
+            "phase": ph,
+            "rms": 0.001 * lo,
+            "bias": 0.0002,
+            "significant": lo > 12,
+        }
+        for f in (0.0, 10.0)
+        for lo in (8.0, 10.0, 12.0, 14.0)
+        for ph in ("stall", "recovery")
+    ]
     return {
         "schema": "aerodelta.diagnosis/1",
         "coefficients": {
-            "Cl": {"verdict": "aileron_reversal", "gap": {"rms": 0.004, "bias": 0.0, "tic": 0.3},
-                   "where": where,
-                   "effects": [eff("aileron_reversal", 1, 0.004, 0.002, True),
-                               eff("roll_damping_loss", 2, 0.002, 0.0019, False)]},
+            "Cl": {
+                "verdict": "aileron_reversal",
+                "gap": {"rms": 0.004, "bias": 0.0, "tic": 0.3},
+                "where": where,
+                "effects": [
+                    eff("aileron_reversal", 1, 0.004, 0.002, True),
+                    eff("roll_damping_loss", 2, 0.002, 0.0019, False),
+                ],
+            },
             "Cn": {"verdict": "none", "gap": {"rms": 0.001}, "where": [], "effects": []},
         },
         "future_key": {"anything": 1},
-    }  # fmt: skip
+    }
 
 
 @pytest.fixture(scope="module")
 def report(tmp_path_factory: pytest.TempPathFactory) -> ReportResult:
     root, data, _, held = quick_fit()
     out = tmp_path_factory.mktemp("report")
-    return build_report(root / "model.json", data, out, held_out=held,
-                        diagnosis_doc=diagnosis_fixture(), replay_count=2)  # fmt: skip
+    return build_report(
+        root / "model.json",
+        data,
+        out,
+        held_out=held,
+        diagnosis_doc=diagnosis_fixture(),
+        replay_count=2,
+    )
 
 
 def test_report_has_every_section_and_a_summary_first(report: ReportResult) -> None:
@@ -69,8 +98,16 @@ def test_report_has_every_section_and_a_summary_first(report: ReportResult) -> N
     for key in SECTIONS:
         assert f'<section id="{key}">' in text, key
         assert text.index(f'<section id="{key}">') > first
-    for word in ("Theil", "held out", "FAR 25.203", "Part 60", "aileron_reversal",
-                 "Shrink table", "Gap map", "Table 3.2"):  # fmt: skip
+    for word in (
+        "Theil",
+        "held out",
+        "FAR 25.203",
+        "Part 60",
+        "aileron_reversal",
+        "Shrink table",
+        "Gap map",
+        "Table 3.2",
+    ):
         assert word in text, word
     assert [s.key for s in report.sections][1:] == list(SECTIONS)
 
@@ -122,7 +159,7 @@ def test_diagnosis_renderer_reads_the_schema_and_tolerates_gaps(tmp_path: Path) 
     assert bare.tables["effects"].height == 0
     p = tmp_path / "d.json"
     p.write_text('{"schema": "other/1"}')
-    with pytest.raises(Exception, match="aerodelta.diagnosis/1"):
+    with pytest.raises(Exception, match=r"aerodelta\.diagnosis/1"):
         diag.load_diagnosis(p)
 
 
@@ -136,11 +173,20 @@ def test_envelope_rule() -> None:
 
 
 def test_replay_initial_state_round_trips_the_record_angles() -> None:
-    rec = pl.DataFrame({
-        "tas_mps": [70.0], "alpha_deg": [12.0], "beta_deg": [-3.0], "p_dps": [1.0],
-        "q_dps": [2.0], "r_dps": [-1.0], "phi_deg": [10.0], "theta_deg": [5.0],
-        "psi_deg": [30.0], "h_m": [2500.0],
-    })  # fmt: skip
+    rec = pl.DataFrame(
+        {
+            "tas_mps": [70.0],
+            "alpha_deg": [12.0],
+            "beta_deg": [-3.0],
+            "p_dps": [1.0],
+            "q_dps": [2.0],
+            "r_dps": [-1.0],
+            "phi_deg": [10.0],
+            "theta_deg": [5.0],
+            "psi_deg": [30.0],
+            "h_m": [2500.0],
+        }
+    )
     x = np.array([initial_state(rec)])
     s = states_frame(x, np.array([0.0])).row(0, named=True)
     assert s["V_mps"] == pytest.approx(70.0)
@@ -157,17 +203,34 @@ def test_replay_initial_state_round_trips_the_record_angles() -> None:
 def test_effect_derivative_of_a_known_model() -> None:
     # dCl_beta = 0.01 /deg, blended in between 10 and 12 deg: the Δ derivative is w(α) 0.01
     spec = {
-        "schema": "aerodelta.model/1", "flaps_deg": [0.0],
-        "coefficients": {"Cl": {
-            "terms": [{"name": "dCl_beta", "regressor": "beta_deg", "alpha_deg": [0.0, 30.0],
-                       "values": [[0.01, 0.01]]}],
-            "alpha_l_deg": [10.0], "alpha_u_deg": [12.0]}},
-    }  # fmt: skip
+        "schema": "aerodelta.model/1",
+        "flaps_deg": [0.0],
+        "coefficients": {
+            "Cl": {
+                "terms": [
+                    {
+                        "name": "dCl_beta",
+                        "regressor": "beta_deg",
+                        "alpha_deg": [0.0, 30.0],
+                        "values": [[0.01, 0.01]],
+                    }
+                ],
+                "alpha_l_deg": [10.0],
+                "alpha_u_deg": [12.0],
+            }
+        },
+    }
     model = DeltaModel.from_spec(spec)
-    ctx = ReportContext(model=model, data=pl.DataFrame(), params=None, coefficients=["Cl"],
-                        held_out=[], qualified="adx37")  # fmt: skip
+    ctx = ReportContext(
+        model=model,
+        data=pl.DataFrame(),
+        params=None,
+        coefficients=["Cl"],
+        held_out=[],
+        qualified="adx37",
+    )
     alpha = np.array([5.0, 11.0, 20.0])
-    dq, dd = derivative(ctx, "Cl", "beta_deg", 1.0, 0.0, alpha)
+    dq, dd = derivative(ctx, "Cl", "beta_deg", 1.0, flap=0.0, alpha=alpha)
     np.testing.assert_allclose(dd, [0.0, 0.005, 0.01], atol=1e-12)
     assert dq is not None and np.all(np.isfinite(dq))
 
@@ -175,11 +238,23 @@ def test_effect_derivative_of_a_known_model() -> None:
 def test_cli_report(tmp_path: Path) -> None:
     root, _, _, held = quick_fit()
     (tmp_path / "held.txt").write_text("\n".join(held) + "\n# comment\n")
-    rc = main([
-        "report", "--model", str(root / "model.json"), "--data", str(root / "campaign"),
-        "--out", str(tmp_path / "out"), "--held-out", f"@{tmp_path / 'held.txt'}",
-        "--replays", "1", "--no-svg", "--no-progress",
-    ])  # fmt: skip
+    rc = main(
+        [
+            "report",
+            "--model",
+            str(root / "model.json"),
+            "--data",
+            str(root / "campaign"),
+            "--out",
+            str(tmp_path / "out"),
+            "--held-out",
+            f"@{tmp_path / 'held.txt'}",
+            "--replays",
+            "1",
+            "--no-svg",
+            "--no-progress",
+        ]
+    )
     assert rc == 0
     html = (tmp_path / "out" / "report.html").read_text(encoding="utf-8")
     assert "No diagnosis given" in html

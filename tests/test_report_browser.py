@@ -13,8 +13,9 @@ import subprocess
 from pathlib import Path
 
 import pytest
-from _report_data import quick_fit
+from matplotlib.image import imread
 
+from _report_data import quick_fit
 from aerodelta.report import build_report
 
 CHROMIUM = next(
@@ -34,10 +35,18 @@ CONSOLE_ERROR = re.compile(r"Uncaught|CONSOLE\(\d+\).*(error|Error)|:ERROR:CONSO
 def _chromium(*args: str, tmp: Path) -> subprocess.CompletedProcess[str]:
     assert CHROMIUM is not None, "CI is set but no chromium is installed (see .ci/run)"
     cmd = [
-        CHROMIUM, "--headless", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage",
-        "--no-first-run", "--hide-scrollbars", f"--user-data-dir={tmp / 'profile'}",
-        "--enable-logging=stderr", "--v=0", *args,
-    ]  # fmt: skip
+        CHROMIUM,
+        "--headless",
+        "--no-sandbox",
+        "--disable-gpu",
+        "--disable-dev-shm-usage",
+        "--no-first-run",
+        "--hide-scrollbars",
+        f"--user-data-dir={tmp / 'profile'}",
+        "--enable-logging=stderr",
+        "--v=0",
+        *args,
+    ]
     return subprocess.run(cmd, capture_output=True, text=True, timeout=120, check=False)
 
 
@@ -45,8 +54,9 @@ def _chromium(*args: str, tmp: Path) -> subprocess.CompletedProcess[str]:
 def report_html(tmp_path_factory: pytest.TempPathFactory) -> Path:
     root, data, _, held = quick_fit()
     out = tmp_path_factory.mktemp("browser")
-    return build_report(root / "model.json", data, out, held_out=held, replay_count=1,
-                        svg=False).html  # fmt: skip
+    return build_report(
+        root / "model.json", data, out, held_out=held, replay_count=1, svg=False
+    ).html
 
 
 def test_report_renders_without_console_errors(report_html: Path, tmp_path: Path) -> None:
@@ -61,12 +71,11 @@ def test_report_renders_without_console_errors(report_html: Path, tmp_path: Path
 
 def test_screenshot_shows_the_summary_and_a_plot(report_html: Path, tmp_path: Path) -> None:
     shot = report_html.with_name("screenshot.png")
-    r = _chromium(f"--screenshot={shot}", "--window-size=1280,2400", report_html.as_uri(),
-                  tmp=tmp_path)  # fmt: skip
+    r = _chromium(
+        f"--screenshot={shot}", "--window-size=1280,2400", report_html.as_uri(), tmp=tmp_path
+    )
     assert r.returncode == 0, r.stderr[-2000:]
     assert shot.exists() and shot.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
-    from matplotlib.image import imread
-
     img = imread(shot)
     assert img.shape[0] == 2400 and img.shape[1] == 1280
     # the header bar (dark blue) is at the top, and the page is not blank below it: the summary

@@ -59,12 +59,14 @@ def test_non_finite_samples_are_ignored() -> None:
 
 def test_maneuver_and_overall_metrics_match_a_direct_computation() -> None:
     n = 50
-    f = pl.DataFrame({
-        "maneuver_id": ["a"] * n + ["b"] * n + ["c"] * n,
-        "Cl_meas": RNG.normal(size=3 * n),
-        "Cl_qual": RNG.normal(size=3 * n),
-        "Cl_ext": RNG.normal(size=3 * n),
-    })  # fmt: skip
+    f = pl.DataFrame(
+        {
+            "maneuver_id": ["a"] * n + ["b"] * n + ["c"] * n,
+            "Cl_meas": RNG.normal(size=3 * n),
+            "Cl_qual": RNG.normal(size=3 * n),
+            "Cl_ext": RNG.normal(size=3 * n),
+        }
+    )
     per = maneuver_metrics(f, ["Cl"], held_out=["b"])
     b = f.filter(pl.col("maneuver_id") == "b")
     row = per.filter(pl.col("maneuver_id") == "b").row(0, named=True)
@@ -78,9 +80,12 @@ def test_maneuver_and_overall_metrics_match_a_direct_computation() -> None:
 
 
 def test_rank_fits_picks_lowest_median_highest() -> None:
-    per = pl.DataFrame({
-        "maneuver_id": ["m1", "m2", "m3", "m4", "m5"], "coefficient": ["Cl"] * 5,
-        "tic_ext": [0.3, 0.1, 0.5, 0.2, float("nan")],
-    })  # fmt: skip
+    per = pl.DataFrame(
+        {
+            "maneuver_id": ["m1", "m2", "m3", "m4", "m5"],
+            "coefficient": ["Cl"] * 5,
+            "tic_ext": [0.3, 0.1, 0.5, 0.2, float("nan")],
+        }
+    )
     assert rank_fits(per, "Cl") == {"best": "m2", "typical": "m4", "worst": "m3"}
     assert rank_fits(per, "Cn") == {}

@@ -82,8 +82,11 @@ def run(args: argparse.Namespace) -> int:
         rms_e = float(np.sqrt(np.mean(err[ok] ** 2)))
         expl = 1.0 - (rms_e / rms_t) ** 2 if rms_t > 0 else float("nan")
         print(f"{c:<5} {rms_t:>11.5f} {rms_e:>10.5f} {100 * expl:>9.0f}%")
-    rep = build_report(out / "model.json", data, out / "report", held_out=sorted(held),
-                       progress=progress)  # fmt: skip
+    rep = build_report(
+        out / "model.json", data, out / "report", held_out=sorted(held), progress=progress
+    )
     print(f"validation report: {rep.html}")
-    print(f"outputs in {out}/ (campaign/, model.json, model.params.parquet, report/)", file=sys.stderr)
+    print(
+        f"outputs in {out}/ (campaign/, model.json, model.params.parquet, report/)", file=sys.stderr
+    )
     return 0

@@ -22,25 +22,31 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``aerodelta report``."""
     parser.add_argument("--model", required=True, help="model file from aerodelta fit (.json)")
     parser.add_argument(
-        "--data", required=True,
+        "--data",
+        required=True,
         help="campaign folder (manifest.csv), aerodelta ingest output folder (data.parquet) "
         "or a data.parquet file",
-    )  # fmt: skip
+    )
     parser.add_argument("--out", required=True, help="output folder")
     parser.add_argument("--diagnosis", help="diagnosis.json from aerodelta diagnose")
     parser.add_argument(
-        "--held-out", default="",
+        "--held-out",
+        default="",
         help="maneuvers left out of the fit: comma-separated ids, or @FILE with one id per line",
-    )  # fmt: skip
+    )
     parser.add_argument(
-        "--qualified", default="auto", choices=["auto", "columns", "adx37"],
+        "--qualified",
+        default="auto",
+        choices=["auto", "columns", "adx37"],
         help="source of the qualified coefficients (as aerodelta fit --model)",
-    )  # fmt: skip
+    )
     parser.add_argument("--replays", type=int, default=3, help="maneuvers replayed in 6-DOF")
     parser.add_argument(
-        "--replay-controls", default="all", choices=["all", "elevator"],
+        "--replay-controls",
+        default="all",
+        choices=["all", "elevator"],
         help="feed all recorded controls, or the elevator (and thrust) only",
-    )  # fmt: skip
+    )
     parser.add_argument("--no-svg", action="store_true", help="PNG figures only")
     parser.add_argument("--no-progress", action="store_true", help="no progress bars")
 
@@ -73,10 +79,17 @@ def run(args: argparse.Namespace) -> int:
     progress = not args.no_progress
     data = read_data(args.data, progress=progress)
     res = build_report(
-        args.model, data, args.out, held_out=held_out_ids(args.held_out),
-        diagnosis_doc=args.diagnosis, qualified=args.qualified, replay_count=args.replays,
-        replay_controls=args.replay_controls, svg=not args.no_svg, progress=progress,
-    )  # fmt: skip
+        args.model,
+        data,
+        args.out,
+        held_out=held_out_ids(args.held_out),
+        diagnosis_doc=args.diagnosis,
+        qualified=args.qualified,
+        replay_count=args.replays,
+        replay_controls=args.replay_controls,
+        svg=not args.no_svg,
+        progress=progress,
+    )
     print(f"report: {res.html} ({len(res.figures)} figure files) in {res.seconds:.1f} s")
     for k, v in res.timings().items():
         print(f"  {k:<12} {v:6.2f} s", file=sys.stderr)

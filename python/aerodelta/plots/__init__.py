@@ -16,8 +16,8 @@ from typing import Any
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-from matplotlib.figure import Figure  # noqa: E402
+import matplotlib.pyplot as plt
+from matplotlib.figure import Figure
 
 #: Colours of the three signals compared throughout the report.
 COLORS = {"meas": "#222222", "qual": "#d62728", "ext": "#1f77b4", "band": "#9ecae1"}
@@ -38,8 +38,9 @@ plt.rcParams.update(
 )
 
 
-def new_figure(nrows: int = 1, ncols: int = 1, *, width: float = 7.5, height: float = 3.0,
-               **kw: Any) -> tuple[Figure, Any]:  # fmt: skip
+def new_figure(
+    nrows: int = 1, ncols: int = 1, *, width: float = 7.5, height: float = 3.0, **kw: Any
+) -> tuple[Figure, Any]:
     """A figure with a grid of axes (inches), laid out with ``constrained`` layout."""
     fig = Figure(figsize=(width, height), layout="constrained")
     axes = fig.subplots(nrows, ncols, squeeze=False, **kw)

@@ -132,25 +132,31 @@ def build_report(
         if params_table is None:
             params_table = load_params(path)
         model = DeltaModel.load(path)
-    doc = load_diagnosis(diagnosis_doc) if isinstance(diagnosis_doc, (str, Path)) else (
-        dict(diagnosis_doc) if diagnosis_doc is not None else None
-    )  # fmt: skip
+    doc = (
+        load_diagnosis(diagnosis_doc)
+        if isinstance(diagnosis_doc, (str, Path))
+        else (dict(diagnosis_doc) if diagnosis_doc is not None else None)
+    )
     sink = FigureSink(out / "figures", svg=svg)
     steps = [
         ("time histories", lambda c: timehistory.section(c, sink)),
         ("effects", lambda c: effects.section(c, sink)),
         ("parameters", lambda c: params.section(c, sink)),
-        ("6-DOF replay", lambda c: replay.section(c, sink, count=replay_count,
-                                                   controls=replay_controls)),  # fmt: skip
+        (
+            "6-DOF replay",
+            lambda c: replay.section(c, sink, count=replay_count, controls=replay_controls),
+        ),
         ("roll-off", lambda c: rolloff_section.section(c, sink)),
         ("envelope", lambda c: envelope.section(c, sink)),
         ("diagnosis", lambda c: diagnosis.section(c.diagnosis, sink)),
     ]
-    bar = tqdm(total=len(steps) + 2, desc="report", unit="step", file=sys.stderr,
-               disable=not progress)  # fmt: skip
+    bar = tqdm(
+        total=len(steps) + 2, desc="report", unit="step", file=sys.stderr, disable=not progress
+    )
     bar.set_postfix_str("models along the records")
-    ctx = build_context(model, data, params=params_table, held_out=held_out,
-                        qualified=qualified, diagnosis=doc)  # fmt: skip
+    ctx = build_context(
+        model, data, params=params_table, held_out=held_out, qualified=qualified, diagnosis=doc
+    )
     prep = time.perf_counter() - t0
     bar.update(1)
     sections: list[Section] = []
@@ -170,8 +176,9 @@ def build_report(
         f"{', '.join(ctx.coefficients)}. Figures are also in <code>figures/</code> as PNG"
         f"{' and SVG' if svg else ''}.</p>"
     )
-    doc_html = page(title, f"Δ model validation (thesis Chapter 4), {n_man} maneuvers", intro,
-                    sections)  # fmt: skip
+    doc_html = page(
+        title, f"Δ model validation (thesis Chapter 4), {n_man} maneuvers", intro, sections
+    )
     target = out / REPORT_NAME
     tmp = target.with_name(f"{target.name}.tmp-{os.getpid()}")
     tmp.write_text(doc_html, encoding="utf-8")
@@ -180,9 +187,11 @@ def build_report(
     bar.close()
     prep_sec = Section("prepare", "prepare", seconds=prep)
     return ReportResult(
-        html=target, figures=list(sink.written), sections=[prep_sec, *sections],
+        html=target,
+        figures=list(sink.written),
+        sections=[prep_sec, *sections],
         seconds=time.perf_counter() - t0,
-    )  # fmt: skip
+    )
 
 
 __all__ = [

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import numpy as np
 import polars as pl
+from matplotlib.colors import BoundaryNorm, ListedColormap
 
 from aerodelta.plots import FigureSink, new_figure
 from aerodelta.report.context import ReportContext
@@ -45,8 +46,9 @@ def identified_by_alpha(params: pl.DataFrame | None, flap: float, alpha: np.ndar
     return out
 
 
-def classify(n: np.ndarray, maneuvers: np.ndarray, identified: np.ndarray,
-             beyond_tables: np.ndarray) -> np.ndarray:  # fmt: skip
+def classify(
+    n: np.ndarray, maneuvers: np.ndarray, identified: np.ndarray, beyond_tables: np.ndarray
+) -> np.ndarray:
     """Confidence level index into :data:`LEVELS` per cell (see the module docstring).
 
     A NaN ``identified`` (no per-bin estimates) counts as fully identified, so the level then
@@ -63,11 +65,15 @@ def classify(n: np.ndarray, maneuvers: np.ndarray, identified: np.ndarray,
 
 def coverage(ctx: ReportContext, flap: float) -> tuple[np.ndarray, np.ndarray, pl.DataFrame]:
     """Alpha and beta cell edges (deg) and one row per cell: counts and confidence level."""
-    d = ctx.data.filter(pl.col("flap_deg") == flap).select("alpha_deg", "beta_deg",
-                                                             "maneuver_id").drop_nans()  # fmt: skip
+    d = (
+        ctx.data.filter(pl.col("flap_deg") == flap)
+        .select("alpha_deg", "beta_deg", "maneuver_id")
+        .drop_nans()
+    )
     a = d["alpha_deg"].to_numpy()
-    a_edges = np.arange(np.floor(a.min()) if a.size else 0.0,
-                        (np.ceil(a.max()) if a.size else 1.0) + 1.0, 1.0)  # fmt: skip
+    a_edges = np.arange(
+        np.floor(a.min()) if a.size else 0.0, (np.ceil(a.max()) if a.size else 1.0) + 1.0, 1.0
+    )
     b_edges = np.arange(-BETA_LIMIT_DEG, BETA_LIMIT_DEG + 1.0, 1.0)
     cells = (
         d.with_columns(
@@ -89,33 +95,40 @@ def coverage(ctx: ReportContext, flap: float) -> tuple[np.ndarray, np.ndarray, p
     stall = ctx.stall_alpha_deg.get(flap)
     beyond = (ac > stall + 10.0) if stall is not None else np.zeros(na, dtype=bool)
     lvl = classify(n, m, ident, beyond[:, None] * np.ones((1, nb), dtype=bool))
-    frame = pl.DataFrame({
-        "alpha_lo_deg": a_edges[ii.ravel()], "beta_lo_deg": b_edges[jj.ravel()],
-        "n": n.ravel().astype(np.int64), "maneuvers": m.ravel().astype(np.int64),
-        "identified": ident.ravel(), "level": [LEVELS[k] for k in lvl.ravel()],
-    })  # fmt: skip
+    frame = pl.DataFrame(
+        {
+            "alpha_lo_deg": a_edges[ii.ravel()],
+            "beta_lo_deg": b_edges[jj.ravel()],
+            "n": n.ravel().astype(np.int64),
+            "maneuvers": m.ravel().astype(np.int64),
+            "identified": ident.ravel(),
+            "level": [LEVELS[k] for k in lvl.ravel()],
+        }
+    )
     return a_edges, b_edges, frame
 
 
 def section(ctx: ReportContext, sink: FigureSink) -> Section:
     """Build the validation-envelope section."""
-    from matplotlib.colors import BoundaryNorm, ListedColormap
-
     sec = Section("envelope", "Simulator validation envelope")
-    sec.body.append(p(
-        "Where the extended model is backed by flight data, per flap, in 1 deg × 1 deg cells of "
-        "alpha and beta (14 CFR Part 60 asks a stall model to declare its validated range). "
-        f"<b>High</b>: ≥ {HIGH_SAMPLES} samples from ≥ {HIGH_MANEUVERS} maneuvers and ≥ "
-        f"{HIGH_IDENTIFIED:.0%} of the Δ parameters identified in that alpha bin; "
-        f"<b>moderate</b>: ≥ {MODERATE_SAMPLES} samples, ≥ {MODERATE_MANEUVERS} maneuvers, ≥ "
-        f"{MODERATE_IDENTIFIED:.0%} identified; <b>low</b>: any data (or past the end of the "
-        "tables, 10 deg beyond stall); <b>none</b>: no data, the model is extrapolated there."
-    ))  # fmt: skip
+    sec.body.append(
+        p(
+            "Where the extended model is backed by flight data, per flap, in 1 deg "
+            "× 1 deg cells of "
+            "alpha and beta (14 CFR Part 60 asks a stall model to declare its validated range). "
+            f"<b>High</b>: ≥ {HIGH_SAMPLES} samples from ≥ {HIGH_MANEUVERS} maneuvers and ≥ "
+            f"{HIGH_IDENTIFIED:.0%} of the Δ parameters identified in that alpha bin; "
+            f"<b>moderate</b>: ≥ {MODERATE_SAMPLES} samples, ≥ {MODERATE_MANEUVERS} maneuvers, ≥ "
+            f"{MODERATE_IDENTIFIED:.0%} identified; <b>low</b>: any data (or past the end of the "
+            "tables, 10 deg beyond stall); <b>none</b>: no data, the model is extrapolated there."
+        )
+    )
     cmap = ListedColormap(["#f2f2f2", "#fdd49e", "#9ecae1", "#2171b5"])
     norm = BoundaryNorm([-0.5, 0.5, 1.5, 2.5, 3.5], cmap.N)
     flaps = ctx.flaps
-    fig, ax = new_figure(1, len(flaps), width=min(2.4 * len(flaps) + 1.0, 12.5), height=3.4,
-                         sharey=True)  # fmt: skip
+    fig, ax = new_figure(
+        1, len(flaps), width=min(2.4 * len(flaps) + 1.0, 12.5), height=3.4, sharey=True
+    )
     rows = []
     im = None
     for k, flap in enumerate(flaps):
@@ -138,26 +151,36 @@ def section(ctx: ReportContext, sink: FigureSink) -> Section:
             float(hi["alpha_lo_deg"].max()) + 1.0 if hi.height else float("nan")  # type: ignore[operator]
         )
         dat = cells.filter(pl.col("n") > 0)
-        row["alpha_max_data_deg"] = float(dat["alpha_lo_deg"].max()) + 1.0 if dat.height else float("nan")  # type: ignore[operator]
+        row["alpha_max_data_deg"] = (
+            float(dat["alpha_lo_deg"].max()) + 1.0 if dat.height else float("nan")
+        )  # type: ignore[operator]
         row["stall_alpha_deg"] = stall if stall is not None else float("nan")
         rows.append(row)
     ax[0, 0].set_ylabel("α [deg]")
     if im is not None:
         cb = fig.colorbar(im, ax=ax[0, -1], ticks=[0, 1, 2, 3])
         cb.ax.set_yticklabels(list(LEVELS))
-    sec.body.append(sink.add(
-        fig, "envelope",
-        "Validation envelope per flap: confidence of the extended model in each alpha-beta cell "
-        "(grey: no data; orange: low; light blue: moderate; dark blue: high); dashed: stall.",
-    ))  # fmt: skip
+    sec.body.append(
+        sink.add(
+            fig,
+            "envelope",
+            "Validation envelope per flap: confidence of the extended model in "
+            "each alpha-beta cell "
+            "(grey: no data; orange: low; light blue: moderate; dark blue: high); dashed: stall.",
+        )
+    )
     t = pl.DataFrame(rows)
     sec.body.append(table(t))
     sec.tables["envelope"] = t
     best = t["alpha_max_high_deg"].drop_nans()
     if best.len():
-        sec.summary.append((
-            "high-confidence alpha reach",
-            " · ".join(f"flap {r['flap_deg']:g}: {r['alpha_max_high_deg']:.0f}°"
-                       for r in t.iter_rows(named=True)),
-        ))  # fmt: skip
+        sec.summary.append(
+            (
+                "high-confidence alpha reach",
+                " · ".join(
+                    f"flap {r['flap_deg']:g}: {r['alpha_max_high_deg']:.0f}°"
+                    for r in t.iter_rows(named=True)
+                ),
+            )
+        )
     return sec

@@ -86,7 +86,7 @@ def table(
     more = ""
     if max_rows is not None and df.height > max_rows:
         more = f'<p class="note">{df.height - max_rows} more rows not shown.</p>'
-    return f'<table><thead><tr>{head}</tr></thead><tbody>{"".join(rows)}</tbody></table>{more}'
+    return f"<table><thead><tr>{head}</tr></thead><tbody>{''.join(rows)}</tbody></table>{more}"
 
 
 def details(summary: str, inner: str) -> str:
@@ -143,7 +143,7 @@ def page(title: str, subtitle: str, intro: str, sections: Sequence[Section]) -> 
     )
     stamp = _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
     return (
-        "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">"
+        '<!DOCTYPE html>\n<html lang="en"><head><meta charset="utf-8">'
         '<meta name="viewport" content="width=device-width, initial-scale=1">'
         f"<title>{esc(title)}</title><style>{_CSS}</style></head><body>"
         f"<header><h1>{esc(title)}</h1><p>{esc(subtitle)} · generated {stamp}</p></header>"

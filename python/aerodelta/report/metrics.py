@@ -110,9 +110,12 @@ def maneuver_metrics(
         for c in coefficients:
             meas = g[f"{c}_meas"].to_numpy()
             row: dict[str, object] = {
-                "maneuver_id": str(mid), "coefficient": c, "held_out": str(mid) in held,
-                "n": g.height, **info,
-            }  # fmt: skip
+                "maneuver_id": str(mid),
+                "coefficient": c,
+                "held_out": str(mid) in held,
+                "n": g.height,
+                **info,
+            }
             for model in ("qual", "ext"):
                 m = all_metrics(meas, g[f"{c}_{model}"].to_numpy())
                 row.update({f"{k}_{model}": v for k, v in m.items()})
@@ -120,8 +123,11 @@ def maneuver_metrics(
     return pl.DataFrame(rows).sort(["coefficient", "maneuver_id"])
 
 
-def overall_metrics(frame: pl.DataFrame, coefficients: Sequence[str] = ("Cl", "Cn", "CY"),
-                    held_out: Sequence[str] = ()) -> pl.DataFrame:  # fmt: skip
+def overall_metrics(
+    frame: pl.DataFrame,
+    coefficients: Sequence[str] = ("Cl", "Cn", "CY"),
+    held_out: Sequence[str] = (),
+) -> pl.DataFrame:
     """Metrics pooled over all samples, per coefficient and subset (all / fitted / held out)."""
     held = set(held_out)
     is_held = frame["maneuver_id"].cast(pl.Utf8).is_in(list(held)).to_numpy()
@@ -151,9 +157,9 @@ def rank_fits(per_maneuver: pl.DataFrame, coefficient: str, by: str = "tic_ext")
     dict
         ``{"best": id, "typical": id, "worst": id}`` (empty when no maneuver has the metric).
     """
-    g = per_maneuver.filter(
-        (pl.col("coefficient") == coefficient) & pl.col(by).is_finite()
-    ).sort([by, "maneuver_id"])
+    g = per_maneuver.filter((pl.col("coefficient") == coefficient) & pl.col(by).is_finite()).sort(
+        [by, "maneuver_id"]
+    )
     if g.height == 0:
         return {}
     ids = g["maneuver_id"].to_list()

@@ -19,7 +19,9 @@ _Z95 = 1.959963984540054
 ERROR_REGRESSORS = ("beta_deg", "phat", "rhat", "da_deg", "dr_deg")
 
 
-def _tables(ctx: ReportContext) -> dict[tuple[str, str], tuple[np.ndarray, dict[float, np.ndarray]]]:
+def _tables(
+    ctx: ReportContext,
+) -> dict[tuple[str, str], tuple[np.ndarray, dict[float, np.ndarray]]]:
     spec = ctx.model.to_spec()
     flaps = [float(f) for f in spec["flaps_deg"]]
     out = {}
@@ -33,8 +35,9 @@ def _tables(ctx: ReportContext) -> dict[tuple[str, str], tuple[np.ndarray, dict[
     return out
 
 
-def _param_figure(ctx: ReportContext, sink: FigureSink, coef: str, flap: float,
-                  g: pl.DataFrame, tables: dict) -> str:  # fmt: skip
+def _param_figure(
+    ctx: ReportContext, sink: FigureSink, coef: str, *, flap: float, g: pl.DataFrame, tables: dict
+) -> str:
     names = list(dict.fromkeys(g["param"].to_list()))
     ncol = 4
     nrow = math.ceil(len(names) / ncol)
@@ -48,8 +51,17 @@ def _param_figure(ctx: ReportContext, sink: FigureSink, coef: str, flap: float,
         sec_ = b["std_err_colored"].to_numpy()
         se = np.where(np.isfinite(sec_), sec_, b["std_err"].to_numpy())
         ok = b["identifiable"].to_numpy()
-        a.errorbar(c[ok], est[ok], yerr=_Z95 * se[ok], fmt="o", ms=2.5, color="#333",
-                   elinewidth=0.6, capsize=0, label="identified bin ±95 %")  # fmt: skip
+        a.errorbar(
+            c[ok],
+            est[ok],
+            yerr=_Z95 * se[ok],
+            fmt="o",
+            ms=2.5,
+            color="#333",
+            elinewidth=0.6,
+            capsize=0,
+            label="identified bin ±95 %",
+        )
         if (~ok).any():
             lo, hi = a.get_ylim() if ok.any() else (-1.0, 1.0)
             y = np.clip(np.where(np.isfinite(est[~ok]), est[~ok], 0.0), lo, hi)
@@ -66,12 +78,13 @@ def _param_figure(ctx: ReportContext, sink: FigureSink, coef: str, flap: float,
         a.set_xlabel("α [deg]")
     ax[0, 0].legend(loc="best", fontsize=6)
     return sink.add(
-        fig, f"params_{coef}_flap{flap:g}",
+        fig,
+        f"params_{coef}_flap{flap:g}",
         f"Δ{coef} parameters against alpha, flap {flap:g} deg: bin estimates with 95 % error "
         "bars (coloured-residual standard errors), bins where the parameter is not identified "
         "(red crosses), the smoothed and clipped table of the model (blue), stall alpha "
         "(dashed). Cf. thesis Figures 3.7-3.8, 3.15-3.18.",
-    )  # fmt: skip
+    )
 
 
 def _error_vs_regressor(ctx: ReportContext, sink: FigureSink, coef: str, flap: float) -> str | None:
@@ -79,8 +92,10 @@ def _error_vs_regressor(ctx: ReportContext, sink: FigureSink, coef: str, flap: f
         return None
     bins = (
         ctx.params.filter((pl.col("coefficient") == coef) & (pl.col("flap_deg") == flap))
-        .select("alpha_lo_deg", "alpha_hi_deg").unique().sort("alpha_lo_deg")
-    )  # fmt: skip
+        .select("alpha_lo_deg", "alpha_hi_deg")
+        .unique()
+        .sort("alpha_lo_deg")
+    )
     stall = ctx.stall_alpha_deg.get(flap)
     if bins.height == 0 or stall is None:
         return None
@@ -97,9 +112,10 @@ def _error_vs_regressor(ctx: ReportContext, sink: FigureSink, coef: str, flap: f
         s = d.filter((pl.col("alpha_deg") >= lo) & (pl.col("alpha_deg") < hi))
         z = (s[f"{coef}_meas"] - s[f"{coef}_qual"]).to_numpy()
         pb = ctx.params.filter(
-            (pl.col("coefficient") == coef) & (pl.col("flap_deg") == flap)
+            (pl.col("coefficient") == coef)
+            & (pl.col("flap_deg") == flap)
             & (pl.col("alpha_lo_deg") == lo)
-        )  # fmt: skip
+        )
         for j, r in enumerate(regs):
             a = ax[i, j]
             x = s[r].to_numpy()
@@ -108,41 +124,57 @@ def _error_vs_regressor(ctx: ReportContext, sink: FigureSink, coef: str, flap: f
             if row.height and np.isfinite(x).any():
                 slope = float(row["estimate"][0])
                 xs = np.linspace(np.nanmin(x), np.nanmax(x), 2)
-                a.plot(xs, np.nanmean(z) + slope * (xs - np.nanmean(x)), color=COLORS["ext"],
-                       lw=1.2, label=f"bin slope {slope:.3g}")  # fmt: skip
+                a.plot(
+                    xs,
+                    np.nanmean(z) + slope * (xs - np.nanmean(x)),
+                    color=COLORS["ext"],
+                    lw=1.2,
+                    label=f"bin slope {slope:.3g}",
+                )
                 a.legend(loc="best", fontsize=6)
             a.set_xlabel(r)
             if j == 0:
                 a.set_ylabel(f"{coef} error, α {lo:.1f}-{hi:.1f}")
     return sink.add(
-        fig, f"error_vs_regressor_{coef}_flap{flap:g}",
+        fig,
+        f"error_vs_regressor_{coef}_flap{flap:g}",
         f"Qualified-model error C_meas − C_qual of {coef} against candidate regressors in two "
         f"alpha bins (flap {flap:g}; one below and one past stall), with the bin's "
         "least-squares slope (cf. thesis Figures 3.5-3.6).",
-    )  # fmt: skip
+    )
 
 
 def section(ctx: ReportContext, sink: FigureSink) -> Section:
     """Build the parameter section."""
     sec = Section("params", "Identified parameters against alpha")
     if ctx.params is None:
-        sec.body.append(p(
-            "No per-bin estimates were found beside the model (<code>MODEL.params.parquet</code>, "
-            "written by <code>aerodelta fit</code>); only the smoothed tables are available."
-        ))  # fmt: skip
+        sec.body.append(
+            p(
+                "No per-bin estimates were found beside the model "
+                "(<code>MODEL.params.parquet</code>, "
+                "written by <code>aerodelta fit</code>); only the smoothed tables are available."
+            )
+        )
         return sec
     pr = ctx.params
     tables = _tables(ctx)
-    sec.body.append(p(
-        "Each alpha bin is fitted by equation-error least squares (thesis Eq. 3.10); a parameter "
-        "is marked not identified where its regressor lacks excitation, is collinear with others "
-        "or the bin has too few points. Identified bins are smoothed against alpha (Eq. 3.13, "
-        "p = 0.4) and clipped 10 deg past stall."
-    ))  # fmt: skip
+    sec.body.append(
+        p(
+            "Each alpha bin is fitted by equation-error least squares (thesis Eq. "
+            "3.10); a parameter "
+            "is marked not identified where its regressor lacks excitation, is "
+            "collinear with others "
+            "or the bin has too few points. Identified bins are smoothed against alpha (Eq. 3.13, "
+            "p = 0.4) and clipped 10 deg past stall."
+        )
+    )
     ident = (
         pr.group_by(["coefficient", "flap_deg"])
-        .agg(pl.len().alias("estimates"), pl.col("identifiable").mean().alias("identified"),
-             pl.col("alpha_lo_deg").n_unique().alias("bins"))  # fmt: skip
+        .agg(
+            pl.len().alias("estimates"),
+            pl.col("identifiable").mean().alias("identified"),
+            pl.col("alpha_lo_deg").n_unique().alias("bins"),
+        )
         .sort(["coefficient", "flap_deg"])
     )
     sec.body.append(table(ident, formats={"identified": ".0%"}))
@@ -151,7 +183,7 @@ def section(ctx: ReportContext, sink: FigureSink) -> Section:
         for flap in ctx.flaps:
             g = pr.filter((pl.col("coefficient") == coef) & (pl.col("flap_deg") == flap))
             if g.height:
-                figs.append(_param_figure(ctx, sink, coef, flap, g, tables))
+                figs.append(_param_figure(ctx, sink, coef, flap=flap, g=g, tables=tables))
         if figs:
             sec.body.append(f"<h3>Δ{coef}</h3>")
             sec.body.append(figs[0])

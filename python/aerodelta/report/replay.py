@@ -17,12 +17,22 @@ from aerodelta.report.html import Section, p, table
 
 #: Bounds of the divergence check: every state finite and inside these limits for the whole
 #: replay (V relative to its initial value; angles in deg).
-BOUNDS = {"V_ratio": (0.3, 2.0), "alpha_deg": (-30.0, 50.0), "beta_deg": (-30.0, 30.0),
-          "theta_deg": (-80.0, 80.0), "phi_deg": (-120.0, 120.0)}  # fmt: skip
+BOUNDS = {
+    "V_ratio": (0.3, 2.0),
+    "alpha_deg": (-30.0, 50.0),
+    "beta_deg": (-30.0, 30.0),
+    "theta_deg": (-80.0, 80.0),
+    "phi_deg": (-120.0, 120.0),
+}
 
 STATES = ("V_mps", "alpha_deg", "beta_deg", "theta_deg", "phi_deg")
-_REC = {"V_mps": "tas_mps", "alpha_deg": "alpha_deg", "beta_deg": "beta_deg",
-        "theta_deg": "theta_deg", "phi_deg": "phi_deg"}  # fmt: skip
+_REC = {
+    "V_mps": "tas_mps",
+    "alpha_deg": "alpha_deg",
+    "beta_deg": "beta_deg",
+    "theta_deg": "theta_deg",
+    "phi_deg": "phi_deg",
+}
 
 
 def initial_state(rec: pl.DataFrame) -> list[float]:
@@ -32,11 +42,19 @@ def initial_state(rec: pl.DataFrame) -> list[float]:
     v, a, b = float(r["tas_mps"]), math.radians(r["alpha_deg"]), math.radians(r["beta_deg"])
     h = float(r["h_m"]) if "h_m" in rec.columns and r["h_m"] is not None else 3000.0
     return [
-        v * math.cos(a) * math.cos(b), v * math.sin(b), v * math.sin(a) * math.cos(b),
-        math.radians(r["p_dps"]), math.radians(r["q_dps"]), math.radians(r["r_dps"]),
-        math.radians(r["phi_deg"]), math.radians(r["theta_deg"]),
-        math.radians(r.get("psi_deg", 0.0) or 0.0), 0.0, 0.0, h,
-    ]  # fmt: skip
+        v * math.cos(a) * math.cos(b),
+        v * math.sin(b),
+        v * math.sin(a) * math.cos(b),
+        math.radians(r["p_dps"]),
+        math.radians(r["q_dps"]),
+        math.radians(r["r_dps"]),
+        math.radians(r["phi_deg"]),
+        math.radians(r["theta_deg"]),
+        math.radians(r.get("psi_deg", 0.0) or 0.0),
+        0.0,
+        0.0,
+        h,
+    ]
 
 
 def states_frame(x: np.ndarray, t: np.ndarray) -> pl.DataFrame:
@@ -44,15 +62,21 @@ def states_frame(x: np.ndarray, t: np.ndarray) -> pl.DataFrame:
     u, v, w = x[:, 0], x[:, 1], x[:, 2]
     vt = np.sqrt(u**2 + v**2 + w**2)
     with np.errstate(invalid="ignore", divide="ignore"):
-        return pl.DataFrame({
-            "t": t, "V_mps": vt, "alpha_deg": np.degrees(np.arctan2(w, u)),
-            "beta_deg": np.degrees(np.arcsin(np.clip(v / vt, -1, 1))),
-            "theta_deg": np.degrees(x[:, 7]), "phi_deg": np.degrees(x[:, 6]),
-        })  # fmt: skip
+        return pl.DataFrame(
+            {
+                "t": t,
+                "V_mps": vt,
+                "alpha_deg": np.degrees(np.arctan2(w, u)),
+                "beta_deg": np.degrees(np.arcsin(np.clip(v / vt, -1, 1))),
+                "theta_deg": np.degrees(x[:, 7]),
+                "phi_deg": np.degrees(x[:, 6]),
+            }
+        )
 
 
-def replay_maneuver(rec: pl.DataFrame, *, controls: str = "all",
-                    rolloff_seed: int | None = 7) -> pl.DataFrame:  # fmt: skip
+def replay_maneuver(
+    rec: pl.DataFrame, *, controls: str = "all", rolloff_seed: int | None = 7
+) -> pl.DataFrame:
     """Replay one record (``model_frame`` rows of one maneuver, sorted by time).
 
     Parameters
@@ -67,15 +91,18 @@ def replay_maneuver(rec: pl.DataFrame, *, controls: str = "all",
     t = rec["t"].to_numpy()
     n = rec.height - 1
     dt = float(np.median(np.diff(t)))
+
     def col(c: str) -> np.ndarray:
         return rec[c].fill_null(0.0).to_numpy()[:n] if c in rec.columns else np.zeros(n)
+
     names = ("da_deg", "de_deg", "dr_deg", "dsl_deg", "dsr_deg")
     ctl = np.column_stack([col(c) for c in names])
     if controls == "elevator":
         ctl[:, [0, 2, 3, 4]] = 0.0
     ct = np.column_stack([col("ct_left"), col("ct_right")])
-    x = replay(float(rec["flap_deg"][0]), initial_state(rec), dt, ctl, ct,
-               rolloff_seed=rolloff_seed)  # fmt: skip
+    x = replay(
+        float(rec["flap_deg"][0]), initial_state(rec), dt, ctl, ct, rolloff_seed=rolloff_seed
+    )
     return states_frame(np.asarray(x), t[0] + dt * np.arange(n + 1))
 
 
@@ -100,13 +127,18 @@ def divergence(sim: pl.DataFrame) -> tuple[bool, str]:
 def pick_maneuvers(ctx: ReportContext, count: int) -> list[str]:
     """Up to ``count`` maneuvers to replay: straight stalls first, held-out ones first, one per
     flap setting in turn."""
-    m = ctx.data.group_by("maneuver_id", maintain_order=True).agg(
-        pl.col("flap_deg").first(),
-        (pl.col("kind").first() if "kind" in ctx.data.columns else pl.lit("")).alias("kind"),
-    ).with_columns(
-        pl.col("maneuver_id").is_in(ctx.held_out).alias("held"),
-        (pl.col("kind") == "straight").alias("straight"),
-    ).sort(["straight", "held", "maneuver_id"], descending=[True, True, False])
+    m = (
+        ctx.data.group_by("maneuver_id", maintain_order=True)
+        .agg(
+            pl.col("flap_deg").first(),
+            (pl.col("kind").first() if "kind" in ctx.data.columns else pl.lit("")).alias("kind"),
+        )
+        .with_columns(
+            pl.col("maneuver_id").is_in(ctx.held_out).alias("held"),
+            (pl.col("kind") == "straight").alias("straight"),
+        )
+        .sort(["straight", "held", "maneuver_id"], descending=[True, True, False])
+    )
     out: list[str] = []
     seen: set[float] = set()
     for r in m.iter_rows(named=True):
@@ -118,27 +150,41 @@ def pick_maneuvers(ctx: ReportContext, count: int) -> list[str]:
     return out
 
 
-def section(ctx: ReportContext, sink: FigureSink, *, count: int = 3,
-            controls: str = "all", ids: Sequence[str] | None = None) -> Section:  # fmt: skip
+def section(
+    ctx: ReportContext,
+    sink: FigureSink,
+    *,
+    count: int = 3,
+    controls: str = "all",
+    ids: Sequence[str] | None = None,
+) -> Section:
     """Build the replay section."""
     sec = Section("replay", "4.3 6-DOF replay")
-    sec.body.append(p(
-        f"The recorded controls ({'all axes' if controls == 'all' else 'elevator and thrust'}) "
-        "of each maneuver are fed to the 6-DOF simulator of the built-in ADX-37 from the "
-        "recorded initial state, with the stochastic roll-off on (seed 7). <b>Model in the "
-        "loop:</b> the simulator's qualified aerodynamics plus the roll-off; the fitted Δ model "
-        "cannot yet be placed inside the 6-DOF loop (the engine's replay takes the built-in "
-        "truth effects, not a Δ model file), so this section checks the integration (no "
-        "divergence, plausible states) and shows how far the qualified simulator drifts from "
-        "the flight. Divergence check: every state finite and inside "
-        f"V ∈ [{BOUNDS['V_ratio'][0]}, {BOUNDS['V_ratio'][1]}]·V₀, "
-        + ", ".join(f"{k.replace('_deg', '')} ∈ [{lo:g}, {hi:g}] deg"
-                    for k, (lo, hi) in BOUNDS.items() if k != "V_ratio")
-        + "."
-    ))  # fmt: skip
+    sec.body.append(
+        p(
+            f"The recorded controls ({'all axes' if controls == 'all' else 'elevator and thrust'}) "
+            "of each maneuver are fed to the 6-DOF simulator of the built-in ADX-37 from the "
+            "recorded initial state, with the stochastic roll-off on (seed 7). <b>Model in the "
+            "loop:</b> the simulator's qualified aerodynamics plus the roll-off; "
+            "the fitted Δ model "
+            "cannot yet be placed inside the 6-DOF loop (the engine's replay takes the built-in "
+            "truth effects, not a Δ model file), so this section checks the integration (no "
+            "divergence, plausible states) and shows how far the qualified simulator drifts from "
+            "the flight. Divergence check: every state finite and inside "
+            f"V ∈ [{BOUNDS['V_ratio'][0]}, {BOUNDS['V_ratio'][1]}]·V₀, "
+            + ", ".join(
+                f"{k.replace('_deg', '')} ∈ [{lo:g}, {hi:g}] deg"
+                for k, (lo, hi) in BOUNDS.items()
+                if k != "V_ratio"
+            )
+            + "."
+        )
+    )
     need = {"tas_mps", "p_dps", "q_dps", "r_dps", "phi_deg", "theta_deg", "de_deg"}
     if not need <= set(ctx.data.columns):
-        sec.body.append(p(f"Replay skipped: the records lack {sorted(need - set(ctx.data.columns))}."))
+        sec.body.append(
+            p(f"Replay skipped: the records lack {sorted(need - set(ctx.data.columns))}.")
+        )
         return sec
     rows = []
     for mid in ids if ids is not None else pick_maneuvers(ctx, count):
@@ -150,25 +196,37 @@ def section(ctx: ReportContext, sink: FigureSink, *, count: int = 3,
             continue
         ok, why = divergence(sim)
         fig, ax = new_figure(1, len(STATES), width=11.0, height=2.3)
-        row: dict[str, object] = {"maneuver_id": mid, "flap_deg": float(rec["flap_deg"][0]),
-                                  "bounded": ok, "reason": why}  # fmt: skip
+        row: dict[str, object] = {
+            "maneuver_id": mid,
+            "flap_deg": float(rec["flap_deg"][0]),
+            "bounded": ok,
+            "reason": why,
+        }
         tr = rec["t"].to_numpy()
         for k, s in enumerate(STATES):
             a = ax[0, k]
             y = rec[_REC[s]].to_numpy()
             a.plot(tr, y, color=COLORS["meas"], lw=0.9, label="flight record")
-            a.plot(sim["t"].to_numpy(), sim[s].to_numpy(), color=COLORS["ext"], lw=1.1,
-                   label="6-DOF replay")  # fmt: skip
+            a.plot(
+                sim["t"].to_numpy(),
+                sim[s].to_numpy(),
+                color=COLORS["ext"],
+                lw=1.1,
+                label="6-DOF replay",
+            )
             a.set_title(s)
             a.set_xlabel("t [s]")
             ys = np.interp(tr, sim["t"].to_numpy(), sim[s].to_numpy())
             row[f"rms_{s}"] = float(np.sqrt(np.nanmean((ys - y) ** 2)))
         ax[0, 0].legend(loc="best", fontsize=6.5)
-        sec.body.append(sink.add(
-            fig, f"replay_{mid}",
-            f"6-DOF replay of {mid} (flap {row['flap_deg']:g}): flight record vs simulator "
-            f"states; divergence check: {why}.",
-        ))  # fmt: skip
+        sec.body.append(
+            sink.add(
+                fig,
+                f"replay_{mid}",
+                f"6-DOF replay of {mid} (flap {row['flap_deg']:g}): flight record vs simulator "
+                f"states; divergence check: {why}.",
+            )
+        )
         rows.append(row)
     if rows:
         t = pl.DataFrame(rows, strict=False)

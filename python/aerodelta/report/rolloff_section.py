@@ -34,17 +34,32 @@ def section(ctx: ReportContext, sink: FigureSink) -> Section:
     res = d["Cl_meas"] - d["Cl_ext"] if "Cl_ext" in d.columns else None
     events = detect_rolloff(d, residual=None if res is None else res.to_numpy())
     acc = events.filter(pl.col("accepted"))
-    sec.body.append(p(
-        "Roll-off events are searched in the straight stalls as spikes of the extended model's "
-        "rolling-moment residual <i>C</i><sub>l,meas</sub> − <i>C</i><sub>l,ext</sub> while the "
-        "aileron, rudder and spoilers stay quiet (thesis Section 3.4.3 procedure). "
-        f"{events.height} candidates, {acc.height} accepted."
-    ))  # fmt: skip
+    sec.body.append(
+        p(
+            "Roll-off events are searched in the straight stalls as spikes of the extended model's "
+            "rolling-moment residual <i>C</i><sub>l,meas</sub> − "
+            "<i>C</i><sub>l,ext</sub> while the "
+            "aileron, rudder and spoilers stay quiet (thesis Section 3.4.3 procedure). "
+            f"{events.height} candidates, {acc.height} accepted."
+        )
+    )
     if acc.height:
         st = rolloff_statistics(events)
-        cols = ["flap_deg", "n", "alpha_mean_deg", "alpha_mean_lo", "alpha_mean_hi",
-                "alpha_std_deg", "magnitude_mean", "magnitude_cv", "n_right", "n_left",
-                "p_right", "p_right_lo", "p_right_hi"]  # fmt: skip
+        cols = [
+            "flap_deg",
+            "n",
+            "alpha_mean_deg",
+            "alpha_mean_lo",
+            "alpha_mean_hi",
+            "alpha_std_deg",
+            "magnitude_mean",
+            "magnitude_cv",
+            "n_right",
+            "n_left",
+            "p_right",
+            "p_right_lo",
+            "p_right_hi",
+        ]
         sec.body.append("<h3>Statistics per flap (cf. thesis Table 3.2; 95 % intervals)</h3>")
         sec.body.append(table(st.select([c for c in cols if c in st.columns])))
         sec.tables["statistics"] = st
@@ -64,8 +79,15 @@ def section(ctx: ReportContext, sink: FigureSink) -> Section:
         phid = euler_roll_rate(s["p_dps"].to_numpy(), q, r, s["phi_deg"].to_numpy(), th)
         dphi = dynamic_roll(s["phi_deg"].to_numpy(), phid)
         step = max(1, s.height // 4000)
-        a.plot(dphi[::step], s["da_deg"].to_numpy()[::step], ".", ms=1.0,
-               color=_FLAP_COLORS[k % len(_FLAP_COLORS)], alpha=0.5, label=f"flap {flap:g}")  # fmt: skip
+        a.plot(
+            dphi[::step],
+            s["da_deg"].to_numpy()[::step],
+            ".",
+            ms=1.0,
+            color=_FLAP_COLORS[k % len(_FLAP_COLORS)],
+            alpha=0.5,
+            label=f"flap {flap:g}",
+        )
     a.axhline(0, color="#666", lw=0.6)
     a.axvline(0, color="#666", lw=0.6)
     for x in (-FAR25_203_MAX_ROLL_DEG, FAR25_203_MAX_ROLL_DEG):
@@ -80,33 +102,48 @@ def section(ctx: ReportContext, sink: FigureSink) -> Section:
         g = mr.filter(pl.col("flap_deg") == flap)
         x = np.full(g.height, k) + np.linspace(-0.25, 0.25, max(g.height, 1))[: g.height]
         b.scatter(x, g["max_roll_deg"], s=12, color=_FLAP_COLORS[k % len(_FLAP_COLORS)])
-    b.axhline(FAR25_203_MAX_ROLL_DEG, color="#b42318", ls="--", lw=1.0,
-              label=f"{FAR25_203_MAX_ROLL_DEG:g} deg (FAR 25.203)")  # fmt: skip
+    b.axhline(
+        FAR25_203_MAX_ROLL_DEG,
+        color="#b42318",
+        ls="--",
+        lw=1.0,
+        label=f"{FAR25_203_MAX_ROLL_DEG:g} deg (FAR 25.203)",
+    )
     b.set_xticks(range(len(flaps)), [f"flap {f:g}" for f in flaps])
     b.set_ylabel("max |φ| [deg]")
     b.set_title("Maximum bank angle per straight stall")
     b.legend(loc="best")
-    sec.body.append(sink.add(
-        fig, "rolloff_drc_maxroll",
-        "Left: aileron against dynamic roll attitude φ' (thesis Eq. 3.20, Figure 3.12); the "
-        "red dashed lines mark ±20 deg for scale (the QLC envelope itself is not drawn). "
-        "Right: maximum bank angle of each straight stall against the 20 deg requirement "
-        "(Figure 3.13).",
-    ))  # fmt: skip
+    sec.body.append(
+        sink.add(
+            fig,
+            "rolloff_drc_maxroll",
+            "Left: aileron against dynamic roll attitude φ' (thesis Eq. 3.20, Figure 3.12); the "
+            "red dashed lines mark ±20 deg for scale (the QLC envelope itself is not drawn). "
+            "Right: maximum bank angle of each straight stall against the 20 deg requirement "
+            "(Figure 3.13).",
+        )
+    )
     if mr.height:
         npass = int(mr["passed"].sum())
-        sec.body.append(table(
-            mr.group_by("flap_deg").agg(
-                pl.len().alias("stalls"), pl.col("max_roll_deg").max().alias("worst_deg"),
-                pl.col("passed").mean().alias("within_20_deg"),
-            ).sort("flap_deg"),
-            formats={"within_20_deg": ".0%"},
-        ))  # fmt: skip
+        sec.body.append(
+            table(
+                mr.group_by("flap_deg")
+                .agg(
+                    pl.len().alias("stalls"),
+                    pl.col("max_roll_deg").max().alias("worst_deg"),
+                    pl.col("passed").mean().alias("within_20_deg"),
+                )
+                .sort("flap_deg"),
+                formats={"within_20_deg": ".0%"},
+            )
+        )
         cls = "ok" if npass == mr.height else "fail"
-        sec.summary.append((
-            "straight stalls within 20 deg bank",
-            f'<span class="{cls}">{npass} / {mr.height}</span>',
-        ))  # fmt: skip
+        sec.summary.append(
+            (
+                "straight stalls within 20 deg bank",
+                f'<span class="{cls}">{npass} / {mr.height}</span>',
+            )
+        )
         sec.tables["max_roll"] = mr
     sec.summary.append(("roll-off events accepted", f"{acc.height}"))
     return sec
