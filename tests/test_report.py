@@ -7,17 +7,16 @@ from __future__ import annotations
 import math
 import re
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 import polars as pl
 import pytest
 
-from _report_data import quick_fit
+from _report_data import diagnosis_fixture, quick_fit, quick_report
 from aerodelta.cli import main
 from aerodelta.model import DeltaModel
 from aerodelta.plots import FigureSink
-from aerodelta.report import ReportResult, build_report
+from aerodelta.report import ReportResult
 from aerodelta.report import diagnosis as diag
 from aerodelta.report.context import ReportContext
 from aerodelta.report.effects import derivative
@@ -27,69 +26,9 @@ from aerodelta.report.replay import divergence, initial_state, states_frame
 SECTIONS = ("timehistory", "effects", "params", "replay", "rolloff", "envelope", "diagnosis")
 
 
-def diagnosis_fixture() -> dict[str, Any]:
-    """A hand-made diagnosis following schema aerodelta.diagnosis/1 (with an unknown key and a
-    missing optional one)."""
-
-    def eff(name: str, rank: int, before: float, after: float, sig: bool) -> dict[str, Any]:
-        return {
-            "effect": name,
-            "rank": rank,
-            "significant": sig,
-            "ambiguous_with": ["time_skew"],
-            "alpha_range_deg": [12.0, 20.0],
-            "gap_rms_before": before,
-            "gap_rms_after": after,
-            "shrink_fraction": 1 - after / before,
-            "statistic": 12.5,
-            "p_value": 1e-4,
-            "extra_key": "ignored",
-        }
-
-    where = [
-        {
-            "flap_deg": f,
-            "alpha_lo_deg": lo,
-            "alpha_hi_deg": lo + 2.0,
-            "phase": ph,
-            "rms": 0.001 * lo,
-            "bias": 0.0002,
-            "significant": lo > 12,
-        }
-        for f in (0.0, 10.0)
-        for lo in (8.0, 10.0, 12.0, 14.0)
-        for ph in ("stall", "recovery")
-    ]
-    return {
-        "schema": "aerodelta.diagnosis/1",
-        "coefficients": {
-            "Cl": {
-                "verdict": "aileron_reversal",
-                "gap": {"rms": 0.004, "bias": 0.0, "tic": 0.3},
-                "where": where,
-                "effects": [
-                    eff("aileron_reversal", 1, 0.004, 0.002, True),
-                    eff("roll_damping_loss", 2, 0.002, 0.0019, False),
-                ],
-            },
-            "Cn": {"verdict": "none", "gap": {"rms": 0.001}, "where": [], "effects": []},
-        },
-        "future_key": {"anything": 1},
-    }
-
-
 @pytest.fixture(scope="module")
-def report(tmp_path_factory: pytest.TempPathFactory) -> ReportResult:
-    root, data, _, held = quick_fit()
-    out = tmp_path_factory.mktemp("report")
-    return build_report(
-        root / "model.json",
-        data,
-        out,
-        held_out=held,
-        diagnosis_doc=diagnosis_fixture(),
-        replay_count=2,
-    )
+def report() -> ReportResult:
+    return quick_report()
 
 
 def test_report_has_every_section_and_a_summary_first(report: ReportResult) -> None:
@@ -236,26 +175,20 @@ def test_effect_derivative_of_a_known_model() -> None:
 
 
 def test_cli_report(tmp_path: Path) -> None:
-    root, _, _, held = quick_fit()
-    (tmp_path / "held.txt").write_text("\n".join(held) + "\n# comment\n")
-    rc = main(
-        [
-            "report",
-            "--model",
-            str(root / "model.json"),
-            "--data",
-            str(root / "campaign"),
-            "--out",
-            str(tmp_path / "out"),
-            "--held-out",
-            f"@{tmp_path / 'held.txt'}",
-            "--replays",
-            "1",
-            "--no-svg",
-            "--no-progress",
-        ]
-    )
+    # the command on a subset (one flap setting) of the ingested data, ids from a file
+    root, data, _, held = quick_fit()
+    flap = float(data["flap_deg"].min())
+    sub = data.filter(pl.col("flap_deg") == flap)
+    sub.write_parquet(tmp_path / "data.parquet")
+    ids = sorted(set(held) & set(sub["maneuver_id"].to_list()))
+    (tmp_path / "held.txt").write_text("\n".join(ids) + "\n# comment\n")
+    rc = main([
+        "report", "--model", str(root / "model.json"), "--data", str(tmp_path),
+        "--out", str(tmp_path / "out"), "--held-out", f"@{tmp_path / 'held.txt'}",
+        "--replays", "1", "--no-svg", "--no-progress",
+    ])  # fmt: skip
     assert rc == 0
     html = (tmp_path / "out" / "report.html").read_text(encoding="utf-8")
     assert "No diagnosis given" in html
+    assert f"flaps {flap:g} deg" in html
     assert not list((tmp_path / "out" / "figures").glob("*.svg"))

@@ -15,8 +15,7 @@ from pathlib import Path
 import pytest
 from matplotlib.image import imread
 
-from _report_data import quick_fit
-from aerodelta.report import build_report
+from _report_data import quick_report
 
 CHROMIUM = next(
     (p for p in (shutil.which(n) for n in ("chromium", "chromium-browser", "google-chrome")) if p),
@@ -51,12 +50,8 @@ def _chromium(*args: str, tmp: Path) -> subprocess.CompletedProcess[str]:
 
 
 @pytest.fixture(scope="module")
-def report_html(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    root, data, _, held = quick_fit()
-    out = tmp_path_factory.mktemp("browser")
-    return build_report(
-        root / "model.json", data, out, held_out=held, replay_count=1, svg=False
-    ).html
+def report_html() -> Path:
+    return quick_report().html
 
 
 def test_report_renders_without_console_errors(report_html: Path, tmp_path: Path) -> None:

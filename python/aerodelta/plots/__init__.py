@@ -39,10 +39,17 @@ plt.rcParams.update(
 
 
 def new_figure(
-    nrows: int = 1, ncols: int = 1, *, width: float = 7.5, height: float = 3.0, **kw: Any
+    nrows: int = 1,
+    ncols: int = 1,
+    *,
+    width: float = 7.5,
+    height: float = 3.0,
+    layout: str | None = "constrained",
+    **kw: Any,
 ) -> tuple[Figure, Any]:
-    """A figure with a grid of axes (inches), laid out with ``constrained`` layout."""
-    fig = Figure(figsize=(width, height), layout="constrained")
+    """A figure with a grid of axes (inches). ``layout=None`` skips the (slow) constrained
+    layout: the caller places the axes with ``fig.subplots_adjust``."""
+    fig = Figure(figsize=(width, height), layout=layout)
     axes = fig.subplots(nrows, ncols, squeeze=False, **kw)
     return fig, axes
 
@@ -78,6 +85,8 @@ class FigureSink:
         buf = io.BytesIO()
         fig.savefig(buf, format="png", dpi=self.dpi)
         png = buf.getvalue()
+        # the layout is computed once (for the PNG) and kept for the SVG
+        fig.set_layout_engine("none")
         if self.out_dir is not None:
             self.out_dir.mkdir(parents=True, exist_ok=True)
             self._write(self.out_dir / f"{slug}.png", png)
@@ -85,7 +94,6 @@ class FigureSink:
                 sbuf = io.BytesIO()
                 fig.savefig(sbuf, format="svg")
                 self._write(self.out_dir / f"{slug}.svg", sbuf.getvalue())
-        fig.clear()
         b64 = base64.b64encode(png).decode("ascii")
         cap = html.escape(caption)
         return (

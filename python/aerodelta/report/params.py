@@ -8,15 +8,18 @@ import math
 
 import numpy as np
 import polars as pl
+from matplotlib.ticker import MaxNLocator
 
 from aerodelta.plots import COLORS, FigureSink, new_figure
 from aerodelta.report.context import ReportContext
-from aerodelta.report.html import Section, details, p, table
+from aerodelta.report.html import Section, p, table
 
 _Z95 = 1.959963984540054
 
 #: Channels shown in the error-vs-regressor plots (those present are drawn).
 ERROR_REGRESSORS = ("beta_deg", "phat", "rhat", "da_deg", "dr_deg")
+#: Most points drawn per scatter panel (evenly thinned beyond).
+MAX_SCATTER = 1500
 
 
 def _tables(
@@ -35,55 +38,57 @@ def _tables(
     return out
 
 
+FLAP_COLORS = ("#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b")
+
+
 def _param_figure(
-    ctx: ReportContext, sink: FigureSink, coef: str, *, flap: float, g: pl.DataFrame, tables: dict
+    ctx: ReportContext, sink: FigureSink, coef: str, *, g: pl.DataFrame, tables: dict
 ) -> str:
+    """One panel per parameter of ``coef``; the flap settings overlaid in colour."""
     names = list(dict.fromkeys(g["param"].to_list()))
+    flaps = sorted(float(f) for f in g["flap_deg"].unique())
     ncol = 4
     nrow = math.ceil(len(names) / ncol)
-    fig, ax = new_figure(nrow, ncol, width=10.0, height=1.9 * nrow + 0.3, sharex=True)
-    stall = ctx.stall_alpha_deg.get(flap)
+    fig, ax = new_figure(nrow, ncol, width=10.5, height=2.0 * nrow + 0.5, sharex=True, layout=None)
+    fig.subplots_adjust(
+        left=0.06, right=0.99, bottom=0.3 / nrow, top=1 - 0.45 / nrow, wspace=0.32, hspace=0.5
+    )
     for k, name in enumerate(names):
         a = ax[k // ncol, k % ncol]
-        b = g.filter(pl.col("param") == name)
-        c = 0.5 * (b["alpha_lo_deg"].to_numpy() + b["alpha_hi_deg"].to_numpy())
-        est = b["estimate"].to_numpy()
-        sec_ = b["std_err_colored"].to_numpy()
-        se = np.where(np.isfinite(sec_), sec_, b["std_err"].to_numpy())
-        ok = b["identifiable"].to_numpy()
-        a.errorbar(
-            c[ok],
-            est[ok],
-            yerr=_Z95 * se[ok],
-            fmt="o",
-            ms=2.5,
-            color="#333",
-            elinewidth=0.6,
-            capsize=0,
-            label="identified bin ±95 %",
-        )
-        if (~ok).any():
-            lo, hi = a.get_ylim() if ok.any() else (-1.0, 1.0)
-            y = np.clip(np.where(np.isfinite(est[~ok]), est[~ok], 0.0), lo, hi)
-            a.plot(c[~ok], y, "x", color=COLORS["qual"], ms=4, label="not identified")
-        tab = tables.get((coef, name))
-        if tab is not None and flap in tab[1]:
-            a.plot(tab[0], tab[1][flap], color=COLORS["ext"], lw=1.3, label="spline (table)")
-        if stall is not None:
-            a.axvline(stall, color="#777", ls="--", lw=0.8)
-        a.set_title(f"{name}  [{b['regressor'][0]}]", fontsize=7.5)
+        for fi, flap in enumerate(flaps):
+            col = FLAP_COLORS[fi % len(FLAP_COLORS)]
+            b = g.filter((pl.col("param") == name) & (pl.col("flap_deg") == flap))
+            if b.height == 0:
+                continue
+            c = 0.5 * (b["alpha_lo_deg"].to_numpy() + b["alpha_hi_deg"].to_numpy())
+            est = b["estimate"].to_numpy()
+            sec_ = b["std_err_colored"].to_numpy()
+            se = np.where(np.isfinite(sec_), sec_, b["std_err"].to_numpy())
+            ok = b["identifiable"].to_numpy()
+            a.errorbar(
+                c[ok], est[ok], yerr=_Z95 * se[ok], fmt="o", ms=2.0, color=col,
+                elinewidth=0.5, capsize=0, alpha=0.8, label=f"flap {flap:g}",
+            )  # fmt: skip
+            tab = tables.get((coef, name))
+            if tab is not None and flap in tab[1]:
+                a.plot(tab[0], tab[1][flap], color=col, lw=1.2)
+            if (~ok).any():
+                a.plot(c[~ok], np.zeros(int((~ok).sum())), "x", color=col, ms=3.5, mew=0.8)
+        a.set_title(f"{name}  [{g.filter(pl.col('param') == name)['regressor'][0]}]", fontsize=7.5)
+        a.yaxis.set_major_locator(MaxNLocator(4))
     for k in range(len(names), nrow * ncol):
         ax[k // ncol, k % ncol].set_visible(False)
     for a in ax[-1, :]:
         a.set_xlabel("α [deg]")
-    ax[0, 0].legend(loc="best", fontsize=6)
+    fig.legend(*ax[0, 0].get_legend_handles_labels(), loc="upper center", ncol=len(flaps),
+               fontsize=7, frameon=False)  # fmt: skip
     return sink.add(
         fig,
-        f"params_{coef}_flap{flap:g}",
-        f"Δ{coef} parameters against alpha, flap {flap:g} deg: bin estimates with 95 % error "
-        "bars (coloured-residual standard errors), bins where the parameter is not identified "
-        "(red crosses), the smoothed and clipped table of the model (blue), stall alpha "
-        "(dashed). Cf. thesis Figures 3.7-3.8, 3.15-3.18.",
+        f"params_{coef}",
+        f"Δ{coef} parameters against alpha, one colour per flap setting: identified bin "
+        "estimates with 95 % error bars (coloured-residual standard errors), the smoothed and "
+        "clipped table of the model (line), bins where the parameter is not identified (crosses "
+        "drawn at zero, the value the fit keeps there). Cf. thesis Figures 3.7-3.8, 3.15-3.18.",
     )
 
 
@@ -119,7 +124,8 @@ def _error_vs_regressor(ctx: ReportContext, sink: FigureSink, coef: str, flap: f
         for j, r in enumerate(regs):
             a = ax[i, j]
             x = s[r].to_numpy()
-            a.plot(x, z, ".", ms=1.5, color="#555", alpha=0.5)
+            step = max(1, x.size // MAX_SCATTER)
+            a.plot(x[::step], z[::step], ".", ms=1.5, color="#555", alpha=0.5)
             row = pb.filter(pl.col("regressor") == r)
             if row.height and np.isfinite(x).any():
                 slope = float(row["estimate"][0])
@@ -160,12 +166,10 @@ def section(ctx: ReportContext, sink: FigureSink) -> Section:
     tables = _tables(ctx)
     sec.body.append(
         p(
-            "Each alpha bin is fitted by equation-error least squares (thesis Eq. "
-            "3.10); a parameter "
-            "is marked not identified where its regressor lacks excitation, is "
-            "collinear with others "
-            "or the bin has too few points. Identified bins are smoothed against alpha (Eq. 3.13, "
-            "p = 0.4) and clipped 10 deg past stall."
+            "Each alpha bin is fitted by equation-error least squares (thesis Eq. 3.10); a "
+            "parameter is marked not identified where its regressor lacks excitation, is "
+            "collinear with others or the bin has too few points. Identified bins are smoothed "
+            "against alpha (Eq. 3.13, p = 0.4) and clipped 10 deg past stall."
         )
     )
     ident = (
@@ -179,16 +183,10 @@ def section(ctx: ReportContext, sink: FigureSink) -> Section:
     )
     sec.body.append(table(ident, formats={"identified": ".0%"}))
     for coef in ctx.coefficients:
-        figs = []
-        for flap in ctx.flaps:
-            g = pr.filter((pl.col("coefficient") == coef) & (pl.col("flap_deg") == flap))
-            if g.height:
-                figs.append(_param_figure(ctx, sink, coef, flap=flap, g=g, tables=tables))
-        if figs:
+        g = pr.filter(pl.col("coefficient") == coef)
+        if g.height:
             sec.body.append(f"<h3>Δ{coef}</h3>")
-            sec.body.append(figs[0])
-            if len(figs) > 1:
-                sec.body.append(details(f"Δ{coef}: the other flap settings", "".join(figs[1:])))
+            sec.body.append(_param_figure(ctx, sink, coef, g=g, tables=tables))
     counts = ctx.data.group_by("flap_deg").len().sort("len", descending=True)
     if counts.height:
         flap = float(counts["flap_deg"][0])

@@ -43,8 +43,23 @@ def section(ctx: ReportContext, sink: FigureSink) -> Section:
             f"{events.height} candidates, {acc.height} accepted."
         )
     )
-    if acc.height:
-        st = rolloff_statistics(events)
+    # intervals need 3 or more events per flap (the chi-square quantile of 1 degree of freedom
+    # is not defined by the Wilson-Hilferty approximation rolloff_statistics uses)
+    counts = acc.group_by("flap_deg").len()
+    enough = counts.filter(pl.col("len") >= 3)["flap_deg"].to_list()
+    few = counts.filter(pl.col("len") < 3).sort("flap_deg")
+    if few.height:
+        sec.body.append(
+            p(
+                "Flaps with fewer than 3 accepted events (no statistics): "
+                + ", ".join(
+                    f"{r['flap_deg']:g} deg ({r['len']})" for r in few.iter_rows(named=True)
+                )
+                + "."
+            )
+        )
+    if enough:
+        st = rolloff_statistics(acc.filter(pl.col("flap_deg").is_in(enough)))
         cols = [
             "flap_deg",
             "n",
@@ -120,7 +135,7 @@ def section(ctx: ReportContext, sink: FigureSink) -> Section:
             "Left: aileron against dynamic roll attitude φ' (thesis Eq. 3.20, Figure 3.12); the "
             "red dashed lines mark ±20 deg for scale (the QLC envelope itself is not drawn). "
             "Right: maximum bank angle of each straight stall against the 20 deg requirement "
-            "(Figure 3.13).",
+            "(FAR 25.203, Figure 3.13).",
         )
     )
     if mr.height:
