@@ -11,6 +11,7 @@ Sections: time-history matches (4.1), effect plots (4.2), identified parameters 
 from __future__ import annotations
 
 import os
+import re
 import sys
 import time
 from collections.abc import Mapping, Sequence
@@ -137,7 +138,12 @@ def build_report(
         if isinstance(diagnosis_doc, (str, Path))
         else (dict(diagnosis_doc) if diagnosis_doc is not None else None)
     )
-    sink = FigureSink(out / "figures", svg=svg)
+    figdir = out / "figures"
+    if figdir.is_dir():  # figures of an earlier report in the same folder
+        for f in figdir.iterdir():
+            if re.fullmatch(r"\d{3}_.+\.(png|svg)", f.name):
+                f.unlink()
+    sink = FigureSink(figdir, svg=svg)
     steps = [
         ("time histories", lambda c: timehistory.section(c, sink)),
         ("effects", lambda c: effects.section(c, sink)),

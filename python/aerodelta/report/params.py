@@ -50,9 +50,9 @@ def _param_figure(
     ncol = 4
     nrow = math.ceil(len(names) / ncol)
     fig, ax = new_figure(nrow, ncol, width=10.5, height=2.0 * nrow + 0.5, sharex=True, layout=None)
-    fig.subplots_adjust(
-        left=0.06, right=0.99, bottom=0.3 / nrow, top=1 - 0.45 / nrow, wspace=0.32, hspace=0.5
-    )
+    h = 2.0 * nrow + 0.5
+    fig.subplots_adjust(left=0.07, right=0.99, bottom=0.45 / h, top=1 - 0.5 / h, wspace=0.35,
+                        hspace=0.45)  # fmt: skip
     for k, name in enumerate(names):
         a = ax[k // ncol, k % ncol]
         for fi, flap in enumerate(flaps):

@@ -29,9 +29,10 @@ def _plot_maneuver(
     a0.legend(loc="best", ncol=3)
     held = "held out" if row["held_out"] else "fitted"
     a0.set_title(
-        f"{coef} {rank} fit: {mid} (flap {row.get('flap_deg', '')}, {row.get('kind', '')}, "
-        f"pusher {row.get('pusher', '')}, {held}); TIC qual {row['tic_qual']:.3f} → "
-        f"ext {row['tic_ext']:.3f}"
+        f"{coef} {rank} fit: {mid} ({held})\nflap {row.get('flap_deg', '')}, "
+        f"{row.get('kind', '')}, pusher {row.get('pusher', '')}; TIC qualified "
+        f"{row['tic_qual']:.3f} → extended {row['tic_ext']:.3f}",
+        fontsize=8.5,
     )
     a1.plot(t, g["alpha_deg"].to_numpy(), color="#555", lw=0.9)
     w = g[f"w_{coef}"].to_numpy() if f"w_{coef}" in g.columns else None
