@@ -40,7 +40,8 @@ def section(ctx: ReportContext, sink: FigureSink) -> Section:
             "rolling-moment residual <i>C</i><sub>l,meas</sub> − "
             "<i>C</i><sub>l,ext</sub> while the "
             "aileron, rudder and spoilers stay quiet (thesis Section 3.4.3 procedure). "
-            f"{events.height} candidates, {acc.height} accepted."
+            f"{events.height} candidates, {acc.height} accepted; the Table 3.2 statistics "
+            "need 3 or more accepted events per flap."
         )
     )
     # intervals need 3 or more events per flap (the chi-square quantile of 1 degree of freedom
