@@ -6,6 +6,8 @@ this package handles files, schemas, units, orchestration, reports and the CLI.
 
 from __future__ import annotations
 
+import importlib
+
 from aerodelta._core import __version__
 from aerodelta.aircraft import Aircraft
 from aerodelta.campaign import (
@@ -64,11 +66,13 @@ __all__ = [
     "OLSResults",
     "OutOfRangeError",
     "ParseError",
+    "ReportResult",
     "SmoothingSpline",
     "Table",
     "TooLittleDataError",
     "ValidationReport",
     "__version__",
+    "build_report",
     "check_daveml",
     "detect_rolloff",
     "effect_library",
@@ -88,3 +92,10 @@ __all__ = [
     "write_daveml",
     "write_example_model",
 ]
+
+
+def __getattr__(name: str) -> object:
+    # the report pulls in matplotlib: imported on first use, not with the package
+    if name in ("build_report", "ReportResult"):
+        return getattr(importlib.import_module("aerodelta.report"), name)
+    raise AttributeError(f"module 'aerodelta' has no attribute {name!r}")

@@ -11,6 +11,7 @@ import numpy as np
 import polars as pl
 
 from aerodelta.campaign import replay
+from aerodelta.exceptions import AerodeltaError
 from aerodelta.plots import COLORS, FigureSink, new_figure
 from aerodelta.report.context import ReportContext
 from aerodelta.report.html import Section, p, table
@@ -191,7 +192,7 @@ def section(
         rec = ctx.data.filter(pl.col("maneuver_id") == mid).sort("t")
         try:
             sim = replay_maneuver(rec, controls=controls)
-        except Exception as e:  # the engine's own message names the cause
+        except AerodeltaError as e:  # the engine's own message names the cause
             rows.append({"maneuver_id": mid, "bounded": False, "reason": f"replay failed: {e}"})
             continue
         ok, why = divergence(sim)
