@@ -13,6 +13,7 @@ import polars as pl
 import pytest
 
 from _report_data import diagnosis_fixture, quick_fit, quick_report
+from aerodelta.campaign import replay, trim
 from aerodelta.cli import main
 from aerodelta.model import DeltaModel
 from aerodelta.plots import FigureSink
@@ -83,6 +84,25 @@ def test_replays_are_bounded(report: ReportResult) -> None:
     rp = next(s for s in report.sections if s.key == "replay").tables["replay"]
     assert rp.height == 2
     assert rp["bounded"].all(), rp
+    assert {"rms_alpha_deg_ext", "rms_alpha_deg_qual"} <= set(rp.columns)
+
+
+def test_replay_with_a_zero_delta_model_is_the_qualified_replay() -> None:
+    _, _, res, _ = quick_fit()
+    spec = res.model.to_spec()
+    for c in spec["coefficients"].values():
+        for term in c["terms"]:
+            term["values"] = [[0.0] * len(v) for v in term["values"]]
+    zero = DeltaModel.from_spec(spec)
+    tr = trim(0.0, 70.0, 1000.0)
+    n = 200
+    ctl = np.tile(tr["controls_deg"], (n, 1))
+    ct = np.full((n, 2), tr["ct"])
+    base = replay(0.0, tr["state"], 0.01, ctl, ct, rolloff_seed=5)
+    ext = replay(0.0, tr["state"], 0.01, ctl, ct, rolloff_seed=5, delta_model=zero)
+    np.testing.assert_array_equal(ext, base)
+    moved = replay(0.0, tr["state"], 0.01, ctl, ct, rolloff_seed=5, delta_model=res.model)
+    assert moved.shape == base.shape and np.isfinite(moved).all()
 
 
 def test_diagnosis_renderer_reads_the_schema_and_tolerates_gaps(tmp_path: Path) -> None:
