@@ -155,7 +155,9 @@ def test_replay_initial_state_round_trips_the_record_angles() -> None:
     assert x[0, 11] == 2500.0
     ok, _ = divergence(states_frame(np.repeat(x, 3, axis=0), np.arange(3.0)))
     assert ok
-    x[0, 6] = math.radians(150.0)
+    x[0, 6] = math.radians(150.0)  # a large bank alone is no divergence
+    assert divergence(states_frame(x, np.array([0.0])))[0] is True
+    x[0, 7] = math.radians(88.0)  # theta past 85 deg is
     assert divergence(states_frame(x, np.array([0.0])))[0] is False
 
 

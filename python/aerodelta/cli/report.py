@@ -43,9 +43,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--replays", type=int, default=3, help="maneuvers replayed in 6-DOF")
     parser.add_argument(
         "--replay-controls",
-        default="all",
-        choices=["all", "elevator"],
-        help="feed all recorded controls, or the elevator (and thrust) only",
+        default="elevator",
+        choices=["elevator", "all"],
+        help="feed the recorded elevator and thrust only (thesis Section 4.3), or all controls",
     )
     parser.add_argument("--no-svg", action="store_true", help="PNG figures only")
     parser.add_argument("--no-progress", action="store_true", help="no progress bars")

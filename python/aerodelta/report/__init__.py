@@ -86,7 +86,7 @@ def build_report(
     diagnosis_doc: Mapping[str, Any] | str | Path | None = None,
     qualified: str = "auto",
     replay_count: int = 3,
-    replay_controls: str = "all",
+    replay_controls: str = "elevator",
     svg: bool = True,
     title: str = "aerodelta validation report",
     progress: bool = False,
@@ -113,7 +113,8 @@ def build_report(
     replay_count
         Maneuvers replayed in the 6-DOF simulator.
     replay_controls
-        ``"all"`` recorded controls or ``"elevator"`` only.
+        ``"elevator"``: the recorded elevator and thrust, lateral controls at zero (as the
+        thesis, Section 4.3); ``"all"``: every recorded control.
     svg
         Also write SVG files of the figures.
     title
