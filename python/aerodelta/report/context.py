@@ -8,7 +8,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import numpy as np
 import polars as pl
 
 from aerodelta.exceptions import DataError
@@ -111,8 +110,3 @@ def load_params(model_path: Path) -> pl.DataFrame | None:
     """The per-bin estimates written beside a model file (``<model>.params.parquet``)."""
     p = model_path.with_suffix(".params.parquet")
     return pl.read_parquet(p) if p.exists() else None
-
-
-def finite(x: np.ndarray) -> np.ndarray:
-    """``x`` without NaN/inf."""
-    return x[np.isfinite(x)]
