@@ -115,7 +115,7 @@ figure{margin:10px 0} figure img{max-width:100%;height:auto;border:1px solid #ee
 figcaption{font-size:12.5px;color:#555;margin-top:3px}
 .cards{display:flex;flex-wrap:wrap;gap:10px}
 .card{flex:1 1 210px;border:1px solid #d0d7de;border-radius:6px;padding:8px 12px;background:#f8fafc}
-.card b{display:block;font-size:12px;color:#555;font-weight:600}
+.card>b{display:block;font-size:12px;color:#555;font-weight:600}
 .card span{font-size:16px}
 .note{color:#666;font-size:12.5px}
 .ok{color:#1b7f3b;font-weight:600} .fail{color:#b42318;font-weight:600}
