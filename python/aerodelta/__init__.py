@@ -6,6 +6,8 @@ this package handles files, schemas, units, orchestration, reports and the CLI.
 
 from __future__ import annotations
 
+import importlib
+
 from aerodelta._core import __version__
 from aerodelta.aircraft import Aircraft
 from aerodelta.campaign import (
@@ -75,12 +77,14 @@ __all__ = [
     "OLSResults",
     "OutOfRangeError",
     "ParseError",
+    "ReportResult",
     "SmoothingSpline",
     "Table",
     "TooLittleDataError",
     "ValidationReport",
     "__version__",
     "band_check",
+    "build_report",
     "campaign_effects",
     "check_daveml",
     "compare_with_records",
@@ -109,3 +113,10 @@ __all__ = [
     "write_daveml",
     "write_example_model",
 ]
+
+
+def __getattr__(name: str) -> object:
+    # the report pulls in matplotlib: imported on first use, not with the package
+    if name in ("build_report", "ReportResult"):
+        return getattr(importlib.import_module("aerodelta.report"), name)
+    raise AttributeError(f"module 'aerodelta' has no attribute {name!r}")

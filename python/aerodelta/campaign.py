@@ -32,6 +32,7 @@ from tqdm import tqdm
 
 from aerodelta import _core
 from aerodelta.exceptions import DataError, InvalidInputError
+from aerodelta.model import DeltaModel
 
 Size = Literal["default", "quick"]
 
@@ -457,6 +458,7 @@ def replay(
     *,
     effects: str | Sequence[str] | Mapping[str, float] | None = None,
     rolloff_seed: int | None = None,
+    delta_model: DeltaModel | None = None,
 ) -> npt.NDArray[np.float64]:
     """Replay recorded controls on the ADX-37 (thesis Section 4.3).
 
@@ -476,6 +478,9 @@ def replay(
         Truth effects (``None``: the qualified model).
     rolloff_seed
         Include the stochastic roll-off with this seed.
+    delta_model
+        A fitted Δ model put on top of the qualified model in the loop (the extended model,
+        Eq. 3.12; lateral coefficients CY, Cl, Cn); not with ``effects``.
 
     Returns
     -------
@@ -489,6 +494,12 @@ def replay(
     if c.ndim != 2 or k.ndim != 2 or c.shape[0] != k.shape[0]:
         raise InvalidInputError(
             f"replay: controls_deg must be (n, 5) and ct (n, 2); got {c.shape} and {k.shape}"
+        )
+    if delta_model is not None:
+        if eff:
+            raise InvalidInputError("replay: give either effects (truth) or delta_model, not both")
+        return _core.sim_replay_extended(
+            float(flap_deg), delta_model._m, list(state0), float(dt), c, k, rolloff_seed
         )
     spec = json.dumps([{"name": n, "magnitude": m} for n, m in eff.items()])
     return _core.sim_replay(float(flap_deg), spec, list(state0), float(dt), c, k, rolloff_seed)

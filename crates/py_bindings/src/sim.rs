@@ -6,7 +6,9 @@ use aero_core::aircraft::qualified::QualifiedModel;
 use aero_core::aircraft::truth::EffectSpec;
 use aero_core::aircraft::turboprop::adx37;
 use aero_core::rolloff::{sample_draws, RollOffConfig};
-use aero_core::sim::campaign::{plan, replay_adx37, run_campaign, trim_adx37, CampaignSpec};
+use aero_core::sim::campaign::{
+    plan, replay_adx37, replay_adx37_extended, run_campaign, trim_adx37, CampaignSpec,
+};
 use aero_core::AeroError;
 use numpy::{
     IntoPyArray, PyArray1, PyArray2, PyArrayMethods, PyReadonlyArray2, PyUntypedArrayMethods,
@@ -14,6 +16,7 @@ use numpy::{
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
+use crate::delta_model::PyDeltaModel;
 use crate::error::to_py;
 use crate::util::detached;
 
@@ -57,22 +60,14 @@ fn sim_default_spec() -> String {
     CampaignSpec::default().to_json()
 }
 
-/// Replay recorded controls on the ADX-37 (see `aero_core::sim::campaign::replay_adx37`).
-#[pyfunction]
-#[pyo3(signature = (flap_deg, effects_json, x0, dt, controls_deg, ct, rolloff_seed=None))]
-#[allow(clippy::too_many_arguments)]
-fn sim_replay<'py>(
-    py: Python<'py>,
-    flap_deg: f64,
-    effects_json: &str,
-    x0: [f64; 12],
-    dt: f64,
-    controls_deg: PyReadonlyArray2<'py, f64>,
-    ct: PyReadonlyArray2<'py, f64>,
-    rolloff_seed: Option<u64>,
-) -> PyResult<Bound<'py, PyArray2<f64>>> {
-    let effects: Vec<EffectSpec> = serde_json::from_str(effects_json)
-        .map_err(|e| to_py(AeroError::parse("effects (JSON)", e.line(), e.to_string())))?;
+/// Rows of recorded controls (da, de, dr, dsl, dsr deg) and thrust coefficients.
+type ReplayRows = (Vec<[f64; 5]>, Vec<[f64; 2]>);
+
+/// Recorded controls (n x 5, deg) and thrust coefficients (n x 2) as rows.
+fn replay_rows(
+    controls_deg: &PyReadonlyArray2<'_, f64>,
+    ct: &PyReadonlyArray2<'_, f64>,
+) -> PyResult<ReplayRows> {
     let (cs, ks) = (controls_deg.shape(), ct.shape());
     if cs[1] != 5 || ks[1] != 2 {
         return Err(to_py(AeroError::invalid(
@@ -90,12 +85,59 @@ fn sim_replay<'py>(
         .chunks_exact(2)
         .map(|r| [r[0], r[1]])
         .collect();
-    let states = detached(py, || {
-        replay_adx37(flap_deg, &effects, rolloff_seed, x0, dt, &c, &k)
-    })?;
+    Ok((c, k))
+}
+
+fn states_array(py: Python<'_>, states: Vec<[f64; 12]>) -> PyResult<Bound<'_, PyArray2<f64>>> {
     let n = states.len();
     let flat: Vec<f64> = states.into_iter().flatten().collect();
     flat.into_pyarray(py).reshape([n, 12])
+}
+
+/// Replay recorded controls on the ADX-37 (see `aero_core::sim::campaign::replay_adx37`).
+#[pyfunction]
+#[pyo3(signature = (flap_deg, effects_json, x0, dt, controls_deg, ct, rolloff_seed=None))]
+#[allow(clippy::too_many_arguments)]
+fn sim_replay<'py>(
+    py: Python<'py>,
+    flap_deg: f64,
+    effects_json: &str,
+    x0: [f64; 12],
+    dt: f64,
+    controls_deg: PyReadonlyArray2<'py, f64>,
+    ct: PyReadonlyArray2<'py, f64>,
+    rolloff_seed: Option<u64>,
+) -> PyResult<Bound<'py, PyArray2<f64>>> {
+    let effects: Vec<EffectSpec> = serde_json::from_str(effects_json)
+        .map_err(|e| to_py(AeroError::parse("effects (JSON)", e.line(), e.to_string())))?;
+    let (c, k) = replay_rows(&controls_deg, &ct)?;
+    let states = detached(py, || {
+        replay_adx37(flap_deg, &effects, rolloff_seed, x0, dt, &c, &k)
+    })?;
+    states_array(py, states)
+}
+
+/// Replay recorded controls on the ADX-37 with the extended model (qualified + Δ model;
+/// see `aero_core::sim::campaign::replay_adx37_extended`).
+#[pyfunction]
+#[pyo3(signature = (flap_deg, model, x0, dt, controls_deg, ct, rolloff_seed=None))]
+#[allow(clippy::too_many_arguments)]
+fn sim_replay_extended<'py>(
+    py: Python<'py>,
+    flap_deg: f64,
+    model: &Bound<'py, PyDeltaModel>,
+    x0: [f64; 12],
+    dt: f64,
+    controls_deg: PyReadonlyArray2<'py, f64>,
+    ct: PyReadonlyArray2<'py, f64>,
+    rolloff_seed: Option<u64>,
+) -> PyResult<Bound<'py, PyArray2<f64>>> {
+    let (c, k) = replay_rows(&controls_deg, &ct)?;
+    let delta = &model.get().0;
+    let states = detached(py, || {
+        replay_adx37_extended(flap_deg, delta, rolloff_seed, x0, dt, &c, &k)
+    })?;
+    states_array(py, states)
 }
 
 /// Wings-level trim of the qualified ADX-37: (states, controls deg, C_T per engine).
@@ -177,6 +219,7 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(sim_plan, m)?)?;
     m.add_function(wrap_pyfunction!(sim_default_spec, m)?)?;
     m.add_function(wrap_pyfunction!(sim_replay, m)?)?;
+    m.add_function(wrap_pyfunction!(sim_replay_extended, m)?)?;
     m.add_function(wrap_pyfunction!(sim_trim, m)?)?;
     m.add_function(wrap_pyfunction!(sim_effect_library, m)?)?;
     m.add_function(wrap_pyfunction!(sim_aircraft_toml, m)?)?;

@@ -32,6 +32,7 @@ _register("export", "export")
 _register("ingest", "ingest")
 _register("diagnose", "diagnose")
 _register("rolloff", "rolloff")
+_register("report", "report")
 
 
 def build_parser() -> argparse.ArgumentParser:

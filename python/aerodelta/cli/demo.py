@@ -13,6 +13,7 @@ import numpy as np
 import polars as pl
 
 from aerodelta.campaign import generate_campaign
+from aerodelta.diagnosis import diagnose, write_outputs
 from aerodelta.fit import (
     COEFFICIENTS,
     FitConfig,
@@ -23,6 +24,7 @@ from aerodelta.fit import (
     validate_model,
 )
 from aerodelta.ingest import ingest
+from aerodelta.report import build_report
 from aerodelta.truth import band_check, campaign_effects
 
 HELP = "run the whole method on the built-in virtual flight test campaign"
@@ -106,7 +108,24 @@ def run(args: argparse.Namespace) -> int:
         oracle = theil_inequality(meas, qual + d_true) / theil_inequality(meas, qual)
         print(f"{c:<5} {rms_t:>11.5f} {rms_e:>10.5f} {100 * expl:>9.0f}% {oracle:>24.2f}")
     _print_identification(result, camp)
-    print(f"outputs in {out}/ (campaign/, model.json, model.params.parquet)", file=sys.stderr)
+    # the sim-to-real gap of the qualified model on the whole campaign (issue 7), then the
+    # validation report with it (issue 8)
+    diag = diagnose(data, progress=progress)
+    write_outputs(diag.result, diag.predictions, out / "diagnosis")
+    print(diag.summary())
+    rep = build_report(
+        out / "model.json",
+        data,
+        out / "report",
+        held_out=sorted(held),
+        diagnosis_doc=diag.result,
+        progress=progress,
+    )
+    print(f"validation report: {rep.html}")
+    print(
+        f"outputs in {out}/ (campaign/, model.json, model.params.parquet, diagnosis/, report/)",
+        file=sys.stderr,
+    )
     return 0
 
 

@@ -12,6 +12,7 @@ use crate::aircraft::effects::{ActiveEffect, MeasurementEffects};
 use crate::aircraft::qualified::{FlapModel, FlapStall, QualifiedModel, FLAP_STALL};
 use crate::aircraft::truth::{active_effects, EffectSpec, TruthAero};
 use crate::aircraft::turboprop::{adx37, AircraftRef};
+use crate::delta_model::DeltaModel;
 use crate::error::{AeroError, Result, ResultExt};
 use crate::rolloff::{RollOff, RollOffConfig, RollOffDraw};
 use crate::sim::actuator::Actuator;
@@ -19,6 +20,7 @@ use crate::sim::aero::{AeroModel, Controls};
 use crate::sim::atmosphere::{isa, G0};
 use crate::sim::engine::{Engine, EngineSpec};
 use crate::sim::eom::ix;
+use crate::sim::extended::ExtendedAero;
 use crate::sim::maneuver::{trim, AirData, Simulator};
 use crate::sim::pilot::{Command, Kind, Observation, Pilot, PilotParams, Pusher};
 use crate::sim::rng::{derive_seed, Stream};
@@ -682,20 +684,50 @@ pub fn replay_adx37(
     controls_deg: &[[f64; 5]],
     ct: &[[f64; 2]],
 ) -> Result<Vec<[f64; 12]>> {
-    let ac = adx37();
     let (qual, _) = adx37_models()?;
     let aero = active_effects(effects)?;
-    let rolloff = match rolloff_seed {
-        Some(seed) => Some(RollOff::new(
-            RollOffConfig::default(),
-            flap_deg,
-            seed,
-            stream::ROLLOFF,
-        )?),
-        None => None,
-    };
+    let rolloff = replay_rolloff(flap_deg, rolloff_seed)?;
     let mut model = TruthAero::new(slice(qual, flap_deg)?, aero, rolloff);
-    let mut sim = Simulator::new(ac, flap_deg, nalgebra::SVector::from(x0), dt);
+    replay_with(&mut model, flap_deg, x0, dt, controls_deg, ct)
+}
+
+/// Replay recorded controls on the ADX-37 with the **extended** model: the qualified
+/// model plus the fitted Δ model `delta` (thesis Section 4.3, Eq. 3.12), and the
+/// stochastic roll-off when `rolloff_seed` is given. Arguments and result as
+/// [`replay_adx37`].
+///
+/// # Errors
+/// For a Δ model the loop cannot run (see [`ExtendedAero::new`]) or mismatched inputs.
+pub fn replay_adx37_extended(
+    flap_deg: f64,
+    delta: &DeltaModel,
+    rolloff_seed: Option<u64>,
+    x0: [f64; 12],
+    dt: f64,
+    controls_deg: &[[f64; 5]],
+    ct: &[[f64; 2]],
+) -> Result<Vec<[f64; 12]>> {
+    let (qual, _) = adx37_models()?;
+    let rolloff = replay_rolloff(flap_deg, rolloff_seed)?;
+    let base = TruthAero::new(slice(qual, flap_deg)?, Vec::new(), rolloff);
+    let mut model = ExtendedAero::new(base, delta)?;
+    replay_with(&mut model, flap_deg, x0, dt, controls_deg, ct)
+}
+
+fn replay_rolloff(flap_deg: f64, seed: Option<u64>) -> Result<Option<RollOff>> {
+    seed.map(|seed| RollOff::new(RollOffConfig::default(), flap_deg, seed, stream::ROLLOFF))
+        .transpose()
+}
+
+fn replay_with<M: AeroModel>(
+    model: &mut M,
+    flap_deg: f64,
+    x0: [f64; 12],
+    dt: f64,
+    controls_deg: &[[f64; 5]],
+    ct: &[[f64; 2]],
+) -> Result<Vec<[f64; 12]>> {
+    let mut sim = Simulator::new(adx37(), flap_deg, nalgebra::SVector::from(x0), dt);
     let d = f64::to_radians;
     let controls: Vec<Controls> = controls_deg
         .iter()
@@ -707,7 +739,7 @@ pub fn replay_adx37(
             dsr: d(c[4]),
         })
         .collect();
-    let states = crate::sim::maneuver::replay_ct(&mut sim, &mut model, &controls, ct)?;
+    let states = crate::sim::maneuver::replay_ct(&mut sim, model, &controls, ct)?;
     Ok(states.iter().map(|x| x.data.0[0]).collect())
 }
 

@@ -3,6 +3,7 @@
 //! - [`atmosphere`]: ISA to 20 km;
 //! - [`eom`]: rigid-body equations of motion, RK4;
 //! - [`aero`]: the [`aero::AeroModel`] trait any aerodynamic model implements;
+//! - [`extended`]: a base model plus a fitted Δ model in the loop (thesis Section 4.3);
 //! - [`engine`], [`actuator`]: turboprop and control-surface actuators;
 //! - [`turbulence`]: Dryden gusts (MIL-F-8785C);
 //! - [`pilot`]: the pilot model and stick pusher flying the stall maneuvers of Section 3.2.1;
@@ -17,6 +18,7 @@ pub mod atmosphere;
 pub mod campaign;
 pub mod engine;
 pub mod eom;
+pub mod extended;
 pub mod maneuver;
 pub mod pilot;
 pub mod rng;

@@ -1,0 +1,217 @@
+"""The validation report (thesis Chapter 4 as a product): one self-contained HTML file with a
+summary first, and every figure also written as PNG and SVG beside it.
+
+Sections: time-history matches (4.1), effect plots (4.2), identified parameters against alpha,
+6-DOF replay (4.3), roll-off, the simulator validation envelope and the sim-to-real diagnosis.
+
+>>> from aerodelta.report import build_report  # doctest: +SKIP
+>>> build_report(model, data, "out/report", held_out=ids)  # doctest: +SKIP
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import sys
+import time
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import polars as pl
+from tqdm import tqdm
+
+from aerodelta.model import DeltaModel
+from aerodelta.plots import FigureSink
+from aerodelta.report import (
+    diagnosis,
+    effects,
+    envelope,
+    params,
+    replay,
+    rolloff_section,
+    timehistory,
+)
+from aerodelta.report.context import build_context, load_params
+from aerodelta.report.diagnosis import load_diagnosis
+from aerodelta.report.html import Section, esc, page
+from aerodelta.report.metrics import (
+    all_metrics,
+    maneuver_metrics,
+    offset_removed_rms,
+    overall_metrics,
+    peak_error,
+    rank_fits,
+    rms_error,
+    tic,
+)
+
+REPORT_NAME = "report.html"
+
+
+@dataclass
+class ReportResult:
+    """What :func:`build_report` wrote.
+
+    Attributes
+    ----------
+    html
+        The report file.
+    figures
+        PNG and SVG files written beside it (in ``figures/``).
+    sections
+        The sections built, with their tables and timings.
+    seconds
+        Total time, s.
+    """
+
+    html: Path
+    figures: list[Path]
+    sections: list[Section] = field(default_factory=list)
+    seconds: float = 0.0
+
+    def timings(self) -> dict[str, float]:
+        """Seconds per section."""
+        return {s.key: s.seconds for s in self.sections}
+
+
+def build_report(
+    model: DeltaModel | str | Path,
+    data: pl.DataFrame,
+    out: str | Path,
+    *,
+    params_table: pl.DataFrame | None = None,
+    held_out: Sequence[str] = (),
+    diagnosis_doc: Mapping[str, Any] | str | Path | None = None,
+    qualified: str = "auto",
+    replay_count: int = 3,
+    replay_controls: str = "elevator",
+    svg: bool = True,
+    title: str = "aerodelta validation report",
+    progress: bool = False,
+) -> ReportResult:
+    """Build the validation report.
+
+    Parameters
+    ----------
+    model
+        The fitted Δ model, or the path of its file (``aerodelta fit`` output; the per-bin
+        estimates ``<model>.params.parquet`` beside it are read when ``params_table`` is None).
+    data
+        Ingested records (``aerodelta.ingest(...).data``).
+    out
+        Output folder: ``report.html`` and ``figures/`` are written there.
+    params_table
+        Per-bin estimates (``FitResult.summary()``).
+    held_out
+        Maneuver ids left out of the fit (marked in the plots and scored apart).
+    diagnosis_doc
+        ``diagnosis.json`` (path or parsed dict), optional.
+    qualified
+        Source of the qualified coefficients (see :func:`aerodelta.fit.qualified_coefficients`).
+    replay_count
+        Maneuvers replayed in the 6-DOF simulator.
+    replay_controls
+        ``"elevator"``: the recorded elevator and thrust, lateral controls at zero (as the
+        thesis, Section 4.3); ``"all"``: every recorded control.
+    svg
+        Also write SVG files of the figures.
+    title
+        Report title.
+    progress
+        Progress bar on stderr.
+
+    Returns
+    -------
+    ReportResult
+    """
+    t0 = time.perf_counter()
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    if isinstance(model, (str, Path)):
+        path = Path(model)
+        if params_table is None:
+            params_table = load_params(path)
+        model = DeltaModel.load(path)
+    doc = (
+        load_diagnosis(diagnosis_doc)
+        if isinstance(diagnosis_doc, (str, Path))
+        else (dict(diagnosis_doc) if diagnosis_doc is not None else None)
+    )
+    figdir = out / "figures"
+    if figdir.is_dir():  # figures of an earlier report in the same folder
+        for f in figdir.iterdir():
+            if re.fullmatch(r"\d{3}_.+\.(png|svg)", f.name):
+                f.unlink()
+    sink = FigureSink(figdir, svg=svg)
+    steps = [
+        ("time histories", lambda c: timehistory.section(c, sink)),
+        ("effects", lambda c: effects.section(c, sink)),
+        ("parameters", lambda c: params.section(c, sink)),
+        (
+            "6-DOF replay",
+            lambda c: replay.section(c, sink, count=replay_count, controls=replay_controls),
+        ),
+        ("roll-off", lambda c: rolloff_section.section(c, sink)),
+        ("envelope", lambda c: envelope.section(c, sink)),
+        ("diagnosis", lambda c: diagnosis.section(c.diagnosis, sink)),
+    ]
+    bar = tqdm(
+        total=len(steps) + 2, desc="report", unit="step", file=sys.stderr, disable=not progress
+    )
+    bar.set_postfix_str("models along the records")
+    ctx = build_context(
+        model, data, params=params_table, held_out=held_out, qualified=qualified, diagnosis=doc
+    )
+    prep = time.perf_counter() - t0
+    bar.update(1)
+    sections: list[Section] = []
+    for name, fn in steps:
+        bar.set_postfix_str(name)
+        ts = time.perf_counter()
+        s = fn(ctx)
+        s.seconds = time.perf_counter() - ts
+        sections.append(s)
+        bar.update(1)
+    bar.set_postfix_str("writing HTML")
+    n_man = ctx.data["maneuver_id"].n_unique()
+    intro = (
+        f"<p>{n_man} maneuvers, {ctx.data.height} samples, flaps "
+        f"{', '.join(f'{f:g}' for f in ctx.flaps)} deg; {len(ctx.held_out)} maneuvers held out "
+        f"of the fit; qualified model: {esc(ctx.qualified)}; coefficients "
+        f"{', '.join(ctx.coefficients)}. Figures are also in <code>figures/</code> as PNG"
+        f"{' and SVG' if svg else ''}.</p>"
+    )
+    doc_html = page(
+        title, f"Δ model validation (thesis Chapter 4), {n_man} maneuvers", intro, sections
+    )
+    target = out / REPORT_NAME
+    tmp = target.with_name(f"{target.name}.tmp-{os.getpid()}")
+    tmp.write_text(doc_html, encoding="utf-8")
+    tmp.replace(target)
+    bar.update(1)
+    bar.close()
+    prep_sec = Section("prepare", "prepare", seconds=prep)
+    return ReportResult(
+        html=target,
+        figures=list(sink.written),
+        sections=[prep_sec, *sections],
+        seconds=time.perf_counter() - t0,
+    )
+
+
+__all__ = [
+    "REPORT_NAME",
+    "ReportResult",
+    "all_metrics",
+    "build_report",
+    "load_diagnosis",
+    "maneuver_metrics",
+    "offset_removed_rms",
+    "overall_metrics",
+    "peak_error",
+    "rank_fits",
+    "rms_error",
+    "tic",
+]
