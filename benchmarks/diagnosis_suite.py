@@ -69,10 +69,15 @@ def main() -> int:
     ap.add_argument("--quick", action="store_true", help="a dozen cases instead of the sweep")
     ap.add_argument("--size", default="quick", help="campaign size (quick = 40 maneuvers, or N)")
     ap.add_argument("--seeds", type=int, default=1)
+    ap.add_argument(
+        "--design-singles", action="store_true", help="only singles at design magnitude"
+    )
     ap.add_argument("--out", default="diagnosis_suite.json")
     args = ap.parse_args()
     size: str | int = int(args.size) if args.size.isdigit() else args.size
     todo = cases(args.quick, args.seeds)
+    if args.design_singles:
+        todo = [t for t in todo if len(t[0]) == 1 and next(iter(t[0].values())) == 1.0]
     results: list[CaseResult] = []
     t0 = time.perf_counter()
     for effects, seed, cond in tqdm(todo, desc="withheld-effect suite", file=sys.stderr):

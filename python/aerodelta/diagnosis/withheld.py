@@ -10,9 +10,11 @@ never does (it refuses truth paths). Scoring rules:
   shrink); measurement effects affect the coefficients their physics reaches (beta vane bias,
   time skew and control lag: all three; accelerometer offset: C_Y; alpha vane bias: none
   measurably, since the lateral simulator barely depends on alpha);
-- a single is *found* when every affected coefficient's verdict is the effect;
+- a single is *found* when every affected coefficient's verdict is the effect, or names it
+  as ambiguous with the verdict (the data could not tell them apart: not a confident wrong
+  answer);
 - in pairs and triples each withheld effect is *found* when it is among the significant
-  effects of every coefficient it affects;
+  effects (or their ambiguous rivals) of every coefficient it affects;
 - a *false alarm* is a significant deterministic effect on a coefficient no withheld effect
   affects (nulls), or any significant effect of the vocabulary on C_l for an unlisted effect
   (misattribution);
@@ -125,14 +127,30 @@ def score_case(
         else:
             affected[e] = list(MEASUREMENT_ACTS.get(e, ()))
     single = len(effects) == 1
+    # an effect reported ambiguous with the one named is not a confident wrong answer
+    named = {
+        c: {
+            e["effect"]: [e["effect"], *e["ambiguous_with"]]
+            for e in res[c]["effects"]
+            if e["significant"]
+        }
+        for c in COEFFICIENTS
+    }
+
+    def names(c: str, top_only: bool) -> set[str]:
+        items = named[c].items()
+        if top_only:
+            items = [(k, v) for k, v in items if k == verdicts[c]]
+        return {x for _, v in items for x in v}
+
     found = {}
     for e, acts in affected.items():
         if kinds.get(e) == "unlisted":
             continue
         if single:
-            found[e] = bool(acts) and all(verdicts[c] == e for c in acts)
+            found[e] = bool(acts) and all(e in names(c, True) for c in acts)
         else:
-            found[e] = bool(acts) and all(e in significant[c] for c in acts)
+            found[e] = bool(acts) and all(e in names(c, False) for c in acts)
         if not acts:
             found[e] = True  # nothing measurable to find (reported separately)
     touched = {c for acts in affected.values() for c in acts}
@@ -142,7 +160,7 @@ def score_case(
         for x in res[c]["effects"]:
             if not x["significant"] or x.get("kind") not in det_kinds:
                 continue
-            wrong = x["effect"] not in effects
+            wrong = x["effect"] not in effects and not set(x["ambiguous_with"]) & set(effects)
             if wrong and (c not in touched or any(kinds.get(e) == "unlisted" for e in effects)):
                 false_alarms.append(f"{c}:{x['effect']}")
     shrink = {}
