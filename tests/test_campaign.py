@@ -244,8 +244,9 @@ def test_measurement_effects_act_on_their_channels_only() -> None:
 
     base = rec("none")
     bias = rec("alpha_vane_bias,beta_vane_bias=2")
-    np.testing.assert_allclose(bias["alpha_deg"] - base["alpha_deg"], 0.5, atol=1e-9)
-    np.testing.assert_allclose(bias["beta_deg"] - base["beta_deg"], 1.0, atol=1e-9)
+    # design magnitudes of issue 7: 1 deg of vane bias (so magnitude 2 is 2 deg)
+    np.testing.assert_allclose(bias["alpha_deg"] - base["alpha_deg"], 1.0, atol=1e-9)
+    np.testing.assert_allclose(bias["beta_deg"] - base["beta_deg"], 2.0, atol=1e-9)
     assert bias.drop("alpha_deg", "beta_deg").equals(base.drop("alpha_deg", "beta_deg"))
     lag = rec("control_lag")  # recorded controls lead by 0.10 s = 5 samples at 50 Hz
     for c in ("da_deg", "de_deg", "dr_deg"):

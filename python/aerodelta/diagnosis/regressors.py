@@ -91,8 +91,15 @@ def design_columns(
 ) -> tuple[np.ndarray, np.ndarray]:
     """The aerodynamic (``n x R``) and global (``n x Gn``) regressor matrices of ``coef``."""
     exprs = {**AERO_REGRESSORS, **vocab.user_regressors}
-    aero = frame.select([exprs[a].cast(pl.Float64).alias(a) for a in aero_names])
-    aero_x = np.ascontiguousarray(aero.to_numpy(), dtype=np.float64).reshape(frame.height, -1)
+    if aero_names:
+        # with_columns broadcasts a literal (the constant regressor) to the frame's height
+        tmp = [f"__reg{i}" for i in range(len(aero_names))]
+        aero = frame.with_columns(
+            [exprs[a].cast(pl.Float64).alias(t) for a, t in zip(aero_names, tmp, strict=True)]
+        ).select(tmp)
+        aero_x = np.ascontiguousarray(aero.to_numpy(), dtype=np.float64)
+    else:
+        aero_x = np.zeros((frame.height, 0))
     aero_x = np.where(np.isfinite(aero_x), aero_x, 0.0)
     cols = [meas[g][coef] for g in glob_names]
     glob_x = np.column_stack(cols) if cols else np.zeros((frame.height, 0))
