@@ -606,8 +606,6 @@ struct ControlTerm {
     coef: usize,
     input: usize,
     sign: f64,
-    /// Deflection segments per alpha row (breakpoints − 1).
-    segments: usize,
     cells: Vec<[f64; 4]>,
 }
 
@@ -626,13 +624,26 @@ pub struct FlapModel {
     coef_cols: [(usize, usize); 6],
     /// Regressor index of each column.
     col_reg: Vec<u8>,
-    ctrl: Vec<ControlTerm>,
-    /// Distinct deflection breakpoint sets, one per control input in [`CTRL_INPUTS`] order.
-    ctrl_bp: Vec<Vec<f64>>,
-    /// Per control input: segment index for each whole degree from the first breakpoint
-    /// (an O(1) locate; every breakpoint is a whole degree).
-    ctrl_seg: Vec<Vec<u8>>,
+    /// Control tables grouped by input, inputs in order of first appearance
+    /// in the terms (so every coefficient still sums its terms in term order).
+    ctrl: Vec<ControlGroup>,
     cbar: f64,
+}
+
+/// The control tables on one input: one locate serves them all.
+#[derive(Debug, Clone)]
+struct ControlGroup {
+    input: Input,
+    /// Deflection breakpoints.
+    bp: Vec<f64>,
+    /// Segment index for each whole degree from the first breakpoint (an O(1)
+    /// locate; every breakpoint is a whole degree), empty otherwise.
+    seg: Vec<u8>,
+    /// Coefficient index and sign of each table.
+    coef: Vec<u8>,
+    sign: Vec<f64>,
+    /// Cells `[(i · segments + j) · tables + t]` (see [`ControlTerm`]).
+    cells: Vec<[f64; 4]>,
 }
 
 impl FlapModel {
@@ -687,7 +698,6 @@ impl FlapModel {
                     coef: ci,
                     input: slot,
                     sign: term.sign,
-                    segments: m - 1,
                     cells,
                 });
             }
@@ -707,12 +717,27 @@ impl FlapModel {
                 grid.push([v[i], v[i + 1] - v[i]]);
             }
         }
-        let ctrl_seg = ctrl_bp
-            .iter()
-            .map(|bp| {
-                if bp.len() < 2 || bp.iter().any(|b| b.fract() != 0.0) {
-                    return Vec::new();
+        // group the control terms by input, inputs in order of first appearance
+        let mut order: Vec<usize> = Vec::new();
+        for c in &ctrl {
+            if !order.contains(&c.input) {
+                order.push(c.input);
+            }
+        }
+        let mut groups = Vec::with_capacity(order.len());
+        for &slot in &order {
+            let bp = ctrl_bp[slot].clone();
+            let terms: Vec<&ControlTerm> = ctrl.iter().filter(|c| c.input == slot).collect();
+            let segments = bp.len().saturating_sub(1);
+            let mut cells = Vec::with_capacity(terms.len() * (NA - 1) * segments);
+            for cell in 0..(NA - 1) * segments {
+                for t in &terms {
+                    cells.push(t.cells[cell]);
                 }
+            }
+            let seg = if bp.len() < 2 || bp.iter().any(|b| b.fract() != 0.0) {
+                Vec::new()
+            } else {
                 let (lo, hi) = (bp[0], bp[bp.len() - 1]);
                 let n = (hi - lo) as usize;
                 (0..n)
@@ -721,17 +746,23 @@ impl FlapModel {
                         ((bp.partition_point(|&b| b <= d) - 1).min(bp.len() - 2)) as u8
                     })
                     .collect()
-            })
-            .collect();
+            };
+            groups.push(ControlGroup {
+                input: CTRL_INPUTS[slot],
+                bp,
+                seg,
+                coef: terms.iter().map(|t| t.coef as u8).collect(),
+                sign: terms.iter().map(|t| t.sign).collect(),
+                cells,
+            });
+        }
         Ok(FlapModel {
             flap_deg,
-            ctrl_seg,
             ncols,
             grid,
             coef_cols,
             col_reg: cols.iter().map(|c| c.1 as u8).collect(),
-            ctrl,
-            ctrl_bp,
+            ctrl: groups,
             cbar: q.aircraft.cbar_m,
         })
     }
@@ -768,36 +799,39 @@ impl FlapModel {
             }
             *o = acc;
         }
-        // locate each control input once
-        let mut loc = [(0usize, 0.0f64); 4];
-        for (k, bp) in self.ctrl_bp.iter().enumerate() {
-            if bp.len() < 2 {
+        // locate each control input once, then add its tables
+        let mut out8 = [0.0; 8];
+        out8[..6].copy_from_slice(&out);
+        for g in &self.ctrl {
+            let bp = &g.bp;
+            let m = bp.len();
+            if m < 2 {
                 continue;
             }
-            let d = input_value(CTRL_INPUTS[k], s);
-            let m = bp.len();
-            loc[k] = if d <= bp[0] {
+            let d = input_value(g.input, s);
+            let (j, w) = if d <= bp[0] {
                 (0, 0.0)
             } else if d >= bp[m - 1] {
                 (m - 2, 1.0)
             } else {
-                let seg = &self.ctrl_seg[k];
-                let j = match seg.get((d - bp[0]) as usize) {
+                let j = match g.seg.get((d - bp[0]) as usize) {
                     Some(&j) => j as usize,
                     None => (bp.partition_point(|&b| b <= d) - 1).min(m - 2),
                 };
                 (j, (d - bp[j]) / (bp[j + 1] - bp[j]))
             };
-        }
-        for c in &self.ctrl {
-            let (j, g) = loc[c.input & 3];
-            let Some(v) = c.cells.get(i * c.segments + j) else {
+            let nt = g.coef.len();
+            let base = (i * (m - 1) + j) * nt;
+            let Some(cells) = g.cells.get(base..base + nt) else {
                 continue;
             };
-            let a = v[0] + g * v[1];
-            let b = v[2] + g * v[3];
-            out[c.coef] += c.sign * (a + f * (b - a));
+            for ((v, &ci), &sign) in cells.iter().zip(&g.coef).zip(&g.sign) {
+                let a = v[0] + w * v[1];
+                let b = v[2] + w * v[3];
+                out8[usize::from(ci & 7)] += sign * (a + f * (b - a));
+            }
         }
+        out.copy_from_slice(&out8[..6]);
         out
     }
 }
