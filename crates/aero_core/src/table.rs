@@ -154,17 +154,19 @@ impl Axis {
         if x.is_nan() {
             return None;
         }
-        // Input limits first (branch-free clamps; no limit is an infinite one).
-        let x = x
-            .max(self.min.unwrap_or(f64::NEG_INFINITY))
-            .min(self.max.unwrap_or(f64::INFINITY));
+        // Input limits first (no limit is an infinite one).
+        let x = clamp_to(
+            x,
+            self.min.unwrap_or(f64::NEG_INFINITY),
+            self.max.unwrap_or(f64::INFINITY),
+        );
         let bp = &self.breakpoints;
         let n = bp.len();
         if n == 1 {
             return Some((0, 0.0));
         }
         // The segment of the input clamped into the breakpoints' range ...
-        let i = self.segment(x.clamp(bp[0], bp[n - 1]));
+        let i = self.segment(clamp_to(x, bp[0], bp[n - 1]));
         // ... and the fraction of the unclamped input: inside the range it lies
         // in [0, 1] (exactly 0 or 1 at nodes); outside, holding clamps it to the
         // end node and linear extrapolation keeps it.
@@ -179,7 +181,7 @@ impl Axis {
         } else {
             f64::INFINITY
         };
-        Some((i, f.max(lo).min(hi)))
+        Some((i, clamp_to(f, lo, hi)))
     }
 
     /// The last segment index `i <= n-2` with `bp[i] <= x`, for `x` within
@@ -216,6 +218,18 @@ impl Axis {
                 base
             }
         }
+    }
+}
+
+/// `x` clamped to `[lo, hi]` by two comparisons (one `min`/`max` instruction
+/// each; `x` is never NaN here, so no NaN handling is needed).
+#[inline(always)]
+fn clamp_to(x: f64, lo: f64, hi: f64) -> f64 {
+    let x = if x < lo { lo } else { x };
+    if x > hi {
+        hi
+    } else {
+        x
     }
 }
 
@@ -410,77 +424,82 @@ impl Table {
         }
         let work = |start: usize, chunk: &mut [f64]| {
             // One dispatch on the dimension per chunk, then column-wise blocks.
-            let block = |s: usize, o: &mut [f64]| match n {
-                1 => self.eval_block::<1, 2>(columns, s, o),
-                2 => self.eval_block::<2, 4>(columns, s, o),
-                3 => self.eval_block::<3, 8>(columns, s, o),
-                4 => self.eval_block::<4, 16>(columns, s, o),
-                5 => self.eval_block::<5, 32>(columns, s, o),
-                6 => self.eval_block::<6, 64>(columns, s, o),
-                7 => self.eval_block::<7, 128>(columns, s, o),
-                _ => self.eval_block::<8, 256>(columns, s, o),
-            };
-            for (b, o) in chunk.chunks_mut(BLOCK).enumerate() {
-                block(start + b * BLOCK, o);
+            match n {
+                1 => self.eval_chunk::<1, 2>(Source::Columns(columns), start, chunk),
+                2 => self.eval_chunk::<2, 4>(Source::Columns(columns), start, chunk),
+                3 => self.eval_chunk::<3, 8>(Source::Columns(columns), start, chunk),
+                4 => self.eval_chunk::<4, 16>(Source::Columns(columns), start, chunk),
+                5 => self.eval_chunk::<5, 32>(Source::Columns(columns), start, chunk),
+                6 => self.eval_chunk::<6, 64>(Source::Columns(columns), start, chunk),
+                7 => self.eval_chunk::<7, 128>(Source::Columns(columns), start, chunk),
+                _ => self.eval_chunk::<8, 256>(Source::Columns(columns), start, chunk),
             }
         };
         run_chunks(out, work);
         Ok(())
     }
 
-    /// Column-wise batch evaluation of at most [`BLOCK`] points starting at
-    /// row `start` of `columns`: every axis is located for all points of the
-    /// block first (one tight loop per axis), then the corners are gathered
-    /// and reduced. Same operations, in the same order, as [`Table::eval`],
-    /// so the results are bit-identical.
-    fn eval_block<const N: usize, const M: usize>(
+    /// Evaluate the points of `src` from row `start` on into `out`, block by
+    /// block: every axis is located for all points of a block first (one tight
+    /// loop per axis, its constants hoisted), then the corners are gathered and
+    /// reduced. Same operations, in the same order, as [`Table::eval`], so the
+    /// results are bit-identical.
+    fn eval_chunk<const N: usize, const M: usize>(
         &self,
-        columns: &[&[f64]],
+        src: Source<'_>,
         start: usize,
         out: &mut [f64],
     ) {
-        let len = out.len().min(BLOCK);
+        let kernels: [AxisKernel<'_>; N] = std::array::from_fn(|k| {
+            AxisKernel::new(&self.axes[k], self.strides[k], k == 0)
+        });
+        let mut offsets = [0usize; M];
+        for (o, &c) in offsets.iter_mut().zip(&self.corner_offsets) {
+            *o = c;
+        }
+        let span = offsets.iter().copied().max().unwrap_or(0);
         let mut base = [0usize; BLOCK];
         let mut nan = [false; BLOCK];
         let mut frac = [[0.0f64; BLOCK]; N];
-        for k in 0..N {
-            let axis = &self.axes[k];
-            let stride = self.strides[k];
-            let col = &columns[k][start..start + len];
-            for (((&x, b), f), bad) in col
-                .iter()
-                .zip(base.iter_mut())
-                .zip(frac[k].iter_mut())
-                .zip(nan.iter_mut())
-            {
-                match axis.locate(x) {
-                    Some((i, fr)) => {
-                        *b += i * stride;
-                        *f = fr;
+        let mut rows = [[0.0f64; BLOCK]; N];
+        for (b, o) in out.chunks_mut(BLOCK).enumerate() {
+            let s0 = start + b * BLOCK;
+            let len = o.len();
+            for (k, kern) in kernels.iter().enumerate() {
+                let xs: &[f64] = match src {
+                    Source::Columns(cols) => &cols[k][s0..s0 + len],
+                    Source::Rows(pts) => {
+                        let buf = &mut rows[k][..len];
+                        for (j, x) in buf.iter_mut().enumerate() {
+                            *x = pts[(s0 + j) * N + k];
+                        }
+                        &rows[k][..len]
                     }
-                    None => *bad = true,
+                };
+                kern.locate_block(xs, &mut base[..len], &mut frac[k][..len], &mut nan[..len]);
+            }
+            for (j, o) in o.iter_mut().enumerate() {
+                let b = base[j];
+                // one bounds check for the whole cell (always inside by construction)
+                let (Some(cell), false) = (self.values.get(b..=b + span), nan[j]) else {
+                    *o = f64::NAN;
+                    continue;
+                };
+                let mut corners = [0.0f64; M];
+                for (slot, &off) in corners.iter_mut().zip(&offsets) {
+                    *slot = cell[off];
                 }
-            }
-        }
-        for (j, o) in out[..len].iter_mut().enumerate() {
-            if nan[j] {
-                *o = f64::NAN;
-                continue;
-            }
-            let mut corners = [0.0f64; M];
-            for (slot, off) in corners.iter_mut().zip(&self.corner_offsets) {
-                *slot = self.values[base[j] + off];
-            }
-            let mut m = M;
-            for k in (0..N).rev() {
-                let f = frac[k][j];
-                let g = 1.0 - f;
-                m /= 2;
-                for i in 0..m {
-                    corners[i] = g * corners[2 * i] + f * corners[2 * i + 1];
+                let mut m = M;
+                for fk in frac.iter().rev() {
+                    let f = fk[j];
+                    let g = 1.0 - f;
+                    m /= 2;
+                    for i in 0..m {
+                        corners[i] = g * corners[2 * i] + f * corners[2 * i + 1];
+                    }
                 }
+                *o = corners[0];
             }
-            *o = corners[0];
         }
     }
 
@@ -501,13 +520,135 @@ impl Table {
             ));
         }
         let work = |start: usize, chunk: &mut [f64]| {
-            for (j, o) in chunk.iter_mut().enumerate() {
-                let r = (start + j) * n;
-                *o = self.eval(&points[r..r + n]);
+            let src = Source::Rows(points);
+            match n {
+                1 => self.eval_chunk::<1, 2>(src, start, chunk),
+                2 => self.eval_chunk::<2, 4>(src, start, chunk),
+                3 => self.eval_chunk::<3, 8>(src, start, chunk),
+                4 => self.eval_chunk::<4, 16>(src, start, chunk),
+                5 => self.eval_chunk::<5, 32>(src, start, chunk),
+                6 => self.eval_chunk::<6, 64>(src, start, chunk),
+                7 => self.eval_chunk::<7, 128>(src, start, chunk),
+                _ => self.eval_chunk::<8, 256>(src, start, chunk),
             }
         };
         run_chunks(out, work);
         Ok(())
+    }
+}
+
+/// Where the batch path reads its points.
+#[derive(Clone, Copy)]
+enum Source<'a> {
+    /// One slice per axis.
+    Columns(&'a [&'a [f64]]),
+    /// Row-major `(npoints, ndim)`.
+    Rows(&'a [f64]),
+}
+
+/// One axis's constants for the batch locate, hoisted out of the point loop:
+/// the same operations as [`Axis::locate`], without its per-point branches on
+/// the axis's policies.
+struct AxisKernel<'a> {
+    bp: &'a [f64],
+    min: f64,
+    max: f64,
+    uniform: Option<(f64, f64)>,
+    flo: f64,
+    fhi: f64,
+    stride: usize,
+    first: bool,
+}
+
+impl<'a> AxisKernel<'a> {
+    fn new(axis: &'a Axis, stride: usize, first: bool) -> Self {
+        AxisKernel {
+            bp: &axis.breakpoints,
+            min: axis.min.unwrap_or(f64::NEG_INFINITY),
+            max: axis.max.unwrap_or(f64::INFINITY),
+            uniform: axis.uniform,
+            flo: if axis.below == Extrapolation::Hold {
+                0.0
+            } else {
+                f64::NEG_INFINITY
+            },
+            fhi: if axis.above == Extrapolation::Hold {
+                1.0
+            } else {
+                f64::INFINITY
+            },
+            stride,
+            first,
+        }
+    }
+
+    /// Segment offsets (`i · stride`, added to `base`), fractions and NaN flags
+    /// of the inputs `xs` (the first axis overwrites `base` and `nan`).
+    #[inline(always)]
+    fn locate_block(&self, xs: &[f64], base: &mut [usize], frac: &mut [f64], nan: &mut [bool]) {
+        let bp = self.bp;
+        let n = bp.len();
+        if n < 2 {
+            for ((&x, b), (f, bad)) in xs.iter().zip(base.iter_mut()).zip(frac.iter_mut().zip(nan.iter_mut())) {
+                if self.first {
+                    *b = 0;
+                    *bad = x.is_nan();
+                } else {
+                    *bad |= x.is_nan();
+                }
+                *f = 0.0;
+            }
+            return;
+        }
+        let (b0, bn) = (bp[0], bp[n - 1]);
+        let (lo, hi, flo, fhi, stride) = (self.min, self.max, self.flo, self.fhi, self.stride);
+        let frac_of = |x1: f64, i: usize| -> f64 {
+            let (a, b) = (bp[i], bp[i + 1]);
+            clamp_to((x1 - a) / (b - a), flo, fhi)
+        };
+        let mut put = |j: usize, x: f64, i: usize, f: f64| {
+            if self.first {
+                base[j] = i * stride;
+                nan[j] = x.is_nan();
+            } else {
+                base[j] += i * stride;
+                nan[j] |= x.is_nan();
+            }
+            frac[j] = f;
+        };
+        match self.uniform {
+            Some((x0, inv_h)) => {
+                for (j, &x) in xs.iter().enumerate() {
+                    let x1 = clamp_to(x, lo, hi);
+                    let xc = clamp_to(x1, b0, bn);
+                    // computed guess, exact fix-up (as Axis::segment)
+                    let mut i = (((xc - x0) * inv_h) as usize).min(n - 2);
+                    while i > 0 && bp[i] > xc {
+                        i -= 1;
+                    }
+                    while i + 2 < n && bp[i + 1] <= xc {
+                        i += 1;
+                    }
+                    put(j, x, i, frac_of(x1, i));
+                }
+            }
+            None => {
+                for (j, &x) in xs.iter().enumerate() {
+                    let x1 = clamp_to(x, lo, hi);
+                    let xc = clamp_to(x1, b0, bn);
+                    let mut i = 0usize;
+                    let mut len = n - 1;
+                    while len > 1 {
+                        let half = len / 2;
+                        if bp[i + half] <= xc {
+                            i += half;
+                        }
+                        len -= half;
+                    }
+                    put(j, x, i, frac_of(x1, i));
+                }
+            }
+        }
     }
 }
 
