@@ -458,6 +458,8 @@ impl Table {
             *o = c;
         }
         let span = offsets.iter().copied().max().unwrap_or(0);
+        #[cfg(target_arch = "x86_64")]
+        let simd = avx2::available(&self.axes, self.values.len());
         let mut base = [0usize; BLOCK];
         let mut nan = [false; BLOCK];
         let mut frac = [[0.0f64; BLOCK]; N];
@@ -476,7 +478,18 @@ impl Table {
                         &rows[k][..len]
                     }
                 };
-                kern.locate_block(xs, &mut base[..len], &mut frac[k][..len], &mut nan[..len]);
+                let (bs, fs, ns) = (&mut base[..len], &mut frac[k][..len], &mut nan[..len]);
+                #[cfg(target_arch = "x86_64")]
+                if simd && kern.bp.len() >= 2 {
+                    avx2::locate(kern, xs, bs, fs, ns);
+                    continue;
+                }
+                kern.locate_block(xs, bs, fs, ns);
+            }
+            #[cfg(target_arch = "x86_64")]
+            if simd {
+                avx2::reduce::<N, M>(&self.values, &offsets, &base[..len], &frac, &nan[..len], o);
+                continue;
             }
             for (j, o) in o.iter_mut().enumerate() {
                 let b = base[j];
@@ -537,6 +550,213 @@ impl Table {
     }
 }
 
+/// AVX2 versions of the batch locate and of the gather-and-reduce, chosen at
+/// run time when the CPU has AVX2. Same operations in the same order as the
+/// scalar path (compare-based clamps map to `max_pd`/`min_pd` operand for
+/// operand, no fused multiply-adds), so results are bit-identical; lanes a
+/// computed index guess cannot settle in one step each way (never for truly
+/// uniform axes) and NaN inputs take the scalar path.
+#[cfg(target_arch = "x86_64")]
+#[allow(unsafe_code)]
+mod avx2 {
+    use super::{Axis, AxisKernel, BLOCK};
+    use std::arch::x86_64::*;
+
+    /// Whether the AVX2 path can run: CPU support, and every index fits the
+    /// 32-bit gathers (breakpoints) and 64-bit gathers (values).
+    pub(super) fn available(axes: &[Axis], nvalues: usize) -> bool {
+        std::arch::is_x86_feature_detected!("avx2")
+            && nvalues < (1usize << 40)
+            && axes.iter().all(|a| a.breakpoints.len() < (1usize << 30))
+    }
+
+    /// 4 lanes of 64-bit compare masks → 4 lanes of 32-bit masks.
+    #[inline]
+    #[target_feature(enable = "avx2")]
+    fn narrow(m: __m256d) -> __m128i {
+        let idx = _mm256_setr_epi32(0, 2, 4, 6, 0, 2, 4, 6);
+        _mm256_castsi256_si128(_mm256_permutevar8x32_epi32(_mm256_castpd_si256(m), idx))
+    }
+
+    /// Locate a block of inputs on one axis (its breakpoints: at least 2).
+    pub(super) fn locate(
+        k: &AxisKernel<'_>,
+        xs: &[f64],
+        base: &mut [usize],
+        frac: &mut [f64],
+        nan: &mut [bool],
+    ) {
+        // SAFETY: `available` checked AVX2 support before this path was chosen.
+        unsafe { locate_avx2(k, xs, base, frac, nan) }
+    }
+
+    #[target_feature(enable = "avx2")]
+    fn locate_avx2(
+        k: &AxisKernel<'_>,
+        xs: &[f64],
+        base: &mut [usize],
+        frac: &mut [f64],
+        nan: &mut [bool],
+    ) {
+        let bp = k.bp;
+        let n = bp.len();
+        let len = xs.len().min(base.len()).min(frac.len()).min(nan.len()).min(BLOCK);
+        let (lo, hi) = (_mm256_set1_pd(k.min), _mm256_set1_pd(k.max));
+        let (b0, bn) = (_mm256_set1_pd(bp[0]), _mm256_set1_pd(bp[n - 1]));
+        let (flo, fhi) = (_mm256_set1_pd(k.flo), _mm256_set1_pd(k.fhi));
+        let zero = _mm_setzero_si128();
+        let one = _mm_set1_epi32(1);
+        let nm2 = _mm_set1_epi32((n - 2) as i32);
+        let p0 = bp.as_ptr();
+        let mut j = 0;
+        while j + 4 <= len {
+            // SAFETY: 4 lanes from a 4-element subslice.
+            let x = unsafe { _mm256_loadu_pd(xs[j..j + 4].as_ptr()) };
+            // clamp_to(x, lo, hi): (x < lo ? lo : x) = max_pd(lo, x), then min_pd(hi, ·)
+            let x1 = _mm256_min_pd(hi, _mm256_max_pd(lo, x));
+            let xc = _mm256_min_pd(bn, _mm256_max_pd(b0, x1));
+            let mut i;
+            // SAFETY (gathers below): every index is clamped to [0, n-2], so
+            // `i` and `i + 1` address breakpoints inside `bp`.
+            match k.uniform {
+                Some((x0, inv_h)) => {
+                    let t = _mm256_mul_pd(_mm256_sub_pd(xc, _mm256_set1_pd(x0)), _mm256_set1_pd(inv_h));
+                    i = _mm_min_epi32(_mm_max_epi32(_mm256_cvttpd_epi32(t), zero), nm2);
+                    let a = unsafe { _mm256_i32gather_pd::<8>(p0, i) };
+                    let down = _mm_and_si128(narrow(_mm256_cmp_pd::<_CMP_GT_OQ>(a, xc)), _mm_cmpgt_epi32(i, zero));
+                    i = _mm_sub_epi32(i, _mm_and_si128(down, one));
+                    let b = unsafe { _mm256_i32gather_pd::<8>(p0.add(1), i) };
+                    let up = _mm_and_si128(narrow(_mm256_cmp_pd::<_CMP_LE_OQ>(b, xc)), _mm_cmplt_epi32(i, nm2));
+                    i = _mm_add_epi32(i, _mm_and_si128(up, one));
+                }
+                None => {
+                    i = zero;
+                    let mut l = n - 1;
+                    while l > 1 {
+                        let half = l / 2;
+                        let h = _mm_set1_epi32(half as i32);
+                        let v = unsafe { _mm256_i32gather_pd::<8>(p0, _mm_add_epi32(i, h)) };
+                        let m = narrow(_mm256_cmp_pd::<_CMP_LE_OQ>(v, xc));
+                        i = _mm_add_epi32(i, _mm_and_si128(m, h));
+                        l -= half;
+                    }
+                }
+            }
+            let a = unsafe { _mm256_i32gather_pd::<8>(p0, i) };
+            let b = unsafe { _mm256_i32gather_pd::<8>(p0.add(1), i) };
+            // settled: (i == 0 or bp[i] <= xc) and (i == n-2 or bp[i+1] > xc); NaN never
+            let ok_lo = _mm_or_si128(_mm_cmpeq_epi32(i, zero), narrow(_mm256_cmp_pd::<_CMP_LE_OQ>(a, xc)));
+            let ok_hi = _mm_or_si128(_mm_cmpeq_epi32(i, nm2), narrow(_mm256_cmp_pd::<_CMP_GT_OQ>(b, xc)));
+            let ok = _mm_movemask_ps(_mm_castsi128_ps(_mm_and_si128(ok_lo, ok_hi)));
+            let f = _mm256_div_pd(_mm256_sub_pd(x1, a), _mm256_sub_pd(b, a));
+            let f = _mm256_min_pd(fhi, _mm256_max_pd(flo, f));
+            let mut fl = [0.0f64; 4];
+            let mut il = [0i32; 4];
+            // SAFETY: both stores write 4 lanes into 4-element local arrays.
+            unsafe {
+                _mm256_storeu_pd(fl.as_mut_ptr(), f);
+                _mm_storeu_si128(il.as_mut_ptr().cast(), i);
+            }
+            for l in 0..4 {
+                let xj = xs[j + l];
+                let (il, fl) = if ok & (1 << l) != 0 {
+                    (il[l] as usize, fl[l])
+                } else {
+                    k.locate_one(xj)
+                };
+                k.put(j + l, xj, il, fl, base, frac, nan);
+            }
+            j += 4;
+        }
+        for jj in j..len {
+            let (i, f) = k.locate_one(xs[jj]);
+            k.put(jj, xs[jj], i, f, base, frac, nan);
+        }
+    }
+
+    /// Gather the 2^N corners of each point's cell and reduce them axis by
+    /// axis, last axis first, four points at a time.
+    pub(super) fn reduce<const N: usize, const M: usize>(
+        values: &[f64],
+        offsets: &[usize; M],
+        base: &[usize],
+        frac: &[[f64; BLOCK]; N],
+        nan: &[bool],
+        out: &mut [f64],
+    ) {
+        // SAFETY: `available` checked AVX2 support before this path was chosen.
+        unsafe { reduce_avx2::<N, M>(values, offsets, base, frac, nan, out) }
+    }
+
+    #[target_feature(enable = "avx2")]
+    fn reduce_avx2<const N: usize, const M: usize>(
+        values: &[f64],
+        offsets: &[usize; M],
+        base: &[usize],
+        frac: &[[f64; BLOCK]; N],
+        nan: &[bool],
+        out: &mut [f64],
+    ) {
+        let len = out.len().min(base.len()).min(nan.len()).min(BLOCK);
+        let span = offsets.iter().copied().max().unwrap_or(0);
+        let onev = _mm256_set1_pd(1.0);
+        let mut j = 0;
+        while j + 4 <= len {
+            // every cell of a located point lies inside the values (segments
+            // are clamped to [0, n-2]); checked here once per point anyway
+            let inside = base[j..j + 4].iter().all(|&b| b + span < values.len());
+            if !inside {
+                break;
+            }
+            let bv = _mm256_setr_epi64x(base[j] as i64, base[j + 1] as i64, base[j + 2] as i64, base[j + 3] as i64);
+            let mut c = [_mm256_setzero_pd(); M];
+            for (slot, &off) in c.iter_mut().zip(offsets) {
+                let idx = _mm256_add_epi64(bv, _mm256_set1_epi64x(off as i64));
+                // SAFETY: base + off <= base + span < values.len() (checked above).
+                *slot = unsafe { _mm256_i64gather_pd::<8>(values.as_ptr(), idx) };
+            }
+            let mut m = M;
+            for fk in frac.iter().rev() {
+                // SAFETY: 4 lanes from a 4-element subslice.
+                let f = unsafe { _mm256_loadu_pd(fk[j..j + 4].as_ptr()) };
+                let g = _mm256_sub_pd(onev, f);
+                m /= 2;
+                for q in 0..m {
+                    c[q] = _mm256_add_pd(_mm256_mul_pd(g, c[2 * q]), _mm256_mul_pd(f, c[2 * q + 1]));
+                }
+            }
+            let mut r = [0.0f64; 4];
+            // SAFETY: 4 lanes into a 4-element local array.
+            unsafe { _mm256_storeu_pd(r.as_mut_ptr(), c[0]) };
+            for l in 0..4 {
+                out[j + l] = if nan[j + l] { f64::NAN } else { r[l] };
+            }
+            j += 4;
+        }
+        for jj in j..len {
+            let b = base[jj];
+            let (Some(cell), false) = (values.get(b..=b + span), nan[jj]) else {
+                out[jj] = f64::NAN;
+                continue;
+            };
+            let mut corners = [0.0f64; M];
+            for (slot, &off) in corners.iter_mut().zip(offsets) {
+                *slot = cell[off];
+            }
+            let mut m = M;
+            for fk in frac.iter().rev() {
+                let f = fk[jj];
+                let g = 1.0 - f;
+                m /= 2;
+                for q in 0..m {
+                    corners[q] = g * corners[2 * q] + f * corners[2 * q + 1];
+                }
+            }
+            out[jj] = corners[0];
+        }
+    }
+}
+
 /// Where the batch path reads its points.
 #[derive(Clone, Copy)]
 enum Source<'a> {
@@ -580,6 +800,54 @@ impl<'a> AxisKernel<'a> {
             stride,
             first,
         }
+    }
+
+    /// Segment and fraction of one input (n >= 2), exactly as [`Axis::locate`]
+    /// for a non-NaN input; a NaN input gives segment 0 (a valid cell).
+    #[inline(always)]
+    fn locate_one(&self, x: f64) -> (usize, f64) {
+        let bp = self.bp;
+        let n = bp.len();
+        let x1 = clamp_to(x, self.min, self.max);
+        let xc = clamp_to(x1, bp[0], bp[n - 1]);
+        let mut i;
+        match self.uniform {
+            Some((x0, inv_h)) => {
+                i = (((xc - x0) * inv_h) as usize).min(n - 2);
+                while i > 0 && bp[i] > xc {
+                    i -= 1;
+                }
+                while i + 2 < n && bp[i + 1] <= xc {
+                    i += 1;
+                }
+            }
+            None => {
+                i = 0;
+                let mut len = n - 1;
+                while len > 1 {
+                    let half = len / 2;
+                    if bp[i + half] <= xc {
+                        i += half;
+                    }
+                    len -= half;
+                }
+            }
+        }
+        let (a, b) = (bp[i], bp[i + 1]);
+        (i, clamp_to((x1 - a) / (b - a), self.flo, self.fhi))
+    }
+
+    /// Store the located point `j` (the first axis overwrites `base` and `nan`).
+    #[inline(always)]
+    fn put(&self, j: usize, x: f64, i: usize, f: f64, base: &mut [usize], frac: &mut [f64], nan: &mut [bool]) {
+        if self.first {
+            base[j] = i * self.stride;
+            nan[j] = x.is_nan();
+        } else {
+            base[j] += i * self.stride;
+            nan[j] |= x.is_nan();
+        }
+        frac[j] = f;
     }
 
     /// Segment offsets (`i · stride`, added to `base`), fractions and NaN flags
