@@ -467,16 +467,18 @@ impl Table {
         for (b, o) in out.chunks_mut(BLOCK).enumerate() {
             let s0 = start + b * BLOCK;
             let len = o.len();
+            if let Source::Rows(pts) = src {
+                // transpose the block's rows once into per-axis buffers
+                for (j, r) in pts[s0 * N..(s0 + len) * N].chunks_exact(N).enumerate() {
+                    for (col, &x) in rows.iter_mut().zip(r) {
+                        col[j] = x;
+                    }
+                }
+            }
             for (k, kern) in kernels.iter().enumerate() {
                 let xs: &[f64] = match src {
                     Source::Columns(cols) => &cols[k][s0..s0 + len],
-                    Source::Rows(pts) => {
-                        let buf = &mut rows[k][..len];
-                        for (j, x) in buf.iter_mut().enumerate() {
-                            *x = pts[(s0 + j) * N + k];
-                        }
-                        &rows[k][..len]
-                    }
+                    Source::Rows(_) => &rows[k][..len],
                 };
                 let (bs, fs, ns) = (&mut base[..len], &mut frac[k][..len], &mut nan[..len]);
                 #[cfg(target_arch = "x86_64")]
@@ -711,6 +713,7 @@ mod avx2 {
     ) {
         let len = out.len().min(base.len()).min(nan.len()).min(BLOCK);
         let span = offsets.iter().copied().max().unwrap_or(0);
+        let paired = M >= 2 && offsets.chunks(2).all(|c| c[1] == c[0] + 1);
         let onev = _mm256_set1_pd(1.0);
         let mut j = 0;
         while j + 4 <= len {
@@ -719,6 +722,53 @@ mod avx2 {
             let inside = base[j..j + 4].iter().all(|&b| b + span < values.len());
             if !inside {
                 break;
+            }
+            if paired {
+                // Corners 2q and 2q+1 are adjacent values (last axis, stride 1):
+                // one 128-bit load per pair and point, transposed to lanes in
+                // point order (0, 2, 1, 3); the fractions follow the same order.
+                let mut c = [_mm256_setzero_pd(); M];
+                let vp = values.as_ptr();
+                for (q, slot) in c.iter_mut().take(M / 2).enumerate() {
+                    let off = offsets[2 * q];
+                    // SAFETY: base + off + 1 <= base + span < values.len() (checked above).
+                    let (p0, p1, p2, p3) = unsafe {
+                        (
+                            _mm_loadu_pd(vp.add(base[j] + off)),
+                            _mm_loadu_pd(vp.add(base[j + 1] + off)),
+                            _mm_loadu_pd(vp.add(base[j + 2] + off)),
+                            _mm_loadu_pd(vp.add(base[j + 3] + off)),
+                        )
+                    };
+                    let a = _mm256_set_m128d(p1, p0);
+                    let b = _mm256_set_m128d(p3, p2);
+                    let (lo, hi) = (_mm256_unpacklo_pd(a, b), _mm256_unpackhi_pd(a, b));
+                    // SAFETY: 4 lanes from a 4-element subslice.
+                    let f = unsafe { _mm256_loadu_pd(frac[N - 1][j..j + 4].as_ptr()) };
+                    let f = _mm256_permute4x64_pd::<0b11_01_10_00>(f);
+                    let g = _mm256_sub_pd(onev, f);
+                    *slot = _mm256_add_pd(_mm256_mul_pd(g, lo), _mm256_mul_pd(f, hi));
+                }
+                let mut m = M / 2;
+                for fk in frac.iter().rev().skip(1) {
+                    // SAFETY: 4 lanes from a 4-element subslice.
+                    let f = unsafe { _mm256_loadu_pd(fk[j..j + 4].as_ptr()) };
+                    let f = _mm256_permute4x64_pd::<0b11_01_10_00>(f);
+                    let g = _mm256_sub_pd(onev, f);
+                    m /= 2;
+                    for q in 0..m {
+                        c[q] = _mm256_add_pd(_mm256_mul_pd(g, c[2 * q]), _mm256_mul_pd(f, c[2 * q + 1]));
+                    }
+                }
+                let r4 = _mm256_permute4x64_pd::<0b11_01_10_00>(c[0]);
+                let mut r = [0.0f64; 4];
+                // SAFETY: 4 lanes into a 4-element local array.
+                unsafe { _mm256_storeu_pd(r.as_mut_ptr(), r4) };
+                for l in 0..4 {
+                    out[j + l] = if nan[j + l] { f64::NAN } else { r[l] };
+                }
+                j += 4;
+                continue;
             }
             let bv = _mm256_setr_epi64x(base[j] as i64, base[j + 1] as i64, base[j + 2] as i64, base[j + 3] as i64);
             let mut c = [_mm256_setzero_pd(); M];
