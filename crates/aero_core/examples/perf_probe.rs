@@ -49,7 +49,11 @@ fn main() {
                 .map(|i| {
                     let t = i as f64 * 0.01;
                     let mut c = c0;
-                    c[1] += if t < 40.0 { -0.25 * t } else { -10.0 + (t - 40.0) };
+                    c[1] += if t < 40.0 {
+                        -0.25 * t
+                    } else {
+                        -10.0 + (t - 40.0)
+                    };
                     c
                 })
                 .collect();
@@ -71,8 +75,8 @@ fn main() {
             .collect();
             let mut acc = 0.0;
             for _ in 0..n.min(1000) {
-                let s = replay_adx37(0.0, &effects, Some(1), x0, 0.01, &controls, &ct)
-                    .expect("replay");
+                let s =
+                    replay_adx37(0.0, &effects, Some(1), x0, 0.01, &controls, &ct).expect("replay");
                 acc += s.iter().map(|x| x[0] + x[5]).sum::<f64>();
             }
             println!("{acc:.17e}");

@@ -450,9 +450,8 @@ impl Table {
         start: usize,
         out: &mut [f64],
     ) {
-        let kernels: [AxisKernel<'_>; N] = std::array::from_fn(|k| {
-            AxisKernel::new(&self.axes[k], self.strides[k], k == 0)
-        });
+        let kernels: [AxisKernel<'_>; N] =
+            std::array::from_fn(|k| AxisKernel::new(&self.axes[k], self.strides[k], k == 0));
         let mut offsets = [0usize; M];
         for (o, &c) in offsets.iter_mut().zip(&self.corner_offsets) {
             *o = c;
@@ -469,9 +468,19 @@ impl Table {
             let len = o.len();
             if let Source::Rows(pts) = src {
                 // transpose the block's rows once into per-axis buffers
-                for (j, r) in pts[s0 * N..(s0 + len) * N].chunks_exact(N).enumerate() {
-                    for (col, &x) in rows.iter_mut().zip(r) {
-                        col[j] = x;
+                let blk = &pts[s0 * N..(s0 + len) * N];
+                #[cfg(target_arch = "x86_64")]
+                let transposed = simd && N == 4 && {
+                    avx2::transpose4(blk, &mut rows);
+                    true
+                };
+                #[cfg(not(target_arch = "x86_64"))]
+                let transposed = false;
+                if !transposed {
+                    for (j, r) in blk.chunks_exact(N).enumerate() {
+                        for (col, &x) in rows.iter_mut().zip(r) {
+                            col[j] = x;
+                        }
                     }
                 }
             }
@@ -602,7 +611,12 @@ mod avx2 {
     ) {
         let bp = k.bp;
         let n = bp.len();
-        let len = xs.len().min(base.len()).min(frac.len()).min(nan.len()).min(BLOCK);
+        let len = xs
+            .len()
+            .min(base.len())
+            .min(frac.len())
+            .min(nan.len())
+            .min(BLOCK);
         let (lo, hi) = (_mm256_set1_pd(k.min), _mm256_set1_pd(k.max));
         let (b0, bn) = (_mm256_set1_pd(bp[0]), _mm256_set1_pd(bp[n - 1]));
         let (flo, fhi) = (_mm256_set1_pd(k.flo), _mm256_set1_pd(k.fhi));
@@ -623,7 +637,8 @@ mod avx2 {
             match k.uniform {
                 Some((x0, inv_h)) => {
                     // the computed guess; lanes it does not settle take the scalar fix-up
-                    let t = _mm256_mul_pd(_mm256_sub_pd(xc, _mm256_set1_pd(x0)), _mm256_set1_pd(inv_h));
+                    let t =
+                        _mm256_mul_pd(_mm256_sub_pd(xc, _mm256_set1_pd(x0)), _mm256_set1_pd(inv_h));
                     i = _mm_min_epi32(_mm_max_epi32(_mm256_cvttpd_epi32(t), zero), nm2);
                 }
                 None => {
@@ -642,8 +657,14 @@ mod avx2 {
             let a = unsafe { _mm256_i32gather_pd::<8>(p0, i) };
             let b = unsafe { _mm256_i32gather_pd::<8>(p0.add(1), i) };
             // settled: (i == 0 or bp[i] <= xc) and (i == n-2 or bp[i+1] > xc); NaN never
-            let ok_lo = _mm_or_si128(_mm_cmpeq_epi32(i, zero), narrow(_mm256_cmp_pd::<_CMP_LE_OQ>(a, xc)));
-            let ok_hi = _mm_or_si128(_mm_cmpeq_epi32(i, nm2), narrow(_mm256_cmp_pd::<_CMP_GT_OQ>(b, xc)));
+            let ok_lo = _mm_or_si128(
+                _mm_cmpeq_epi32(i, zero),
+                narrow(_mm256_cmp_pd::<_CMP_LE_OQ>(a, xc)),
+            );
+            let ok_hi = _mm_or_si128(
+                _mm_cmpeq_epi32(i, nm2),
+                narrow(_mm256_cmp_pd::<_CMP_GT_OQ>(b, xc)),
+            );
             let ok = _mm_movemask_ps(_mm_castsi128_ps(_mm_and_si128(ok_lo, ok_hi)));
             let f = _mm256_div_pd(_mm256_sub_pd(x1, a), _mm256_sub_pd(b, a));
             let f = _mm256_min_pd(fhi, _mm256_max_pd(flo, f));
@@ -685,6 +706,56 @@ mod avx2 {
         for jj in j..len {
             let (i, f) = k.locate_one(xs[jj]);
             k.put(jj, xs[jj], i, f, base, frac, nan);
+        }
+    }
+
+    /// Transpose row-major 4-D points into the four per-axis buffers
+    /// (4 points per step: four 256-bit loads, an in-register 4x4 transpose).
+    pub(super) fn transpose4<const N: usize>(blk: &[f64], rows: &mut [[f64; BLOCK]; N]) {
+        // SAFETY: `available` checked AVX2 support before this path was chosen.
+        unsafe { transpose4_avx2(blk, rows) }
+    }
+
+    #[target_feature(enable = "avx2")]
+    fn transpose4_avx2<const N: usize>(blk: &[f64], rows: &mut [[f64; BLOCK]; N]) {
+        if N != 4 {
+            return;
+        }
+        let len = (blk.len() / 4).min(BLOCK);
+        let mut j = 0;
+        while j + 4 <= len {
+            let r = &blk[4 * j..4 * j + 16];
+            // SAFETY: four 4-lane loads from a 16-element subslice.
+            let (a, b, c, d) = unsafe {
+                (
+                    _mm256_loadu_pd(r.as_ptr()),
+                    _mm256_loadu_pd(r[4..].as_ptr()),
+                    _mm256_loadu_pd(r[8..].as_ptr()),
+                    _mm256_loadu_pd(r[12..].as_ptr()),
+                )
+            };
+            // a = [a0 a1 a2 a3] (point j), b (j+1), c (j+2), d (j+3)
+            let t0 = _mm256_unpacklo_pd(a, b); // a0 b0 a2 b2
+            let t1 = _mm256_unpackhi_pd(a, b); // a1 b1 a3 b3
+            let t2 = _mm256_unpacklo_pd(c, d); // c0 d0 c2 d2
+            let t3 = _mm256_unpackhi_pd(c, d); // c1 d1 c3 d3
+            let x0 = _mm256_permute2f128_pd::<0x20>(t0, t2); // a0 b0 c0 d0
+            let x1 = _mm256_permute2f128_pd::<0x20>(t1, t3); // a1 b1 c1 d1
+            let x2 = _mm256_permute2f128_pd::<0x31>(t0, t2); // a2 b2 c2 d2
+            let x3 = _mm256_permute2f128_pd::<0x31>(t1, t3); // a3 b3 c3 d3
+                                                             // SAFETY: 4 lanes into 4-element subslices of the buffers.
+            unsafe {
+                _mm256_storeu_pd(rows[0][j..j + 4].as_mut_ptr(), x0);
+                _mm256_storeu_pd(rows[1][j..j + 4].as_mut_ptr(), x1);
+                _mm256_storeu_pd(rows[2][j..j + 4].as_mut_ptr(), x2);
+                _mm256_storeu_pd(rows[3][j..j + 4].as_mut_ptr(), x3);
+            }
+            j += 4;
+        }
+        for jj in j..len {
+            for (k, col) in rows.iter_mut().enumerate() {
+                col[jj] = blk[4 * jj + k];
+            }
         }
     }
 
@@ -757,7 +828,10 @@ mod avx2 {
                     let g = _mm256_sub_pd(onev, f);
                     m /= 2;
                     for q in 0..m {
-                        c[q] = _mm256_add_pd(_mm256_mul_pd(g, c[2 * q]), _mm256_mul_pd(f, c[2 * q + 1]));
+                        c[q] = _mm256_add_pd(
+                            _mm256_mul_pd(g, c[2 * q]),
+                            _mm256_mul_pd(f, c[2 * q + 1]),
+                        );
                     }
                 }
                 let r4 = _mm256_permute4x64_pd::<0b11_01_10_00>(c[0]);
@@ -770,7 +844,12 @@ mod avx2 {
                 j += 4;
                 continue;
             }
-            let bv = _mm256_setr_epi64x(base[j] as i64, base[j + 1] as i64, base[j + 2] as i64, base[j + 3] as i64);
+            let bv = _mm256_setr_epi64x(
+                base[j] as i64,
+                base[j + 1] as i64,
+                base[j + 2] as i64,
+                base[j + 3] as i64,
+            );
             let mut c = [_mm256_setzero_pd(); M];
             for (slot, &off) in c.iter_mut().zip(offsets) {
                 let idx = _mm256_add_epi64(bv, _mm256_set1_epi64x(off as i64));
@@ -784,7 +863,8 @@ mod avx2 {
                 let g = _mm256_sub_pd(onev, f);
                 m /= 2;
                 for q in 0..m {
-                    c[q] = _mm256_add_pd(_mm256_mul_pd(g, c[2 * q]), _mm256_mul_pd(f, c[2 * q + 1]));
+                    c[q] =
+                        _mm256_add_pd(_mm256_mul_pd(g, c[2 * q]), _mm256_mul_pd(f, c[2 * q + 1]));
                 }
             }
             let mut r = [0.0f64; 4];
@@ -901,7 +981,16 @@ impl<'a> AxisKernel<'a> {
 
     /// Store the located point `j` (the first axis overwrites `base` and `nan`).
     #[inline(always)]
-    fn put(&self, j: usize, x: f64, i: usize, f: f64, base: &mut [usize], frac: &mut [f64], nan: &mut [bool]) {
+    fn put(
+        &self,
+        j: usize,
+        x: f64,
+        i: usize,
+        f: f64,
+        base: &mut [usize],
+        frac: &mut [f64],
+        nan: &mut [bool],
+    ) {
         if self.first {
             base[j] = i * self.stride;
             nan[j] = x.is_nan();
@@ -919,7 +1008,11 @@ impl<'a> AxisKernel<'a> {
         let bp = self.bp;
         let n = bp.len();
         if n < 2 {
-            for ((&x, b), (f, bad)) in xs.iter().zip(base.iter_mut()).zip(frac.iter_mut().zip(nan.iter_mut())) {
+            for ((&x, b), (f, bad)) in xs
+                .iter()
+                .zip(base.iter_mut())
+                .zip(frac.iter_mut().zip(nan.iter_mut()))
+            {
                 if self.first {
                     *b = 0;
                     *bad = x.is_nan();
@@ -1049,7 +1142,8 @@ mod tests {
             axis("u", &uniform),
             axis("j", &jitter),
             axis("s", &[0.0, 5.0, 10.0, 15.0, 35.0]),
-            axis("two", &[-1.0, 2.0]).with_extrapolation(Extrapolation::Linear, Extrapolation::Linear),
+            axis("two", &[-1.0, 2.0])
+                .with_extrapolation(Extrapolation::Linear, Extrapolation::Linear),
             axis("lim", &uniform)
                 .with_extrapolation(Extrapolation::Linear, Extrapolation::Hold)
                 .with_limits(Some(-0.0), Some(20.0))
@@ -1059,7 +1153,15 @@ mod tests {
         for a in &axes {
             xs.extend_from_slice(a.breakpoints());
         }
-        xs.extend_from_slice(&[0.0, -0.0, f64::INFINITY, f64::NEG_INFINITY, f64::NAN, 1e300, -1e300]);
+        xs.extend_from_slice(&[
+            0.0,
+            -0.0,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            f64::NAN,
+            1e300,
+            -1e300,
+        ]);
         for a in &axes {
             let k = AxisKernel::new(a, 3, true);
             for chunk in xs.chunks(BLOCK) {
@@ -1068,7 +1170,8 @@ mod tests {
                 k.locate_block(chunk, &mut b1[..n], &mut f1[..n], &mut n1[..n]);
                 #[cfg(target_arch = "x86_64")]
                 let (b2, f2, n2) = {
-                    let (mut b2, mut f2, mut n2) = ([0usize; BLOCK], [0.0f64; BLOCK], [false; BLOCK]);
+                    let (mut b2, mut f2, mut n2) =
+                        ([0usize; BLOCK], [0.0f64; BLOCK], [false; BLOCK]);
                     if avx2::available(std::slice::from_ref(a), 1) {
                         avx2::locate(&k, chunk, &mut b2[..n], &mut f2[..n], &mut n2[..n]);
                     } else {
@@ -1139,13 +1242,20 @@ mod tests {
             let refs: Vec<&[f64]> = cols.iter().map(Vec::as_slice).collect();
             let mut out = vec![0.0; npts];
             t.eval_columns(&refs, &mut out).expect("eval");
-            for (i, o) in out.iter().enumerate() {
+            let rows: Vec<f64> = (0..npts)
+                .flat_map(|i| cols.iter().map(move |c| c[i]))
+                .collect();
+            let mut out_rows = vec![0.0; npts];
+            t.eval_rows(&rows, &mut out_rows).expect("eval rows");
+            for (i, (o, r)) in out.iter().zip(&out_rows).enumerate() {
                 let x: Vec<f64> = cols.iter().map(|c| c[i]).collect();
                 let want = t.eval(&x);
-                assert!(
-                    o.to_bits() == want.to_bits() || (o.is_nan() && want.is_nan()),
-                    "n={n} point {i}: {o} vs {want}"
-                );
+                for got in [o, r] {
+                    assert!(
+                        got.to_bits() == want.to_bits() || (got.is_nan() && want.is_nan()),
+                        "n={n} point {i}: {got} vs {want}"
+                    );
+                }
             }
         }
     }

@@ -709,7 +709,10 @@ impl FlapModel {
         let mut coef_cols = [(0usize, 0usize); 6];
         for (ci, r) in coef_cols.iter_mut().enumerate() {
             let start = cols.partition_point(|c| c.0 < ci);
-            *r = (start, start + cols[start..].iter().take_while(|c| c.0 == ci).count());
+            *r = (
+                start,
+                start + cols[start..].iter().take_while(|c| c.0 == ci).count(),
+            );
         }
         let mut grid = Vec::with_capacity((NA - 1) * ncols);
         for i in 0..NA - 1 {
