@@ -698,14 +698,13 @@ mod avx2 {
                     } else {
                         k.locate_one(xj)
                     };
-                    k.put(j + l, xj, il, fl, base, frac, nan);
+                    k.put(j + l, xj, (il, fl), base, frac, nan);
                 }
             }
             j += 4;
         }
-        for jj in j..len {
-            let (i, f) = k.locate_one(xs[jj]);
-            k.put(jj, xs[jj], i, f, base, frac, nan);
+        for (jj, &x) in xs.iter().enumerate().take(len).skip(j) {
+            k.put(jj, x, k.locate_one(x), base, frac, nan);
         }
     }
 
@@ -985,8 +984,7 @@ impl<'a> AxisKernel<'a> {
         &self,
         j: usize,
         x: f64,
-        i: usize,
-        f: f64,
+        (i, f): (usize, f64),
         base: &mut [usize],
         frac: &mut [f64],
         nan: &mut [bool],
@@ -1023,54 +1021,8 @@ impl<'a> AxisKernel<'a> {
             }
             return;
         }
-        let (b0, bn) = (bp[0], bp[n - 1]);
-        let (lo, hi, flo, fhi, stride) = (self.min, self.max, self.flo, self.fhi, self.stride);
-        let frac_of = |x1: f64, i: usize| -> f64 {
-            let (a, b) = (bp[i], bp[i + 1]);
-            clamp_to((x1 - a) / (b - a), flo, fhi)
-        };
-        let mut put = |j: usize, x: f64, i: usize, f: f64| {
-            if self.first {
-                base[j] = i * stride;
-                nan[j] = x.is_nan();
-            } else {
-                base[j] += i * stride;
-                nan[j] |= x.is_nan();
-            }
-            frac[j] = f;
-        };
-        match self.uniform {
-            Some((x0, inv_h)) => {
-                for (j, &x) in xs.iter().enumerate() {
-                    let x1 = clamp_to(x, lo, hi);
-                    let xc = clamp_to(x1, b0, bn);
-                    // computed guess, exact fix-up (as Axis::segment)
-                    let mut i = (((xc - x0) * inv_h) as usize).min(n - 2);
-                    while i > 0 && bp[i] > xc {
-                        i -= 1;
-                    }
-                    while i + 2 < n && bp[i + 1] <= xc {
-                        i += 1;
-                    }
-                    put(j, x, i, frac_of(x1, i));
-                }
-            }
-            None => {
-                for (j, &x) in xs.iter().enumerate() {
-                    let x1 = clamp_to(x, lo, hi);
-                    let xc = clamp_to(x1, b0, bn);
-                    let mut i = 0usize;
-                    let mut len = n - 1;
-                    while len > 1 {
-                        let half = len / 2;
-                        if bp[i + half] <= xc {
-                            i += half;
-                        }
-                        len -= half;
-                    }
-                    put(j, x, i, frac_of(x1, i));
-                }
-            }
+        for (j, &x) in xs.iter().enumerate() {
+            self.put(j, x, self.locate_one(x), base, frac, nan);
         }
     }
 }
