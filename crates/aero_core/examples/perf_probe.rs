@@ -1,6 +1,7 @@
 //! Deterministic workload for `valgrind --tool=callgrind` instruction counts:
 //! `perf_probe table N` (4-D batch lookup of N points) or
-//! `perf_probe ols N` (N x 12 OLS with coloured-residual standard errors).
+//! `perf_probe ols N` (N x 12 OLS with coloured-residual standard errors) or
+//! `perf_probe sim N` (N replays of the 60 s stall of `benchmarks/bench_sim.py`).
 use aero_core::lsq::{ols, OlsOptions};
 use aero_core::table::{Axis, Table};
 
@@ -38,6 +39,47 @@ fn main() {
             let mut out = vec![0.0; n];
             t.eval_columns(&refs, &mut out).expect("eval");
             println!("{}", out.iter().sum::<f64>());
+        }
+        "sim" => {
+            use aero_core::aircraft::truth::EffectSpec;
+            use aero_core::sim::campaign::{replay_adx37, trim_adx37};
+            let (x0, c0, ct0) = trim_adx37(0.0, 75.0, 3000.0).expect("trim");
+            let steps = 6000;
+            let controls: Vec<[f64; 5]> = (0..steps)
+                .map(|i| {
+                    let t = i as f64 * 0.01;
+                    let mut c = c0;
+                    c[1] += if t < 40.0 {
+                        -0.25 * t
+                    } else {
+                        -10.0 + (t - 40.0)
+                    };
+                    c
+                })
+                .collect();
+            let ct = vec![[ct0, ct0]; steps];
+            let effects: Vec<EffectSpec> = [
+                "aileron_effectiveness",
+                "roll_damping",
+                "dihedral",
+                "directional_stability",
+                "rudder_effectiveness",
+                "lateral_asymmetry",
+            ]
+            .iter()
+            .map(|n| EffectSpec {
+                name: (*n).to_string(),
+                magnitude: 1.0,
+                shape: None,
+            })
+            .collect();
+            let mut acc = 0.0;
+            for _ in 0..n.min(1000) {
+                let s =
+                    replay_adx37(0.0, &effects, Some(1), x0, 0.01, &controls, &ct).expect("replay");
+                acc += s.iter().map(|x| x[0] + x[5]).sum::<f64>();
+            }
+            println!("{acc:.17e}");
         }
         _ => {
             let p = 12;

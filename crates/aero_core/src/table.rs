@@ -154,17 +154,19 @@ impl Axis {
         if x.is_nan() {
             return None;
         }
-        // Input limits first (branch-free clamps; no limit is an infinite one).
-        let x = x
-            .max(self.min.unwrap_or(f64::NEG_INFINITY))
-            .min(self.max.unwrap_or(f64::INFINITY));
+        // Input limits first (no limit is an infinite one).
+        let x = clamp_to(
+            x,
+            self.min.unwrap_or(f64::NEG_INFINITY),
+            self.max.unwrap_or(f64::INFINITY),
+        );
         let bp = &self.breakpoints;
         let n = bp.len();
         if n == 1 {
             return Some((0, 0.0));
         }
         // The segment of the input clamped into the breakpoints' range ...
-        let i = self.segment(x.clamp(bp[0], bp[n - 1]));
+        let i = self.segment(clamp_to(x, bp[0], bp[n - 1]));
         // ... and the fraction of the unclamped input: inside the range it lies
         // in [0, 1] (exactly 0 or 1 at nodes); outside, holding clamps it to the
         // end node and linear extrapolation keeps it.
@@ -179,7 +181,7 @@ impl Axis {
         } else {
             f64::INFINITY
         };
-        Some((i, f.max(lo).min(hi)))
+        Some((i, clamp_to(f, lo, hi)))
     }
 
     /// The last segment index `i <= n-2` with `bp[i] <= x`, for `x` within
@@ -216,6 +218,18 @@ impl Axis {
                 base
             }
         }
+    }
+}
+
+/// `x` clamped to `[lo, hi]` by two comparisons (one `min`/`max` instruction
+/// each; `x` is never NaN here, so no NaN handling is needed).
+#[inline(always)]
+fn clamp_to(x: f64, lo: f64, hi: f64) -> f64 {
+    let x = if x < lo { lo } else { x };
+    if x > hi {
+        hi
+    } else {
+        x
     }
 }
 
@@ -410,77 +424,106 @@ impl Table {
         }
         let work = |start: usize, chunk: &mut [f64]| {
             // One dispatch on the dimension per chunk, then column-wise blocks.
-            let block = |s: usize, o: &mut [f64]| match n {
-                1 => self.eval_block::<1, 2>(columns, s, o),
-                2 => self.eval_block::<2, 4>(columns, s, o),
-                3 => self.eval_block::<3, 8>(columns, s, o),
-                4 => self.eval_block::<4, 16>(columns, s, o),
-                5 => self.eval_block::<5, 32>(columns, s, o),
-                6 => self.eval_block::<6, 64>(columns, s, o),
-                7 => self.eval_block::<7, 128>(columns, s, o),
-                _ => self.eval_block::<8, 256>(columns, s, o),
-            };
-            for (b, o) in chunk.chunks_mut(BLOCK).enumerate() {
-                block(start + b * BLOCK, o);
+            match n {
+                1 => self.eval_chunk::<1, 2>(Source::Columns(columns), start, chunk),
+                2 => self.eval_chunk::<2, 4>(Source::Columns(columns), start, chunk),
+                3 => self.eval_chunk::<3, 8>(Source::Columns(columns), start, chunk),
+                4 => self.eval_chunk::<4, 16>(Source::Columns(columns), start, chunk),
+                5 => self.eval_chunk::<5, 32>(Source::Columns(columns), start, chunk),
+                6 => self.eval_chunk::<6, 64>(Source::Columns(columns), start, chunk),
+                7 => self.eval_chunk::<7, 128>(Source::Columns(columns), start, chunk),
+                _ => self.eval_chunk::<8, 256>(Source::Columns(columns), start, chunk),
             }
         };
         run_chunks(out, work);
         Ok(())
     }
 
-    /// Column-wise batch evaluation of at most [`BLOCK`] points starting at
-    /// row `start` of `columns`: every axis is located for all points of the
-    /// block first (one tight loop per axis), then the corners are gathered
-    /// and reduced. Same operations, in the same order, as [`Table::eval`],
-    /// so the results are bit-identical.
-    fn eval_block<const N: usize, const M: usize>(
+    /// Evaluate the points of `src` from row `start` on into `out`, block by
+    /// block: every axis is located for all points of a block first (one tight
+    /// loop per axis, its constants hoisted), then the corners are gathered and
+    /// reduced. Same operations, in the same order, as [`Table::eval`], so the
+    /// results are bit-identical.
+    fn eval_chunk<const N: usize, const M: usize>(
         &self,
-        columns: &[&[f64]],
+        src: Source<'_>,
         start: usize,
         out: &mut [f64],
     ) {
-        let len = out.len().min(BLOCK);
+        let kernels: [AxisKernel<'_>; N] =
+            std::array::from_fn(|k| AxisKernel::new(&self.axes[k], self.strides[k], k == 0));
+        let mut offsets = [0usize; M];
+        for (o, &c) in offsets.iter_mut().zip(&self.corner_offsets) {
+            *o = c;
+        }
+        let span = offsets.iter().copied().max().unwrap_or(0);
+        #[cfg(target_arch = "x86_64")]
+        let simd = avx2::available(&self.axes, self.values.len());
         let mut base = [0usize; BLOCK];
         let mut nan = [false; BLOCK];
         let mut frac = [[0.0f64; BLOCK]; N];
-        for k in 0..N {
-            let axis = &self.axes[k];
-            let stride = self.strides[k];
-            let col = &columns[k][start..start + len];
-            for (((&x, b), f), bad) in col
-                .iter()
-                .zip(base.iter_mut())
-                .zip(frac[k].iter_mut())
-                .zip(nan.iter_mut())
-            {
-                match axis.locate(x) {
-                    Some((i, fr)) => {
-                        *b += i * stride;
-                        *f = fr;
+        let mut rows = [[0.0f64; BLOCK]; N];
+        for (b, o) in out.chunks_mut(BLOCK).enumerate() {
+            let s0 = start + b * BLOCK;
+            let len = o.len();
+            if let Source::Rows(pts) = src {
+                // transpose the block's rows once into per-axis buffers
+                let blk = &pts[s0 * N..(s0 + len) * N];
+                #[cfg(target_arch = "x86_64")]
+                let transposed = simd && N == 4 && {
+                    avx2::transpose4(blk, &mut rows);
+                    true
+                };
+                #[cfg(not(target_arch = "x86_64"))]
+                let transposed = false;
+                if !transposed {
+                    for (j, r) in blk.chunks_exact(N).enumerate() {
+                        for (col, &x) in rows.iter_mut().zip(r) {
+                            col[j] = x;
+                        }
                     }
-                    None => *bad = true,
                 }
             }
-        }
-        for (j, o) in out[..len].iter_mut().enumerate() {
-            if nan[j] {
-                *o = f64::NAN;
+            for (k, kern) in kernels.iter().enumerate() {
+                let xs: &[f64] = match src {
+                    Source::Columns(cols) => &cols[k][s0..s0 + len],
+                    Source::Rows(_) => &rows[k][..len],
+                };
+                let (bs, fs, ns) = (&mut base[..len], &mut frac[k][..len], &mut nan[..len]);
+                #[cfg(target_arch = "x86_64")]
+                if simd && kern.bp.len() >= 2 {
+                    avx2::locate(kern, xs, bs, fs, ns);
+                    continue;
+                }
+                kern.locate_block(xs, bs, fs, ns);
+            }
+            #[cfg(target_arch = "x86_64")]
+            if simd {
+                avx2::reduce::<N, M>(&self.values, &offsets, &base[..len], &frac, &nan[..len], o);
                 continue;
             }
-            let mut corners = [0.0f64; M];
-            for (slot, off) in corners.iter_mut().zip(&self.corner_offsets) {
-                *slot = self.values[base[j] + off];
-            }
-            let mut m = M;
-            for k in (0..N).rev() {
-                let f = frac[k][j];
-                let g = 1.0 - f;
-                m /= 2;
-                for i in 0..m {
-                    corners[i] = g * corners[2 * i] + f * corners[2 * i + 1];
+            for (j, o) in o.iter_mut().enumerate() {
+                let b = base[j];
+                // one bounds check for the whole cell (always inside by construction)
+                let (Some(cell), false) = (self.values.get(b..=b + span), nan[j]) else {
+                    *o = f64::NAN;
+                    continue;
+                };
+                let mut corners = [0.0f64; M];
+                for (slot, &off) in corners.iter_mut().zip(&offsets) {
+                    *slot = cell[off];
                 }
+                let mut m = M;
+                for fk in frac.iter().rev() {
+                    let f = fk[j];
+                    let g = 1.0 - f;
+                    m /= 2;
+                    for i in 0..m {
+                        corners[i] = g * corners[2 * i] + f * corners[2 * i + 1];
+                    }
+                }
+                *o = corners[0];
             }
-            *o = corners[0];
         }
     }
 
@@ -501,13 +544,486 @@ impl Table {
             ));
         }
         let work = |start: usize, chunk: &mut [f64]| {
-            for (j, o) in chunk.iter_mut().enumerate() {
-                let r = (start + j) * n;
-                *o = self.eval(&points[r..r + n]);
+            let src = Source::Rows(points);
+            match n {
+                1 => self.eval_chunk::<1, 2>(src, start, chunk),
+                2 => self.eval_chunk::<2, 4>(src, start, chunk),
+                3 => self.eval_chunk::<3, 8>(src, start, chunk),
+                4 => self.eval_chunk::<4, 16>(src, start, chunk),
+                5 => self.eval_chunk::<5, 32>(src, start, chunk),
+                6 => self.eval_chunk::<6, 64>(src, start, chunk),
+                7 => self.eval_chunk::<7, 128>(src, start, chunk),
+                _ => self.eval_chunk::<8, 256>(src, start, chunk),
             }
         };
         run_chunks(out, work);
         Ok(())
+    }
+}
+
+/// AVX2 versions of the batch locate and of the gather-and-reduce, chosen at
+/// run time when the CPU has AVX2. Same operations in the same order as the
+/// scalar path (compare-based clamps map to `max_pd`/`min_pd` operand for
+/// operand, no fused multiply-adds), so results are bit-identical; lanes a
+/// computed index guess cannot settle in one step each way (never for truly
+/// uniform axes) and NaN inputs take the scalar path.
+#[cfg(target_arch = "x86_64")]
+#[allow(unsafe_code)]
+mod avx2 {
+    use super::{Axis, AxisKernel, BLOCK};
+    use std::arch::x86_64::*;
+
+    /// Whether the AVX2 path can run: CPU support, and every index and stride
+    /// fits 32 bits (breakpoint gathers, 32x32-bit offset products).
+    pub(super) fn available(axes: &[Axis], nvalues: usize) -> bool {
+        std::arch::is_x86_feature_detected!("avx2")
+            && nvalues < (1usize << 32)
+            && axes.iter().all(|a| a.breakpoints.len() < (1usize << 30))
+    }
+
+    /// 4 lanes of 64-bit compare masks → 4 lanes of 32-bit masks.
+    #[inline]
+    #[target_feature(enable = "avx2")]
+    fn narrow(m: __m256d) -> __m128i {
+        let idx = _mm256_setr_epi32(0, 2, 4, 6, 0, 2, 4, 6);
+        _mm256_castsi256_si128(_mm256_permutevar8x32_epi32(_mm256_castpd_si256(m), idx))
+    }
+
+    /// Locate a block of inputs on one axis (its breakpoints: at least 2).
+    pub(super) fn locate(
+        k: &AxisKernel<'_>,
+        xs: &[f64],
+        base: &mut [usize],
+        frac: &mut [f64],
+        nan: &mut [bool],
+    ) {
+        // SAFETY: `available` checked AVX2 support before this path was chosen.
+        unsafe { locate_avx2(k, xs, base, frac, nan) }
+    }
+
+    #[target_feature(enable = "avx2")]
+    fn locate_avx2(
+        k: &AxisKernel<'_>,
+        xs: &[f64],
+        base: &mut [usize],
+        frac: &mut [f64],
+        nan: &mut [bool],
+    ) {
+        let bp = k.bp;
+        let n = bp.len();
+        let len = xs
+            .len()
+            .min(base.len())
+            .min(frac.len())
+            .min(nan.len())
+            .min(BLOCK);
+        let (lo, hi) = (_mm256_set1_pd(k.min), _mm256_set1_pd(k.max));
+        let (b0, bn) = (_mm256_set1_pd(bp[0]), _mm256_set1_pd(bp[n - 1]));
+        let (flo, fhi) = (_mm256_set1_pd(k.flo), _mm256_set1_pd(k.fhi));
+        let zero = _mm_setzero_si128();
+        let nm2 = _mm_set1_epi32((n - 2) as i32);
+        let stride = _mm256_set1_epi64x(k.stride as i64);
+        let p0 = bp.as_ptr();
+        let mut j = 0;
+        while j + 4 <= len {
+            // SAFETY: 4 lanes from a 4-element subslice.
+            let x = unsafe { _mm256_loadu_pd(xs[j..j + 4].as_ptr()) };
+            // clamp_to(x, lo, hi): (x < lo ? lo : x) = max_pd(lo, x), then min_pd(hi, ·)
+            let x1 = _mm256_min_pd(hi, _mm256_max_pd(lo, x));
+            let xc = _mm256_min_pd(bn, _mm256_max_pd(b0, x1));
+            let mut i;
+            // SAFETY (gathers below): every index is clamped to [0, n-2], so
+            // `i` and `i + 1` address breakpoints inside `bp`.
+            match k.uniform {
+                Some((x0, inv_h)) => {
+                    // the computed guess; lanes it does not settle take the scalar fix-up
+                    let t =
+                        _mm256_mul_pd(_mm256_sub_pd(xc, _mm256_set1_pd(x0)), _mm256_set1_pd(inv_h));
+                    i = _mm_min_epi32(_mm_max_epi32(_mm256_cvttpd_epi32(t), zero), nm2);
+                }
+                None => {
+                    i = zero;
+                    let mut l = n - 1;
+                    while l > 1 {
+                        let half = l / 2;
+                        let h = _mm_set1_epi32(half as i32);
+                        let v = unsafe { _mm256_i32gather_pd::<8>(p0, _mm_add_epi32(i, h)) };
+                        let m = narrow(_mm256_cmp_pd::<_CMP_LE_OQ>(v, xc));
+                        i = _mm_add_epi32(i, _mm_and_si128(m, h));
+                        l -= half;
+                    }
+                }
+            }
+            let a = unsafe { _mm256_i32gather_pd::<8>(p0, i) };
+            let b = unsafe { _mm256_i32gather_pd::<8>(p0.add(1), i) };
+            // settled: (i == 0 or bp[i] <= xc) and (i == n-2 or bp[i+1] > xc); NaN never
+            let ok_lo = _mm_or_si128(
+                _mm_cmpeq_epi32(i, zero),
+                narrow(_mm256_cmp_pd::<_CMP_LE_OQ>(a, xc)),
+            );
+            let ok_hi = _mm_or_si128(
+                _mm_cmpeq_epi32(i, nm2),
+                narrow(_mm256_cmp_pd::<_CMP_GT_OQ>(b, xc)),
+            );
+            let ok = _mm_movemask_ps(_mm_castsi128_ps(_mm_and_si128(ok_lo, ok_hi)));
+            let f = _mm256_div_pd(_mm256_sub_pd(x1, a), _mm256_sub_pd(b, a));
+            let f = _mm256_min_pd(fhi, _mm256_max_pd(flo, f));
+            if ok == 0b1111 {
+                let off = _mm256_mul_epu32(_mm256_cvtepi32_epi64(i), stride);
+                let bp4 = base[j..j + 4].as_mut_ptr().cast::<__m256i>();
+                // SAFETY: 4 lanes to and from 4-element subslices (usize is 64-bit here).
+                unsafe {
+                    _mm256_storeu_pd(frac[j..j + 4].as_mut_ptr(), f);
+                    if k.first {
+                        _mm256_storeu_si256(bp4, off);
+                    } else {
+                        _mm256_storeu_si256(bp4, _mm256_add_epi64(_mm256_loadu_si256(bp4), off));
+                    }
+                }
+                if k.first {
+                    nan[j..j + 4].fill(false);
+                }
+            } else {
+                let mut fl = [0.0f64; 4];
+                let mut il = [0i32; 4];
+                // SAFETY: both stores write 4 lanes into 4-element local arrays.
+                unsafe {
+                    _mm256_storeu_pd(fl.as_mut_ptr(), f);
+                    _mm_storeu_si128(il.as_mut_ptr().cast(), i);
+                }
+                for l in 0..4 {
+                    let xj = xs[j + l];
+                    let (il, fl) = if ok & (1 << l) != 0 {
+                        (il[l] as usize, fl[l])
+                    } else {
+                        k.locate_one(xj)
+                    };
+                    k.put(j + l, xj, (il, fl), base, frac, nan);
+                }
+            }
+            j += 4;
+        }
+        for (jj, &x) in xs.iter().enumerate().take(len).skip(j) {
+            k.put(jj, x, k.locate_one(x), base, frac, nan);
+        }
+    }
+
+    /// Transpose row-major 4-D points into the four per-axis buffers
+    /// (4 points per step: four 256-bit loads, an in-register 4x4 transpose).
+    pub(super) fn transpose4<const N: usize>(blk: &[f64], rows: &mut [[f64; BLOCK]; N]) {
+        // SAFETY: `available` checked AVX2 support before this path was chosen.
+        unsafe { transpose4_avx2(blk, rows) }
+    }
+
+    #[target_feature(enable = "avx2")]
+    fn transpose4_avx2<const N: usize>(blk: &[f64], rows: &mut [[f64; BLOCK]; N]) {
+        if N != 4 {
+            return;
+        }
+        let len = (blk.len() / 4).min(BLOCK);
+        let mut j = 0;
+        while j + 4 <= len {
+            let r = &blk[4 * j..4 * j + 16];
+            // SAFETY: four 4-lane loads from a 16-element subslice.
+            let (a, b, c, d) = unsafe {
+                (
+                    _mm256_loadu_pd(r.as_ptr()),
+                    _mm256_loadu_pd(r[4..].as_ptr()),
+                    _mm256_loadu_pd(r[8..].as_ptr()),
+                    _mm256_loadu_pd(r[12..].as_ptr()),
+                )
+            };
+            // a = [a0 a1 a2 a3] (point j), b (j+1), c (j+2), d (j+3)
+            let t0 = _mm256_unpacklo_pd(a, b); // a0 b0 a2 b2
+            let t1 = _mm256_unpackhi_pd(a, b); // a1 b1 a3 b3
+            let t2 = _mm256_unpacklo_pd(c, d); // c0 d0 c2 d2
+            let t3 = _mm256_unpackhi_pd(c, d); // c1 d1 c3 d3
+            let x0 = _mm256_permute2f128_pd::<0x20>(t0, t2); // a0 b0 c0 d0
+            let x1 = _mm256_permute2f128_pd::<0x20>(t1, t3); // a1 b1 c1 d1
+            let x2 = _mm256_permute2f128_pd::<0x31>(t0, t2); // a2 b2 c2 d2
+            let x3 = _mm256_permute2f128_pd::<0x31>(t1, t3); // a3 b3 c3 d3
+                                                             // SAFETY: 4 lanes into 4-element subslices of the buffers.
+            unsafe {
+                _mm256_storeu_pd(rows[0][j..j + 4].as_mut_ptr(), x0);
+                _mm256_storeu_pd(rows[1][j..j + 4].as_mut_ptr(), x1);
+                _mm256_storeu_pd(rows[2][j..j + 4].as_mut_ptr(), x2);
+                _mm256_storeu_pd(rows[3][j..j + 4].as_mut_ptr(), x3);
+            }
+            j += 4;
+        }
+        for jj in j..len {
+            for (k, col) in rows.iter_mut().enumerate() {
+                col[jj] = blk[4 * jj + k];
+            }
+        }
+    }
+
+    /// Gather the 2^N corners of each point's cell and reduce them axis by
+    /// axis, last axis first, four points at a time.
+    pub(super) fn reduce<const N: usize, const M: usize>(
+        values: &[f64],
+        offsets: &[usize; M],
+        base: &[usize],
+        frac: &[[f64; BLOCK]; N],
+        nan: &[bool],
+        out: &mut [f64],
+    ) {
+        // SAFETY: `available` checked AVX2 support before this path was chosen.
+        unsafe { reduce_avx2::<N, M>(values, offsets, base, frac, nan, out) }
+    }
+
+    #[target_feature(enable = "avx2")]
+    fn reduce_avx2<const N: usize, const M: usize>(
+        values: &[f64],
+        offsets: &[usize; M],
+        base: &[usize],
+        frac: &[[f64; BLOCK]; N],
+        nan: &[bool],
+        out: &mut [f64],
+    ) {
+        let len = out.len().min(base.len()).min(nan.len()).min(BLOCK);
+        let span = offsets.iter().copied().max().unwrap_or(0);
+        let paired = M >= 2 && offsets.chunks(2).all(|c| c[1] == c[0] + 1);
+        let onev = _mm256_set1_pd(1.0);
+        let mut j = 0;
+        while j + 4 <= len {
+            // every cell of a located point lies inside the values (segments
+            // are clamped to [0, n-2]); checked here once per point anyway
+            let inside = base[j..j + 4].iter().all(|&b| b + span < values.len());
+            if !inside {
+                break;
+            }
+            if paired {
+                // Corners 2q and 2q+1 are adjacent values (last axis, stride 1):
+                // one 128-bit load per pair and point, transposed to lanes in
+                // point order (0, 2, 1, 3); the fractions follow the same order.
+                let mut c = [_mm256_setzero_pd(); M];
+                let vp = values.as_ptr();
+                for (q, slot) in c.iter_mut().take(M / 2).enumerate() {
+                    let off = offsets[2 * q];
+                    // SAFETY: base + off + 1 <= base + span < values.len() (checked above).
+                    let (p0, p1, p2, p3) = unsafe {
+                        (
+                            _mm_loadu_pd(vp.add(base[j] + off)),
+                            _mm_loadu_pd(vp.add(base[j + 1] + off)),
+                            _mm_loadu_pd(vp.add(base[j + 2] + off)),
+                            _mm_loadu_pd(vp.add(base[j + 3] + off)),
+                        )
+                    };
+                    let a = _mm256_set_m128d(p1, p0);
+                    let b = _mm256_set_m128d(p3, p2);
+                    let (lo, hi) = (_mm256_unpacklo_pd(a, b), _mm256_unpackhi_pd(a, b));
+                    // SAFETY: 4 lanes from a 4-element subslice.
+                    let f = unsafe { _mm256_loadu_pd(frac[N - 1][j..j + 4].as_ptr()) };
+                    let f = _mm256_permute4x64_pd::<0b11_01_10_00>(f);
+                    let g = _mm256_sub_pd(onev, f);
+                    *slot = _mm256_add_pd(_mm256_mul_pd(g, lo), _mm256_mul_pd(f, hi));
+                }
+                let mut m = M / 2;
+                for fk in frac.iter().rev().skip(1) {
+                    // SAFETY: 4 lanes from a 4-element subslice.
+                    let f = unsafe { _mm256_loadu_pd(fk[j..j + 4].as_ptr()) };
+                    let f = _mm256_permute4x64_pd::<0b11_01_10_00>(f);
+                    let g = _mm256_sub_pd(onev, f);
+                    m /= 2;
+                    for q in 0..m {
+                        c[q] = _mm256_add_pd(
+                            _mm256_mul_pd(g, c[2 * q]),
+                            _mm256_mul_pd(f, c[2 * q + 1]),
+                        );
+                    }
+                }
+                let r4 = _mm256_permute4x64_pd::<0b11_01_10_00>(c[0]);
+                let mut r = [0.0f64; 4];
+                // SAFETY: 4 lanes into a 4-element local array.
+                unsafe { _mm256_storeu_pd(r.as_mut_ptr(), r4) };
+                for l in 0..4 {
+                    out[j + l] = if nan[j + l] { f64::NAN } else { r[l] };
+                }
+                j += 4;
+                continue;
+            }
+            let bv = _mm256_setr_epi64x(
+                base[j] as i64,
+                base[j + 1] as i64,
+                base[j + 2] as i64,
+                base[j + 3] as i64,
+            );
+            let mut c = [_mm256_setzero_pd(); M];
+            for (slot, &off) in c.iter_mut().zip(offsets) {
+                let idx = _mm256_add_epi64(bv, _mm256_set1_epi64x(off as i64));
+                // SAFETY: base + off <= base + span < values.len() (checked above).
+                *slot = unsafe { _mm256_i64gather_pd::<8>(values.as_ptr(), idx) };
+            }
+            let mut m = M;
+            for fk in frac.iter().rev() {
+                // SAFETY: 4 lanes from a 4-element subslice.
+                let f = unsafe { _mm256_loadu_pd(fk[j..j + 4].as_ptr()) };
+                let g = _mm256_sub_pd(onev, f);
+                m /= 2;
+                for q in 0..m {
+                    c[q] =
+                        _mm256_add_pd(_mm256_mul_pd(g, c[2 * q]), _mm256_mul_pd(f, c[2 * q + 1]));
+                }
+            }
+            let mut r = [0.0f64; 4];
+            // SAFETY: 4 lanes into a 4-element local array.
+            unsafe { _mm256_storeu_pd(r.as_mut_ptr(), c[0]) };
+            for l in 0..4 {
+                out[j + l] = if nan[j + l] { f64::NAN } else { r[l] };
+            }
+            j += 4;
+        }
+        for jj in j..len {
+            let b = base[jj];
+            let (Some(cell), false) = (values.get(b..=b + span), nan[jj]) else {
+                out[jj] = f64::NAN;
+                continue;
+            };
+            let mut corners = [0.0f64; M];
+            for (slot, &off) in corners.iter_mut().zip(offsets) {
+                *slot = cell[off];
+            }
+            let mut m = M;
+            for fk in frac.iter().rev() {
+                let f = fk[jj];
+                let g = 1.0 - f;
+                m /= 2;
+                for q in 0..m {
+                    corners[q] = g * corners[2 * q] + f * corners[2 * q + 1];
+                }
+            }
+            out[jj] = corners[0];
+        }
+    }
+}
+
+/// Where the batch path reads its points.
+#[derive(Clone, Copy)]
+enum Source<'a> {
+    /// One slice per axis.
+    Columns(&'a [&'a [f64]]),
+    /// Row-major `(npoints, ndim)`.
+    Rows(&'a [f64]),
+}
+
+/// One axis's constants for the batch locate, hoisted out of the point loop:
+/// the same operations as [`Axis::locate`], without its per-point branches on
+/// the axis's policies.
+struct AxisKernel<'a> {
+    bp: &'a [f64],
+    min: f64,
+    max: f64,
+    uniform: Option<(f64, f64)>,
+    flo: f64,
+    fhi: f64,
+    stride: usize,
+    first: bool,
+}
+
+impl<'a> AxisKernel<'a> {
+    fn new(axis: &'a Axis, stride: usize, first: bool) -> Self {
+        AxisKernel {
+            bp: &axis.breakpoints,
+            min: axis.min.unwrap_or(f64::NEG_INFINITY),
+            max: axis.max.unwrap_or(f64::INFINITY),
+            uniform: axis.uniform,
+            flo: if axis.below == Extrapolation::Hold {
+                0.0
+            } else {
+                f64::NEG_INFINITY
+            },
+            fhi: if axis.above == Extrapolation::Hold {
+                1.0
+            } else {
+                f64::INFINITY
+            },
+            stride,
+            first,
+        }
+    }
+
+    /// Segment and fraction of one input (n >= 2), exactly as [`Axis::locate`]
+    /// for a non-NaN input; a NaN input gives segment 0 (a valid cell).
+    #[inline(always)]
+    fn locate_one(&self, x: f64) -> (usize, f64) {
+        let bp = self.bp;
+        let n = bp.len();
+        let x1 = clamp_to(x, self.min, self.max);
+        let xc = clamp_to(x1, bp[0], bp[n - 1]);
+        let mut i;
+        match self.uniform {
+            Some((x0, inv_h)) => {
+                i = (((xc - x0) * inv_h) as usize).min(n - 2);
+                while i > 0 && bp[i] > xc {
+                    i -= 1;
+                }
+                while i + 2 < n && bp[i + 1] <= xc {
+                    i += 1;
+                }
+            }
+            None => {
+                i = 0;
+                let mut len = n - 1;
+                while len > 1 {
+                    let half = len / 2;
+                    if bp[i + half] <= xc {
+                        i += half;
+                    }
+                    len -= half;
+                }
+            }
+        }
+        let (a, b) = (bp[i], bp[i + 1]);
+        (i, clamp_to((x1 - a) / (b - a), self.flo, self.fhi))
+    }
+
+    /// Store the located point `j` (the first axis overwrites `base` and `nan`).
+    #[inline(always)]
+    fn put(
+        &self,
+        j: usize,
+        x: f64,
+        (i, f): (usize, f64),
+        base: &mut [usize],
+        frac: &mut [f64],
+        nan: &mut [bool],
+    ) {
+        if self.first {
+            base[j] = i * self.stride;
+            nan[j] = x.is_nan();
+        } else {
+            base[j] += i * self.stride;
+            nan[j] |= x.is_nan();
+        }
+        frac[j] = f;
+    }
+
+    /// Segment offsets (`i · stride`, added to `base`), fractions and NaN flags
+    /// of the inputs `xs` (the first axis overwrites `base` and `nan`).
+    #[inline(always)]
+    fn locate_block(&self, xs: &[f64], base: &mut [usize], frac: &mut [f64], nan: &mut [bool]) {
+        let bp = self.bp;
+        let n = bp.len();
+        if n < 2 {
+            for ((&x, b), (f, bad)) in xs
+                .iter()
+                .zip(base.iter_mut())
+                .zip(frac.iter_mut().zip(nan.iter_mut()))
+            {
+                if self.first {
+                    *b = 0;
+                    *bad = x.is_nan();
+                } else {
+                    *bad |= x.is_nan();
+                }
+                *f = 0.0;
+            }
+            return;
+        }
+        for (j, &x) in xs.iter().enumerate() {
+            self.put(j, x, self.locate_one(x), base, frac, nan);
+        }
     }
 }
 
@@ -564,6 +1080,75 @@ mod tests {
     /// The column-wise batch path equals point-by-point `eval` bit for bit,
     /// in every dimension, with NaNs, limits, hold and linear ends, and
     /// lengths that are not multiples of the block.
+    /// The scalar and AVX2 block kernels locate exactly as `Axis::locate`, on
+    /// uniform, nearly uniform (1e-10 jitter: the computed guess needs its
+    /// fix-up), searched, limited and extrapolating axes, at nodes, between
+    /// them, beyond the ends, at ±0, ±inf and NaN.
+    #[test]
+    fn block_kernels_locate_as_axis_locate() {
+        let uniform: Vec<f64> = (0..30).map(|i| -10.0 + 45.0 * i as f64 / 29.0).collect();
+        let jitter: Vec<f64> = (0..17)
+            .map(|i| i as f64 * 0.5 + if i % 3 == 1 { 5e-11 } else { 0.0 })
+            .collect();
+        let axes = [
+            axis("u", &uniform),
+            axis("j", &jitter),
+            axis("s", &[0.0, 5.0, 10.0, 15.0, 35.0]),
+            axis("two", &[-1.0, 2.0])
+                .with_extrapolation(Extrapolation::Linear, Extrapolation::Linear),
+            axis("lim", &uniform)
+                .with_extrapolation(Extrapolation::Linear, Extrapolation::Hold)
+                .with_limits(Some(-0.0), Some(20.0))
+                .expect("limits"),
+        ];
+        let mut xs: Vec<f64> = (0..1000).map(|i| -15.0 + 0.0517 * i as f64).collect();
+        for a in &axes {
+            xs.extend_from_slice(a.breakpoints());
+        }
+        xs.extend_from_slice(&[
+            0.0,
+            -0.0,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            f64::NAN,
+            1e300,
+            -1e300,
+        ]);
+        for a in &axes {
+            let k = AxisKernel::new(a, 3, true);
+            for chunk in xs.chunks(BLOCK) {
+                let n = chunk.len();
+                let (mut b1, mut f1, mut n1) = ([0usize; BLOCK], [0.0f64; BLOCK], [false; BLOCK]);
+                k.locate_block(chunk, &mut b1[..n], &mut f1[..n], &mut n1[..n]);
+                #[cfg(target_arch = "x86_64")]
+                let (b2, f2, n2) = {
+                    let (mut b2, mut f2, mut n2) =
+                        ([0usize; BLOCK], [0.0f64; BLOCK], [false; BLOCK]);
+                    if avx2::available(std::slice::from_ref(a), 1) {
+                        avx2::locate(&k, chunk, &mut b2[..n], &mut f2[..n], &mut n2[..n]);
+                    } else {
+                        (b2, f2, n2) = (b1, f1, n1);
+                    }
+                    (b2, f2, n2)
+                };
+                #[cfg(not(target_arch = "x86_64"))]
+                let (b2, f2, n2) = (b1, f1, n1);
+                for (j, &x) in chunk.iter().enumerate() {
+                    let name = &a.name;
+                    match a.locate(x) {
+                        None => assert!(n1[j] && n2[j], "{name} {x}"),
+                        Some((i, f)) => {
+                            assert!(!n1[j] && !n2[j], "{name} {x}");
+                            assert_eq!((b1[j], b2[j]), (3 * i, 3 * i), "{name} {x}");
+                            assert_eq!(f1[j].to_bits(), f.to_bits(), "{name} {x}");
+                            assert_eq!(f2[j].to_bits(), f.to_bits(), "{name} {x}");
+                        }
+                    }
+                }
+            }
+        }
+    }
+
     #[test]
     fn batch_columns_equal_single_points() {
         for n in 1..=MAX_DIMS {
@@ -609,13 +1194,20 @@ mod tests {
             let refs: Vec<&[f64]> = cols.iter().map(Vec::as_slice).collect();
             let mut out = vec![0.0; npts];
             t.eval_columns(&refs, &mut out).expect("eval");
-            for (i, o) in out.iter().enumerate() {
+            let rows: Vec<f64> = (0..npts)
+                .flat_map(|i| cols.iter().map(move |c| c[i]))
+                .collect();
+            let mut out_rows = vec![0.0; npts];
+            t.eval_rows(&rows, &mut out_rows).expect("eval rows");
+            for (i, (o, r)) in out.iter().zip(&out_rows).enumerate() {
                 let x: Vec<f64> = cols.iter().map(|c| c[i]).collect();
                 let want = t.eval(&x);
-                assert!(
-                    o.to_bits() == want.to_bits() || (o.is_nan() && want.is_nan()),
-                    "n={n} point {i}: {o} vs {want}"
-                );
+                for got in [o, r] {
+                    assert!(
+                        got.to_bits() == want.to_bits() || (got.is_nan() && want.is_nan()),
+                        "n={n} point {i}: {got} vs {want}"
+                    );
+                }
             }
         }
     }

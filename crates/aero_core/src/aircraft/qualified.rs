@@ -598,14 +598,15 @@ fn reg_index(r: Regressor) -> usize {
 /// The control inputs of the sliced model (one locate each per call).
 const CTRL_INPUTS: [Input; 4] = [Input::DaDeg, Input::DrDeg, Input::DslDeg, Input::DsrDeg];
 
-/// A control table sliced at one flap: deflection breakpoints and values [alpha][defl].
+/// A control table sliced at one flap: for each (alpha row, deflection
+/// segment) cell its four corners `[v(i, j), v(i, j+1) − v(i, j), v(i+1, j),
+/// v(i+1, j+1) − v(i+1, j)]` (the differences as the interpolation forms them).
 #[derive(Debug, Clone)]
 struct ControlTerm {
     coef: usize,
     input: usize,
     sign: f64,
-    breakpoints: usize,
-    values: Vec<f64>,
+    cells: Vec<[f64; 4]>,
 }
 
 /// The qualified model sliced at one flap setting, resampled on a uniform
@@ -616,17 +617,33 @@ pub struct FlapModel {
     /// Flap, deg.
     pub flap_deg: f64,
     ncols: usize,
-    /// Row-major [alpha][column] values of the 2-D terms (sign applied).
-    grid: Vec<f64>,
-    col_coef: Vec<usize>,
-    col_reg: Vec<usize>,
-    ctrl: Vec<ControlTerm>,
-    /// Distinct deflection breakpoint sets, one per control input in [`CTRL_INPUTS`] order.
-    ctrl_bp: Vec<Vec<f64>>,
-    /// Per control input: segment index for each whole degree from the first breakpoint
-    /// (an O(1) locate; every breakpoint is a whole degree).
-    ctrl_seg: Vec<Vec<u8>>,
+    /// Per alpha interval i and 2-D column j (columns grouped by coefficient,
+    /// term order kept within a coefficient): `[v(i), v(i+1) − v(i)]`, sign applied.
+    grid: Vec<[f64; 2]>,
+    /// Column range of each coefficient in `grid` rows.
+    coef_cols: [(usize, usize); 6],
+    /// Regressor index of each column.
+    col_reg: Vec<u8>,
+    /// Control tables grouped by input, inputs in order of first appearance
+    /// in the terms (so every coefficient still sums its terms in term order).
+    ctrl: Vec<ControlGroup>,
     cbar: f64,
+}
+
+/// The control tables on one input: one locate serves them all.
+#[derive(Debug, Clone)]
+struct ControlGroup {
+    input: Input,
+    /// Deflection breakpoints.
+    bp: Vec<f64>,
+    /// Segment index for each whole degree from the first breakpoint (an O(1)
+    /// locate; every breakpoint is a whole degree), empty otherwise.
+    seg: Vec<u8>,
+    /// Coefficient index and sign of each table.
+    coef: Vec<u8>,
+    sign: Vec<f64>,
+    /// Cells `[(i · segments + j) · tables + t]` (see [`ControlTerm`]).
+    cells: Vec<[f64; 4]>,
 }
 
 impl FlapModel {
@@ -663,34 +680,67 @@ impl FlapModel {
                         "control tables on the same input must share breakpoints",
                     ));
                 }
-                let mut v = Vec::with_capacity(NA * defl.len());
+                let m = defl.len();
+                let mut v = Vec::with_capacity(NA * m);
                 for i in 0..NA {
                     for &d in &defl {
                         v.push(t.eval(&[A0 + DA * i as f64, d, flap_deg]));
+                    }
+                }
+                let mut cells = Vec::with_capacity((NA - 1) * (m - 1));
+                for i in 0..NA - 1 {
+                    for j in 0..m - 1 {
+                        let (p0, p1) = (i * m + j, (i + 1) * m + j);
+                        cells.push([v[p0], v[p0 + 1] - v[p0], v[p1], v[p1 + 1] - v[p1]]);
                     }
                 }
                 ctrl.push(ControlTerm {
                     coef: ci,
                     input: slot,
                     sign: term.sign,
-                    breakpoints: defl.len(),
-                    values: v,
+                    cells,
                 });
             }
         }
+        // group the columns by coefficient, keeping term order within each
+        // (the accumulation order of the general path, so sums are identical)
+        cols.sort_by_key(|c| c.0);
         let ncols = cols.len();
-        let mut grid = vec![0.0; NA * ncols];
-        for (j, (_, _, v)) in cols.iter().enumerate() {
-            for i in 0..NA {
-                grid[i * ncols + j] = v[i];
+        let mut coef_cols = [(0usize, 0usize); 6];
+        for (ci, r) in coef_cols.iter_mut().enumerate() {
+            let start = cols.partition_point(|c| c.0 < ci);
+            *r = (
+                start,
+                start + cols[start..].iter().take_while(|c| c.0 == ci).count(),
+            );
+        }
+        let mut grid = Vec::with_capacity((NA - 1) * ncols);
+        for i in 0..NA - 1 {
+            for (_, _, v) in &cols {
+                grid.push([v[i], v[i + 1] - v[i]]);
             }
         }
-        let ctrl_seg = ctrl_bp
-            .iter()
-            .map(|bp| {
-                if bp.len() < 2 || bp.iter().any(|b| b.fract() != 0.0) {
-                    return Vec::new();
+        // group the control terms by input, inputs in order of first appearance
+        let mut order: Vec<usize> = Vec::new();
+        for c in &ctrl {
+            if !order.contains(&c.input) {
+                order.push(c.input);
+            }
+        }
+        let mut groups = Vec::with_capacity(order.len());
+        for &slot in &order {
+            let bp = ctrl_bp[slot].clone();
+            let terms: Vec<&ControlTerm> = ctrl.iter().filter(|c| c.input == slot).collect();
+            let segments = bp.len().saturating_sub(1);
+            let mut cells = Vec::with_capacity(terms.len() * (NA - 1) * segments);
+            for cell in 0..(NA - 1) * segments {
+                for t in &terms {
+                    cells.push(t.cells[cell]);
                 }
+            }
+            let seg = if bp.len() < 2 || bp.iter().any(|b| b.fract() != 0.0) {
+                Vec::new()
+            } else {
                 let (lo, hi) = (bp[0], bp[bp.len() - 1]);
                 let n = (hi - lo) as usize;
                 (0..n)
@@ -699,17 +749,23 @@ impl FlapModel {
                         ((bp.partition_point(|&b| b <= d) - 1).min(bp.len() - 2)) as u8
                     })
                     .collect()
-            })
-            .collect();
+            };
+            groups.push(ControlGroup {
+                input: CTRL_INPUTS[slot],
+                bp,
+                seg,
+                coef: terms.iter().map(|t| t.coef as u8).collect(),
+                sign: terms.iter().map(|t| t.sign).collect(),
+                cells,
+            });
+        }
         Ok(FlapModel {
             flap_deg,
-            ctrl_seg,
             ncols,
             grid,
-            col_coef: cols.iter().map(|c| c.0).collect(),
-            col_reg: cols.iter().map(|c| c.1).collect(),
-            ctrl,
-            ctrl_bp,
+            coef_cols,
+            col_reg: cols.iter().map(|c| c.1 as u8).collect(),
+            ctrl: groups,
             cbar: q.aircraft.cbar_m,
         })
     }
@@ -734,47 +790,51 @@ impl FlapModel {
         let i = (x as usize).min(NA - 2);
         let f = x - i as f64;
         let n = self.ncols;
-        let r0 = &self.grid[i * n..(i + 1) * n];
-        let r1 = &self.grid[(i + 1) * n..(i + 2) * n];
-        let mut out8 = [0.0; 8];
+        let row = &self.grid[i * n..(i + 1) * n];
         let mut regs16 = [0.0; 16];
         regs16[..NREG].copy_from_slice(&regs);
-        for (((a, b), &ci), &ri) in r0.iter().zip(r1).zip(&self.col_coef).zip(&self.col_reg) {
-            // masks make the bounds evident (ci < 6, ri < 9 by construction)
-            out8[ci & 7] += (a + f * (b - a)) * regs16[ri & 15];
-        }
         let mut out = [0.0; 6];
-        out.copy_from_slice(&out8[..6]);
-        // locate each control input once
-        let mut loc = [(0usize, 0.0f64); 4];
-        for (k, bp) in self.ctrl_bp.iter().enumerate() {
-            if bp.len() < 2 {
+        for (o, &(c0, c1)) in out.iter_mut().zip(&self.coef_cols) {
+            let mut acc = 0.0;
+            for (p, &ri) in row[c0..c1].iter().zip(&self.col_reg[c0..c1]) {
+                // the mask makes the bound evident (ri < 9 by construction)
+                acc += (p[0] + f * p[1]) * regs16[usize::from(ri & 15)];
+            }
+            *o = acc;
+        }
+        // locate each control input once, then add its tables
+        let mut out8 = [0.0; 8];
+        out8[..6].copy_from_slice(&out);
+        for g in &self.ctrl {
+            let bp = &g.bp;
+            let m = bp.len();
+            if m < 2 {
                 continue;
             }
-            let d = input_value(CTRL_INPUTS[k], s);
-            let m = bp.len();
-            loc[k] = if d <= bp[0] {
+            let d = input_value(g.input, s);
+            let (j, w) = if d <= bp[0] {
                 (0, 0.0)
             } else if d >= bp[m - 1] {
                 (m - 2, 1.0)
             } else {
-                let seg = &self.ctrl_seg[k];
-                let j = match seg.get((d - bp[0]) as usize) {
+                let j = match g.seg.get((d - bp[0]) as usize) {
                     Some(&j) => j as usize,
                     None => (bp.partition_point(|&b| b <= d) - 1).min(m - 2),
                 };
                 (j, (d - bp[j]) / (bp[j + 1] - bp[j]))
             };
+            let nt = g.coef.len();
+            let base = (i * (m - 1) + j) * nt;
+            let Some(cells) = g.cells.get(base..base + nt) else {
+                continue;
+            };
+            for ((v, &ci), &sign) in cells.iter().zip(&g.coef).zip(&g.sign) {
+                let a = v[0] + w * v[1];
+                let b = v[2] + w * v[3];
+                out8[usize::from(ci & 7)] += sign * (a + f * (b - a));
+            }
         }
-        for c in &self.ctrl {
-            let (j, g) = loc[c.input];
-            let m = c.breakpoints;
-            let v = &c.values;
-            let (p0, p1) = (i * m + j, (i + 1) * m + j);
-            let a = v[p0] + g * (v[p0 + 1] - v[p0]);
-            let b = v[p1] + g * (v[p1 + 1] - v[p1]);
-            out[c.coef] += c.sign * (a + f * (b - a));
-        }
+        out.copy_from_slice(&out8[..6]);
         out
     }
 }

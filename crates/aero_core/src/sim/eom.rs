@@ -128,7 +128,20 @@ pub fn rk4_step(
     dt: f64,
     mut loads: impl FnMut(&StateVec) -> Loads,
 ) -> StateVec {
-    let k1 = derivative(body, x, &loads(x));
+    let first = loads(x);
+    rk4_step_from(body, x, dt, &first, loads)
+}
+
+/// [`rk4_step`] with the loads at the step start already known (`first = loads(x)`).
+#[inline]
+pub fn rk4_step_from(
+    body: &RigidBody,
+    x: &StateVec,
+    dt: f64,
+    first: &Loads,
+    mut loads: impl FnMut(&StateVec) -> Loads,
+) -> StateVec {
+    let k1 = derivative(body, x, first);
     let x2 = x + k1 * (0.5 * dt);
     let k2 = derivative(body, &x2, &loads(&x2));
     let x3 = x + k2 * (0.5 * dt);

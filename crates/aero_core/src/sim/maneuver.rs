@@ -9,7 +9,7 @@ use crate::aircraft::turboprop::AircraftRef;
 use crate::error::{AeroError, Result};
 use crate::sim::aero::{AeroInput, AeroModel, Controls};
 use crate::sim::atmosphere::{isa, G0};
-use crate::sim::eom::{derivative, ix, rk4_step, Loads, RigidBody, StateVec};
+use crate::sim::eom::{derivative, ix, rk4_step_from, Loads, RigidBody, StateVec};
 
 /// The 6-DOF aircraft: state, environment, and the coupling to an [`AeroModel`].
 #[derive(Debug, Clone)]
@@ -139,7 +139,13 @@ impl Simulator {
         thrust_n: [f64; 2],
     ) -> Loads {
         let (inp, ad) = self.aero_input(x, c, thrust_n);
-        let co = model.coefficients(&inp);
+        self.loads_at(model, &inp, &ad)
+    }
+
+    /// Loads from `model` at an already formed input and its air data.
+    #[inline]
+    fn loads_at<M: AeroModel + ?Sized>(&self, model: &M, inp: &AeroInput, ad: &AirData) -> Loads {
+        let co = model.coefficients(inp);
         let ac = &self.aircraft;
         let qs = ad.qbar * ac.s_m2;
         let prop = if ac.n_engines >= 2 { 2.0 } else { 1.0 };
@@ -173,12 +179,16 @@ impl Simulator {
         c: &Controls,
         thrust_n: [f64; 2],
     ) {
-        let (inp, _) = self.aero_input(&self.x, c, thrust_n);
+        let (inp, ad) = self.aero_input(&self.x, c, thrust_n);
         model.advance(self.t, &inp);
         let x0 = self.x;
         let me = &*self;
         let m = &*model;
-        let next = rk4_step(&me.body, &x0, me.dt, |x| me.loads(m, x, c, thrust_n));
+        // the first stage's input is the one just computed (same state, atmosphere, α̇)
+        let first = me.loads_at(m, &inp, &ad);
+        let next = rk4_step_from(&me.body, &x0, me.dt, &first, |x| {
+            me.loads(m, x, c, thrust_n)
+        });
         self.x = next;
         self.t += self.dt;
         let ad = self.air(&self.x); // angles only: the frozen atmosphere is fine here
