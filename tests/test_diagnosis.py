@@ -219,5 +219,7 @@ def test_bad_input_names_what_is_missing(campaigns):
     with pytest.raises(DataError, match="Cl_meas"):
         aerodelta.diagnose(data.drop("Cl_meas"))
     with pytest.raises(DataError, match="maneuvers"):
-        few = data.filter(pl.col("maneuver_id").is_in(data["maneuver_id"].unique().head(3)))
+        few = data.filter(
+            pl.col("maneuver_id").is_in(data["maneuver_id"].unique().head(3).to_list())
+        )
         aerodelta.diagnose(few)
