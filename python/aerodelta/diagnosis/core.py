@@ -179,7 +179,8 @@ def _effect_rows(
     """The ranked effect list and the cumulative held-out predictions per step (a first
     ``timing_alignment`` step when the timing nuisance terms are in the model)."""
     total0 = float(sel.sse0.sum())
-    n = float(design.n_rows.sum())
+    # rows the fits used (roll-off windows are left out of the C_l fits)
+    n = float(rows["keep"].sum()) if "keep" in rows else float(design.n_rows.sum())
     out: list[dict[str, Any]] = []
     steps: list[tuple[str, np.ndarray]] = []
     base = list(sel.nuisance)
@@ -390,7 +391,7 @@ def diagnose(
         sel = forward_select(design, stats, cands, cfg.selection)
         rows = {
             "y": y, "fold": folds_m[mcode], "flap": dflap, "alpha": alpha,
-            "aero": aero_x, "glob": glob_x,
+            "aero": aero_x, "glob": glob_x, "keep": keep,
         }  # fmt: skip
         effects, steps_ = _effect_rows(sel, design, stats, rows)
         final_pred = steps_[-1][1] if steps_ else np.zeros_like(y)
@@ -418,12 +419,17 @@ def diagnose(
             "shrink": _shrink_table(y, meas, region, steps_),
         }
     coefs["Cl"]["rolloff"] = {k: v for k, v in ro.items() if k != "windows"}
+    coefs["Cl"]["rolloff"]["share_of_points_left_out"] = float(1.0 - cl_keep.mean())
     if ro["detected"]:
-        coefs["Cl"]["effects"].append(
+        n_sig = sum(1 for e in coefs["Cl"]["effects"] if e["significant"])
+        for e in coefs["Cl"]["effects"][n_sig:]:
+            e["rank"] += 1
+        coefs["Cl"]["effects"].insert(
+            n_sig,
             {
                 "effect": "stochastic_rolloff",
                 "kind": "stochastic",
-                "rank": len(coefs["Cl"]["effects"]) + 1,
+                "rank": n_sig + 1,
                 "significant": True,
                 "ambiguous_with": [],
                 "alpha_range_deg": ro["alpha_range_deg"],
@@ -432,7 +438,7 @@ def diagnose(
                 "shrink_fraction": 0.0,
                 "statistic": float(ro["n_events"]),
                 "p_value": ro["p_value"],
-            }
+            },
         )
         if coefs["Cl"]["verdict"] == "none":
             coefs["Cl"]["verdict"] = "stochastic_rolloff"

@@ -52,7 +52,15 @@ def summary_text(result: dict[str, Any]) -> str:
             f"TIC {g['tic']:.3f}  ->  remaining rms {r['remaining_gap']['rms']:.5f}  "
             f"TIC {r['remaining_gap']['tic']:.3f}"
         )
-        sig = [e for e in r["effects"] if e["significant"]]
+        ro = r.get("rolloff") or {}
+        if ro.get("detected"):
+            lines.append(
+                f"  roll-off spikes in {ro['n_maneuvers_with_events']} of {ro['n_searched']} "
+                f"maneuvers (p = {ro['p_value']:.2g}): stochastic, not a deterministic effect; "
+                f"their windows ({100 * ro['share_of_points_left_out']:.1f} % of the points) are "
+                "left out of the effect fits"
+            )
+        sig = [e for e in r["effects"] if e["significant"] and e.get("kind") != "stochastic"]
         if not sig:
             lines.append("  no significant unmodelled effect")
         for e in sig:
