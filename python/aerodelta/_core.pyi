@@ -293,24 +293,6 @@ def beta_inc_reg(a: float, b: float, x: float) -> float: ...
 def qualified_lateral_adx37(
     columns: dict[str, npt.NDArray[np.float64]],
 ) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64], npt.NDArray[np.float64]]: ...
-def identify_bins(
-    regressors: list[tuple[str, str]],
-    columns: dict[str, npt.NDArray[np.float64]],
-    z: npt.NDArray[np.float64],
-    alpha_deg: npt.NDArray[np.float64],
-    maneuver: npt.NDArray[np.uint64],
-    width_deg: float,
-    min_points_per_param: int,
-    min_maneuvers: int,
-    max_width_deg: float | None,
-    colored: bool,
-    min_excitation: float,
-    p: float,
-    weighted: bool,
-    grid_step_deg: float,
-    alpha_max_deg: float,
-    min_identified_bins: int,
-) -> dict[str, object]: ...
 def identify_flap(
     regressors: list[tuple[str, str]],
     columns: dict[str, npt.NDArray[np.float64]],

@@ -5,10 +5,7 @@ use aero_core::aircraft::qualified::QualifiedModel;
 use aero_core::aircraft::records::{qualified_lateral, RecordColumns};
 use aero_core::aircraft::turboprop::adx37;
 use aero_core::bootstrap::{Bootstrap, BootstrapOptions};
-use aero_core::identify::{
-    fit_bins, smooth_parameters, BinnedFit, Design, IdentifyOptions, SmoothOptions,
-    SmoothedParameter,
-};
+use aero_core::identify::{BinnedFit, Design, IdentifyOptions, SmoothOptions, SmoothedParameter};
 use aero_core::partition::PartitionOptions;
 use aero_core::select::{
     identify_flap as identify_flap_core, CvScore, Method, SelectOptions, Selection,
@@ -71,65 +68,6 @@ fn qualified_lateral_adx37<'py>(
         cn.into_pyarray(py),
         cy.into_pyarray(py),
     ))
-}
-
-/// Per-bin identification of one coefficient at one flap setting, then smoothing.
-#[pyfunction]
-#[pyo3(signature = (regressors, columns, z, alpha_deg, maneuver, width_deg, min_points_per_param, min_maneuvers, max_width_deg, colored, min_excitation, p, weighted, grid_step_deg, alpha_max_deg, min_identified_bins))]
-#[allow(clippy::too_many_arguments)]
-fn identify_bins<'py>(
-    py: Python<'py>,
-    regressors: Vec<(String, String)>,
-    columns: HashMap<String, PyReadonlyArray1<'py, f64>>,
-    z: PyReadonlyArray1<'py, f64>,
-    alpha_deg: PyReadonlyArray1<'py, f64>,
-    maneuver: PyReadonlyArray1<'py, u64>,
-    width_deg: f64,
-    min_points_per_param: usize,
-    min_maneuvers: usize,
-    max_width_deg: Option<f64>,
-    colored: bool,
-    min_excitation: f64,
-    p: f64,
-    weighted: bool,
-    grid_step_deg: f64,
-    alpha_max_deg: f64,
-    min_identified_bins: usize,
-) -> PyResult<Bound<'py, PyDict>> {
-    let mut cols: HashMap<String, &[f64]> = HashMap::new();
-    for (k, v) in &columns {
-        cols.insert(k.clone(), v.as_slice()?);
-    }
-    let (z, alpha, man) = (z.as_slice()?, alpha_deg.as_slice()?, maneuver.as_slice()?);
-    let (fit, smoothed) = detached(py, || {
-        let lookup = |name: &str| cols.get(name).copied();
-        let design = Design::build(&regressors, &lookup, z.len())?;
-        let opts = IdentifyOptions {
-            partition: PartitionOptions {
-                width_deg,
-                min_points_per_param,
-                min_maneuvers,
-                max_width_deg,
-                ..PartitionOptions::default()
-            },
-            colored,
-            min_excitation,
-            ..IdentifyOptions::default()
-        };
-        let fit = fit_bins(&design, z, alpha, man, &opts)?;
-        let sm = smooth_parameters(
-            &fit,
-            &SmoothOptions {
-                p,
-                weighted,
-                grid_step_deg,
-                alpha_max_deg,
-                min_identified_bins,
-            },
-        )?;
-        Ok((fit, sm))
-    })?;
-    fit_dict(py, &fit, smoothed)
 }
 
 /// The per-bin fit and its smoothed parameters as a dict of flat arrays.
@@ -413,7 +351,6 @@ fn identify_flap<'py>(
 
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(qualified_lateral_adx37, m)?)?;
-    m.add_function(wrap_pyfunction!(identify_bins, m)?)?;
     m.add_function(wrap_pyfunction!(identify_flap, m)?)?;
     Ok(())
 }

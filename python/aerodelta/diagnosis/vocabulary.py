@@ -89,6 +89,16 @@ MEASUREMENT_REGRESSORS = (
 
 _SIDESLIP_RATE = ("betadot", "alphadot_beta", "alphadot_betadot")
 
+#: Control, thrust and sideslip-rate candidates shared by both moments.
+_MOMENT_CONTROLS: list[tuple[str, tuple[str, ...]]] = [
+    ("aileron_effectiveness", ("da_db",)),
+    ("rudder_effectiveness", ("dr",)),
+    ("spoiler_effect", ("ds", "alphadot_ds")),
+    ("thrust_effect", ("ct_sum",)),
+    ("thrust_asymmetry", ("ct_diff",)),
+    ("sideslip_rate", _SIDESLIP_RATE),
+]
+
 #: Aerodynamic candidates per coefficient: the vocabulary's regressor groups (DESIGN.md).
 AERODYNAMIC: dict[str, list[tuple[str, tuple[str, ...]]]] = {
     "Cl": [
@@ -96,24 +106,14 @@ AERODYNAMIC: dict[str, list[tuple[str, tuple[str, ...]]]] = {
         ("dihedral", ("beta",)),
         ("roll_damping", ("phat",)),
         ("roll_due_to_yaw_rate", ("rhat",)),
-        ("aileron_effectiveness", ("da_db",)),
-        ("rudder_effectiveness", ("dr",)),
-        ("spoiler_effect", ("ds", "alphadot_ds")),
-        ("thrust_effect", ("ct_sum",)),
-        ("thrust_asymmetry", ("ct_diff",)),
-        ("sideslip_rate", _SIDESLIP_RATE),
+        *_MOMENT_CONTROLS,
     ],
     "Cn": [
         ("lateral_asymmetry", ("one",)),
         ("directional_stability", ("beta",)),
         ("yaw_damping", ("rhat",)),
         ("yaw_due_to_roll_rate", ("phat",)),
-        ("aileron_effectiveness", ("da_db",)),
-        ("rudder_effectiveness", ("dr",)),
-        ("spoiler_effect", ("ds", "alphadot_ds")),
-        ("thrust_effect", ("ct_sum",)),
-        ("thrust_asymmetry", ("ct_diff",)),
-        ("sideslip_rate", _SIDESLIP_RATE),
+        *_MOMENT_CONTROLS,
     ],
     "CY": [
         ("lateral_asymmetry", ("one",)),
