@@ -223,3 +223,28 @@ def test_bad_input_names_what_is_missing(campaigns):
             pl.col("maneuver_id").is_in(data["maneuver_id"].unique().head(3).to_list())
         )
         aerodelta.diagnose(few)
+
+
+def test_user_defined_effect_is_scored_and_can_explain_what_it_models(campaigns, tmp_path):
+    # an effect of the user's, as the CLI reads it from TOML: the withheld dihedral written
+    # as a user regressor is found under the user's name (it and the vocabulary's dihedral
+    # are then the same model, so one of them wins and the other is ambiguous or unselected)
+    camp, _ = campaigns["dihedral"]
+    toml = tmp_path / "effects.toml"
+    toml.write_text('[my_beta]\nCl = ["beta_deg"]\n[my_noise]\nCn = ["beta_deg * rhat * 0"]\n')
+    out = tmp_path / "out"
+    rc = main(
+        ["diagnose", "--data", str(camp), "--effects", str(toml), "--out", str(out),
+         "--no-progress"]
+    )  # fmt: skip
+    assert rc == 0
+    doc = json.loads((out / "diagnosis.json").read_text())
+    cl = doc["coefficients"]["Cl"]
+    names = {e["effect"] for e in cl["effects"]}
+    assert {"my_beta", "dihedral"} <= names
+    top = cl["effects"][0]
+    assert top["significant"]
+    assert {top["effect"], *top["ambiguous_with"]} & {"my_beta", "dihedral"}
+    # a regressor that is identically zero explains nothing and is never significant
+    cn = {e["effect"]: e for e in doc["coefficients"]["Cn"]["effects"]}
+    assert not cn["my_noise"]["significant"]
