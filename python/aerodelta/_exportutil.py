@@ -11,26 +11,19 @@ from __future__ import annotations
 
 import ast
 import itertools
-import os
 from dataclasses import dataclass
 from os import PathLike
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from aerodelta._fsutil import write_text_atomic
 from aerodelta.exceptions import DataError
 
 
 def write_atomic(path: str | PathLike[str], text: str) -> None:
     """Write ``text`` to ``path`` via ``path.tmp-<pid>`` in the same folder, then rename."""
-    p = Path(path)
-    tmp = p.with_name(f"{p.name}.tmp-{os.getpid()}")
-    try:
-        tmp.write_text(text, encoding="utf-8")
-        os.replace(tmp, p)
-    finally:
-        tmp.unlink(missing_ok=True)
+    write_text_atomic(path, text)
 
 
 #: Channels of the Δ model that are computed from other channels (as in

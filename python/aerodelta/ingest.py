@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import json
 import os
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -19,6 +19,7 @@ import polars.selectors as cs
 from tqdm import tqdm
 
 from aerodelta import _core
+from aerodelta._fsutil import write_atomic
 from aerodelta.aircraft import Aircraft
 from aerodelta.channel_map import ChannelMap
 from aerodelta.channels import ALTERNATIVES, CHANNELS, REQUIRED
@@ -82,16 +83,8 @@ class IngestResult:
         out.mkdir(parents=True, exist_ok=True)
         written = []
 
-        def atomic(name: str, write: object) -> None:
-            final = out / name
-            tmp = out / f"{name}.tmp-{os.getpid()}"
-            try:
-                write(tmp)  # type: ignore[operator]
-                os.replace(tmp, final)
-            finally:
-                if tmp.exists():
-                    tmp.unlink()
-            written.append(final)
+        def atomic(name: str, write: Callable[[Path], object]) -> None:
+            written.append(write_atomic(out / name, write))
 
         atomic("data.parquet", self.data.write_parquet)
         payload = [json.loads(r.to_json()) for r in self.reports]

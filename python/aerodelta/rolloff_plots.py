@@ -26,6 +26,7 @@ import polars as pl
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
+from aerodelta._fsutil import write_atomic
 from aerodelta.exceptions import DataError
 from aerodelta.rolloff import FAR25_203_MAX_ROLL_DEG, dynamic_roll, euler_roll_rate
 
@@ -50,14 +51,7 @@ def _need(data: pl.DataFrame, cols: list[str], what: str) -> None:
 
 def save_figure(fig: Figure, path: str | os.PathLike[str], dpi: int = 120) -> Path:
     """Write ``fig`` as PNG at ``path`` atomically (``path.tmp-<pid>``, then rename)."""
-    out = Path(path)
-    tmp = out.with_name(f"{out.name}.tmp-{os.getpid()}")
-    try:
-        fig.savefig(tmp, dpi=dpi, format="png")
-        tmp.replace(out)
-    finally:
-        tmp.unlink(missing_ok=True)
-    return out
+    return write_atomic(path, lambda p: fig.savefig(p, dpi=dpi, format="png"))
 
 
 def event_figure(

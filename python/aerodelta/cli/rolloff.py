@@ -21,11 +21,12 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import os
 import sys
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
+
+from aerodelta._fsutil import write_atomic
 
 HELP = "detect roll-off events, per-flap statistics, runtime configuration, Monte Carlo"
 
@@ -62,16 +63,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--format", choices=("table", "json"), default="table")
 
 
-def _atomic(path: Path, write: Callable[[Path], object]) -> Path:
-    tmp = path.with_name(f"{path.name}.tmp-{os.getpid()}")
-    try:
-        write(tmp)
-        tmp.replace(path)
-    finally:
-        tmp.unlink(missing_ok=True)
-    return path
-
-
 def _json_safe(x: Any) -> Any:
     if isinstance(x, float) and not math.isfinite(x):
         return None
@@ -84,7 +75,7 @@ def _json_safe(x: Any) -> Any:
 
 def _write_json(path: Path, obj: Any) -> Path:
     text = json.dumps(_json_safe(obj), indent=2)
-    return _atomic(path, lambda p: p.write_text(text + "\n"))
+    return write_atomic(path, lambda p: p.write_text(text + "\n"))
 
 
 def run(args: argparse.Namespace) -> int:
@@ -122,10 +113,10 @@ def run(args: argparse.Namespace) -> int:
         model_col = "Cl_model"  # what the residual removed: drawn beside the measured C_l
         data = data.with_columns(pl.Series(model_col, data["Cl_meas"].to_numpy() - residual))
     events = ro.detect_rolloff(data, residual=residual)
-    written.append(_atomic(out / "events.csv", events.write_csv))
+    written.append(write_atomic(out / "events.csv", events.write_csv))
     stats = ro.rolloff_statistics(events, level=args.level)
     if stats.height:
-        written.append(_atomic(out / "statistics.csv", stats.write_csv))
+        written.append(write_atomic(out / "statistics.csv", stats.write_csv))
     written.append(_write_json(out / "statistics.json", stats.to_dicts()))
     try:
         config = ro.config_from_statistics(stats)
@@ -136,7 +127,7 @@ def run(args: argparse.Namespace) -> int:
         config_source = "default (too few events)"
     written.append(_write_json(out / "rolloff_config.json", config))
     max_roll = ro.max_roll_straight_stalls(data)
-    written.append(_atomic(out / "max_roll.csv", max_roll.write_csv))
+    written.append(write_atomic(out / "max_roll.csv", max_roll.write_csv))
 
     comparison = None
     mc = None
@@ -159,9 +150,9 @@ def run(args: argparse.Namespace) -> int:
             )
         if runs:
             mc = pl.concat(runs)
-            written.append(_atomic(out / "monte_carlo.parquet", mc.write_parquet))
+            written.append(write_atomic(out / "monte_carlo.parquet", mc.write_parquet))
             comparison = ro.compare_with_records(mc, events, max_roll)
-            written.append(_atomic(out / "mc_comparison.csv", comparison.write_csv))
+            written.append(write_atomic(out / "mc_comparison.csv", comparison.write_csv))
             written.append(_write_json(out / "mc_comparison.json", comparison.to_dicts()))
 
     if not args.no_figures:

@@ -4,12 +4,12 @@ from __future__ import annotations
 
 import json
 import math
-import os
 from pathlib import Path
 from typing import Any
 
 import polars as pl
 
+from aerodelta._fsutil import write_atomic, write_text_atomic
 from aerodelta.diagnosis.vocabulary import COEFFICIENTS
 
 _LIST_KEYS = ("ambiguous_with", "alpha_range_deg", "parameters")
@@ -24,12 +24,6 @@ def _clean(x: Any) -> Any:
     if isinstance(x, (list, tuple)):
         return [_clean(v) for v in x]
     return x
-
-
-def _atomic_write(path: Path, text: str) -> None:
-    tmp = path.with_name(f"{path.name}.tmp-{os.getpid()}")
-    tmp.write_text(text)
-    tmp.replace(path)
 
 
 def summary_text(result: dict[str, Any]) -> str:
@@ -98,10 +92,10 @@ def write_outputs(result: dict[str, Any], predictions: pl.DataFrame, out: str | 
     d.mkdir(parents=True, exist_ok=True)
     paths = []
     p = d / "diagnosis.json"
-    _atomic_write(p, json.dumps(_clean(result), indent=2))
+    write_text_atomic(p, json.dumps(_clean(result), indent=2))
     paths.append(p)
     p = d / "diagnosis.txt"
-    _atomic_write(p, summary_text(result) + "\n")
+    write_text_atomic(p, summary_text(result) + "\n")
     paths.append(p)
     tables: dict[str, list[dict[str, Any]]] = {"gap_map": [], "effects": [], "shrink": []}
     for c in COEFFICIENTS:
@@ -123,19 +117,12 @@ def write_outputs(result: dict[str, Any], predictions: pl.DataFrame, out: str | 
         ]
         tables["shrink"] += [{"coefficient": c, **s} for s in r["shrink"]]
     for name, rows in tables.items():
-        p = d / f"{name}.csv"
-        tmp = p.with_name(f"{p.name}.tmp-{os.getpid()}")
-        pl.DataFrame(rows, infer_schema_length=None).write_csv(tmp)
-        tmp.replace(p)
-        paths.append(p)
+        table = pl.DataFrame(rows, infer_schema_length=None)
+        paths.append(write_atomic(d / f"{name}.csv", table.write_csv))
     from aerodelta.diagnosis.plots import gap_map_figure, shrink_figure  # noqa: PLC0415
     from aerodelta.rolloff_plots import save_figure  # noqa: PLC0415 - matplotlib on demand
 
     paths.append(save_figure(gap_map_figure(result), d / "gap_map.png"))
     paths.append(save_figure(shrink_figure(result), d / "shrink.png"))
-    p = d / "predictions.parquet"
-    tmp = p.with_name(f"{p.name}.tmp-{os.getpid()}")
-    predictions.write_parquet(tmp)
-    tmp.replace(p)
-    paths.append(p)
+    paths.append(write_atomic(d / "predictions.parquet", predictions.write_parquet))
     return paths

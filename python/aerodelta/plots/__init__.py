@@ -7,7 +7,6 @@ from __future__ import annotations
 import base64
 import html
 import io
-import os
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -18,6 +17,8 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 from matplotlib.figure import Figure
+
+from aerodelta._fsutil import write_bytes_atomic
 
 #: Colours of the three signals compared throughout the report.
 COLORS = {"meas": "#222222", "qual": "#d62728", "ext": "#1f77b4", "band": "#9ecae1"}
@@ -102,10 +103,7 @@ class FigureSink:
         )
 
     def _write(self, path: Path, data: bytes) -> None:
-        tmp = path.with_name(f"{path.name}.tmp-{os.getpid()}")
-        tmp.write_bytes(data)
-        tmp.replace(path)
-        self.written.append(path)
+        self.written.append(write_bytes_atomic(path, data))
 
 
 __all__ = ["COLORS", "FigureSink", "new_figure"]

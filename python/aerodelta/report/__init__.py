@@ -10,7 +10,6 @@ Sections: time-history matches (4.1), effect plots (4.2), identified parameters 
 
 from __future__ import annotations
 
-import os
 import re
 import sys
 import time
@@ -22,6 +21,7 @@ from typing import Any
 import polars as pl
 from tqdm import tqdm
 
+from aerodelta._fsutil import write_text_atomic
 from aerodelta.model import DeltaModel
 from aerodelta.plots import FigureSink
 from aerodelta.report import (
@@ -187,9 +187,7 @@ def build_report(
         title, f"Δ model validation (thesis Chapter 4), {n_man} maneuvers", intro, sections
     )
     target = out / REPORT_NAME
-    tmp = target.with_name(f"{target.name}.tmp-{os.getpid()}")
-    tmp.write_text(doc_html, encoding="utf-8")
-    tmp.replace(target)
+    write_text_atomic(target, doc_html)
     bar.update(1)
     bar.close()
     prep_sec = Section("prepare", "prepare", seconds=prep)
