@@ -406,6 +406,20 @@ pub(crate) struct Sections {
     pub functions: String,
 }
 
+/// Opens a `variableDef` (name defaulting to the ID) with its description, if any.
+fn open_variable(x: &mut String, name: &str, id: &str, units: &str, description: &str) {
+    let _ = writeln!(
+        x,
+        "  <variableDef name=\"{}\" varID=\"{}\" units=\"{}\">",
+        esc(or(name, id)),
+        esc(id),
+        esc(units)
+    );
+    if !description.is_empty() {
+        let _ = writeln!(x, "    <description>{}</description>", esc(description));
+    }
+}
+
 /// The elements of `spec`, leaving out the `variableDef` of the inputs in
 /// `skip_inputs` (declared by the model the elements are merged into), every
 /// `bpID` and `gtID` led by `id_prefix`.
@@ -438,16 +452,7 @@ pub(crate) fn sections(spec: &ModelSpec, skip_inputs: &[&str], id_prefix: &str) 
         let _ = writeln!(x, "    <isInput/>\n  </variableDef>");
     }
     for c in &spec.calculations {
-        let _ = writeln!(
-            x,
-            "  <variableDef name=\"{}\" varID=\"{}\" units=\"{}\">",
-            esc(or(&c.name, &c.id)),
-            esc(&c.id),
-            esc(&c.units)
-        );
-        if !c.description.is_empty() {
-            let _ = writeln!(x, "    <description>{}</description>", esc(&c.description));
-        }
+        open_variable(&mut x, &c.name, &c.id, &c.units, &c.description);
         // Validated before writing: a parse error cannot happen here.
         let math = crate::regressor::Expr::parse(&c.expr)
             .map(|e| mathml_of(&e))
@@ -462,32 +467,14 @@ pub(crate) fn sections(spec: &ModelSpec, skip_inputs: &[&str], id_prefix: &str) 
         let _ = writeln!(x, "  </variableDef>");
     }
     for t in &spec.tables {
-        let _ = writeln!(
-            x,
-            "  <variableDef name=\"{}\" varID=\"{}\" units=\"{}\">",
-            esc(or(&t.name, &t.id)),
-            esc(&t.id),
-            esc(&t.units)
-        );
-        if !t.description.is_empty() {
-            let _ = writeln!(x, "    <description>{}</description>", esc(&t.description));
-        }
+        open_variable(&mut x, &t.name, &t.id, &t.units, &t.description);
         if t.is_output {
             let _ = writeln!(x, "    <isOutput/>");
         }
         let _ = writeln!(x, "  </variableDef>");
     }
     for o in &spec.outputs {
-        let _ = writeln!(
-            x,
-            "  <variableDef name=\"{}\" varID=\"{}\" units=\"{}\">",
-            esc(or(&o.name, &o.id)),
-            esc(&o.id),
-            esc(&o.units)
-        );
-        if !o.description.is_empty() {
-            let _ = writeln!(x, "    <description>{}</description>", esc(&o.description));
-        }
+        open_variable(&mut x, &o.name, &o.id, &o.units, &o.description);
         let _ = writeln!(
             x,
             "    <calculation>\n      <math xmlns=\"http://www.w3.org/1998/Math/MathML\">"
