@@ -83,6 +83,88 @@ def test_signed_rank_randomization_agrees_with_scipy_wilcoxon():
         assert p == pytest.approx(ref, abs=0.01)
 
 
+def test_profiling_out_per_maneuver_nuisance_matches_ols_with_per_maneuver_columns(toy):
+    """Frisch-Waugh-Lovell: the shared parameters fitted on statistics with each maneuver's
+    nuisance columns profiled out equal those of one OLS (statsmodels) over the dense design
+    with a separate copy of the nuisance columns per maneuver."""
+    import statsmodels.api as sm  # noqa: PLC0415
+
+    y, man, flap, alpha, aero, glob, grid = toy
+    rng = np.random.default_rng(11)
+    # a bump in alpha with a random amplitude per maneuver (a roll-off), only in some
+    centre = rng.uniform(3, 7, 12)
+    amp = rng.normal(0, 0.5, 12) * (np.arange(12) % 3 != 0)
+    u = (alpha - centre[man]) / 0.8
+    nuis = np.column_stack([np.exp(-0.5 * u * u), u * np.exp(-0.5 * u * u)])
+    nuis[np.arange(12)[man] % 3 == 0] = 0.0  # maneuvers without an event: no columns
+    y2 = y + amp[man] * nuis[:, 0]
+    full = cv.build_design(
+        y2, man, flap, alpha, aero, np.hstack([glob, nuis]), ["a", "b"], ["g", "n0", "n1"],
+        grid, 12, 2,
+    )  # fmt: skip
+    prof = cv.profile_out(full, 2)
+    assert prof.global_names == ["g"]
+    pen0 = [np.zeros_like(g) for g in cv.penalty(prof)]
+    grams = [sum(prof.gram[m] for m in range(12) if prof.man_flap[m] == f) for f in range(2)]
+    xtys = [sum(prof.xty[m] for m in range(12) if prof.man_flap[m] == f) for f in range(2)]
+    cols = cv.local_columns(prof, ["a", "b"], ["g"])
+    th = cv.solve(prof, [g + p for g, p in zip(grams, pen0, strict=True)], xtys, cols)
+    # reference: dense design, nuisance columns copied per maneuver
+    x = _dense(y2, man, flap, alpha, aero, glob, grid, 2)
+    blocks = np.zeros((y.size, 24))
+    for m in range(12):
+        rows = man == m
+        blocks[rows, 2 * m : 2 * m + 2] = nuis[rows]
+    live = np.abs(blocks).sum(axis=0) > 0
+    keep = np.abs(x).sum(axis=0) > 0
+    res = sm.OLS(y2, np.hstack([x[:, keep], blocks[:, live]])).fit()
+    kr = grid.n * 2
+    ours = np.concatenate([th[0][:kr], th[1][:kr], th[0][kr:]])[keep]
+    np.testing.assert_allclose(ours, res.params[: keep.sum()], rtol=1e-7, atol=1e-9)
+    # and the profiled y'y is each maneuver's residual sum of squares on its nuisance alone
+    for m in range(12):
+        rows = man == m
+        n_m = nuis[rows][:, np.abs(nuis[rows]).sum(axis=0) > 0]
+        r = y2[rows] - (n_m @ np.linalg.lstsq(n_m, y2[rows], rcond=None)[0] if n_m.size else 0)
+        assert prof.yty[m] == pytest.approx(float(r @ r), rel=1e-9)
+
+
+def test_sum_sign_flip_test_is_exact_and_sees_sparse_improvements():
+    """The sum test against its exact distribution (all 2^n sign patterns), and on a sparse
+    improvement (a quarter of the maneuvers gain a lot, the rest lose a little) where the
+    signed ranks are blind and the combined test is not."""
+    import itertools  # noqa: PLC0415
+
+    rng = np.random.default_rng(8)
+    d = rng.normal(0.4, 1.0, 12)
+    exact = np.mean(
+        [float(np.dot(s, d)) >= d.sum() - 1e-12 for s in itertools.product((-1, 1), repeat=12)]
+    )
+    _, p = cv.sign_flip_sum_pvalue(d, 40000, 3)
+    assert p == pytest.approx(exact, abs=0.01)
+    sparse = np.concatenate([rng.uniform(0.5, 1.0, 50), -rng.uniform(0.001, 0.01, 150)])
+    assert cv.sign_flip_pvalue(sparse, 4000, 1)[1] > 0.5
+    z, p_comb = cv.improvement_test(sparse, 4000, 1)
+    assert p_comb < 1e-3 and z > 0
+    # under the null both stay calibrated: about 5 % of symmetric samples fall below 0.05
+    hits = [cv.improvement_test(rng.normal(0, 1, 40), 1000, i)[1] < 0.05 for i in range(300)]
+    assert 0.01 <= np.mean(hits) <= 0.09
+
+
+def test_alpha_range_is_the_run_around_the_strongest_bin():
+    """The interval where an effect acts is the contiguous run of strong bins (a ramp from
+    12 deg), not stretched to a distant sparse bin where a noisy fit happens to be large."""
+    from aerodelta.diagnosis.core import _alpha_range  # noqa: PLC0415
+
+    alpha = np.concatenate([np.linspace(-4, 22, 26000), np.full(30, -15.5)])
+    contrib = np.clip((alpha - 12.0) / 8.0, 0.0, 1.0)
+    contrib[-30:] = 0.8  # an isolated bin far below the ramp
+    lo, hi = _alpha_range(alpha, contrib)
+    # bin [13, 14) holds (alpha - 12)/8 from 0.125 to 0.25: RMS 0.19, under 20 % of the
+    # peak bin's 0.94 ([21, 22)); [14, 15) is the first above; 22 deg has a single point
+    assert (lo, hi) == (14.0, 22.0)
+
+
 @pytest.fixture(scope="module")
 def campaigns(tmp_path_factory):
     """Quick virtual campaigns (40 maneuvers): null, one aerodynamic and one measurement

@@ -24,6 +24,7 @@ from aerodelta.diagnosis.cv import (
     HatGrid,
     build_design,
     fold_stats,
+    profile_out,
     row_prediction,
     solve,
 )
@@ -38,7 +39,7 @@ from aerodelta.diagnosis.select import (
     forward_select,
 )
 from aerodelta.diagnosis.simulator import load_simulator
-from aerodelta.diagnosis.stochastic import event_mask, rolloff_finding
+from aerodelta.diagnosis.stochastic import event_regressors, rolloff_finding
 from aerodelta.diagnosis.vocabulary import (
     COEFFICIENTS,
     NEEDS_MODEL,
@@ -139,20 +140,54 @@ def _rms(x: np.ndarray) -> float:
     return float(np.sqrt(np.mean(x * x))) if x.size else float("nan")
 
 
-def _alpha_range(alpha: np.ndarray, contrib: np.ndarray, frac: float = 0.2) -> list[float]:
-    """Alpha interval where an effect acts: the 1-deg bins whose RMS contribution is at least
-    ``frac`` of the largest bin's (bins with 20 points or more)."""
-    b = np.floor(alpha).astype(np.int64)
+def _run_around_peak(bins: np.ndarray, level: np.ndarray, threshold: float) -> list[float]:
+    """The run of bins around the highest ``level`` that stay at or above ``threshold`` (a
+    one-bin hole in the data does not break it), as ``[lo, hi]`` deg."""
+    top = int(np.argmax(level))
+    on = level >= threshold
+    lo = hi = top
+    while lo > 0 and on[lo - 1] and bins[lo] - bins[lo - 1] <= 2:
+        lo -= 1
+    while hi < bins.size - 1 and on[hi + 1] and bins[hi + 1] - bins[hi] <= 2:
+        hi += 1
+    return [float(bins[lo]), float(bins[hi]) + 1.0]
+
+
+def _bin_means(alpha: np.ndarray, value: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per 1-deg alpha bin with 20 points or more: the bins and the mean of ``value``."""
     df = (
-        pl.DataFrame({"b": b, "c2": contrib * contrib})
+        pl.DataFrame({"b": np.floor(alpha).astype(np.int64), "v": value})
         .group_by("b")
-        .agg(pl.col("c2").mean().sqrt().alias("rms"), pl.len().alias("n"))
+        .agg(pl.col("v").mean(), pl.len().alias("n"))
+        .filter(pl.col("n") >= 20)
+        .sort("b")
     )
-    df = df.filter(pl.col("n") >= 20).sort("b")
-    if df.height == 0 or float(df["rms"].max()) <= 0:  # type: ignore[arg-type]
+    return df["b"].to_numpy(), df["v"].to_numpy()
+
+
+def _alpha_range(alpha: np.ndarray, contrib: np.ndarray, frac: float = 0.2) -> list[float]:
+    """Alpha interval where an effect acts: the run of 1-deg bins around the strongest one
+    whose RMS contribution stays at least ``frac`` of that bin's (bins with 20 points or more;
+    a one-bin hole in the data does not break the run). An isolated sparse bin far from the
+    run, where a poorly excited coefficient is noisy, does not stretch the interval."""
+    bins, ms = _bin_means(alpha, contrib * contrib)
+    if bins.size == 0 or float(ms.max()) <= 0:
         return [float("nan"), float("nan")]
-    on = df.filter(pl.col("rms") >= frac * float(df["rms"].max()))  # type: ignore[arg-type]
-    return [float(on["b"].min()), float(on["b"].max()) + 1.0]  # type: ignore[arg-type]
+    rms = np.sqrt(ms)
+    return _run_around_peak(bins, rms, frac * float(rms.max()))
+
+
+def _gain_range(alpha: np.ndarray, gain: np.ndarray, frac: float = 0.2) -> list[float] | None:
+    """Alpha interval where adding an effect lowers the *held-out* gap: the run of 1-deg bins
+    around the largest mean held-out gain per point whose gain stays at least ``frac**2`` of it
+    (an effect of RMS contribution ``c`` removes about ``c**2`` per point, so this matches the
+    ``frac`` rule of :func:`_alpha_range` on the contribution). Where a flexible candidate
+    only fits noise (its coefficients at alphas the effect never reaches) the held-out gain is
+    nil, so that noise does not widen the interval. ``None`` when nothing gains."""
+    bins, g = _bin_means(alpha, gain)
+    if bins.size == 0 or float(g.max()) <= 0:
+        return None
+    return _run_around_peak(bins, g, frac * frac * float(g.max()))
 
 
 def _cv_prediction(
@@ -179,8 +214,7 @@ def _effect_rows(
     """The ranked effect list and the cumulative held-out predictions per step (a first
     ``timing_alignment`` step when the timing nuisance terms are in the model)."""
     total0 = float(sel.sse0.sum())
-    # rows the fits used (roll-off windows are left out of the C_l fits)
-    n = float(rows["keep"].sum()) if "keep" in rows else float(design.n_rows.sum())
+    n = float(design.n_rows.sum())
     out: list[dict[str, Any]] = []
     steps: list[tuple[str, np.ndarray]] = []
     base = list(sel.nuisance)
@@ -189,10 +223,15 @@ def _effect_rows(
     chosen: list[Candidate] = []
     full_model = base + [s.candidate for s in sel.selected if s.candidate not in base]
     theta_full = solve(design, stats.total_gram, stats.total_xty, columns_for(design, full_model))
+    y = rows["y"]
     for s in sel.selected:
+        held_gain = None
         if s.candidate not in base:
             chosen.append(s.candidate)
-            steps.append((s.candidate.name, _cv_prediction(design, stats, rows, base + chosen)))
+            prev = steps[-1][1] if steps else np.zeros_like(y)
+            pred = _cv_prediction(design, stats, rows, base + chosen)
+            steps.append((s.candidate.name, pred))
+            held_gain = (y - prev) ** 2 - (y - pred) ** 2
         # this effect's own contribution in the full-data fit of the final model
         ce = np.concatenate(columns_for(design, [s.candidate]))
         th_e = [np.zeros_like(t) for t in theta_full]
@@ -209,7 +248,12 @@ def _effect_rows(
                 "rank": s.rank,
                 "significant": True,
                 "ambiguous_with": list(s.ambiguous_with),
-                "alpha_range_deg": _alpha_range(rows["alpha"], contrib),
+                "alpha_range_deg": (
+                    _gain_range(rows["alpha"], held_gain)
+                    if held_gain is not None and not s.candidate.global_
+                    else None
+                )
+                or _alpha_range(rows["alpha"], contrib),
                 "gap_rms_before": math.sqrt(before / n),
                 "gap_rms_after": math.sqrt(after / n),
                 "shrink_fraction": (before - after) / total0 if total0 > 0 else 0.0,
@@ -360,10 +404,12 @@ def diagnose(
     coefs: dict[str, Any] = {}
     pred_cols: dict[str, np.ndarray] = {}
     not_testable: list[str] = []
-    # Roll-off spikes are stochastic, not deterministic: found in the raw C_l gap first, their
-    # windows are left out of the C_l fits and reported on their own (thesis Section 3.4.3).
-    ro = rolloff_finding(frame, frame["Cl_meas"].to_numpy() - sim_c["Cl"])
-    cl_keep = event_mask(frame, ro["windows"]) if ro["detected"] else np.ones(frame.height, bool)
+    # Roll-off spikes are stochastic, not deterministic (thesis Section 3.4.3). They are searched
+    # for in the C_l gap left by the deterministic effects selected on all the data (the thesis's
+    # "residual of the fitted deterministic model"), so a deterministic transient the vocabulary
+    # explains (spoiler, aileron reversal) is not taken for a spike; each event's moment is then
+    # profiled out of its maneuver, the selection is redone, and the spikes are reported apart.
+    ro: dict[str, Any] = {"detected": False, "centres": []}
     for coef in steps:
         cands = vocab.for_coefficient(coef)
         if not sim.differentiable:
@@ -382,16 +428,38 @@ def diagnose(
                 glob_x[:, gi] = 0.0
         meas = frame[f"{coef}_meas"].to_numpy()
         y = meas - sim_c[coef]
-        keep = cl_keep if coef == "Cl" else np.ones(frame.height, bool)
         design = build_design(
-            np.where(keep, y, 0.0), mcode, dflap, alpha, aero_x * keep[:, None],
-            glob_x * keep[:, None], aero_names, glob_names, grid, man.height, n_dflaps,
+            y, mcode, dflap, alpha, aero_x, glob_x, aero_names, glob_names, grid, man.height,
+            n_dflaps,
         )  # fmt: skip
         stats = fold_stats(design, folds_m)
         sel = forward_select(design, stats, cands, cfg.selection)
+        if coef == "Cl":
+            model = list(sel.nuisance) + [
+                s.candidate for s in sel.selected if s.candidate not in sel.nuisance
+            ]
+            fitted = np.zeros_like(y)
+            if model:
+                th = solve(design, stats.total_gram, stats.total_xty, columns_for(design, model))
+                fitted = row_prediction(design, th, dflap, alpha, aero_x, glob_x)
+            ro = rolloff_finding(frame, y - fitted)
+            if ro["detected"]:
+                # each event's moment, with its own random amplitude, profiled out of its
+                # maneuver (Frisch-Waugh); the deterministic effects are then selected again
+                nuis = event_regressors(frame, ro["centres"])
+                design = profile_out(
+                    build_design(
+                        y, mcode, dflap, alpha, aero_x, np.hstack([glob_x, nuis]),
+                        aero_names, [*glob_names, *(f"__rolloff{j}" for j in range(nuis.shape[1]))],
+                        grid, man.height, n_dflaps,
+                    ),
+                    nuis.shape[1],
+                )  # fmt: skip
+                stats = fold_stats(design, folds_m)
+                sel = forward_select(design, stats, cands, cfg.selection)
         rows = {
             "y": y, "fold": folds_m[mcode], "flap": dflap, "alpha": alpha,
-            "aero": aero_x, "glob": glob_x, "keep": keep,
+            "aero": aero_x, "glob": glob_x,
         }  # fmt: skip
         effects, steps_ = _effect_rows(sel, design, stats, rows)
         final_pred = steps_[-1][1] if steps_ else np.zeros_like(y)
@@ -418,8 +486,8 @@ def diagnose(
             "effects": effects,
             "shrink": _shrink_table(y, meas, region, steps_),
         }
-    coefs["Cl"]["rolloff"] = {k: v for k, v in ro.items() if k != "windows"}
-    coefs["Cl"]["rolloff"]["share_of_points_left_out"] = float(1.0 - cl_keep.mean())
+    coefs["Cl"]["rolloff"] = {k: v for k, v in ro.items() if k != "centres"}
+    coefs["Cl"]["rolloff"]["events_profiled_out"] = len(ro["centres"]) if ro["detected"] else 0
     if ro["detected"]:
         n_sig = sum(1 for e in coefs["Cl"]["effects"] if e["significant"])
         for e in coefs["Cl"]["effects"][n_sig:]:

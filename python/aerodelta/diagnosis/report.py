@@ -51,8 +51,8 @@ def summary_text(result: dict[str, Any]) -> str:
             lines.append(
                 f"  roll-off spikes in {ro['n_maneuvers_with_events']} of {ro['n_searched']} "
                 f"maneuvers (p = {ro['p_value']:.2g}): stochastic, not a deterministic effect; "
-                f"their windows ({100 * ro['share_of_points_left_out']:.1f} % of the points) are "
-                "left out of the effect fits"
+                f"the moment of each of the {ro['events_profiled_out']} events (a Gaussian in "
+                "alpha, amplitude free per event) is profiled out of the effect fits"
             )
         sig = [e for e in r["effects"] if e["significant"] and e.get("kind") != "stochastic"]
         if not sig:

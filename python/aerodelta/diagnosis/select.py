@@ -3,9 +3,11 @@
 At each step every remaining candidate is added in turn to the effects already selected; the
 one that lowers the held-out squared gap most is kept if
 
-1. the improvement is real: a sign-flip randomization test over maneuvers of the per-maneuver
-   held-out improvement (Wilcoxon's signed ranks; maneuvers are the independent units, so
-   coloured residuals inside a maneuver do not inflate the evidence), Bonferroni-corrected
+1. the improvement is real: sign-flip randomization tests over maneuvers of the per-maneuver
+   held-out improvement (maneuvers are the independent units, so coloured residuals inside a
+   maneuver do not inflate the evidence): Wilcoxon's signed ranks, for effects that help
+   many maneuvers, and the plain sum, for effects that act in a minority of them (both
+   combined by Bonferroni, :func:`~aerodelta.diagnosis.cv.improvement_test`), corrected
    for the candidates tried at that step, is below ``alpha``; and
 2. it matters: the improvement is at least ``min_shrink`` of the held-out gap's squared error,
    and a measurement effect's parameter is above its practical floor (:data:`PRACTICAL_FLOOR`),
@@ -30,6 +32,7 @@ from aerodelta.diagnosis.cv import (
     FoldStats,
     IntArray,
     heldout_sse,
+    improvement_test,
     local_columns,
     sign_flip_pvalue,
     solve,
@@ -162,7 +165,7 @@ def score(  # noqa: PLR0917 - internal scoring step
 ) -> Step:
     """Held-out score of adding ``cand`` to ``base``."""
     sse, thetas = heldout_sse(design, stats, _cols(design, [*base, cand]))
-    t, p = sign_flip_pvalue(_material_change(sse_before, sse), cfg.n_perm, seed)
+    t, p = improvement_test(_material_change(sse_before, sse), cfg.n_perm, seed)
     params: dict[str, float] = {}
     material = True
     if cand.global_:

@@ -3,7 +3,9 @@
 A roll-off is a transient, uncorrelated C_l spike near stall while the aileron is quiet; it is
 not a deterministic effect and no regressor can predict it. It is searched for in the C_l gap
 left after the selected deterministic effects, with the thesis's detection procedure
-(:func:`aerodelta.rolloff.detect_rolloff`). It is reported when events are found in more
+(:func:`aerodelta.rolloff.detect_rolloff`); each accepted event's moment, a Gaussian in alpha
+with its own random amplitude, is then profiled out of its maneuver's data before the
+deterministic effects are selected again. It is reported when events are found in more
 maneuvers than the detector's false-event rate explains (a binomial tail test against the
 10 % false-event allowance of issue 6's checks).
 """
@@ -27,16 +29,35 @@ def _binom_sf(k: int, n: int, p: float) -> float:
     return float(sum(math.comb(n, i) * p**i * (1 - p) ** (n - i) for i in range(k, n + 1)))
 
 
-def event_mask(frame: pl.DataFrame, windows: list[tuple[str, float, float]]) -> np.ndarray:
-    """True for the rows outside every roll-off event window (maneuver, t0, t1)."""
-    keep = np.ones(frame.height, dtype=bool)
-    if not windows:
-        return keep
+#: Standard deviation in alpha of a roll-off's moment, deg (thesis Figure 3.14 and its text).
+ROLLOFF_SIGMA_DEG = 0.5
+
+
+def event_regressors(
+    frame: pl.DataFrame, centres: list[tuple[str, float]], sigma_deg: float = ROLLOFF_SIGMA_DEG
+) -> np.ndarray:
+    """Per-event nuisance columns of the roll-off moment (``n x 2K``, ``K`` the most events of
+    one maneuver): for the ``j``-th event of a maneuver, centred at ``alpha_c``, the Gaussian
+    ``g = exp(-u^2/2)``, ``u = (alpha - alpha_c)/sigma``, the runtime model's shape (thesis
+    Section 3.4.3), and ``u g``, its derivative in the centre, which absorbs the error of
+    taking the spike's peak alpha for the centre; zero on the other maneuvers' rows. Their
+    amplitudes are a random draw per event, so they are profiled out per maneuver
+    (:func:`aerodelta.diagnosis.cv.profile_out`), never predicted."""
     ids = frame["maneuver_id"].to_numpy()
-    t = frame["t"].to_numpy()
-    for m, t0, t1 in windows:
-        keep &= ~((ids == m) & (t >= t0) & (t <= t1))
-    return keep
+    alpha = frame["alpha_deg"].to_numpy()
+    per: dict[str, list[float]] = {}
+    for m, a in centres:
+        per.setdefault(m, []).append(a)
+    k = max((len(v) for v in per.values()), default=0)
+    out = np.zeros((frame.height, 2 * k))
+    for m, cs in per.items():
+        rows = ids == m
+        for j, ac in enumerate(sorted(cs)):
+            u = (alpha[rows] - ac) / sigma_deg
+            g = np.exp(-0.5 * u * u)
+            out[rows, 2 * j] = g
+            out[rows, 2 * j + 1] = u * g
+    return out
 
 
 def rolloff_finding(frame: pl.DataFrame, residual: np.ndarray) -> dict[str, Any]:
@@ -44,12 +65,12 @@ def rolloff_finding(frame: pl.DataFrame, residual: np.ndarray) -> dict[str, Any]
     need = {"maneuver_id", "t", "alpha_deg", "da_deg"}
     if not need <= set(frame.columns):
         return {"detected": False, "n_events": 0, "n_searched": 0, "p_value": 1.0,
-                "alpha_range_deg": [float("nan")] * 2, "events": [], "windows": []}  # fmt: skip
+                "alpha_range_deg": [float("nan")] * 2, "events": [], "centres": []}  # fmt: skip
     try:
         ev = detect_rolloff(frame, residual=np.asarray(residual, dtype=np.float64), kinds=None)
     except Exception as exc:
         return {"detected": False, "n_events": 0, "n_searched": 0, "p_value": 1.0,
-                "alpha_range_deg": [float("nan")] * 2, "events": [], "windows": [],
+                "alpha_range_deg": [float("nan")] * 2, "events": [], "centres": [],
                 "error": str(exc)}  # fmt: skip
     acc = ev.filter(pl.col("accepted")) if ev.height else ev
     n_man = int(frame["maneuver_id"].n_unique())
@@ -61,16 +82,10 @@ def rolloff_finding(frame: pl.DataFrame, residual: np.ndarray) -> dict[str, Any]
         if acc.height
         else [float("nan"), float("nan")]
     )
-    # every spike-shaped candidate is left out of the deterministic fits, accepted or not: a
-    # roll-off that coincides with a control input is still a spike no regressor predicts
-    windows = [
-        (
-            r["maneuver_id"],
-            float(r["t_onset"]) - 1.0,
-            float(r["t_onset"]) + max(float(r["duration_s"]), 1.0) + 2.0,
-        )
-        for r in ev.iter_rows(named=True)
-    ]
+    # every spike-shaped candidate's (maneuver, alpha at the spike's peak), accepted or not: a
+    # roll-off the pilot answered with the aileron at once is rejected by step 2 of the
+    # procedure but is still a moment no regressor predicts
+    centres = [(r["maneuver_id"], float(r["alpha_peak_deg"])) for r in ev.iter_rows(named=True)]
     events = [
         {
             "maneuver_id": r["maneuver_id"],
@@ -88,5 +103,5 @@ def rolloff_finding(frame: pl.DataFrame, residual: np.ndarray) -> dict[str, Any]
         "p_value": p,
         "alpha_range_deg": rng,
         "events": events,
-        "windows": windows,
+        "centres": centres,
     }
