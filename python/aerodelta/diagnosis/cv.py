@@ -295,11 +295,11 @@ def solve(
         s_mat += gm[np.ix_(g_cols, g_cols)]
         s_rhs += xv[g_cols]
         if ac.size:
+            rhs = np.column_stack([xv[ac], c])
             try:
-                cf = np.linalg.cholesky(a)
-                sol = _cho(cf, np.column_stack([xv[ac], c]))
+                sol = np.linalg.solve(a, rhs)
             except np.linalg.LinAlgError:
-                sol = np.linalg.lstsq(a, np.column_stack([xv[ac], c]), rcond=None)[0]
+                sol = np.linalg.lstsq(a, rhs, rcond=None)[0]
             s_mat -= c.T @ sol[:, 1:]
             s_rhs -= c.T @ sol[:, 0]
         else:
@@ -319,14 +319,6 @@ def solve(
     return thetas
 
 
-def _cho(cf: FloatArray, b: FloatArray) -> FloatArray:
-    """Solve ``L L' x = b`` with the Cholesky factor ``L``."""
-    import scipy.linalg as sl  # noqa: PLC0415 - scipy only on this path
-
-    y = sl.solve_triangular(cf, b, lower=True)
-    return sl.solve_triangular(cf.T, y, lower=False)
-
-
 def heldout_sse(
     design: Design, stats: FoldStats, cols: tuple[IntArray, IntArray]
 ) -> tuple[FloatArray, list[list[FloatArray]]]:
@@ -335,12 +327,15 @@ def heldout_sse(
     n_q = len(stats.train_gram)
     thetas = []
     sse = design.yty.copy()
+    # the parameters are zero off the model's columns: the quadratic forms need only those
+    idx = np.concatenate(cols)
     for q in range(n_q):
         th = solve(design, stats.train_gram[q], stats.train_xty[q], cols)
         thetas.append(th)
         for m in np.flatnonzero(stats.folds == q):
-            t = th[design.man_flap[m]]
-            sse[m] = design.yty[m] - 2.0 * t @ design.xty[m] + t @ design.gram[m] @ t
+            t = th[design.man_flap[m]][idx]
+            g = design.gram[m][np.ix_(idx, idx)]
+            sse[m] = design.yty[m] - 2.0 * t @ design.xty[m][idx] + t @ g @ t
     return sse, thetas
 
 

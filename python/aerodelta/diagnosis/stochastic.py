@@ -43,15 +43,19 @@ def event_regressors(
     taking the spike's peak alpha for the centre; zero on the other maneuvers' rows. Their
     amplitudes are a random draw per event, so they are profiled out per maneuver
     (:func:`aerodelta.diagnosis.cv.profile_out`), never predicted."""
-    ids = frame["maneuver_id"].to_numpy()
+    names, code = np.unique(frame["maneuver_id"].to_numpy(), return_inverse=True)
     alpha = frame["alpha_deg"].to_numpy()
-    per: dict[str, list[float]] = {}
+    order = np.argsort(code, kind="stable")
+    bounds = np.searchsorted(code[order], np.arange(names.size + 1))
+    where = {str(m): i for i, m in enumerate(names)}
+    per: dict[int, list[float]] = {}
     for m, a in centres:
-        per.setdefault(m, []).append(a)
+        if m in where:
+            per.setdefault(where[m], []).append(a)
     k = max((len(v) for v in per.values()), default=0)
     out = np.zeros((frame.height, 2 * k))
-    for m, cs in per.items():
-        rows = ids == m
+    for i, cs in per.items():
+        rows = order[bounds[i] : bounds[i + 1]]
         for j, ac in enumerate(sorted(cs)):
             u = (alpha[rows] - ac) / sigma_deg
             g = np.exp(-0.5 * u * u)
