@@ -3,7 +3,9 @@ the simulator lacks, diagnosed and scored against the truth (see
 ``aerodelta.diagnosis.withheld``). Prints the confusion matrix of singles and the rates the
 issue's floors are about; writes every case to JSON.
 
-    python benchmarks/diagnosis_suite.py [--quick] [--size quick|N] [--seeds 1] [--out FILE]
+    python benchmarks/diagnosis_suite.py [--quick] [--size quick|default|N] [--seeds 1]
+        [--design-singles] [--only singles|multi|unlisted|nulls] [--magnitudes 0.5,0.25]
+        [--out FILE]
 """
 
 from __future__ import annotations
@@ -72,12 +74,34 @@ def main() -> int:
     ap.add_argument(
         "--design-singles", action="store_true", help="only singles at design magnitude"
     )
+    ap.add_argument(
+        "--only",
+        choices=("singles", "multi", "unlisted", "nulls"),
+        help="run one part of the sweep (singles: every magnitude; multi: pairs and triples)",
+    )
+    ap.add_argument(
+        "--magnitudes", default=None, help="singles at these fractions only, e.g. 0.5,0.25"
+    )
     ap.add_argument("--out", default="diagnosis_suite.json")
     args = ap.parse_args()
     size: str | int = int(args.size) if args.size.isdigit() else args.size
     todo = cases(args.quick, args.seeds)
     if args.design_singles:
         todo = [t for t in todo if len(t[0]) == 1 and next(iter(t[0].values())) == 1.0]
+    kinds = {e["name"]: e["kind"] for e in effect_library()}
+
+    def part(effects: dict[str, float], seed: int) -> str:
+        if not effects or seed >= 9000:
+            return "nulls"
+        if len(effects) > 1:
+            return "multi"
+        return "unlisted" if kinds.get(next(iter(effects))) == "unlisted" else "singles"
+
+    if args.only:
+        todo = [t for t in todo if part(t[0], t[1]) == args.only]
+    if args.magnitudes:
+        mags = {float(m) for m in args.magnitudes.split(",")}
+        todo = [t for t in todo if len(t[0]) == 1 and next(iter(t[0].values())) in mags]
     results: list[CaseResult] = []
     t0 = time.perf_counter()
     for effects, seed, cond in tqdm(todo, desc="withheld-effect suite", file=sys.stderr):
