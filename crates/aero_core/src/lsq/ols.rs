@@ -521,6 +521,9 @@ fn fit(
         ));
     }
     let names: Vec<String> = (0..p).map(|j| col_name(&opts.names, j)).collect();
+    let tlog = std::env::var_os("AERO_OLS_TIMING").is_some();
+    let t00 = std::time::Instant::now();
+    let mark = |s: &str| if tlog { eprintln!("{s}: {:.1} ms cpu {:.1} ms", t00.elapsed().as_secs_f64()*1e3, crate::lsq::cpu_ms()) };
     let (rows, dropped) = select_rows(x, p, z, rows, opts)?;
     let m = rows.m;
     if m <= p {
@@ -535,7 +538,9 @@ fn fit(
 
     // QR of [X | z] and column statistics (constant detection, centered
     // sums for R² and VIF) in one pass.
+    mark("select");
     let (raug, cs) = tsqr(x, p, z, &rows);
+    mark("tsqr");
     let col_css = cs.m2[..p].to_vec();
     let (z_css, z_ss) = (cs.m2[p], cs.zz);
     let const_column = (0..p).find(|&j| cs.min[j] == cs.max[j] && cs.max[j] != 0.0);
@@ -624,6 +629,7 @@ fn fit(
         ));
     }
 
+    mark("svd");
     // Solve; B with (XᵀX)⁻¹ = B Bᵀ.
     let (params, b) = if !rank_deficient {
         let rinv = inv_upper(&r);
@@ -724,6 +730,7 @@ fn fit(
             pass2(s / CHUNK, &mut blk)
         })
     };
+    mark("pass2");
     let mut resid = take_real(m);
     let (mut rss, mut press, mut rsum) = (0.0, 0.0, 0.0);
     let mut at = 0;
@@ -735,6 +742,7 @@ fn fit(
         rsum += c;
     }
 
+    mark("resid");
     // Statistics.
     let dof = m - rank;
     let s2 = rss / dof as f64;
@@ -806,6 +814,7 @@ fn fit(
         }
     }
 
+    mark("stats");
     // Coloured residuals.
     let (cov_colored, std_err_colored) = if opts.colored {
         let fill = |bcol: usize, out: &mut [f64]| {
@@ -827,6 +836,7 @@ fn fit(
     };
     give_real(xcols);
     give_real(resid);
+    mark("colored");
 
     Ok(OlsFit {
         names,
