@@ -121,10 +121,6 @@ where
     }
     let l = fast_len(2 * n - 1);
     let kh = l / 2 + 1;
-    let tlog = std::env::var_os("AERO_OLS_TIMING").is_some();
-    let t00 = std::time::Instant::now();
-    let mark = |s: &str| if tlog { eprintln!("  tg {s}: {:.1} ms cpu {:.1} ms", t00.elapsed().as_secs_f64()*1e3, crate::lsq::cpu_ms()) };
-    mark("start");
     let truncate = max_lag.is_some_and(|k| k + 1 < n);
     let (r2c, c2r) = plans(l, truncate);
 
@@ -142,8 +138,7 @@ where
             buf[..n].copy_from_slice(v);
         }
         buf[n..].fill(0.0);
-        r2c.process_with_scratch(buf, out, scratch)
-            .map_err(fft_err)
+        r2c.process_with_scratch(buf, out, scratch).map_err(fft_err)
     };
     #[cfg(feature = "parallel")]
     {
@@ -161,7 +156,6 @@ where
             one(&mut bufs, b, out)?;
         }
     }
-    mark("ffts");
     let mut spec = specs.pop().unwrap_or_default();
 
     // Residual power spectrum S = |V|² / N  (DFT of the biased autocorrelation).
@@ -198,7 +192,6 @@ where
     }
     let w = s;
     let all_nonneg = w.iter().all(|&x| x >= 0.0);
-    mark("weights");
 
     // Gram product by blocks of bins: with S >= 0 the block matrix holds
     // the real and imaginary parts scaled by √w (M = AᵀA); otherwise the
@@ -254,9 +247,9 @@ where
         );
         g
     };
-    let nblocks = kh.div_ceil(GRAM_BLOCK);
-    let run =
-        |buf: &mut Vec<f64>, c: usize| gram_block(buf, c * GRAM_BLOCK, ((c + 1) * GRAM_BLOCK).min(kh));
+    let gbl = GRAM_BLOCK;
+    let nblocks = kh.div_ceil(gbl);
+    let run = |buf: &mut Vec<f64>, c: usize| gram_block(buf, c * gbl, ((c + 1) * gbl).min(kh));
     #[cfg(feature = "parallel")]
     let grams: Vec<Mat<f64>> = {
         use rayon::prelude::*;
@@ -274,7 +267,6 @@ where
     for g in &grams {
         m += g;
     }
-    mark("gram");
     for sp in specs {
         give_cplx(sp);
     }

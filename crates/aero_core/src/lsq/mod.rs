@@ -20,16 +20,3 @@ pub use ols::{
     ols, ols_rows, Collinearity, NearDependency, OlsFit, OlsOptions, COLLINEAR_COND_DEFAULT,
     LOADING_EXACT_MIN, VDP_MIN, VIF_NOTE,
 };
-
-/// Scratch: process CPU time (all threads), ms.
-pub fn cpu_ms() -> f64 {
-    let mut t = 0.0;
-    if let Ok(rd) = std::fs::read_dir("/proc/self/task") {
-        for e in rd.flatten() {
-            if let Ok(s) = std::fs::read_to_string(e.path().join("schedstat")) {
-                t += s.split_whitespace().next().and_then(|v| v.parse::<f64>().ok()).unwrap_or(0.0);
-            }
-        }
-    }
-    t * 1e-6
-}

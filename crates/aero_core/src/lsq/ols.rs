@@ -467,8 +467,12 @@ impl ColStats {
                 lo[0] = if v < lo[0] { v } else { lo[0] };
                 hi[0] = if v > hi[0] { v } else { hi[0] };
             }
-            let lo = lo.iter().fold(f64::INFINITY, |a, &b| if b < a { b } else { a });
-            let hi = hi.iter().fold(f64::NEG_INFINITY, |a, &b| if b > a { b } else { a });
+            let lo = lo
+                .iter()
+                .fold(f64::INFINITY, |a, &b| if b < a { b } else { a });
+            let hi = hi
+                .iter()
+                .fold(f64::NEG_INFINITY, |a, &b| if b > a { b } else { a });
             let mean = sum4(col, |v| v) / rows as f64;
             st.mean[j] = mean;
             st.min[j] = lo;
@@ -615,9 +619,6 @@ fn fit(
         ));
     }
     let names: Vec<String> = (0..p).map(|j| col_name(&opts.names, j)).collect();
-    let tlog = std::env::var_os("AERO_OLS_TIMING").is_some();
-    let t00 = std::time::Instant::now();
-    let mark = |s: &str| if tlog { eprintln!("{s}: {:.1} ms cpu {:.1} ms", t00.elapsed().as_secs_f64()*1e3, crate::lsq::cpu_ms()) };
     let (rows, dropped) = select_rows(x, p, z, rows, opts)?;
     let m = rows.m;
     if m <= p {
@@ -632,9 +633,7 @@ fn fit(
 
     // QR of [X | z] and column statistics (constant detection, centered
     // sums for R² and VIF) in one pass.
-    mark("select");
     let (raug, cs) = tsqr(x, p, z, &rows);
-    mark("tsqr");
     let col_css = cs.m2[..p].to_vec();
     let (z_css, z_ss) = (cs.m2[p], cs.zz);
     let const_column = (0..p).find(|&j| cs.min[j] == cs.max[j] && cs.max[j] != 0.0);
@@ -723,7 +722,6 @@ fn fit(
         ));
     }
 
-    mark("svd");
     // Solve; B with (XᵀX)⁻¹ = B Bᵀ.
     let (params, b) = if !rank_deficient {
         let rinv = inv_upper(&r);
@@ -782,7 +780,8 @@ fn fit(
         wk.w.resize(ld * (1 + nb), 0.0);
         gather(x, p, None, &rows, s, e, &mut wk.a, ld);
         let a = faer::MatRef::from_column_major_slice_with_stride(&wk.a, rn, p, ld);
-        let mut wm = faer::MatMut::from_column_major_slice_with_stride_mut(&mut wk.w, rn, 1 + nb, ld);
+        let mut wm =
+            faer::MatMut::from_column_major_slice_with_stride_mut(&mut wk.w, rn, 1 + nb, ld);
         faer::linalg::matmul::matmul(
             wm.as_mut(),
             faer::Accum::Replace,
@@ -850,7 +849,6 @@ fn fit(
             pass2(wk, s / CHUNK, &mut [])
         })
     };
-    mark("pass2");
     let mut resid = take_real(m);
     let (mut rss, mut press, mut rsum) = (0.0, 0.0, 0.0);
     let mut at = 0;
@@ -862,7 +860,6 @@ fn fit(
         rsum += c;
     }
 
-    mark("resid");
     // Statistics.
     let dof = m - rank;
     let s2 = rss / dof as f64;
@@ -934,7 +931,6 @@ fn fit(
         }
     }
 
-    mark("stats");
     // Coloured residuals.
     let (cov_colored, std_err_colored) = if opts.colored {
         let fill = |bcol: usize, out: &mut [f64]| {
@@ -956,7 +952,6 @@ fn fit(
     };
     give_real(xcols);
     give_real(resid);
-    mark("colored");
 
     Ok(OlsFit {
         names,
