@@ -77,12 +77,15 @@ fn plans(l: usize, inverse: bool) -> (Fwd, Option<Inv>) {
     (fwd, inv)
 }
 
-/// Per-worker FFT buffers (padded input, scratch), input back to the pool on drop.
+/// Per-worker FFT buffers (padded input, scratch), back to the pool on drop.
+/// Both are recycled: the scratch of a long mixed-radix FFT is as long as
+/// the transform, and rayon may create several per call.
 struct Bufs(Vec<f64>, Vec<Complex<f64>>);
 
 impl Drop for Bufs {
     fn drop(&mut self) {
         give_real(std::mem::take(&mut self.0));
+        give_cplx(std::mem::take(&mut self.1));
     }
 }
 
@@ -129,7 +132,7 @@ where
     let mut specs: Vec<Vec<Complex<f64>>> = (0..=p).map(|_| take_cplx(kh)).collect();
     // Per-worker buffers, reused across columns (fresh 2N-long buffers per
     // column would cost as much in page faults as the FFT itself).
-    let new_bufs = || Bufs(take_real(l), r2c.make_scratch_vec());
+    let new_bufs = || Bufs(take_real(l), take_cplx(r2c.get_scratch_len()));
     let one = |bufs: &mut Bufs, b: usize, out: &mut Vec<Complex<f64>>| -> Result<()> {
         let Bufs(buf, scratch) = bufs;
         if b < p {
@@ -247,9 +250,10 @@ where
         );
         g
     };
-    let gbl = GRAM_BLOCK;
-    let nblocks = kh.div_ceil(gbl);
-    let run = |buf: &mut Vec<f64>, c: usize| gram_block(buf, c * gbl, ((c + 1) * gbl).min(kh));
+    let nblocks = kh.div_ceil(GRAM_BLOCK);
+    let run = |buf: &mut Vec<f64>, c: usize| {
+        gram_block(buf, c * GRAM_BLOCK, ((c + 1) * GRAM_BLOCK).min(kh))
+    };
     #[cfg(feature = "parallel")]
     let grams: Vec<Mat<f64>> = {
         use rayon::prelude::*;
