@@ -34,6 +34,12 @@ pub const VIF_NOTE: f64 = 10.0;
 /// on the number of threads).
 const CHUNK: usize = 2048;
 
+/// Block size of faer's Householder QR of a chunk. With only `p + 1`
+/// columns the blocked (compact-WY) variant spends more in its small
+/// matrix products than it saves; the unblocked one (1) is ~25% faster on
+/// 2048 x 13 chunks and equally accurate.
+const QR_BLOCK: usize = 1;
+
 /// Options of [`ols`].
 #[derive(Debug, Clone)]
 pub struct OlsOptions {
@@ -503,19 +509,17 @@ impl ColStats {
 /// Householder QR over fixed chunks, and the column statistics.
 fn tsqr(x: &[f64], p: usize, z: &[f64], rows: &Rows<'_>) -> (Mat<f64>, ColStats) {
     use faer::dyn_stack::{MemBuffer, MemStack};
-    use faer::linalg::qr::no_pivoting::factor::{
-        qr_in_place, qr_in_place_scratch, recommended_block_size,
-    };
+    use faer::linalg::qr::no_pivoting::factor::{qr_in_place, qr_in_place_scratch};
     let n = p + 1;
-    // Householder QR in place in a per-worker column-major buffer (faer's
-    // blocked algorithm, with the block size `Mat::qr` would use).
+    // Householder QR in place in a per-worker column-major buffer (faer,
+    // unblocked: see `QR_BLOCK`).
     let chunk_r = |a: &mut Vec<f64>, start: usize, end: usize| -> (Mat<f64>, ColStats) {
         let rn = end - start;
         let ld = padded(rn);
         a.resize(ld * n, 0.0);
         gather(x, p, Some(z), rows, start, end, a, ld);
         let st = ColStats::of_block(a, rn, ld, n);
-        let bs = recommended_block_size::<f64>(rn, n);
+        let bs = QR_BLOCK;
         let size = rn.min(n);
         let mut coeff = Mat::<f64>::zeros(bs, size);
         let mut mem = MemBuffer::new(qr_in_place_scratch::<f64>(
