@@ -77,15 +77,12 @@ fn plans(l: usize, inverse: bool) -> (Fwd, Option<Inv>) {
     (fwd, inv)
 }
 
-/// Per-worker FFT buffers (padded input, scratch), back to the pool on drop.
-/// Both are recycled: the scratch of a long mixed-radix FFT is as long as
-/// the transform, and rayon may create several per call.
-struct Bufs(Vec<f64>, Vec<Complex<f64>>);
+/// Per-worker FFT scratch, back to the pool on drop.
+struct Scratch(Vec<Complex<f64>>);
 
-impl Drop for Bufs {
+impl Drop for Scratch {
     fn drop(&mut self) {
-        give_real(std::mem::take(&mut self.0));
-        give_cplx(std::mem::take(&mut self.1));
+        give_cplx(std::mem::take(&mut self.0));
     }
 }
 
@@ -99,16 +96,18 @@ fn fft_err(e: impl std::fmt::Display) -> AeroError {
     AeroError::invalid("coloured-residual covariance", format!("FFT failed: {e}"))
 }
 
+/// Transform length for `n` samples: the smallest fast length `L >= 2n - 1`
+/// (zero padding that makes the circular correlation linear).
+pub fn padded_len(n: usize) -> usize {
+    fast_len((2 * n).saturating_sub(1).max(1))
+}
+
 /// The middle matrix `M = Xᵀ T X` of the coloured-residual covariance
 /// (module docs), `p × p`.
 ///
 /// `fill_col(b, out)` writes column `b` of the regressor matrix (its `N`
 /// rows, in time order) into `out[..N]`. `v` holds the `N` residuals.
 /// `max_lag` truncates the autocorrelation (`None`: all lags).
-///
-/// The `p + 1` transforms (columns and residuals) run as one parallel batch;
-/// the half spectra are kept as computed (no reordering copy) and the Gram
-/// product reads them block by block.
 pub fn toeplitz_gram<F>(
     p: usize,
     fill_col: F,
@@ -122,42 +121,87 @@ where
     if n == 0 || p == 0 {
         return Ok(Mat::zeros(p, p));
     }
-    let l = fast_len(2 * n - 1);
+    let l = padded_len(n);
+    let cols: Vec<Vec<f64>> = (0..p)
+        .map(|b| {
+            let mut c = take_real(l);
+            fill_col(b, &mut c[..n]);
+            c
+        })
+        .collect();
+    toeplitz_gram_cols(cols, v, max_lag)
+}
+
+/// [`toeplitz_gram`] on columns given as buffers: `cols[b][..N]` holds
+/// column `b` (`N = v.len()`); each buffer is then zero-padded to
+/// [`padded_len`]`(N)` and transformed in place (its contents are lost; it
+/// goes back to the work-buffer pool).
+///
+/// The `p + 1` transforms (columns and residuals) run as one parallel batch;
+/// the half spectra are kept as computed (no reordering copy) and the Gram
+/// product reads them block by block.
+pub fn toeplitz_gram_cols(
+    mut cols: Vec<Vec<f64>>,
+    v: &[f64],
+    max_lag: Option<usize>,
+) -> Result<Mat<f64>> {
+    let n = v.len();
+    let p = cols.len();
+    if n == 0 || p == 0 {
+        for c in cols {
+            give_real(c);
+        }
+        return Ok(Mat::zeros(p, p));
+    }
+    if let Some(b) = cols.iter().position(|c| c.len() < n) {
+        return Err(AeroError::invalid(
+            "coloured-residual covariance",
+            format!("column {b} has {} values for {n} residuals", cols[b].len()),
+        ));
+    }
+    let l = padded_len(n);
     let kh = l / 2 + 1;
     let truncate = max_lag.is_some_and(|k| k + 1 < n);
     let (r2c, c2r) = plans(l, truncate);
 
     // Half spectra of the p columns (0..p) and of the residuals (index p),
-    // every sequence zero-padded to L.
+    // every sequence zero-padded to L; the residuals get a pooled buffer.
+    cols.push(take_real(l));
     let mut specs: Vec<Vec<Complex<f64>>> = (0..=p).map(|_| take_cplx(kh)).collect();
-    // Per-worker buffers, reused across columns (fresh 2N-long buffers per
-    // column would cost as much in page faults as the FFT itself).
-    let new_bufs = || Bufs(take_real(l), take_cplx(r2c.get_scratch_len()));
-    let one = |bufs: &mut Bufs, b: usize, out: &mut Vec<Complex<f64>>| -> Result<()> {
-        let Bufs(buf, scratch) = bufs;
-        if b < p {
-            fill_col(b, &mut buf[..n]);
-        } else {
+    // Per-worker scratch, recycled: the scratch of a long mixed-radix FFT
+    // is as long as the transform, and rayon may create several per call.
+    let new_scratch = || Scratch(take_cplx(r2c.get_scratch_len()));
+    let one = |scratch: &mut Scratch,
+               b: usize,
+               buf: &mut Vec<f64>,
+               out: &mut Vec<Complex<f64>>|
+     -> Result<()> {
+        if b == p {
             buf[..n].copy_from_slice(v);
         }
+        buf.resize(l, 0.0);
         buf[n..].fill(0.0);
-        r2c.process_with_scratch(buf, out, scratch).map_err(fft_err)
+        r2c.process_with_scratch(buf, out, &mut scratch.0)
+            .map_err(fft_err)
     };
     #[cfg(feature = "parallel")]
     {
         use rayon::prelude::*;
-        specs
-            .par_iter_mut()
+        cols.par_iter_mut()
+            .zip(specs.par_iter_mut())
             .enumerate()
             .with_max_len(1)
-            .try_for_each_init(new_bufs, |bufs, (b, out)| one(bufs, b, out))?;
+            .try_for_each_init(new_scratch, |sc, (b, (buf, out))| one(sc, b, buf, out))?;
     }
     #[cfg(not(feature = "parallel"))]
     {
-        let mut bufs = new_bufs();
-        for (b, out) in specs.iter_mut().enumerate() {
-            one(&mut bufs, b, out)?;
+        let mut sc = new_scratch();
+        for (b, (buf, out)) in cols.iter_mut().zip(specs.iter_mut()).enumerate() {
+            one(&mut sc, b, buf, out)?;
         }
+    }
+    for c in cols {
+        give_real(c);
     }
     let mut spec = specs.pop().unwrap_or_default();
 

@@ -7,7 +7,7 @@ use std::borrow::Cow;
 
 use faer::Mat;
 
-use super::colored::toeplitz_gram;
+use super::colored::{padded_len, toeplitz_gram_cols};
 use super::pool::{give_real, take_real};
 use super::stats::{f_sf, student_t_sf_two_sided};
 use crate::error::{AeroError, Result};
@@ -762,8 +762,8 @@ fn fit(
         |i, k| if k == 0 { params[i] } else { b[(i, k - 1)] },
     );
     let keep_blocks = opts.colored;
-    // With the coloured correction the Q blocks go into one recycled buffer
-    // (chunk after chunk, column-major within a chunk) for the FFTs.
+    // With the coloured correction each column of Q goes straight into its
+    // own recycled FFT input buffer (zero-padded later by the FFT stage).
     // Per-worker work buffers: the padded chunk of X, then [ŷ | Q] and the
     // leverages.
     struct Pass2Work {
@@ -776,7 +776,7 @@ fn fit(
         w: Vec::new(),
         h: Vec::new(),
     };
-    let pass2 = |wk: &mut Pass2Work, c: usize, blk: &mut [f64]| {
+    let pass2 = |wk: &mut Pass2Work, c: usize, outs: Vec<&mut [f64]>| {
         let (s, e) = (c * CHUNK, ((c + 1) * CHUNK).min(m));
         let rn = e - s;
         let ld = padded(rn);
@@ -795,10 +795,8 @@ fn fit(
             faer::Par::Seq,
         );
         let w = &wk.w;
-        if keep_blocks {
-            for (k, col) in blk.chunks_mut(rn).take(nb).enumerate() {
-                col.copy_from_slice(&w[(k + 1) * ld..(k + 1) * ld + rn]);
-            }
+        for (k, col) in outs.into_iter().enumerate() {
+            col.copy_from_slice(&w[(k + 1) * ld..(k + 1) * ld + rn]);
         }
         // h_i = Σ_k q_ik², accumulated column by column (k ascending).
         wk.h.clear();
@@ -824,33 +822,41 @@ fn fit(
         }
         (res, rss, press, sum)
     };
-    let mut xcols = if keep_blocks {
-        take_real(m * p)
+    let mut qcols: Vec<Vec<f64>> = if keep_blocks {
+        let l = padded_len(m);
+        (0..nb).map(|_| take_real(l)).collect()
     } else {
         Vec::new()
     };
     let parts: Vec<(Vec<f64>, f64, f64, f64)> = if keep_blocks {
+        // Chunk c of every Q column, as disjoint mutable slices.
+        let mut outs: Vec<Vec<&mut [f64]>> = (0..m.div_ceil(CHUNK))
+            .map(|_| Vec::with_capacity(nb))
+            .collect();
+        for col in qcols.iter_mut() {
+            for (c, sl) in col[..m].chunks_mut(CHUNK).enumerate() {
+                outs[c].push(sl);
+            }
+        }
         #[cfg(feature = "parallel")]
         {
             use rayon::prelude::*;
-            xcols
-                .par_chunks_mut(CHUNK * p)
+            outs.into_par_iter()
                 .enumerate()
-                .map_init(new_work, |wk, (c, blk)| pass2(wk, c, blk))
+                .map_init(new_work, |wk, (c, o)| pass2(wk, c, o))
                 .collect()
         }
         #[cfg(not(feature = "parallel"))]
         {
             let mut wk = new_work();
-            xcols
-                .chunks_mut(CHUNK * p)
+            outs.into_iter()
                 .enumerate()
-                .map(|(c, blk)| pass2(&mut wk, c, blk))
+                .map(|(c, o)| pass2(&mut wk, c, o))
                 .collect()
         }
     } else {
         chunked(m, CHUNK, new_work, |wk: &mut Pass2Work, s, _e| {
-            pass2(wk, s / CHUNK, &mut [])
+            pass2(wk, s / CHUNK, Vec::new())
         })
     };
     let mut resid = take_real(m);
@@ -937,14 +943,7 @@ fn fit(
 
     // Coloured residuals.
     let (cov_colored, std_err_colored) = if opts.colored {
-        let fill = |bcol: usize, out: &mut [f64]| {
-            for (c, blk) in xcols.chunks(CHUNK * p).enumerate() {
-                let rn = blk.len() / p;
-                let at = c * CHUNK;
-                out[at..at + rn].copy_from_slice(&blk[bcol * rn..(bcol + 1) * rn]);
-            }
-        };
-        let mid = toeplitz_gram(nb, fill, &resid, opts.max_lag)?;
+        let mid = toeplitz_gram_cols(std::mem::take(&mut qcols), &resid, opts.max_lag)?;
         let c = &b * &mid * b.transpose();
         let cv: Vec<f64> = (0..p * p)
             .map(|ij| 0.5 * (c[(ij / p, ij % p)] + c[(ij % p, ij / p)]))
@@ -954,7 +953,9 @@ fn fit(
     } else {
         (None, None)
     };
-    give_real(xcols);
+    for q in qcols {
+        give_real(q);
+    }
     give_real(resid);
 
     Ok(OlsFit {
