@@ -366,6 +366,22 @@ fn quoted_list(names: &[String], cols: &[usize]) -> String {
         .join(", ")
 }
 
+/// Whether every value is finite, checked in parallel blocks (a full
+/// read of X, memory bound).
+fn all_finite_par(v: &[f64]) -> bool {
+    const BLOCK: usize = 1 << 16;
+    let ok = |c: &[f64]| c.iter().all(|x| x.is_finite());
+    #[cfg(feature = "parallel")]
+    {
+        use rayon::prelude::*;
+        v.par_chunks(BLOCK).all(ok)
+    }
+    #[cfg(not(feature = "parallel"))]
+    {
+        v.chunks(BLOCK).all(ok)
+    }
+}
+
 /// Refuse or drop non-finite rows; returns the rows to use and the dropped ones.
 fn select_rows<'a>(
     x: &[f64],
@@ -377,7 +393,7 @@ fn select_rows<'a>(
     let m0 = rows.map_or(z.len(), |r| r.len());
     let row_ok = |r: usize| z[r].is_finite() && x[r * p..(r + 1) * p].iter().all(|v| v.is_finite());
     let all_finite = match rows {
-        None => x.iter().all(|v| v.is_finite()) && z.iter().all(|v| v.is_finite()),
+        None => all_finite_par(x) && all_finite_par(z),
         Some(l) => l.iter().all(|&r| row_ok(r)),
     };
     if all_finite {
