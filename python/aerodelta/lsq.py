@@ -381,7 +381,9 @@ def ols(
         raise _core.InvalidInputError(f"argument 'X': must be 2-D (N, p), got shape {xa.shape}")
     xa = np.ascontiguousarray(xa)
     za = np.ascontiguousarray(
-        (z.to_numpy() if isinstance(z, pl.Series) else np.asarray(z)).astype(np.float64).ravel()
+        (z.to_numpy() if isinstance(z, pl.Series) else np.asarray(z))
+        .astype(np.float64, copy=False)
+        .ravel()
     )
     ra = None
     if rows is not None:

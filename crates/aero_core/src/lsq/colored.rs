@@ -29,7 +29,7 @@
 
 use std::sync::{Arc, Mutex, OnceLock};
 
-use faer::{Mat, MatRef};
+use faer::Mat;
 use realfft::num_complex::Complex;
 use realfft::{ComplexToReal, RealFftPlanner, RealToComplex};
 
@@ -77,22 +77,29 @@ fn plans(l: usize, inverse: bool) -> (Fwd, Option<Inv>) {
     (fwd, inv)
 }
 
-/// Per-worker FFT buffers (input, output, scratch), back to the pool on drop.
-struct Bufs(Vec<f64>, Vec<Complex<f64>>, Vec<Complex<f64>>);
+/// Per-worker FFT scratch, back to the pool on drop.
+struct Scratch(Vec<Complex<f64>>);
 
-impl Drop for Bufs {
+impl Drop for Scratch {
     fn drop(&mut self) {
-        give_real(std::mem::take(&mut self.0));
-        give_cplx(std::mem::take(&mut self.1));
+        give_cplx(std::mem::take(&mut self.0));
     }
 }
 
-/// Rows of the half spectrum per block of the Gram product (fixed, so the
-/// summation order does not depend on the number of threads).
-const GRAM_BLOCK: usize = 16_384;
+/// Bins of the half spectrum per block of the Gram product: fixed (so the
+/// summation order does not depend on the number of threads) and small
+/// enough for a block of the weighted spectra (`2 × GRAM_BLOCK × p` values)
+/// to stay in the L2 cache.
+const GRAM_BLOCK: usize = 1024;
 
 fn fft_err(e: impl std::fmt::Display) -> AeroError {
     AeroError::invalid("coloured-residual covariance", format!("FFT failed: {e}"))
+}
+
+/// Transform length for `n` samples: the smallest fast length `L >= 2n - 1`
+/// (zero padding that makes the circular correlation linear).
+pub fn padded_len(n: usize) -> usize {
+    fast_len((2 * n).saturating_sub(1).max(1))
 }
 
 /// The middle matrix `M = Xᵀ T X` of the coloured-residual covariance
@@ -114,17 +121,91 @@ where
     if n == 0 || p == 0 {
         return Ok(Mat::zeros(p, p));
     }
-    let l = fast_len(2 * n - 1);
+    let l = padded_len(n);
+    let cols: Vec<Vec<f64>> = (0..p)
+        .map(|b| {
+            let mut c = take_real(l);
+            fill_col(b, &mut c[..n]);
+            c
+        })
+        .collect();
+    toeplitz_gram_cols(cols, v, max_lag)
+}
+
+/// [`toeplitz_gram`] on columns given as buffers: `cols[b][..N]` holds
+/// column `b` (`N = v.len()`); each buffer is then zero-padded to
+/// [`padded_len`]`(N)` and transformed in place (its contents are lost; it
+/// goes back to the work-buffer pool).
+///
+/// The `p + 1` transforms (columns and residuals) run as one parallel batch;
+/// the half spectra are kept as computed (no reordering copy) and the Gram
+/// product reads them block by block.
+pub fn toeplitz_gram_cols(
+    mut cols: Vec<Vec<f64>>,
+    v: &[f64],
+    max_lag: Option<usize>,
+) -> Result<Mat<f64>> {
+    let n = v.len();
+    let p = cols.len();
+    if n == 0 || p == 0 {
+        for c in cols {
+            give_real(c);
+        }
+        return Ok(Mat::zeros(p, p));
+    }
+    if let Some(b) = cols.iter().position(|c| c.len() < n) {
+        return Err(AeroError::invalid(
+            "coloured-residual covariance",
+            format!("column {b} has {} values for {n} residuals", cols[b].len()),
+        ));
+    }
+    let l = padded_len(n);
     let kh = l / 2 + 1;
     let truncate = max_lag.is_some_and(|k| k + 1 < n);
     let (r2c, c2r) = plans(l, truncate);
 
+    // Half spectra of the p columns (0..p) and of the residuals (index p),
+    // every sequence zero-padded to L; the residuals get a pooled buffer.
+    cols.push(take_real(l));
+    let mut specs: Vec<Vec<Complex<f64>>> = (0..=p).map(|_| take_cplx(kh)).collect();
+    // Per-worker scratch, recycled: the scratch of a long mixed-radix FFT
+    // is as long as the transform, and rayon may create several per call.
+    let new_scratch = || Scratch(take_cplx(r2c.get_scratch_len()));
+    let one = |scratch: &mut Scratch,
+               b: usize,
+               buf: &mut Vec<f64>,
+               out: &mut Vec<Complex<f64>>|
+     -> Result<()> {
+        if b == p {
+            buf[..n].copy_from_slice(v);
+        }
+        buf.resize(l, 0.0);
+        buf[n..].fill(0.0);
+        r2c.process_with_scratch(buf, out, &mut scratch.0)
+            .map_err(fft_err)
+    };
+    #[cfg(feature = "parallel")]
+    {
+        use rayon::prelude::*;
+        cols.par_iter_mut()
+            .zip(specs.par_iter_mut())
+            .enumerate()
+            .with_max_len(1)
+            .try_for_each_init(new_scratch, |sc, (b, (buf, out))| one(sc, b, buf, out))?;
+    }
+    #[cfg(not(feature = "parallel"))]
+    {
+        let mut sc = new_scratch();
+        for (b, (buf, out)) in cols.iter_mut().zip(specs.iter_mut()).enumerate() {
+            one(&mut sc, b, buf, out)?;
+        }
+    }
+    for c in cols {
+        give_real(c);
+    }
+    let mut spec = specs.pop().unwrap_or_default();
+
     // Residual power spectrum S = |V|² / N  (DFT of the biased autocorrelation).
-    let mut buf = take_real(l);
-    buf[..n].copy_from_slice(v);
-    buf[n..].fill(0.0);
-    let mut spec = take_cplx(kh);
-    r2c.process(&mut buf, &mut spec).map_err(fft_err)?;
     let inv_n = 1.0 / n as f64;
     let mut s = take_real(kh);
     for (sk, c) in s.iter_mut().zip(&spec) {
@@ -148,6 +229,7 @@ where
             }
         }
     }
+    give_cplx(spec);
 
     // Parseval weights over the half spectrum: interior bins count twice.
     let inv_l = 1.0 / l as f64;
@@ -157,109 +239,86 @@ where
     }
     let w = s;
     let all_nonneg = w.iter().all(|&x| x >= 0.0);
-    let mut sw = take_real(if all_nonneg { kh } else { 0 });
-    for (o, x) in sw.iter_mut().zip(&w) {
-        *o = x.sqrt();
-    }
 
-    // Column spectra, stored as real and imaginary parts, column-major kh × p.
-    let mut re = take_real(kh * p);
-    let mut im = take_real(kh * p);
-    // Per-worker buffers, reused across columns (fresh 2N-long buffers per
-    // column would cost as much in page faults as the FFT itself).
-    let new_bufs = || Bufs(take_real(l), take_cplx(kh), r2c.make_scratch_vec());
-    let one_col = |bufs: &mut Bufs, b: usize, re_b: &mut [f64], im_b: &mut [f64]| -> Result<()> {
-        let Bufs(buf, out, scratch) = bufs;
-        fill_col(b, &mut buf[..n]);
-        buf[n..].iter_mut().for_each(|v| *v = 0.0);
-        r2c.process_with_scratch(buf, out, scratch)
-            .map_err(fft_err)?;
-        if all_nonneg {
-            for (((r, i), o), s) in re_b
-                .iter_mut()
-                .zip(im_b.iter_mut())
-                .zip(out.iter())
-                .zip(&sw)
-            {
-                *r = o.re * s;
-                *i = o.im * s;
-            }
-        } else {
-            for ((r, i), o) in re_b.iter_mut().zip(im_b.iter_mut()).zip(out.iter()) {
-                *r = o.re;
-                *i = o.im;
-            }
-        }
-        Ok(())
+    // Gram product by blocks of bins: with S >= 0 the block matrix holds
+    // the real and imaginary parts scaled by √w (M = AᵀA); otherwise the
+    // left factor is scaled by w and the right one not. Only the lower
+    // triangle of each block Gram is formed (the product is symmetric).
+    let sw: Vec<f64> = if all_nonneg {
+        w.iter().map(|x| x.sqrt()).collect()
+    } else {
+        w.clone()
     };
-    #[cfg(feature = "parallel")]
-    {
-        use rayon::prelude::*;
-        re.par_chunks_mut(kh)
-            .zip(im.par_chunks_mut(kh))
-            .enumerate()
-            .try_for_each_init(new_bufs, |bufs, (b, (rb, ib))| one_col(bufs, b, rb, ib))?;
-    }
-    #[cfg(not(feature = "parallel"))]
-    {
-        let mut bufs = new_bufs();
-        for (b, (rb, ib)) in re.chunks_mut(kh).zip(im.chunks_mut(kh)).enumerate() {
-            one_col(&mut bufs, b, rb, ib)?;
-        }
-    }
-
-    let re_m = MatRef::from_column_major_slice(&re, kh, p);
-    let im_m = MatRef::from_column_major_slice(&im, kh, p);
-    // Only the lower triangle of each block Gram is formed (the product is
-    // symmetric): half the multiply-adds of the full product.
-    let gram_block = |s: usize, e: usize| -> Mat<f64> {
+    // `buf` holds the two block factors, column-major `2 rn × p` each.
+    let gram_block = |buf: &mut Vec<f64>, s0: usize, e0: usize| -> Mat<f64> {
         use faer::linalg::matmul::triangular::{matmul, BlockStructure};
-        let r = re_m.subrows(s, e - s);
-        let i = im_m.subrows(s, e - s);
-        let mut g = Mat::<f64>::zeros(p, p);
-        let mut acc = |lhs: MatRef<'_, f64>, rhs: MatRef<'_, f64>| {
-            matmul(
-                g.as_mut(),
-                BlockStructure::TriangularLower,
-                faer::Accum::Add,
-                lhs.transpose(),
-                BlockStructure::Rectangular,
-                rhs,
-                BlockStructure::Rectangular,
-                1.0,
-                faer::Par::Seq,
-            );
-        };
-        if all_nonneg {
-            acc(r, r);
-            acc(i, i);
-        } else {
-            let rw = Mat::from_fn(e - s, p, |k, b| r[(k, b)] * w[s + k]);
-            let iw = Mat::from_fn(e - s, p, |k, b| i[(k, b)] * w[s + k]);
-            acc(r, rw.as_ref());
-            acc(i, iw.as_ref());
+        use faer::MatRef;
+        let rn = e0 - s0;
+        let len = 2 * rn * p;
+        buf.resize(2 * len, 0.0);
+        let (lhs, rhs) = buf.split_at_mut(len);
+        for (b, col) in lhs.chunks_exact_mut(2 * rn).enumerate() {
+            let (re, im) = col.split_at_mut(rn);
+            let sp = &specs[b][s0..e0];
+            for (((r, i), c), f) in re.iter_mut().zip(im.iter_mut()).zip(sp).zip(&sw[s0..e0]) {
+                *r = c.re * f;
+                *i = c.im * f;
+            }
         }
+        if !all_nonneg {
+            for (b, col) in rhs.chunks_exact_mut(2 * rn).enumerate() {
+                let (re, im) = col.split_at_mut(rn);
+                for ((r, i), c) in re.iter_mut().zip(im.iter_mut()).zip(&specs[b][s0..e0]) {
+                    *r = c.re;
+                    *i = c.im;
+                }
+            }
+        }
+        let l_m = MatRef::from_column_major_slice(lhs, 2 * rn, p);
+        let r_m = if all_nonneg {
+            l_m
+        } else {
+            MatRef::from_column_major_slice(rhs, 2 * rn, p)
+        };
+        let mut g = Mat::<f64>::zeros(p, p);
+        matmul(
+            g.as_mut(),
+            BlockStructure::TriangularLower,
+            faer::Accum::Replace,
+            l_m.transpose(),
+            BlockStructure::Rectangular,
+            r_m,
+            BlockStructure::Rectangular,
+            1.0,
+            faer::Par::Seq,
+        );
         g
     };
     let nblocks = kh.div_ceil(GRAM_BLOCK);
-    let run = |c: usize| gram_block(c * GRAM_BLOCK, ((c + 1) * GRAM_BLOCK).min(kh));
+    let run = |buf: &mut Vec<f64>, c: usize| {
+        gram_block(buf, c * GRAM_BLOCK, ((c + 1) * GRAM_BLOCK).min(kh))
+    };
     #[cfg(feature = "parallel")]
     let grams: Vec<Mat<f64>> = {
         use rayon::prelude::*;
-        (0..nblocks).into_par_iter().map(run).collect()
+        (0..nblocks)
+            .into_par_iter()
+            .map_init(Vec::new, run)
+            .collect()
     };
     #[cfg(not(feature = "parallel"))]
-    let grams: Vec<Mat<f64>> = (0..nblocks).map(run).collect();
+    let grams: Vec<Mat<f64>> = {
+        let mut buf = Vec::new();
+        (0..nblocks).map(|c| run(&mut buf, c)).collect()
+    };
     let mut m = Mat::<f64>::zeros(p, p);
     for g in &grams {
         m += g;
     }
-    give_real(re);
-    give_real(im);
+    for sp in specs {
+        give_cplx(sp);
+    }
     give_real(w);
-    give_real(sw);
-    give_real(buf);
-    give_cplx(spec);
     // Mirror the lower triangle.
     Ok(Mat::from_fn(p, p, |a, b| m[(a.max(b), a.min(b))]))
 }
