@@ -27,6 +27,13 @@
 //! toward low centres (met sooner). A centre drawn below the crossing still
 //! starts at the crossing: the onset of a roll-off is never below the re-arm
 //! alpha (the statistics account for this truncation, see `aerodelta.rolloff`).
+//! The roll-off acts once per draw: it is spent once alpha has passed the
+//! centre by [`SPENT_WIDTHS`] widths (the spike fully traversed, ΔC_l below
+//! 0.04 % of its peak), so the recovery, alpha falling back through the
+//! Gaussian at 10-20 deg/s, does not meet it a second time (thesis: "once
+//! started the roll-off seems to end within 1° angle of attack"). A stall that
+//! turns back below that alpha (stick pusher) still meets the descending part
+//! of the same spike.
 //!
 //! Draws come from a seeded ChaCha8 stream (portable: the same sequence on
 //! every machine), one independent stream per instance (seed, stream id), and
@@ -168,6 +175,10 @@ pub struct RollOffDraw {
     pub peak: f64,
 }
 
+/// The roll-off is spent once alpha exceeds its centre by this many widths
+/// (exp(−8) = 3.4e-4 of the peak remains there).
+pub const SPENT_WIDTHS: f64 = 4.0;
+
 /// Draws kept in [`RollOff::history`] (allocated once; later draws are not kept).
 pub const MAX_HISTORY: usize = 64;
 
@@ -181,6 +192,7 @@ pub struct RollOff {
     last_alpha_deg: f64,
     armed: bool,
     active: bool,
+    spent: bool,
     /// Every draw made, one per counted crossing of the re-arm alpha.
     pub history: Vec<RollOffDraw>,
 }
@@ -209,6 +221,7 @@ impl RollOff {
             last_alpha_deg: f64::NEG_INFINITY,
             armed: true,
             active: false,
+            spent: false,
             history: Vec::with_capacity(MAX_HISTORY),
         };
         Ok(r)
@@ -225,6 +238,7 @@ impl RollOff {
         let factor = (1.0 + c.magnitude_cv * self.rng.normal()).max(0.0);
         let shift = c.alpha_std_deg * self.rng.normal();
         self.active = true;
+        self.spent = false;
         self.draw = RollOffDraw {
             t,
             sign,
@@ -249,11 +263,22 @@ impl RollOff {
         self.active
     }
 
+    /// True once alpha has passed the current draw's spike (no ΔC_l until the next draw).
+    pub fn is_spent(&self) -> bool {
+        self.spent
+    }
+
     /// Feed the alpha at time `t` (once per step): redraw on an upward crossing
     /// of the re-arm alpha when armed; re-arm once alpha is below the re-arm
-    /// alpha less the hysteresis. Returns true when a new draw was made.
+    /// alpha less the hysteresis; mark the roll-off spent once alpha is past the
+    /// spike. Returns true when a new draw was made.
     pub fn update(&mut self, t: f64, alpha_deg: f64) -> bool {
         let rearm = self.config.rearm_alpha_deg;
+        if self.active
+            && alpha_deg >= self.draw.center_deg + SPENT_WIDTHS * self.config.width_deg
+        {
+            self.spent = true;
+        }
         if alpha_deg < rearm - self.config.rearm_hysteresis_deg {
             self.armed = true;
         }
@@ -271,8 +296,8 @@ impl RollOff {
 
     /// ΔC_l at `alpha_deg` with the current draws (pure).
     pub fn delta_cl(&self, alpha_deg: f64) -> f64 {
-        if self.draw.peak == 0.0 {
-            return 0.0; // no draw yet (or a zero draw)
+        if self.draw.peak == 0.0 || self.spent {
+            return 0.0; // no draw yet (or a zero draw), or the spike already traversed
         }
         let z = (alpha_deg - self.draw.center_deg) / self.config.width_deg;
         if z.abs() > 12.0 {
@@ -369,6 +394,13 @@ mod tests {
         assert!((one_sigma - (-0.5f64).exp()).abs() < 1e-12);
         assert_eq!(r.history.len(), 2);
         assert_eq!(r.history[0], first);
+        // past the spike by 4 widths it is spent: alpha falling back meets nothing
+        assert!(!r.update(0.7, d.center_deg + 2.0));
+        assert!(r.is_spent());
+        assert_eq!(r.delta_cl(d.center_deg), 0.0);
+        assert!(!r.update(0.8, 12.0));
+        assert!(r.update(0.9, 15.5));
+        assert!(!r.is_spent());
         assert_eq!(r.history[1].t, 0.6);
         // same seed, same draws; other stream, other draws
         let cfg = RollOffConfig::default();
