@@ -27,13 +27,15 @@
 //! toward low centres (met sooner). A centre drawn below the crossing still
 //! starts at the crossing: the onset of a roll-off is never below the re-arm
 //! alpha (the statistics account for this truncation, see `aerodelta.rolloff`).
-//! The roll-off acts once per draw: it is spent once alpha has passed the
-//! centre by [`SPENT_WIDTHS`] widths (the spike fully traversed, ΔC_l below
-//! 0.04 % of its peak), so the recovery, alpha falling back through the
-//! Gaussian at 10-20 deg/s, does not meet it a second time (thesis: "once
-//! started the roll-off seems to end within 1° angle of attack"). A stall that
-//! turns back below that alpha (stick pusher) still meets the descending part
-//! of the same spike.
+//! The roll-off acts once per draw (thesis: "once started the roll-off seems
+//! to end within 1° angle of attack"): once alpha has passed the centre, the
+//! Gaussian is evaluated at the alpha *travelled* since, α_top + (α_top − α)
+//! with α_top the highest alpha since the draw, so the spike keeps decaying
+//! when the stall turns back (stick pusher, recovery) instead of being met a
+//! second time on the way down as a short, sharp spike (10-20 deg/s of alpha);
+//! it is spent (exactly 0) once that alpha is [`SPENT_WIDTHS`] widths past the
+//! centre. A stall that turns back below the centre meets the rising flank
+//! only, and the same flank back down.
 //!
 //! Draws come from a seeded ChaCha8 stream (portable: the same sequence on
 //! every machine), one independent stream per instance (seed, stream id), and
@@ -175,8 +177,8 @@ pub struct RollOffDraw {
     pub peak: f64,
 }
 
-/// The roll-off is spent once alpha exceeds its centre by this many widths
-/// (exp(−8) = 3.4e-4 of the peak remains there).
+/// The roll-off is spent once the alpha travelled past its centre exceeds this
+/// many widths (exp(−8) = 3.4e-4 of the peak remains there).
 pub const SPENT_WIDTHS: f64 = 4.0;
 
 /// Draws kept in [`RollOff::history`] (allocated once; later draws are not kept).
@@ -193,6 +195,7 @@ pub struct RollOff {
     armed: bool,
     active: bool,
     spent: bool,
+    alpha_top_deg: f64,
     /// Every draw made, one per counted crossing of the re-arm alpha.
     pub history: Vec<RollOffDraw>,
 }
@@ -222,6 +225,7 @@ impl RollOff {
             armed: true,
             active: false,
             spent: false,
+            alpha_top_deg: f64::NEG_INFINITY,
             history: Vec::with_capacity(MAX_HISTORY),
         };
         Ok(r)
@@ -239,6 +243,7 @@ impl RollOff {
         let shift = c.alpha_std_deg * self.rng.normal();
         self.active = true;
         self.spent = false;
+        self.alpha_top_deg = f64::NEG_INFINITY;
         self.draw = RollOffDraw {
             t,
             sign,
@@ -274,10 +279,13 @@ impl RollOff {
     /// spike. Returns true when a new draw was made.
     pub fn update(&mut self, t: f64, alpha_deg: f64) -> bool {
         let rearm = self.config.rearm_alpha_deg;
-        if self.active
-            && alpha_deg >= self.draw.center_deg + SPENT_WIDTHS * self.config.width_deg
-        {
-            self.spent = true;
+        if self.active {
+            if self.effective_alpha(alpha_deg)
+                >= self.draw.center_deg + SPENT_WIDTHS * self.config.width_deg
+            {
+                self.spent = true;
+            }
+            self.alpha_top_deg = self.alpha_top_deg.max(alpha_deg);
         }
         if alpha_deg < rearm - self.config.rearm_hysteresis_deg {
             self.armed = true;
@@ -294,12 +302,23 @@ impl RollOff {
         crossed
     }
 
-    /// ΔC_l at `alpha_deg` with the current draws (pure).
+    /// The alpha at which the Gaussian is evaluated, deg: `alpha_deg` until alpha has
+    /// passed the centre, then the alpha travelled since, α_top + (α_top − α).
+    fn effective_alpha(&self, alpha_deg: f64) -> f64 {
+        let top = self.alpha_top_deg.max(alpha_deg);
+        if top >= self.draw.center_deg {
+            top + (top - alpha_deg)
+        } else {
+            alpha_deg
+        }
+    }
+
+    /// ΔC_l at `alpha_deg` with the current draws and alpha history (pure).
     pub fn delta_cl(&self, alpha_deg: f64) -> f64 {
         if self.draw.peak == 0.0 || self.spent {
             return 0.0; // no draw yet (or a zero draw), or the spike already traversed
         }
-        let z = (alpha_deg - self.draw.center_deg) / self.config.width_deg;
+        let z = (self.effective_alpha(alpha_deg) - self.draw.center_deg) / self.config.width_deg;
         if z.abs() > 12.0 {
             return 0.0; // exp(-72) < 1e-31: below any double-precision C_l sum
         }
@@ -394,6 +413,11 @@ mod tests {
         assert!((one_sigma - (-0.5f64).exp()).abs() < 1e-12);
         assert_eq!(r.history.len(), 2);
         assert_eq!(r.history[0], first);
+        // once past the centre the spike decays with the alpha travelled, up or down
+        assert!(!r.update(0.65, d.center_deg + 0.25));
+        let back = r.delta_cl(d.center_deg) / d.peak; // 0.25 up + 0.25 down = 1 width
+        assert!((back - (-0.5f64).exp()).abs() < 1e-12, "{back}");
+        assert!(r.delta_cl(d.center_deg - 3.0).abs() < 1e-9 * d.peak.abs());
         // past the spike by 4 widths it is spent: alpha falling back meets nothing
         assert!(!r.update(0.7, d.center_deg + 2.0));
         assert!(r.is_spent());
