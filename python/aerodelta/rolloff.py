@@ -338,14 +338,15 @@ def truncated_normal_fit(
     truncation). Without truncation (infinite bounds) both reduce to the Student t and
     chi-square intervals of the sample mean and standard deviation.
 
-    The search is kept within ``σ <= 4 s`` and ``μ`` within ``12 s`` of the data (``s``
-    the sample standard deviation): a small sample in a narrow window can make the
+    The search is kept within ``σ <= 4 max(s, 0.5)`` and ``μ`` within ``3`` such sigmas of
+    the data (``s`` the sample standard deviation): a small sample in a narrow window can make the
     likelihood flat toward ``μ -> -∞, σ -> ∞``; an estimate on that box has no interval.
 
     Returns
     -------
     dict
-        ``mean, mean_lo, mean_hi, std, std_lo, std_hi`` (NaN when ``n < 3`` or the
+        ``mean, mean_lo, mean_hi, std, std_lo, std_hi`` (NaN when ``n < 3``, fewer than 2
+        uncensored samples, or the
         information matrix is not positive definite).
     """
     xs = np.asarray(x, dtype=np.float64)
@@ -354,23 +355,18 @@ def truncated_normal_fit(
     n = xs.size
     nan = float("nan")
     out = dict.fromkeys(("mean", "mean_lo", "mean_hi", "std", "std_lo", "std_hi"), nan)
-    if n < 3:
+    if n < 3 or (censor_lower and int((xs >= lo_b).sum()) < 2):
         return out
     sd0 = max(float(xs.std(ddof=1)), 1e-3)
     # box: a small sample deep in a narrow window can push the maximum to mu -> -inf,
-    # sigma -> inf (the likelihood flattens); keep sigma within 4 sample spreads and mu
-    # within 3 such sigmas of the data
-    ls_max = math.log(4.0 * sd0)
-    span = 3.0 * 4.0 * sd0
-
+    # sigma -> inf (the likelihood flattens); keep sigma below 4 times the larger of the
+    # sample spread and 0.5 (deg), mu within 3 such sigmas of the data
+    sig_max = 4.0 * max(sd0, 0.5)
+    ls_max = math.log(sig_max)
+    span = 3.0 * sig_max
     cens = (xs < lo_b) if censor_lower else np.zeros(n, dtype=bool)
     exact = ~cens
     trunc_lo = np.full(n, -np.inf) if censor_lower else lo_b
-    if censor_lower:
-        ref = xs[exact] if exact.sum() >= 2 else xs
-        sd0 = max(float(ref.std(ddof=1)), 1e-3)
-        ls_max = math.log(4.0 * sd0)
-        span = 3.0 * 4.0 * sd0
 
     def nll(th: FloatArray) -> float:
         mu, ls = float(th[0]), float(th[1])
@@ -389,7 +385,7 @@ def truncated_normal_fit(
     th = _nelder_mead(nll, th, np.array([0.1 * sd0, 0.05]))
     mu, ls = float(th[0]), float(th[1])
     sg = math.exp(ls)
-    if ls > ls_max - 1e-6 or abs(mu - xs.mean()) > span - 1e-6:
+    if ls > ls_max - 1e-6 or not (xs.min() - span + 1e-6 <= mu <= xs.max() + span - 1e-6):
         return out
     # observed information by central differences
     h = np.array([1e-3 * sg, 1e-3])
