@@ -460,14 +460,21 @@ def rolloff_statistics(
     standard deviation are the maximum-likelihood estimates of the normal law of the
     onset truncated to ``[rearm + onset_margin, alpha_max_i - peak_margin - d]`` per
     event (``d``: mean ``alpha_peak - alpha_onset`` of the complete events), see
-    :func:`truncated_normal_fit`.
+    :func:`truncated_normal_fit`. When a flap has too few events for that fit (fewer than
+    3 right-complete events or 2 uncensored onsets), or fewer than 2 complete events for
+    the magnitude, the plain statistics of every accepted event are reported instead
+    (biased by the truncation), flagged by ``alpha_method = "sample"`` and
+    ``magnitude_method = "all"``.
 
     Returns
     -------
     polars.DataFrame
-        Per flap: ``n, n_complete, alpha_mean_deg (+_lo, _hi), alpha_std_deg (+_lo, _hi),
-        alpha_peak_mean_deg, magnitude_mean (+_lo, _hi), magnitude_cv (+_lo, _hi),
-        n_right, n_left, p_right (+_lo, _hi)``.
+        Per flap: ``n`` (accepted events), ``n_onset`` (events in the onset fit),
+        ``n_complete`` (events in the magnitude statistics), ``alpha_mean_deg (+_lo, _hi),
+        alpha_std_deg (+_lo, _hi), alpha_peak_mean_deg, alpha_method`` (``censored_fit``
+        or ``sample``), ``magnitude_mean (+_lo, _hi), magnitude_cv (+_lo, _hi),
+        magnitude_method`` (``complete``, ``all`` or ``sample``), ``n_right, n_left,
+        p_right (+_lo, _hi)``.
     """
     ev = events.filter(pl.col("accepted")) if "accepted" in events.columns else events
     trunc = "alpha_max_deg" in ev.columns if truncation is None else truncation
@@ -490,7 +497,9 @@ def rolloff_statistics(
         a = c["alpha_onset_deg"].to_numpy().astype(np.float64)
         apk = c["alpha_peak_deg"].to_numpy().astype(np.float64)
         mag = np.abs(c["peak"].to_numpy().astype(np.float64))
+        alpha_method = magnitude_method = "sample"
         if trunc:
+            alpha_method = magnitude_method = "censored_fit"
             rise = float(np.mean(apk - a)) if a.size else float("nan")
             upper = r["alpha_max_deg"].to_numpy() - peak_margin_deg - rise
             fit = truncated_normal_fit(
@@ -499,6 +508,18 @@ def rolloff_statistics(
             am, alo, ahi = fit["mean"], fit["mean_lo"], fit["mean_hi"]
             sd, slo, shi = fit["std"], fit["std_lo"], fit["std_hi"]
             apk_mean = am + rise
+            if not math.isfinite(am) or not math.isfinite(sd):
+                # too few events for the fit: the plain sample statistics of every
+                # accepted event (biased by the truncation; flagged)
+                alpha_method = "sample"
+                a_all = g["alpha_onset_deg"].to_numpy().astype(np.float64)
+                am, alo, ahi = _mean_ci(a_all, level)
+                sd, slo, shi = _std_ci(a_all, level)
+                apk_mean = float(g["alpha_peak_deg"].mean())  # type: ignore[arg-type]
+            magnitude_method = "complete"
+            if mag.size < 2:
+                magnitude_method = "all"
+                mag = np.abs(g["peak"].to_numpy().astype(np.float64))
         else:
             am, alo, ahi = _mean_ci(a, level)
             sd, slo, shi = _std_ci(a, level)
@@ -520,6 +541,8 @@ def rolloff_statistics(
                 "alpha_std_lo": slo,
                 "alpha_std_hi": shi,
                 "alpha_peak_mean_deg": apk_mean,
+                "alpha_method": alpha_method,
+                "magnitude_method": magnitude_method,
                 "magnitude_mean": mm,
                 "magnitude_lo": mlo,
                 "magnitude_hi": mhi,
