@@ -375,10 +375,10 @@ pub fn detect(
         let peak_i = peak_i2;
         // The largest noisy sample overstates the peak by about a noise standard
         // deviation; the vertex of a parabola fitted over the spike's top does not.
-        // Window: ±1/6 of the extent above the onset fraction (±0.6 standard
+        // Window: ±1/10 of the extent above the onset fraction (±0.36 standard
         // deviations of a Gaussian spike at the 20 % fraction: the quartic term
-        // lowers the vertex by < 1 %), at least ±PEAK_FIT_MIN_S.
-        let h = ((off - on) / 6).max(((PEAK_FIT_MIN_S / dt).round() as usize).max(2));
+        // lowers the vertex by < 0.5 %), at least ±PEAK_FIT_MIN_S.
+        let h = ((off - on) / 10).max(((PEAK_FIT_MIN_S / dt).round() as usize).max(2));
         if let Some(v) = parabola_vertex(signal.as_deref().unwrap_or(&e), peak_i, h) {
             if v * sign > 0.0 {
                 peak = v;
