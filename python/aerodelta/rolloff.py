@@ -729,9 +729,10 @@ def monte_carlo(
         stall never met the spike), ``onset_t`` [s], ``peak`` (signed largest injected
         ΔC_l, the roll-off magnitude met), ``direction`` (+1 right, -1 left, 0 none),
         ``drawn_peak`` and ``drawn_center_deg`` (the draw that made the roll-off met, else
-        the draw at the first 15 deg crossing), ``drawn_t`` (its time [s]; 0 for the initial
-        draw, active before the first crossing), ``crossings`` (upward crossings of the
-        re-arm alpha, each a new draw).
+        the draw at the first 15 deg crossing; 0 and NaN when alpha never crossed it: no
+        roll-off acts before the first draw), ``drawn_t`` (its time [s]), ``crossings``
+        (counted upward crossings of the re-arm alpha, each a new draw; after a draw alpha
+        must fall below the re-arm alpha less ``rearm_hysteresis_deg`` first).
     """
     del noise, record_hz
     if flap_deg not in _MC_FLAPS:
@@ -905,7 +906,7 @@ def check_statistics(stats: pl.DataFrame, config: Mapping[str, Any] | None = Non
     """Estimated roll-off statistics (:func:`rolloff_statistics`) against a configuration.
 
     Per flap and quantity, the configured value, the estimate, its interval and whether
-    the interval holds the configured value. Quantities: ``alpha_onset_deg`` (the mean
+    the interval holds the configured value (``False`` when no interval could be computed). Quantities: ``alpha_onset_deg`` (the mean
     detected onset; configured: the Gaussian centre less ``width sqrt(2 ln 5)``, where the
     spike reaches the detector's 20 % onset fraction), ``alpha_std_deg`` (configured
     centre shift spread), ``magnitude`` (mean |peak|), ``magnitude_cv`` and ``p_right``.
