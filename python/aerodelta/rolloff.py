@@ -906,7 +906,8 @@ def check_statistics(stats: pl.DataFrame, config: Mapping[str, Any] | None = Non
     """Estimated roll-off statistics (:func:`rolloff_statistics`) against a configuration.
 
     Per flap and quantity, the configured value, the estimate, its interval and whether
-    the interval holds the configured value (``False`` when no interval could be computed). Quantities: ``alpha_onset_deg`` (the mean
+    the interval holds the configured value (``False`` when no interval could be computed).
+    Quantities: ``alpha_onset_deg`` (the mean
     detected onset; configured: the Gaussian centre less ``width sqrt(2 ln 5)``, where the
     spike reaches the detector's 20 % onset fraction), ``alpha_std_deg`` (configured
     centre shift spread), ``magnitude`` (mean |peak|), ``magnitude_cv`` and ``p_right``.

@@ -138,7 +138,8 @@ impl RollOffConfig {
             || self.width_deg <= 0.0
             || self.alpha_std_deg < 0.0
             || self.magnitude_cv < 0.0
-            || !(self.rearm_hysteresis_deg >= 0.0)
+            || self.rearm_hysteresis_deg.is_nan()
+            || self.rearm_hysteresis_deg < 0.0
         {
             return Err(AeroError::invalid(
                 "rolloff",

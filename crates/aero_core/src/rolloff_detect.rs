@@ -520,7 +520,10 @@ mod tests {
         let n = peaks.len() as f64;
         let mean = peaks.iter().sum::<f64>() / n;
         let sd = (peaks.iter().map(|p| (p - mean).powi(2)).sum::<f64>() / (n - 1.0)).sqrt();
-        assert!((mean - amp).abs() < 4.0 * sd / n.sqrt(), "mean {mean} sd {sd}");
+        assert!(
+            (mean - amp).abs() < 4.0 * sd / n.sqrt(),
+            "mean {mean} sd {sd}"
+        );
         assert!(parabola_vertex(&[0.0, 1.0, 2.0, 1.0, 0.0], 2, 2).is_some());
         let v = parabola_vertex(&[-1.0, 0.0, 1.0, 0.0, -1.0], 2, 1).expect("vertex");
         assert!((v - 1.0).abs() < 1e-12);
