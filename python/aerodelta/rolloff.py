@@ -40,6 +40,7 @@ _EVENT_SCHEMA = {
     "t_peak": pl.Float64,
     "alpha_onset_deg": pl.Float64,
     "alpha_peak_deg": pl.Float64,
+    "alpha_max_deg": pl.Float64,
     "peak": pl.Float64,
     "direction": pl.Int8,
     "duration_s": pl.Float64,
@@ -80,6 +81,7 @@ def detect_rolloff(
     config: Mapping[str, Any] | None = None,
     quiet_channels: Sequence[str] | Mapping[str, float] = ("dr_deg", "ds_deg"),
     kinds: Sequence[str] | None = ("straight",),
+    alpha: str | None = None,
 ) -> pl.DataFrame:
     """Detect roll-off events in flight records (thesis Section 3.4.3, Table 3.2 procedure).
 
@@ -103,15 +105,26 @@ def detect_rolloff(
         Missing channels are skipped.
     kinds
         Maneuver kinds searched (``None``: all).
+    alpha
+        Angle-of-attack channel [deg] giving the onset, peak and maximum alphas:
+        ``None`` (default) uses ``alpha_cg_deg`` (the vane alpha corrected to the
+        centre of gravity by ``aerodelta.ingest``) when present, else ``alpha_deg``.
+        The raw vane alpha departs from the aircraft's alpha by the pitch and roll
+        rates times the vane's lever arm (0.6 deg standard deviation near stall on the
+        virtual campaigns, against 0.04 deg for the corrected one).
 
     Returns
     -------
     polars.DataFrame
         One row per candidate: ``maneuver_id, flap_deg, kind, t_onset, t_peak`` [s],
-        ``alpha_onset_deg, alpha_peak_deg, peak`` (signed ΔC_l), ``direction`` (+1
-        right wing down), ``duration_s, noise_sigma, accepted, reason`` (why rejected).
+        ``alpha_onset_deg, alpha_peak_deg`` [deg], ``alpha_max_deg`` (largest alpha of the
+        record [deg]: whether the stall passed the spike, see :func:`rolloff_statistics`),
+        ``peak`` (signed ΔC_l), ``direction`` (+1 right wing down), ``duration_s,
+        noise_sigma, accepted, reason`` (why rejected).
     """
-    need = ["maneuver_id", "t", "alpha_deg", "Cl_meas", "da_deg"]
+    if alpha is None:
+        alpha = "alpha_cg_deg" if "alpha_cg_deg" in data.columns else "alpha_deg"
+    need = ["maneuver_id", "t", alpha, "Cl_meas", "da_deg"]
     missing = [c for c in need if c not in data.columns]
     if missing and not (residual is not None and missing == ["Cl_meas"]):
         raise DataError(f"roll-off detection: channels {missing} are missing from the data")
@@ -128,7 +141,7 @@ def detect_rolloff(
     for (mid,), g0 in frame.group_by(["maneuver_id"], maintain_order=True):
         g = g0.sort("t")
         t = g["t"].to_numpy().astype(np.float64)
-        alpha = g["alpha_deg"].to_numpy().astype(np.float64)
+        alpha_deg = g[alpha].to_numpy().astype(np.float64)
         qs = [
             (name, g[name].to_numpy().astype(np.float64), float(lim))
             for name, lim in quiet.items()
@@ -136,7 +149,7 @@ def detect_rolloff(
         ]
         ev = _core.rolloff_detect(
             t,
-            alpha,
+            alpha_deg,
             g["__res"].to_numpy().astype(np.float64),
             g["da_deg"].to_numpy().astype(np.float64),
             qs,
@@ -153,7 +166,8 @@ def detect_rolloff(
                     "t_onset": float(ev["t_onset"][k]),
                     "t_peak": float(ev["t_peak"][k]),
                     "alpha_onset_deg": float(ev["alpha_onset_deg"][k]),
-                    "alpha_peak_deg": float(alpha[int(ev["peak_index"][k])]),
+                    "alpha_peak_deg": float(alpha_deg[int(ev["peak_index"][k])]),
+                    "alpha_max_deg": float(np.nanmax(alpha_deg)),
                     "peak": float(ev["peak"][k]),
                     "direction": int(ev["direction"][k]),
                     "duration_s": float(ev["duration_s"][k]),
@@ -256,48 +270,279 @@ def _std_ci(x: FloatArray, level: float) -> tuple[float, float, float]:
     return (s, lo, hi)
 
 
-def rolloff_statistics(events: pl.DataFrame, *, level: float = 0.95) -> pl.DataFrame:
+def _normal_mass(a: FloatArray, b: FloatArray) -> FloatArray:
+    """``Φ(b) - Φ(a)`` for ``a <= b`` elementwise, from the tail on the side of the interval
+    (no cancellation when both bounds lie deep in one tail)."""
+    erfc = np.frompyfunc(math.erfc, 1, 1)
+    r2 = math.sqrt(2.0)
+    upper = 0.5 * (erfc(a / r2) - erfc(b / r2)).astype(np.float64)
+    lower = 0.5 * (erfc(-b / r2) - erfc(-a / r2)).astype(np.float64)
+    return np.maximum(np.where(a > 0, upper, lower), 1e-300)
+
+
+def _nelder_mead(f: Any, x0: FloatArray, step: FloatArray, iters: int = 2000) -> FloatArray:
+    """Minimise ``f`` from ``x0`` (Nelder-Mead, standard coefficients 1, 2, 0.5, 0.5)."""
+    pts = [np.asarray(x0, dtype=np.float64)]
+    for i in range(x0.size):
+        e = np.zeros(x0.size)
+        e[i] = step[i]
+        pts.append(pts[0] + e)
+    vals = [f(p) for p in pts]
+    for _ in range(iters):
+        order = np.argsort(vals)
+        pts = [pts[i] for i in order]
+        vals = [vals[i] for i in order]
+        if abs(vals[-1] - vals[0]) < 1e-12 and np.ptp(np.array(pts), axis=0).max() < 1e-9:
+            break
+        c = np.mean(pts[:-1], axis=0)
+        xr = c + (c - pts[-1])
+        fr = f(xr)
+        if fr < vals[0]:
+            xe = c + 2.0 * (c - pts[-1])
+            fe = f(xe)
+            pts[-1], vals[-1] = (xe, fe) if fe < fr else (xr, fr)
+        elif fr < vals[-2]:
+            pts[-1], vals[-1] = xr, fr
+        else:
+            xc = c + 0.5 * (pts[-1] - c)
+            fc = f(xc)
+            if fc < vals[-1]:
+                pts[-1], vals[-1] = xc, fc
+            else:
+                pts = [pts[0] + 0.5 * (p - pts[0]) for p in pts]
+                vals = [f(p) for p in pts]
+    return pts[int(np.argmin(vals))]
+
+
+def truncated_normal_fit(
+    x: npt.ArrayLike,
+    lower: npt.ArrayLike,
+    upper: npt.ArrayLike,
+    *,
+    level: float = 0.95,
+    censor_lower: bool = False,
+) -> dict[str, float]:
+    """Mean and standard deviation of a normal law sampled through per-sample truncation.
+
+    Sample ``i`` is observed only when it falls in ``[lower_i, upper_i]`` (it is then
+    distributed as the normal law truncated there). Maximum likelihood over
+    ``(μ, ln σ)`` of ``Σ ln φ((x_i - μ)/σ) - ln σ - ln(Φ((u_i - μ)/σ) - Φ((l_i - μ)/σ))``
+    (Nelder-Mead), covariance from the observed information (central differences).
+    With ``censor_lower`` the lower bound censors instead of truncating: a sample
+    below ``lower_i`` is known only to lie below it and contributes
+    ``ln Φ((l_i - μ)/σ) - ln Φ((u_i - μ)/σ)`` (a Tobit term; the upper bound still
+    truncates).
+    Intervals are the small-sample normal ones with the truncated model's standard
+    errors: ``μ ± t_{n-1} se(μ) sqrt(n/(n-1))``; ``σ`` reported as ``σ_ML sqrt(n/(n-1))``
+    with interval ``σ_ML (n / χ²_{n-1})^{r/2}``, ``r = se(ln σ) sqrt(2n)`` (1 without
+    truncation). Without truncation (infinite bounds) both reduce to the Student t and
+    chi-square intervals of the sample mean and standard deviation.
+
+    The search is kept within ``σ <= 4 max(s, 0.5)`` and ``μ`` within ``3`` such sigmas of
+    the data (``s`` the sample standard deviation): a small sample in a narrow window can make the
+    likelihood flat toward ``μ -> -∞, σ -> ∞``; an estimate on that box has no interval.
+
+    Returns
+    -------
+    dict
+        ``mean, mean_lo, mean_hi, std, std_lo, std_hi`` (NaN when ``n < 3``, fewer than 2
+        uncensored samples, or the
+        information matrix is not positive definite).
+    """
+    xs = np.asarray(x, dtype=np.float64)
+    lo_b = np.broadcast_to(np.asarray(lower, dtype=np.float64), xs.shape)
+    hi_b = np.broadcast_to(np.asarray(upper, dtype=np.float64), xs.shape)
+    n = xs.size
+    nan = float("nan")
+    out = dict.fromkeys(("mean", "mean_lo", "mean_hi", "std", "std_lo", "std_hi"), nan)
+    if n < 3 or (censor_lower and int((xs >= lo_b).sum()) < 2):
+        return out
+    sd0 = max(float(xs.std(ddof=1)), 1e-3)
+    # box: a small sample deep in a narrow window can push the maximum to mu -> -inf,
+    # sigma -> inf (the likelihood flattens); keep sigma below 4 times the larger of the
+    # sample spread and 0.5 (deg), mu within 3 such sigmas of the data
+    sig_max = 4.0 * max(sd0, 0.5)
+    ls_max = math.log(sig_max)
+    span = 3.0 * sig_max
+    cens = (xs < lo_b) if censor_lower else np.zeros(n, dtype=bool)
+    exact = ~cens
+    trunc_lo = np.full(n, -np.inf) if censor_lower else lo_b
+
+    def nll(th: FloatArray) -> float:
+        mu, ls = float(th[0]), float(th[1])
+        if ls > ls_max or not (xs.min() - span <= mu <= xs.max() + span):
+            return math.inf
+        sg = math.exp(ls)
+        z = (xs[exact] - mu) / sg
+        mass = _normal_mass((trunc_lo - mu) / sg, (hi_b - mu) / sg)
+        val = 0.5 * (z * z).sum() + exact.sum() * ls + np.log(mass).sum()
+        if cens.any():
+            val -= np.log(_normal_mass(np.full(int(cens.sum()), -np.inf),
+                                       (lo_b[cens] - mu) / sg)).sum()  # fmt: skip
+        return float(val)
+
+    th = _nelder_mead(nll, np.array([xs.mean(), math.log(sd0)]), np.array([0.5 * sd0, 0.3]))
+    th = _nelder_mead(nll, th, np.array([0.1 * sd0, 0.05]))
+    mu, ls = float(th[0]), float(th[1])
+    sg = math.exp(ls)
+    if ls > ls_max - 1e-6 or not (xs.min() - span + 1e-6 <= mu <= xs.max() + span - 1e-6):
+        return out
+    # observed information by central differences
+    h = np.array([1e-3 * sg, 1e-3])
+    hess = np.empty((2, 2))
+    for i in range(2):
+        for j in range(2):
+            ei, ej = np.eye(2)[i] * h[i], np.eye(2)[j] * h[j]
+            hess[i, j] = (
+                nll(th + ei + ej) - nll(th + ei - ej) - nll(th - ei + ej) + nll(th - ei - ej)
+            ) / (4 * h[i] * h[j])
+    try:
+        cov = np.linalg.inv(hess)
+    except np.linalg.LinAlgError:
+        return out
+    if not (cov[0, 0] > 0 and cov[1, 1] > 0):
+        return out
+    a = 1.0 - level
+    tq = float(_core.student_t_ppf(0.5 + level / 2, n - 1))
+    half = tq * math.sqrt(cov[0, 0]) * math.sqrt(n / (n - 1))
+    r = math.sqrt(cov[1, 1]) * math.sqrt(2.0 * n)
+    out.update(
+        mean=mu,
+        mean_lo=mu - half,
+        mean_hi=mu + half,
+        std=sg * math.sqrt(n / (n - 1)),
+        std_lo=sg * (n / chi2_ppf(1 - a / 2, n - 1)) ** (0.5 * r),
+        std_hi=sg * (n / chi2_ppf(a / 2, n - 1)) ** (0.5 * r),
+    )
+    return out
+
+
+#: Margins (deg) of the complete-spike selection of :func:`rolloff_statistics`.
+ONSET_MARGIN_DEG = 0.5
+PEAK_MARGIN_DEG = 0.5
+
+
+def rolloff_statistics(
+    events: pl.DataFrame,
+    *,
+    level: float = 0.95,
+    rearm_alpha_deg: float = 15.0,
+    truncation: bool | None = None,
+    onset_margin_deg: float = ONSET_MARGIN_DEG,
+    peak_margin_deg: float = PEAK_MARGIN_DEG,
+) -> pl.DataFrame:
     """Roll-off statistics per flap setting (thesis Table 3.2) with confidence intervals.
 
-    Only accepted events count. Intervals at ``level``: Student t for the means,
-    chi-square (Wilson-Hilferty quantiles) for the alpha standard deviation,
-    Wilson score for the right-roll probability. The magnitude coefficient of
-    variation is ``std(|peak|) / mean(|peak|)``, its interval the chi-square
-    interval of the standard deviation divided by the mean (approximate).
+    Only accepted events count. Without truncation (``truncation=False``, or by default
+    when the events have no ``alpha_max_deg`` column, e.g. hand-made tables) every event
+    counts as a sample of the configured laws: Student t intervals for the means,
+    chi-square for the alpha standard deviation, Wilson score for the right-roll
+    probability; the magnitude coefficient of variation is ``std(|peak|) / mean(|peak|)``,
+    its interval the chi-square interval of the standard deviation divided by the mean
+    (approximate).
+
+    With truncation (default for :func:`detect_rolloff` output, which carries each
+    record's ``alpha_max_deg``), the two ways a flight test hides part of a spike are
+    accounted for (see ``docs/rolloff.md``):
+
+    - the runtime model draws at the re-arm alpha, so a spike whose onset lies below
+      it is cut (onset at the crossing, reduced peak);
+    - a stall that turns back before the spike's centre (stick pusher at
+      ``alpha_max - 1``) meets only its rising flank (reduced peak, onset of the partial
+      spike), or nothing.
+
+    An event is *complete* when its onset lies at least ``onset_margin_deg`` above
+    ``rearm_alpha_deg`` and the record's alpha went ``peak_margin_deg`` beyond the
+    spike's peak (``alpha_max_deg - alpha_peak_deg``). Which events are complete depends
+    on the onset alpha only, not on the magnitude factor or the direction, so the
+    magnitude mean and coefficient of variation are computed on the complete events
+    alone (unbiased); the direction counts use every accepted event. The onset mean and
+    standard deviation are the maximum-likelihood estimates of the normal law of the
+    onset truncated to ``[rearm + onset_margin, alpha_max_i - peak_margin - d]`` per
+    event (``d``: mean ``alpha_peak - alpha_onset`` of the complete events), see
+    :func:`truncated_normal_fit`. When a flap has too few events for that fit (fewer than
+    3 right-complete events or 2 uncensored onsets), or fewer than 2 complete events for
+    the magnitude, the plain statistics of every accepted event are reported instead
+    (biased by the truncation), flagged by ``alpha_method = "sample"`` and
+    ``magnitude_method = "all"``.
 
     Returns
     -------
     polars.DataFrame
-        Per flap: ``n, alpha_mean_deg (+_lo, _hi), alpha_std_deg (+_lo, _hi),
-        alpha_peak_mean_deg, magnitude_mean (+_lo, _hi), magnitude_cv (+_lo, _hi),
-        n_right, n_left, p_right (+_lo, _hi)``.
+        Per flap: ``n`` (accepted events), ``n_onset`` (events in the onset fit),
+        ``n_complete`` (events in the magnitude statistics), ``alpha_mean_deg (+_lo, _hi),
+        alpha_std_deg (+_lo, _hi), alpha_peak_mean_deg, alpha_method`` (``censored_fit``
+        or ``sample``), ``magnitude_mean (+_lo, _hi), magnitude_cv (+_lo, _hi),
+        magnitude_method`` (``complete``, ``all`` or ``sample``), ``n_right, n_left,
+        p_right (+_lo, _hi)``.
     """
     ev = events.filter(pl.col("accepted")) if "accepted" in events.columns else events
+    trunc = "alpha_max_deg" in ev.columns if truncation is None else truncation
+    if trunc and "alpha_max_deg" not in ev.columns:
+        ev = ev.with_columns(pl.lit(float("inf")).alias("alpha_max_deg"))
+    if "alpha_peak_deg" not in ev.columns:
+        ev = ev.with_columns(pl.col("alpha_onset_deg").alias("alpha_peak_deg"))
     rows = []
     for flap in sorted(set(ev["flap_deg"].to_list())):
         g = ev.filter(pl.col("flap_deg") == flap)
-        a = g["alpha_onset_deg"].to_numpy().astype(np.float64)
-        mag = np.abs(g["peak"].to_numpy().astype(np.float64))
         d = g["direction"].to_numpy()
-        n = int(a.size)
-        am, alo, ahi = _mean_ci(a, level)
-        sd, slo, shi = _std_ci(a, level)
+        n = int(d.size)
+        if trunc:
+            low = rearm_alpha_deg + onset_margin_deg
+            # the stall passed the spike's peak: its full onset is known or censored below
+            r = g.filter(pl.col("alpha_max_deg") - pl.col("alpha_peak_deg") >= peak_margin_deg)
+            c = r.filter(pl.col("alpha_onset_deg") >= low)
+        else:
+            r = c = g
+        a = c["alpha_onset_deg"].to_numpy().astype(np.float64)
+        apk = c["alpha_peak_deg"].to_numpy().astype(np.float64)
+        mag = np.abs(c["peak"].to_numpy().astype(np.float64))
+        alpha_method = magnitude_method = "sample"
+        if trunc:
+            alpha_method = magnitude_method = "censored_fit"
+            rise = float(np.mean(apk - a)) if a.size else float("nan")
+            upper = r["alpha_max_deg"].to_numpy() - peak_margin_deg - rise
+            fit = truncated_normal_fit(
+                r["alpha_onset_deg"].to_numpy(), low, upper, level=level, censor_lower=True
+            )
+            am, alo, ahi = fit["mean"], fit["mean_lo"], fit["mean_hi"]
+            sd, slo, shi = fit["std"], fit["std_lo"], fit["std_hi"]
+            apk_mean = am + rise
+            if not math.isfinite(am) or not math.isfinite(sd):
+                # too few events for the fit: the plain sample statistics of every
+                # accepted event (biased by the truncation; flagged)
+                alpha_method = "sample"
+                a_all = g["alpha_onset_deg"].to_numpy().astype(np.float64)
+                am, alo, ahi = _mean_ci(a_all, level)
+                sd, slo, shi = _std_ci(a_all, level)
+                apk_mean = float(g["alpha_peak_deg"].mean())  # type: ignore[arg-type]
+            magnitude_method = "complete"
+            if mag.size < 2:
+                magnitude_method = "all"
+                mag = np.abs(g["peak"].to_numpy().astype(np.float64))
+        else:
+            am, alo, ahi = _mean_ci(a, level)
+            sd, slo, shi = _std_ci(a, level)
+            apk_mean = float(apk.mean()) if apk.size else float("nan")
         mm, mlo, mhi = _mean_ci(mag, level)
         ms, mslo, mshi = _std_ci(mag, level)
         nr = int((d > 0).sum())
         plo, phi = wilson_interval(nr, n, level)
-        apk = g["alpha_peak_deg"] if "alpha_peak_deg" in g.columns else g["alpha_onset_deg"]
         rows.append(
             {
                 "flap_deg": float(flap),
                 "n": n,
+                "n_onset": int(r.height),
+                "n_complete": int(a.size),
                 "alpha_mean_deg": am,
                 "alpha_mean_lo": alo,
                 "alpha_mean_hi": ahi,
                 "alpha_std_deg": sd,
                 "alpha_std_lo": slo,
                 "alpha_std_hi": shi,
-                "alpha_peak_mean_deg": float(apk.mean()),  # type: ignore[arg-type]
+                "alpha_peak_mean_deg": apk_mean,
+                "alpha_method": alpha_method,
+                "magnitude_method": magnitude_method,
                 "magnitude_mean": mm,
                 "magnitude_lo": mlo,
                 "magnitude_hi": mhi,
@@ -484,9 +729,10 @@ def monte_carlo(
         stall never met the spike), ``onset_t`` [s], ``peak`` (signed largest injected
         ΔC_l, the roll-off magnitude met), ``direction`` (+1 right, -1 left, 0 none),
         ``drawn_peak`` and ``drawn_center_deg`` (the draw that made the roll-off met, else
-        the draw at the first 15 deg crossing), ``drawn_t`` (its time [s]; 0 for the initial
-        draw, active before the first crossing), ``crossings`` (upward crossings of the
-        re-arm alpha, each a new draw).
+        the draw at the first 15 deg crossing; 0 and NaN when alpha never crossed it: no
+        roll-off acts before the first draw), ``drawn_t`` (its time [s]), ``crossings``
+        (counted upward crossings of the re-arm alpha, each a new draw; after a draw alpha
+        must fall below the re-arm alpha less ``rearm_hysteresis_deg`` first).
     """
     del noise, record_hz
     if flap_deg not in _MC_FLAPS:
@@ -660,7 +906,8 @@ def check_statistics(stats: pl.DataFrame, config: Mapping[str, Any] | None = Non
     """Estimated roll-off statistics (:func:`rolloff_statistics`) against a configuration.
 
     Per flap and quantity, the configured value, the estimate, its interval and whether
-    the interval holds the configured value. Quantities: ``alpha_onset_deg`` (the mean
+    the interval holds the configured value (``False`` when no interval could be computed).
+    Quantities: ``alpha_onset_deg`` (the mean
     detected onset; configured: the Gaussian centre less ``width sqrt(2 ln 5)``, where the
     spike reaches the detector's 20 % onset fraction), ``alpha_std_deg`` (configured
     centre shift spread), ``magnitude`` (mean |peak|), ``magnitude_cv`` and ``p_right``.
@@ -721,5 +968,6 @@ __all__ = [
     "normal_ppf",
     "rolloff_statistics",
     "sample_draws",
+    "truncated_normal_fit",
     "wilson_interval",
 ]

@@ -130,14 +130,14 @@ pub struct StallSummary {
     pub direction: i8,
     /// Signed peak of the draw that made the roll-off met (s k A_f, reached only if
     /// alpha gets to the centre); with no roll-off met, of the draw at the first
-    /// crossing of the re-arm alpha (else the initial draw).
+    /// crossing of the re-arm alpha (0 when alpha never crossed it).
     pub drawn_peak: f64,
     /// Centre of that draw's Gaussian, deg.
     pub drawn_center_deg: f64,
-    /// Time of that draw, s (0: the initial draw, active from the start until the
-    /// first crossing of the re-arm alpha).
+    /// Time of that draw (its crossing), s; NaN when no draw was made.
     pub drawn_t: f64,
-    /// Upward crossings of the re-arm alpha (each made new draws).
+    /// Counted upward crossings of the re-arm alpha (each made new draws; after a
+    /// draw, alpha must fall below the re-arm alpha less the hysteresis first).
     pub crossings: usize,
 }
 
@@ -196,8 +196,8 @@ fn fly(
         .iter()
         .find(|(_, _, d)| big_abs > 0.0 && d.abs() >= spec.onset_fraction * big_abs);
     let history = f.model.rolloff.as_ref().map_or(&[][..], |r| &r.history[..]);
-    // history[0] is the initial draw, then one per upward crossing of the re-arm alpha
-    let draw = met.or_else(|| history.get(1).or(history.first()).copied());
+    // one draw per counted upward crossing of the re-arm alpha (none before the first)
+    let draw = met.or_else(|| history.first().copied());
     Ok(StallSummary {
         stall: k,
         maneuver_index: m.index,
@@ -221,7 +221,7 @@ fn fly(
         drawn_peak: draw.map_or(0.0, |d| d.peak),
         drawn_center_deg: draw.map_or(f64::NAN, |d| d.center_deg),
         drawn_t: draw.map_or(f64::NAN, |d| d.t),
-        crossings: history.len().saturating_sub(1),
+        crossings: history.len(),
     })
 }
 
@@ -365,10 +365,10 @@ mod tests {
         let width = s.campaign.rolloff.width_deg;
         let mut checked = 0;
         for a in &mc {
-            // the draw made at the stall's only crossing of the re-arm alpha (the initial
-            // draw, active before it, may also be met at alphas below the re-arm alpha)
+            // the draw made at the stall's (counted) crossing of the re-arm alpha, when
+            // its centre lies far enough above it for the whole rising flank to be met
             if a.crossings == 1
-                && a.drawn_t > 0.0
+                && a.drawn_center_deg > s.campaign.rolloff.rearm_alpha_deg + 1.0
                 && a.max_alpha_deg > a.drawn_center_deg + 0.5
                 && a.drawn_peak != 0.0
             {
