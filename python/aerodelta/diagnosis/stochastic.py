@@ -71,7 +71,13 @@ def rolloff_finding(frame: pl.DataFrame, residual: np.ndarray) -> dict[str, Any]
         return {"detected": False, "n_events": 0, "n_searched": 0, "p_value": 1.0,
                 "alpha_range_deg": [float("nan")] * 2, "events": [], "centres": []}  # fmt: skip
     try:
-        ev = detect_rolloff(frame, residual=np.asarray(residual, dtype=np.float64), kinds=None)
+        # the frame's alpha_deg is already the CG-referred alpha (the detector's default channel)
+        ev = detect_rolloff(
+            frame,
+            residual=np.asarray(residual, dtype=np.float64),
+            kinds=None,
+            alpha="alpha_deg",
+        )
     except Exception as exc:
         return {"detected": False, "n_events": 0, "n_searched": 0, "p_value": 1.0,
                 "alpha_range_deg": [float("nan")] * 2, "events": [], "centres": [],
