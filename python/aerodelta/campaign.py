@@ -11,7 +11,10 @@ contract layout read by ``aerodelta ingest``::
     DIR/truth/<id>.parquet    truth only: Cl/Cn/CY true and qualified, per-effect dC*_<effect>
     DIR/truth/campaign.json   effects, magnitudes, shapes, seeds, roll-off draws
 
-The same seed gives byte-identical files. See ``docs/aircraft.md``.
+The same seed gives byte-identical files. See ``docs/aircraft.md``. A maneuver in which the
+truth aircraft departs (a spin entry the pilot model cannot hold, possible with several
+destabilising effects at once) is terminated one second before a channel leaves its physical
+range, as a flight test would be; the manifest's ``departed_at_s`` says when.
 """
 
 from __future__ import annotations
@@ -31,6 +34,7 @@ import polars as pl
 from tqdm import tqdm
 
 from aerodelta import _core
+from aerodelta.channels import CHANNELS
 from aerodelta.exceptions import DataError, InvalidInputError
 from aerodelta.model import DeltaModel
 
@@ -237,6 +241,25 @@ def simulate_campaign(
     return out
 
 
+def _departure_row(record: pl.DataFrame, margin_s: float = 1.0) -> int | None:
+    """First row of a record ``margin_s`` before any channel leaves its physical range
+    (:data:`aerodelta.channels.CHANNELS`), or ``None`` when the record stays inside."""
+    first = None
+    for c in record.columns:
+        spec = CHANNELS.get(c)
+        if spec is None:
+            continue
+        x = record[c].to_numpy()
+        with np.errstate(invalid="ignore"):
+            bad = np.flatnonzero((x < spec.lo) | (x > spec.hi))
+        if bad.size and (first is None or bad[0] < first):
+            first = int(bad[0])
+    if first is None:
+        return None
+    t = record["t"].to_numpy()
+    return int(np.searchsorted(t, t[first] - margin_s))
+
+
 def _write_parquet(df: pl.DataFrame, path: Path) -> None:
     df.write_parquet(path, compression="zstd", statistics=False)
 
@@ -325,8 +348,16 @@ def generate_campaign(
                 meta = json.loads(m["meta"])
                 p = meta["plan"]
                 mid = m["id"]
-                _write_parquet(pl.DataFrame(m["record"]), tmp / "records" / f"{mid}.parquet")
-                _write_parquet(pl.DataFrame(m["truth"]), tmp / "truth" / f"{mid}.parquet")
+                rec, tru = pl.DataFrame(m["record"]), pl.DataFrame(m["truth"])
+                cut = _departure_row(rec)
+                if cut is not None:
+                    # the aircraft departed (spin entry, with the truth's effects the pilot
+                    # model could not hold it): the test is terminated there, as a flight
+                    # test would be, so the record stays within the sensors' physical ranges
+                    departed = float(rec["t"][cut])
+                    rec, tru = rec.head(cut), tru.filter(pl.col("t") < departed)
+                _write_parquet(rec, tmp / "records" / f"{mid}.parquet")
+                _write_parquet(tru, tmp / "truth" / f"{mid}.parquet")
                 rows.append(
                     {
                         "maneuver_id": mid,
@@ -339,6 +370,7 @@ def generate_campaign(
                         "max_alpha_deg": float(meta["max_alpha_deg"]),
                         "load_factor_at_stall": float(meta["load_factor_at_stall"]),
                         "max_bank_deg": float(meta["max_bank_deg"]),
+                        "departed_at_s": None if cut is None else departed,
                         "effects": ";".join(f"{k}={v:g}" for k, v in sorted(eff.items())),
                     }
                 )
@@ -346,7 +378,7 @@ def generate_campaign(
                 seeds[mid] = int(p["seed"])
             if bar is not None:
                 bar.update(len(idx))
-        manifest = pl.DataFrame(rows)
+        manifest = pl.DataFrame(rows, infer_schema_length=None)
         manifest.write_csv(tmp / "manifest.csv")
         (tmp / "aircraft.toml").write_text(_core.sim_aircraft_toml())
         lib = {e["name"]: e for e in effect_library()}
