@@ -15,6 +15,7 @@ import pytest
 
 import aerodelta
 from aerodelta.campaign import (
+    _departure_row,
     effect_library,
     generate_campaign,
     parse_effects,
@@ -320,3 +321,16 @@ def test_replay_of_recorded_controls_reproduces_the_flight() -> None:
     np.testing.assert_allclose(np.degrees(states[:, 6]), rec["phi_deg"].to_numpy(), atol=1e-6)
     np.testing.assert_allclose(states[:, 11], rec["h_m"].to_numpy(), atol=1e-4)
     assert tr["alpha_true_deg"].max() > 18
+
+
+def test_departed_maneuver_is_cut_one_second_before_leaving_the_physical_range() -> None:
+    """A record whose alpha leaves [-45, 60] deg at t = 12.34 s (a spin entry) is cut at the
+    last sample before 11.34 s; a record inside every range is kept whole."""
+    t = np.arange(0.0, 20.0, 0.02)
+    alpha = np.where(t < 12.34, 10.0, -70.0)
+    beta = np.zeros_like(t)
+    rec = pl.DataFrame({"t": t, "alpha_deg": alpha, "beta_deg": beta, "other": t * 1e9})
+    cut = _departure_row(rec)
+    assert cut is not None
+    assert t[cut] >= 11.34 - 1e-9 and t[cut - 1] < 11.34
+    assert _departure_row(rec.with_columns(pl.lit(10.0).alias("alpha_deg"))) is None
