@@ -503,26 +503,15 @@ impl Table {
                 continue;
             }
             for (j, o) in o.iter_mut().enumerate() {
-                let b = base[j];
-                // one bounds check for the whole cell (always inside by construction)
-                let (Some(cell), false) = (self.values.get(b..=b + span), nan[j]) else {
-                    *o = f64::NAN;
-                    continue;
-                };
-                let mut corners = [0.0f64; M];
-                for (slot, &off) in corners.iter_mut().zip(&offsets) {
-                    *slot = cell[off];
-                }
-                let mut m = M;
-                for fk in frac.iter().rev() {
-                    let f = fk[j];
-                    let g = 1.0 - f;
-                    m /= 2;
-                    for i in 0..m {
-                        corners[i] = g * corners[2 * i] + f * corners[2 * i + 1];
-                    }
-                }
-                *o = corners[0];
+                *o = block_point(
+                    &self.values,
+                    span,
+                    &offsets,
+                    &base[..len],
+                    &frac,
+                    &nan[..len],
+                    j,
+                );
             }
         }
     }
@@ -874,28 +863,45 @@ mod avx2 {
             }
             j += 4;
         }
-        for jj in j..len {
-            let b = base[jj];
-            let (Some(cell), false) = (values.get(b..=b + span), nan[jj]) else {
-                out[jj] = f64::NAN;
-                continue;
-            };
-            let mut corners = [0.0f64; M];
-            for (slot, &off) in corners.iter_mut().zip(offsets) {
-                *slot = cell[off];
-            }
-            let mut m = M;
-            for fk in frac.iter().rev() {
-                let f = fk[jj];
-                let g = 1.0 - f;
-                m /= 2;
-                for q in 0..m {
-                    corners[q] = g * corners[2 * q] + f * corners[2 * q + 1];
-                }
-            }
-            out[jj] = corners[0];
+        for (jj, o) in out.iter_mut().enumerate().take(len).skip(j) {
+            *o = super::block_point(values, span, offsets, base, frac, nan, jj);
         }
     }
+}
+
+/// Multilinear value at point `j` of a located block (the portable reduction, also the
+/// AVX2 path's tail): the cell's `M` corners from `values[base[j]..]` at `offsets`, collapsed
+/// one axis at a time, last axis first, with the fractions `frac[k][j]`; NaN when the point
+/// was flagged in `nan` or its cell falls outside `values` (never, by construction).
+#[inline(always)]
+fn block_point<const N: usize, const M: usize>(
+    values: &[f64],
+    span: usize,
+    offsets: &[usize; M],
+    base: &[usize],
+    frac: &[[f64; BLOCK]; N],
+    nan: &[bool],
+    j: usize,
+) -> f64 {
+    let b = base[j];
+    // one bounds check for the whole cell (always inside by construction)
+    let (Some(cell), false) = (values.get(b..=b + span), nan[j]) else {
+        return f64::NAN;
+    };
+    let mut corners = [0.0f64; M];
+    for (slot, &off) in corners.iter_mut().zip(offsets) {
+        *slot = cell[off];
+    }
+    let mut m = M;
+    for fk in frac.iter().rev() {
+        let f = fk[j];
+        let g = 1.0 - f;
+        m /= 2;
+        for i in 0..m {
+            corners[i] = g * corners[2 * i] + f * corners[2 * i + 1];
+        }
+    }
+    corners[0]
 }
 
 /// Where the batch path reads its points.
