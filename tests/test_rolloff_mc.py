@@ -256,8 +256,12 @@ def test_one_draw_and_one_spike_per_straight_stall() -> None:
         d = tr["dCl_stochastic_rolloff"].to_numpy()
         a = tr["alpha_true_deg"].to_numpy()
         assert len(draws) == 1, (m["id"], draws)
-        first = int(np.nonzero(a >= 15.0)[0][0])
-        assert draws[0]["t"] == pytest.approx(t[first], abs=0.02), m["id"]
+        # drawn where alpha first reaches 15 deg at the 100 Hz simulation rate: no recorded
+        # (50 Hz) sample reached it before, and the record is at 15 deg there (with gusts
+        # alpha may touch 15 deg at an unrecorded step and dip again)
+        td = draws[0]["t"]
+        assert (a[t < td - 0.02] < 15.0).all(), m["id"]
+        assert abs(np.interp(td, t, a) - 15.0) < 0.1, (m["id"], np.interp(td, t, a))
         assert (d[t < draws[0]["t"] - 0.02] == 0.0).all(), m["id"]
         beyond = np.nonzero(a >= draws[0]["center_deg"] + 2.0)[0]
         if beyond.size:

@@ -503,7 +503,9 @@ def replay(
     dt
         Step, s.
     controls_deg
-        ``(n, 5)``: da, de, dr, dsl, dsr in deg, one row per step.
+        ``(n, 5)``: da, de, dr, dsl, dsr in deg, the surfaces' position at the start of each
+        step; they move linearly to the next row's over the step (the last row is held), as in
+        the virtual flight test.
     ct
         ``(n, 2)``: thrust coefficient per engine per step.
     effects

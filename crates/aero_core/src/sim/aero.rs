@@ -25,6 +25,21 @@ pub struct Controls {
     pub dsr: f64,
 }
 
+impl Controls {
+    /// `self + w (other − self)`, surface by surface.
+    #[must_use]
+    pub fn lerp(&self, other: &Controls, w: f64) -> Controls {
+        let f = |a: f64, b: f64| a + w * (b - a);
+        Controls {
+            da: f(self.da, other.da),
+            de: f(self.de, other.de),
+            dr: f(self.dr, other.dr),
+            dsl: f(self.dsl, other.dsl),
+            dsr: f(self.dsr, other.dsr),
+        }
+    }
+}
+
 /// Everything an aerodynamic model may depend on at one instant.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct AeroInput {

@@ -214,8 +214,12 @@ pub struct Flight {
     pub stall: FlapStall,
     /// Weight, N.
     pub weight_n: f64,
-    /// Surface positions acting over the current step, rad.
+    /// Surface positions at the end of the current step, rad.
     pub surfaces: Controls,
+    /// Surface positions at the start of the current step (what a sample taken
+    /// now records and what acts now), rad; they move linearly to `surfaces`
+    /// over the step.
+    pub surfaces_start: Controls,
     /// Steps flown.
     pub step_index: usize,
     /// Last step allowed (150 s).
@@ -357,6 +361,7 @@ impl Flight {
             stall,
             weight_n: w,
             surfaces: tr.controls,
+            surfaces_start: tr.controls,
             step_index: 0,
             max_steps: (150.0 * spec.sim_hz) as usize,
             acts,
@@ -367,8 +372,10 @@ impl Flight {
     }
 
     /// Start a step: gusts of this step, then what the pilot sees, then the
-    /// surfaces and thrust acting over this step (a sample taken now records
-    /// exactly those, so a replay of the record reproduces the flight, Section 4.3).
+    /// actuators move: `surfaces_start` (where they are now, what a sample taken
+    /// now records) to `surfaces` (where they are at the step's end), linearly
+    /// over the step; thrust is held. A replay of the record with the same
+    /// interpolation reproduces the flight (Section 4.3).
     pub fn command(&mut self) -> StepState {
         let dt = self.sim.dt;
         let sim = &mut self.sim;
@@ -400,6 +407,7 @@ impl Flight {
             controls: c,
             levers,
         } = self.pilot.command(&o, fired, dt);
+        self.surfaces_start = self.surfaces;
         if self.step_index > 0 {
             let acts = &mut self.acts;
             self.surfaces = Controls {
@@ -429,7 +437,12 @@ impl Flight {
     /// # Errors
     /// When the state is no longer finite (the simulation diverged).
     pub fn integrate(&mut self, s: &StepState, index: usize) -> Result<()> {
-        self.sim.step(&mut self.model, &self.surfaces, s.thrust_n);
+        self.sim.step_interp(
+            &mut self.model,
+            &self.surfaces_start,
+            &self.surfaces,
+            s.thrust_n,
+        );
         self.step_index += 1;
         if !self.sim.x.iter().all(|v| v.is_finite()) {
             return Err(AeroError::invalid(
@@ -470,7 +483,7 @@ pub fn run_maneuver(
     for step in 0..max_steps {
         let st = f.command();
         let (ad, thrust) = (st.air, st.thrust_n);
-        let (sim, model, surfaces) = (&f.sim, &f.model, f.surfaces);
+        let (sim, model, surfaces) = (&f.sim, &f.model, f.surfaces_start);
         if step % decim == 0 {
             let (xd, loads) = sim.derivative(model, &surfaces, thrust);
             let (inp, _) = sim.aero_input(&sim.x, &surfaces, thrust);

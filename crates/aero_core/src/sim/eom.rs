@@ -151,6 +151,27 @@ pub fn rk4_step_from(
     x + (k1 + k2 * 2.0 + k3 * 2.0 + k4) * (dt / 6.0)
 }
 
+/// One RK4 step whose inputs change within the step: `mid` gives the loads at
+/// the two half-step stages, `end` at the last one (`first` at the start).
+/// With `mid == end` it is [`rk4_step_from`].
+pub fn rk4_step_stages(
+    body: &RigidBody,
+    x: &StateVec,
+    dt: f64,
+    first: &Loads,
+    mut mid: impl FnMut(&StateVec) -> Loads,
+    mut end: impl FnMut(&StateVec) -> Loads,
+) -> StateVec {
+    let k1 = derivative(body, x, first);
+    let x2 = x + k1 * (0.5 * dt);
+    let k2 = derivative(body, &x2, &mid(&x2));
+    let x3 = x + k2 * (0.5 * dt);
+    let k3 = derivative(body, &x3, &mid(&x3));
+    let x4 = x + k3 * dt;
+    let k4 = derivative(body, &x4, &end(&x4));
+    x + (k1 + k2 * 2.0 + k3 * 2.0 + k4) * (dt / 6.0)
+}
+
 /// Body-to-Earth (NED) rotation matrix for Euler angles φ, θ, ψ (rad).
 pub fn body_to_ned(phi: f64, theta: f64, psi: f64) -> Matrix3<f64> {
     let (sf, cf) = phi.sin_cos();

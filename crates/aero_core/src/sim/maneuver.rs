@@ -9,7 +9,7 @@ use crate::aircraft::turboprop::AircraftRef;
 use crate::error::{AeroError, Result};
 use crate::sim::aero::{AeroInput, AeroModel, Controls};
 use crate::sim::atmosphere::{isa, G0};
-use crate::sim::eom::{derivative, ix, rk4_step_from, Loads, RigidBody, StateVec};
+use crate::sim::eom::{derivative, ix, rk4_step_from, rk4_step_stages, Loads, RigidBody, StateVec};
 
 /// The 6-DOF aircraft: state, environment, and the coupling to an [`AeroModel`].
 #[derive(Debug, Clone)]
@@ -160,35 +160,80 @@ impl Simulator {
         }
     }
 
-    /// Advance one fixed step with surfaces `c` (rad) and thrusts (N) held over it.
+    /// Advance one fixed step with surfaces `c` (rad) and thrusts (N) held over it
+    /// (zero-order hold: the simulator-loop form, one control sample per frame).
     pub fn step<M: AeroModel + ?Sized>(&mut self, model: &mut M, c: &Controls, thrust_n: [f64; 2]) {
         self.frozen = Some(isa(self.x[ix::H]));
-        self.step_frozen(model, c, thrust_n);
+        self.step_frozen(model, c, c, thrust_n);
+    }
+
+    /// Advance one fixed step while the surfaces move linearly from `c0` (their
+    /// position at the step start) to `c1` (at its end): first-order hold, the
+    /// RK4 stages see the surfaces where they are at the stage time (t, t + dt/2,
+    /// t + dt). This is how a continuous actuator acts; with a zero-order hold the
+    /// moment of the surface reached at the step's end acts over the whole step,
+    /// half a step early, and a record of the positions at the sample times then
+    /// lags the moments it caused by dt/2 (a built-in time skew between controls
+    /// and measured coefficients).
+    pub fn step_interp<M: AeroModel + ?Sized>(
+        &mut self,
+        model: &mut M,
+        c0: &Controls,
+        c1: &Controls,
+        thrust_n: [f64; 2],
+    ) {
+        self.frozen = Some(isa(self.x[ix::H]));
+        self.step_frozen(model, c0, c1, thrust_n);
     }
 
     /// Advance one step with thrust from thrust coefficients C_T (T = C_T q̄ S at the step start).
     pub fn step_ct<M: AeroModel + ?Sized>(&mut self, model: &mut M, c: &Controls, ct: [f64; 2]) {
+        self.step_ct_interp(model, c, c, ct);
+    }
+
+    /// [`Simulator::step_ct`] with the surfaces moving linearly from `c0` to `c1`
+    /// over the step ([`Simulator::step_interp`]).
+    pub fn step_ct_interp<M: AeroModel + ?Sized>(
+        &mut self,
+        model: &mut M,
+        c0: &Controls,
+        c1: &Controls,
+        ct: [f64; 2],
+    ) {
         self.frozen = Some(isa(self.x[ix::H]));
         let qs = self.air(&self.x).qbar * self.aircraft.s_m2;
-        self.step_frozen(model, c, [ct[0] * qs, ct[1] * qs]);
+        self.step_frozen(model, c0, c1, [ct[0] * qs, ct[1] * qs]);
     }
 
     fn step_frozen<M: AeroModel + ?Sized>(
         &mut self,
         model: &mut M,
-        c: &Controls,
+        c0: &Controls,
+        c1: &Controls,
         thrust_n: [f64; 2],
     ) {
-        let (inp, ad) = self.aero_input(&self.x, c, thrust_n);
+        let (inp, ad) = self.aero_input(&self.x, c0, thrust_n);
         model.advance(self.t, &inp);
         let x0 = self.x;
         let me = &*self;
         let m = &*model;
         // the first stage's input is the one just computed (same state, atmosphere, α̇)
         let first = me.loads_at(m, &inp, &ad);
-        let next = rk4_step_from(&me.body, &x0, me.dt, &first, |x| {
-            me.loads(m, x, c, thrust_n)
-        });
+        let next = if c0 == c1 {
+            rk4_step_from(&me.body, &x0, me.dt, &first, |x| {
+                me.loads(m, x, c0, thrust_n)
+            })
+        } else {
+            let mid = c0.lerp(c1, 0.5);
+            rk4_step_stages(
+                &me.body,
+                &x0,
+                me.dt,
+                &first,
+                |x| me.loads(m, x, &mid, thrust_n),
+                |x| me.loads(m, x, c1, thrust_n),
+            )
+        };
         self.x = next;
         self.t += self.dt;
         let ad = self.air(&self.x); // angles only: the frozen atmosphere is fine here
@@ -290,8 +335,11 @@ pub fn trim<M: AeroModel + ?Sized>(sim: &Simulator, model: &M, v: f64, h: f64) -
 
 /// Replay (thesis Section 4.3): drive the simulation with recorded control
 /// positions and thrusts from a flight record, from initial state `x0`.
-/// `controls[k]` and `thrust_n[k]` act over step k (length `n`); returns the
-/// state at each step start and the final one (n + 1 rows).
+/// `controls[k]` is the surfaces' position at the start of step k; they move
+/// linearly to `controls[k + 1]` over the step (the last row is held), as in
+/// the virtual flight test ([`Simulator::step_interp`]); `thrust_n[k]` is held
+/// over step k (length `n`). Returns the state at each step start and the
+/// final one (n + 1 rows).
 pub fn replay<M: AeroModel + ?Sized>(
     sim: &mut Simulator,
     model: &mut M,
@@ -310,8 +358,9 @@ pub fn replay<M: AeroModel + ?Sized>(
     }
     let mut out = Vec::with_capacity(controls.len() + 1);
     out.push(sim.x);
-    for (c, t) in controls.iter().zip(thrust_n) {
-        sim.step(model, c, *t);
+    for (k, (c, t)) in controls.iter().zip(thrust_n).enumerate() {
+        let next = controls.get(k + 1).unwrap_or(c);
+        sim.step_interp(model, c, next, *t);
         out.push(sim.x);
     }
     Ok(out)
@@ -340,8 +389,9 @@ pub fn replay_ct<M: AeroModel + ?Sized>(
     }
     let mut out = Vec::with_capacity(controls.len() + 1);
     out.push(sim.x);
-    for (c, k) in controls.iter().zip(ct) {
-        sim.step_ct(model, c, *k);
+    for (i, (c, k)) in controls.iter().zip(ct).enumerate() {
+        let next = controls.get(i + 1).unwrap_or(c);
+        sim.step_ct_interp(model, c, next, *k);
         out.push(sim.x);
     }
     Ok(out)
