@@ -82,6 +82,9 @@ def main() -> int:
     ap.add_argument(
         "--magnitudes", default=None, help="singles at these fractions only, e.g. 0.5,0.25"
     )
+    ap.add_argument(
+        "--effects", default=None, help="only cases withholding one of these, e.g. time_skew"
+    )
     ap.add_argument("--out", default="diagnosis_suite.json")
     args = ap.parse_args()
     size: str | int = int(args.size) if args.size.isdigit() else args.size
@@ -102,6 +105,9 @@ def main() -> int:
     if args.magnitudes:
         mags = {float(m) for m in args.magnitudes.split(",")}
         todo = [t for t in todo if len(t[0]) == 1 and next(iter(t[0].values())) in mags]
+    if args.effects:
+        names = set(args.effects.split(","))
+        todo = [t for t in todo if names & set(t[0])]
     results: list[CaseResult] = []
     t0 = time.perf_counter()
     for effects, seed, cond in tqdm(todo, desc="withheld-effect suite", file=sys.stderr):

@@ -9,7 +9,12 @@ never does (it refuses truth paths). Scoring rules:
   contribution removes at least ``affect_share`` of that coefficient's gap energy (the oracle
   shrink); measurement effects affect the coefficients their physics reaches (beta vane bias,
   time skew and control lag: all three; accelerometer offset: C_Y; alpha vane bias: none
-  measurably, since the lateral simulator barely depends on alpha);
+  measurably, since the lateral simulator barely depends on alpha) by default; when the case
+  is run with its *twin* campaigns (:func:`run_case` flies, for each withheld measurement
+  effect, the same seed without it: the flight is identical, only the sensors differ), the
+  same gap-energy rule as for aerodynamic effects decides, on the gap the effect adds
+  (:func:`measurement_shares`), so a quarter-size skew that moves no coefficient measurably
+  is left out of the rates like an unmeasurable aerodynamic effect;
 - a single is *found* when every affected coefficient's verdict is the effect, or names it
   as ambiguous with the verdict (the data could not tell them apart: not a confident wrong
   answer);
@@ -39,6 +44,7 @@ import polars as pl
 from aerodelta.campaign import effect_library, generate_campaign
 from aerodelta.diagnosis.core import DiagnoseConfig, Diagnosis, _alpha_range, diagnose
 from aerodelta.diagnosis.vocabulary import COEFFICIENTS
+from aerodelta.fit import model_frame, qualified_coefficients
 from aerodelta.ingest import ingest
 
 #: Coefficients a measurement effect acts on (see the module doc).
@@ -75,10 +81,57 @@ def _kinds() -> dict[str, str]:
     return {e["name"]: e["kind"] for e in effect_library()}
 
 
+def _gap(data: pl.DataFrame) -> pl.DataFrame:
+    """``C_meas - C_qual`` of the built-in qualified model along the records, by (maneuver, t)."""
+    mf = model_frame(data)
+    q = qualified_coefficients(mf, "adx37")
+    return mf.select("maneuver_id", "t").with_columns(
+        (mf[f"{c}_meas"] - q[f"{c}_qual"]).alias(f"{c}_gap") for c in COEFFICIENTS
+    )
+
+
+def measurement_shares(data: pl.DataFrame, twin: pl.DataFrame) -> dict[str, float]:
+    """Share of each coefficient's gap energy that a withheld measurement effect adds.
+
+    Parameters
+    ----------
+    data
+        The ingested campaign with the effect.
+    twin
+        The same campaign (seed, conditions, other effects) flown without it: same flight,
+        only the sensors differ.
+
+    Returns
+    -------
+    dict
+        Coefficient -> ``sum(d^2) / sum(gap^2)``, ``d`` the gap with the effect minus the gap
+        without it on the samples both campaigns keep.
+    """
+    j = _gap(data).join(_gap(twin), on=["maneuver_id", "t"], how="inner", suffix="_twin")
+    out = {}
+    for c in COEFFICIENTS:
+        g = j[f"{c}_gap"].to_numpy()
+        d = g - j[f"{c}_gap_twin"].to_numpy()
+        ok = np.isfinite(d) & np.isfinite(g)
+        den = float(np.sum(g[ok] ** 2))
+        out[c] = float(np.sum(d[ok] ** 2)) / den if den > 0 else 0.0
+    return out
+
+
 def score_case(
-    diag: Diagnosis, truth_dir: Path, effects: Mapping[str, float], affect_share: float = 0.03
+    diag: Diagnosis,
+    truth_dir: Path,
+    effects: Mapping[str, float],
+    affect_share: float = 0.03,
+    shares: Mapping[str, Mapping[str, float]] | None = None,
 ) -> CaseResult:
-    """Score a diagnosis against the campaign's truth files."""
+    """Score a diagnosis against the campaign's truth files.
+
+    ``shares`` (measurement effect -> coefficient -> gap-energy share, from
+    :func:`measurement_shares` on the twin campaigns) makes a measurement effect affect the
+    coefficients where it adds at least ``affect_share`` of the gap energy; without it, the
+    fixed :data:`MEASUREMENT_ACTS` apply.
+    """
     kinds = _kinds()
     preds = diag.predictions
     ids = sorted(set(preds["maneuver_id"].to_list()))
@@ -124,6 +177,8 @@ def score_case(
                         if lo_e is not None and np.isfinite(lo_t):
                             onset_err[f"{c}:{e}"] = abs(float(lo_e) - lo_t)
             affected[e] = acts
+        elif shares is not None and e in shares:
+            affected[e] = [c for c in COEFFICIENTS if shares[e].get(c, 0.0) >= affect_share]
         else:
             affected[e] = list(MEASUREMENT_ACTS.get(e, ()))
     single = len(effects) == 1
@@ -190,18 +245,32 @@ def run_case(
     rolloff: bool = False,
     config: DiagnoseConfig | None = None,
     workdir: str | Path | None = None,
+    twins: bool = True,
 ) -> CaseResult:
     """Fly, ingest, diagnose and score one case (the campaign is written to a temporary
-    folder, or ``workdir``)."""
-    with tempfile.TemporaryDirectory(dir=workdir) as tmp:
-        camp = Path(tmp) / "campaign"
+    folder, or ``workdir``). With ``twins``, each withheld measurement effect's reach is
+    measured on a twin campaign flown without it (:func:`measurement_shares`)."""
+    kinds = _kinds()
+
+    def fly(folder: Path, eff: Mapping[str, float]) -> pl.DataFrame:
         generate_campaign(
-            camp, effects=dict(effects) if effects else "none", seed=seed, size=size,
+            folder, effects=dict(eff) if eff else "none", seed=seed, size=size,
             noise=noise, turbulence=turbulence, rolloff=rolloff, overwrite=True,
         )  # fmt: skip
-        data = ingest(camp, compat=False, progress=False).data
+        return ingest(folder, compat=False, progress=False).data
+
+    with tempfile.TemporaryDirectory(dir=workdir) as tmp:
+        camp = Path(tmp) / "campaign"
+        data = fly(camp, effects)
+        shares: dict[str, dict[str, float]] | None = None
+        if twins:
+            shares = {}
+            for e in effects:
+                if kinds.get(e) == "measurement":
+                    rest = {k: v for k, v in effects.items() if k != e}
+                    shares[e] = measurement_shares(data, fly(Path(tmp) / f"twin_{e}", rest))
         diag = diagnose(data, config=config)
-        out = score_case(diag, camp / "truth", effects)
+        out = score_case(diag, camp / "truth", effects, shares=shares)
     out.settings = {
         "seed": seed, "size": size, "noise": noise, "turbulence": turbulence, "rolloff": rolloff,
     }  # fmt: skip
