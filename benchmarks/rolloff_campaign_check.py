@@ -15,10 +15,14 @@ How the statistics account for what a flight test hides (``docs/rolloff.md``): a
 onset lies below the 15 deg re-arm alpha starts at the crossing (its onset is censored there),
 and a stick-pusher stall that turns back before the spike's centre meets its rising flank only
 (such events are left out of the onset fit by truncation and out of the magnitude statistics).
-The onset alphas are read on the CG-corrected alpha. 10 straight stalls per flap, of which the
-detector accepts about 7 (the others are preceded by a pilot input: rejected by design, thesis
-step 2), give wide intervals; a flap with too few events reports the plain sample statistics
+The onset alphas are read on the CG-corrected alpha. 10 straight stalls per flap (the pilot
+holds the controls in the last 6 deg before the stall: no doublets, stick noise only) give
+wide intervals; a flap with too few events reports the plain sample statistics
 (``alpha_method``/``magnitude_method`` flags) or no interval (counted outside).
+
+Detection is scored against the injected truth (``aerodelta.rolloff.score_detection``: found of
+injected, floor 90 %; false of accepted, ceiling 10 %), with the missed events and the
+detector's reasons.
 
 Usage: python benchmarks/rolloff_campaign_check.py [seed=0] [size=default] [effects=none]
 """
@@ -65,6 +69,15 @@ def main() -> None:
             f"detection: {int(events['accepted'].sum())} accepted of {events.height} candidates "
             f"in {n_straight} straight stalls ({t3 - t2:.1f} s)"
         )
+        sc = ro.score_detection(events, camp)
+        print(
+            f"against the injected truth: found {sc['found']} of {sc['injected']} injected "
+            f"({100 * sc['recall']:.1f} %, floor 90 %), {sc['false']} false of {sc['accepted']} "
+            f"accepted ({100 * sc['false_rate']:.1f} %, ceiling 10 %)"
+        )
+        if sc["missed"].height:
+            with pl.Config(fmt_str_lengths=200, tbl_width_chars=200):
+                print(sc["missed"])
     stats = ro.rolloff_statistics(events)
     chk = ro.check_statistics(stats, ro.default_config())
     with pl.Config(tbl_rows=100, tbl_cols=20, float_precision=4, tbl_width_chars=160):

@@ -17,6 +17,7 @@ from __future__ import annotations
 import json
 import math
 from collections.abc import Mapping, Sequence
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -949,6 +950,96 @@ def check_statistics(stats: pl.DataFrame, config: Mapping[str, Any] | None = Non
     return pl.DataFrame(rows)
 
 
+#: An injected roll-off whose largest |ΔC_l| is at least this counts as an event to find
+#: (clearly above the detector's 0.003 magnitude floor).
+INJECTED_MIN = 0.005
+#: An accepted event matched to an injected contribution at least this large (within
+#: :data:`MATCH_WINDOW_S`) is not a false event, even when that contribution is too small
+#: to count as one to find.
+PARTIAL_MIN = 0.002
+#: Largest distance between a detected and the injected peak time of a match, s.
+MATCH_WINDOW_S = 3.0
+
+
+def score_detection(events: pl.DataFrame, campaign_dir: str | Path) -> dict[str, Any]:
+    """Score detected roll-offs against a *virtual* campaign's injected ones (validation only).
+
+    Reads the campaign's truth files (``truth/<maneuver>.parquet``, column
+    ``dCl_stochastic_rolloff``), which exist only for virtual flight tests; the detector itself
+    never reads them. Per straight stall in ``events`` (maneuvers of kind ``straight``), the
+    injected event is the largest |ΔC_l| of the roll-off contribution, its time and true alpha.
+
+    Parameters
+    ----------
+    events
+        :func:`detect_rolloff` output (accepted and rejected candidates).
+    campaign_dir
+        The campaign folder (holds ``truth/`` and ``manifest.csv``).
+
+    Returns
+    -------
+    dict
+        ``injected`` (events with |peak| >= :data:`INJECTED_MIN`), ``found`` (of those, with an
+        accepted event within :data:`MATCH_WINDOW_S` of the injected peak), ``accepted``,
+        ``false`` (accepted events matching no injected contribution >= :data:`PARTIAL_MIN`),
+        ``recall`` and ``false_rate`` (false / max(accepted, straight stalls)), ``missed`` (the
+        maneuvers of the injected events not found, with the detector's rejection reasons) and
+        ``matched`` (the accepted events that match, with ``t_true``, ``peak_true``,
+        ``alpha_true``).
+    """
+    truth_dir = Path(campaign_dir) / "truth"
+    manifest = pl.read_csv(Path(campaign_dir) / "manifest.csv")
+    ids = sorted(manifest.filter(pl.col("kind") == "straight")["maneuver_id"].to_list())
+    rows = []
+    for mid in ids:
+        f = truth_dir / f"{mid}.parquet"
+        if not f.exists():
+            raise DataError(f"score_detection: {f} is missing (a virtual campaign's truth file)")
+        tr = pl.read_parquet(f)
+        if "dCl_stochastic_rolloff" not in tr.columns:
+            rows.append({"maneuver_id": mid, "t_true": 0.0, "peak_true": 0.0, "alpha_true": 0.0})
+            continue
+        d = tr["dCl_stochastic_rolloff"].to_numpy()
+        k = int(np.argmax(np.abs(d)))
+        rows.append(
+            {
+                "maneuver_id": mid,
+                "t_true": float(tr["t"][k]),
+                "peak_true": float(d[k]),
+                "alpha_true": float(tr["alpha_true_deg"][k]),
+            }
+        )
+    truth = pl.DataFrame(
+        rows,
+        schema={"maneuver_id": pl.String, "t_true": pl.Float64, "peak_true": pl.Float64,
+                "alpha_true": pl.Float64},
+    )  # fmt: skip
+    acc = events.filter(pl.col("accepted") & pl.col("maneuver_id").is_in(ids))
+    j = acc.join(truth, on="maneuver_id", how="left")
+    matched = j.filter(
+        (pl.col("peak_true").abs() >= PARTIAL_MIN)
+        & ((pl.col("t_peak") - pl.col("t_true")).abs() < MATCH_WINDOW_S)
+    )
+    injected = truth.filter(pl.col("peak_true").abs() >= INJECTED_MIN)
+    found = injected.join(matched.select("maneuver_id"), on="maneuver_id", how="semi")
+    missed = injected.join(found.select("maneuver_id"), on="maneuver_id", how="anti").join(
+        events.group_by("maneuver_id").agg(pl.col("reason").str.join("; ")),
+        on="maneuver_id",
+        how="left",
+    )
+    false = j.height - matched.height
+    return {
+        "injected": injected.height,
+        "found": found.height,
+        "accepted": j.height,
+        "false": false,
+        "recall": found.height / injected.height if injected.height else float("nan"),
+        "false_rate": false / max(j.height, len(ids), 1),
+        "missed": missed,
+        "matched": matched,
+    }
+
+
 __all__ = [
     "FAR25_203_MAX_ROLL_DEG",
     "QUANTILES",
@@ -968,6 +1059,7 @@ __all__ = [
     "normal_ppf",
     "rolloff_statistics",
     "sample_draws",
+    "score_detection",
     "truncated_normal_fit",
     "wilson_interval",
 ]

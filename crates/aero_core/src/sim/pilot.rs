@@ -17,7 +17,8 @@
 //! sideslip (PI). Gains, delay and trim errors vary per maneuver, and the
 //! pilot adds random doublets and stick noise so lateral states are excited;
 //! `excitation` scales both (low excitation was the thesis's main difficulty,
-//! Section 3.3.3).
+//! Section 3.3.3). In straight stalls the doublets stop within
+//! [`STRAIGHT_HOLD_BELOW_STALL_DEG`] of α_max until the recovery (controls held).
 
 use crate::aircraft::qualified::{lift_curve, pitch_curve, FlapStall};
 use crate::sim::aero::Controls;
@@ -188,6 +189,14 @@ pub struct PilotParams {
 
 const DELAY_SLOTS: usize = 64;
 
+/// In a straight stall the pilot holds the controls (no deliberate doublets, stick
+/// noise only) once alpha is within this many degrees of α_max, until the recovery:
+/// a certification straight stall observes what the aircraft does by itself (thesis
+/// Sections 3.2.1 and 3.4.3; its roll-off events were read where the aileron was
+/// quasi-constant). 6° covers the roll-off onsets of Table 3.2 (17.1-18.0° on
+/// α_max 18.5-19.5°) with their spread and a doublet's 2.2 s.
+pub const STRAIGHT_HOLD_BELOW_STALL_DEG: f64 = 6.0;
+
 /// The pilot.
 #[derive(Debug, Clone)]
 pub struct Pilot {
@@ -342,8 +351,11 @@ impl Pilot {
         let mut dr = g * (-0.8 * o.beta - 0.5 * self.int_beta + 0.2 * o.r);
         // excitation: doublets and stick noise
         let x = p.excitation;
+        let hold = p.kind == Kind::Straight
+            && self.phase == Phase::Approach
+            && alpha_deg > self.stall.alpha_max_deg - STRAIGHT_HOLD_BELOW_STALL_DEG;
         if x > 0.0 {
-            if self.doublet.is_none() && o.t >= self.next_doublet {
+            if !hold && self.doublet.is_none() && o.t >= self.next_doublet {
                 let half = self.rng.range(0.5, 1.1);
                 let amp = x * self.rng.range(3.0, 8.0).to_radians();
                 let sign = if self.rng.bernoulli(0.5) { 1.0 } else { -1.0 };
