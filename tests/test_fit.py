@@ -11,7 +11,7 @@ import pytest
 
 import aerodelta as ad
 from aerodelta.exceptions import DataError
-from aerodelta.fit import model_frame
+from aerodelta.fit import DEFAULT_STRUCTURES, model_frame
 
 
 @pytest.fixture(scope="module")
@@ -95,3 +95,19 @@ def test_config_errors_name_file_and_key(tmp_path: Path) -> None:
 def test_example_config_is_the_documented_default() -> None:
     example = Path(__file__).resolve().parent.parent / "examples" / "fit.toml"
     assert ad.FitConfig.from_toml(example) == ad.FitConfig()
+
+
+def test_too_few_maneuvers_per_flap_fit_the_given_structure_and_say_so(
+    result: ad.FitResult, split: tuple[pl.DataFrame, pl.DataFrame]
+) -> None:
+    # the quick campaign has 8 maneuvers per flap (6-7 in the training split): below the 15
+    # that cross-validated selection needs, so every flap fits the thesis structure
+    n = split[0].group_by("flap_deg").agg(pl.col("maneuver_id").n_unique())["maneuver_id"]
+    assert (n < 15).all()
+    s = result.structure
+    assert s.height > 0 and s["kept"].all()
+    assert s["note"].str.contains("maneuvers at this flap, 15 needed").all(), s["note"][0]
+    assert result.cross_validation.is_empty()
+    for c, terms in DEFAULT_STRUCTURES.items():
+        kept = set(s.filter(pl.col("coefficient") == c)["param"].to_list())
+        assert kept == {name for name, _ in terms}

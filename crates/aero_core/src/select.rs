@@ -31,14 +31,18 @@
 //!    (Bartlett window): the inflation of the variance of a mean, the case of
 //!    slowly varying regressors.
 //! 2. **Per flap**, each candidate's *selection frequency* (share of fitted
-//!    bins that selected it) orders the pool; candidates selected in fewer
-//!    than `min_bins` bins are dropped.
+//!    bins that selected it) is counted; candidates selected in fewer than
+//!    `min_bins` bins are dropped.
 //! 3. **Cross-validation over maneuvers** (K folds of whole maneuvers, never
-//!    of samples: neighbouring samples are correlated) scores the nested
-//!    structures "forced + the k most frequent", bin by bin; the smallest k
+//!    of samples: neighbouring samples are correlated) scores nested
+//!    structures bin by bin along a greedy path: from the forced columns, the
+//!    remaining candidate whose addition lowers the CV error most is added
+//!    next (a training fit leaves out the regressors its data do not excite,
+//!    as the final per-bin fit does); the smallest k
 //!    whose CV mean squared error is within one standard error of the best is
 //!    kept (the one-standard-error rule, Hastie, Tibshirani & Friedman 2009,
-//!    Section 7.10); then kept candidates are dropped one at a time while
+//!    Section 7.10, with the standard error of the fold-by-fold differences
+//!    from the best, [`CvScore::paired_se`]); then kept candidates are dropped one at a time while
 //!    that lowers the cross-validated error (backward elimination on the
 //!    held-out error).
 //!
@@ -509,6 +513,34 @@ pub struct CvScore {
     pub mse: f64,
     /// Standard error of `mse` over the folds.
     pub mse_se: f64,
+    /// Held-out mean squared error of each fold (NaN for a fold with no held-out sample).
+    pub fold_mse: Vec<f64>,
+}
+
+impl CvScore {
+    /// Standard error of the mean fold-by-fold difference `self − other` of the held-out
+    /// MSE (paired over the folds; NaN with fewer than two common folds).
+    ///
+    /// The maneuvers of a fold are the same for every structure, so the differences
+    /// cancel the between-fold spread that both share (a fold holding a hard maneuver is
+    /// hard for every structure): with a few maneuvers per flap the unpaired
+    /// [`CvScore::mse_se`] can be as large as the error itself, and the
+    /// one-standard-error rule then accepts any structure, down to the intercept alone.
+    pub fn paired_se(&self, other: &CvScore) -> f64 {
+        let d: Vec<f64> = self
+            .fold_mse
+            .iter()
+            .zip(&other.fold_mse)
+            .filter(|(a, b)| a.is_finite() && b.is_finite())
+            .map(|(a, b)| a - b)
+            .collect();
+        let k = d.len() as f64;
+        if k < 2.0 {
+            return f64::NAN;
+        }
+        let m = d.iter().sum::<f64>() / k;
+        (d.iter().map(|v| (v - m).powi(2)).sum::<f64>() / (k - 1.0) / k).sqrt()
+    }
 }
 
 /// The outcome of [`select_structure`].
@@ -658,8 +690,40 @@ fn fold_of(maneuver: &[u64], folds: usize, seed: u64) -> std::collections::HashM
         .collect()
 }
 
-/// Per bin and fold: the fold's Gram matrix and its sample count.
-type FoldGrams = Vec<Vec<(Vec<f64>, f64)>>;
+/// Per bin and fold: the fold's Gram matrix, column sums and sample count.
+type FoldGrams = Vec<Vec<(Vec<f64>, Vec<f64>, f64)>>;
+
+/// What a training fit may use: the flap-wide standard deviation of each
+/// (scaled) column, which columns are constant, and the low-excitation
+/// threshold of [`crate::identify::IdentifyOptions::min_excitation`].
+struct Excitation<'a> {
+    flap_sd: &'a [f64],
+    constant: &'a [bool],
+    min: f64,
+}
+
+impl Excitation<'_> {
+    /// The columns of `cols` the training data `(g, s, n)` of one bin excite:
+    /// as in the final per-bin fit, a regressor whose in-bin standard deviation
+    /// is below `min` times the flap's is not identifiable there and is left out
+    /// of the fit (its held-out contribution is zero) instead of being estimated
+    /// from the little variation the training maneuvers happen to hold.
+    fn excited(&self, g: &[f64], s: &[f64], n: f64, dim: usize, cols: &[usize]) -> Vec<usize> {
+        cols.iter()
+            .copied()
+            .filter(|&j| {
+                if self.constant[j] {
+                    return true;
+                }
+                if n <= 1.0 || self.flap_sd[j] <= 0.0 {
+                    return false;
+                }
+                let v = ((g[j * dim + j] - s[j] * s[j] / n) / (n - 1.0)).max(0.0);
+                v.sqrt() >= self.min * self.flap_sd[j]
+            })
+            .collect()
+    }
+}
 
 fn cv_score(
     grams: &BinGrams,
@@ -668,6 +732,7 @@ fn cv_score(
     fitted: &[bool],
     cols: &[usize],
     min_points: usize,
+    excitation: &Excitation<'_>,
 ) -> CvScore {
     let dim = grams.dim;
     let nf = folds.first().map_or(0, Vec::len);
@@ -677,20 +742,22 @@ fn cv_score(
         if !fitted[b] {
             continue;
         }
-        let (gt, _, nt) = &totals[b];
-        for (f, (gf, nfold)) in fg.iter().enumerate() {
+        let (gt, st, nt) = &totals[b];
+        for (f, (gf, sf, nfold)) in fg.iter().enumerate() {
             if *nfold == 0.0 {
                 continue;
             }
             let train: Vec<f64> = gt.iter().zip(gf).map(|(a, b)| a - b).collect();
+            let strain: Vec<f64> = st.iter().zip(sf).map(|(a, b)| a - b).collect();
             let ntrain = nt - nfold;
-            let fit = if ntrain >= (min_points * cols.len().max(1)) as f64 {
-                solve_subset(&train, dim, cols)
+            let used = excitation.excited(&train, &strain, ntrain, dim, cols);
+            let fit = if ntrain >= (min_points * used.len().max(1)) as f64 {
+                solve_subset(&train, dim, &used)
             } else {
                 None
             };
             let (e, z2, y2) = match fit {
-                Some((th, _)) => held_out(gf, dim, cols, &th),
+                Some((th, _)) => held_out(gf, dim, &used, &th),
                 None => {
                     let z2 = gf[dim * dim - 1];
                     (z2, z2, 0.0)
@@ -706,10 +773,14 @@ fn cv_score(
     }
     let s2 = grams.scale[dim - 1].powi(2);
     let mse = if n > 0.0 { s2 * sse / n } else { f64::NAN };
-    let fold_mse: Vec<f64> = per_fold
+    let all_folds: Vec<f64> = per_fold
         .iter()
-        .filter(|(_, c)| *c > 0.0)
-        .map(|(e, c)| s2 * e / c)
+        .map(|(e, c)| if *c > 0.0 { s2 * e / c } else { f64::NAN })
+        .collect();
+    let fold_mse: Vec<f64> = all_folds
+        .iter()
+        .copied()
+        .filter(|v| v.is_finite())
         .collect();
     let k = fold_mse.len() as f64;
     let mse_se = if k > 1.0 {
@@ -730,6 +801,7 @@ fn cv_score(
         tic,
         mse,
         mse_se,
+        fold_mse: all_folds,
     }
 }
 
@@ -900,8 +972,7 @@ pub fn select_with_grams(
                         .iter()
                         .map(|m| f64::from(u8::from(fold_map.get(m) == Some(&f))))
                         .collect();
-                    let (g, _, n) = bs.total(dim, Some(&w));
-                    (g, n)
+                    bs.total(dim, Some(&w))
                 })
                 .collect()
         })
@@ -911,6 +982,34 @@ pub fn select_with_grams(
         .filter(|j| !opts.forced.contains(j) && count[*j] >= opts.min_bins.max(1))
         .collect();
     order.sort_by(|a, b| count[*b].cmp(&count[*a]).then(a.cmp(b)));
+    // flap-wide standard deviations of the scaled columns (sum over the bins)
+    let (mut gf, mut sf, mut nf) = (vec![0.0; dim * dim], vec![0.0; dim], 0.0);
+    for (g, s, c) in &totals {
+        gf.iter_mut().zip(g).for_each(|(a, b)| *a += b);
+        sf.iter_mut().zip(s).for_each(|(a, b)| *a += b);
+        nf += c;
+    }
+    let flap_sd: Vec<f64> = (0..p)
+        .map(|j| {
+            if nf > 1.0 {
+                ((gf[j * dim + j] - sf[j] * sf[j] / nf) / (nf - 1.0))
+                    .max(0.0)
+                    .sqrt()
+            } else {
+                0.0
+            }
+        })
+        .collect();
+    let constant: Vec<bool> = design
+        .exprs
+        .iter()
+        .map(crate::regressor::Expr::is_constant)
+        .collect();
+    let excitation = Excitation {
+        flap_sd: &flap_sd,
+        constant: &constant,
+        min: opts.min_excitation,
+    };
     let score = |cols: &[usize]| {
         cv_score(
             grams,
@@ -919,13 +1018,39 @@ pub fn select_with_grams(
             &fitted,
             cols,
             opts.min_points_per_param,
+            &excitation,
         )
     };
+    // the greedy path: from the forced columns, add at each step the frequent
+    // candidate whose addition gives the lowest cross-validated error (a
+    // candidate the per-bin selection picks often but that predicts other
+    // maneuvers badly, such as a thrust difference acting as an indicator of the
+    // one asymmetric-thrust maneuver of a fold, then comes late, not first)
     let mut nested = Vec::with_capacity(order.len() + 1);
-    for k in 0..=order.len() {
-        let mut cols: Vec<usize> = opts.forced.clone();
-        cols.extend_from_slice(&order[..k]);
-        nested.push(score(&cols));
+    let mut cols: Vec<usize> = opts.forced.clone();
+    nested.push(score(&cols));
+    let mut left = order.clone();
+    while let Some((i, s)) = left
+        .iter()
+        .enumerate()
+        .map(|(i, &c)| {
+            let mut trial = cols.clone();
+            trial.push(c);
+            (i, score(&trial))
+        })
+        .min_by(|a, b| {
+            let key = |s: &CvScore| {
+                if s.mse.is_finite() {
+                    s.mse
+                } else {
+                    f64::INFINITY
+                }
+            };
+            key(&a.1).total_cmp(&key(&b.1))
+        })
+    {
+        cols.push(left.remove(i));
+        nested.push(s);
     }
     let best = nested
         .iter()
@@ -933,13 +1058,14 @@ pub fn select_with_grams(
         .filter(|(_, s)| s.mse.is_finite())
         .min_by(|a, b| a.1.mse.total_cmp(&b.1.mse))
         .map_or(0, |(i, _)| i);
-    let limit = nested[best].mse
-        + if nested[best].mse_se.is_finite() {
-            nested[best].mse_se
-        } else {
-            0.0
-        };
-    let chosen_k = nested.iter().position(|s| s.mse <= limit).unwrap_or(best);
+    // one-standard-error rule on the paired fold differences from the best structure
+    let chosen_k = nested
+        .iter()
+        .position(|s| {
+            let se = s.paired_se(&nested[best]);
+            s.mse <= nested[best].mse + if se.is_finite() { se } else { 0.0 }
+        })
+        .unwrap_or(best);
     // backward pruning by cross-validation: drop a kept candidate while its removal lowers
     // the held-out error (confounded pairs, e.g. rudder and thrust asymmetry held against
     // each other by the pilot, enter together by frequency but predict worse than one)
@@ -1326,6 +1452,27 @@ mod tests {
                 assert!((x - y).abs() <= 1e-9, "{x} vs {y}");
             }
         }
+    }
+
+    #[test]
+    fn paired_se_is_the_standard_error_of_the_fold_differences() {
+        let sc = |f: Vec<f64>| CvScore {
+            columns: vec![],
+            rms: f64::NAN,
+            tic: f64::NAN,
+            mse: f64::NAN,
+            mse_se: f64::NAN,
+            fold_mse: f,
+        };
+        // fold errors that share a large between-fold spread, with a steady difference
+        let a = sc(vec![1.0, 5.0, 2.0, 9.0, 3.0]);
+        let b = sc(vec![1.5, 5.4, 2.6, 9.5, 3.5]);
+        // d = b - a = 0.5, 0.4, 0.6, 0.5, 0.5: mean 0.5, sample variance 0.005
+        let want = (0.005f64 / 5.0).sqrt();
+        assert!((b.paired_se(&a) - want).abs() < 1e-12);
+        // a fold missing in either is left out; fewer than two common folds: NaN
+        let c = sc(vec![f64::NAN, 5.4, f64::NAN, f64::NAN, f64::NAN]);
+        assert!(c.paired_se(&a).is_nan());
     }
 
     #[test]

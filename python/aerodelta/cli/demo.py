@@ -142,20 +142,29 @@ def _print_identification(result: object, camp: Path) -> None:
     for row in kept.iter_rows(named=True):
         names = ", ".join(p.split("_", 1)[1] for p in row["param"])
         print(f"  {row['coefficient']:<3} flap {row['flap_deg']:>4g}: {names}")
-    cv = (
-        r.cross_validation.group_by(["coefficient", "structure"])  # type: ignore[attr-defined]
-        .agg(pl.col("cv_rms").mean(), pl.col("cv_tic").mean(), pl.col("n_params").mean())
-        .sort(["coefficient", "structure"])
-    )
-    print(
-        "cross-validated per-bin Δ fit (mean over flaps): selected vs full pool vs thesis default"
-    )
-    print(f"{'coef':<5} {'structure':<9} {'params':>6} {'CV rms':>10} {'CV TIC':>7}")
-    for row in cv.iter_rows(named=True):
-        print(
-            f"{row['coefficient']:<5} {row['structure']:<9} {row['n_params']:>6.1f} "
-            f"{row['cv_rms']:>10.5f} {row['cv_tic']:>7.3f}"
+    skipped = r.structure.filter(pl.col("note") != "")  # type: ignore[attr-defined]
+    if skipped.height:
+        print(f"  (flaps {sorted(set(skipped['flap_deg'].to_list()))}: {skipped['note'][0]})")
+    if r.cross_validation.is_empty():  # type: ignore[attr-defined]
+        print("no cross-validated selection: too few maneuvers per flap")
+        cv = None
+    else:
+        cv = (
+            r.cross_validation.group_by(["coefficient", "structure"])  # type: ignore[attr-defined]
+            .agg(pl.col("cv_rms").mean(), pl.col("cv_tic").mean(), pl.col("n_params").mean())
+            .sort(["coefficient", "structure"])
         )
+    if cv is not None:
+        print(
+            "cross-validated per-bin Δ fit (mean over flaps): selected vs full pool vs thesis "
+            "default"
+        )
+        print(f"{'coef':<5} {'structure':<9} {'params':>6} {'CV rms':>10} {'CV TIC':>7}")
+        for row in cv.iter_rows(named=True):
+            print(
+                f"{row['coefficient']:<5} {row['structure']:<9} {row['n_params']:>6.1f} "
+                f"{row['cv_rms']:>10.5f} {row['cv_tic']:>7.3f}"
+            )
     if not r.replicates:  # type: ignore[attr-defined]
         return
     bc = band_check(r, campaign_effects(camp))
