@@ -523,12 +523,27 @@ impl QualifiedModel {
 
     /// Wind-axis C_L, C_D and body C_Y, C_l, C_m, C_n by walking the terms (general path).
     pub fn evaluate_terms(&self, s: &AeroInput) -> [f64; 6] {
+        self.evaluate_resolved(&self.resolve(|_| true), s)
+    }
+
+    /// The terms of the coefficients `keep` selects, each with its table (the
+    /// name lookup done once, for evaluating many states with
+    /// [`QualifiedModel::evaluate_resolved`]); a term whose table is missing is
+    /// left out, as [`QualifiedModel::evaluate_terms`] skips it.
+    pub fn resolve(&self, keep: impl Fn(Coef) -> bool) -> Vec<(&Term, &Table)> {
+        self.terms
+            .iter()
+            .filter(|t| keep(t.coef))
+            .filter_map(|t| self.table(&t.table).map(|tab| (t, tab)))
+            .collect()
+    }
+
+    /// [`QualifiedModel::evaluate_terms`] over resolved terms: the coefficients
+    /// of the terms given (the others stay 0), in `[CL, CD, CY, Cl, Cm, Cn]`.
+    pub fn evaluate_resolved(&self, terms: &[(&Term, &Table)], s: &AeroInput) -> [f64; 6] {
         let adh = s.alpha_dot * self.aircraft.cbar_m / (2.0 * s.tas.max(1.0));
         let mut out = [0.0; 6];
-        for term in &self.terms {
-            let Some(t) = self.table(&term.table) else {
-                continue;
-            };
+        for (term, t) in terms {
             let mut x = [0.0; 3];
             for (k, inp) in term.inputs.iter().enumerate() {
                 x[k] = input_value(*inp, s);

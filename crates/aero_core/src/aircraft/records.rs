@@ -79,6 +79,7 @@ pub fn qualified_lateral(model: &QualifiedModel, c: &RecordColumns<'_>) -> Resul
             ));
         }
     }
+    let lateral = model.resolve(|c| matches!(c, Coef::Cl | Coef::Cn | Coef::CY));
     let row = |i: usize| -> [f64; 3] {
         let s = AeroInput {
             alpha: c.alpha_deg[i].to_radians(),
@@ -101,7 +102,7 @@ pub fn qualified_lateral(model: &QualifiedModel, c: &RecordColumns<'_>) -> Resul
             mach: c.tas_mps[i] / SOUND_SPEED_MPS,
             tas: c.tas_mps[i],
         };
-        let v = model.evaluate_terms(&s);
+        let v = model.evaluate_resolved(&lateral, &s);
         [
             v[coef_index(Coef::Cl)],
             v[coef_index(Coef::Cn)],
