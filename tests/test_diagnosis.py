@@ -16,6 +16,7 @@ import aerodelta
 from aerodelta.campaign import generate_campaign
 from aerodelta.cli import main
 from aerodelta.diagnosis import cv, write_outputs
+from aerodelta.diagnosis.stochastic import event_regressors, refine_centres
 from aerodelta.diagnosis.withheld import score_case
 from aerodelta.exceptions import DataError
 from aerodelta.fit import model_frame, qualified_coefficients
@@ -334,3 +335,37 @@ def test_user_defined_effect_is_scored_and_can_explain_what_it_models(campaigns,
     # a regressor that is identically zero explains nothing and is never significant
     cn = {e["effect"]: e for e in doc["coefficients"]["Cn"]["effects"]}
     assert not cn["my_noise"]["significant"]
+
+
+def test_rolloff_nuisance_columns_follow_the_runtime_spike_along_the_record(tmp_path):
+    """The per-event nuisance columns of the roll-off moment have the runtime model's shape
+    along the flown alpha history (drawn at the armed 15-deg crossing, decaying with the
+    alpha travelled past the centre, spent after four widths; a flank-only spike's centre
+    found above its peak): on a virtual campaign, each maneuver's injected truth spike is
+    reproduced by least-squares amplitudes on its two columns to a few per cent RMS, where a
+    Gaussian of alpha alone at the peak alpha (the spike met again on the way down) leaves
+    about a third of it."""
+    d = tmp_path / "campaign"
+    generate_campaign(d, effects="none", seed=5, size="quick", rolloff=True)
+    new, old = [], []
+    for f in sorted((d / "truth").glob("m*.parquet")):
+        tr = pl.read_parquet(f).with_columns(pl.lit(f.stem).alias("maneuver_id"))
+        spike = tr["dCl_stochastic_rolloff"].to_numpy()
+        on = np.abs(spike) > 1e-7
+        if np.abs(spike).max() < 1e-4 or int(np.sum(on[1:] & ~on[:-1])) > 1:
+            continue  # no roll-off, or more than one draw in the maneuver
+        a, t = tr["alpha_true_deg"].to_numpy(), tr["t"].to_numpy()
+        k = int(np.argmax(np.abs(spike)))
+        frame = tr.select("maneuver_id", "t", pl.col("alpha_true_deg").alias("alpha_deg"))
+        centres = refine_centres(frame, spike, [(f.stem, float(a[k]), float(t[k]))])
+        for out, cols in (
+            (new, event_regressors(frame, centres)),
+            (old, event_regressors(frame, [(f.stem, float(a[k]))])),
+        ):
+            amp, *_ = np.linalg.lstsq(cols, spike, rcond=None)
+            out.append(np.sqrt(np.mean((cols @ amp - spike) ** 2) / np.mean(spike**2)))
+    new_a, old_a = np.array(new), np.array(old)
+    assert new_a.size >= 20
+    assert np.median(new_a) < 0.03, np.sort(new_a)
+    assert np.mean(new_a < 0.05) >= 0.8, np.sort(new_a)
+    assert np.median(old_a) > 5 * np.median(new_a)

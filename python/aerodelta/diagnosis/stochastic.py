@@ -33,34 +33,148 @@ def _binom_sf(k: int, n: int, p: float) -> float:
 ROLLOFF_SIGMA_DEG = 0.5
 
 
+#: Re-arm alpha of the runtime roll-off model, deg: a draw is made when alpha crosses it upward
+#: (``aero_core::rolloff``; thesis Section 3.4.3).
+REARM_ALPHA_DEG = 15.0
+
+#: Re-arm hysteresis of the runtime model, deg (``rearm_hysteresis_deg``, default 2).
+REARM_HYSTERESIS_DEG = 2.0
+
+#: A spike is spent once the alpha travelled past its centre exceeds this many widths
+#: (``aero_core::rolloff::SPENT_WIDTHS``).
+SPENT_WIDTHS = 4.0
+
+
+def travelled_alpha(alpha: np.ndarray, centre: float) -> np.ndarray:
+    """The alpha at which the runtime roll-off model evaluates its Gaussian along one stall,
+    deg (``aero_core::rolloff``): ``alpha`` until the stall has reached the centre, then the
+    alpha travelled since, ``top + (top - alpha)`` with ``top`` the highest alpha so far, so
+    the spike decays when the stall turns back instead of being met a second time."""
+    top = np.maximum.accumulate(alpha)
+    return np.where(top >= centre, 2.0 * top - alpha, alpha)
+
+
+def draw_index(a_m: np.ndarray, t_m: np.ndarray, tp: float) -> int:
+    """Index of the sample at which the runtime model made the draw met at time ``tp``: the
+    last armed upward crossing of the re-arm alpha before it (the model is armed at first and
+    re-armed only once alpha falls :data:`REARM_HYSTERESIS_DEG` below the re-arm alpha, so
+    gusts around 15 deg do not redraw); 0 when the record starts above it."""
+    up = np.flatnonzero((a_m[1:] >= REARM_ALPHA_DEG) & (a_m[:-1] < REARM_ALPHA_DEG)) + 1
+    low = a_m < REARM_ALPHA_DEG - REARM_HYSTERESIS_DEG
+    start, armed, prev = 0, True, 0
+    for i in up:
+        if t_m[i] > tp:
+            break
+        if not armed and low[prev:i].any():
+            armed = True
+        if armed:
+            start, armed, prev = int(i), False, int(i)
+    return start
+
+
+def _spike_columns(
+    a_m: np.ndarray, t_m: np.ndarray, ac: float, tp: float | None, sigma_deg: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """The two nuisance columns of one event along one maneuver (rows in time order)."""
+    if tp is None:
+        u = (a_m - ac) / sigma_deg
+        g = np.exp(-0.5 * u * u)
+        return g, u * g
+    start = draw_index(a_m, t_m, tp)
+    g = np.zeros(a_m.size)
+    ug = np.zeros(a_m.size)
+    eff = travelled_alpha(a_m[start:], ac)
+    live = ~np.maximum.accumulate(eff >= ac + SPENT_WIDTHS * sigma_deg)
+    u = (eff[live] - ac) / sigma_deg
+    idx = np.flatnonzero(live) + start
+    g[idx] = np.exp(-0.5 * u * u)
+    ug[idx] = u * g[idx]
+    return g, ug
+
+
+def _by_maneuver(frame: pl.DataFrame) -> tuple[dict[str, np.ndarray], np.ndarray, np.ndarray]:
+    """Row indices of each maneuver in time order, and the alpha and time columns."""
+    names, code = np.unique(frame["maneuver_id"].to_numpy(), return_inverse=True)
+    t = frame["t"].to_numpy() if "t" in frame.columns else np.arange(frame.height, dtype=float)
+    order = np.lexsort((t, code))
+    bounds = np.searchsorted(code[order], np.arange(names.size + 1))
+    rows = {str(m): order[bounds[i] : bounds[i + 1]] for i, m in enumerate(names)}
+    return rows, frame["alpha_deg"].to_numpy(), t
+
+
 def event_regressors(
-    frame: pl.DataFrame, centres: list[tuple[str, float]], sigma_deg: float = ROLLOFF_SIGMA_DEG
+    frame: pl.DataFrame,
+    centres: list[tuple[str, float]] | list[tuple[str, float, float]],
+    sigma_deg: float = ROLLOFF_SIGMA_DEG,
 ) -> np.ndarray:
     """Per-event nuisance columns of the roll-off moment (``n x 2K``, ``K`` the most events of
     one maneuver): for the ``j``-th event of a maneuver, centred at ``alpha_c``, the Gaussian
-    ``g = exp(-u^2/2)``, ``u = (alpha - alpha_c)/sigma``, the runtime model's shape (thesis
-    Section 3.4.3), and ``u g``, its derivative in the centre, which absorbs the error of
-    taking the spike's peak alpha for the centre; zero on the other maneuvers' rows. Their
-    amplitudes are a random draw per event, so they are profiled out per maneuver
-    (:func:`aerodelta.diagnosis.cv.profile_out`), never predicted."""
-    names, code = np.unique(frame["maneuver_id"].to_numpy(), return_inverse=True)
-    alpha = frame["alpha_deg"].to_numpy()
-    order = np.argsort(code, kind="stable")
-    bounds = np.searchsorted(code[order], np.arange(names.size + 1))
-    where = {str(m): i for i, m in enumerate(names)}
-    per: dict[int, list[float]] = {}
-    for m, a in centres:
-        if m in where:
-            per.setdefault(where[m], []).append(a)
+    ``g = exp(-u^2/2)``, ``u = (alpha_e - alpha_c)/sigma``, the runtime model's shape (thesis
+    Section 3.4.3, Figure 3.14), and ``u g``, its derivative in the centre, which absorbs a
+    small error in the centre; zero on the other maneuvers' rows.
+
+    With the spike's peak time (``(maneuver, alpha_c, t_peak)`` triples), ``alpha_e`` follows
+    the runtime model along the record (``aero_core::rolloff``): zero before the draw (the
+    last upward crossing of the re-arm alpha before the peak), the alpha travelled past the
+    centre once the stall has reached it (:func:`travelled_alpha`), and zero once the spike
+    is spent; with pairs, ``alpha_e`` is the alpha itself (a spike met again on the way
+    down). Their amplitudes are a random draw per event, so they are profiled out per
+    maneuver (:func:`aerodelta.diagnosis.cv.profile_out`), never predicted."""
+    rows_of, alpha, t = _by_maneuver(frame)
+    per: dict[str, list[tuple[float, float | None]]] = {}
+    for c in centres:
+        if c[0] in rows_of:
+            tp = float(c[2]) if len(c) > 2 else None  # type: ignore[misc]
+            per.setdefault(c[0], []).append((float(c[1]), tp))
     k = max((len(v) for v in per.values()), default=0)
     out = np.zeros((frame.height, 2 * k))
-    for i, cs in per.items():
-        rows = order[bounds[i] : bounds[i + 1]]
-        for j, ac in enumerate(sorted(cs)):
-            u = (alpha[rows] - ac) / sigma_deg
-            g = np.exp(-0.5 * u * u)
+    for m, cs in per.items():
+        rows = rows_of[m]
+        for j, (ac, tp) in enumerate(sorted(cs, key=lambda x: x[0])):
+            g, ug = _spike_columns(alpha[rows], t[rows], ac, tp, sigma_deg)
             out[rows, 2 * j] = g
-            out[rows, 2 * j + 1] = u * g
+            out[rows, 2 * j + 1] = ug
+    return out
+
+
+#: Centres tried above a spike's peak alpha, deg (:func:`refine_centres`).
+CENTRE_SHIFTS_DEG = (0.0, 0.25, 0.5, 0.75, 1.0, 1.25, 1.5)
+
+
+def refine_centres(
+    frame: pl.DataFrame,
+    residual: np.ndarray,
+    centres: list[tuple[str, float, float]],
+    sigma_deg: float = ROLLOFF_SIGMA_DEG,
+) -> list[tuple[str, float, float]]:
+    """Each event's centre chosen among its peak alpha and up to 1.5 deg above it
+    (:data:`CENTRE_SHIFTS_DEG`) by the residual its two columns leave in its maneuver.
+
+    A stall that turns back before a roll-off's centre meets only its rising flank: the
+    spike peaks at the stall's highest alpha, below the centre, and is narrower in alpha than
+    a Gaussian centred there (on a virtual campaign, a flank met 1 deg below the centre left
+    48 % of the spike's RMS with the centre at the peak, none with the centre found here). A
+    spike the stall passes peaks at its centre, where the search stays."""
+    rows_of, alpha, t = _by_maneuver(frame)
+    out = []
+    for m, ac, tp in centres:
+        rows = rows_of.get(m)
+        if rows is None:
+            out.append((m, ac, tp))
+            continue
+        r = residual[rows]
+        best, best_c = -1.0, ac
+        for dc in CENTRE_SHIFTS_DEG:
+            g, ug = _spike_columns(alpha[rows], t[rows], ac + dc, tp, sigma_deg)
+            x = np.column_stack([g, ug])
+            nz = np.flatnonzero(np.any(x != 0.0, axis=1))
+            if nz.size < 3:
+                continue
+            coef, *_ = np.linalg.lstsq(x[nz], r[nz], rcond=None)
+            explained = float(np.sum((x[nz] @ coef) ** 2))
+            if explained > best:
+                best, best_c = explained, ac + dc
+        out.append((m, best_c, tp))
     return out
 
 
@@ -95,7 +209,14 @@ def rolloff_finding(frame: pl.DataFrame, residual: np.ndarray) -> dict[str, Any]
     # every spike-shaped candidate's (maneuver, alpha at the spike's peak), accepted or not: a
     # roll-off the pilot answered with the aileron at once is rejected by step 2 of the
     # procedure but is still a moment no regressor predicts
-    centres = [(r["maneuver_id"], float(r["alpha_peak_deg"])) for r in ev.iter_rows(named=True)]
+    centres = refine_centres(
+        frame,
+        np.asarray(residual, dtype=np.float64),
+        [
+            (r["maneuver_id"], float(r["alpha_peak_deg"]), float(r["t_peak"]))
+            for r in ev.iter_rows(named=True)
+        ],
+    )
     events = [
         {
             "maneuver_id": r["maneuver_id"],
