@@ -103,6 +103,32 @@ def test_noisy_record_smoothing_and_derivatives(tmp_path: Path, truth: dict) -> 
     assert _err(d["Cl_meas"].to_numpy()[inner], truth["Cl_true"][inner]) < 0.05
 
 
+def test_thrust_coefficients_are_smoothed_like_the_air_data(tmp_path: Path, truth: dict) -> None:
+    """C_T feeds the simulator's C_n (engine arm / span) and the thrust regressors: its
+    measurement noise is smoothed out per maneuver (reported in ``smoothing``), the signal
+    kept. Reference: the noise-free engine-cut ramp the noise was added to."""
+    rng = np.random.default_rng(9)
+    m = dict(truth)
+    # a 2-s engine spool-down in the middle of the record, then 0.002 rms noise per engine
+    ramp = np.clip((T - 18.0) / 2.0, 0.0, 1.0)
+    clean_l, clean_r = 0.25 - 0.2 * ramp, np.full_like(T, 0.25)
+    m["ct_left"] = clean_l + 0.002 * rng.standard_normal(len(T))
+    m["ct_right"] = clean_r + 0.002 * rng.standard_normal(len(T))
+    canonical_frame(m).write_parquet(tmp_path / "noisy.parquet")
+    (tmp_path / "aircraft.toml").write_text(AIRCRAFT_TOML)
+    res = aerodelta.ingest(tmp_path, compat=False, progress=False)
+    inner = slice(50, len(T) - 50)
+    for col, clean in (("ct_left", clean_l), ("ct_right", clean_r)):
+        err = res.data[col].to_numpy()[inner] - clean[inner]
+        assert np.sqrt(np.mean(err**2)) < 0.4 * 0.002, col  # noise down by more than 2.5x
+    diff = res.data["ct_diff"].to_numpy()[inner] - (clean_l - clean_r)[inner]
+    # the 0.2 spool-down kept: within 4 % of its size at worst (the ramp's corners rounded)
+    assert np.max(np.abs(diff)) < 0.04 * 0.2
+    assert {"ct_left", "ct_right"} <= set(res.smoothing["channel"])
+    raw = aerodelta.ingest(tmp_path, smooth=False, compat=False, progress=False).data
+    np.testing.assert_array_equal(raw["ct_left"].to_numpy(), m["ct_left"])
+
+
 def test_compat_recovers_injected_alpha_and_ax_biases(tmp_path: Path, truth: dict) -> None:
     m = dict(truth)
     m["alpha_deg"] = truth["alpha_deg"] + 1.0  # +1 deg vane bias

@@ -8,8 +8,10 @@ Formulas (body axes, Etkin: x forward, y right wing, z down):
   isentropic pitot), :math:`V = M\\sqrt{\\gamma R T_s}`, R = 287.05287 J/(kg K), γ = 1.4;
 - thrust coefficient per engine when ``ct_*`` are absent: :math:`C_T = \\eta Q\\Omega/(V\\bar q S)`
   from shaft torque Q (N m) and propeller speed Ω (rad/s), η = ``Aircraft.prop_efficiency``;
-- :math:`C_{T,diff} = C_{T,left} - C_{T,right}` (thesis Eq. 3.17),
-  :math:`\\delta_s = \\delta_{s,left} + \\delta_{s,right}` (Eq. 3.18);
+- :math:`C_{T,diff} = C_{T,left} - C_{T,right}` (thesis Eq. 3.17), from per-engine C_T
+  smoothed like the air data (optimal Fourier smoothing per maneuver, :func:`_smooth_thrust`);
+  the signed combined spoiler :math:`\\delta_s = \\delta_{s,right} - \\delta_{s,left}`
+  (Eq. 3.18 with signed sides, see ``docs/data.md``);
 - the engine (``aero_core::preprocess::maneuver``): smoothing (SIDPAC ``smoo``), ṗ, q̇, ṙ,
   accelerometer and vane transfers to the CG, α̇, β̇, :math:`\\bar q = \\rho V^2/2`,
   :math:`\\hat p = pb/2V`, :math:`\\hat q = q\\bar c/2V`, :math:`\\hat r = rb/2V`, and
@@ -18,6 +20,7 @@ Formulas (body axes, Etkin: x forward, y right wing, z down):
 
 from __future__ import annotations
 
+import itertools
 import math
 
 import numpy as np
@@ -101,6 +104,9 @@ def preprocess_frame(
                 extra.append(pl.lit(None, dtype=pl.Float64).alias(ct))
     if extra:
         out = out.with_columns(extra)
+    ct_report: list[tuple[str, str, float, float]] = []
+    if smooth:
+        out, ct_report = _smooth_thrust(out, offsets, [str(v) for v in runs["value"].to_list()])
     # Combined roll spoiler (thesis Eq. 3.18 with signed sides): the spoilers deploy one side
     # at a time, so ds = dsr - dsl keeps the roll direction (positive: right spoiler up,
     # right wing down, positive Cl), as the virtual flight test's truth model uses it.
@@ -121,4 +127,46 @@ def preprocess_frame(
             "noise_std": np.asarray(noise),
         }
     )
+    if ct_report:
+        report = pl.concat(
+            [report, pl.DataFrame(ct_report, schema=report.columns, orient="row")]
+        ).sort("maneuver_id", maintain_order=True)
     return out, report
+
+
+#: Per-engine thrust coefficient channels smoothed like the air data and rates.
+THRUST_CHANNELS = ("ct_left", "ct_right")
+
+
+def _smooth_thrust(
+    df: pl.DataFrame, offsets: list[int], ids: list[str]
+) -> tuple[pl.DataFrame, list[tuple[str, str, float, float]]]:
+    """Optimal Fourier smoothing (SIDPAC ``smoo``, the engine's smoother) of the thrust
+    coefficients, per maneuver, with a data-chosen cut-off.
+
+    C_T enters the simulator's lateral model (``C_n,CTdiff = y_engine / b``) and the Δ
+    regressors ``ct_sum``, ``ct_diff``; used raw, its measurement noise passes straight into
+    the simulator's C_n (0.158 x sqrt(2) x 0.002 = 4.5e-4 rms at the virtual flight test's
+    noise, the size of the whole C_n gap of a well-modelled campaign) and biases the
+    thrust-asymmetry terms toward zero (errors in variables). Maneuvers whose channel has
+    missing values are left as they are.
+    """
+    t = df["t"].to_numpy()
+    cols: dict[str, np.ndarray] = {}
+    report: list[tuple[str, str, float, float]] = []
+    for ch in THRUST_CHANNELS:
+        if ch not in df.columns or df[ch].null_count() == df.height:
+            continue
+        x = df[ch].cast(pl.Float64).fill_null(float("nan")).to_numpy().copy()
+        for k, (a, b) in enumerate(itertools.pairwise(offsets)):
+            seg = x[a:b]
+            if b - a < 8 or not np.all(np.isfinite(seg)):
+                continue
+            dt = float(t[b - 1] - t[a]) / (b - a - 1)  # the engine's step (uniform rate)
+            sm, cutoff, noise = _core.smooth(np.ascontiguousarray(seg), dt)
+            x[a:b] = sm
+            report.append((ids[k], ch, float(cutoff), float(noise)))
+        cols[ch] = x
+    if not cols:
+        return df, report
+    return df.with_columns(pl.Series(k, v) for k, v in cols.items()), report
