@@ -5,7 +5,7 @@ issue's floors are about; writes every case to JSON.
 
     python benchmarks/diagnosis_suite.py [--quick] [--size quick|default|N] [--seeds 1]
         [--design-singles] [--only singles|multi|unlisted|nulls] [--magnitudes 0.5,0.25]
-        [--out FILE]
+        [--effects a,b] [--condition 0|1] [--out FILE]
 """
 
 from __future__ import annotations
@@ -85,6 +85,13 @@ def main() -> int:
     ap.add_argument(
         "--effects", default=None, help="only cases withholding one of these, e.g. time_skew"
     )
+    ap.add_argument(
+        "--condition",
+        type=int,
+        choices=range(len(CONDITIONS)),
+        default=None,
+        help="only cases flown in this condition (0: nominal; 1: noise x2, gusts, roll-off)",
+    )
     ap.add_argument("--out", default="diagnosis_suite.json")
     args = ap.parse_args()
     size: str | int = int(args.size) if args.size.isdigit() else args.size
@@ -108,6 +115,8 @@ def main() -> int:
     if args.effects:
         names = set(args.effects.split(","))
         todo = [t for t in todo if names & set(t[0])]
+    if args.condition is not None:
+        todo = [t for t in todo if t[2] is CONDITIONS[args.condition]]
     results: list[CaseResult] = []
     t0 = time.perf_counter()
     for effects, seed, cond in tqdm(todo, desc="withheld-effect suite", file=sys.stderr):
