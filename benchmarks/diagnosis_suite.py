@@ -4,6 +4,7 @@ the simulator lacks, diagnosed and scored against the truth (see
 issue's floors are about; writes every case to JSON.
 
     python benchmarks/diagnosis_suite.py [--quick] [--size quick|default|N] [--seeds 1]
+        [--first-seed 1]
         [--design-singles] [--only singles|multi|unlisted|nulls] [--magnitudes 0.5,0.25]
         [--effects a,b] [--condition 0|1] [--out FILE]
 """
@@ -34,7 +35,9 @@ PAIRS = [
 ]
 
 
-def cases(quick: bool, seeds: int) -> list[tuple[dict[str, float], int, dict[str, object]]]:
+def cases(
+    quick: bool, seeds: int, first_seed: int = 1
+) -> list[tuple[dict[str, float], int, dict[str, object]]]:
     """(effects, seed, condition) of every case."""
     lib = effect_library()
     aero = [e["name"] for e in lib if e["kind"] == "aerodynamic"]
@@ -51,7 +54,7 @@ def cases(quick: bool, seeds: int) -> list[tuple[dict[str, float], int, dict[str
             out.append(({}, 100 + s, CONDITIONS[s % 2]))
         out.append(({"time_skew": 0.1}, 110, CONDITIONS[0]))
         return out
-    for seed in range(1, seeds + 1):
+    for seed in range(first_seed, first_seed + seeds):
         for ci, cond in enumerate(CONDITIONS):
             for e in aero + meas:
                 for m in (1.0, 0.5, 0.25):
@@ -62,7 +65,7 @@ def cases(quick: bool, seeds: int) -> list[tuple[dict[str, float], int, dict[str
                 out.append(({u: 1.0}, seed * 1000 + 600 + i, cond))
     for s in range(20):
         eff = {"time_skew": 0.1} if s % 2 else {}  # 4 ms of skew: real but negligible
-        out.append((eff, 9000 + s, CONDITIONS[s % 2]))
+        out.append((eff, 9000 + 100 * (first_seed - 1) + s, CONDITIONS[s % 2]))
     return out
 
 
@@ -70,7 +73,10 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--quick", action="store_true", help="a dozen cases instead of the sweep")
     ap.add_argument("--size", default="quick", help="campaign size (quick = 40 maneuvers, or N)")
-    ap.add_argument("--seeds", type=int, default=1)
+    ap.add_argument("--seeds", type=int, default=1, help="seed sets of the sweep")
+    ap.add_argument(
+        "--first-seed", type=int, default=1, help="first seed set (2: a sweep unlike the default)"
+    )
     ap.add_argument(
         "--design-singles", action="store_true", help="only singles at design magnitude"
     )
@@ -95,7 +101,7 @@ def main() -> int:
     ap.add_argument("--out", default="diagnosis_suite.json")
     args = ap.parse_args()
     size: str | int = int(args.size) if args.size.isdigit() else args.size
-    todo = cases(args.quick, args.seeds)
+    todo = cases(args.quick, args.seeds, args.first_seed)
     if args.design_singles:
         todo = [t for t in todo if len(t[0]) == 1 and next(iter(t[0].values())) == 1.0]
     kinds = {e["name"]: e["kind"] for e in effect_library()}
