@@ -151,6 +151,13 @@ pub fn record(
     let r_b = v3(ac.beta_vane_m);
     let n = samples.len();
     let mut cols: Vec<Vec<f64>> = (0..CHANNELS.len()).map(|_| Vec::with_capacity(n)).collect();
+    // Noise-free values and noise of the channels a timing effect moves: the delay acts on
+    // what the sensor sees, and each recorded sample keeps its own noise (shifting the noisy
+    // record by interpolation would also average the noise of neighbouring samples, a
+    // low-pass no recorder applies).
+    let timed: Vec<usize> = [1usize, 2, 12, 14, 15, 16, 17, 18].to_vec();
+    let mut clean: Vec<Vec<f64>> = timed.iter().map(|_| Vec::with_capacity(n)).collect();
+    let mut noisy_part: Vec<Vec<f64>> = timed.iter().map(|_| Vec::with_capacity(n)).collect();
     for s in samples {
         let mut nz = |sd: f64| sd * ns * rng.normal();
         let va = s.v_air + s.omega.cross(&r_a);
@@ -161,48 +168,91 @@ pub fn record(
         let acc = s.f_cg + s.omega_dot.cross(&r_acc) + s.omega.cross(&s.omega.cross(&r_acc)) + ab;
         let rates = s.omega.map(f64::to_degrees) + gb;
         let c = &s.controls;
-        let vals = [
+        // noise drawn in channel order (the same stream whatever the effects)
+        let e: [f64; 19] = [
+            nz(noise.angle_deg),
+            nz(noise.angle_deg),
+            nz(noise.rate_dps),
+            nz(noise.rate_dps),
+            nz(noise.rate_dps),
+            nz(noise.attitude_deg),
+            nz(noise.attitude_deg),
+            nz(noise.attitude_deg),
+            nz(noise.accel_mps2),
+            nz(noise.accel_mps2),
+            nz(noise.accel_mps2),
+            nz(noise.tas_mps),
+            nz(noise.control_deg),
+            nz(noise.control_deg),
+            nz(noise.control_deg),
+            nz(noise.control_deg),
+            nz(noise.control_deg),
+            nz(noise.ct),
+            nz(noise.ct),
+        ];
+        let truth = [
             s.t,
-            alpha_v + nz(noise.angle_deg),
-            beta_v + nz(noise.angle_deg),
-            rates.x + nz(noise.rate_dps),
-            rates.y + nz(noise.rate_dps),
-            rates.z + nz(noise.rate_dps),
-            s.euler.x.to_degrees() + nz(noise.attitude_deg),
-            s.euler.y.to_degrees() + nz(noise.attitude_deg),
-            s.euler.z.to_degrees() + nz(noise.attitude_deg),
-            acc.x + nz(noise.accel_mps2),
-            acc.y + nz(noise.accel_mps2),
-            acc.z + nz(noise.accel_mps2),
-            s.tas + nz(noise.tas_mps),
+            alpha_v,
+            beta_v,
+            rates.x,
+            rates.y,
+            rates.z,
+            s.euler.x.to_degrees(),
+            s.euler.y.to_degrees(),
+            s.euler.z.to_degrees(),
+            acc.x,
+            acc.y,
+            acc.z,
+            s.tas,
             s.rho,
-            c.da.to_degrees() + nz(noise.control_deg),
-            c.de.to_degrees() + nz(noise.control_deg),
-            c.dr.to_degrees() + nz(noise.control_deg),
-            c.dsl.to_degrees() + nz(noise.control_deg),
-            c.dsr.to_degrees() + nz(noise.control_deg),
+            c.da.to_degrees(),
+            c.de.to_degrees(),
+            c.dr.to_degrees(),
+            c.dsl.to_degrees(),
+            c.dsr.to_degrees(),
             flap_deg,
-            s.ct[0] + nz(noise.ct),
-            s.ct[1] + nz(noise.ct),
+            s.ct[0],
+            s.ct[1],
             ac.prop_rpm,
             s.h,
         ];
-        for (col, v) in cols.iter_mut().zip(vals) {
-            col.push(v);
+        // channel k's noise: e[k - 1] for the sensors 1..=12, e[k - 2] for 14..=18 and 20..=21
+        let noise_of = |k: usize| match k {
+            1..=12 => e[k - 1],
+            14..=18 => e[k - 2],
+            20 | 21 => e[k - 3],
+            _ => 0.0,
+        };
+        for (k, (col, v)) in cols.iter_mut().zip(truth).enumerate() {
+            col.push(v + noise_of(k));
+        }
+        for (i, &k) in timed.iter().enumerate() {
+            clean[i].push(truth[k]);
+            noisy_part[i].push(noise_of(k));
         }
     }
     if n >= 2 {
         let t = cols[0].clone();
+        let mut apply = |k: usize, shift: f64| {
+            if let Some(i) = timed.iter().position(|&x| x == k) {
+                let moved = shifted(&t, &clean[i], shift);
+                cols[k] = moved
+                    .iter()
+                    .zip(&noisy_part[i])
+                    .map(|(v, e)| v + e)
+                    .collect();
+            }
+        };
         if meas.time_skew_s != 0.0 {
-            // air data recorded late: rec(t) = true(t − τ)
+            // air data recorded late: rec(t) = true(t − τ) + noise(t)
             for k in [1usize, 2, 12] {
-                cols[k] = shifted(&t, &cols[k], -meas.time_skew_s);
+                apply(k, -meas.time_skew_s);
             }
         }
         if meas.control_lag_s != 0.0 {
-            // recorded controls lead the acting ones: rec(t) = acting(t + τ)
-            for col in &mut cols[14..=18] {
-                *col = shifted(&t, col, meas.control_lag_s);
+            // recorded controls lead the acting ones: rec(t) = acting(t + τ) + noise(t)
+            for k in 14..=18 {
+                apply(k, meas.control_lag_s);
             }
         }
     }
@@ -213,6 +263,69 @@ pub fn record(
 mod tests {
     use super::*;
     use crate::aircraft::turboprop::adx37;
+
+    #[test]
+    fn time_skew_delays_what_the_vane_sees_and_keeps_each_sample_noise() {
+        // alpha(t) = 5 + 2 sin(2 pi 0.5 t) deg seen by a vane at the CG (no rotation), 50 Hz;
+        // the same seed with and without 10 ms of skew (half a sample): the records differ by
+        // the noise-free signal's delay only, so each sample keeps its own noise (shifting the
+        // noisy record would have averaged neighbouring samples' noise, halving its variance)
+        let ac = adx37();
+        let mut ac0 = ac.clone();
+        ac0.alpha_vane_m = [0.0; 3];
+        let alpha = |t: f64| 5.0 + 2.0 * (std::f64::consts::PI * t).sin();
+        let samples: Vec<TrueSample> = (0..500)
+            .map(|k| {
+                let t = 0.02 * k as f64;
+                TrueSample {
+                    t,
+                    v_air: Vector3::new(60.0, 0.0, 60.0 * alpha(t).to_radians().tan()),
+                    omega: Vector3::zeros(),
+                    omega_dot: Vector3::zeros(),
+                    euler: Vector3::zeros(),
+                    f_cg: Vector3::new(0.0, 0.0, -9.8),
+                    tas: 60.0,
+                    rho: 1.0,
+                    h: 3000.0,
+                    controls: Controls::default(),
+                    ct: [0.1, 0.1],
+                }
+            })
+            .collect();
+        let noise = NoiseSpec::default();
+        let mut skew = MeasurementEffects::none();
+        skew.time_skew_s = 0.01;
+        let a = record(
+            &samples,
+            &ac0,
+            0.0,
+            &MeasurementEffects::none(),
+            &noise,
+            1.0,
+            3,
+            0,
+        );
+        let b = record(&samples, &ac0, 0.0, &skew, &noise, 1.0, 3, 0);
+        let mut max_err: f64 = 0.0;
+        let mut e_var = 0.0;
+        for k in 1..499 {
+            let t = 0.02 * k as f64;
+            let delay = alpha(t - 0.01) - alpha(t); // closed form of the delay alone
+            max_err = max_err.max((b[1][k] - a[1][k] - delay).abs());
+            e_var += (a[1][k] - alpha(t)).powi(2) / 498.0;
+        }
+        // linear interpolation of the clean 50 Hz samples: error <= dt^2/8 max|alpha''|
+        let bound = 0.02f64.powi(2) / 8.0 * 2.0 * std::f64::consts::PI.powi(2) * 1.0001;
+        assert!(max_err < bound, "{max_err} vs {bound}");
+        assert!(
+            (e_var.sqrt() / noise.angle_deg - 1.0).abs() < 0.15,
+            "{}",
+            e_var.sqrt()
+        );
+        // untouched channels are identical
+        assert_eq!(a[3], b[3]);
+        assert_eq!(a[14], b[14]);
+    }
 
     #[test]
     fn accelerometer_and_vane_kinematics() {
