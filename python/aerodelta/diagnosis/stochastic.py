@@ -115,7 +115,8 @@ def event_regressors(
 
     With the spike's peak time (``(maneuver, alpha_c, t_peak)`` triples), ``alpha_e`` follows
     the runtime model along the record (``aero_core::rolloff``): zero before the draw (the
-    last upward crossing of the re-arm alpha before the peak), the alpha travelled past the
+    last armed upward crossing of the re-arm alpha before the peak, :func:`draw_index`), the
+    alpha travelled past the
     centre once the stall has reached it (:func:`travelled_alpha`), and zero once the spike
     is spent; with pairs, ``alpha_e`` is the alpha itself (a spike met again on the way
     down). Their amplitudes are a random draw per event, so they are profiled out per
@@ -151,10 +152,10 @@ def refine_centres(
     (:data:`CENTRE_SHIFTS_DEG`) by the residual its two columns leave in its maneuver.
 
     A stall that turns back before a roll-off's centre meets only its rising flank: the
-    spike peaks at the stall's highest alpha, below the centre, and is narrower in alpha than
-    a Gaussian centred there (on a virtual campaign, a flank met 1 deg below the centre left
-    48 % of the spike's RMS with the centre at the peak, none with the centre found here). A
-    spike the stall passes peaks at its centre, where the search stays."""
+    spike peaks at the stall's highest alpha, below the centre, and falls off faster in alpha
+    than a Gaussian centred at that peak (on a virtual campaign, a flank met 1 deg below the
+    centre left 48 % of the spike's RMS with the centre at the peak, none with the centre
+    found here). A spike the stall passes peaks at its centre, where the search stays."""
     rows_of, alpha, t = _by_maneuver(frame)
     out = []
     for m, ac, tp in centres:
