@@ -37,12 +37,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="TOML of user-defined candidate effects: [name] Cl = ['beta_deg * rhat'], ...",
     )
     parser.add_argument("--folds", type=int, default=5, help="cross-validation folds (maneuvers)")
-    parser.add_argument("--alpha", type=float, default=0.01, help="familywise test level")
+    defaults = SelectionConfig()
+    parser.add_argument("--alpha", type=float, default=defaults.alpha, help="familywise test level")
     parser.add_argument(
         "--min-shrink",
         type=float,
-        default=0.03,
-        help="smallest share of the gap an effect must remove",
+        default=defaults.min_shrink,
+        help="smallest share of the held-out gap's squared error an effect must remove",
     )
     parser.add_argument("--per-flap", action="store_true", help="one alpha curve per flap")
     parser.add_argument("--seed", type=int, default=0, help="seed of folds and tests")
