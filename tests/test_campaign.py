@@ -249,6 +249,7 @@ def test_measurement_effects_act_on_their_channels_only() -> None:
     np.testing.assert_allclose(bias["alpha_deg"] - base["alpha_deg"], 1.0, atol=1e-9)
     np.testing.assert_allclose(bias["beta_deg"] - base["beta_deg"], 2.0, atol=1e-9)
     assert bias.drop("alpha_deg", "beta_deg").equals(base.drop("alpha_deg", "beta_deg"))
+
     # A timing effect moves what the sensor sees; each sample keeps its own noise (same seed:
     # the same noise draws), so the shifted record differs from the base record shifted by
     # whole samples only by the difference of two independent noise samples (std sqrt(2) x

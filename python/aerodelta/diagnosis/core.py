@@ -275,7 +275,8 @@ def _effect_rows(
     else:
         last = sel.sse_nuisance if sel.sse_nuisance is not None else sel.sse0
     for i, st in enumerate(rest):
-        before, after = float(last.sum()), float(st.sse.sum())
+        base_sse = st.sse_before if st.sse_before is not None else last
+        before, after = float(base_sse.sum()), float(st.sse.sum())
         out.append(
             {
                 "effect": st.candidate.name,

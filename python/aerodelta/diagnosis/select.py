@@ -63,7 +63,10 @@ class SelectionConfig:
         Familywise significance level per step (Bonferroni over the candidates tried).
     min_shrink
         Effect-size floor: the fraction of the held-out gap's squared error an effect must
-        remove to be reported.
+        remove to be reported (robust gain, :func:`robust_gain`). 1.5 %: at 2 % a C_Y
+        sideslip-derivative loss that removes 2.3 % of a noisy C_Y gap held out fell under it
+        after the cap; at 1.5 % no null case (40) and no unlisted effect (8) of the suite was
+        reported.
     ambiguity_p
         A rival whose held-out error is not significantly worse than the chosen effect's at
         this level (paired test) is ambiguous with it.
@@ -76,7 +79,7 @@ class SelectionConfig:
     """
 
     alpha: float = 0.01
-    min_shrink: float = 0.02
+    min_shrink: float = 0.015
     ambiguity_p: float = 0.05
     n_perm: int = 4000
     max_effects: int = 6
@@ -95,6 +98,9 @@ class Step:
     thetas: list[list[FloatArray]]
     parameters: dict[str, float] = field(default_factory=dict)  # global ones, full data
     material: bool = True  # parameters above their practical floors
+    # held-out SSE per maneuver without the candidate, where that is not the model of the last
+    # step (a timing nuisance term, always in the model, scored by leaving it out)
+    sse_before: FloatArray | None = None
 
 
 @dataclass
@@ -205,6 +211,7 @@ def forward_select(
             rest = [x for x in nuis if x is not c]
             sse_wo = heldout_sse(design, stats, _cols(design, rest))[0] if rest else sse0
             st = score(design, stats, rest, c, sse_wo, cfg, len(candidates), cfg.seed + 101 + i)
+            st.sse_before = sse_wo
             if st.material and st.p_value < cfg.alpha and st.gain >= cfg.min_shrink * total0:
                 selected.append(
                     Selected(c, len(selected) + 1, sse_wo, st.sse, st.statistic, st.p_value)
@@ -258,6 +265,26 @@ def forward_select(
         sse_cur = best.sse
         remaining = [c for c in remaining if c.name != best.candidate.name]
         step_i += 1
+    # A timing term kept at the nuisance stage was judged before any aerodynamic effect was in
+    # the model, where it could absorb part of an unmodelled effect's gap (a roll-damping gap
+    # made a time skew look like 10 ms on a campaign with no timing error): it is judged again
+    # in the final model, by the same tests and floors, and reported only if it still passes.
+    # The timing terms left out are scored in the final model too, for the effect list.
+    if nuis and len(current) > len(nuis):
+        was = {s.candidate.name: s for s in selected}
+        kept = [s for s in selected if s.candidate.name not in NUISANCE]
+        for i, c in enumerate(nuis):
+            rest = [x for x in current if x is not c]
+            sse_wo = heldout_sse(design, stats, _cols(design, rest))[0]
+            st = score(design, stats, rest, c, sse_wo, cfg, len(candidates), cfg.seed + 211 + i)
+            st.sse_before = sse_wo
+            ok = st.material and st.p_value < cfg.alpha and st.gain >= cfg.min_shrink * total0
+            if c.name in was and ok:
+                kept.append(Selected(c, was[c.name].rank, sse_wo, st.sse, st.statistic, st.p_value))
+                nuis_scores.pop(c.name, None)
+            else:
+                nuis_scores[c.name] = st
+        selected = sorted(kept, key=lambda x: x.rank)
     # A rival that was itself selected later is not ambiguous: both are real.
     chosen = {s.candidate.name for s in selected}
     for s in selected:
