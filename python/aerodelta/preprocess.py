@@ -169,4 +169,8 @@ def _smooth_thrust(
         cols[ch] = x
     if not cols:
         return df, report
-    return df.with_columns(pl.Series(k, v) for k, v in cols.items()), report
+    # missing samples stay missing (null), not NaN
+    return df.with_columns(
+        pl.when(pl.col(k).is_null()).then(None).otherwise(pl.Series(k, v)).alias(k)
+        for k, v in cols.items()
+    ), report

@@ -266,9 +266,10 @@ def forward_select(
         remaining = [c for c in remaining if c.name != best.candidate.name]
         step_i += 1
     # A timing term kept at the nuisance stage was judged before any aerodynamic effect was in
-    # the model, where it could absorb part of an unmodelled effect's gap (a roll-damping gap
-    # made a time skew look like 10 ms on a campaign with no timing error): it is judged again
-    # in the final model, by the same tests and floors, and reported only if it still passes.
+    # the model, where it could absorb part of an unmodelled effect's gap (on a campaign with
+    # roll damping withheld and no timing error, a time skew passed its tests and floor there,
+    # and came out at -5.5 ms in the final model): it is judged again in the final model, by
+    # the same tests and floors, and reported only if it still passes.
     # The timing terms left out are scored in the final model too, for the effect list.
     if nuis and len(current) > len(nuis):
         was = {s.candidate.name: s for s in selected}
