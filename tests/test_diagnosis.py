@@ -360,9 +360,11 @@ def test_rolloff_nuisance_columns_follow_the_runtime_spike_along_the_record(tmp_
         k = int(np.argmax(np.abs(spike)))
         frame = tr.select("maneuver_id", "t", pl.col("alpha_true_deg").alias("alpha_deg"))
         centres = refine_centres(frame, spike, [(f.stem, float(a[k]), float(t[k]))])
+        u = (a - a[k]) / 0.5  # the former column: a Gaussian of alpha at the peak alpha
+        gauss = np.exp(-0.5 * u * u)
         for out, cols in (
             (new, event_regressors(frame, centres)),
-            (old, event_regressors(frame, [(f.stem, float(a[k]))])),
+            (old, np.column_stack([gauss, u * gauss])),
         ):
             amp, *_ = np.linalg.lstsq(cols, spike, rcond=None)
             out.append(np.sqrt(np.mean((cols @ amp - spike) ** 2) / np.mean(spike**2)))

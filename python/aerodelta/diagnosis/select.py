@@ -195,6 +195,30 @@ def score(  # noqa: PLR0917 - internal scoring step
     return Step(cand, sse, gain, t, min(1.0, p * n_tests), thetas, params, material)
 
 
+def _passes(st: Step, cfg: SelectionConfig, total0: float) -> bool:
+    """The tests and floors an effect must pass to be reported (module doc, 1 and 2)."""
+    return st.material and st.p_value < cfg.alpha and st.gain >= cfg.min_shrink * total0
+
+
+def _left_out(  # noqa: PLR0917 - internal scoring step
+    design: Design,
+    stats: FoldStats,
+    model: Sequence[Candidate],
+    cand: Candidate,
+    cfg: SelectionConfig,
+    n_tests: int,
+    seed: int,
+    sse_empty: FloatArray,
+) -> Step:
+    """Score of ``cand``, a term of ``model`` (a timing nuisance term, always in the model),
+    against ``model`` without it; ``sse_empty`` is the held-out SSE of the empty model."""
+    rest = [x for x in model if x is not cand]
+    sse_wo = heldout_sse(design, stats, _cols(design, rest))[0] if rest else sse_empty
+    st = score(design, stats, rest, cand, sse_wo, cfg, n_tests, seed)
+    st.sse_before = sse_wo
+    return st
+
+
 def forward_select(
     design: Design, stats: FoldStats, candidates: Sequence[Candidate], cfg: SelectionConfig
 ) -> Selection:
@@ -209,13 +233,10 @@ def forward_select(
     if nuis:
         sse_cur = heldout_sse(design, stats, _cols(design, nuis))[0]
         for i, c in enumerate(nuis):
-            rest = [x for x in nuis if x is not c]
-            sse_wo = heldout_sse(design, stats, _cols(design, rest))[0] if rest else sse0
-            st = score(design, stats, rest, c, sse_wo, cfg, len(candidates), cfg.seed + 101 + i)
-            st.sse_before = sse_wo
-            if st.material and st.p_value < cfg.alpha and st.gain >= cfg.min_shrink * total0:
+            st = _left_out(design, stats, nuis, c, cfg, len(candidates), cfg.seed + 101 + i, sse0)
+            if _passes(st, cfg, total0):
                 selected.append(
-                    Selected(c, len(selected) + 1, sse_wo, st.sse, st.statistic, st.p_value)
+                    Selected(c, len(selected) + 1, st.sse_before, st.sse, st.statistic, st.p_value)
                 )
             else:
                 nuis_scores[c.name] = st
@@ -235,18 +256,13 @@ def forward_select(
         if not eligible:
             break
         best = max(eligible, key=lambda s: s.gain)
-        ok = (
-            best.p_value < cfg.alpha
-            and best.gain >= cfg.min_shrink * total0
-            and len(selected) < cfg.max_effects
-        )
-        if not ok:
+        if not (_passes(best, cfg, total0) and len(selected) < cfg.max_effects):
             break
         rivals = []
         for name, s in scores.items():
             if name == best.candidate.name:
                 continue
-            if s.material and s.p_value < cfg.alpha and s.gain >= cfg.min_shrink * total0:
+            if _passes(s, cfg, total0):
                 d = _material_change(s.sse, best.sse)
                 _, p_pair = sign_flip_pvalue(d, cfg.n_perm, cfg.seed + 31 + step_i)
                 if p_pair > cfg.ambiguity_p:
@@ -276,13 +292,13 @@ def forward_select(
         was = {s.candidate.name: s for s in selected}
         kept = [s for s in selected if s.candidate.name not in NUISANCE]
         for i, c in enumerate(nuis):
-            rest = [x for x in current if x is not c]
-            sse_wo = heldout_sse(design, stats, _cols(design, rest))[0]
-            st = score(design, stats, rest, c, sse_wo, cfg, len(candidates), cfg.seed + 211 + i)
-            st.sse_before = sse_wo
-            ok = st.material and st.p_value < cfg.alpha and st.gain >= cfg.min_shrink * total0
-            if c.name in was and ok:
-                kept.append(Selected(c, was[c.name].rank, sse_wo, st.sse, st.statistic, st.p_value))
+            st = _left_out(
+                design, stats, current, c, cfg, len(candidates), cfg.seed + 211 + i, sse0
+            )
+            if c.name in was and _passes(st, cfg, total0):
+                kept.append(
+                    Selected(c, was[c.name].rank, st.sse_before, st.sse, st.statistic, st.p_value)
+                )
                 nuis_scores.pop(c.name, None)
             else:
                 nuis_scores[c.name] = st

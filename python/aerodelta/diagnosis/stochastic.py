@@ -73,14 +73,10 @@ def draw_index(a_m: np.ndarray, t_m: np.ndarray, tp: float) -> int:
 
 
 def _spike_columns(
-    a_m: np.ndarray, t_m: np.ndarray, ac: float, tp: float | None, sigma_deg: float
+    a_m: np.ndarray, start: int, ac: float, sigma_deg: float
 ) -> tuple[np.ndarray, np.ndarray]:
-    """The two nuisance columns of one event along one maneuver (rows in time order)."""
-    if tp is None:
-        u = (a_m - ac) / sigma_deg
-        g = np.exp(-0.5 * u * u)
-        return g, u * g
-    start = draw_index(a_m, t_m, tp)
+    """The two nuisance columns of one event along one maneuver (rows in time order), the
+    draw at row ``start`` (:func:`draw_index`)."""
     g = np.zeros(a_m.size)
     ug = np.zeros(a_m.size)
     eff = travelled_alpha(a_m[start:], ac)
@@ -104,35 +100,33 @@ def _by_maneuver(frame: pl.DataFrame) -> tuple[dict[str, np.ndarray], np.ndarray
 
 def event_regressors(
     frame: pl.DataFrame,
-    centres: list[tuple[str, float]] | list[tuple[str, float, float]],
+    centres: list[tuple[str, float, float]],
     sigma_deg: float = ROLLOFF_SIGMA_DEG,
 ) -> np.ndarray:
     """Per-event nuisance columns of the roll-off moment (``n x 2K``, ``K`` the most events of
-    one maneuver): for the ``j``-th event of a maneuver, centred at ``alpha_c``, the Gaussian
-    ``g = exp(-u^2/2)``, ``u = (alpha_e - alpha_c)/sigma``, the runtime model's shape (thesis
-    Section 3.4.3, Figure 3.14), and ``u g``, its derivative in the centre, which absorbs a
-    small error in the centre; zero on the other maneuvers' rows.
+    one maneuver): for the ``j``-th event ``(maneuver, alpha_c, t_peak)`` of a maneuver, the
+    Gaussian ``g = exp(-u^2/2)``, ``u = (alpha_e - alpha_c)/sigma``, the runtime model's shape
+    (thesis Section 3.4.3, Figure 3.14), and ``u g``, its derivative in the centre, which
+    absorbs a small error in the centre; zero on the other maneuvers' rows.
 
-    With the spike's peak time (``(maneuver, alpha_c, t_peak)`` triples), ``alpha_e`` follows
-    the runtime model along the record (``aero_core::rolloff``): zero before the draw (the
-    last armed upward crossing of the re-arm alpha before the peak, :func:`draw_index`), the
-    alpha travelled past the
-    centre once the stall has reached it (:func:`travelled_alpha`), and zero once the spike
-    is spent; with pairs, ``alpha_e`` is the alpha itself (a spike met again on the way
-    down). Their amplitudes are a random draw per event, so they are profiled out per
-    maneuver (:func:`aerodelta.diagnosis.cv.profile_out`), never predicted."""
+    ``alpha_e`` follows the runtime model along the record (``aero_core::rolloff``): zero
+    before the draw (the last armed upward crossing of the re-arm alpha before the peak,
+    :func:`draw_index`), the alpha travelled past the centre once the stall has reached it
+    (:func:`travelled_alpha`, so the spike is not met again on the way down), and zero once
+    the spike is spent. Their amplitudes are a random draw per event, so they are profiled out
+    per maneuver (:func:`aerodelta.diagnosis.cv.profile_out`), never predicted."""
     rows_of, alpha, t = _by_maneuver(frame)
-    per: dict[str, list[tuple[float, float | None]]] = {}
-    for c in centres:
-        if c[0] in rows_of:
-            tp = float(c[2]) if len(c) > 2 else None  # type: ignore[misc]
-            per.setdefault(c[0], []).append((float(c[1]), tp))
+    per: dict[str, list[tuple[float, float]]] = {}
+    for m, ac, tp in centres:
+        if m in rows_of:
+            per.setdefault(m, []).append((float(ac), float(tp)))
     k = max((len(v) for v in per.values()), default=0)
     out = np.zeros((frame.height, 2 * k))
     for m, cs in per.items():
         rows = rows_of[m]
         for j, (ac, tp) in enumerate(sorted(cs, key=lambda x: x[0])):
-            g, ug = _spike_columns(alpha[rows], t[rows], ac, tp, sigma_deg)
+            start = draw_index(alpha[rows], t[rows], tp)
+            g, ug = _spike_columns(alpha[rows], start, ac, sigma_deg)
             out[rows, 2 * j] = g
             out[rows, 2 * j + 1] = ug
     return out
@@ -164,9 +158,10 @@ def refine_centres(
             out.append((m, ac, tp))
             continue
         r = residual[rows]
+        start = draw_index(alpha[rows], t[rows], tp)  # the same draw for every centre tried
         best, best_c = -1.0, ac
         for dc in CENTRE_SHIFTS_DEG:
-            g, ug = _spike_columns(alpha[rows], t[rows], ac + dc, tp, sigma_deg)
+            g, ug = _spike_columns(alpha[rows], start, ac + dc, sigma_deg)
             x = np.column_stack([g, ug])
             nz = np.flatnonzero(np.any(x != 0.0, axis=1))
             if nz.size < 3:

@@ -155,7 +155,13 @@ pub fn record(
     // what the sensor sees, and each recorded sample keeps its own noise (shifting the noisy
     // record by interpolation would also average the noise of neighbouring samples, a
     // low-pass no recorder applies).
-    let timed: Vec<usize> = [1usize, 2, 12, 14, 15, 16, 17, 18].to_vec();
+    let mut timed: Vec<usize> = Vec::new();
+    if meas.time_skew_s != 0.0 {
+        timed.extend([1usize, 2, 12]);
+    }
+    if meas.control_lag_s != 0.0 {
+        timed.extend(14usize..=18);
+    }
     let mut clean: Vec<Vec<f64>> = timed.iter().map(|_| Vec::with_capacity(n)).collect();
     let mut noisy_part: Vec<Vec<f64>> = timed.iter().map(|_| Vec::with_capacity(n)).collect();
     for s in samples {
@@ -168,8 +174,10 @@ pub fn record(
         let acc = s.f_cg + s.omega_dot.cross(&r_acc) + s.omega.cross(&s.omega.cross(&r_acc)) + ab;
         let rates = s.omega.map(f64::to_degrees) + gb;
         let c = &s.controls;
-        // noise drawn in channel order (the same stream whatever the effects)
-        let e: [f64; 19] = [
+        // noise per channel, drawn in channel order (the same stream whatever the effects);
+        // time, density, flap, propeller speed and altitude are recorded without noise
+        let e: [f64; 24] = [
+            0.0,
             nz(noise.angle_deg),
             nz(noise.angle_deg),
             nz(noise.rate_dps),
@@ -182,13 +190,17 @@ pub fn record(
             nz(noise.accel_mps2),
             nz(noise.accel_mps2),
             nz(noise.tas_mps),
+            0.0,
             nz(noise.control_deg),
             nz(noise.control_deg),
             nz(noise.control_deg),
             nz(noise.control_deg),
             nz(noise.control_deg),
+            0.0,
             nz(noise.ct),
             nz(noise.ct),
+            0.0,
+            0.0,
         ];
         let truth = [
             s.t,
@@ -216,44 +228,29 @@ pub fn record(
             ac.prop_rpm,
             s.h,
         ];
-        // channel k's noise: e[k - 1] for the sensors 1..=12, e[k - 2] for 14..=18 and 20..=21
-        let noise_of = |k: usize| match k {
-            1..=12 => e[k - 1],
-            14..=18 => e[k - 2],
-            20 | 21 => e[k - 3],
-            _ => 0.0,
-        };
-        for (k, (col, v)) in cols.iter_mut().zip(truth).enumerate() {
-            col.push(v + noise_of(k));
+        for ((col, v), ek) in cols.iter_mut().zip(truth).zip(e) {
+            col.push(v + ek);
         }
         for (i, &k) in timed.iter().enumerate() {
             clean[i].push(truth[k]);
-            noisy_part[i].push(noise_of(k));
+            noisy_part[i].push(e[k]);
         }
     }
     if n >= 2 {
         let t = cols[0].clone();
-        let mut apply = |k: usize, shift: f64| {
-            if let Some(i) = timed.iter().position(|&x| x == k) {
-                let moved = shifted(&t, &clean[i], shift);
-                cols[k] = moved
-                    .iter()
-                    .zip(&noisy_part[i])
-                    .map(|(v, e)| v + e)
-                    .collect();
-            }
-        };
-        if meas.time_skew_s != 0.0 {
-            // air data recorded late: rec(t) = true(t − τ) + noise(t)
-            for k in [1usize, 2, 12] {
-                apply(k, -meas.time_skew_s);
-            }
-        }
-        if meas.control_lag_s != 0.0 {
-            // recorded controls lead the acting ones: rec(t) = acting(t + τ) + noise(t)
-            for k in 14..=18 {
-                apply(k, meas.control_lag_s);
-            }
+        // air data recorded late: rec(t) = true(t − τ) + noise(t); recorded controls lead
+        // the acting ones: rec(t) = acting(t + τ) + noise(t)
+        for (i, &k) in timed.iter().enumerate() {
+            let shift = if k <= 12 {
+                -meas.time_skew_s
+            } else {
+                meas.control_lag_s
+            };
+            cols[k] = shifted(&t, &clean[i], shift)
+                .iter()
+                .zip(&noisy_part[i])
+                .map(|(v, e)| v + e)
+                .collect();
         }
     }
     cols
