@@ -45,6 +45,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default=defaults.min_shrink,
         help="smallest share of the held-out gap's squared error an effect must remove",
     )
+    parser.add_argument(
+        "--min-shrink-broad",
+        type=float,
+        default=defaults.min_shrink_broad,
+        help="smaller share accepted for a broad effect (signed-rank test at alpha/10)",
+    )
     parser.add_argument("--per-flap", action="store_true", help="one alpha curve per flap")
     parser.add_argument("--seed", type=int, default=0, help="seed of folds and tests")
     parser.add_argument("--out", required=True, help="output folder")
@@ -59,7 +65,12 @@ def run(args: argparse.Namespace) -> int:
             vocab = vocab.with_user_effects(tomllib.load(fh))
     cfg = DiagnoseConfig(
         folds=args.folds,
-        selection=SelectionConfig(alpha=args.alpha, min_shrink=args.min_shrink, seed=args.seed),
+        selection=SelectionConfig(
+            alpha=args.alpha,
+            min_shrink=args.min_shrink,
+            min_shrink_broad=min(args.min_shrink_broad, args.min_shrink),
+            seed=args.seed,
+        ),
         per_flap=args.per_flap,
         seed=args.seed,
     )

@@ -543,6 +543,8 @@ def _diagnose(  # noqa: PLR0917 - the arguments of diagnose(), passed through
             "per_flap": cfg.per_flap,
             "alpha": cfg.selection.alpha,
             "min_shrink": cfg.selection.min_shrink,
+            "min_shrink_broad": cfg.selection.min_shrink_broad,
+            "broad_alpha_factor": cfg.selection.broad_alpha_factor,
             "ambiguity_p": cfg.selection.ambiguity_p,
             "n_perm": cfg.selection.n_perm,
             "seed": cfg.seed,
