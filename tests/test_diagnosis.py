@@ -121,7 +121,13 @@ def test_small_effect_counts_only_when_most_maneuvers_improve():
         t, p = cv.improvement_test(d, cfg.n_perm, 1)
         rank_p = cv.signed_rank_p(d, cfg.n_perm, 3) * 12
         return select.Step(
-            None, np.zeros(1), select.robust_gain(d), t, min(1.0, 12 * p), [], rank_p  # type: ignore[arg-type]
+            None,
+            np.zeros(1),
+            select.robust_gain(d),
+            t,
+            min(1.0, 12 * p),
+            [],
+            rank_p,  # type: ignore[arg-type]
         )
 
     broad = step(rng.gamma(2.0, 1.0, 200) - 0.4)

@@ -208,8 +208,10 @@ def score(  # noqa: PLR0917 - internal scoring step
         floor = max(PRACTICAL_FLOOR.get(r, 0.0) for r in cand.regressors)
         material = size >= floor
     gain = robust_gain(sse_before - sse)
-    rank_p = min(1.0, signed_rank_p(d, cfg.n_perm, seed + 2) * n_tests)
-    return Step(cand, sse, gain, t, min(1.0, p * n_tests), thetas, rank_p, params, material)
+    p = min(1.0, p * n_tests)
+    # the broad-effect test matters only for an effect that passes the main test (_passes)
+    rank_p = min(1.0, signed_rank_p(d, cfg.n_perm, seed + 2) * n_tests) if p < cfg.alpha else 1.0
+    return Step(cand, sse, gain, t, p, thetas, rank_p, params, material)
 
 
 def _passes(st: Step, cfg: SelectionConfig, total0: float) -> bool:
