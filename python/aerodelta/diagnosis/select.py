@@ -75,9 +75,10 @@ class SelectionConfig:
         Lower effect-size floor for broad effects (session 6). The two cases above are the
         same size (1.83 % and 1.77 % after the cap) but not the same evidence: the sideslip
         derivative improved 69 % of the maneuvers (exact signed-rank p ~ 1e-12), the misfit
-        53 % (p = 0.013; its sum test, which sees gains in a minority, carried it). So an
-        effect between ``min_shrink_broad`` and ``min_shrink`` is reported only when the
-        signed-rank test alone passes at ``alpha * broad_alpha_factor``.
+        53 % (p = 0.013 before the Bonferroni factor; its sum test, which sees gains in a
+        minority, carried it). So an effect between ``min_shrink_broad`` and ``min_shrink``
+        is reported only when the signed-rank test alone passes at
+        ``alpha * broad_alpha_factor``.
     broad_alpha_factor
         Factor on ``alpha`` of that signed-rank test.
     ambiguity_p
