@@ -142,6 +142,33 @@ def test_small_effect_counts_only_when_most_maneuvers_improve():
     assert select._passes(big, cfg, total0)
 
 
+def test_delayed_controls_are_the_records_shifted_in_time_per_maneuver():
+    """The exact delay behind the control-lag regressor: each control channel's value tau
+    earlier, within its own maneuver (the first value held before the start); other channels
+    untouched; and the rate term the regressor uses is its first-order expansion."""
+    from aerodelta.diagnosis.regressors import delayed_controls  # noqa: PLC0415
+
+    t = np.r_[np.arange(0.0, 2.0, 0.02), np.arange(0.0, 1.0, 0.02)]
+    man = np.r_[np.zeros(100, dtype=int), np.ones(50, dtype=int)].astype(str)
+    da = np.sin(2.0 * t) + (man == "1") * 3.0
+    frame = pl.DataFrame({"maneuver_id": man, "t": t, "da_deg": da, "dr_deg": t**2, "p": t})
+    out = delayed_controls(frame, 0.1)
+    first = man == "0"
+    tt = np.maximum(t - 0.1, 0.0)
+    np.testing.assert_allclose(out["dr_deg"].to_numpy(), tt**2, atol=2e-4)  # linear interp
+    np.testing.assert_allclose(
+        out["da_deg"].to_numpy(), np.sin(2.0 * tt) + (~first) * 3.0, atol=1e-3
+    )
+    assert out["p"].to_list() == frame["p"].to_list()
+    assert frame["da_deg"].to_list() == da.tolist()  # the input is not modified
+    # the first-order term: x(t - tau) - x(t) ~ -tau * xdot away from the start
+    mid = first & (t > 0.5) & (t < 1.9)
+    lin = -0.01 * 2.0 * np.cos(2.0 * t[mid])
+    got = delayed_controls(frame, 0.01)["da_deg"].to_numpy()[mid] - da[mid]
+    # to the second-order term of interpolating between samples, h^2 |x''| / 4 = 4e-4 here
+    np.testing.assert_allclose(got, lin, atol=4.5e-4)
+
+
 def test_profiling_out_per_maneuver_nuisance_matches_ols_with_per_maneuver_columns(toy):
     """Frisch-Waugh-Lovell: the shared parameters fitted on statistics with each maneuver's
     nuisance columns profiled out equal those of one OLS (statsmodels) over the dense design

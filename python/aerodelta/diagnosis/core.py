@@ -30,7 +30,11 @@ from aerodelta.diagnosis.cv import (
     solve,
 )
 from aerodelta.diagnosis.data import load_inputs
-from aerodelta.diagnosis.regressors import design_columns, measurement_columns
+from aerodelta.diagnosis.regressors import (
+    delayed_controls,
+    design_columns,
+    measurement_columns,
+)
 from aerodelta.diagnosis.report import summary_text
 from aerodelta.diagnosis.select import (
     PRACTICAL_FLOOR,
@@ -459,7 +463,17 @@ def _diagnose(  # noqa: PLR0917 - the arguments of diagnose(), passed through
             if model:
                 th = solve(design, stats.total_gram, stats.total_xty, columns_for(design, model))
                 fitted = row_prediction(design, th, dflap, alpha, aero_x, glob_x)
-            ro = rolloff_finding(frame, y - fitted)
+            resid = y - fitted
+            if sim.differentiable and any(s.candidate.name == "control_lag" for s in sel.selected):
+                # a control lag reported as an effect is put back exactly before the spikes are
+                # searched for: its regressor is the first-order (rate) term of the delay, and
+                # at 50-100 ms the rest, where the pilot's recovery inputs are fast, looked like
+                # roll-off spikes in campaigns that had none
+                g = design.global_names.index("m_control_lag")
+                tau = float(th[0][design.grid.n * len(design.aero_names) + g])
+                exact = sim.predict(delayed_controls(frame, tau))["Cl"] - sim_c["Cl"]
+                resid = resid + tau * glob_x[:, g] - exact
+            ro = rolloff_finding(frame, resid)
             if ro["detected"]:
                 # each event's moment, with its own random amplitude, profiled out of its
                 # maneuver (Frisch-Waugh); the deterministic effects are then selected again

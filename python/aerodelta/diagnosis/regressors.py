@@ -40,6 +40,31 @@ def _directional(
     return {c: (up[c] - dn[c]) / (2.0 * eps) for c in COEFFICIENTS}
 
 
+#: Control channels a control lag delays (the channels of the ``m_control_lag`` regressor).
+LAG_CHANNELS = ("da_deg", "dr_deg", "dsl_deg", "dsr_deg")
+
+
+def delayed_controls(frame: pl.DataFrame, tau_s: float) -> pl.DataFrame:
+    """``frame`` with every control channel replaced by its value ``tau_s`` seconds earlier,
+    per maneuver (linear interpolation in time, the first value held before the start): the
+    exact delay of which ``m_control_lag`` is the first-order (rate) term."""
+    cols = [c for c in LAG_CHANNELS if c in frame.columns]
+    if not cols or tau_s == 0.0:
+        return frame
+    t = frame["t"].cast(pl.Float64).to_numpy()
+    ids = frame["maneuver_id"].to_numpy()
+    starts = np.flatnonzero(np.r_[True, ids[1:] != ids[:-1]])
+    ends = np.r_[starts[1:], ids.size]
+    out = {}
+    for c in cols:
+        x = frame[c].cast(pl.Float64).to_numpy()
+        y = x.copy()
+        for s, e in zip(starts, ends, strict=True):
+            y[s:e] = np.interp(t[s:e] - tau_s, t[s:e], x[s:e])
+        out[c] = y
+    return frame.with_columns([pl.Series(c, v) for c, v in out.items()])
+
+
 def measurement_columns(
     frame: pl.DataFrame, sim: Simulator, aircraft: Aircraft
 ) -> dict[str, dict[str, np.ndarray]]:
@@ -63,11 +88,7 @@ def measurement_columns(
         }
         skew = _directional(sim, frame, air, _EPS_S)
         out["m_time_skew"] = skew
-        ctrl = {
-            ch: _rate(frame, ch)
-            for ch in ("da_deg", "dr_deg", "dsl_deg", "dsr_deg")
-            if ch in frame.columns
-        }
+        ctrl = {ch: _rate(frame, ch) for ch in LAG_CHANNELS if ch in frame.columns}
         lag = _directional(sim, frame, ctrl, _EPS_S)
         out["m_control_lag"] = {c: -v for c, v in lag.items()}
     qs = np.maximum(frame["qbar_pa"].to_numpy(), 1.0) * aircraft.S_m2
