@@ -46,7 +46,7 @@ LAG_CHANNELS = ("da_deg", "dr_deg", "dsl_deg", "dsr_deg")
 
 def delayed_controls(frame: pl.DataFrame, tau_s: float) -> pl.DataFrame:
     """``frame`` with every control channel replaced by its value ``tau_s`` seconds earlier,
-    per maneuver (linear interpolation in time, the first value held before the start): the
+    per maneuver (linear interpolation in time, the end values held beyond the record): the
     exact delay of which ``m_control_lag`` is the first-order (rate) term."""
     cols = [c for c in LAG_CHANNELS if c in frame.columns]
     if not cols or tau_s == 0.0:
