@@ -358,6 +358,13 @@ def row_prediction(  # noqa: PLR0917 - rows' columns, positional by design
     return out
 
 
+def _abs_ranks(d: FloatArray) -> FloatArray:
+    """Ranks 1..n of ``|d|`` (ties broken by order), the weights of the signed-rank tests."""
+    ranks = np.empty(d.size)
+    ranks[np.argsort(np.abs(d), kind="stable")] = np.arange(1, d.size + 1)
+    return ranks
+
+
 def sign_flip_pvalue(d: FloatArray, n_perm: int, seed: int) -> tuple[float, float]:
     """One-sided signed-rank randomization test that the per-maneuver improvements ``d`` are
     shifted above zero (Wilcoxon's signed-rank statistic, null by random sign flips).
@@ -371,8 +378,7 @@ def sign_flip_pvalue(d: FloatArray, n_perm: int, seed: int) -> tuple[float, floa
     n = d.size
     if n < 2:
         return 0.0, 1.0
-    ranks = np.empty(n)
-    ranks[np.argsort(np.abs(d), kind="stable")] = np.arange(1, n + 1)
+    ranks = _abs_ranks(d)
     w = float(np.sum(ranks[d > 0]) - np.sum(ranks[d < 0]))
     sd = float(np.sqrt(np.sum(ranks**2)))
     p = _flip_p(ranks, w, n_perm, seed)
@@ -401,9 +407,7 @@ def signed_rank_p(d: FloatArray, n_perm: int, seed: int) -> float:
         return 1.0
     if n > EXACT_RANK_MAX_N:
         return sign_flip_pvalue(d, n_perm, seed)[1]
-    ranks = np.empty(n, dtype=np.int64)
-    ranks[np.argsort(np.abs(d), kind="stable")] = np.arange(1, n + 1)
-    w_plus = int(ranks[d > 0].sum())
+    w_plus = int(_abs_ranks(d)[d > 0].sum())
     dist = np.zeros(n * (n + 1) // 2 + 1)
     dist[0] = 1.0
     for k in range(1, n + 1):
