@@ -178,6 +178,74 @@ def test_constant_regressor_is_unidentified_and_not_selected(
     assert not pool["identifiable_in_pool"].any() and not pool["selected"].any()
 
 
+def test_a_control_held_still_through_its_sensor_is_low_excitation(
+    split: tuple[pl.DataFrame, pl.DataFrame],
+) -> None:
+    # the rudder held at 1 deg on every flaps-10 maneuver and read through its sensor (white
+    # noise of 0.05 deg, the virtual campaign's): its spread in a bin is its spread over the flap,
+    # so the relative rule alone passes it; its noise floor does not
+    d = split[0].filter(pl.col("flap_deg") == 10.0)
+    rng = np.random.default_rng(3)
+    d = d.with_columns(pl.Series("dr_deg", 1.0 + 0.05 * rng.standard_normal(d.height)))
+    cfg = FitConfig(selection=None, structures={"Cn": [("dCn_0", "1"), ("dCn_dr", "dr_deg")]})
+    dr = ad.fit(d, config=cfg).params.filter(
+        (pl.col("param") == "dCn_dr") & ~pl.col("note").str.contains("not fitted")
+    )
+    assert dr.height > 20
+    assert not dr["identifiable"].any()
+    assert dr["note"].str.contains("noise floor").all()
+    # std of white noise over its own floor: about 1
+    snr = dr["excitation_snr"].to_numpy()
+    assert np.all((snr > 0.6) & (snr < 1.5)), snr
+    assert (dr["excitation"] > 0.5).all()  # what the relative rule saw
+    relative_only = FitConfig(selection=None, structures=cfg.structures, min_excitation_snr=0.0)
+    assert (
+        ad.fit(d, config=relative_only)
+        .params.filter(pl.col("param") == "dCn_dr")["identifiable"]
+        .any()
+    )
+    # the rudder as flown is far above its floor (0.05 deg) wherever it is identified
+    flown = ad.fit(split[0].filter(pl.col("flap_deg") == 10.0), config=cfg).params.filter(
+        (pl.col("param") == "dCn_dr") & pl.col("identifiable")
+    )
+    assert flown.height > 20 and (flown["excitation_snr"] > 10.0).all()
+
+
+def test_bins_of_few_maneuvers_are_not_identified(result: ad.FitResult) -> None:
+    bins = result.bins.select("coefficient", "flap_deg", "alpha_lo_deg", "n_maneuvers")
+    p = result.params.join(bins, on=["coefficient", "flap_deg", "alpha_lo_deg"])
+    few = p.filter((pl.col("n_maneuvers") < 5) & ~pl.col("note").str.contains("not fitted"))
+    assert few.height > 0  # the sparse ends of the alpha range
+    assert not few["identifiable"].any()
+    assert few["note"].str.contains("maneuvers in the bin").all()
+    assert p.filter(pl.col("n_maneuvers") >= 5)["identifiable"].mean() > 0.9
+
+
+def test_band_limited_fit_keeps_an_exact_linear_relation(
+    split: tuple[pl.DataFrame, pl.DataFrame],
+) -> None:
+    # C_n = C_n,sim + 0.002 + 0.0005 dr exactly: one linear filter on both sides keeps the
+    # relation, so every bin recovers it with the band limit as without
+    d = split[0].filter(pl.col("flap_deg") == 5.0)
+    sim = qualified_coefficients(model_frame(d))
+    d = d.with_columns(
+        sim["Cl_qual"].alias("Cl_sim"), sim["Cn_qual"].alias("Cn_sim"),
+        sim["CY_qual"].alias("CY_sim"),
+        (sim["Cn_qual"] + 0.002 + 0.0005 * pl.col("dr_deg")).alias("Cn_meas"),
+    )  # fmt: skip
+    structures = {"Cn": [("dCn_0", "1"), ("dCn_dr", "dr_deg")]}
+    for band in (None, 2.0, {"Cn": 1.5}):
+        cfg = FitConfig(selection=None, structures=structures, band_hz=band)
+        p = ad.fit(d, qualified="columns", config=cfg).params
+        p = p.filter(pl.col("estimate").is_not_nan())
+        assert p.height > 40
+        for name, want in (("dCn_0", 0.002), ("dCn_dr", 0.0005)):
+            got = p.filter(pl.col("param") == name)["estimate"].to_numpy()
+            np.testing.assert_allclose(got, want, rtol=0, atol=1e-9)
+    with pytest.raises(DataError, match=r"band_hz=2\.0 needs the time column 't'"):
+        ad.fit(d.drop("t"), qualified="columns", config=FitConfig(band_hz=2.0))
+
+
 def test_bootstrap_is_reproducible_for_a_seed(split: tuple[pl.DataFrame, pl.DataFrame]) -> None:
     d = split[0].filter(pl.col("flap_deg") == 5.0)
     cfg = FitConfig(bootstrap=10, seed=7, structures={"Cn": [("dCn_0", "1")]})

@@ -266,7 +266,7 @@ pub fn bootstrap_smoothed(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::identify::{fit_bins, IdentifyOptions};
+    use crate::identify::fit_bins;
 
     #[test]
     fn quantile_is_numpys_linear_rule() {
@@ -316,7 +316,7 @@ mod tests {
     /// the noise-free data.
     #[test]
     fn bands_cover_the_smoothed_truth_and_repeat_for_a_seed() {
-        let opts = IdentifyOptions::default();
+        let opts = crate::select::tests::iid_identify();
         let sm = SmoothOptions::default();
         let bo = BootstrapOptions {
             replicates: 100,

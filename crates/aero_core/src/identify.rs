@@ -11,9 +11,20 @@
 //! conventional and coloured-residual standard errors and is marked *not
 //! identifiable* — instead of silently kept — when
 //! - the bin has fewer than the required points or maneuvers;
+//! - the bin holds fewer than `min_maneuvers_identified` maneuvers: the
+//!   estimate would carry those few maneuvers' own errors (sensor biases,
+//!   gusts), and a bootstrap over maneuvers cannot measure its spread;
 //! - its regressor hardly varies in the bin (low excitation, Section 3.3.3):
 //!   the regressor's standard deviation in the bin is below
-//!   `min_excitation` times its standard deviation over the flap's data;
+//!   `min_excitation` times its standard deviation over the flap's data, or
+//!   below `min_excitation_snr` times the regressor's noise floor
+//!   ([`noise_floor`]). The first rule compares a bin with the rest of its
+//!   flap and cannot see a regressor that is quiet at every alpha (a control
+//!   held still throughout a campaign); the second compares it with the
+//!   measurement noise, whatever the rest of the data do. The floor reads the
+//!   time structure of sampled data (motion slow against the sample rate):
+//!   regressors drawn afresh at every row look like noise to it, so turn it
+//!   off (`min_excitation_snr = 0`) for such data;
 //! - it is collinear with others (the near-dependency diagnostics of
 //!   [`crate::lsq`], Section 3.3.3 "Data Collinearity").
 //!
@@ -41,6 +52,11 @@ pub struct IdentifyOptions {
     pub min_excitation: f64,
     /// Condition-index threshold of a near dependency (collinearity).
     pub collinear_cond: f64,
+    /// A regressor whose in-bin standard deviation is below this multiple of
+    /// its noise floor ([`noise_floor`]) is "low excitation".
+    pub min_excitation_snr: f64,
+    /// Fewest maneuvers in a bin for its parameters to be identified.
+    pub min_maneuvers_identified: usize,
 }
 
 impl Default for IdentifyOptions {
@@ -51,6 +67,8 @@ impl Default for IdentifyOptions {
             max_lag: None,
             min_excitation: 0.05,
             collinear_cond: OlsOptions::default().collinear_cond,
+            min_excitation_snr: 3.0,
+            min_maneuvers_identified: 5,
         }
     }
 }
@@ -158,6 +176,9 @@ pub struct BinFit {
     pub partial_f: Vec<f64>,
     /// Excitation of each regressor: in-bin std over the flap's std.
     pub excitation: Vec<f64>,
+    /// In-bin std of each regressor over its noise floor ([`noise_floor`];
+    /// infinite for a constant regressor or a noiseless one).
+    pub excitation_snr: Vec<f64>,
     /// Variance inflation factor of each regressor.
     pub vif: Vec<f64>,
     /// Whether each parameter is identified in this bin.
@@ -200,6 +221,73 @@ pub struct BinnedFit {
     pub consistency: Vec<Consistency>,
     /// The partition used.
     pub partition: AlphaBins,
+}
+
+/// Noise floor of each regressor: the standard deviation of white noise that
+/// would give its second differences, $\hat\sigma = 1.4826\,
+/// \mathrm{median}|x_{i-1} - 2x_i + x_{i+1}| / \sqrt 6$, over consecutive rows of
+/// the same maneuver (rows in time order, as ingested; every other triple).
+/// A smooth signal has second differences near zero, so the median reads the
+/// noise; a control held still reads its sensor noise, a smoothed channel
+/// almost nothing. Zero for a constant regressor or one without triples.
+pub fn noise_floor(design: &Design, maneuver: &[u64]) -> Vec<f64> {
+    let p = design.ncols();
+    let n = design.nrows.min(maneuver.len());
+    let mut d2 = Vec::with_capacity(n / 2);
+    (0..p)
+        .map(|j| {
+            if design.exprs[j].is_constant() {
+                return 0.0;
+            }
+            d2.clear();
+            let x = |i: usize| design.values[i * p + j];
+            let mut i = 1;
+            while i + 1 < n {
+                if maneuver[i - 1] == maneuver[i] && maneuver[i] == maneuver[i + 1] {
+                    let v = (x(i - 1) - 2.0 * x(i) + x(i + 1)).abs();
+                    if v.is_finite() {
+                        d2.push(v);
+                    }
+                }
+                i += 2;
+            }
+            if d2.is_empty() {
+                return 0.0;
+            }
+            let mid = d2.len() / 2;
+            let (_, m, _) = d2.select_nth_unstable_by(mid, f64::total_cmp);
+            1.4826 * *m / 6f64.sqrt()
+        })
+        .collect()
+}
+
+/// Why parameter `j` of a bin is low excitation (`None` when it is not): the
+/// two rules of the module doc.
+pub(crate) fn low_excitation(ratio: f64, snr: f64, opts: &IdentifyOptions) -> Option<String> {
+    if ratio < opts.min_excitation {
+        Some(format!(
+            "low excitation: std in bin is {:.1}% of the flap's (minimum {:.1}%)",
+            100.0 * ratio,
+            100.0 * opts.min_excitation
+        ))
+    } else if snr < opts.min_excitation_snr {
+        Some(format!(
+            "low excitation: std in bin is {snr:.1} times the regressor's noise floor \
+             (minimum {:.1})",
+            opts.min_excitation_snr
+        ))
+    } else {
+        None
+    }
+}
+
+/// In-bin std over the noise floor (infinite when the floor is zero).
+pub(crate) fn snr(sd: f64, floor: f64) -> f64 {
+    if floor > 0.0 {
+        sd / floor
+    } else {
+        f64::INFINITY
+    }
 }
 
 fn fit_one_bin(
@@ -266,6 +354,7 @@ pub fn fit_bins(
         }
     }
     let flap_std: Vec<f64> = (0..p).map(|j| design.column_std(j, 0..n)).collect();
+    let floor = noise_floor(design, maneuver);
     let const_col: Vec<bool> = design.exprs.iter().map(Expr::is_constant).collect();
     let required = opts.partition.min_points_per_param * p;
 
@@ -274,14 +363,26 @@ pub fn fit_bins(
         let mut maneuvers: Vec<u64> = rows.iter().map(|&r| maneuver[r]).collect();
         maneuvers.sort_unstable();
         maneuvers.dedup();
+        let in_bin_std: Vec<f64> = (0..p)
+            .map(|j| design.column_std(j, rows.iter().copied()))
+            .collect();
         let excitation: Vec<f64> = (0..p)
             .map(|j| {
                 if const_col[j] {
                     1.0
                 } else if flap_std[j] > 0.0 {
-                    design.column_std(j, rows.iter().copied()) / flap_std[j]
+                    in_bin_std[j] / flap_std[j]
                 } else {
                     0.0
+                }
+            })
+            .collect();
+        let excitation_snr: Vec<f64> = (0..p)
+            .map(|j| {
+                if const_col[j] {
+                    f64::INFINITY
+                } else {
+                    snr(in_bin_std[j], floor[j])
                 }
             })
             .collect();
@@ -296,6 +397,7 @@ pub fn fit_bins(
             std_err_colored: nan.clone(),
             partial_f: nan.clone(),
             excitation,
+            excitation_snr,
             vif: nan,
             identifiable: vec![false; p],
             notes: vec![String::new(); p],
@@ -342,11 +444,18 @@ pub fn fit_bins(
                             fit.notes[j].clone()
                         });
                     }
-                    if !const_col[j] && bin.excitation[j] < opts.min_excitation {
+                    if !const_col[j] {
+                        if let Some(w) =
+                            low_excitation(bin.excitation[j], bin.excitation_snr[j], opts)
+                        {
+                            why.push(w);
+                        }
+                    }
+                    if bin.n_maneuvers < opts.min_maneuvers_identified {
                         why.push(format!(
-                            "low excitation: std in bin is {:.1}% of the flap's (minimum {:.1}%)",
-                            100.0 * bin.excitation[j],
-                            100.0 * opts.min_excitation
+                            "{} maneuvers in the bin (minimum {}): the estimate would carry \
+                             their own errors",
+                            bin.n_maneuvers, opts.min_maneuvers_identified
                         ));
                     }
                     if !bin.params[j].is_finite() || !bin.std_err[j].is_finite() {
@@ -602,7 +711,13 @@ mod tests {
             ("c".to_string(), "x2".to_string()),
         ];
         let design = Design::build(&regs, &lookup, z.len()).expect("design");
-        fit_bins(&design, z, alpha, man, &IdentifyOptions::default()).expect("fits")
+        // i.i.d. regressors look like white noise to the noise-floor rule, which reads the time
+        // structure of sampled flight data: off here
+        let opts = IdentifyOptions {
+            min_excitation_snr: 0.0,
+            ..IdentifyOptions::default()
+        };
+        fit_bins(&design, z, alpha, man, &opts).expect("fits")
     }
 
     #[test]
@@ -634,6 +749,83 @@ mod tests {
             let want = 0.01 * (a - 12.0).max(0.0);
             assert!((v - want).abs() < 0.006, "alpha {a}: {v} vs {want}");
         }
+    }
+
+    #[test]
+    fn noise_floor_reads_white_noise_under_a_slow_signal() {
+        // x = 4 sin(0.3 t) + N(0, 0.3²) at 50 Hz, 20 maneuvers: the floor is the noise's 0.3
+        // (the sine's second differences are 4·0.3²·0.02² ≈ 1.4e-4); a constant column reads 0
+        let (n, dt) = (20_000, 0.02);
+        let mut rng = crate::sim::rng::Stream::new(11, 1);
+        let x: Vec<f64> = (0..n)
+            .map(|i| 4.0 * (0.3 * i as f64 * dt).sin() + 0.3 * rng.normal())
+            .collect();
+        let man: Vec<u64> = (0..n).map(|i| (i / 1000) as u64).collect();
+        let lookup = |c: &str| -> Option<&[f64]> { (c == "x").then_some(x.as_slice()) };
+        let regs = vec![
+            ("b".to_string(), "1".to_string()),
+            ("a".to_string(), "x".to_string()),
+        ];
+        let d = Design::build(&regs, &lookup, n).expect("design");
+        let f = noise_floor(&d, &man);
+        assert_eq!(f[0], 0.0);
+        assert!((f[1] - 0.3).abs() < 0.015, "{}", f[1]);
+        // a jump between maneuvers is not a second difference: one maneuver at +100
+        let y: Vec<f64> = (0..n)
+            .map(|i| x[i] + if man[i] % 2 == 1 { 100.0 } else { 0.0 })
+            .collect();
+        let lookup = |c: &str| -> Option<&[f64]> { (c == "x").then_some(y.as_slice()) };
+        let d = Design::build(&regs, &lookup, n).expect("design");
+        assert!((noise_floor(&d, &man)[1] - 0.3).abs() < 0.015);
+    }
+
+    #[test]
+    fn a_regressor_quiet_everywhere_is_low_excitation_by_its_noise_floor() {
+        // sampled data: x1 a slow manoeuvre, x2 a control held at 0.5 read through a sensor
+        // with 0.01 of white noise at every alpha. x2's spread in a bin is its spread over the
+        // flap (the relative rule passes it) and its noise floor (rule 2 does not)
+        let n = 20_000;
+        let mut rng = crate::sim::rng::Stream::new(5, 1);
+        let (mut alpha, mut x1, mut x2, mut z, mut man) = (vec![], vec![], vec![], vec![], vec![]);
+        for i in 0..n {
+            let t = i as f64 * 0.02;
+            // each 8 s maneuver sweeps alpha from 5 to 20 deg and back
+            let ph = 2.0 * std::f64::consts::PI * (i % 400) as f64 / 400.0;
+            let a = 5.0 + 15.0 * (0.5 - 0.5 * ph.cos());
+            let u1 = (1.3 * t).sin() + 0.01 * rng.normal();
+            let u2 = 0.5 + 0.01 * rng.normal();
+            z.push(0.002 + 0.01 * (a - 12.0).max(0.0) * u1 - 0.03 * u2 + 0.001 * rng.normal());
+            alpha.push(a);
+            x1.push(u1);
+            x2.push(u2);
+            man.push((i / 400) as u64);
+        }
+        let lookup = |c: &str| -> Option<&[f64]> {
+            match c {
+                "x1" => Some(&x1),
+                "x2" => Some(&x2),
+                _ => None,
+            }
+        };
+        let regs = vec![
+            ("bias".to_string(), "1".to_string()),
+            ("b".to_string(), "x1".to_string()),
+            ("c".to_string(), "x2".to_string()),
+        ];
+        let design = Design::build(&regs, &lookup, n).expect("design");
+        let fit = fit_bins(&design, &z, &alpha, &man, &IdentifyOptions::default()).expect("fit");
+        let mut fitted = 0;
+        for bin in fit.bins.iter().filter(|b| b.note.is_empty()) {
+            fitted += 1;
+            assert!(bin.excitation[2] > 0.5, "relative rule: {}", bin.excitation[2]);
+            assert!(bin.excitation_snr[2] < 1.5, "{}", bin.excitation_snr[2]);
+            assert!(!bin.identifiable[2]);
+            assert!(bin.notes[2].contains("noise floor"), "{}", bin.notes[2]);
+            // x1 moves: far above its floor, identified
+            assert!(bin.excitation_snr[1] > 10.0, "{}", bin.excitation_snr[1]);
+            assert!(bin.identifiable[1], "{}", bin.notes[1]);
+        }
+        assert!(fitted > 10, "{fitted}");
     }
 
     #[test]

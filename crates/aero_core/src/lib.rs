@@ -25,6 +25,9 @@
 //!   (dead-band splines of Eq. 3.15-3.16, products, user columns);
 //! - [`identify`]: per-bin equation-error Δ identification with identifiability
 //!   marks, adjacent-bin consistency and smoothing into tables (Sections 3.3-3.4);
+//! - [`band`]: one zero-phase low-pass on the qualified-model error and the regressors
+//!   (band-limited equation error, so the smoothed measured coefficients and the raw
+//!   controls carry the same band);
 //! - [`select`]: structure selection of the Δ model per coefficient and flap
 //!   (stepwise partial F, orthogonal functions with PSE, cross-validation over maneuvers);
 //! - [`bootstrap`]: confidence bands on the smoothed parameters by resampling maneuvers;
@@ -38,6 +41,7 @@
 #![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used))]
 
 pub mod aircraft;
+pub mod band;
 pub mod bootstrap;
 pub mod daveml;
 pub mod delta_model;

@@ -57,8 +57,8 @@
 use crate::bootstrap::{bootstrap_smoothed, Bootstrap, BootstrapOptions};
 use crate::error::{AeroError, Result, ResultExt};
 use crate::identify::{
-    adjacent_consistency, fit_bins, smooth_parameters, BinFit, BinnedFit, Design, IdentifyOptions,
-    SmoothOptions, SmoothedParameter,
+    adjacent_consistency, fit_bins, low_excitation, noise_floor, smooth_parameters, snr, BinFit,
+    BinnedFit, Design, IdentifyOptions, SmoothOptions, SmoothedParameter,
 };
 use crate::partition::partition_alpha;
 use crate::sim::rng::Stream;
@@ -475,6 +475,9 @@ pub struct SelectOptions {
     /// A candidate with in-bin excitation below this (see
     /// [`crate::identify::IdentifyOptions::min_excitation`]) may not enter in that bin.
     pub min_excitation: f64,
+    /// Nor below this multiple of its noise floor (see
+    /// [`crate::identify::IdentifyOptions::min_excitation_snr`]).
+    pub min_excitation_snr: f64,
     /// Training points per parameter a fold's bin regression needs; with
     /// fewer, the fold predicts zero Δ in that bin.
     pub min_points_per_param: usize,
@@ -494,6 +497,7 @@ impl Default for SelectOptions {
             folds: 5,
             seed: 0,
             min_excitation: 0.05,
+            min_excitation_snr: 3.0,
             min_points_per_param: 10,
             extra: Vec::new(),
         }
@@ -932,7 +936,11 @@ pub fn select_with_grams(
         let bin = &pool_fit.bins[b];
         let candidates: Vec<usize> = (0..p)
             .filter(|&j| !opts.forced.contains(&j))
-            .filter(|&j| design.exprs[j].is_constant() || bin.excitation[j] >= opts.min_excitation)
+            .filter(|&j| {
+                design.exprs[j].is_constant()
+                    || (bin.excitation[j] >= opts.min_excitation
+                        && bin.excitation_snr[j] >= opts.min_excitation_snr)
+            })
             .collect();
         let sel = match opts.method {
             Method::Stepwise => {
@@ -1185,6 +1193,7 @@ pub fn pool_bins_grams(
         .iter()
         .map(crate::regressor::Expr::is_constant)
         .collect();
+    let floor = noise_floor(design, maneuver);
     let required = identify.partition.min_points_per_param * p;
     let min_man = identify.partition.min_maneuvers.max(1);
     let bins: Vec<BinFit> = (0..members.len())
@@ -1202,6 +1211,15 @@ pub fn pool_bins_grams(
                     }
                 })
                 .collect();
+            let excitation_snr: Vec<f64> = (0..p)
+                .map(|j| {
+                    if const_col[j] {
+                        f64::INFINITY
+                    } else {
+                        snr(var(g, s, *c, j).sqrt() * grams.scale[j], floor[j])
+                    }
+                })
+                .collect();
             let nan = vec![f64::NAN; p];
             let mut bin = BinFit {
                 alpha_lo: partition.edges[b],
@@ -1213,6 +1231,7 @@ pub fn pool_bins_grams(
                 std_err_colored: nan.clone(),
                 partial_f: nan.clone(),
                 excitation,
+                excitation_snr,
                 vif: nan,
                 identifiable: vec![false; p],
                 notes: vec![String::new(); p],
@@ -1252,12 +1271,12 @@ pub fn pool_bins_grams(
                         "not identifiable: linearly dependent on other regressors".to_string(),
                     );
                 }
-                if !const_col[j] && bin.excitation[j] < identify.min_excitation {
-                    why.push(format!(
-                        "low excitation: std in bin is {:.1}% of the flap's (minimum {:.1}%)",
-                        100.0 * bin.excitation[j],
-                        100.0 * identify.min_excitation
-                    ));
+                if !const_col[j] {
+                    if let Some(w) =
+                        low_excitation(bin.excitation[j], bin.excitation_snr[j], identify)
+                    {
+                        why.push(w);
+                    }
                 }
                 bin.identifiable[j] = why.is_empty();
                 bin.notes[j] = why.join("; ");
@@ -1368,8 +1387,18 @@ pub fn identify_flap(
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
+
+    /// The identification settings for these i.i.d. regressors: drawn afresh at every row, they
+    /// look like white noise to the noise-floor rule, which reads the time structure of sampled
+    /// flight data ([`crate::identify::noise_floor`]), so that rule is off.
+    pub(crate) fn iid_identify() -> IdentifyOptions {
+        IdentifyOptions {
+            min_excitation_snr: 0.0,
+            ..IdentifyOptions::default()
+        }
+    }
 
     /// z = 0.002 + b(α) x1 - 0.03 x2 + noise, with x3, x4 pure noise regressors.
     fn data(n: usize, seed: u64) -> (Design, Vec<f64>, Vec<f64>, Vec<u64>) {
@@ -1435,7 +1464,7 @@ mod tests {
     #[test]
     fn pool_bins_agree_with_the_qr_fit_of_every_bin() {
         let (design, z, alpha, man) = data(20_000, 4);
-        let opts = IdentifyOptions::default();
+        let opts = iid_identify();
         let qr = fit_bins(&design, &z, &alpha, &man, &opts).expect("fit");
         let gram = pool_bins(&design, &z, &alpha, &man, &opts).expect("pool");
         assert_eq!(qr.bins.len(), gram.bins.len());
@@ -1497,10 +1526,11 @@ mod tests {
     #[test]
     fn stepwise_and_mof_keep_the_true_terms_and_drop_noise_terms() {
         let (design, z, alpha, man) = data(30_000, 3);
-        let pool = fit_bins(&design, &z, &alpha, &man, &IdentifyOptions::default()).expect("fit");
+        let pool = fit_bins(&design, &z, &alpha, &man, &iid_identify()).expect("fit");
         for method in [Method::Stepwise, Method::Mof] {
             let opts = SelectOptions {
                 method,
+                min_excitation_snr: 0.0,
                 ..SelectOptions::default()
             };
             let sel = select_structure(&design, &z, &man, &pool, &opts).expect("selects");

@@ -4,6 +4,7 @@ use std::collections::HashMap;
 use aero_core::aircraft::qualified::QualifiedModel;
 use aero_core::aircraft::records::{qualified_lateral, RecordColumns};
 use aero_core::aircraft::turboprop::adx37;
+use aero_core::band::lowpass_by_maneuver;
 use aero_core::bootstrap::{Bootstrap, BootstrapOptions};
 use aero_core::identify::{BinnedFit, Design, IdentifyOptions, SmoothOptions, SmoothedParameter};
 use aero_core::partition::PartitionOptions;
@@ -143,6 +144,10 @@ fn fit_dict<'py>(
     )?;
     d.set_item("partial_f", flat(&|b| &b.partial_f).into_pyarray(py))?;
     d.set_item("excitation", flat(&|b| &b.excitation).into_pyarray(py))?;
+    d.set_item(
+        "excitation_snr",
+        flat(&|b| &b.excitation_snr).into_pyarray(py),
+    )?;
     d.set_item("vif", flat(&|b| &b.vif).into_pyarray(py))?;
     d.set_item(
         "identifiable",
@@ -237,7 +242,7 @@ fn bootstrap_dict<'py>(py: Python<'py>, b: &Bootstrap) -> PyResult<Bound<'py, Py
 /// Per-bin identification of one coefficient at one flap setting with an optional
 /// structure selection over a candidate pool and an optional bootstrap over maneuvers.
 #[pyfunction]
-#[pyo3(signature = (regressors, columns, z, alpha_deg, maneuver, width_deg, min_points_per_param, min_maneuvers, max_width_deg, colored, min_excitation, p, weighted, grid_step_deg, alpha_max_deg, min_identified_bins, selection, f_in, f_out, forced, min_bins, folds, seed, extra, bootstrap, level))]
+#[pyo3(signature = (regressors, columns, z, alpha_deg, maneuver, width_deg, min_points_per_param, min_maneuvers, max_width_deg, colored, min_excitation, p, weighted, grid_step_deg, alpha_max_deg, min_identified_bins, selection, f_in, f_out, forced, min_bins, folds, seed, extra, bootstrap, level, t=None, band_hz=None, min_excitation_snr=3.0, min_maneuvers_identified=5))]
 #[allow(clippy::too_many_arguments)]
 fn identify_flap<'py>(
     py: Python<'py>,
@@ -267,12 +272,20 @@ fn identify_flap<'py>(
     extra: Vec<Vec<usize>>,
     bootstrap: usize,
     level: f64,
+    t: Option<PyReadonlyArray1<'py, f64>>,
+    band_hz: Option<f64>,
+    min_excitation_snr: f64,
+    min_maneuvers_identified: usize,
 ) -> PyResult<Bound<'py, PyDict>> {
     let mut cols: HashMap<String, &[f64]> = HashMap::new();
     for (k, v) in &columns {
         cols.insert(k.clone(), v.as_slice()?);
     }
     let (z, alpha, man) = (z.as_slice()?, alpha_deg.as_slice()?, maneuver.as_slice()?);
+    let t = match &t {
+        Some(a) => Some(a.as_slice()?),
+        None => None,
+    };
     let method = match selection.as_deref() {
         None => None,
         Some("stepwise") => Some(Method::Stepwise),
@@ -286,7 +299,18 @@ fn identify_flap<'py>(
     };
     let out = detached(py, || {
         let lookup = |name: &str| cols.get(name).copied();
-        let design = Design::build(&regressors, &lookup, z.len())?;
+        let mut design = Design::build(&regressors, &lookup, z.len())?;
+        let mut zf: Option<Vec<f64>> = None;
+        let mut band = None;
+        if let Some(fc) = band_hz {
+            let t = t.ok_or_else(|| {
+                AeroError::invalid("band_hz", "needs the time column 't' of the records")
+            })?;
+            let mut zv = z.to_vec();
+            band = Some(lowpass_by_maneuver(&mut design, &mut zv, man, t, fc)?);
+            zf = Some(zv);
+        }
+        let z: &[f64] = zf.as_deref().unwrap_or(z);
         let identify = IdentifyOptions {
             partition: PartitionOptions {
                 width_deg,
@@ -297,6 +321,8 @@ fn identify_flap<'py>(
             },
             colored,
             min_excitation,
+            min_excitation_snr,
+            min_maneuvers_identified,
             ..IdentifyOptions::default()
         };
         let so = method.map(|method| SelectOptions {
@@ -308,6 +334,7 @@ fn identify_flap<'py>(
             folds,
             seed,
             min_excitation,
+            min_excitation_snr,
             min_points_per_param,
             extra: extra.clone(),
         });
@@ -335,7 +362,9 @@ fn identify_flap<'py>(
             &smooth,
             bo.as_ref(),
         )
+        .map(|out| (out, band))
     })?;
+    let (out, band) = out;
     let d = fit_dict(py, &out.fit, out.smoothed)?;
     d.set_item("chosen", out.chosen.clone())?;
     match (&out.selection, &out.pool_fit) {
@@ -345,6 +374,18 @@ fn identify_flap<'py>(
     match &out.bootstrap {
         Some(b) => d.set_item("bootstrap", bootstrap_dict(py, b)?)?,
         None => d.set_item("bootstrap", py.None())?,
+    }
+    match band {
+        Some(b) => d.set_item(
+            "band",
+            (
+                b.segments,
+                b.samples_filtered,
+                b.samples_unfiltered,
+                b.channels_skipped,
+            ),
+        )?,
+        None => d.set_item("band", py.None())?,
     }
     Ok(d)
 }

@@ -313,6 +313,55 @@ impl Smoother {
     }
 }
 
+impl Smoother {
+    /// Zero-phase low-pass of two channels of the same record at a fixed cut-off `fc_hz`,
+    /// with the smoother's end treatment (line removed, tapered odd reflections, one FFT
+    /// period): the weight is 1 up to `0.75 fc`, 0 from `1.25 fc`, and `cos²` between
+    /// (0.5 at `fc`). A record shorter than 8 samples, or of another length than planned,
+    /// is returned unchanged. Used to give the qualified-model error and the regressors of
+    /// the Δ fit one common band ([`crate::band`]).
+    pub fn lowpass_pair(&self, x: &[f64], y: &[f64], dt: f64, fc_hz: f64) -> (Vec<f64>, Vec<f64>) {
+        let n = self.n;
+        let plan = match &self.plan {
+            Some(p) if x.len() == n && y.len() == n && fc_hz > 0.0 && dt > 0.0 => p,
+            _ => return (x.to_vec(), y.to_vec()),
+        };
+        let h = self.half;
+        let m = 2 * h;
+        let mut buf = vec![C::new(0.0, 0.0); m];
+        let (x0, sx) = self.fill(&mut buf, x, false);
+        let (y0, sy) = self.fill(&mut buf, y, true);
+        plan.run(&mut buf, false);
+        let (f1, f2) = (0.75 * fc_hz, 1.25 * fc_hz);
+        let weight = |k: usize| -> f64 {
+            let f = k as f64 / (m as f64 * dt);
+            if f <= f1 {
+                1.0
+            } else if f >= f2 {
+                0.0
+            } else {
+                let c = (0.5 * std::f64::consts::PI * (f - f1) / (f2 - f1)).cos();
+                c * c
+            }
+        };
+        // both channels carry the same real, even weight: the packed spectrum is scaled as is
+        for k in 0..m {
+            let kk = if k <= h { k } else { m - k };
+            buf[k] *= weight(kk);
+        }
+        plan.run(&mut buf, true);
+        let scale = 1.0 / m as f64;
+        let mut vx = Vec::with_capacity(n);
+        let mut vy = Vec::with_capacity(n);
+        for j in 0..n {
+            let jf = j as f64;
+            vx.push(buf[j].re * scale + x0 + sx * jf);
+            vy.push(buf[j].im * scale + y0 + sy * jf);
+        }
+        (vx, vy)
+    }
+}
+
 /// Smooth one signal (plans a [`Smoother`] for its length).
 pub fn smooth(x: &[f64], dt: f64) -> Smoothed {
     Smoother::new(x.len()).smooth(x, dt)
