@@ -107,7 +107,14 @@ def run(args: argparse.Namespace) -> int:
         meas, qual = j[f"{c}_meas"].to_numpy(), j[f"{c}_fitqual"].to_numpy()
         oracle = theil_inequality(meas, qual + d_true) / theil_inequality(meas, qual)
         print(f"{c:<5} {rms_t:>11.5f} {rms_e:>10.5f} {100 * expl:>9.0f}% {oracle:>24.2f}")
-    _print_identification(result, camp)
+    # the thesis structures with the same bootstrap: the per-bin bands without the selection
+    # step (a band on a selected structure does not carry the selection's own uncertainty)
+    thesis = (
+        fit(train, config=FitConfig(selection=None, bootstrap=args.bootstrap))
+        if args.bootstrap
+        else None
+    )
+    _print_identification(result, camp, thesis)
     # the sim-to-real gap of the qualified model on the whole campaign (issue 7), then the
     # validation report with it (issue 8)
     diag = diagnose(data, progress=progress)
@@ -129,7 +136,23 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def _print_identification(result: object, camp: Path) -> None:
+def _band_rows(r: object, camp: Path) -> dict[str, tuple[int, float, float, float]]:
+    """Per coefficient: identified bins checked, share inside the smoothed band, share inside
+    the per-bin band, median band width over the largest |truth|."""
+    bc = band_check(r, campaign_effects(camp))
+    out = {}
+    for c in ("Cl", "Cn", "CY"):
+        g = bc.filter(pl.col("coefficient") == c)
+        n = g["bins"].to_numpy()
+        ib = float(np.sum(n * g["inside_band"].to_numpy()) / n.sum())
+        ibb = float(np.nansum(n * g["inside_bin_band"].to_numpy()) / n.sum())
+        t = g.filter(pl.col("max_abs_truth") > 0)
+        rel = float(np.median(t["median_width"].to_numpy() / t["max_abs_truth"].to_numpy()))
+        out[c] = (int(n.sum()), ib, ibb, rel)
+    return out
+
+
+def _print_identification(result: object, camp: Path, thesis: object | None = None) -> None:
     """Structure selection, its cross-validation and the bootstrap bands against the truth."""
     r = result
     print("structure selection (stepwise, partial F >= 4, CV over maneuvers): kept per flap")
@@ -167,14 +190,13 @@ def _print_identification(result: object, camp: Path) -> None:
             )
     if not r.replicates:  # type: ignore[attr-defined]
         return
-    bc = band_check(r, campaign_effects(camp))
+    sel = _band_rows(r, camp)
+    th = _band_rows(thesis, camp) if thesis is not None else None
     print("bootstrap 95% bands vs the true Δ derivatives (identified bins, alpha >= alpha_l)")
-    print(f"{'coef':<5} {'bins':>6} {'in band':>8} {'in bin band':>12} {'width/max|truth|':>17}")
-    for c in ("Cl", "Cn", "CY"):
-        g = bc.filter(pl.col("coefficient") == c)
-        n = g["bins"].to_numpy()
-        ib = float(np.sum(n * g["inside_band"].to_numpy()) / n.sum())
-        ibb = float(np.nansum(n * g["inside_bin_band"].to_numpy()) / n.sum())
-        t = g.filter(pl.col("max_abs_truth") > 0)
-        rel = float(np.median(t["median_width"].to_numpy() / t["max_abs_truth"].to_numpy()))
-        print(f"{c:<5} {int(n.sum()):>6} {100 * ib:>7.0f}% {100 * ibb:>11.0f}% {rel:>17.3f}")
+    head = f"{'coef':<5} {'bins':>6} {'smoothed':>9} {'per bin':>8} {'width/max|truth|':>17}"
+    print(head + (f" {'thesis structure, per bin':>26}" if th else ""))
+    for c, (n, ib, ibb, rel) in sel.items():
+        line = f"{c:<5} {n:>6} {100 * ib:>8.0f}% {100 * ibb:>7.0f}% {rel:>17.3f}"
+        if th:
+            line += f" {100 * th[c][2]:>17.0f}% of {th[c][0]:>5}"
+        print(line)

@@ -1,0 +1,160 @@
+"""Check the Δ-model identification against the truth over independent virtual campaigns.
+
+For each seed: fly the default campaign (default effects, realistic noise and turbulence),
+ingest it, fit four fifths of the maneuvers with a bootstrap over maneuvers, and hold the
+rest out. Reported, per coefficient:
+
+- **coverage**: the share of identified bins (alpha >= alpha_l, where the model applies) whose
+  95 % bootstrap band ``estimate ± 1.96 · std_err_bootstrap`` holds the true Δ derivative at
+  the bin centre (``aerodelta.truth.band_check``), with the stepwise-selected structure (the
+  default) and with the thesis structures (``selection=None``);
+- **band width**: median width of the smoothed bands against the largest |truth|;
+- **calibration**: per bin fitted in every campaign, the root-mean-square bootstrap standard
+  error over the standard deviation of the estimates across campaigns (1 = honest), and the
+  same for the coloured-residual standard error;
+- **held-out TIC ratio**: Theil inequality of the extended model over the qualified model's on
+  the held-out maneuvers, and the same for qualified + the true Δ (the best any Δ model can do
+  against the noisy measurements).
+
+Run: ``python benchmarks/identification_check.py [--seeds 20] [--first-seed 1]``
+(about 15 s per seed on 2 cores).
+"""
+
+from __future__ import annotations
+
+import argparse
+import shutil
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+import polars as pl
+
+import aerodelta as ad
+from aerodelta.fit import COEFFICIENTS, FitConfig, model_frame, qualified_coefficients
+from aerodelta.fit import theil_inequality as tic
+from aerodelta.truth import band_check, campaign_effects
+
+
+def _coverage(result: ad.FitResult, effects: dict[str, float]) -> dict[str, tuple[int, int, float]]:
+    """Per coefficient: identified bins checked, bins inside their band, median band width."""
+    bc = band_check(result, effects)
+    out = {}
+    for c in COEFFICIENTS:
+        g = bc.filter(pl.col("coefficient") == c)
+        n = g["bins"].to_numpy()
+        inside = np.nan_to_num(g["inside_bin_band"].to_numpy()) * n
+        t = g.filter(pl.col("max_abs_truth") > 0)
+        rel = float(np.median(t["median_width"].to_numpy() / t["max_abs_truth"].to_numpy()))
+        out[c] = (int(n.sum()), round(float(inside.sum())), rel)
+    return out
+
+
+def _tic_ratios(
+    result: ad.FitResult, test: pl.DataFrame, camp: Path
+) -> dict[str, tuple[float, float]]:
+    """Per coefficient: held-out TIC ratio of the extended model, and of qualified + true Δ."""
+    mf = model_frame(test)
+    qual = qualified_coefficients(mf)
+    ev = pl.concat(
+        [result.model.evaluate(mf), qual, test.select("maneuver_id", "t", *[
+            f"{c}_meas" for c in COEFFICIENTS])],
+        how="horizontal",
+    )  # fmt: skip
+    truth = pl.concat(
+        [
+            pl.read_parquet(camp / "truth" / f"{m}.parquet")
+            .select("t", *[f"{c}_true" for c in COEFFICIENTS], *[f"{c}_qual" for c in COEFFICIENTS])
+            .rename({f"{c}_qual": f"{c}_tq" for c in COEFFICIENTS})
+            .with_columns(pl.lit(m).alias("maneuver_id"))
+            for m in test["maneuver_id"].unique().to_list()
+        ]
+    )
+    j = ev.join(truth, on=["maneuver_id", "t"], how="inner")
+    out = {}
+    for c in COEFFICIENTS:
+        meas, q = j[f"{c}_meas"].to_numpy(), j[f"{c}_qual"].to_numpy()
+        ext = q + j[f"d{c}_blended"].to_numpy()
+        oracle = q + (j[f"{c}_true"] - j[f"{c}_tq"]).to_numpy()
+        out[c] = (tic(meas, ext) / tic(meas, q), tic(meas, oracle) / tic(meas, q))
+    return out
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--seeds", type=int, default=20)
+    ap.add_argument("--first-seed", type=int, default=1)
+    ap.add_argument("--bootstrap", type=int, default=100)
+    args = ap.parse_args()
+    configs = {"selected": FitConfig(), "thesis": FitConfig(selection=None)}
+    cov = {k: {c: [0, 0] for c in COEFFICIENTS} for k in configs}
+    widths: dict[str, dict[str, list[float]]] = {k: {c: [] for c in COEFFICIENTS} for k in configs}
+    tics: dict[str, list[tuple[float, float]]] = {c: [] for c in COEFFICIENTS}
+    params: list[pl.DataFrame] = []
+    t_start = time.perf_counter()
+    with tempfile.TemporaryDirectory() as tmp:
+        for seed in range(args.first_seed, args.first_seed + args.seeds):
+            camp = Path(tmp) / f"c{seed}"
+            ad.generate_campaign(camp, seed=seed)
+            effects = campaign_effects(camp)
+            data = ad.ingest(camp, compat=False, progress=False).data
+            ids = data["maneuver_id"].unique().sort().to_list()
+            held = set(ids[::5])
+            train = data.filter(~pl.col("maneuver_id").is_in(held))
+            test = data.filter(pl.col("maneuver_id").is_in(held))
+            for name, base in configs.items():
+                cfg = FitConfig(**{**base.__dict__, "bootstrap": args.bootstrap, "seed": seed})
+                r = ad.fit(train, config=cfg)
+                for c, (n, k, w) in _coverage(r, effects).items():
+                    cov[name][c][0] += n
+                    cov[name][c][1] += k
+                    widths[name][c].append(w)
+                if name == "selected":
+                    for c, v in _tic_ratios(r, test, camp).items():
+                        tics[c].append(v)
+                else:
+                    params.append(r.params.with_columns(pl.lit(seed).alias("seed")))
+            shutil.rmtree(camp)
+            print(f"seed {seed} done ({time.perf_counter() - t_start:.0f} s)", flush=True)
+    print(f"\n{args.seeds} campaigns (seeds {args.first_seed}..{args.first_seed + args.seeds - 1}),"
+          f" {args.bootstrap} bootstrap replicates each")  # fmt: skip
+    print("truth inside the per-bin 95 % bands (identified bins, alpha >= alpha_l); floor 90 %")
+    print(f"{'coef':<5} {'selected structure':>22} {'thesis structure':>22} {'width/|truth|':>14}")
+    for c in COEFFICIENTS:
+        s, t = cov["selected"][c], cov["thesis"][c]
+        print(
+            f"{c:<5} {100 * s[1] / max(s[0], 1):>8.1f} % of {s[0]:>6} "
+            f"{100 * t[1] / max(t[0], 1):>10.1f} % of {t[0]:>6} "
+            f"{float(np.median(widths['selected'][c])):>14.3f}"
+        )
+    # calibration: bins fitted in every campaign with the thesis structure (same structure,
+    # same edges), alpha >= 8 deg
+    p = pl.concat(params).filter(pl.col("identifiable") & (pl.col("alpha_lo_deg") >= 8.0))
+    g = (
+        p.group_by(["coefficient", "flap_deg", "param", "alpha_lo_deg"])
+        .agg(
+            pl.col("estimate").std().alias("sd"),
+            pl.col("std_err_bootstrap").pow(2).mean().sqrt().alias("boot"),
+            pl.col("std_err_colored").pow(2).mean().sqrt().alias("colored"),
+            pl.len().alias("k"),
+        )
+        .filter(pl.col("k") == args.seeds)
+    )
+    print("\nstandard errors against the spread of the estimates over the campaigns "
+          "(thesis structure, median over bins; 1 = honest)")  # fmt: skip
+    print(f"{'coef':<5} {'bins':>6} {'bootstrap':>10} {'coloured':>10}")
+    for c in COEFFICIENTS:
+        h = g.filter(pl.col("coefficient") == c)
+        rb = float((h["boot"] / h["sd"]).median())  # type: ignore[arg-type]
+        rc = float((h["colored"] / h["sd"]).median())  # type: ignore[arg-type]
+        print(f"{c:<5} {h.height:>6} {rb:>10.2f} {rc:>10.2f}")
+    print("\nheld-out TIC ratio, extended / qualified (floor 0.5), and qualified + true Δ")
+    for c in COEFFICIENTS:
+        a = np.asarray(tics[c])
+        print(f"{c:<5} median {np.median(a[:, 0]):.2f} (max {a[:, 0].max():.2f})   "
+              f"true Δ: median {np.median(a[:, 1]):.2f}")  # fmt: skip
+
+
+if __name__ == "__main__":
+    main()
