@@ -137,11 +137,11 @@ def test_bootstrap_bands_are_stored_and_cover_the_truth(
     n = bc["bins"].to_numpy()
     in_band = float(np.sum(n * bc["inside_band"].to_numpy()) / n.sum())
     in_bin = float(np.nansum(n * bc["inside_bin_band"].to_numpy()) / n.sum())
-    # measured (seed 2): about 0.5 for the smoothed bands, 0.75 for the per-bin bands; the
-    # 0.9 target is not met: the misses are systematic (roll-off and sensor chain biases on
-    # dCl_p, rudder/thrust-asymmetry confounding on dCn_dr), not sampling noise, which the
-    # synthetic check in aero_core::bootstrap (>= 0.9 of its estimand) shows the bands do hold
-    assert in_band >= 0.35 and in_bin >= 0.6, (in_band, in_bin)
+    # measured (seed 2, 40 replicates that select again): 0.81 for the smoothed bands, 0.91 for
+    # the per-bin percentile bands (0.5 and 0.75 when the replicates refitted the chosen
+    # structure: those bands lacked the selection's own uncertainty). The remaining misses are
+    # systematic (measurement chain, roll-off; docs/identification.md)
+    assert in_band >= 0.7 and in_bin >= 0.85, (in_band, in_bin)
     cy = bc.filter(pl.col("coefficient") == "CY")
     ncy = cy["bins"].to_numpy()
     assert float(np.sum(ncy * cy["inside_band"].to_numpy()) / ncy.sum()) >= 0.7

@@ -192,6 +192,12 @@ class FitConfig:
         100-200 give stable 95 % bands).
     band_level
         Confidence level of the bands.
+    bootstrap_selection
+        With a selection, each bootstrap replicate selects the structure again on its
+        resampled maneuvers (``aero_core::bootstrap::Reselect``): a kept term the replicate
+        drops is zero there, so the bands carry the selection's own uncertainty (a band
+        computed for a structure chosen on the same data lacks it). ``False``: the chosen
+        structure is refitted in every replicate.
     band_hz
         Band-limited equation error (``aero_core::band``), off by default: the qualified-model
         error and every regressor are low-passed at this cut-off, Hz (one value, or one per
@@ -235,6 +241,7 @@ class FitConfig:
     seed: int = 0
     bootstrap: int = 0
     band_level: float = 0.95
+    bootstrap_selection: bool = True
     band_hz: float | Mapping[str, float] | None = None
 
     @classmethod
@@ -369,7 +376,10 @@ class FitResult:
     params
         One row per coefficient, flap, bin and parameter: estimate, standard errors
         (conventional, corrected for coloured residuals and, with a bootstrap, over
-        maneuvers), t, partial F, excitation, VIF, ``identifiable`` and a ``note`` saying why not.
+        maneuvers), with a bootstrap the percentile band ``band_lower``/``band_upper`` at
+        ``band_level``, t, partial F, excitation (against the flap, ``excitation``, and
+        against the regressor's noise floor, ``excitation_snr``), VIF, ``identifiable`` and a
+        ``note`` saying why not.
     consistency
         Adjacent-bin consistency per coefficient, flap and parameter (Section 3.3.4).
     smoothed
@@ -489,48 +499,52 @@ def _maneuver_codes(data: pl.DataFrame) -> np.ndarray:
 
 def _bin_rows(
     coef: str, flap: float, out: Mapping[str, Any], regs: Sequence[tuple[str, str]]
-) -> tuple[list[dict[str, Any]], list[dict[str, Any]]]:
-    """Rows of the ``bins`` and ``params`` tables from one ``identify`` output."""
+) -> tuple[pl.DataFrame, pl.DataFrame]:
+    """The ``bins`` and ``params`` tables of one ``identify`` output (built column-wise)."""
     names: list[str] = out["names"]
     nb, npar = len(out["alpha_lo"]), len(names)
-    shape = (nb, npar)
-    est = np.asarray(out["params"]).reshape(shape)
-    se = np.asarray(out["std_err"]).reshape(shape)
-    sec = np.asarray(out["std_err_colored"]).reshape(shape)
-    pf = np.asarray(out["partial_f"]).reshape(shape)
-    exc = np.asarray(out["excitation"]).reshape(shape)
-    snr = np.asarray(out["excitation_snr"]).reshape(shape)
-    vif = np.asarray(out["vif"]).reshape(shape)
-    ident = np.asarray(out["identifiable"], dtype=bool).reshape(shape)
-    notes = np.asarray(out["notes"], dtype=object).reshape(shape)
+    lo, hi = np.asarray(out["alpha_lo"], dtype=float), np.asarray(out["alpha_hi"], dtype=float)
+    bins = pl.DataFrame(
+        {
+            "coefficient": [coef] * nb, "flap_deg": np.full(nb, flap, dtype=float),
+            "alpha_lo_deg": lo, "alpha_hi_deg": hi,
+            "n": np.asarray(out["n"], dtype=np.int64),
+            "n_maneuvers": np.asarray(out["n_maneuvers"], dtype=np.int64),
+            "r2": np.asarray(out["r2"], dtype=float),
+            "condition_number": np.asarray(out["condition_number"], dtype=float),
+            "residual_std": np.asarray(out["residual_std"], dtype=float),
+            "note": [str(v) for v in out["bin_note"]],
+        }
+    )  # fmt: skip
+
+    def flat(key: str) -> np.ndarray:  # row-major: bin, then parameter
+        return np.asarray(out[key], dtype=float).ravel()
+
     boot = out.get("bootstrap")
-    seb = np.asarray(boot["bin_std"]).reshape(shape) if boot is not None else np.full(shape, np.nan)
-    bins_rows, param_rows = [], []
-    for b in range(nb):
-        bins_rows.append(
-            {
-                "coefficient": coef, "flap_deg": flap,
-                "alpha_lo_deg": out["alpha_lo"][b], "alpha_hi_deg": out["alpha_hi"][b],
-                "n": int(out["n"][b]), "n_maneuvers": int(out["n_maneuvers"][b]),
-                "r2": out["r2"][b], "condition_number": out["condition_number"][b],
-                "residual_std": out["residual_std"][b], "note": out["bin_note"][b],
-            }
-        )  # fmt: skip
-        for j, name in enumerate(names):
-            param_rows.append(
-                {
-                    "coefficient": coef, "flap_deg": flap, "param": name,
-                    "regressor": regs[j][1],
-                    "alpha_lo_deg": out["alpha_lo"][b], "alpha_hi_deg": out["alpha_hi"][b],
-                    "estimate": est[b, j], "std_err": se[b, j],
-                    "std_err_colored": sec[b, j], "std_err_bootstrap": seb[b, j],
-                    "t": est[b, j] / se[b, j] if se[b, j] > 0 else math.nan,
-                    "partial_f": pf[b, j], "excitation": exc[b, j], "excitation_snr": snr[b, j],
-                    "vif": vif[b, j],
-                    "identifiable": bool(ident[b, j]), "note": str(notes[b, j]),
-                }
-            )  # fmt: skip
-    return bins_rows, param_rows
+
+    def boot_col(key: str) -> np.ndarray:
+        if boot is None:
+            return np.full(nb * npar, np.nan)
+        return np.asarray(boot[key], dtype=float).ravel()
+
+    est, se = flat("params"), flat("std_err")
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = np.where(se > 0, est / se, np.nan)
+    params = pl.DataFrame(
+        {
+            "coefficient": [coef] * (nb * npar), "flap_deg": np.full(nb * npar, flap, dtype=float),
+            "param": names * nb, "regressor": [e for _, e in regs] * nb,
+            "alpha_lo_deg": np.repeat(lo, npar), "alpha_hi_deg": np.repeat(hi, npar),
+            "estimate": est, "std_err": se, "std_err_colored": flat("std_err_colored"),
+            "std_err_bootstrap": boot_col("bin_std"),
+            "band_lower": boot_col("bin_lower"), "band_upper": boot_col("bin_upper"),
+            "t": t, "partial_f": flat("partial_f"), "excitation": flat("excitation"),
+            "excitation_snr": flat("excitation_snr"), "vif": flat("vif"),
+            "identifiable": np.asarray(out["identifiable"], dtype=bool).ravel(),
+            "note": [str(v) for v in out["notes"]],
+        }
+    )  # fmt: skip
+    return bins, params
 
 
 def _selection_rows(
@@ -593,10 +607,10 @@ def _selection_rows(
     return structure, bin_rows, cv
 
 
-def _flap_columns(d: pl.DataFrame) -> tuple[dict[str, np.ndarray], np.ndarray]:
-    """Every numeric column of one flap's rows as float64 (once per flap), and the maneuver
-    codes."""
-    num = [c for c in d.columns if d[c].dtype.is_numeric() and c != "maneuver_id"]
+def _flap_columns(d: pl.DataFrame, wanted: set[str]) -> tuple[dict[str, np.ndarray], np.ndarray]:
+    """The ``wanted`` numeric columns of one flap's rows as float64 (once per flap), and the
+    maneuver codes."""
+    num = [c for c in d.columns if c in wanted and d[c].dtype.is_numeric() and c != "maneuver_id"]
     conv = d.select(pl.col(num).cast(pl.Float64).fill_null(np.nan))
     return {c: conv[c].to_numpy() for c in num}, _maneuver_codes(d)
 
@@ -634,6 +648,7 @@ def _submit(
         alpha_max, cfg.min_identified_bins, selection, cfg.f_in, cfg.f_out, list(forced),
         cfg.min_selected_bins, cfg.cv_folds, cfg.seed, [list(e) for e in extra], bootstrap,
         cfg.band_level, t, band, cfg.min_excitation_snr, cfg.min_maneuvers_identified,
+        cfg.bootstrap_selection,
     )  # fmt: skip
     return fut
 
@@ -693,8 +708,8 @@ def fit(
         raise DataError(f"fit: the data lack {missing}; run aerodelta.ingest first")
     df = pl.concat([df, qualified_coefficients(df, qualified)], how="horizontal")
     flaps = sorted(float(f) for f in df["flap_deg"].unique().drop_nulls())
-    bins_rows: list[dict[str, Any]] = []
-    param_rows: list[dict[str, Any]] = []
+    bins_rows: list[pl.DataFrame] = []
+    param_rows: list[pl.DataFrame] = []
     cons_rows: list[dict[str, Any]] = []
     smooth_rows: list[dict[str, Any]] = []
     struct_rows: list[dict[str, Any]] = []
@@ -719,8 +734,8 @@ def fit(
         final = [regs[i] for i in chosen]
         regressors[coef].update(dict(final))
         b_rows, p_rows = _bin_rows(coef, flap, out, final)
-        bins_rows.extend(b_rows)
-        param_rows.extend(p_rows)
+        bins_rows.append(b_rows)
+        param_rows.append(p_rows)
         if cfg.selection is not None and out["selection"] is None:
             n_man = n_maneuvers[flap]
             struct_rows.extend(
@@ -787,14 +802,18 @@ def fit(
         for f, n in df.group_by("flap_deg").agg(pl.col("maneuver_id").n_unique()).iter_rows()
         if f is not None
     }
+    parts = {float(k[0]): v for k, v in df.partition_by("flap_deg", as_dict=True).items()}
     for flap in flaps:
-        stall[flap] = float(
-            cfg.stall_alpha_deg.get(flap, stall_alpha(df.filter(pl.col("flap_deg") == flap)))
-        )
+        stall[flap] = float(cfg.stall_alpha_deg.get(flap, stall_alpha(parts[flap])))
+    # the columns any regressor can read (names appearing in its expression), and the fit's own
+    exprs = [e for c in coefs for _, e in [*cfg.structures[c], *pools.get(c, [])]]
+    wanted = {"alpha_deg", "t", *(f"{c}_{k}" for c in coefs for k in ("meas", "qual"))}
+    wanted |= {c for c in df.columns if any(c in e for e in exprs)}
     with ThreadPoolExecutor(max_workers=max(1, min(4, os.cpu_count() or 1))) as ex:
+        # the provenance hash (hashlib releases the GIL) beside the engine's fits
+        data_hash = ex.submit(_data_hash, data)
         for flap in flaps:
-            d = df.filter(pl.col("flap_deg") == flap)
-            full, codes = _flap_columns(d)
+            full, codes = _flap_columns(parts[flap], wanted)
             selection = cfg.selection if n_maneuvers[flap] >= cfg.min_maneuvers_selection else None
             for coef in coefs:
                 default = [(str(n), str(e)) for n, e in cfg.structures[coef]]
@@ -817,12 +836,13 @@ def fit(
         bar.close()
 
     spec = _model_spec(
-        cfg, flaps=flaps, tables=tables, regressors=regressors, stall=stall, data=data
-    )
+        cfg, flaps=flaps, tables=tables, regressors=regressors, stall=stall, data=data,
+        data_hash=data_hash.result(),
+    )  # fmt: skip
     return FitResult(
         model=DeltaModel.from_spec(spec, "fitted model"),
-        bins=pl.DataFrame(bins_rows),
-        params=pl.DataFrame(param_rows),
+        bins=pl.concat(bins_rows) if bins_rows else pl.DataFrame(),
+        params=pl.concat(param_rows) if param_rows else pl.DataFrame(),
         consistency=pl.DataFrame(cons_rows),
         smoothed=pl.DataFrame(smooth_rows),
         stall_alpha_deg=stall,
@@ -858,6 +878,7 @@ def _model_spec(
     regressors: Mapping[str, Mapping[str, str]],
     stall: dict[float, float],
     data: pl.DataFrame,
+    data_hash: str,
 ) -> dict[str, Any]:
     coefficients: dict[str, Any] = {}
     for coef, params in tables.items():
@@ -900,7 +921,7 @@ def _model_spec(
         "coefficients": coefficients,
         "provenance": {
             "library": f"aerodelta {__version__}",
-            "data_sha256": _data_hash(data),
+            "data_sha256": data_hash,
             "rows": data.height,
             "maneuvers": int(data["maneuver_id"].n_unique()),
             "stall_alpha_deg": {str(k): v for k, v in stall.items()},

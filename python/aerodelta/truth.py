@@ -123,8 +123,9 @@ def band_check(result: object, effects: Mapping[str, float]) -> pl.DataFrame:
     For every parameter of the final structures and every bin where it is marked identified
     and the model applies (bin centre between the blending start ``alpha_l`` of Eq. 3.12 and
     the end of the tables), the truth at the bin centre is compared with the
-    smoothed parameter's band there (``inside_band``) and with the bin estimate's band
-    ``estimate ± z · std_err_bootstrap`` (``inside_bin_band``, z of the band level).
+    smoothed parameter's band there (``inside_band``) and with the bin estimate's percentile
+    band ``band_lower``..``band_upper`` (``inside_bin_band``; from a model without them,
+    ``estimate ± z · std_err_bootstrap``, z of the band level).
 
     Returns
     -------
@@ -167,13 +168,18 @@ def band_check(result: object, effects: Mapping[str, float]) -> pl.DataFrame:
         hi = np.interp(centre, grid, g["upper"].to_numpy())
         est = p["estimate"].to_numpy()[inrange]
         sb = p["std_err_bootstrap"].to_numpy()[inrange]
-        ok_b = np.isfinite(sb)
+        if "band_lower" in p.columns:
+            blo = p["band_lower"].to_numpy()[inrange]
+            bhi = p["band_upper"].to_numpy()[inrange]
+        else:
+            blo, bhi = est - zq * sb, est + zq * sb
+        ok_b = np.isfinite(blo) & np.isfinite(bhi)
         rows.append(
             {
                 "coefficient": coef, "flap_deg": flap, "param": name, "regressor": reg,
                 "bins": int(centre.size),
                 "inside_band": float(np.mean((lo <= truth) & (truth <= hi))),
-                "inside_bin_band": float(np.mean(np.abs(est - truth)[ok_b] <= zq * sb[ok_b]))
+                "inside_bin_band": float(np.mean((blo <= truth)[ok_b] & (truth <= bhi)[ok_b]))
                 if ok_b.any()
                 else math.nan,
                 "median_width": float(np.median(hi - lo)),

@@ -13,13 +13,25 @@
 //! A bin enters a replicate's smoothing for a parameter when the parameter
 //! was identified there in the estimate and the resampled bin still holds
 //! enough points and maneuvers and is not singular.
+//!
+//! With a [`Reselect`], each replicate also runs the structure selection
+//! again on its resampled maneuvers ([`crate::select::select_weighted`], from
+//! the same Gram matrices): a parameter of the final structure that the
+//! replicate's selection does not keep is zero in that replicate (its term
+//! is absent), and the kept ones are refitted without it. The bands then carry
+//! the selection's own uncertainty, which a band computed for a structure
+//! chosen on the same data lacks (post-selection inference; Efron 2014,
+//! "Estimation and accuracy after model selection", bootstraps the whole
+//! procedure the same way). Terms the replicate would add are not refitted.
 
 // Index loops over the p columns read closer to the formulas.
 #![allow(clippy::needless_range_loop)]
 
 use crate::error::{AeroError, Result};
 use crate::identify::{smooth_parameters, BinnedFit, Design, SmoothOptions};
-use crate::select::{bin_grams, bin_members, solve_subset};
+use crate::select::{
+    bin_grams, bin_members, select_weighted, solve_subset, BinGrams, SelectOptions,
+};
 use crate::sim::rng::{derive_seed, Stream};
 
 /// One replicate: smoothed values per parameter on the grid, and the bin
@@ -39,6 +51,24 @@ pub struct BootstrapOptions {
     pub min_points_per_param: usize,
     /// Distinct maneuvers a resampled bin needs.
     pub min_maneuvers: usize,
+    /// Run the structure selection again in each replicate (see the module
+    /// doc); used by [`crate::select::identify_flap`] when it selected.
+    pub reselect: bool,
+}
+
+/// The structure selection a replicate runs again ([`bootstrap_smoothed`]).
+#[derive(Debug, Clone, Copy)]
+pub struct Reselect<'a> {
+    /// The candidate pool (same rows and `z` as the final design).
+    pub pool: &'a Design,
+    /// The pool's per-bin fit the selection worked on.
+    pub pool_fit: &'a BinnedFit,
+    /// Its per-(bin, maneuver) Gram matrices.
+    pub grams: &'a BinGrams,
+    /// The selection's settings.
+    pub select: &'a SelectOptions,
+    /// Pool column of each parameter of the final structure.
+    pub chosen: &'a [usize],
 }
 
 impl Default for BootstrapOptions {
@@ -49,6 +79,7 @@ impl Default for BootstrapOptions {
             level: 0.95,
             min_points_per_param: 10,
             min_maneuvers: 2,
+            reselect: false,
         }
     }
 }
@@ -68,6 +99,10 @@ pub struct Bootstrap {
     pub upper: Vec<Vec<f64>>,
     /// Per bin, per parameter: bootstrap standard deviation of the bin estimate (NaN if unavailable).
     pub bin_std: Vec<Vec<f64>>,
+    /// Per bin, per parameter: lower percentile band of the bin estimate (NaN if unavailable).
+    pub bin_lower: Vec<Vec<f64>>,
+    /// Per bin, per parameter: upper percentile band of the bin estimate.
+    pub bin_upper: Vec<Vec<f64>>,
     /// Confidence level.
     pub level: f64,
 }
@@ -84,11 +119,13 @@ fn quantile(sorted: &[f64], q: f64) -> f64 {
 }
 
 /// Bootstrap the smoothed parameters of `fit` (the per-bin fit of `design`
-/// on `z`), see the module doc.
+/// on `z`), with the selection run again in each replicate when `reselect`
+/// is given; see the module doc.
 ///
 /// # Errors
 /// [`AeroError::InvalidInput`] for fewer than 2 replicates, a level outside
-/// (0, 1) or lengths that differ; smoothing errors.
+/// (0, 1), lengths that differ or a `reselect` that does not match `design`;
+/// smoothing and selection errors.
 pub fn bootstrap_smoothed(
     design: &Design,
     z: &[f64],
@@ -96,6 +133,7 @@ pub fn bootstrap_smoothed(
     fit: &BinnedFit,
     smooth: &SmoothOptions,
     opts: &BootstrapOptions,
+    reselect: Option<&Reselect<'_>>,
 ) -> Result<Bootstrap> {
     if opts.replicates < 2 {
         return Err(AeroError::invalid(
@@ -124,6 +162,18 @@ pub fn bootstrap_smoothed(
         ));
     }
     let p = design.ncols();
+    if let Some(rs) = reselect {
+        if rs.chosen.len() != p || rs.chosen.iter().any(|&c| c >= rs.pool.ncols()) {
+            return Err(AeroError::invalid(
+                "bootstrap, reselection",
+                format!(
+                    "maps {} parameters into a pool of {}; the final structure has {p}",
+                    rs.chosen.len(),
+                    rs.pool.ncols()
+                ),
+            ));
+        }
+    }
     let members = bin_members(fit);
     let grams = bin_grams(design, z, &members, maneuver);
     let dim = grams.dim;
@@ -131,7 +181,6 @@ pub fn bootstrap_smoothed(
     ids.sort_unstable();
     ids.dedup();
     let m = ids.len();
-    let cols: Vec<usize> = (0..p).collect();
     let required = (opts.min_points_per_param * p) as f64;
     let base = smooth_parameters(fit, smooth)?;
 
@@ -141,6 +190,29 @@ pub fn bootstrap_smoothed(
         for _ in 0..m {
             count[(rng.next_u64() % m as u64) as usize] += 1.0;
         }
+        // the parameters the replicate keeps: all, or those its own selection keeps
+        let keep: Vec<bool> = match reselect {
+            None => vec![true; p],
+            Some(rs) => {
+                let w: std::collections::HashMap<u64, f64> = ids
+                    .iter()
+                    .zip(&count)
+                    .filter(|(_, c)| **c > 0.0)
+                    .map(|(id, c)| (*id, *c))
+                    .collect();
+                let sel = select_weighted(
+                    rs.pool,
+                    z,
+                    maneuver,
+                    rs.pool_fit,
+                    rs.grams,
+                    rs.select,
+                    Some(&w),
+                )?;
+                rs.chosen.iter().map(|c| sel.chosen.contains(c)).collect()
+            }
+        };
+        let cols: Vec<usize> = (0..p).filter(|&j| keep[j]).collect();
         let mut rf = fit.clone();
         for (b, bs) in grams.bins.iter().enumerate() {
             let w: Vec<f64> = bs
@@ -158,8 +230,9 @@ pub fn bootstrap_smoothed(
             let bin = &mut rf.bins[b];
             match sol {
                 Some((th, _)) => {
-                    for j in 0..p {
-                        bin.params[j] = th[j] * grams.scale[p] / grams.scale[j];
+                    bin.params.iter_mut().for_each(|v| *v = 0.0);
+                    for (i, &j) in cols.iter().enumerate() {
+                        bin.params[j] = th[i] * grams.scale[p] / grams.scale[j];
                     }
                 }
                 None => bin.identifiable.iter_mut().for_each(|v| *v = false),
@@ -233,25 +306,29 @@ pub fn bootstrap_smoothed(
         }
     }
     let nb = fit.bins.len();
-    let bin_std = (0..nb)
-        .map(|b| {
-            (0..p)
-                .map(|j| {
-                    let v: Vec<f64> = reps
-                        .iter()
-                        .map(|(_, pb)| pb[b][j])
-                        .filter(|v| v.is_finite())
-                        .collect();
-                    if v.len() < 2 {
-                        return f64::NAN;
-                    }
-                    let mean = v.iter().sum::<f64>() / v.len() as f64;
-                    (v.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (v.len() - 1) as f64)
-                        .sqrt()
-                })
-                .collect()
-        })
-        .collect();
+    let (mut bin_std, mut bin_lower, mut bin_upper) = (
+        vec![vec![f64::NAN; p]; nb],
+        vec![vec![f64::NAN; p]; nb],
+        vec![vec![f64::NAN; p]; nb],
+    );
+    for b in 0..nb {
+        for j in 0..p {
+            let mut v: Vec<f64> = reps
+                .iter()
+                .map(|(_, pb)| pb[b][j])
+                .filter(|v| v.is_finite())
+                .collect();
+            if v.len() < 2 {
+                continue;
+            }
+            let mean = v.iter().sum::<f64>() / v.len() as f64;
+            bin_std[b][j] =
+                (v.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (v.len() - 1) as f64).sqrt();
+            v.sort_by(f64::total_cmp);
+            bin_lower[b][j] = quantile(&v, qlo);
+            bin_upper[b][j] = quantile(&v, qhi);
+        }
+    }
     Ok(Bootstrap {
         names: fit.names.clone(),
         alpha_deg: grid,
@@ -259,6 +336,8 @@ pub fn bootstrap_smoothed(
         lower,
         upper,
         bin_std,
+        bin_lower,
+        bin_upper,
         level: opts.level,
     })
 }
@@ -328,9 +407,9 @@ mod tests {
         for seed in 0..4 {
             let (design, z, z0, a, man) = synthetic(seed, &mut x);
             let fit = fit_bins(&design, &z, &a, &man, &opts).expect("fit");
-            let b1 = bootstrap_smoothed(&design, &z, &man, &fit, &sm, &bo).expect("boot");
+            let b1 = bootstrap_smoothed(&design, &z, &man, &fit, &sm, &bo, None).expect("boot");
             if seed == 0 {
-                let b2 = bootstrap_smoothed(&design, &z, &man, &fit, &sm, &bo).expect("boot");
+                let b2 = bootstrap_smoothed(&design, &z, &man, &fit, &sm, &bo, None).expect("boot");
                 assert_eq!(b1.lower, b2.lower);
                 assert_eq!(b1.upper, b2.upper);
             }

@@ -817,7 +817,11 @@ mod tests {
         let mut fitted = 0;
         for bin in fit.bins.iter().filter(|b| b.note.is_empty()) {
             fitted += 1;
-            assert!(bin.excitation[2] > 0.5, "relative rule: {}", bin.excitation[2]);
+            assert!(
+                bin.excitation[2] > 0.5,
+                "relative rule: {}",
+                bin.excitation[2]
+            );
             assert!(bin.excitation_snr[2] < 1.5, "{}", bin.excitation_snr[2]);
             assert!(!bin.identifiable[2]);
             assert!(bin.notes[2].contains("noise floor"), "{}", bin.notes[2]);

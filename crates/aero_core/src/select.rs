@@ -54,7 +54,7 @@
 // Index loops over the p columns read closer to the formulas.
 #![allow(clippy::needless_range_loop)]
 
-use crate::bootstrap::{bootstrap_smoothed, Bootstrap, BootstrapOptions};
+use crate::bootstrap::{bootstrap_smoothed, Bootstrap, BootstrapOptions, Reselect};
 use crate::error::{AeroError, Result, ResultExt};
 use crate::identify::{
     adjacent_consistency, fit_bins, low_excitation, noise_floor, smooth_parameters, snr, BinFit,
@@ -887,7 +887,27 @@ pub fn select_with_grams(
     grams: &BinGrams,
     opts: &SelectOptions,
 ) -> Result<Selection> {
+    select_weighted(design, z, maneuver, pool_fit, grams, opts, None)
+}
+
+/// [`select_with_grams`] with each maneuver's samples counted `weights[id]`
+/// times (absent: 0): the selection run again on a bootstrap replicate of the
+/// maneuvers, from the same Gram matrices (the bins, the coloured-residual
+/// inflation κ and the excitation marks are the estimate's).
+///
+/// # Errors
+/// As [`select_structure`].
+pub fn select_weighted(
+    design: &Design,
+    z: &[f64],
+    maneuver: &[u64],
+    pool_fit: &BinnedFit,
+    grams: &BinGrams,
+    opts: &SelectOptions,
+    weights: Option<&std::collections::HashMap<u64, f64>>,
+) -> Result<Selection> {
     check_inputs(design, z, maneuver, pool_fit, opts)?;
+    let weight = |m: &u64| weights.map_or(1.0, |w| w.get(m).copied().unwrap_or(0.0));
     if grams.bins.len() != pool_fit.bins.len() || grams.dim != design.ncols() + 1 {
         return Err(AeroError::invalid(
             "structure selection, Gram matrices",
@@ -899,8 +919,14 @@ pub fn select_with_grams(
     let dim = grams.dim;
     let nb = members.len();
     let fitted: Vec<bool> = pool_fit.bins.iter().map(|b| b.note.is_empty()).collect();
-    let totals: Vec<(Vec<f64>, Vec<f64>, f64)> =
-        grams.bins.iter().map(|b| b.total(dim, None)).collect();
+    let totals: Vec<(Vec<f64>, Vec<f64>, f64)> = grams
+        .bins
+        .iter()
+        .map(|b| {
+            let w: Option<Vec<f64>> = weights.map(|_| b.maneuvers.iter().map(weight).collect());
+            b.total(dim, w.as_deref())
+        })
+        .collect();
     let kappa: Vec<f64> = (0..nb)
         .map(|b| {
             let bin = &pool_fit.bins[b];
@@ -978,7 +1004,7 @@ pub fn select_with_grams(
                     let w: Vec<f64> = bs
                         .maneuvers
                         .iter()
-                        .map(|m| f64::from(u8::from(fold_map.get(m) == Some(&f))))
+                        .map(|m| f64::from(u8::from(fold_map.get(m) == Some(&f))) * weight(m))
                         .collect();
                     bs.total(dim, Some(&w))
                 })
@@ -1351,7 +1377,7 @@ pub fn identify_flap(
     smooth: &SmoothOptions,
     boot: Option<&BootstrapOptions>,
 ) -> Result<FlapFit> {
-    let (selection, pool_fit, chosen) = match select {
+    let (selection, pool_fit, pool_grams, chosen) = match select {
         Some(so) => {
             // the pool's bins, excitation and residuals (for κ) from Gram matrices: the
             // pool's standard errors and collinearity diagnostics are not needed here
@@ -1359,9 +1385,9 @@ pub fn identify_flap(
                 .context("structure selection, candidate pool")?;
             let sel = select_with_grams(pool, z, maneuver, &pf, &grams, so)?;
             let chosen = sel.chosen.clone();
-            (Some(sel), Some(pf), chosen)
+            (Some(sel), Some(pf), Some(grams), chosen)
         }
-        None => (None, None, (0..pool.ncols()).collect()),
+        None => (None, None, None, (0..pool.ncols()).collect()),
     };
     let design = if chosen.len() == pool.ncols() {
         pool.clone()
@@ -1372,7 +1398,21 @@ pub fn identify_flap(
     let smoothed = smooth_parameters(&fit, smooth)?;
     let bootstrap = match boot {
         Some(bo) => {
-            Some(bootstrap_smoothed(&design, z, maneuver, &fit, smooth, bo).context("bootstrap")?)
+            // with a selection, each replicate selects again (bands that carry the selection)
+            let rs = match (&selection, &pool_fit, &pool_grams, select) {
+                (Some(_), Some(pf), Some(g), Some(so)) if bo.reselect => Some(Reselect {
+                    pool,
+                    pool_fit: pf,
+                    grams: g,
+                    select: so,
+                    chosen: &chosen,
+                }),
+                _ => None,
+            };
+            Some(
+                bootstrap_smoothed(&design, z, maneuver, &fit, smooth, bo, rs.as_ref())
+                    .context("bootstrap")?,
+            )
         }
         None => None,
     };
@@ -1521,6 +1561,67 @@ pub(crate) mod tests {
         assert!(sse < 1e-12);
         // a column duplicated is dependent
         assert!(solve_subset(&g, 3, &[0, 0]).is_none());
+    }
+
+    #[test]
+    fn reselecting_bootstrap_zeroes_a_noise_term_the_replicates_drop() {
+        use crate::bootstrap::{bootstrap_smoothed, BootstrapOptions, Reselect};
+        let (design, z, alpha, man) = data(30_000, 3);
+        let identify = iid_identify();
+        let (pf, grams) = pool_bins_grams(&design, &z, &alpha, &man, &identify).expect("pool");
+        let so = SelectOptions {
+            min_excitation_snr: 0.0,
+            ..SelectOptions::default()
+        };
+        // every maneuver counted once: the selection without weights, to the last bit
+        let ones: std::collections::HashMap<u64, f64> = man.iter().map(|m| (*m, 1.0)).collect();
+        let a = select_with_grams(&design, &z, &man, &pf, &grams, &so).expect("select");
+        let b = select_weighted(&design, &z, &man, &pf, &grams, &so, Some(&ones)).expect("w");
+        assert_eq!(a.chosen, vec![0, 1, 2]);
+        assert_eq!(a.chosen, b.chosen);
+        for (x, y) in a.nested.iter().zip(&b.nested) {
+            assert_eq!(x.mse.to_bits(), y.mse.to_bits());
+        }
+        // a final structure that kept the noise term x3 (pool column 3): the replicates'
+        // own selections drop it, so it is exactly zero in them and its band holds zero
+        let chosen = vec![0, 1, 2, 3];
+        let fin = subset_design(&design, &chosen);
+        let fit = fit_bins(&fin, &z, &alpha, &man, &identify).expect("fit");
+        let bo = BootstrapOptions {
+            replicates: 40,
+            seed: 1,
+            ..BootstrapOptions::default()
+        };
+        let sm = SmoothOptions::default();
+        let rs = Reselect {
+            pool: &design,
+            pool_fit: &pf,
+            grams: &grams,
+            select: &so,
+            chosen: &chosen,
+        };
+        let with = bootstrap_smoothed(&fin, &z, &man, &fit, &sm, &bo, Some(&rs)).expect("boot");
+        let without = bootstrap_smoothed(&fin, &z, &man, &fit, &sm, &bo, None).expect("boot");
+        let zero = |reps: &[Vec<f64>]| reps.iter().filter(|r| r.iter().all(|v| *v == 0.0)).count();
+        assert!(zero(&with.replicates[3]) * 10 >= 9 * bo.replicates);
+        assert_eq!(zero(&without.replicates[3]), 0);
+        for (b, bin) in fit.bins.iter().enumerate() {
+            if bin.identifiable[3] {
+                assert!(with.bin_lower[b][3] <= 0.0 && 0.0 <= with.bin_upper[b][3]);
+            }
+        }
+        // the true terms, kept by every replicate, keep bands of the same width
+        let width = |bt: &crate::bootstrap::Bootstrap, j: usize| -> f64 {
+            let w: Vec<f64> = (0..fit.bins.len())
+                .map(|b| bt.bin_upper[b][j] - bt.bin_lower[b][j])
+                .filter(|v| v.is_finite())
+                .collect();
+            w.iter().sum::<f64>() / w.len() as f64
+        };
+        for j in [1, 2] {
+            let r = width(&with, j) / width(&without, j);
+            assert!((0.8..1.25).contains(&r), "parameter {j}: width ratio {r}");
+        }
     }
 
     #[test]

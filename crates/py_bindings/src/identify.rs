@@ -224,6 +224,8 @@ fn bootstrap_dict<'py>(py: Python<'py>, b: &Bootstrap) -> PyResult<Bound<'py, Py
     d.set_item("lower", flat(&b.lower).into_pyarray(py))?;
     d.set_item("upper", flat(&b.upper).into_pyarray(py))?;
     d.set_item("bin_std", flat(&b.bin_std).into_pyarray(py))?;
+    d.set_item("bin_lower", flat(&b.bin_lower).into_pyarray(py))?;
+    d.set_item("bin_upper", flat(&b.bin_upper).into_pyarray(py))?;
     d.set_item(
         "replicates",
         b.replicates
@@ -242,7 +244,7 @@ fn bootstrap_dict<'py>(py: Python<'py>, b: &Bootstrap) -> PyResult<Bound<'py, Py
 /// Per-bin identification of one coefficient at one flap setting with an optional
 /// structure selection over a candidate pool and an optional bootstrap over maneuvers.
 #[pyfunction]
-#[pyo3(signature = (regressors, columns, z, alpha_deg, maneuver, width_deg, min_points_per_param, min_maneuvers, max_width_deg, colored, min_excitation, p, weighted, grid_step_deg, alpha_max_deg, min_identified_bins, selection, f_in, f_out, forced, min_bins, folds, seed, extra, bootstrap, level, t=None, band_hz=None, min_excitation_snr=3.0, min_maneuvers_identified=5))]
+#[pyo3(signature = (regressors, columns, z, alpha_deg, maneuver, width_deg, min_points_per_param, min_maneuvers, max_width_deg, colored, min_excitation, p, weighted, grid_step_deg, alpha_max_deg, min_identified_bins, selection, f_in, f_out, forced, min_bins, folds, seed, extra, bootstrap, level, t=None, band_hz=None, min_excitation_snr=3.0, min_maneuvers_identified=5, bootstrap_reselect=false))]
 #[allow(clippy::too_many_arguments)]
 fn identify_flap<'py>(
     py: Python<'py>,
@@ -276,6 +278,7 @@ fn identify_flap<'py>(
     band_hz: Option<f64>,
     min_excitation_snr: f64,
     min_maneuvers_identified: usize,
+    bootstrap_reselect: bool,
 ) -> PyResult<Bound<'py, PyDict>> {
     let mut cols: HashMap<String, &[f64]> = HashMap::new();
     for (k, v) in &columns {
@@ -351,6 +354,7 @@ fn identify_flap<'py>(
             level,
             min_points_per_param,
             min_maneuvers,
+            reselect: bootstrap_reselect,
         });
         identify_flap_core(
             &design,
