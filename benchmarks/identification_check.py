@@ -18,7 +18,7 @@ rest out. Reported, per coefficient:
   against the noisy measurements).
 
 Run: ``python benchmarks/identification_check.py [--seeds 20] [--first-seed 1]``
-(about 15 s per seed on 2 cores).
+(about 40 s per seed on 2 cores).
 """
 
 from __future__ import annotations

@@ -67,6 +67,8 @@ pub struct Reselect<'a> {
     pub grams: &'a BinGrams,
     /// The selection's settings.
     pub select: &'a SelectOptions,
+    /// The estimate's coloured-residual inflation per pool bin ([`crate::select::Selection::kappa`]).
+    pub kappa: &'a [f64],
     /// Pool column of each parameter of the final structure.
     pub chosen: &'a [usize],
 }
@@ -208,6 +210,7 @@ pub fn bootstrap_smoothed(
                     rs.grams,
                     rs.select,
                     Some(&w),
+                    Some(rs.kappa),
                 )?;
                 rs.chosen.iter().map(|c| sel.chosen.contains(c)).collect()
             }

@@ -731,7 +731,7 @@ impl Excitation<'_> {
 
 fn cv_score(
     grams: &BinGrams,
-    totals: &[(Vec<f64>, Vec<f64>, f64)],
+    trains: &FoldGrams,
     folds: &FoldGrams,
     fitted: &[bool],
     cols: &[usize],
@@ -746,17 +746,14 @@ fn cv_score(
         if !fitted[b] {
             continue;
         }
-        let (gt, st, nt) = &totals[b];
-        for (f, (gf, sf, nfold)) in fg.iter().enumerate() {
+        for (f, (gf, _, nfold)) in fg.iter().enumerate() {
             if *nfold == 0.0 {
                 continue;
             }
-            let train: Vec<f64> = gt.iter().zip(gf).map(|(a, b)| a - b).collect();
-            let strain: Vec<f64> = st.iter().zip(sf).map(|(a, b)| a - b).collect();
-            let ntrain = nt - nfold;
-            let used = excitation.excited(&train, &strain, ntrain, dim, cols);
-            let fit = if ntrain >= (min_points * used.len().max(1)) as f64 {
-                solve_subset(&train, dim, &used)
+            let (train, strain, ntrain) = &trains[b][f];
+            let used = excitation.excited(train, strain, *ntrain, dim, cols);
+            let fit = if *ntrain >= (min_points * used.len().max(1)) as f64 {
+                solve_subset(train, dim, &used)
             } else {
                 None
             };
@@ -887,16 +884,18 @@ pub fn select_with_grams(
     grams: &BinGrams,
     opts: &SelectOptions,
 ) -> Result<Selection> {
-    select_weighted(design, z, maneuver, pool_fit, grams, opts, None)
+    select_weighted(design, z, maneuver, pool_fit, grams, opts, None, None)
 }
 
 /// [`select_with_grams`] with each maneuver's samples counted `weights[id]`
 /// times (absent: 0): the selection run again on a bootstrap replicate of the
-/// maneuvers, from the same Gram matrices (the bins, the coloured-residual
-/// inflation κ and the excitation marks are the estimate's).
+/// maneuvers, from the same Gram matrices (the bins and the excitation marks
+/// are the estimate's, and so is the coloured-residual inflation κ per bin
+/// when `kappa` gives it: the estimate's [`Selection::kappa`]).
 ///
 /// # Errors
-/// As [`select_structure`].
+/// As [`select_structure`]; a `kappa` of another length than the bins.
+#[allow(clippy::too_many_arguments)]
 pub fn select_weighted(
     design: &Design,
     z: &[f64],
@@ -905,6 +904,7 @@ pub fn select_weighted(
     grams: &BinGrams,
     opts: &SelectOptions,
     weights: Option<&std::collections::HashMap<u64, f64>>,
+    kappa: Option<&[f64]>,
 ) -> Result<Selection> {
     check_inputs(design, z, maneuver, pool_fit, opts)?;
     let weight = |m: &u64| weights.map_or(1.0, |w| w.get(m).copied().unwrap_or(0.0));
@@ -927,8 +927,17 @@ pub fn select_weighted(
             b.total(dim, w.as_deref())
         })
         .collect();
+    if kappa.is_some_and(|k| k.len() != nb) {
+        return Err(AeroError::invalid(
+            "structure selection, kappa",
+            format!("has {} values for {nb} bins", kappa.map_or(0, <[f64]>::len)),
+        ));
+    }
     let kappa: Vec<f64> = (0..nb)
         .map(|b| {
+            if let Some(k) = kappa {
+                return k[b];
+            }
             let bin = &pool_fit.bins[b];
             if bin.std_err_colored.iter().any(|v| v.is_finite()) {
                 bin_kappa(pool_fit, b)
@@ -1044,10 +1053,26 @@ pub fn select_weighted(
         constant: &constant,
         min: opts.min_excitation,
     };
+    // per bin and fold, the training Gram matrix (all but the fold), once for every score
+    let trains: FoldGrams = folds
+        .iter()
+        .zip(&totals)
+        .map(|(fg, (gt, st, nt))| {
+            fg.iter()
+                .map(|(gf, sf, nf)| {
+                    (
+                        gt.iter().zip(gf).map(|(a, b)| a - b).collect(),
+                        st.iter().zip(sf).map(|(a, b)| a - b).collect(),
+                        nt - nf,
+                    )
+                })
+                .collect()
+        })
+        .collect();
     let score = |cols: &[usize]| {
         cv_score(
             grams,
-            &totals,
+            &trains,
             &folds,
             &fitted,
             cols,
@@ -1400,11 +1425,12 @@ pub fn identify_flap(
         Some(bo) => {
             // with a selection, each replicate selects again (bands that carry the selection)
             let rs = match (&selection, &pool_fit, &pool_grams, select) {
-                (Some(_), Some(pf), Some(g), Some(so)) if bo.reselect => Some(Reselect {
+                (Some(sel), Some(pf), Some(g), Some(so)) if bo.reselect => Some(Reselect {
                     pool,
                     pool_fit: pf,
                     grams: g,
                     select: so,
+                    kappa: &sel.kappa,
                     chosen: &chosen,
                 }),
                 _ => None,
@@ -1576,7 +1602,17 @@ pub(crate) mod tests {
         // every maneuver counted once: the selection without weights, to the last bit
         let ones: std::collections::HashMap<u64, f64> = man.iter().map(|m| (*m, 1.0)).collect();
         let a = select_with_grams(&design, &z, &man, &pf, &grams, &so).expect("select");
-        let b = select_weighted(&design, &z, &man, &pf, &grams, &so, Some(&ones)).expect("w");
+        let b = select_weighted(
+            &design,
+            &z,
+            &man,
+            &pf,
+            &grams,
+            &so,
+            Some(&ones),
+            Some(&a.kappa),
+        )
+        .expect("w");
         assert_eq!(a.chosen, vec![0, 1, 2]);
         assert_eq!(a.chosen, b.chosen);
         for (x, y) in a.nested.iter().zip(&b.nested) {
@@ -1598,6 +1634,7 @@ pub(crate) mod tests {
             pool_fit: &pf,
             grams: &grams,
             select: &so,
+            kappa: &a.kappa,
             chosen: &chosen,
         };
         let with = bootstrap_smoothed(&fin, &z, &man, &fit, &sm, &bo, Some(&rs)).expect("boot");
