@@ -275,10 +275,7 @@ impl Smoother {
         };
         let h = self.half;
         let m = 2 * h;
-        let mut buf = vec![C::new(0.0, 0.0); m];
-        let (x0, sx) = self.fill(&mut buf, x, false);
-        let (y0, sy) = self.fill(&mut buf, y, true);
-        plan.run(&mut buf, false);
+        let (buf, lines) = self.forward_pair(plan, x, y);
         // split: X_k = (Z_k + conj Z_{M-k})/2, Y_k = (Z_k - conj Z_{M-k})/(2i)
         let mut px = vec![0.0; h + 1];
         let mut py = vec![0.0; h + 1];
@@ -299,17 +296,39 @@ impl Smoother {
             let yk = (zk - zm) * C::new(0.0, -0.5);
             out[k] = xk * dx.weights[kk] + C::new(0.0, 1.0) * yk * dy.weights[kk];
         }
-        plan.run(&mut out, true);
-        let scale = 1.0 / m as f64;
-        let mut vx = Vec::with_capacity(n);
-        let mut vy = Vec::with_capacity(n);
-        for j in 0..n {
-            let jf = j as f64;
-            let (re, im) = (out[j].re * scale, out[j].im * scale);
-            vx.push(re + x0 + sx * jf);
-            vy.push(im + y0 + sy * jf);
-        }
+        let (vx, vy) = self.back_pair(plan, out, lines);
         (self.result(x, dt, &dx, vx), self.result(y, dt, &dy, vy))
+    }
+
+    /// The spectrum of one period of both channels' bridged extensions (`x` in the real
+    /// part, `y` in the imaginary part) and the two lines removed.
+    fn forward_pair(&self, plan: &FftPlan, x: &[f64], y: &[f64]) -> (Vec<C>, [(f64, f64); 2]) {
+        let mut buf = vec![C::new(0.0, 0.0); 2 * self.half];
+        let lx = self.fill(&mut buf, x, false);
+        let ly = self.fill(&mut buf, y, true);
+        plan.run(&mut buf, false);
+        (buf, [lx, ly])
+    }
+
+    /// The two channels back from a filtered packed spectrum, with their lines added back.
+    fn back_pair(
+        &self,
+        plan: &FftPlan,
+        mut buf: Vec<C>,
+        lines: [(f64, f64); 2],
+    ) -> (Vec<f64>, Vec<f64>) {
+        plan.run(&mut buf, true);
+        let scale = 1.0 / buf.len() as f64;
+        let [(x0, sx), (y0, sy)] = lines;
+        (0..self.n)
+            .map(|j| {
+                let jf = j as f64;
+                (
+                    buf[j].re * scale + x0 + sx * jf,
+                    buf[j].im * scale + y0 + sy * jf,
+                )
+            })
+            .unzip()
     }
 }
 
@@ -328,10 +347,7 @@ impl Smoother {
         };
         let h = self.half;
         let m = 2 * h;
-        let mut buf = vec![C::new(0.0, 0.0); m];
-        let (x0, sx) = self.fill(&mut buf, x, false);
-        let (y0, sy) = self.fill(&mut buf, y, true);
-        plan.run(&mut buf, false);
+        let (mut buf, lines) = self.forward_pair(plan, x, y);
         let (f1, f2) = (0.75 * fc_hz, 1.25 * fc_hz);
         let weight = |k: usize| -> f64 {
             let f = k as f64 / (m as f64 * dt);
@@ -349,16 +365,7 @@ impl Smoother {
             let kk = if k <= h { k } else { m - k };
             buf[k] *= weight(kk);
         }
-        plan.run(&mut buf, true);
-        let scale = 1.0 / m as f64;
-        let mut vx = Vec::with_capacity(n);
-        let mut vy = Vec::with_capacity(n);
-        for j in 0..n {
-            let jf = j as f64;
-            vx.push(buf[j].re * scale + x0 + sx * jf);
-            vy.push(buf[j].im * scale + y0 + sy * jf);
-        }
-        (vx, vy)
+        self.back_pair(plan, buf, lines)
     }
 }
 
