@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -34,3 +36,13 @@ def test_fit_cli_and_bad_config(tmp_path: Path, capsys: pytest.CaptureFixture[st
     rc = main(["fit", "--data", str(camp), "--config", str(bad), "--out", str(out)])
     assert rc == 1
     assert "unknown setting 'nonsense'" in capsys.readouterr().err
+
+
+def test_cli_start_up_does_not_load_matplotlib() -> None:
+    # the parser imports every subcommand module; the figures' library loads only when a
+    # command that draws runs (it cost about 0.2 s on every call)
+    code = (
+        "import sys, aerodelta.cli as c; c.build_parser(); "
+        "sys.exit(1 if 'matplotlib' in sys.modules else 0)"
+    )
+    assert subprocess.run([sys.executable, "-c", code], check=False).returncode == 0

@@ -24,7 +24,6 @@ from aerodelta.fit import (
     validate_model,
 )
 from aerodelta.ingest import ingest
-from aerodelta.report import build_report
 from aerodelta.truth import band_check, campaign_effects
 
 HELP = "run the whole method on the built-in virtual flight test campaign"
@@ -43,6 +42,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Run ``aerodelta demo``."""
+    from aerodelta.report import build_report  # noqa: PLC0415  (matplotlib: CLI start-up light)
+
     out = Path(args.out)
     progress = not args.no_progress
     camp = out / "campaign"

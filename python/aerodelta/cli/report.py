@@ -13,7 +13,6 @@ import polars as pl
 
 from aerodelta.exceptions import DataError
 from aerodelta.ingest import ingest
-from aerodelta.report import build_report
 
 HELP = "write the HTML validation report of a fitted Δ model"
 
@@ -76,6 +75,8 @@ def held_out_ids(spec: str) -> list[str]:
 
 def run(args: argparse.Namespace) -> int:
     """Run ``aerodelta report``."""
+    from aerodelta.report import build_report  # noqa: PLC0415  (matplotlib: CLI start-up light)
+
     progress = not args.no_progress
     data = read_data(args.data, progress=progress)
     res = build_report(
