@@ -199,7 +199,7 @@ class FitConfig:
         computed for a structure chosen on the same data lacks it). Over 20 virtual campaigns
         the per-bin bands then held the truth in 93 %, 93 % and 92 % of the identified bins
         (C_l, C_n, C_Y), against 78 %, 86 % and 89 % with ``False`` (the chosen structure
-        refitted in every replicate); it costs about 30 s for 100 replicates of a
+        refitted in every replicate); it costs about 17 s for 100 replicates of a
         160-maneuver campaign on 2 cores, against 1 s (``docs/identification.md``).
     band_hz
         Band-limited equation error (``aero_core::band``), off by default: the qualified-model

@@ -210,12 +210,29 @@ pub fn bin_grams(design: &Design, z: &[f64], members: &[Vec<usize>], maneuver: &
 /// of squares, or `None` when the columns are (numerically) dependent: a
 /// Cholesky pivot below `1e-10` of its diagonal.
 pub fn solve_subset(g: &[f64], dim: usize, cols: &[usize]) -> Option<(Vec<f64>, f64)> {
+    let (mut work, mut th) = (Vec::new(), Vec::new());
+    solve_subset_into(g, dim, cols, &mut work, &mut th).map(|sse| (th, sse))
+}
+
+/// [`solve_subset`] into the caller's buffers (no allocation once they have grown): the
+/// estimates in `th`, `work` as scratch; returns the residual sum of squares.
+pub fn solve_subset_into(
+    g: &[f64],
+    dim: usize,
+    cols: &[usize],
+    work: &mut Vec<f64>,
+    th: &mut Vec<f64>,
+) -> Option<f64> {
     let k = cols.len();
     let zc = dim - 1;
+    th.clear();
     if k == 0 {
-        return Some((Vec::new(), g[zc * dim + zc].max(0.0)));
+        return Some(g[zc * dim + zc].max(0.0));
     }
-    let mut l = vec![0.0; k * k];
+    // work: the Cholesky factor (k × k), then the forward solution (k)
+    work.clear();
+    work.resize(k * k + k, 0.0);
+    let (l, y) = work.split_at_mut(k * k);
     for i in 0..k {
         for j in 0..=i {
             let mut s = g[cols[i] * dim + cols[j]];
@@ -233,16 +250,14 @@ pub fn solve_subset(g: &[f64], dim: usize, cols: &[usize]) -> Option<(Vec<f64>, 
             }
         }
     }
-    let b: Vec<f64> = cols.iter().map(|&c| g[c * dim + zc]).collect();
-    let mut y = vec![0.0; k];
     for i in 0..k {
-        let mut s = b[i];
+        let mut s = g[cols[i] * dim + zc];
         for m in 0..i {
             s -= l[i * k + m] * y[m];
         }
         y[i] = s / l[i * k + i];
     }
-    let mut th = vec![0.0; k];
+    th.resize(k, 0.0);
     for i in (0..k).rev() {
         let mut s = y[i];
         for m in i + 1..k {
@@ -250,9 +265,9 @@ pub fn solve_subset(g: &[f64], dim: usize, cols: &[usize]) -> Option<(Vec<f64>, 
         }
         th[i] = s / l[i * k + i];
     }
-    let fit: f64 = th.iter().zip(&b).map(|(t, b)| t * b).sum();
+    let fit: f64 = th.iter().zip(cols).map(|(t, &c)| t * g[c * dim + zc]).sum();
     let sse = (g[zc * dim + zc] - fit).max(0.0);
-    th.iter().all(|v| v.is_finite()).then_some((th, sse))
+    th.iter().all(|v| v.is_finite()).then_some(sse)
 }
 
 /// Held-out sums of a fit `theta` on `cols` against another augmented Gram
@@ -712,20 +727,27 @@ impl Excitation<'_> {
     /// is below `min` times the flap's is not identifiable there and is left out
     /// of the fit (its held-out contribution is zero) instead of being estimated
     /// from the little variation the training maneuvers happen to hold.
-    fn excited(&self, g: &[f64], s: &[f64], n: f64, dim: usize, cols: &[usize]) -> Vec<usize> {
-        cols.iter()
-            .copied()
-            .filter(|&j| {
-                if self.constant[j] {
-                    return true;
-                }
-                if n <= 1.0 || self.flap_sd[j] <= 0.0 {
-                    return false;
-                }
-                let v = ((g[j * dim + j] - s[j] * s[j] / n) / (n - 1.0)).max(0.0);
-                v.sqrt() >= self.min * self.flap_sd[j]
-            })
-            .collect()
+    /// The excited columns go into `out` (cleared first).
+    fn excited(
+        &self,
+        g: &[f64],
+        s: &[f64],
+        n: f64,
+        dim: usize,
+        cols: &[usize],
+        out: &mut Vec<usize>,
+    ) {
+        out.clear();
+        out.extend(cols.iter().copied().filter(|&j| {
+            if self.constant[j] {
+                return true;
+            }
+            if n <= 1.0 || self.flap_sd[j] <= 0.0 {
+                return false;
+            }
+            let v = ((g[j * dim + j] - s[j] * s[j] / n) / (n - 1.0)).max(0.0);
+            v.sqrt() >= self.min * self.flap_sd[j]
+        }));
     }
 }
 
@@ -742,6 +764,8 @@ fn cv_score(
     let nf = folds.first().map_or(0, Vec::len);
     let mut per_fold = vec![(0.0, 0.0); nf]; // (sse, n)
     let (mut sse, mut zz, mut yy, mut n) = (0.0, 0.0, 0.0, 0.0);
+    // buffers reused over the bins and folds (the path search calls this thousands of times)
+    let (mut used, mut work, mut th) = (Vec::new(), Vec::new(), Vec::new());
     for (b, fg) in folds.iter().enumerate() {
         if !fitted[b] {
             continue;
@@ -751,14 +775,14 @@ fn cv_score(
                 continue;
             }
             let (train, strain, ntrain) = &trains[b][f];
-            let used = excitation.excited(train, strain, *ntrain, dim, cols);
+            excitation.excited(train, strain, *ntrain, dim, cols, &mut used);
             let fit = if *ntrain >= (min_points * used.len().max(1)) as f64 {
-                solve_subset(train, dim, &used)
+                solve_subset_into(train, dim, &used, &mut work, &mut th)
             } else {
                 None
             };
             let (e, z2, y2) = match fit {
-                Some((th, _)) => held_out(gf, dim, &used, &th),
+                Some(_) => held_out(gf, dim, &used, &th),
                 None => {
                     let z2 = gf[dim * dim - 1];
                     (z2, z2, 0.0)
