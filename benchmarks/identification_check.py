@@ -35,25 +35,7 @@ import polars as pl
 import aerodelta as ad
 from aerodelta.fit import COEFFICIENTS, FitConfig, model_frame, qualified_coefficients
 from aerodelta.fit import theil_inequality as tic
-from aerodelta.truth import band_check, campaign_effects
-
-
-def _coverage(
-    result: ad.FitResult, effects: dict[str, float]
-) -> dict[str, tuple[int, float, float, float]]:
-    """Per coefficient: identified bins checked, bins inside their per-bin band and inside the
-    smoothed band, median smoothed band width over the largest |truth|."""
-    bc = band_check(result, effects)
-    out = {}
-    for c in COEFFICIENTS:
-        g = bc.filter(pl.col("coefficient") == c)
-        n = g["bins"].to_numpy()
-        in_bin = float(np.sum(np.nan_to_num(g["inside_bin_band"].to_numpy()) * n))
-        in_smooth = float(np.sum(g["inside_band"].to_numpy() * n))
-        t = g.filter(pl.col("max_abs_truth") > 0)
-        rel = float(np.median(t["median_width"].to_numpy() / t["max_abs_truth"].to_numpy()))
-        out[c] = (int(n.sum()), in_bin, in_smooth, rel)
-    return out
+from aerodelta.truth import band_summary, campaign_effects
 
 
 def _tic_ratios(
@@ -115,11 +97,12 @@ def main() -> None:
             for name, base in configs.items():
                 cfg = FitConfig(**{**base.__dict__, "bootstrap": args.bootstrap, "seed": seed})
                 r = ad.fit(train, config=cfg)
-                for c, (n, k, ks, w) in _coverage(r, effects).items():
+                for row in band_summary(r, effects).iter_rows(named=True):
+                    c, n = row["coefficient"], row["bins"]
                     cov[name][c][0] += n
-                    cov[name][c][1] += k
-                    cov[name][c][2] += ks
-                    widths[name][c].append(w)
+                    cov[name][c][1] += n * row["inside_bin_band"]
+                    cov[name][c][2] += n * row["inside_band"]
+                    widths[name][c].append(row["width_ratio"])
                 if name == "selected":
                     for c, v in _tic_ratios(r, test, camp).items():
                         tics[c].append(v)

@@ -188,3 +188,35 @@ def band_check(result: object, effects: Mapping[str, float]) -> pl.DataFrame:
             }
         )  # fmt: skip
     return pl.DataFrame(rows).sort(["coefficient", "flap_deg", "param"])
+
+
+def band_summary(result: object, effects: Mapping[str, float]) -> pl.DataFrame:
+    """:func:`band_check` pooled per coefficient.
+
+    Returns
+    -------
+    polars.DataFrame
+        One row per coefficient (``Cl``, ``Cn``, ``CY``): identified bins checked (``bins``),
+        the bin-weighted shares inside the smoothed band (``inside_band``) and inside the
+        per-bin band (``inside_bin_band``), and the median over parameters with a nonzero truth
+        of the smoothed band's median width over the parameter's largest |truth|
+        (``width_ratio``).
+    """
+    bc = band_check(result, effects)
+    rows = []
+    for c in ("Cl", "Cn", "CY"):
+        g = bc.filter(pl.col("coefficient") == c)
+        n = g["bins"].to_numpy()
+        t = g.filter(pl.col("max_abs_truth") > 0)
+        rows.append(
+            {
+                "coefficient": c,
+                "bins": int(n.sum()),
+                "inside_band": float(np.sum(n * g["inside_band"].to_numpy()) / n.sum()),
+                "inside_bin_band": float(np.nansum(n * g["inside_bin_band"].to_numpy()) / n.sum()),
+                "width_ratio": float(
+                    np.median(t["median_width"].to_numpy() / t["max_abs_truth"].to_numpy())
+                ),
+            }
+        )
+    return pl.DataFrame(rows)

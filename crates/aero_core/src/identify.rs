@@ -377,15 +377,8 @@ pub fn fit_bins(
                 }
             })
             .collect();
-        let excitation_snr: Vec<f64> = (0..p)
-            .map(|j| {
-                if const_col[j] {
-                    f64::INFINITY
-                } else {
-                    snr(in_bin_std[j], floor[j])
-                }
-            })
-            .collect();
+        // a constant regressor's floor is zero: infinite
+        let excitation_snr: Vec<f64> = (0..p).map(|j| snr(in_bin_std[j], floor[j])).collect();
         let nan = vec![f64::NAN; p];
         let mut bin = BinFit {
             alpha_lo: partition.edges[b],

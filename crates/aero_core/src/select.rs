@@ -1286,14 +1286,9 @@ pub fn pool_bins_grams(
                     }
                 })
                 .collect();
+            // a constant regressor's floor is zero: infinite
             let excitation_snr: Vec<f64> = (0..p)
-                .map(|j| {
-                    if const_col[j] {
-                        f64::INFINITY
-                    } else {
-                        snr(var(g, s, *c, j).sqrt() * grams.scale[j], floor[j])
-                    }
-                })
+                .map(|j| snr(var(g, s, *c, j).sqrt() * grams.scale[j], floor[j]))
                 .collect();
             let nan = vec![f64::NAN; p];
             let mut bin = BinFit {

@@ -304,13 +304,12 @@ fn identify_flap<'py>(
         let lookup = |name: &str| cols.get(name).copied();
         let mut design = Design::build(&regressors, &lookup, z.len())?;
         let mut zf: Option<Vec<f64>> = None;
-        let mut band = None;
         if let Some(fc) = band_hz {
             let t = t.ok_or_else(|| {
                 AeroError::invalid("band_hz", "needs the time column 't' of the records")
             })?;
             let mut zv = z.to_vec();
-            band = Some(lowpass_by_maneuver(&mut design, &mut zv, man, t, fc)?);
+            lowpass_by_maneuver(&mut design, &mut zv, man, t, fc)?;
             zf = Some(zv);
         }
         let z: &[f64] = zf.as_deref().unwrap_or(z);
@@ -366,9 +365,7 @@ fn identify_flap<'py>(
             &smooth,
             bo.as_ref(),
         )
-        .map(|out| (out, band))
     })?;
-    let (out, band) = out;
     let d = fit_dict(py, &out.fit, out.smoothed)?;
     d.set_item("chosen", out.chosen.clone())?;
     match (&out.selection, &out.pool_fit) {
@@ -378,18 +375,6 @@ fn identify_flap<'py>(
     match &out.bootstrap {
         Some(b) => d.set_item("bootstrap", bootstrap_dict(py, b)?)?,
         None => d.set_item("bootstrap", py.None())?,
-    }
-    match band {
-        Some(b) => d.set_item(
-            "band",
-            (
-                b.segments,
-                b.samples_filtered,
-                b.samples_unfiltered,
-                b.channels_skipped,
-            ),
-        )?,
-        None => d.set_item("band", py.None())?,
     }
     Ok(d)
 }

@@ -24,7 +24,7 @@ from aerodelta.fit import (
     validate_model,
 )
 from aerodelta.ingest import ingest
-from aerodelta.truth import band_check, campaign_effects
+from aerodelta.truth import band_summary, campaign_effects
 
 HELP = "run the whole method on the built-in virtual flight test campaign"
 
@@ -137,22 +137,6 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def _band_rows(r: object, camp: Path) -> dict[str, tuple[int, float, float, float]]:
-    """Per coefficient: identified bins checked, share inside the smoothed band, share inside
-    the per-bin band, median band width over the largest |truth|."""
-    bc = band_check(r, campaign_effects(camp))
-    out = {}
-    for c in ("Cl", "Cn", "CY"):
-        g = bc.filter(pl.col("coefficient") == c)
-        n = g["bins"].to_numpy()
-        ib = float(np.sum(n * g["inside_band"].to_numpy()) / n.sum())
-        ibb = float(np.nansum(n * g["inside_bin_band"].to_numpy()) / n.sum())
-        t = g.filter(pl.col("max_abs_truth") > 0)
-        rel = float(np.median(t["median_width"].to_numpy() / t["max_abs_truth"].to_numpy()))
-        out[c] = (int(n.sum()), ib, ibb, rel)
-    return out
-
-
 def _print_identification(result: object, camp: Path, thesis: object | None = None) -> None:
     """Structure selection, its cross-validation and the bootstrap bands against the truth."""
     r = result
@@ -191,13 +175,18 @@ def _print_identification(result: object, camp: Path, thesis: object | None = No
             )
     if not r.replicates:  # type: ignore[attr-defined]
         return
-    sel = _band_rows(r, camp)
-    th = _band_rows(thesis, camp) if thesis is not None else None
+    effects = campaign_effects(camp)
+    sel = band_summary(r, effects)
+    th = band_summary(thesis, effects) if thesis is not None else None
     print("bootstrap 95% bands vs the true Δ derivatives (identified bins, alpha >= alpha_l)")
     head = f"{'coef':<5} {'bins':>6} {'smoothed':>9} {'per bin':>8} {'width/max|truth|':>17}"
-    print(head + (f" {'thesis structure, per bin':>26}" if th else ""))
-    for c, (n, ib, ibb, rel) in sel.items():
-        line = f"{c:<5} {n:>6} {100 * ib:>8.0f}% {100 * ibb:>7.0f}% {rel:>17.3f}"
-        if th:
-            line += f" {100 * th[c][2]:>17.0f}% of {th[c][0]:>5}"
+    print(head + (f" {'thesis structure, per bin':>26}" if th is not None else ""))
+    for i, row in enumerate(sel.iter_rows(named=True)):
+        line = (
+            f"{row['coefficient']:<5} {row['bins']:>6} {100 * row['inside_band']:>8.0f}% "
+            f"{100 * row['inside_bin_band']:>7.0f}% {row['width_ratio']:>17.3f}"
+        )
+        if th is not None:
+            t = th.row(i, named=True)
+            line += f" {100 * t['inside_bin_band']:>17.0f}% of {t['bins']:>5}"
         print(line)
