@@ -15,6 +15,19 @@ stamp_now="$( (git ls-files -s 2>/dev/null; git diff 2>/dev/null; git ls-files -
 if [ ! -f .install-stamp ] || [ "$(cat .install-stamp)" != "$stamp_now" ] || ! python -c "import aerodelta" 2>/dev/null; then
   echo "[aerodelta] installing aerodelta with its test extras into .venv (builds the Rust engine)" >&2
   python -m pip install --quiet --upgrade pip
-  python -m pip install --quiet ".[test]"
+  # Show the build's progress (cargo's Compiling lines; a cold build takes minutes) and keep the
+  # full log; on failure print its tail.
+  log="$(mktemp "${TMPDIR:-/tmp}/aerodelta-install.XXXXXX")"
+  set +e
+  python -m pip install -v ".[test]" 2>&1 | tee "$log" \
+    | { grep --line-buffered -E '^ *(Compiling|Finished|Built wheel|Successfully installed)' >&2 || true; }
+  rc=${PIPESTATUS[0]}
+  set -e
+  if [ "$rc" -ne 0 ]; then
+    echo "[aerodelta] install failed (pip exit $rc); last lines of $log:" >&2
+    tail -n 60 "$log" >&2
+    exit 1
+  fi
+  rm -f "$log"
   echo "$stamp_now" > .install-stamp
 fi

@@ -27,5 +27,8 @@ def daveml_dir() -> Path:
     """Folder of the public DAVE-ML models with NASA check cases (not copied into the repo)."""
     d = _shared_daveml()
     if not d.is_dir():
-        pytest.fail(f"public DAVE-ML models not found at {d}; set AERODELTA_SHARED_DAVEML")
+        msg = f"public DAVE-ML models not found at {d}; set AERODELTA_SHARED_DAVEML to their folder"
+        if os.environ.get("AERODELTA_REQUIRE_SHARED"):
+            pytest.fail(f"{msg} (AERODELTA_REQUIRE_SHARED is set: CI must run the reference checks)")
+        pytest.skip(msg)
     return d

@@ -148,25 +148,42 @@ pub(crate) mod conformance {
     use super::*;
     use std::path::PathBuf;
 
-    /// The public models: `AERODELTA_SHARED_DAVEML`, else the first
-    /// `shared/data/daveml` above the crate (`../../../shared/data/daveml` in
-    /// the main checkout).
-    pub(crate) fn shared(file: &str) -> PathBuf {
-        if let Ok(d) = std::env::var("AERODELTA_SHARED_DAVEML") {
-            return PathBuf::from(d).join(file);
+    /// The folder of the public models: `AERODELTA_SHARED_DAVEML`, else the
+    /// first `shared/data/daveml` above the crate (`../../../shared/data/daveml`
+    /// in the main checkout). `None` when absent: the reference checks are then
+    /// skipped with a message on stderr, unless `AERODELTA_REQUIRE_SHARED` is
+    /// set (CI sets it), in which case the test fails.
+    pub(crate) fn shared_dir() -> Option<PathBuf> {
+        let dir = match std::env::var("AERODELTA_SHARED_DAVEML") {
+            Ok(d) => PathBuf::from(d),
+            Err(_) => {
+                let here = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
+                here.ancestors()
+                    .map(|a| a.join("shared/data/daveml"))
+                    .find(|d| d.is_dir())
+                    .unwrap_or_else(|| here.join("../../../shared/data/daveml"))
+            }
+        };
+        if dir.is_dir() {
+            return Some(dir);
         }
-        let here = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
-        here.ancestors()
-            .map(|a| a.join("shared/data/daveml"))
-            .find(|d| d.is_dir())
-            .unwrap_or_else(|| here.join("../../../shared/data/daveml"))
-            .join(file)
+        let msg = format!(
+            "public DAVE-ML models not found at {}; set AERODELTA_SHARED_DAVEML to their folder",
+            dir.display()
+        );
+        assert!(
+            std::env::var_os("AERODELTA_REQUIRE_SHARED").is_none(),
+            "{msg} (AERODELTA_REQUIRE_SHARED is set, so this is a failure)"
+        );
+        eprintln!("SKIPPED: {msg}");
+        None
     }
 
     /// Every static shot and internal value of the public NASA models passes
     /// at the file's own tolerance.
     #[test]
     fn public_models_pass_their_check_cases() {
+        let Some(dir) = shared_dir() else { return };
         for f in [
             "F16_aero.dml",
             "HL20_aero.dml",
@@ -175,7 +192,7 @@ pub(crate) mod conformance {
             "atmos_76.dml",
             "F16_prop.dml",
         ] {
-            let m = DaveModel::from_file(shared(f)).unwrap_or_else(|e| panic!("{e}"));
+            let m = DaveModel::from_file(dir.join(f)).unwrap_or_else(|e| panic!("{e}"));
             let rows = m.run_checks();
             assert!(!rows.is_empty(), "{f}: no checks");
             for kind in [CheckKind::Output, CheckKind::Internal] {
@@ -217,8 +234,9 @@ pub(crate) mod conformance {
 
     #[test]
     fn files_without_checks_load() {
+        let Some(dir) = shared_dir() else { return };
         for f in ["simple_aero.dml", "simplest_aero.dml", "twoD_table.dml"] {
-            let m = DaveModel::from_file(shared(f)).unwrap_or_else(|e| panic!("{e}"));
+            let m = DaveModel::from_file(dir.join(f)).unwrap_or_else(|e| panic!("{e}"));
             assert!(m.shots().is_empty());
         }
     }
@@ -226,15 +244,16 @@ pub(crate) mod conformance {
 
 #[cfg(test)]
 mod shared_locate {
-    use super::conformance::shared;
+    use super::conformance::shared_dir;
     use super::*;
 
     /// The batch and `evaluate` paths (one locate per shared variable and
     /// breakpoint set) equal the real-time `compute` path bit for bit.
     #[test]
     fn cached_and_plain_paths_agree_bitwise_on_public_models() {
+        let Some(dir) = shared_dir() else { return };
         for f in ["F16_aero.dml", "HL20_aero.dml", "atmos_76.dml"] {
-            let m = DaveModel::from_file(shared(f)).unwrap_or_else(|e| panic!("{e}"));
+            let m = DaveModel::from_file(dir.join(f)).unwrap_or_else(|e| panic!("{e}"));
             assert!(
                 m.locators.len()
                     < m.defs
