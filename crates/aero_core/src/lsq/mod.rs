@@ -9,14 +9,17 @@
 //!   (per-alpha-bin fits reuse one regressor matrix);
 //! - [`colored`]: the coloured-residual covariance (Morelli & Klein Eq. 5.80)
 //!   in O(p N log N) by FFT;
+//! - [`cluster`]: the cluster-robust CR2 covariance with Bell-McCaffrey
+//!   degrees of freedom (rows of one maneuver are one cluster);
 //! - [`stats`]: log-gamma, regularized incomplete beta, Student t and F.
 
+pub mod cluster;
 pub mod colored;
 mod ols;
 mod pool;
 pub mod stats;
 
 pub use ols::{
-    ols, ols_rows, Collinearity, NearDependency, OlsFit, OlsOptions, COLLINEAR_COND_DEFAULT,
-    LOADING_EXACT_MIN, VDP_MIN, VIF_NOTE,
+    ols, ols_rows, ols_rows_clustered, Collinearity, NearDependency, OlsFit, OlsOptions,
+    COLLINEAR_COND_DEFAULT, LOADING_EXACT_MIN, VDP_MIN, VIF_NOTE,
 };

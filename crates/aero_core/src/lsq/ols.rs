@@ -7,6 +7,7 @@ use std::borrow::Cow;
 
 use faer::Mat;
 
+use super::cluster::{cr2, ClusterCov};
 use super::colored::{padded_len, toeplitz_gram_cols};
 use super::pool::{give_real, take_real};
 use super::stats::{f_sf, student_t_sf_two_sided};
@@ -122,6 +123,10 @@ pub struct OlsFit {
     pub cov_colored: Option<Vec<f64>>,
     /// Standard errors corrected for coloured residuals, if asked.
     pub std_err_colored: Option<Vec<f64>>,
+    /// Cluster-robust (CR2) covariance with Bell-McCaffrey degrees of
+    /// freedom ([`super::cluster`]), when clusters were given
+    /// ([`ols_rows_clustered`]).
+    pub cluster: Option<ClusterCov>,
     /// t statistics θ̂ / s(θ̂).
     pub t_values: Vec<f64>,
     /// Two-sided p-values of the t statistics (Student t, `dof` degrees of freedom).
@@ -331,7 +336,7 @@ fn no_convergence(what: &str) -> AeroError {
 /// Shapes that do not match, non-finite values (unless `drop_nan`), fewer
 /// rows than parameters plus one, rank deficiency (unless `min_norm`).
 pub fn ols(x: &[f64], nrows: usize, ncols: usize, z: &[f64], opts: &OlsOptions) -> Result<OlsFit> {
-    fit(x, nrows, ncols, z, None, opts)
+    fit(x, nrows, ncols, z, None, None, opts)
 }
 
 /// [`ols`] on a subset of rows of `x`/`z` (input row indices, any order;
@@ -352,7 +357,38 @@ pub fn ols_rows(
             format!("row index {bad} but X has {nrows} rows"),
         ));
     }
-    fit(x, nrows, ncols, z, Some(rows), opts)
+    fit(x, nrows, ncols, z, Some(rows), None, opts)
+}
+
+/// [`ols_rows`] with a cluster id per input row (`clusters.len() == nrows`;
+/// in an alpha bin, the maneuver): the fit also carries the cluster-robust
+/// CR2 covariance with Bell-McCaffrey degrees of freedom
+/// ([`OlsFit::cluster`], [`super::cluster`]).
+///
+/// # Errors
+/// As [`ols_rows`], and when `clusters` has another length than `z`.
+pub fn ols_rows_clustered(
+    x: &[f64],
+    nrows: usize,
+    ncols: usize,
+    z: &[f64],
+    rows: &[usize],
+    clusters: &[u64],
+    opts: &OlsOptions,
+) -> Result<OlsFit> {
+    if clusters.len() != nrows {
+        return Err(AeroError::invalid(
+            "clusters",
+            format!("has {} values but X has {nrows} rows", clusters.len()),
+        ));
+    }
+    if let Some(&bad) = rows.iter().find(|&&r| r >= nrows) {
+        return Err(AeroError::out_of_range(
+            "ols rows",
+            format!("row index {bad} but X has {nrows} rows"),
+        ));
+    }
+    fit(x, nrows, ncols, z, Some(rows), Some(clusters), opts)
 }
 
 fn col_name(names: &[String], j: usize) -> String {
@@ -612,6 +648,7 @@ fn fit(
     p: usize,
     z: &[f64],
     rows: Option<&[usize]>,
+    clusters: Option<&[u64]>,
     opts: &OlsOptions,
 ) -> Result<OlsFit> {
     if p == 0 {
@@ -972,6 +1009,24 @@ fn fit(
     for q in qcols {
         give_real(q);
     }
+    let cluster = clusters.map(|ids| {
+        // Cluster index of each fitted row (sorted distinct ids: deterministic).
+        let mut uniq: Vec<u64> = (0..m).map(|k| ids[rows.get(k)]).collect();
+        uniq.sort_unstable();
+        uniq.dedup();
+        let idx: Vec<usize> = (0..m)
+            .map(|k| uniq.binary_search(&ids[rows.get(k)]).unwrap_or(0))
+            .collect();
+        let mut q = vec![0.0; m * nb];
+        for k in 0..m {
+            let xr = &x[rows.get(k) * p..(rows.get(k) + 1) * p];
+            for a in 0..nb {
+                q[k * nb + a] = (0..p).map(|j| xr[j] * b[(j, a)]).sum();
+            }
+        }
+        let bflat: Vec<f64> = (0..p * nb).map(|ja| b[(ja / nb, ja % nb)]).collect();
+        cr2(&q, nb, &resid[..m], &idx, uniq.len(), &bflat, p)
+    });
     give_real(resid);
 
     Ok(OlsFit {
@@ -981,6 +1036,7 @@ fn fit(
         std_err,
         cov_colored,
         std_err_colored,
+        cluster,
         t_values,
         p_values,
         partial_f,
