@@ -101,7 +101,7 @@ class JsbsimAircraft:
     model: str
     description: str
     h_ft: float
-    entry_kts: float  # calibrated airspeed at the start of the deceleration
+    entry_kts: tuple[float, ...]  # calibrated airspeed at the entry, per flap setting
     flaps_deg: tuple[float, ...] = (0.0,)
     flap_norm_per_deg: float = 0.0  # fcs/flap-cmd-norm per flap degree (0: no flaps)
     alpha_peak_deg: tuple[float, float] = (25.0, 35.0)  # the pilot's target past the stall
@@ -124,6 +124,8 @@ class JsbsimAircraft:
     k_r: float = 0.02
     doublet: tuple[float, float] = (0.3, 0.6)  # aileron/rudder doublet amplitude range
     abort_alpha_deg: float = 55.0
+    #: signs fixed by hand where the XML cannot tell (e.g. a 3-D table): (("de", 1.0),)
+    sign_overrides: tuple[tuple[str, float], ...] = ()
     notes: str = ""
 
 
@@ -134,10 +136,10 @@ AIRCRAFT: dict[str, JsbsimAircraft] = {
         description="JSBSim F-15 (twin turbofan, no flaps): Clb, Clp, ClDa, Cnb, Cnp, Cndr "
         "and CYb tabulated over alpha to 50 deg",
         h_ft=20000.0,
-        entry_kts=190.0,
-        alpha_peak_deg=(28.0, 40.0),
+        entry_kts=(190.0,),
+        alpha_peak_deg=(19.0, 24.0),  # the elevator stops the F-15 near 18-20 deg alpha
         withhold=("Clb", "Clp", "Cnb"),
-        withhold_alpha_deg=15.0,
+        withhold_alpha_deg=12.0,
         mach_ref=0.35,
         notes="jet: ct_left/ct_right are the engines' net thrust T/(qbar S) (no propeller)",
     ),
@@ -146,12 +148,13 @@ AIRCRAFT: dict[str, JsbsimAircraft] = {
         description="JSBSim DHC-6 Twin Otter (twin turboprop, flaps 0-40 deg): Clb(beta, "
         "alpha) and Cnb(alpha, flap) tabulated into the stall",
         h_ft=6000.0,
-        entry_kts=85.0,
+        entry_kts=(90.0, 65.0, 60.0),
         flaps_deg=(0.0, 20.0, 40.0),
         flap_norm_per_deg=1.0 / 40.0,
         alpha_peak_deg=(16.0, 22.0),
         withhold=("Clb", "Cnb"),
         withhold_alpha_deg=10.0,
+        sign_overrides=(("de", 1.0),),  # CmDe is a 3-D table: positive elevator pitches down
         mach_ref=0.12,
         k_alpha=0.08,
         k_alpha_i=0.04,
@@ -510,13 +513,15 @@ def control_signs(cfg: JsbsimAircraft, terms: Sequence[Term]) -> dict[str, float
     """Signs mapping the aircraft's surface positions onto aerodelta's convention (Etkin:
     a positive deflection gives a negative moment), from the XML's own moment derivatives
     at 5 deg alpha: ``da_deg = s_a * deg(aileron)``, likewise ``de``, ``dr``."""
-    out = {}
+    out = dict(cfg.sign_overrides)
     a = np.array([5.0])
     for key, prop, axis in (
         ("da", cfg.aileron_rad, "ROLL"),
         ("de", cfg.elevator_rad, "PITCH"),
         ("dr", cfg.rudder_rad, "YAW"),
     ):
+        if key in out:
+            continue
         total = 0.0
         for t in terms:
             if t.axis != axis or t.tree is None or prop not in _props(t.tree):
@@ -643,6 +648,11 @@ def _plan(cfg: JsbsimAircraft, seed: int, reps: int) -> list[_Plan]:
     return plans
 
 
+def _entry_kts(cfg: JsbsimAircraft, flap_deg: float) -> float:
+    i = int(np.argmin([abs(f - flap_deg) for f in cfg.flaps_deg]))
+    return float(cfg.entry_kts[min(i, len(cfg.entry_kts) - 1)])
+
+
 def _doublet(t: float, t0: float, half: float, amp: float) -> float:
     if t0 <= t < t0 + half:
         return amp
@@ -663,7 +673,7 @@ def _fly(
     """Fly one maneuver; return the recorded properties (50 Hz) and metadata."""
     rng = np.random.default_rng(plan.seed)
     side = 1.0 if rng.random() < 0.5 else -1.0
-    entry = cfg.entry_kts * rng.uniform(0.97, 1.03)
+    entry = _entry_kts(cfg, plan.flap_deg) * rng.uniform(0.98, 1.02)
     decel = decel_kts * rng.uniform(0.8, 1.2)
     peak = rng.uniform(*cfg.alpha_peak_deg)
     hold = rng.uniform(3.0, 5.0)
@@ -1090,7 +1100,7 @@ def generate_jsbsim_campaign(
         plans = [p for p in plans if p.index in set(only)]
     # properties recorded: channels, truth, every input of the lateral terms
     fdm0 = _new_fdm(cfg, root)
-    _trim(fdm0, cfg, cfg.flaps_deg[0], cfg.entry_kts, int(seed))
+    _trim(fdm0, cfg, cfg.flaps_deg[0], _entry_kts(cfg, cfg.flaps_deg[0]), int(seed))
     n_eng = _n_engines(fdm0)
     lat = [t for t in terms if t.axis in ("ROLL", "YAW", "SIDE")]
     props = list(_REC_PROPS)
