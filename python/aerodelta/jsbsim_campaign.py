@@ -582,6 +582,7 @@ _REC_PROPS = [
     "velocities/r-aero-rad_sec",
     "aero/bi2vel",
     "velocities/mach",
+    "aero/alpha-rad",
 ]
 
 
@@ -848,17 +849,18 @@ def _coefficients(
         "CY_prop_true": rec["forces/fby-prop-lbs"] / qs,
     }
     problems = []
-    frozen_alpha = np.minimum(rec["aero/alpha-deg"], walpha)
+    # frozen above the withhold alpha; below it the inputs are JSBSim's own, bit for bit
+    above = rec["aero/alpha-deg"] > walpha
+    frozen = {
+        "aero/alpha-deg": np.where(above, walpha, rec["aero/alpha-deg"]),
+        "aero/alpha-rad": np.where(above, walpha * D2R, rec.get("aero/alpha-rad", 0.0)),
+    }
 
     def env_full(p: str) -> np.ndarray:
         return rec[p]
 
     def env_frozen(p: str) -> np.ndarray:
-        if p == "aero/alpha-deg":
-            return frozen_alpha
-        if p == "aero/alpha-rad":
-            return frozen_alpha * D2R
-        return rec[p]
+        return frozen[p] if p in frozen else rec[p]
 
     d = {"Cl": np.zeros_like(qs), "Cn": np.zeros_like(qs), "CY": np.zeros_like(qs)}
     wnames = {t.name for t in withheld}
@@ -877,7 +879,8 @@ def _coefficients(
             continue
         if t.name not in wnames:
             continue
-        dv = val - np.broadcast_to(_eval(t.tree, env_frozen), val.shape)  # full - qualified
+        # full - qualified, both from the XML (bit-identical below the withhold alpha)
+        dv = full - np.broadcast_to(_eval(t.tree, env_frozen), val.shape)
         if t.axis == "SIDE":
             # wind-axis side force -> body force; its moment about the CG through r x F
             a = rec["aero/alpha-deg"] * D2R
