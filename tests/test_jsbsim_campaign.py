@@ -13,10 +13,10 @@ import pytest
 
 pytest.importorskip("jsbsim", reason="needs the jsbsim package: pip install 'aerodelta[jsbsim]'")
 
-import aerodelta  # noqa: E402
-from aerodelta.cli import main  # noqa: E402
-from aerodelta.exceptions import InvalidInputError  # noqa: E402
-from aerodelta.jsbsim_campaign import (  # noqa: E402
+import aerodelta
+from aerodelta.cli import main
+from aerodelta.exceptions import InvalidInputError
+from aerodelta.jsbsim_campaign import (
     generate_jsbsim_campaign,
     true_delta_derivative,
 )
@@ -144,7 +144,7 @@ def test_true_delta_exact(f15_exact: Path) -> None:
     assert above > 50  # the maneuvers reach past the withhold alpha with sideslip
     # the per-term derivative in the fit's units (per deg of beta)
     grid = np.array([5.0, 12.0, 15.0, 18.0, 20.0, 30.0])
-    want = (np.interp(grid * D2R, *F15_CNB) - np.interp(np.minimum(grid, WALPHA) * D2R, *F15_CNB))
+    want = np.interp(grid * D2R, *F15_CNB) - np.interp(np.minimum(grid, WALPHA) * D2R, *F15_CNB)
     got = true_delta_derivative(f15_exact, "Cn", "beta_deg", 0.0, grid)
     np.testing.assert_allclose(got, want * D2R, rtol=1e-6, atol=1e-12)
     assert np.all(true_delta_derivative(f15_exact, "Cn", "rhat", 0.0, grid) == 0.0)
@@ -165,10 +165,8 @@ def test_control_signs_follow_etkin(f15_exact: Path) -> None:
 
 def test_cli_writes_an_ingestable_campaign(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
     out = tmp_path / "camp"
-    rc = main(
-        ["campaign", "--simulator", "jsbsim", "--aircraft", "f15", "--quick", "--seed", "2"]
-        + ["--withhold", "Cnb,Cnp", "--withhold-alpha", "14", "--out", str(out)]
-    )
+    args = ["campaign", "--simulator", "jsbsim", "--aircraft", "f15", "--quick", "--seed", "2"]
+    rc = main([*args, "--withhold", "Cnb,Cnp", "--withhold-alpha", "14", "--out", str(out)])
     assert rc == 0
     assert "wrote 3 maneuvers of JSBSim f15" in capsys.readouterr().out
     man = pl.read_csv(out / "manifest.csv")
@@ -202,8 +200,8 @@ def test_bad_input_names_the_thing(tmp_path: Path, kw: dict, needle: str) -> Non
 
 
 def test_cli_error_is_one_line(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
-    rc = main(["campaign", "--simulator", "jsbsim", "--aircraft", "f15", "--withhold", "Clx"]
-              + ["--out", str(tmp_path / "x")])  # fmt: skip
+    args = ["campaign", "--simulator", "jsbsim", "--aircraft", "f15", "--withhold", "Clx"]
+    rc = main([*args, "--out", str(tmp_path / "x")])
     err = capsys.readouterr().err
     assert rc == 1
     assert err.count("\n") == 1 and "unknown withheld term 'Clx'" in err

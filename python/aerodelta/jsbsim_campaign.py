@@ -226,9 +226,7 @@ def _model_xml(model: str, root: Path) -> Path:
     return p
 
 
-def _resolve_aircraft(
-    aircraft: str | JsbsimAircraft, root: Path
-) -> tuple[JsbsimAircraft, Path]:
+def _resolve_aircraft(aircraft: str | JsbsimAircraft, root: Path) -> tuple[JsbsimAircraft, Path]:
     if isinstance(aircraft, JsbsimAircraft):
         return aircraft, _model_xml(aircraft.model, root)
     key = {k.lower(): k for k in AIRCRAFT}.get(str(aircraft).lower())
@@ -262,9 +260,7 @@ def _parse_fn(el: ET.Element) -> _Node | None:
         td = el.find("tableData")
         if td is None or not ivs or len(ivs) > 2 or td.get("breakPoint") is not None:
             return None
-        order = sorted(
-            ivs, key=lambda v: {"row": 0, "column": 1}.get(v.get("lookup", "row"), 2)
-        )
+        order = sorted(ivs, key=lambda v: {"row": 0, "column": 1}.get(v.get("lookup", "row"), 2))
         names = [(v.text or "").strip() for v in order]
         rows = [[float(x) for x in ln.split()] for ln in (td.text or "").strip().splitlines()]
         rows = [r for r in rows if r]
@@ -463,7 +459,7 @@ def _nondim(term: Term, values: Mapping[str, np.ndarray | float]) -> np.ndarray:
     return 1.0 / qs
 
 
-def _term_derivatives(
+def _term_derivatives(  # noqa: PLR0917
     term: Term,
     cfg: JsbsimAircraft,
     signs: Mapping[str, float],
@@ -662,7 +658,7 @@ def _doublet(t: float, t0: float, half: float, amp: float) -> float:
     return 0.0
 
 
-def _fly(
+def _fly(  # noqa: PLR0917
     cfg: JsbsimAircraft,
     root: Path,
     plan: _Plan,
@@ -779,9 +775,7 @@ def _fly(
         fdm["fcs/aileron-cmd-norm"] = float(np.clip(-signs["da"] * (ia + u_roll), -1, 1))
         fdm["fcs/rudder-cmd-norm"] = float(np.clip(-signs["dr"] * u_yaw, -1, 1))
         for i, th in enumerate(thr0):
-            fdm[f"fcs/throttle-cmd-norm[{i}]"] = (
-                1.0 if phase == "recovery" else th * thr_factor
-            )
+            fdm[f"fcs/throttle-cmd-norm[{i}]"] = 1.0 if phase == "recovery" else th * thr_factor
         fdm.run()
         step += 1
     meta = {
@@ -904,7 +898,7 @@ def _coefficients(
     return out, problems
 
 
-def _record_frame(
+def _record_frame(  # noqa: PLR0917
     rec: Mapping[str, np.ndarray],
     cfg: JsbsimAircraft,
     signs: Mapping[str, float],
@@ -917,9 +911,9 @@ def _record_frame(
     qs = rec["aero/qbar-psf"] * rec["metrics/Sw-sqft"]
     thrust = [rec[f"propulsion/engine[{i}]/thrust-lbs"] for i in range(len(engine_left))]
     ct_l = sum((w * th for w, th in zip(engine_left, thrust, strict=True)), np.zeros(n)) / qs
-    ct_r = sum((
-        (1.0 - w) * th for w, th in zip(engine_left, thrust, strict=True)), np.zeros(n)
-    ) / qs
+    ct_r = (
+        sum(((1.0 - w) * th for w, th in zip(engine_left, thrust, strict=True)), np.zeros(n)) / qs
+    )
     t = rec["simulation/sim-time-sec"]
     return {
         "t": t - t[0],
@@ -1207,7 +1201,9 @@ def generate_jsbsim_campaign(
                 ),
                 tmp / "truth" / "true_delta.parquet",
             )
-        info = _truth_json(cfg, withheld, walpha, signs, seed, noise, turbulence, sorted(unevaluated))
+        info = _truth_json(
+            cfg, withheld, walpha, signs, seed, noise, turbulence, sorted(unevaluated)
+        )
         (tmp / "truth" / "truth.json").write_text(json.dumps(info, indent=1, sort_keys=True))
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
@@ -1239,7 +1235,7 @@ def _add_noise(chans: Mapping[str, np.ndarray], scale: float, seed: int) -> dict
     return out
 
 
-def _truth_json(
+def _truth_json(  # noqa: PLR0917
     cfg: JsbsimAircraft,
     withheld: Sequence[Term],
     walpha: float,
