@@ -1,6 +1,8 @@
 """Generate a virtual flight test campaign: the ADX-37 truth aircraft flown by the
 pilot model through the stall maneuvers of the thesis (Section 3.2.1), written in
-the campaign layout that ``aerodelta ingest`` reads."""
+the campaign layout that ``aerodelta ingest`` reads. With ``--simulator jsbsim`` a JSBSim
+aircraft (``--aircraft f15`` or ``DHC6``) is flown instead, and its truth written beside
+the records (``docs/jsbsim_campaign.md``)."""
 
 from __future__ import annotations
 
@@ -22,7 +24,37 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--seed", type=int, default=0, help="campaign seed (same seed, same files)")
     parser.add_argument("--quick", action="store_true", help="40 maneuvers instead of 200")
     parser.add_argument("--noise-scale", type=float, default=1.0, help="sensor noise scale")
-    parser.add_argument("--turbulence", type=float, default=0.5, help="Dryden RMS gust, m/s")
+    parser.add_argument(
+        "--turbulence",
+        type=float,
+        default=None,
+        help="Dryden RMS gust, m/s (builtin, default 0.5); with --simulator jsbsim: JSBSim's "
+        "MIL-spec severity (default 0, calm)",
+    )
+    parser.add_argument(
+        "--simulator",
+        choices=("builtin", "jsbsim"),
+        default="builtin",
+        help="builtin ADX-37 truth aircraft, or a JSBSim aircraft (pip install "
+        "'aerodelta[jsbsim]')",
+    )
+    parser.add_argument("--aircraft", default="f15", help="JSBSim aircraft (f15, DHC6)")
+    parser.add_argument(
+        "--withhold",
+        default="default",
+        help="JSBSim: lateral terms the qualified model freezes past --withhold-alpha "
+        "(comma list of XML term names, 'default' or 'none'; --list-terms)",
+    )
+    parser.add_argument(
+        "--withhold-alpha",
+        type=float,
+        default=None,
+        help="JSBSim: alpha (deg) above which withheld terms are frozen (default: the "
+        "aircraft's, 12 deg F-15, 10 deg DHC6)",
+    )
+    parser.add_argument(
+        "--list-terms", action="store_true", help="JSBSim: list the aircraft's lateral terms"
+    )
     parser.add_argument("--no-turbulence", action="store_true", help="calm air")
     parser.add_argument("--no-rolloff", action="store_true", help="no stochastic roll-off")
     parser.add_argument(
@@ -45,6 +77,8 @@ def run(args: argparse.Namespace) -> int:
             print(f"{e['name']:24s} {e['kind']:12s} {where:22s} {terms}")
             print(f"{'':24s} {e['description']}")
         return 0
+    if args.simulator == "jsbsim":
+        return _run_jsbsim(args)
     if not args.out:
         print("aerodelta campaign: error: --out DIR is required", file=sys.stderr)
         return 2
@@ -54,7 +88,9 @@ def run(args: argparse.Namespace) -> int:
         seed=args.seed,
         size="quick" if args.quick else "default",
         noise=args.noise_scale,
-        turbulence=0.0 if args.no_turbulence else args.turbulence,
+        turbulence=0.0
+        if args.no_turbulence
+        else (0.5 if args.turbulence is None else args.turbulence),
         rolloff=not args.no_rolloff,
         excitation=args.excitation,
         overwrite=args.overwrite,
@@ -62,4 +98,38 @@ def run(args: argparse.Namespace) -> int:
     )
     eff = ", ".join(f"{k}={v:g}" for k, v in info.effects.items()) or "none"
     print(f"wrote {info.n_maneuvers} maneuvers to {info.path} (seed {info.seed}; effects: {eff})")
+    return 0
+
+
+def _run_jsbsim(args: argparse.Namespace) -> int:
+    from aerodelta.jsbsim_campaign import (  # noqa: PLC0415
+        generate_jsbsim_campaign,
+        lateral_terms,
+    )
+
+    if args.list_terms:
+        for t in lateral_terms(args.aircraft):
+            flag = "alpha-dependent" if t["alpha_dependent"] else ""
+            print(f"{t['name']:12s} {t['coefficient']:3s} {flag}")
+        return 0
+    if not args.out:
+        print("aerodelta campaign: error: --out DIR is required", file=sys.stderr)
+        return 2
+    info = generate_jsbsim_campaign(
+        args.out,
+        aircraft=args.aircraft,
+        seed=args.seed,
+        size="quick" if args.quick else "default",
+        withhold=args.withhold,
+        withhold_alpha_deg=args.withhold_alpha,
+        noise=args.noise_scale,
+        turbulence=0.0 if args.no_turbulence or args.turbulence is None else args.turbulence,
+        overwrite=args.overwrite,
+        progress=True,
+    )
+    held = ", ".join(info.withheld) or "none"
+    print(
+        f"wrote {info.n_maneuvers} maneuvers of JSBSim {info.aircraft} to {info.path} "
+        f"(seed {info.seed}; withheld past {info.withhold_alpha_deg:g} deg: {held})"
+    )
     return 0
