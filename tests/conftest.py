@@ -29,6 +29,6 @@ def daveml_dir() -> Path:
     if not d.is_dir():
         msg = f"public DAVE-ML models not found at {d}; set AERODELTA_SHARED_DAVEML to their folder"
         if os.environ.get("AERODELTA_REQUIRE_SHARED"):
-            pytest.fail(f"{msg} (AERODELTA_REQUIRE_SHARED is set: CI must run the reference checks)")
+            pytest.fail(f"{msg} (AERODELTA_REQUIRE_SHARED is set: CI runs the reference checks)")
         pytest.skip(msg)
     return d

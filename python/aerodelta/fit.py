@@ -530,7 +530,8 @@ def _bin_rows(
             return np.full(nb * npar, np.nan)
         return np.asarray(boot[key], dtype=float).ravel()
 
-    est, se = flat("params"), flat("std_err")
+    est, se = flat("params"), flat("std_err_cluster")
+    half = flat("ci95_half_width")
     with np.errstate(divide="ignore", invalid="ignore"):
         t = np.where(se > 0, est / se, np.nan)
     params = pl.DataFrame(
@@ -538,7 +539,9 @@ def _bin_rows(
             "coefficient": [coef] * (nb * npar), "flap_deg": np.full(nb * npar, flap, dtype=float),
             "param": names * nb, "regressor": [e for _, e in regs] * nb,
             "alpha_lo_deg": np.repeat(lo, npar), "alpha_hi_deg": np.repeat(hi, npar),
-            "estimate": est, "std_err": se, "std_err_colored": flat("std_err_colored"),
+            "estimate": est, "std_err": se, "dof": flat("dof_cluster"),
+            "ci95_lower": est - half, "ci95_upper": est + half, "p_value": flat("p_value"),
+            "std_err_ols": flat("std_err"), "std_err_colored": flat("std_err_colored"),
             "std_err_bootstrap": boot_col("bin_std"),
             "band_lower": boot_col("bin_lower"), "band_upper": boot_col("bin_upper"),
             "t": t, "partial_f": flat("partial_f"), "excitation": flat("excitation"),

@@ -33,7 +33,8 @@
 //! with the segments of different maneuvers spliced one after another.
 
 use crate::error::{AeroError, Result, ResultExt};
-use crate::lsq::{ols_rows, OlsFit, OlsOptions};
+use crate::lsq::stats::{student_t_ppf, student_t_sf_two_sided};
+use crate::lsq::{ols_rows_clustered, OlsFit, OlsOptions};
 use crate::partition::{partition_alpha, AlphaBins, PartitionOptions};
 use crate::regressor::Expr;
 use crate::spline::{smoothing_spline, Smoothing, SplineExtrapolation};
@@ -172,6 +173,17 @@ pub struct BinFit {
     pub std_err: Vec<f64>,
     /// Standard errors corrected for coloured residuals (NaN when not computed).
     pub std_err_colored: Vec<f64>,
+    /// Cluster-robust standard errors, maneuvers as clusters, CR2
+    /// ([`crate::lsq::cluster`]): the default for intervals, smoothing
+    /// weights and the adjacent-bin check. NaN where undefined (one maneuver
+    /// alone determines the parameter; the note says so).
+    pub std_err_cluster: Vec<f64>,
+    /// Bell-McCaffrey degrees of freedom of the cluster-robust errors (Student t).
+    pub dof_cluster: Vec<f64>,
+    /// Half-width of the 95 % interval, `t(0.975, dof_cluster) std_err_cluster`.
+    pub ci95_half_width: Vec<f64>,
+    /// Two-sided p-value of `θ̂ / std_err_cluster` under Student t with `dof_cluster`.
+    pub p_value: Vec<f64>,
     /// Partial F per parameter (Eq. 2.5).
     pub partial_f: Vec<f64>,
     /// Excitation of each regressor: in-bin std over the flap's std.
@@ -193,6 +205,19 @@ pub struct BinFit {
     pub residual_std: f64,
     /// A note for the whole bin ("" when fitted).
     pub note: String,
+}
+
+impl BinFit {
+    /// The standard error of parameter `j` used for weights and checks: the
+    /// cluster-robust one where defined, else the conventional one.
+    pub fn se(&self, j: usize) -> f64 {
+        let c = self.std_err_cluster.get(j).copied().unwrap_or(f64::NAN);
+        if c.is_finite() {
+            c
+        } else {
+            self.std_err[j]
+        }
+    }
 }
 
 /// Adjacent-bin consistency of one parameter (Section 3.3.4).
@@ -294,6 +319,7 @@ fn fit_one_bin(
     design: &Design,
     z: &[f64],
     rows: &[usize],
+    maneuver: &[u64],
     opts: &IdentifyOptions,
 ) -> Result<OlsFit> {
     let ols_opts = OlsOptions {
@@ -304,12 +330,13 @@ fn fit_one_bin(
         collinear_cond: opts.collinear_cond,
         names: design.names.clone(),
     };
-    ols_rows(
+    ols_rows_clustered(
         &design.values,
         design.nrows,
         design.ncols(),
         z,
         rows,
+        maneuver,
         &ols_opts,
     )
 }
@@ -388,6 +415,10 @@ pub fn fit_bins(
             params: nan.clone(),
             std_err: nan.clone(),
             std_err_colored: nan.clone(),
+            std_err_cluster: nan.clone(),
+            dof_cluster: nan.clone(),
+            ci95_half_width: nan.clone(),
+            p_value: nan.clone(),
             partial_f: nan.clone(),
             excitation,
             excitation_snr,
@@ -410,7 +441,7 @@ pub fn fit_bins(
             bin.notes = vec!["bin not fitted: too little data".into(); p];
             return bin;
         }
-        match fit_one_bin(design, z, rows, opts) {
+        match fit_one_bin(design, z, rows, maneuver, opts) {
             Err(e) => {
                 bin.note = format!("not fitted: {e}");
                 bin.notes = vec!["bin not fitted".into(); p];
@@ -422,6 +453,17 @@ pub fn fit_bins(
                     .std_err_colored
                     .clone()
                     .unwrap_or_else(|| vec![f64::NAN; p]);
+                if let Some(c) = &fit.cluster {
+                    bin.std_err_cluster = c.std_err.clone();
+                    bin.dof_cluster = c.dof.clone();
+                    for j in 0..p {
+                        let (se, dof) = (c.std_err[j], c.dof[j]);
+                        if se.is_finite() && dof.is_finite() {
+                            bin.ci95_half_width[j] = student_t_ppf(0.975, dof) * se;
+                            bin.p_value[j] = student_t_sf_two_sided(bin.params[j] / se, dof);
+                        }
+                    }
+                }
                 bin.partial_f = fit.partial_f.clone();
                 bin.vif = fit.collinearity.vif.clone();
                 bin.r2 = fit.r2;
@@ -453,6 +495,11 @@ pub fn fit_bins(
                     }
                     if !bin.params[j].is_finite() || !bin.std_err[j].is_finite() {
                         why.push("estimate not finite".into());
+                    } else if !bin.std_err_cluster[j].is_finite() && why.is_empty() {
+                        why.push(fit.cluster.as_ref().map_or_else(
+                            || "no cluster-robust standard error".to_string(),
+                            |c| c.notes[j].clone(),
+                        ));
                     }
                     bin.identifiable[j] = why.is_empty();
                     bin.notes[j] = why.join("; ");
@@ -488,7 +535,7 @@ pub fn adjacent_consistency(bins: &[BinFit], j: usize) -> Consistency {
         if a.identifiable[j] && b.identifiable[j] {
             let d = b.params[j] - a.params[j];
             diffs.push(d);
-            let s = (a.std_err[j].powi(2) + b.std_err[j].powi(2)).sqrt();
+            let s = (a.se(j).powi(2) + b.se(j).powi(2)).sqrt();
             if s > 0.0 {
                 zs.push((d / s).abs());
             }
@@ -631,7 +678,7 @@ pub fn smooth_parameters(fit: &BinnedFit, opts: &SmoothOptions) -> Result<Vec<Sm
         let w: Option<Vec<f64>> = opts.weighted.then(|| {
             let raw: Vec<f64> = used
                 .iter()
-                .map(|b| 1.0 / b.std_err[j].powi(2).max(f64::MIN_POSITIVE))
+                .map(|b| 1.0 / b.se(j).powi(2).max(f64::MIN_POSITIVE))
                 .collect();
             let mean = raw.iter().sum::<f64>() / raw.len() as f64;
             raw.iter().map(|v| v / mean).collect()

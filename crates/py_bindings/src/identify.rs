@@ -142,6 +142,16 @@ fn fit_dict<'py>(
         "std_err_colored",
         flat(&|b| &b.std_err_colored).into_pyarray(py),
     )?;
+    d.set_item(
+        "std_err_cluster",
+        flat(&|b| &b.std_err_cluster).into_pyarray(py),
+    )?;
+    d.set_item("dof_cluster", flat(&|b| &b.dof_cluster).into_pyarray(py))?;
+    d.set_item(
+        "ci95_half_width",
+        flat(&|b| &b.ci95_half_width).into_pyarray(py),
+    )?;
+    d.set_item("p_value", flat(&|b| &b.p_value).into_pyarray(py))?;
     d.set_item("partial_f", flat(&|b| &b.partial_f).into_pyarray(py))?;
     d.set_item("excitation", flat(&|b| &b.excitation).into_pyarray(py))?;
     d.set_item(

@@ -26,7 +26,6 @@ EFFECTS: tuple[tuple[str, str, str, float, str], ...] = (
     ("CY_beta", "CY", "beta_deg", 1.0, "1/deg"),
 )
 
-_Z95 = 1.959963984540054
 _QUAL_INPUTS = (
     "alpha_deg",
     "beta_deg",
@@ -152,14 +151,14 @@ def section(ctx: ReportContext, sink: FigureSink) -> Section:
                 if gain is not None and gain > 0:
                     c = 0.5 * (bins["alpha_lo_deg"].to_numpy() + bins["alpha_hi_deg"].to_numpy())
                     est = gain * bins["estimate"].to_numpy()
-                    se_col = bins["std_err_colored"].to_numpy()
-                    se = gain * np.where(np.isfinite(se_col), se_col, bins["std_err"].to_numpy())
-                    ok = bins["identifiable"].to_numpy()
+                    # 95 % interval: cluster-robust (CR2) error with Bell-McCaffrey t
+                    half = gain * (bins["ci95_upper"].to_numpy() - bins["estimate"].to_numpy())
+                    ok = bins["identifiable"].to_numpy() & np.isfinite(half)
                     qb = np.interp(c, alpha, base)
                     a.errorbar(
                         c[ok],
                         qb[ok] + est[ok],
-                        yerr=_Z95 * se[ok],
+                        yerr=half[ok],
                         fmt="o",
                         ms=2.5,
                         color="#444",
@@ -171,7 +170,7 @@ def section(ctx: ReportContext, sink: FigureSink) -> Section:
                         a.plot(c[~ok], qb[~ok], "x", color="#999", ms=4, label="not identified")
                     if ok.sum() >= 2:
                         inside = (alpha >= c[ok].min()) & (alpha <= c[ok].max())
-                        band = _Z95 * np.interp(alpha, c[ok], se[ok])
+                        band = np.interp(alpha, c[ok], half[ok])
                         a.fill_between(
                             alpha,
                             ext - band,

@@ -14,8 +14,6 @@ from aerodelta.plots import COLORS, FigureSink, new_figure
 from aerodelta.report.context import ReportContext
 from aerodelta.report.html import Section, p, table
 
-_Z95 = 1.959963984540054
-
 #: Channels shown in the error-vs-regressor plots (those present are drawn).
 ERROR_REGRESSORS = ("beta_deg", "phat", "rhat", "da_deg", "dr_deg")
 #: Most points drawn per scatter panel (evenly thinned beyond).
@@ -62,11 +60,11 @@ def _param_figure(
                 continue
             c = 0.5 * (b["alpha_lo_deg"].to_numpy() + b["alpha_hi_deg"].to_numpy())
             est = b["estimate"].to_numpy()
-            sec_ = b["std_err_colored"].to_numpy()
-            se = np.where(np.isfinite(sec_), sec_, b["std_err"].to_numpy())
-            ok = b["identifiable"].to_numpy()
+            # 95 % interval: cluster-robust (CR2) error with Bell-McCaffrey t
+            half = b["ci95_upper"].to_numpy() - est
+            ok = b["identifiable"].to_numpy() & np.isfinite(half)
             a.errorbar(
-                c[ok], est[ok], yerr=_Z95 * se[ok], fmt="o", ms=2.0, color=col,
+                c[ok], est[ok], yerr=half[ok], fmt="o", ms=2.0, color=col,
                 elinewidth=0.5, capsize=0, alpha=0.8, label=f"flap {flap:g}",
             )  # fmt: skip
             tab = tables.get((coef, name))
