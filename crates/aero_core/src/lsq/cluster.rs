@@ -177,7 +177,7 @@ pub(crate) fn cr2(
             continue;
         }
         let var = cov[j * p + j];
-        if !(var > 0.0) {
+        if var.is_nan() || var <= 0.0 {
             notes[j] = "cluster-robust variance not positive".into();
             continue;
         }
