@@ -894,7 +894,9 @@ def _coefficients(
             out[f"dterm_{t.name}"] = dv * nd
     for c in ("Cl", "Cn", "CY"):
         out[f"d{c}_true"] = d[c]
-        out[f"{c}_sim"] = out[f"{c}_true"] - d[c]
+        # the simulator's total: aero + propulsion (the inertial measurement holds both), so
+        # the measured minus the qualified coefficient is the withheld aero Δ alone
+        out[f"{c}_sim"] = out[f"{c}_true"] + out[f"{c}_prop_true"] - d[c]
     return out, problems
 
 
@@ -1287,7 +1289,8 @@ def _truth_json(  # noqa: PLR0917
             "over qbar S b (qbar S); term_* are each aero/coefficient/* value nondimensional "
             "(moments about the aero reference point, SIDE in wind axes).",
             "dC*_true = full - qualified: the withheld terms' change when their alpha "
-            "dependence is frozen at withhold_alpha_deg above it; C*_sim = C*_true - dC*_true.",
+            "dependence is frozen at withhold_alpha_deg above it; C*_sim = C*_true + C*_prop_true "
+            "- dC*_true (the simulator's total, as measured).",
             "derivatives: d(term)/d(regressor) at regressor 0 vs alpha_grid_deg, full, "
             "qualified and delta; tables nonlinear in beta give the slope at beta = 0.",
             "C*_prop_true: propulsion moments (not aero); the inertial measurement includes them.",
