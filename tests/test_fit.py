@@ -111,3 +111,55 @@ def test_too_few_maneuvers_per_flap_fit_the_given_structure_and_say_so(
     for c, terms in DEFAULT_STRUCTURES.items():
         kept = set(s.filter(pl.col("coefficient") == c)["param"].to_list())
         assert kept == {name for name, _ in terms}
+
+
+def _no_thrust(d: pl.DataFrame) -> pl.DataFrame:
+    """The records of a jet whose thrust is not recorded: ct channels all null."""
+    cols = [c for c in ("ct_left", "ct_right", "ct_diff") if c in d.columns]
+    return d.with_columns([pl.lit(None, dtype=pl.Float64).alias(c) for c in cols])
+
+
+def test_terms_whose_channel_has_no_value_are_dropped_with_a_note(
+    split: tuple[pl.DataFrame, pl.DataFrame],
+) -> None:
+    cfg = ad.FitConfig(selection=None)
+    res = ad.fit(_no_thrust(split[0]), config=cfg)
+    assert any("ct_left" in n and "dropped" in n for n in res.notes), res.notes
+    assert not res.params.filter(pl.col("regressor").str.contains("ct_"))["param"].len()
+    ok = res.params.filter(pl.col("identifiable"))
+    # the other terms are fitted as before, not turned to NaN by the missing channel
+    assert ok.height > 0.5 * res.params.height
+    assert ok["estimate"].is_finite().all() and ok["std_err"].is_finite().all()
+    full = ad.fit(split[0], config=cfg).params.filter(pl.col("identifiable"))
+    assert set(ok["param"].unique()) == set(full["param"].unique()) - {
+        p for p in full["param"].unique() if "ct" in p
+    }
+
+
+def test_a_term_the_user_named_is_refused_when_its_channel_is_missing(
+    split: tuple[pl.DataFrame, pl.DataFrame],
+) -> None:
+    cfg = ad.FitConfig(
+        selection=None,
+        structures={"Cl": [("dCl_0", "1"), ("dCl_ct", "ct_left + ct_right")]},
+    )
+    with pytest.raises(DataError, match=r"dCl_ct.*'ct_left' \(no value\)"):
+        ad.fit(_no_thrust(split[0]), config=cfg)
+
+
+def test_rows_without_a_regressor_value_are_counted(
+    split: tuple[pl.DataFrame, pl.DataFrame],
+) -> None:
+    d = split[0].with_row_index("_i")
+    d = d.with_columns(
+        pl.when(pl.col("_i") % 10 == 0).then(None).otherwise(pl.col("ct_left")).alias("ct_left")
+    ).drop("_i")
+    res = ad.fit(d, config=ad.FitConfig(selection=None))
+    msgs = [n for n in res.notes if "no value of 'ct_left'" in n]
+    assert msgs and all("left out" in n for n in msgs), res.notes
+
+
+def test_too_few_maneuvers_is_an_error(split: tuple[pl.DataFrame, pl.DataFrame]) -> None:
+    ids = split[0]["maneuver_id"].unique().sort().to_list()[:3]
+    with pytest.raises(DataError, match="too little data"):
+        ad.fit(split[0].filter(pl.col("maneuver_id").is_in(ids)))

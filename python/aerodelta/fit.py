@@ -18,6 +18,7 @@ from __future__ import annotations
 import hashlib
 import math
 import os
+import re
 import sys
 from collections.abc import Mapping, Sequence
 from concurrent.futures import Future, ThreadPoolExecutor
@@ -377,12 +378,14 @@ class FitResult:
         One row per coefficient, flap and alpha bin: edges (deg), points, maneuvers, R²,
         condition number, residual std, note.
     params
-        One row per coefficient, flap, bin and parameter: estimate, standard errors
-        (conventional, corrected for coloured residuals and, with a bootstrap, over
-        maneuvers), with a bootstrap the percentile band ``band_lower``/``band_upper`` at
-        ``band_level``, t, partial F, excitation (against the flap, ``excitation``, and
-        against the regressor's noise floor, ``excitation_snr``), VIF, ``identifiable`` and a
-        ``note`` saying why not.
+        One row per coefficient, flap, bin and parameter: estimate, ``std_err`` (clustered
+        by maneuver, CR2) with its Bell-McCaffrey ``dof``, ``p_value`` and 95 % interval
+        ``ci95_lower``/``ci95_upper``; ``std_err_ols`` (conventional), ``std_err_colored``
+        (SIDPAC's all-lag coloured-residual correction) and, with a bootstrap,
+        ``std_err_bootstrap`` over maneuvers; with a bootstrap the percentile band
+        ``band_lower``/``band_upper`` at ``band_level``, t, partial F, excitation (against
+        the flap, ``excitation``, and against the regressor's noise floor,
+        ``excitation_snr``), VIF, ``identifiable`` and a ``note`` saying why not.
     consistency
         Adjacent-bin consistency per coefficient, flap and parameter (Section 3.3.4).
     smoothed
@@ -404,6 +407,9 @@ class FitResult:
         and the thesis ``default`` structure (empty without selection).
     replicates
         Bootstrap replicates ``{(coefficient, param, flap): (alpha_grid, values[B, grid])}``.
+    notes
+        What the fit left out and why: terms dropped because a channel they read has no value
+        in the data (a jet without thrust channels), rows left out for a missing value.
     """
 
     model: DeltaModel
@@ -418,6 +424,7 @@ class FitResult:
     replicates: dict[tuple[str, str, float], tuple[np.ndarray, np.ndarray]] = field(
         default_factory=dict, repr=False
     )
+    notes: list[str] = field(default_factory=list)
 
     def summary(self) -> pl.DataFrame:
         """Per-parameter table (statsmodels-like), sorted by coefficient, flap, alpha."""
@@ -621,6 +628,49 @@ def _flap_columns(d: pl.DataFrame, wanted: set[str]) -> tuple[dict[str, np.ndarr
     return {c: conv[c].to_numpy() for c in num}, _maneuver_codes(d)
 
 
+#: Function names of the regressor grammar (``aero_core::regressor``): not channels.
+_REGRESSOR_FUNCTIONS = frozenset(
+    {"pos", "neg", "deadband", "step", "abs", "sqrt", "sin", "cos", "exp", "min", "max"}
+)
+_IDENT = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
+
+
+def regressor_channels(expr: str) -> list[str]:
+    """The data channels a regressor expression reads (identifiers that are not functions)."""
+    return sorted({t for t in _IDENT.findall(expr) if t not in _REGRESSOR_FUNCTIONS})
+
+
+def _screen_regressors(
+    regs: Sequence[tuple[str, str]],
+    counts: Mapping[str, int],
+    *,
+    coef: str,
+    flap: float,
+    user_named: bool,
+    what: str,
+) -> tuple[list[tuple[str, str]], list[str]]:
+    """Drop the regressors whose channels have no value at this flap, with a note each; a
+    regressor the user named is refused instead (``DataError``)."""
+    kept: list[tuple[str, str]] = []
+    notes: list[str] = []
+    for name, expr in regs:
+        absent = [c for c in regressor_channels(expr) if counts.get(c, 0) == 0]
+        if not absent:
+            kept.append((name, expr))
+            continue
+        chans = ", ".join(
+            f"'{c}' ({'no value' if c in counts else 'not in the data'})" for c in absent
+        )
+        if user_named:
+            raise DataError(
+                f"fit: {coef} term '{name}' = {expr} in the {what} reads {chans} at flap "
+                f"{flap:g} deg; map that channel in the records (see docs/data.md) or remove the "
+                f"term from the {what}"
+            )
+        notes.append(f"{coef} at flap {flap:g} deg: term '{name}' = {expr} dropped: {chans}")
+    return kept, notes
+
+
 def _submit(
     ex: ThreadPoolExecutor,
     cfg: FitConfig,
@@ -634,13 +684,28 @@ def _submit(
     forced: Sequence[int],
     extra: Sequence[Sequence[int]],
     bootstrap: int,
+    flap: float,
+    notes: list[str],
 ) -> Future:
     """Submit one coefficient's identification at one flap to the engine (which releases the
-    GIL), on the rows with a finite qualified-model error and alpha."""
+    GIL), on the rows with a finite qualified-model error, alpha and regressor channels (rows
+    left out are counted in ``notes``)."""
     z_all = full[f"{coef}_meas"] - full[f"{coef}_qual"]
     keep = np.isfinite(z_all) & np.isfinite(full["alpha_deg"])
-    # only the columns the regressors can read (names appearing in their expressions)
-    used = [c for c in full if c == "alpha_deg" or any(c in e for _, e in regs)]
+    # only the columns the regressors read; a row without a value of one of them is left out
+    # here, counted in a note, never handed to the engine
+    read = {c for _, e in regs for c in regressor_channels(e)}
+    used = [c for c in full if c == "alpha_deg" or c in read]
+    for c in used:
+        ok = np.isfinite(full[c])
+        if not ok.all():
+            gap = int((keep & ~ok).sum())
+            if gap:
+                notes.append(
+                    f"{coef} at flap {flap:g} deg: {gap} of {len(ok)} rows "
+                    f"({100 * gap / len(ok):.1f} %) have no value of '{c}' and are left out"
+                )
+            keep &= ok
     pick = (lambda v: v) if keep.all() else (lambda v: v[keep])
     cols = {c: np.ascontiguousarray(pick(full[c])) for c in used}
     z = np.ascontiguousarray(z_all[keep])
@@ -714,6 +779,21 @@ def fit(
         raise DataError(f"fit: the data lack {missing}; run aerodelta.ingest first")
     df = pl.concat([df, qualified_coefficients(df, qualified)], how="horizontal")
     flaps = sorted(float(f) for f in df["flap_deg"].unique().drop_nulls())
+    if not flaps:
+        raise DataError("fit: no row has a flap setting (flap_deg); check the manifest")
+    per_flap = df.group_by("flap_deg").agg(pl.col("maneuver_id").n_unique().alias("n"))
+    if int(per_flap["n"].max() or 0) < cfg.min_maneuvers_identified:
+        raise DataError(
+            f"fit: too little data: at most {int(per_flap['n'].max() or 0)} maneuvers at one flap "
+            f"setting, and a parameter needs {cfg.min_maneuvers_identified} maneuvers in an "
+            "alpha bin to be identified (min_maneuvers_identified); fly more maneuvers"
+        )
+    # structures the user gave (not the thesis defaults): a term of theirs is never dropped
+    custom_structures = {
+        c: [tuple(t) for t in v] != [tuple(t) for t in DEFAULT_STRUCTURES.get(c, [])]
+        for c, v in cfg.structures.items()
+    }
+    notes: list[str] = []
     bins_rows: list[pl.DataFrame] = []
     param_rows: list[pl.DataFrame] = []
     cons_rows: list[dict[str, Any]] = []
@@ -820,10 +900,25 @@ def fit(
         data_hash = ex.submit(_data_hash, data)
         for flap in flaps:
             full, codes = _flap_columns(parts[flap], wanted)
+            # values per channel a regressor can read (a channel absent from the data is not
+            # counted: the engine names it as unknown)
+            counts = {c: int(np.isfinite(v).sum()) for c, v in full.items()}
+            counts.update({c: 0 for c in wanted if c in df.columns and c not in full})
             selection = cfg.selection if n_maneuvers[flap] >= cfg.min_maneuvers_selection else None
             for coef in coefs:
-                default = [(str(n), str(e)) for n, e in cfg.structures[coef]]
-                regs = default if selection is None else [(str(n), str(e)) for n, e in pools[coef]]
+                default, dn = _screen_regressors(
+                    [(str(n), str(e)) for n, e in cfg.structures[coef]], counts,
+                    coef=coef, flap=flap, user_named=custom_structures[coef], what="structure",
+                )  # fmt: skip
+                if selection is None:
+                    regs = default
+                    notes.extend(dn)
+                else:
+                    regs, pn = _screen_regressors(
+                        [(str(n), str(e)) for n, e in pools[coef]], counts, coef=coef, flap=flap,
+                        user_named=cfg.candidates is not None, what="candidate pool",
+                    )  # fmt: skip
+                    notes.extend(pn)
                 forced = [i for i, (_, e) in enumerate(regs) if e.strip() == "1"]
                 by_expr = {e.replace(" ", ""): i for i, (_, e) in enumerate(regs)}
                 extra_cols = [by_expr.get(e.replace(" ", "")) for _, e in default]
@@ -831,7 +926,7 @@ def fit(
                 fut = _submit(
                     ex, cfg, full, codes, coef, regs=regs,
                     alpha_max=stall[flap] + cfg.past_stall_deg, selection=selection,
-                    forced=forced, extra=extra, bootstrap=cfg.bootstrap,
+                    forced=forced, extra=extra, bootstrap=cfg.bootstrap, flap=flap, notes=notes,
                 )  # fmt: skip
                 jobs.append((flap, coef, regs, default, extra, fut))
             while len(jobs) > 2 * len(coefs):  # bounded memory: about three flaps in flight
@@ -856,6 +951,7 @@ def fit(
         selection_bins=pl.concat(selbin_rows) if selbin_rows else pl.DataFrame(),
         cross_validation=pl.DataFrame(cv_rows),
         replicates=replicates,
+        notes=notes,
     )
 
 

@@ -45,6 +45,8 @@ def run(args: argparse.Namespace) -> int:
     tmp = params.with_name(f".{params.name}.tmp")
     result.summary().write_parquet(tmp)
     tmp.replace(params)
+    for note in result.notes:
+        print(f"note: {note}")
     ident = result.params.group_by("coefficient").agg(
         pl.len().alias("estimates"), pl.col("identifiable").mean().alias("identified")
     )
@@ -53,5 +55,22 @@ def run(args: argparse.Namespace) -> int:
             f"{row['coefficient']}: {row['estimates']} bin estimates, "
             f"{100 * row['identified']:.0f}% identified"
         )
+    # why the rest is not identified: the first clause of each note, most frequent first
+    why = (
+        result.params.filter(~pl.col("identifiable"))
+        .with_columns(pl.col("note").str.split(":").list.first().alias("reason"))
+        .group_by("coefficient", "reason")
+        .agg(pl.len().alias("n"))
+        .sort(["coefficient", "n"], descending=[False, True])
+    )
+    for row in why.iter_rows(named=True):
+        print(f"  {row['coefficient']} not identified: {row['n']} x {row['reason']}")
     print(f"model written to {out}; per-bin estimates in {params}", file=sys.stderr)
+    if ident.height == 0 or float(ident["identified"].max() or 0.0) == 0.0:
+        print(
+            "aerodelta fit: error: no parameter is identified in any alpha bin; the model "
+            "holds no Δ (see the notes above and the per-bin table)",
+            file=sys.stderr,
+        )
+        return 1
     return 0
