@@ -1,0 +1,394 @@
+"""Check the Δ-model identification against the truth on JSBSim aircraft (issue 16).
+
+For each aircraft (``f15``, ``DHC6``) and seed: fly a JSBSim campaign
+(``aerodelta.jsbsim_campaign.generate_jsbsim_campaign``, the aircraft's default withheld terms
+and withhold alpha, sensor noise scale 1, no turbulence unless ``--turbulence``), ingest it,
+hold out every fifth maneuver, fit the rest against the campaign's qualified model
+(``qualified="columns"``: ``Cl_sim``, ``Cn_sim``, ``CY_sim``) with the thesis structures
+(``selection=None``) and with the default stepwise selection (optionally with a bootstrap over
+maneuvers), and compare every identified bin with the true Δ derivative at the bin centre
+(``true_delta_derivative``, from the aircraft's XML). Reported per aircraft, structure and
+coefficient:
+
+- **consistency**: rms over the samples above the withhold alpha of
+  ``C_meas - C_sim - dC_true`` (what the fit would have to explain that is not the true Δ:
+  sensor noise, the 50 Hz rate differences, anything the qualified columns leave out) over the
+  rms of ``dC_true``;
+- **material terms**: a (parameter, flap, bin) is material where |true Δ derivative| at the bin
+  centre is at least 20 % of its largest value over the flap's fitted bin centres
+  (alpha >= alpha_l); per identified material bin: relative error |estimate - truth| / |truth|
+  (median and 90th percentile), the share whose 95 % CR2 interval (``ci95_lower``..
+  ``ci95_upper``) holds the truth, the same for the bootstrap band (``band_lower``..
+  ``band_upper``) when run; the share of material bins identified; for the selection, the
+  (seed, flap) cases where a material term is not kept;
+- **zero-truth terms**: share of identified bins (alpha >= alpha_l) of parameters whose
+  truth is zero with ``p_value < 0.05`` (``beta_deg^2``, ``beta_deg^3`` are left out: the
+  truth gives the slope at beta = 0 only, and the DHC-6's Clb(beta, alpha) is nonlinear in
+  beta);
+- **held-out TIC ratio**: Theil inequality of the extended model over the qualified model's on
+  the held-out maneuvers, and of qualified + the true Δ.
+
+Run: ``python benchmarks/jsbsim_identification_check.py --aircraft f15 --seeds 20
+--first-seed 101 [--size 10] [--bootstrap 100] [--out rows.parquet]``; ``--summarize
+rows_a.parquet rows_b.parquet`` prints the table of saved rows. About 12-15 s per campaign to
+fly (size 10) and 1-10 s per fit on 2 cores.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import shutil
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+import polars as pl
+
+import aerodelta as ad
+from aerodelta.fit import COEFFICIENTS, FitConfig, model_frame, qualified_coefficients
+from aerodelta.fit import theil_inequality as tic
+from aerodelta.jsbsim_campaign import generate_jsbsim_campaign, true_delta_derivative
+
+#: Fit regressor -> truth regressor of ``truth.json`` (others have zero truth).
+_TRUTH_REG = {
+    "beta_deg": "beta_deg",
+    "phat": "phat",
+    "rhat": "rhat",
+    "deadband(da_deg, 2)": "da_deg",
+    "da_deg": "da_deg",
+    "dr_deg": "dr_deg",
+}
+#: Regressors whose truth the campaign does not give (higher orders of a beta table).
+_UNKNOWN_TRUTH = {"beta_deg^2", "beta_deg^3"}
+MATERIAL = 0.2
+
+
+def _truth_frame(camp: Path) -> pl.DataFrame:
+    return pl.concat(
+        [
+            pl.read_parquet(f)
+            .select(
+                "t",
+                "alpha_deg",
+                *[f"{c}_sim" for c in COEFFICIENTS],
+                *[f"d{c}_true" for c in COEFFICIENTS],
+            )
+            .rename({"alpha_deg": "alpha_true_deg"})
+            .with_columns(pl.lit(f.stem).alias("maneuver_id"))
+            for f in sorted((camp / "truth").glob("*.parquet"))
+            if f.stem != "true_delta"
+        ]
+    )
+
+
+def _consistency(data: pl.DataFrame, truth: pl.DataFrame, walpha: float) -> dict[str, float]:
+    """Per coefficient: rms(C_meas - C_sim - dC_true) / rms(dC_true) above the withhold alpha."""
+    j = data.select("maneuver_id", "t", *[f"{c}_meas" for c in COEFFICIENTS]).join(
+        truth, on=["maneuver_id", "t"], how="inner"
+    )
+    j = j.filter(pl.col("alpha_true_deg") > walpha)
+    out = {}
+    for c in COEFFICIENTS:
+        d = j[f"d{c}_true"].to_numpy()
+        res = j[f"{c}_meas"].to_numpy() - j[f"{c}_sim"].to_numpy() - d
+        rd = float(np.sqrt(np.mean(d**2)))
+        out[c] = float(np.sqrt(np.mean(res**2))) / rd if rd > 0 else math.inf
+        out[f"{c}_abs"] = float(np.sqrt(np.mean(res**2)))
+    return out
+
+
+def _tic_ratios(result: ad.FitResult, test: pl.DataFrame, truth: pl.DataFrame) -> dict[str, float]:
+    mf = model_frame(test)
+    qual = qualified_coefficients(mf, "columns")
+    ev = pl.concat(
+        [
+            result.model.evaluate(mf),
+            qual,
+            test.select("maneuver_id", "t", *[f"{c}_meas" for c in COEFFICIENTS]),
+        ],
+        how="horizontal",
+    )
+    j = ev.join(truth, on=["maneuver_id", "t"], how="inner")
+    out = {}
+    for c in COEFFICIENTS:
+        meas, q = j[f"{c}_meas"].to_numpy(), j[f"{c}_qual"].to_numpy()
+        t0 = tic(meas, q)
+        out[f"tic_{c}"] = tic(meas, q + j[f"d{c}_blended"].to_numpy()) / t0
+        out[f"tic_true_{c}"] = tic(meas, q + j[f"d{c}_true"].to_numpy()) / t0
+    return out
+
+
+def _bin_rows(result: ad.FitResult, camp: Path, config: FitConfig) -> pl.DataFrame:
+    """One row per fitted (coefficient, flap, parameter, bin) with its truth."""
+    p = result.params
+    spec = result.model.to_spec()
+    flaps = list(spec["flaps_deg"])
+    centre = 0.5 * (p["alpha_lo_deg"].to_numpy() + p["alpha_hi_deg"].to_numpy())
+    truth = np.zeros(p.height)
+    known = np.ones(p.height, dtype=bool)
+    alpha_l = np.zeros(p.height)
+    for i, (coef, flap, reg) in enumerate(
+        zip(p["coefficient"], p["flap_deg"], p["regressor"], strict=True)
+    ):
+        alpha_l[i] = spec["coefficients"][coef]["alpha_l_deg"][flaps.index(flap)]
+        if reg in _UNKNOWN_TRUTH:
+            known[i] = False
+        elif reg in _TRUTH_REG:
+            truth[i] = float(true_delta_derivative(camp, coef, _TRUTH_REG[reg], flap, centre[i]))
+    has_band = "band_lower" in p.columns and config.bootstrap > 0
+    out = p.select(
+        "coefficient",
+        "flap_deg",
+        "param",
+        "regressor",
+        "estimate",
+        "ci95_lower",
+        "ci95_upper",
+        "p_value",
+        "identifiable",
+        *([] if not has_band else ["band_lower", "band_upper"]),
+    ).with_columns(
+        pl.Series("centre_deg", centre),
+        pl.Series("truth", truth),
+        pl.Series("truth_known", known),
+        pl.Series("alpha_l_deg", alpha_l),
+    )
+    if not has_band:
+        out = out.with_columns(
+            pl.lit(math.nan).alias("band_lower"), pl.lit(math.nan).alias("band_upper")
+        )
+    out = out.filter(pl.col("centre_deg") >= pl.col("alpha_l_deg"))
+    # material: |truth| >= 20 % of the term's largest |truth| over the flap's bins
+    out = out.with_columns(
+        pl.col("truth").abs().max().over("coefficient", "flap_deg", "param").alias("truth_max")
+    ).with_columns(
+        (
+            (pl.col("truth").abs() >= MATERIAL * pl.col("truth_max")) & (pl.col("truth_max") > 0)
+        ).alias("material"),
+        ((pl.col("truth_max") == 0) & pl.col("truth_known")).alias("zero_truth"),
+    )
+    return out
+
+
+def _dropped(result: ad.FitResult, camp: Path) -> pl.DataFrame:
+    """Per (coefficient, flap, parameter) of the selection: whether a term with nonzero truth
+    on the fitted range is kept."""
+    s = result.structure
+    rows = []
+    for row in s.iter_rows(named=True):
+        reg = row["regressor"]
+        if reg not in _TRUTH_REG:
+            continue
+        grid = np.arange(0.0, 60.0, 0.5)
+        t = true_delta_derivative(camp, row["coefficient"], _TRUTH_REG[reg], row["flap_deg"], grid)
+        if np.any(t != 0):
+            rows.append(
+                {
+                    "coefficient": row["coefficient"],
+                    "flap_deg": row["flap_deg"],
+                    "param": row["param"],
+                    "kept": bool(row["kept"]),
+                    "note": str(row["note"]),
+                }
+            )
+    return pl.DataFrame(rows)
+
+
+def run(args: argparse.Namespace) -> tuple[pl.DataFrame, pl.DataFrame, pl.DataFrame]:
+    configs = {
+        "thesis": FitConfig(selection=None, bootstrap=args.bootstrap),
+        "stepwise": FitConfig(bootstrap=args.bootstrap),
+    }
+    bins, camps, drops = [], [], []
+    t_start = time.perf_counter()
+    with tempfile.TemporaryDirectory() as tmp:
+        for seed in range(args.first_seed, args.first_seed + args.seeds):
+            camp = Path(tmp) / f"{args.aircraft}_{seed}"
+            t0 = time.perf_counter()
+            info = generate_jsbsim_campaign(
+                camp,
+                aircraft=args.aircraft,
+                seed=seed,
+                size=args.size,
+                turbulence=args.turbulence,
+            )
+            t_fly = time.perf_counter() - t0
+            data = ad.ingest(camp, compat=False, progress=False).data
+            truth = _truth_frame(camp)
+            cons = _consistency(data, truth, info.withhold_alpha_deg)
+            ids = data["maneuver_id"].unique().sort().to_list()
+            held = set(ids[::5])
+            train = data.filter(~pl.col("maneuver_id").is_in(held))
+            test = data.filter(pl.col("maneuver_id").is_in(held))
+            for name, base in configs.items():
+                cfg = FitConfig(**{**base.__dict__, "seed": seed})
+                t1 = time.perf_counter()
+                r = ad.fit(train, qualified="columns", config=cfg)
+                t_fit = time.perf_counter() - t1
+                tag = {"aircraft": args.aircraft, "seed": seed, "structure": name}
+                b = _bin_rows(r, camp, cfg)
+                bins.append(b.with_columns(*[pl.lit(v).alias(k) for k, v in tag.items()]))
+                camps.append(
+                    {
+                        **tag,
+                        "maneuvers": len(ids),
+                        "fly_s": t_fly,
+                        "fit_s": t_fit,
+                        **{f"cons_{k}": v for k, v in cons.items()},
+                        **_tic_ratios(r, test, truth),
+                    }
+                )
+                if name == "stepwise":
+                    d = _dropped(r, camp)
+                    if d.height:
+                        drops.append(d.with_columns(*[pl.lit(v).alias(k) for k, v in tag.items()]))
+            shutil.rmtree(camp)
+            print(
+                f"{args.aircraft} seed {seed}: fly {t_fly:.1f} s, total "
+                f"{time.perf_counter() - t_start:.0f} s",
+                flush=True,
+            )
+    bins_df = pl.concat(bins, how="diagonal_relaxed")
+    drops_df = pl.concat(drops) if drops else pl.DataFrame()
+    return bins_df, pl.DataFrame(camps), drops_df
+
+
+def _q(x: np.ndarray, q: float) -> float:
+    return float(np.quantile(x, q)) if x.size else math.nan
+
+
+def summarize(bins: pl.DataFrame, camps: pl.DataFrame, drops: pl.DataFrame) -> str:
+    """The markdown table of the check (one row per aircraft, structure, coefficient)."""
+    lines = [
+        "| aircraft | structure | coef | consistency | material terms | bins (ident.) | "
+        "rel. err median / p90 | CR2 95 % holds truth | bootstrap band holds truth | "
+        "material term dropped | zero-truth significant (p < 0.05) | TIC ext/qual | "
+        "TIC (qual + true Δ)/qual |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for (ac, st), g in bins.group_by(["aircraft", "structure"], maintain_order=True):
+        cg = camps.filter((pl.col("aircraft") == ac) & (pl.col("structure") == st))
+        for c in COEFFICIENTS:
+            h = g.filter(pl.col("coefficient") == c)
+            mat = h.filter(pl.col("material"))
+            mid = mat.filter(pl.col("identifiable"))
+            terms = ", ".join(sorted(set(mat["param"].to_list()))) or "-"
+            est, tr = mid["estimate"].to_numpy(), mid["truth"].to_numpy()
+            rel = np.abs(est - tr) / np.abs(tr)
+            inside = (mid["ci95_lower"].to_numpy() <= tr) & (tr <= mid["ci95_upper"].to_numpy())
+            blo, bhi = mid["band_lower"].to_numpy(), mid["band_upper"].to_numpy()
+            okb = np.isfinite(blo) & np.isfinite(bhi)
+            band = (
+                f"{100 * np.mean(((blo <= tr) & (tr <= bhi))[okb]):.0f} % of {okb.sum()}"
+                if okb.any()
+                else "-"
+            )
+            zero = h.filter(pl.col("zero_truth") & pl.col("identifiable"))
+            zsig = zero["p_value"].to_numpy() < 0.05
+            if st == "stepwise" and drops.height:
+                dg = drops.filter((pl.col("aircraft") == ac) & (pl.col("coefficient") == c))
+                nd = dg.filter(~pl.col("kept"))
+                dropped = (
+                    f"{nd.height} of {dg.height} ("
+                    + ", ".join(f"{k} {v}x" for k, v in nd["param"].value_counts().iter_rows())
+                    + ")"
+                    if nd.height
+                    else f"0 of {dg.height}"
+                )
+            else:
+                dropped = "n/a (fixed)"
+            cons = cg[f"cons_{c}"].to_numpy()
+            cons_txt = (
+                f"{np.median(cons):.2f}"
+                if np.all(np.isfinite(cons))
+                else f"no Δ (rms {np.median(cg[f'cons_{c}_abs'].to_numpy()):.4f})"
+            )
+            lines.append(
+                f"| {ac} | {st} | {c} | {cons_txt} | {terms} | "
+                f"{mat.height} ({mid.height}) | "
+                + (
+                    f"{100 * np.median(rel):.0f} % / {100 * _q(rel, 0.9):.0f} % | "
+                    f"{100 * np.mean(inside):.0f} % | "
+                    if mid.height
+                    else "- | - | "
+                )
+                + f"{band} | {dropped} | "
+                f"{100 * np.mean(zsig) if zsig.size else math.nan:.1f} % of {zsig.size} | "
+                f"{np.median(cg[f'tic_{c}']):.2f} (max {cg[f'tic_{c}'].max():.2f}) | "
+                f"{np.median(cg[f'tic_true_{c}']):.2f} |"
+            )
+    return "\n".join(lines)
+
+
+def per_term(bins: pl.DataFrame) -> str:
+    """Per material parameter: identified share, relative error and CR2 coverage."""
+    lines = [
+        "| aircraft | structure | param | flap | material bins (ident.) | rel. err median / p90 | "
+        "CR2 95 % holds truth | median estimate / truth |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    m = bins.filter(pl.col("material"))
+    for (ac, st, par, fl), g in m.group_by(
+        ["aircraft", "structure", "param", "flap_deg"], maintain_order=True
+    ):
+        mid = g.filter(pl.col("identifiable"))
+        tr, est = mid["truth"].to_numpy(), mid["estimate"].to_numpy()
+        if tr.size:
+            rel = np.abs(est - tr) / np.abs(tr)
+            ins = (mid["ci95_lower"].to_numpy() <= tr) & (tr <= mid["ci95_upper"].to_numpy())
+            cells = (
+                f"{100 * np.median(rel):.0f} % / {100 * _q(rel, 0.9):.0f} % | "
+                f"{100 * np.mean(ins):.0f} % | {np.median(est / tr):.2f}"
+            )
+        else:
+            cells = "- | - | -"
+        lines.append(f"| {ac} | {st} | {par} | {fl:g} | {g.height} ({mid.height}) | {cells} |")
+    return "\n".join(lines)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--aircraft", default="f15", choices=["f15", "DHC6"])
+    ap.add_argument("--seeds", type=int, default=20)
+    ap.add_argument("--first-seed", type=int, default=101)
+    ap.add_argument("--size", type=int, default=10, help="repetitions per flap and entry kind")
+    ap.add_argument("--bootstrap", type=int, default=0)
+    ap.add_argument("--turbulence", type=float, default=0.0)
+    ap.add_argument("--out", type=Path, default=None, help="save the rows (prefix)")
+    ap.add_argument("--summarize", type=Path, nargs="+", default=None, help="saved prefixes")
+    args = ap.parse_args()
+    if args.summarize:
+        bins = pl.concat(
+            [pl.read_parquet(f"{p}_bins.parquet") for p in args.summarize], how="diagonal_relaxed"
+        )
+        camps = pl.concat([pl.read_parquet(f"{p}_camps.parquet") for p in args.summarize])
+        drops = pl.concat(
+            [
+                pl.read_parquet(f"{p}_drops.parquet")
+                for p in args.summarize
+                if Path(f"{p}_drops.parquet").exists()
+            ],
+            how="diagonal_relaxed",
+        )
+    else:
+        bins, camps, drops = run(args)
+        if args.out is not None:
+            bins.write_parquet(f"{args.out}_bins.parquet")
+            camps.write_parquet(f"{args.out}_camps.parquet")
+            if drops.height:
+                drops.write_parquet(f"{args.out}_drops.parquet")
+    seeds = sorted(set(camps["seed"].to_list()))
+    print(f"\nseeds {seeds[0]}..{seeds[-1]} ({len(seeds)} campaigns per aircraft)")
+    timing = camps.group_by("aircraft", "structure").agg(
+        pl.col("maneuvers").median(), pl.col("fly_s").median(), pl.col("fit_s").median()
+    )
+    print(timing)
+    print(summarize(bins, camps, drops))
+    print()
+    print(per_term(bins))
+
+
+if __name__ == "__main__":
+    main()
