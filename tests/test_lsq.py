@@ -399,3 +399,21 @@ def test_incomplete_beta_against_scipy() -> None:
             assert _rel(_core.beta_inc_reg(a, b, x), betainc(a, b, x)) < 1e-11 or (
                 betainc(a, b, x) < 1e-280
             )
+
+
+def test_min_norm_truncates_the_directions_the_rank_was_counted_on() -> None:
+    # an exact dependency (x3 = 1e6 x1) beside a column at 1e-12 scale: the rank (3 of 4) is
+    # counted on the column-normalized X, so the solution keeps the tiny column's direction and
+    # drops the null one; truncating the unscaled SVD would do the opposite
+    rng = np.random.default_rng(7)
+    n = 200
+    x1, x2 = rng.normal(size=n), rng.normal(size=n)
+    x = np.column_stack([np.ones(n), x1, 1e-12 * x2, 1e6 * x1])
+    z = 0.5 + 2.0 * x1 + 3.0 * x2 + 0.01 * rng.normal(size=n)
+    r = aerodelta.ols(x, z, min_norm=True)
+    norms = np.linalg.norm(x, axis=0)
+    ref = np.linalg.lstsq(x / norms, z, rcond=None)[0] / norms
+    np.testing.assert_allclose(r.params, ref, rtol=1e-7)
+    assert r.rank == 3
+    # the tiny column's parameter is the one the data determine: 3 per unit of x2 / 1e-12
+    assert abs(r.params[2] * 1e-12 - 3.0) < 0.01

@@ -343,8 +343,10 @@ def ols(
     max_lag
         Truncate the residual autocorrelation beyond this many samples (default: all).
     min_norm
-        Accept an exactly rank-deficient X and return the minimum-norm solution (as
-        ``numpy.linalg.lstsq``), the dependent parameters marked not identifiable.
+        Accept an exactly rank-deficient X and return the minimum-norm solution in
+        column-normalized units (``numpy.linalg.lstsq`` of X with unit-norm columns, scaled
+        back; equal to ``lstsq`` of X when the dependent columns have equal norms), the
+        dependent parameters marked not identifiable.
     collinear_cond
         Condition index of the column-normalized X above which a direction is a near
         dependency and its parameters are marked not identifiable.

@@ -54,8 +54,10 @@ pub struct OlsOptions {
     /// coloured-residual covariance. Default `None`: all lags, as `r_colores`.
     pub max_lag: Option<usize>,
     /// Accept an exactly rank-deficient X and return the minimum-norm
-    /// solution (as `numpy.linalg.lstsq`); the parameters of the dependent
-    /// columns are then marked not identifiable. Default `false`: error.
+    /// solution in column-normalized units (`numpy.linalg.lstsq` of X with
+    /// unit-norm columns, scaled back), truncating the same singular values
+    /// the rank was counted on; the parameters of the dependent columns are
+    /// then marked not identifiable. Default `false`: error.
     pub min_norm: bool,
     /// Condition-index threshold of a near dependency
     /// ([`COLLINEAR_COND_DEFAULT`]).
@@ -787,10 +789,19 @@ fn fit(
             .collect();
         (th, rinv)
     } else {
-        // Truncated SVD of R keeping the `rank` largest singular values.
-        let u = svd_u.U();
-        let v = svd_u.V();
-        let b = Mat::from_fn(p, rank, |i, k| v[(i, k)] / sv[k]);
+        // Truncated SVD of the column-normalized R D⁻¹, keeping the `rank`
+        // directions the rank was counted on (truncating the unscaled SVD
+        // instead would keep other directions when the columns' scales
+        // differ): θ = D⁻¹ V_r Σ_r⁻¹ U_rᵀ Qᵀz, the minimum-norm solution in
+        // normalized units, and B = D⁻¹ V_r Σ_r⁻¹.
+        let u = svd_s.U();
+        let b = Mat::from_fn(p, rank, |i, k| {
+            if d[i] > 0.0 {
+                vs[(i, k)] / sv_scaled[k] / d[i]
+            } else {
+                0.0
+            }
+        });
         let utc: Vec<f64> = (0..rank)
             .map(|k| (0..p).map(|i| u[(i, k)] * qtz[i]).sum())
             .collect();
@@ -1001,7 +1012,18 @@ fn fit(
         let cv: Vec<f64> = (0..p * p)
             .map(|ij| 0.5 * (c[(ij / p, ij % p)] + c[(ij % p, ij / p)]))
             .collect();
-        let se: Vec<f64> = (0..p).map(|j| cv[j * p + j].max(0.0).sqrt()).collect();
+        // A negative variance (truncated lags can make the estimate
+        // indefinite) has no standard error: NaN, never 0.
+        let se: Vec<f64> = (0..p)
+            .map(|j| {
+                let v = cv[j * p + j];
+                if v >= 0.0 {
+                    v.sqrt()
+                } else {
+                    f64::NAN
+                }
+            })
+            .collect();
         (Some(cv), Some(se))
     } else {
         (None, None)
