@@ -37,6 +37,7 @@ fly (size 10) and 1-10 s per fit on 2 cores.
 from __future__ import annotations
 
 import argparse
+import json
 import math
 import shutil
 import tempfile
@@ -47,6 +48,7 @@ import numpy as np
 import polars as pl
 
 import aerodelta as ad
+from aerodelta import jsbsim_campaign as jc
 from aerodelta.fit import COEFFICIENTS, FitConfig, model_frame, qualified_coefficients
 from aerodelta.fit import theil_inequality as tic
 from aerodelta.jsbsim_campaign import generate_jsbsim_campaign, true_delta_derivative
@@ -63,6 +65,40 @@ _TRUTH_REG = {
 #: Regressors whose truth the campaign does not give (higher orders of a beta table).
 _UNKNOWN_TRUTH = {"beta_deg^2", "beta_deg^3"}
 MATERIAL = 0.2
+
+
+def _true_intercept(camp: Path, coefficient: str, flap_deg: float, alpha_deg: float) -> float:
+    """True Δ at zero regressors (the ``1`` regressor), which ``truth.json`` does not give:
+    the withheld terms (full - qualified) evaluated from the XML at beta = p = r = controls =
+    0. Nonzero where a table holds the coefficient itself rather than a derivative (the
+    DHC-6's Clb(beta, alpha) is -0.01 at beta = 0, alpha = 10 deg and +0.02 at 14 deg)."""
+    doc = json.loads((camp / "truth" / "truth.json").read_text())
+    key = (doc["aircraft"], doc["withhold_alpha_deg"], coefficient, flap_deg)
+    if key not in _INTERCEPTS:
+        cfg, xml = jc._resolve_aircraft(doc["aircraft"], jc._root(None))
+        names = {w["name"] for w in doc["withheld"] if w["coefficient"] == coefficient}
+        terms = [t for t in jc._aero_terms(xml, jc._root(None)) if t.name in names]
+        grid = np.asarray(doc["alpha_grid_deg"], dtype=float)
+        walpha = float(doc["withhold_alpha_deg"])
+        total = np.zeros_like(grid)
+        for t in terms:
+            for a, sign in ((grid, 1.0), (np.minimum(grid, walpha), -1.0)):
+                base = {
+                    **jc._REF_PROPS,
+                    "aero/alpha-rad": a * jc.D2R,
+                    "aero/alpha-deg": a,
+                    cfg.flap_deg_prop: np.full_like(a, flap_deg),
+                    "fcs/flap-pos-norm": np.full_like(a, flap_deg * cfg.flap_norm_per_deg),
+                    "velocities/mach": np.full_like(a, cfg.mach_ref),
+                }
+                val = jc._eval(t.tree, lambda prop, base=base: base.get(prop, 0.0))
+                total = total + sign * np.broadcast_to(val, a.shape)
+        _INTERCEPTS[key] = (grid, total)
+    grid, total = _INTERCEPTS[key]
+    return float(np.interp(alpha_deg, grid, total))
+
+
+_INTERCEPTS: dict[tuple[str, float, str, float], tuple[np.ndarray, np.ndarray]] = {}
 
 
 def _truth_frame(camp: Path) -> pl.DataFrame:
@@ -137,6 +173,8 @@ def _bin_rows(result: ad.FitResult, camp: Path, config: FitConfig) -> pl.DataFra
             known[i] = False
         elif reg in _TRUTH_REG:
             truth[i] = float(true_delta_derivative(camp, coef, _TRUTH_REG[reg], flap, centre[i]))
+        elif reg == "1":
+            truth[i] = _true_intercept(camp, coef, flap, centre[i])
     has_band = "band_lower" in p.columns and config.bootstrap > 0
     out = p.select(
         "coefficient",
@@ -179,10 +217,17 @@ def _dropped(result: ad.FitResult, camp: Path) -> pl.DataFrame:
     rows = []
     for row in s.iter_rows(named=True):
         reg = row["regressor"]
-        if reg not in _TRUTH_REG:
-            continue
         grid = np.arange(0.0, 60.0, 0.5)
-        t = true_delta_derivative(camp, row["coefficient"], _TRUTH_REG[reg], row["flap_deg"], grid)
+        if reg == "1":
+            t = np.array(
+                [_true_intercept(camp, row["coefficient"], row["flap_deg"], a) for a in grid]
+            )
+        elif reg in _TRUTH_REG:
+            t = true_delta_derivative(
+                camp, row["coefficient"], _TRUTH_REG[reg], row["flap_deg"], grid
+            )
+        else:
+            continue
         if np.any(t != 0):
             rows.append(
                 {
