@@ -383,7 +383,10 @@ class FitResult:
         ``ci95_lower``/``ci95_upper``; ``std_err_ols`` (conventional), ``std_err_colored``
         (SIDPAC's all-lag coloured-residual correction) and, with a bootstrap,
         ``std_err_bootstrap`` over maneuvers; with a bootstrap the percentile band
-        ``band_lower``/``band_upper`` at ``band_level``, t, partial F, excitation (against
+        ``band_lower``/``band_upper`` at ``band_level`` (widened to reach the estimate when
+        the replicates lie on one side of it; NaN when fewer than half the replicates could
+        refit the bin), ``bootstrap_ok`` (replicates that refitted the bin), ``inclusion``
+        (share of replicates whose own selection kept the term), t, partial F, excitation (against
         the flap, ``excitation``, and against the regressor's noise floor,
         ``excitation_snr``), VIF, ``identifiable`` and a ``note`` saying why not.
     consistency
@@ -551,6 +554,9 @@ def _bin_rows(
             "std_err_ols": flat("std_err"), "std_err_colored": flat("std_err_colored"),
             "std_err_bootstrap": boot_col("bin_std"),
             "band_lower": boot_col("bin_lower"), "band_upper": boot_col("bin_upper"),
+            "bootstrap_ok": boot_col("bin_replicates_ok"),
+            "inclusion": np.tile(np.asarray(boot["inclusion"], dtype=float), nb)
+            if boot is not None else np.full(nb * npar, np.nan),
             "t": t, "partial_f": flat("partial_f"), "excitation": flat("excitation"),
             "excitation_snr": flat("excitation_snr"), "vif": flat("vif"),
             "identifiable": np.asarray(out["identifiable"], dtype=bool).ravel(),

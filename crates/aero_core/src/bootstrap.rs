@@ -34,9 +34,10 @@ use crate::select::{
 };
 use crate::sim::rng::{derive_seed, Stream};
 
-/// One replicate: smoothed values per parameter on the grid, and the bin
-/// estimates per bin and parameter (NaN where not refitted).
-type Replicate = (Vec<Vec<f64>>, Vec<Vec<f64>>);
+/// One replicate: smoothed values per parameter on the grid, the bin
+/// estimates per bin and parameter (NaN where not refitted), and which
+/// parameters its selection kept.
+type Replicate = (Vec<Vec<f64>>, Vec<Vec<f64>>, Vec<bool>);
 
 /// Settings of [`bootstrap_smoothed`].
 #[derive(Debug, Clone)]
@@ -105,6 +106,13 @@ pub struct Bootstrap {
     pub bin_lower: Vec<Vec<f64>>,
     /// Per bin, per parameter: upper percentile band of the bin estimate.
     pub bin_upper: Vec<Vec<f64>>,
+    /// Per bin, per parameter: replicates in which the bin estimate could be
+    /// refitted (the others failed: too few points or maneuvers drawn, a
+    /// singular resampled bin). Under half of the replicates gives no band.
+    pub bin_replicates_ok: Vec<Vec<usize>>,
+    /// Per parameter: share of replicates whose own selection kept the term
+    /// (1 without reselection).
+    pub inclusion: Vec<f64>,
     /// Confidence level.
     pub level: f64,
 }
@@ -269,7 +277,7 @@ pub fn bootstrap_smoothed(
                 }
             })
             .collect();
-        Ok((values, per_bin))
+        Ok((values, per_bin, keep))
     };
     #[cfg(feature = "parallel")]
     let reps: Vec<Replicate> = {
@@ -288,7 +296,7 @@ pub fn bootstrap_smoothed(
         .unwrap_or_default();
     let ng = grid.len();
     let mut replicates = vec![Vec::with_capacity(opts.replicates); p];
-    for (vals, _) in &reps {
+    for (vals, _, _) in &reps {
         for (j, v) in vals.iter().enumerate() {
             replicates[j].push(v.clone());
         }
@@ -304,8 +312,11 @@ pub fn bootstrap_smoothed(
                 .filter(|v| v.is_finite())
                 .collect();
             col.sort_by(f64::total_cmp);
-            lower[j][i] = quantile(&col, qlo);
-            upper[j][i] = quantile(&col, qhi);
+            // as per bin: the band reaches the smoothed estimate itself
+            let est = base[j].values.get(i).copied().unwrap_or(f64::NAN);
+            let (lo, hi) = (quantile(&col, qlo), quantile(&col, qhi));
+            lower[j][i] = if est.is_finite() { lo.min(est) } else { lo };
+            upper[j][i] = if est.is_finite() { hi.max(est) } else { hi };
         }
     }
     let nb = fit.bins.len();
@@ -314,22 +325,35 @@ pub fn bootstrap_smoothed(
         vec![vec![f64::NAN; p]; nb],
         vec![vec![f64::NAN; p]; nb],
     );
+    let mut bin_replicates_ok = vec![vec![0usize; p]; nb];
+    let inclusion: Vec<f64> = (0..p)
+        .map(|j| reps.iter().filter(|r| r.2[j]).count() as f64 / reps.len() as f64)
+        .collect();
     for b in 0..nb {
         for j in 0..p {
             let mut v: Vec<f64> = reps
                 .iter()
-                .map(|(_, pb)| pb[b][j])
+                .map(|(_, pb, _)| pb[b][j])
                 .filter(|v| v.is_finite())
                 .collect();
-            if v.len() < 2 {
+            bin_replicates_ok[b][j] = v.len();
+            if v.len() < 2 || 2 * v.len() < reps.len() {
                 continue;
             }
             let mean = v.iter().sum::<f64>() / v.len() as f64;
             bin_std[b][j] =
                 (v.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (v.len() - 1) as f64).sqrt();
             v.sort_by(f64::total_cmp);
-            bin_lower[b][j] = quantile(&v, qlo);
-            bin_upper[b][j] = quantile(&v, qhi);
+            // A percentile band never excludes its own estimate: when the
+            // replicates sit on one side of it (a term most replicates drop
+            // collapses to zero), the band reaches the estimate.
+            let est = fit.bins[b].params[j];
+            let (lo, hi) = (quantile(&v, qlo), quantile(&v, qhi));
+            (bin_lower[b][j], bin_upper[b][j]) = if est.is_finite() {
+                (lo.min(est), hi.max(est))
+            } else {
+                (lo, hi)
+            };
         }
     }
     Ok(Bootstrap {
@@ -341,6 +365,8 @@ pub fn bootstrap_smoothed(
         bin_std,
         bin_lower,
         bin_upper,
+        bin_replicates_ok,
+        inclusion,
         level: opts.level,
     })
 }

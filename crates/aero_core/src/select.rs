@@ -1669,7 +1669,23 @@ pub(crate) mod tests {
             if bin.identifiable[3] {
                 assert!(with.bin_lower[b][3] <= 0.0 && 0.0 <= with.bin_upper[b][3]);
             }
+            // no band excludes its own estimate, even where the replicates collapse to zero
+            for j in 0..4 {
+                let (lo, hi, est) = (with.bin_lower[b][j], with.bin_upper[b][j], bin.params[j]);
+                if lo.is_finite() {
+                    assert!(
+                        lo <= est && est <= hi,
+                        "bin {b} param {j}: {est} not in [{lo}, {hi}]"
+                    );
+                }
+                assert!(with.bin_replicates_ok[b][j] <= bo.replicates);
+            }
         }
+        // inclusion frequencies: the noise term is kept by at most a tenth of the replicates,
+        // the true terms by all; without reselection every term counts as kept
+        assert!(with.inclusion[3] <= 0.1, "{:?}", with.inclusion);
+        assert!(with.inclusion[1] == 1.0 && with.inclusion[2] == 1.0);
+        assert!(without.inclusion.iter().all(|&v| v == 1.0));
         // the true terms, kept by every replicate, keep bands of the same width
         let width = |bt: &crate::bootstrap::Bootstrap, j: usize| -> f64 {
             let w: Vec<f64> = (0..fit.bins.len())

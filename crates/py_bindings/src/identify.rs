@@ -237,6 +237,16 @@ fn bootstrap_dict<'py>(py: Python<'py>, b: &Bootstrap) -> PyResult<Bound<'py, Py
     d.set_item("bin_lower", flat(&b.bin_lower).into_pyarray(py))?;
     d.set_item("bin_upper", flat(&b.bin_upper).into_pyarray(py))?;
     d.set_item(
+        "bin_replicates_ok",
+        b.bin_replicates_ok
+            .iter()
+            .flatten()
+            .map(|&v| v as f64)
+            .collect::<Vec<f64>>()
+            .into_pyarray(py),
+    )?;
+    d.set_item("inclusion", b.inclusion.clone().into_pyarray(py))?;
+    d.set_item(
         "replicates",
         b.replicates
             .iter()
