@@ -4,6 +4,7 @@ folder, then is renamed over ``path``; the temporary file never survives a failu
 from __future__ import annotations
 
 import os
+import shutil
 from collections.abc import Callable
 from pathlib import Path
 
@@ -28,3 +29,16 @@ def write_text_atomic(path: str | os.PathLike[str], text: str) -> Path:
 def write_bytes_atomic(path: str | os.PathLike[str], data: bytes) -> Path:
     """Write ``data`` to ``path`` atomically."""
     return write_atomic(path, lambda p: p.write_bytes(data))
+
+
+def replace_dir(tmp: Path, out: Path) -> None:
+    """Commit a folder written at ``tmp`` as ``out`` with renames: an existing ``out`` is moved
+    aside, ``tmp`` renamed into place, then the old one removed (readers never see a half-written
+    folder)."""
+    if out.exists():
+        old = out.parent / f".{out.name}.old-{os.getpid()}"
+        out.rename(old)
+        tmp.rename(out)
+        shutil.rmtree(old, ignore_errors=True)
+    else:
+        tmp.rename(out)

@@ -34,6 +34,7 @@ import polars as pl
 from tqdm import tqdm
 
 from aerodelta import _core
+from aerodelta._fsutil import replace_dir
 from aerodelta.channels import CHANNELS
 from aerodelta.exceptions import DataError, InvalidInputError
 from aerodelta.model import DeltaModel
@@ -407,13 +408,7 @@ def generate_campaign(
     finally:
         if bar is not None:
             bar.close()
-    if out.exists():
-        old = out.parent / f".{out.name}.old-{os.getpid()}"
-        out.rename(old)
-        tmp.rename(out)
-        shutil.rmtree(old, ignore_errors=True)
-    else:
-        tmp.rename(out)
+    replace_dir(tmp, out)
     return CampaignInfo(
         path=out,
         n_maneuvers=len(rows),

@@ -39,6 +39,7 @@ from typing import Any
 import numpy as np
 import polars as pl
 
+from aerodelta._fsutil import replace_dir
 from aerodelta.exceptions import DataError, InvalidInputError, NoConvergenceError
 
 __all__ = [
@@ -1210,13 +1211,7 @@ def generate_jsbsim_campaign(
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
-    if out.exists():
-        old = out.parent / f".{out.name}.old-{os.getpid()}"
-        out.rename(old)
-        tmp.rename(out)
-        shutil.rmtree(old, ignore_errors=True)
-    else:
-        tmp.rename(out)
+    replace_dir(tmp, out)
     return JsbsimCampaignInfo(
         path=out,
         n_maneuvers=len(rows),

@@ -174,8 +174,8 @@ pub struct BinFit {
     /// Standard errors corrected for coloured residuals (NaN when not computed).
     pub std_err_colored: Vec<f64>,
     /// Cluster-robust standard errors, maneuvers as clusters, CR2
-    /// ([`crate::lsq::cluster`]): the default for intervals, smoothing
-    /// weights and the adjacent-bin check. NaN where undefined (one maneuver
+    /// ([`crate::lsq::cluster`]): the default for intervals, p-values and
+    /// the adjacent-bin check (the smoothing weights stay conventional). NaN where undefined (one maneuver
     /// alone determines the parameter; the note says so).
     pub std_err_cluster: Vec<f64>,
     /// Bell-McCaffrey degrees of freedom of the cluster-robust errors (Student t).
@@ -208,8 +208,8 @@ pub struct BinFit {
 }
 
 impl BinFit {
-    /// The standard error of parameter `j` used for weights and checks: the
-    /// cluster-robust one where defined, else the conventional one.
+    /// The standard error of parameter `j` used for the adjacent-bin check:
+    /// the cluster-robust one where defined, else the conventional one.
     pub fn se(&self, j: usize) -> f64 {
         let c = self.std_err_cluster.get(j).copied().unwrap_or(f64::NAN);
         if c.is_finite() {
@@ -678,7 +678,9 @@ pub fn smooth_parameters(fit: &BinnedFit, opts: &SmoothOptions) -> Result<Vec<Sm
         let w: Option<Vec<f64>> = opts.weighted.then(|| {
             let raw: Vec<f64> = used
                 .iter()
-                .map(|b| 1.0 / b.se(j).powi(2).max(f64::MIN_POSITIVE))
+                // conventional errors, as before the cluster-robust ones
+                // became the default (weighting by those is not measured yet)
+                .map(|b| 1.0 / b.std_err[j].powi(2).max(f64::MIN_POSITIVE))
                 .collect();
             let mean = raw.iter().sum::<f64>() / raw.len() as f64;
             raw.iter().map(|v| v / mean).collect()

@@ -177,8 +177,10 @@ pub(crate) fn cr2(
             continue;
         }
         let var = cov[j * p + j];
-        if var.is_nan() || var <= 0.0 {
-            notes[j] = "cluster-robust variance not positive".into();
+        // The meat is a sum of outer products: a variance is >= 0 but for
+        // round-off (exactly 0 for a perfect fit, as the conventional one).
+        if var.is_nan() || var < 0.0 {
+            notes[j] = "cluster-robust variance negative (round-off)".into();
             continue;
         }
         std_err[j] = var.sqrt();
@@ -437,6 +439,19 @@ mod tests {
         let col = col.map(|h| h as f64 / reps as f64);
         eprintln!("AR(1) 0.9: conventional {conv:?}, all-lag coloured {col:?}");
         assert!(conv.iter().all(|&c| c < 0.8), "{conv:?}");
+    }
+
+    #[test]
+    fn a_perfect_fit_has_zero_not_undefined_errors() {
+        let mut rng = ChaCha8Rng::seed_from_u64(9);
+        let (x, _, g) = bin_data(&mut rng, 5, 0.5, &[0.0; 3]);
+        let n = g.len();
+        let z = vec![0.0; n];
+        let rows: Vec<usize> = (0..n).collect();
+        let f = ols_rows_clustered(&x, n, 3, &z, &rows, &g, &OlsOptions::default()).unwrap();
+        let c = f.cluster.unwrap();
+        assert!(c.std_err.iter().all(|&s| s == 0.0), "{:?}", c.std_err);
+        assert!(c.notes.iter().all(String::is_empty));
     }
 
     #[test]
