@@ -320,6 +320,14 @@ def identify_flap(
     extra: list[list[int]],
     bootstrap: int,
     level: float,
+    t: npt.NDArray[np.float64] | None = None,
+    band_hz: float | None = None,
+    min_excitation_snr: float = 3.0,
+    min_maneuvers_identified: int = 5,
+    bootstrap_reselect: bool = False,
+    max_vif: float = 10.0,
+    prune_collinear: bool = True,
+    nested_cv: bool = True,
 ) -> dict[str, Any]: ...
 
 # roll-off detection and configurable runtime draws (crates/py_bindings/src/rolloff.rs)

@@ -164,6 +164,14 @@ class FitConfig:
         Blending limits of Eq. 3.12, deg (one value for all flaps, or per flap).
     min_identified_bins
         A parameter identified in fewer bins is set to zero (the qualified model is kept).
+    max_vif
+        Collinearity limit (Klein & Morelli 2006, Section 5.4.1: 10). A regressor whose
+        variance inflation factor in a bin exceeds it is not identified there, with a note
+        naming the regressors its estimate trades against ("collinear with 'dCl_p' ..."):
+        its estimate would split one effect between collinear terms (at high alpha β̇ carries
+        nearly the same information as p̂ sin α − r̂ cos α). The stepwise selection lets no
+        candidate enter a bin that would take a selected term past it. ``None``: only the
+        condition-index rule (near-exact dependencies).
     selection
         Structure selection per coefficient and flap (:mod:`aero_core::select`):
         ``"stepwise"`` (forward stepwise regression with partial F, Klein & Morelli 2006
@@ -214,6 +222,12 @@ class FitConfig:
         82.7 % to 90.9 %); with the stepwise selection it lowered it (88.1 % to 85.0 %, the
         selection then keeping more terms); at 2.5 Hz C_l loses the band its roll damping is
         identified from (the standard error of ΔC_l_p doubled). Needs the time column ``t``.
+    nested_cv
+        Score the structure selection by nested cross-validation: the whole selection reruns
+        once per fold on the other folds' maneuvers, and the structure it chooses predicts the
+        fold (``cross_validation`` row ``selected_outer``). The selection's own folds chose the
+        structure, so their score of it is optimistic; this one is not. Costs ``cv_folds``
+        more selections per flap and coefficient.
     """
 
     structures: Mapping[str, Sequence[tuple[str, str]]] = field(
@@ -235,6 +249,7 @@ class FitConfig:
     alpha_l_deg: float | Mapping[float, float] = 8.0
     alpha_u_deg: float | Mapping[float, float] = 10.0
     min_identified_bins: int = 4
+    max_vif: float | None = 10.0
     selection: str | None = "stepwise"
     candidates: Mapping[str, Sequence[tuple[str, str]]] | None = None
     f_in: float = 4.0
@@ -247,6 +262,7 @@ class FitConfig:
     band_level: float = 0.95
     bootstrap_selection: bool = True
     band_hz: float | Mapping[str, float] | None = None
+    nested_cv: bool = True
 
     @classmethod
     def from_toml(cls, path: str | Path) -> FitConfig:
@@ -268,7 +284,7 @@ class FitConfig:
                 raise DataError(f"{p}: unknown setting '{k}'; valid settings are {sorted(known)}")
             if k in ("structures", "candidates"):
                 kwargs[k] = {c: [tuple(t) for t in terms] for c, terms in v.items()}
-            elif k in ("selection", "band_hz"):
+            elif k in ("selection", "band_hz", "max_vif"):
                 kwargs[k] = None if str(v).lower() == "none" else v
             elif k == "stall_alpha_deg":
                 kwargs[k] = {float(f): float(a) for f, a in v.items()}
@@ -388,7 +404,9 @@ class FitResult:
         refit the bin), ``bootstrap_ok`` (replicates that refitted the bin), ``inclusion``
         (share of replicates whose own selection kept the term), t, partial F, excitation (against
         the flap, ``excitation``, and against the regressor's noise floor,
-        ``excitation_snr``), VIF, ``identifiable`` and a ``note`` saying why not.
+        ``excitation_snr``), VIF, ``identifiable`` and a ``note`` saying why not, and
+        ``in_table``: whether the bin's estimate enters the smoothed table (identified, or
+        not identified only for collinearity, ``max_vif``).
     consistency
         Adjacent-bin consistency per coefficient, flap and parameter (Section 3.3.4).
     smoothed
@@ -560,6 +578,7 @@ def _bin_rows(
             "t": t, "partial_f": flat("partial_f"), "excitation": flat("excitation"),
             "excitation_snr": flat("excitation_snr"), "vif": flat("vif"),
             "identifiable": np.asarray(out["identifiable"], dtype=bool).ravel(),
+            "in_table": np.asarray(out["smoothable"], dtype=bool).ravel(),
             "note": [str(v) for v in out["notes"]],
         }
     )  # fmt: skip
@@ -615,12 +634,18 @@ def _selection_rows(
     labelled = [("selected", sel["pruned"]), ("full", sel["full"])]
     if default:
         labelled.append(("default", sel["extra"][0]))
+    if sel["outer"] is not None:
+        labelled.append(("selected_outer", sel["outer"]))
+    per_fold = " | ".join(
+        ",".join(pool[c][0] for c in sorted(cols)) for cols in sel["outer_chosen"]
+    )
     for label, (cols, rms, tic, mse, mse_se) in labelled:
         cv.append(
             {
                 "coefficient": coef, "flap_deg": flap, "structure": label,
                 "n_params": len(cols), "params": ",".join(pool[c][0] for c in sorted(cols)),
                 "cv_rms": rms, "cv_tic": tic, "cv_mse": mse, "cv_mse_se": mse_se,
+                "outer_structures": per_fold if label == "selected_outer" else None,
             }
         )  # fmt: skip
     return structure, bin_rows, cv
@@ -692,6 +717,7 @@ def _submit(
     bootstrap: int,
     flap: float,
     notes: list[str],
+    prune: bool,
 ) -> Future:
     """Submit one coefficient's identification at one flap to the engine (which releases the
     GIL), on the rows with a finite qualified-model error, alpha and regressor channels (rows
@@ -725,7 +751,8 @@ def _submit(
         alpha_max, cfg.min_identified_bins, selection, cfg.f_in, cfg.f_out, list(forced),
         cfg.min_selected_bins, cfg.cv_folds, cfg.seed, [list(e) for e in extra], bootstrap,
         cfg.band_level, t, band, cfg.min_excitation_snr, cfg.min_maneuvers_identified,
-        cfg.bootstrap_selection,
+        cfg.bootstrap_selection, math.inf if cfg.max_vif is None else cfg.max_vif, prune,
+        cfg.nested_cv,
     )  # fmt: skip
     return fut
 
@@ -766,6 +793,11 @@ def fit(
             raise DataError(f"structures: unknown coefficient '{c}'; use {list(COEFFICIENTS)}")
     if cfg.selection not in (None, "stepwise", "mof"):
         raise DataError(f"selection='{cfg.selection}': use 'stepwise', 'mof' or None")
+    if cfg.max_vif is not None and not (isinstance(cfg.max_vif, int | float) and cfg.max_vif > 1.0):
+        raise DataError(
+            f"max_vif={cfg.max_vif!r}: a variance inflation factor is at least 1; give a limit "
+            "above 1 (Klein & Morelli: 10) or None for the condition-index rule only"
+        )
     pools = cfg.candidates if cfg.candidates is not None else DEFAULT_CANDIDATES
     if cfg.selection is not None:
         missing = [c for c in coefs if c not in pools]
@@ -823,6 +855,11 @@ def fit(
         flap, coef, regs, default, extra, fut = job
         out = fut.result()
         chosen: list[int] = list(out["chosen"])
+        # terms left out as collinear with others at this flap (aero_core::select::collinear)
+        pruned = {int(c): str(why) for c, why in out["pruned"]}
+        notes.extend(
+            f"{coef} at flap {flap:g} deg: '{regs[c][0]}' {why}" for c, why in pruned.items()
+        )
         final = [regs[i] for i in chosen]
         regressors[coef].update(dict(final))
         b_rows, p_rows = _bin_rows(coef, flap, out, final)
@@ -833,11 +870,12 @@ def fit(
             struct_rows.extend(
                 {
                     "coefficient": coef, "flap_deg": flap, "param": name, "regressor": expr,
-                    "bins_fitted": None, "bins_selected": None, "kept": True,
+                    "bins_fitted": None, "bins_selected": None, "kept": i not in pruned,
                     "note": f"not selected: {n_man} maneuvers at this flap, "
-                    f"{cfg.min_maneuvers_selection} needed; the given structure is fitted",
+                    f"{cfg.min_maneuvers_selection} needed; the given structure is fitted"
+                    + (f"; {pruned[i]}" if i in pruned else ""),
                 }
-                for name, expr in regs
+                for i, (name, expr) in enumerate(regs)
             )  # fmt: skip
         if out["selection"] is not None:
             st, sb, cv = _selection_rows(
@@ -848,6 +886,8 @@ def fit(
                 chosen=chosen,
                 default=default if extra else [],
             )
+            for c, why in pruned.items():
+                st[c]["note"] = why
             struct_rows.extend(st)
             selbin_rows.append(sb)
             cv_rows.extend(cv)
@@ -933,6 +973,7 @@ def fit(
                     ex, cfg, full, codes, coef, regs=regs,
                     alpha_max=stall[flap] + cfg.past_stall_deg, selection=selection,
                     forced=forced, extra=extra, bootstrap=cfg.bootstrap, flap=flap, notes=notes,
+                    prune=selection is not None or not custom_structures[coef],
                 )  # fmt: skip
                 jobs.append((flap, coef, regs, default, extra, fut))
             while len(jobs) > 2 * len(coefs):  # bounded memory: about three flaps in flight

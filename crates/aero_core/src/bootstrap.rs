@@ -210,13 +210,18 @@ pub fn bootstrap_smoothed(
                     .filter(|(_, c)| **c > 0.0)
                     .map(|(id, c)| (*id, *c))
                     .collect();
+                // the replicate's selection only: its nested score is not used
+                let so = SelectOptions {
+                    nested: false,
+                    ..rs.select.clone()
+                };
                 let sel = select_weighted(
                     rs.pool,
                     z,
                     maneuver,
                     rs.pool_fit,
                     rs.grams,
-                    rs.select,
+                    &so,
                     Some(&w),
                     Some(rs.kappa),
                 )?;
@@ -246,7 +251,10 @@ pub fn bootstrap_smoothed(
                         bin.params[j] = th[i] * grams.scale[p] / grams.scale[j];
                     }
                 }
-                None => bin.identifiable.iter_mut().for_each(|v| *v = false),
+                None => {
+                    bin.identifiable.iter_mut().for_each(|v| *v = false);
+                    bin.smoothable.iter_mut().for_each(|v| *v = false);
+                }
             }
         }
         let sm = smooth_parameters(&rf, smooth)?;

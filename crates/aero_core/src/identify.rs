@@ -26,7 +26,13 @@
 //!   regressors drawn afresh at every row look like noise to it, so turn it
 //!   off (`min_excitation_snr = 0`) for such data;
 //! - it is collinear with others (the near-dependency diagnostics of
-//!   [`crate::lsq`], Section 3.3.3 "Data Collinearity").
+//!   [`crate::lsq`], Section 3.3.3 "Data Collinearity"), or its variance
+//!   inflation factor exceeds `max_vif` (Klein & Morelli 2006, Section 5.4.1:
+//!   10): the note names the regressors its estimate trades against (the
+//!   estimate correlations `|ρ_jk| ≥ 0.5` of the conventional covariance, or
+//!   the largest one). Its variance is then more than `max_vif` times what its
+//!   own excitation would give, and the estimate splits one effect between
+//!   the collinear terms (β̇ against p̂ sin α − r̂ cos α at high alpha).
 //!
 //! Rows of a bin are passed to the regression in input order, so the
 //! coloured-residual correction sees each maneuver's samples in time order,
@@ -58,6 +64,14 @@ pub struct IdentifyOptions {
     pub min_excitation_snr: f64,
     /// Fewest maneuvers in a bin for its parameters to be identified.
     pub min_maneuvers_identified: usize,
+    /// A non-constant regressor whose variance inflation factor in a bin exceeds this is
+    /// not identified there ("collinear with ..."); `f64::INFINITY`: only the
+    /// condition-index rule.
+    pub max_vif: f64,
+    /// In [`crate::select::identify_flap`], leave out of the structure a term collinear in
+    /// most bins of the flap ([`crate::select::collinear_to_prune`]); `false` keeps a given
+    /// structure whole (its collinear terms are then not identified bin by bin).
+    pub prune_collinear: bool,
 }
 
 impl Default for IdentifyOptions {
@@ -70,6 +84,8 @@ impl Default for IdentifyOptions {
             collinear_cond: OlsOptions::default().collinear_cond,
             min_excitation_snr: 3.0,
             min_maneuvers_identified: 5,
+            max_vif: 10.0,
+            prune_collinear: true,
         }
     }
 }
@@ -193,8 +209,17 @@ pub struct BinFit {
     pub excitation_snr: Vec<f64>,
     /// Variance inflation factor of each regressor.
     pub vif: Vec<f64>,
+    /// Per parameter, the other non-constant parameter whose estimate correlates most with
+    /// it (conventional covariance; `None` when the bin was not fitted or has no other).
+    pub most_correlated: Vec<Option<usize>>,
     /// Whether each parameter is identified in this bin.
     pub identifiable: Vec<bool>,
+    /// Whether the bin's estimate enters the parameter's smoothed table: identified, or not
+    /// identified only for its variance inflation (`max_vif`). Collinear estimates are not
+    /// separate derivatives, but their errors cancel along the direction the data excite,
+    /// and the smoothing (linear in the bin values, the same bins for every collinear
+    /// term) keeps that combination; leaving the bins out would lose the group's effect.
+    pub smoothable: Vec<bool>,
     /// Why not, per parameter ("" when identified).
     pub notes: Vec<String>,
     /// R² of the bin's regression.
@@ -423,7 +448,9 @@ pub fn fit_bins(
             excitation,
             excitation_snr,
             vif: nan,
+            most_correlated: vec![None; p],
             identifiable: vec![false; p],
+            smoothable: vec![false; p],
             notes: vec![String::new(); p],
             r2: f64::NAN,
             condition_number: f64::NAN,
@@ -466,12 +493,20 @@ pub fn fit_bins(
                 }
                 bin.partial_f = fit.partial_f.clone();
                 bin.vif = fit.collinearity.vif.clone();
+                bin.most_correlated = (0..p)
+                    .map(|j| {
+                        estimate_correlations(&fit.cov, &const_col, j)
+                            .first()
+                            .map(|c| c.0)
+                    })
+                    .collect();
                 bin.r2 = fit.r2;
                 bin.condition_number = fit.condition_number;
                 bin.residual_std = fit.s2.sqrt();
                 #[allow(clippy::needless_range_loop)]
                 for j in 0..p {
                     let mut why = Vec::new();
+                    let mut collinear_only = false;
                     if !fit.identifiable[j] {
                         why.push(if fit.notes[j].is_empty() {
                             "collinear".to_string()
@@ -484,6 +519,10 @@ pub fn fit_bins(
                             low_excitation(bin.excitation[j], bin.excitation_snr[j], opts)
                         {
                             why.push(w);
+                        }
+                        if fit.identifiable[j] && bin.vif[j] > opts.max_vif {
+                            collinear_only = why.is_empty();
+                            why.push(collinear_note(&fit, &design.names, &const_col, j, opts));
                         }
                     }
                     if bin.n_maneuvers < opts.min_maneuvers_identified {
@@ -502,6 +541,7 @@ pub fn fit_bins(
                         ));
                     }
                     bin.identifiable[j] = why.is_empty();
+                    bin.smoothable[j] = why.is_empty() || (collinear_only && why.len() == 1);
                     bin.notes[j] = why.join("; ");
                 }
             }
@@ -524,6 +564,53 @@ pub fn fit_bins(
         consistency,
         partition,
     })
+}
+
+/// `|ρ_jk|` of parameter `j`'s estimate with every other non-constant parameter `k`
+/// (conventional covariance `cov`, `p × p` row-major), largest first (NaN counted as 0).
+fn estimate_correlations(cov: &[f64], const_col: &[bool], j: usize) -> Vec<(usize, f64)> {
+    let p = const_col.len();
+    let mut r: Vec<(usize, f64)> = (0..p)
+        .filter(|&k| k != j && !const_col[k])
+        .map(|k| {
+            let r = cov[j * p + k] / (cov[j * p + j] * cov[k * p + k]).sqrt();
+            (k, if r.is_finite() { r.abs() } else { 0.0 })
+        })
+        .collect();
+    r.sort_by(|a, b| b.1.total_cmp(&a.1).then(a.0.cmp(&b.0)));
+    r
+}
+
+/// "collinear with 'a', 'b' (VIF v > max)": the regressors whose estimates correlate with
+/// parameter `j`'s by `|ρ| ≥ 0.5` in the conventional covariance of `fit` (constant columns
+/// left out), largest first, at most three; the most correlated one when none reaches 0.5.
+fn collinear_note(
+    fit: &OlsFit,
+    names: &[String],
+    const_col: &[bool],
+    j: usize,
+    opts: &IdentifyOptions,
+) -> String {
+    let partners = estimate_correlations(&fit.cov, const_col, j);
+    let strong = partners
+        .iter()
+        .filter(|(_, r)| *r >= 0.5)
+        .count()
+        .clamp(1, 3);
+    let listed: Vec<String> = partners
+        .iter()
+        .take(strong)
+        .map(|(k, r)| format!("'{}' (estimate correlation {r:.2})", names[*k]))
+        .collect();
+    let with = if listed.is_empty() {
+        "the other regressors".to_string()
+    } else {
+        listed.join(", ")
+    };
+    format!(
+        "collinear with {with}: VIF {:.0} > {}",
+        fit.collinearity.vif[j], opts.max_vif
+    )
 }
 
 /// Adjacent-bin consistency of parameter `j` (see [`Consistency`]).
@@ -654,7 +741,7 @@ pub fn smooth_parameters(fit: &BinnedFit, opts: &SmoothOptions) -> Result<Vec<Sm
         let used: Vec<&BinFit> = fit
             .bins
             .iter()
-            .filter(|b| b.identifiable[j] && 0.5 * (b.alpha_lo + b.alpha_hi) <= opts.alpha_max_deg)
+            .filter(|b| b.smoothable[j] && 0.5 * (b.alpha_lo + b.alpha_hi) <= opts.alpha_max_deg)
             .collect();
         if used.len() < opts.min_identified_bins.max(2) {
             out.push(SmoothedParameter {

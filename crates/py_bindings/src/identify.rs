@@ -166,6 +166,12 @@ fn fit_dict<'py>(
             .collect::<Vec<bool>>(),
     )?;
     d.set_item(
+        "smoothable",
+        bins.iter()
+            .flat_map(|b| b.smoothable.iter().copied())
+            .collect::<Vec<bool>>(),
+    )?;
+    d.set_item(
         "notes",
         bins.iter()
             .flat_map(|b| b.notes.iter().cloned())
@@ -223,6 +229,11 @@ fn selection_dict<'py>(
     )?;
     d.set_item("chosen_k", sel.chosen_k)?;
     d.set_item("pruned", score_tuple(&sel.pruned))?;
+    match &sel.outer {
+        Some(o) => d.set_item("outer", score_tuple(o))?,
+        None => d.set_item("outer", py.None())?,
+    }
+    d.set_item("outer_chosen", sel.outer_chosen.clone())?;
     d.set_item("pool", fit_dict(py, pool, Vec::new())?)?;
     Ok(d)
 }
@@ -264,7 +275,7 @@ fn bootstrap_dict<'py>(py: Python<'py>, b: &Bootstrap) -> PyResult<Bound<'py, Py
 /// Per-bin identification of one coefficient at one flap setting with an optional
 /// structure selection over a candidate pool and an optional bootstrap over maneuvers.
 #[pyfunction]
-#[pyo3(signature = (regressors, columns, z, alpha_deg, maneuver, width_deg, min_points_per_param, min_maneuvers, max_width_deg, colored, min_excitation, p, weighted, grid_step_deg, alpha_max_deg, min_identified_bins, selection, f_in, f_out, forced, min_bins, folds, seed, extra, bootstrap, level, t=None, band_hz=None, min_excitation_snr=3.0, min_maneuvers_identified=5, bootstrap_reselect=false))]
+#[pyo3(signature = (regressors, columns, z, alpha_deg, maneuver, width_deg, min_points_per_param, min_maneuvers, max_width_deg, colored, min_excitation, p, weighted, grid_step_deg, alpha_max_deg, min_identified_bins, selection, f_in, f_out, forced, min_bins, folds, seed, extra, bootstrap, level, t=None, band_hz=None, min_excitation_snr=3.0, min_maneuvers_identified=5, bootstrap_reselect=false, max_vif=10.0, prune_collinear=true, nested_cv=true))]
 #[allow(clippy::too_many_arguments)]
 fn identify_flap<'py>(
     py: Python<'py>,
@@ -299,6 +310,9 @@ fn identify_flap<'py>(
     min_excitation_snr: f64,
     min_maneuvers_identified: usize,
     bootstrap_reselect: bool,
+    max_vif: f64,
+    prune_collinear: bool,
+    nested_cv: bool,
 ) -> PyResult<Bound<'py, PyDict>> {
     let mut cols: HashMap<String, &[f64]> = HashMap::new();
     for (k, v) in &columns {
@@ -345,12 +359,15 @@ fn identify_flap<'py>(
             min_excitation,
             min_excitation_snr,
             min_maneuvers_identified,
+            max_vif,
+            prune_collinear,
             ..IdentifyOptions::default()
         };
         let so = method.map(|method| SelectOptions {
             method,
             f_in,
             f_out,
+            max_vif,
             forced: forced.clone(),
             min_bins,
             folds,
@@ -359,6 +376,7 @@ fn identify_flap<'py>(
             min_excitation_snr,
             min_points_per_param,
             extra: extra.clone(),
+            nested: nested_cv,
         });
         let smooth = SmoothOptions {
             p,
@@ -388,6 +406,12 @@ fn identify_flap<'py>(
     })?;
     let d = fit_dict(py, &out.fit, out.smoothed)?;
     d.set_item("chosen", out.chosen.clone())?;
+    let pruned: Vec<(usize, String)> = out
+        .pruned
+        .iter()
+        .map(|p| (p.column, p.note.clone()))
+        .collect();
+    d.set_item("pruned", pruned)?;
     match (&out.selection, &out.pool_fit) {
         (Some(sel), Some(pf)) => d.set_item("selection", selection_dict(py, sel, pf)?)?,
         _ => d.set_item("selection", py.None())?,

@@ -63,6 +63,11 @@ use crate::identify::{
 use crate::partition::partition_alpha;
 use crate::sim::rng::Stream;
 
+mod collinear;
+mod stepwise;
+pub use collinear::{collinear_to_prune, Pruned};
+pub use stepwise::stepwise;
+
 /// Per-maneuver sufficient statistics of one bin.
 #[derive(Debug, Clone, Default)]
 pub struct BinStats {
@@ -286,123 +291,6 @@ pub fn held_out(g: &[f64], dim: usize, cols: &[usize], theta: &[f64]) -> (f64, f
     ((zz - 2.0 * cross + yy).max(0.0), zz, yy.max(0.0))
 }
 
-/// Forward stepwise regression with partial-F entry and removal (Klein &
-/// Morelli 2006, Section 5.4.2), on one bin's Gram matrix. `n`: samples;
-/// `forced`: always kept; `candidates`: may enter; `kappa`: variance
-/// inflation dividing every partial F (see the module doc). Returns the
-/// selected columns (forced first, then in order of entry) and, per column
-/// of the Gram matrix, its final partial F (to remove for a selected column,
-/// to enter for the others; NaN when not computable).
-#[allow(clippy::too_many_arguments)]
-pub fn stepwise(
-    g: &[f64],
-    dim: usize,
-    n: f64,
-    forced: &[usize],
-    candidates: &[usize],
-    kappa: f64,
-    f_in: f64,
-    f_out: f64,
-) -> (Vec<usize>, Vec<f64>) {
-    let mut sel: Vec<usize> = Vec::new();
-    for &c in forced {
-        sel.push(c);
-        if solve_subset(g, dim, &sel).is_none() {
-            sel.pop();
-        }
-    }
-    let forced_kept = sel.clone();
-    let kappa = kappa.max(1.0);
-    let sse_of = |s: &[usize]| solve_subset(g, dim, s).map(|(_, e)| e);
-    let Some(mut sse) = sse_of(&sel) else {
-        return (sel, vec![f64::NAN; dim - 1]);
-    };
-    for _ in 0..4 * dim {
-        // entry
-        let dof = n - sel.len() as f64 - 1.0;
-        if dof <= 0.0 {
-            break;
-        }
-        let mut best: Option<(usize, f64, f64)> = None;
-        for &c in candidates {
-            if sel.contains(&c) {
-                continue;
-            }
-            let mut trial = sel.clone();
-            trial.push(c);
-            if let Some(e) = sse_of(&trial) {
-                let f = if e > 0.0 {
-                    (sse - e) / (e / dof) / kappa
-                } else {
-                    f64::INFINITY
-                };
-                if best.is_none_or(|(_, bf, _)| f > bf) {
-                    best = Some((c, f, e));
-                }
-            }
-        }
-        match best {
-            Some((c, f, e)) if f > f_in => {
-                sel.push(c);
-                sse = e;
-            }
-            _ => break,
-        }
-        // removal
-        loop {
-            let dof = n - sel.len() as f64;
-            let mut worst: Option<(usize, f64, f64)> = None;
-            for (i, &c) in sel.iter().enumerate() {
-                if forced_kept.contains(&c) {
-                    continue;
-                }
-                let mut trial = sel.clone();
-                trial.remove(i);
-                if let Some(e) = sse_of(&trial) {
-                    let f = if sse > 0.0 {
-                        (e - sse) / (sse / dof) / kappa
-                    } else {
-                        f64::INFINITY
-                    };
-                    if worst.is_none_or(|(_, wf, _)| f < wf) {
-                        worst = Some((i, f, e));
-                    }
-                }
-            }
-            match worst {
-                Some((i, f, e)) if f < f_out && i < sel.len() - 1 => {
-                    sel.remove(i);
-                    sse = e;
-                }
-                _ => break,
-            }
-        }
-    }
-    // final partial F of every column
-    let dof_in = n - sel.len() as f64;
-    let dof_out = dof_in - 1.0;
-    let partial: Vec<f64> = (0..dim - 1)
-        .map(|c| {
-            if let Some(i) = sel.iter().position(|&s| s == c) {
-                let mut t = sel.clone();
-                t.remove(i);
-                match sse_of(&t) {
-                    Some(e) if sse > 0.0 && dof_in > 0.0 => (e - sse) / (sse / dof_in) / kappa,
-                    _ => f64::NAN,
-                }
-            } else {
-                let mut t = sel.clone();
-                t.push(c);
-                match sse_of(&t) {
-                    Some(e) if e > 0.0 && dof_out > 0.0 => (sse - e) / (e / dof_out) / kappa,
-                    _ => f64::NAN,
-                }
-            }
-        })
-        .collect();
-    (sel, partial)
-}
-
 /// Multivariate orthogonal functions with the predicted squared error
 /// (Morelli 1995): greedy orthogonalisation in order of the largest residual
 /// reduction, cut at the minimum of the (κ-scaled) PSE. Returns the selected
@@ -479,6 +367,10 @@ pub struct SelectOptions {
     pub f_in: f64,
     /// Partial F to stay.
     pub f_out: f64,
+    /// A candidate may not enter a bin's stepwise regression if afterwards a selected
+    /// non-forced column's variance inflation factor exceeds this (see [`stepwise`];
+    /// Klein & Morelli 2006, Section 5.4.1: 10). `f64::INFINITY`: no guard.
+    pub max_vif: f64,
     /// Columns always in the model (e.g. the bias).
     pub forced: Vec<usize>,
     /// A candidate must be selected in at least this many bins of the flap.
@@ -499,6 +391,10 @@ pub struct SelectOptions {
     /// Extra structures to score by cross-validation (column lists), e.g.
     /// the thesis's default structure.
     pub extra: Vec<Vec<usize>>,
+    /// Score the selection itself by nested cross-validation ([`Selection::outer`]): the
+    /// whole selection reruns once per fold on the other folds' maneuvers. Costs `folds`
+    /// more selections.
+    pub nested: bool,
 }
 
 impl Default for SelectOptions {
@@ -507,6 +403,7 @@ impl Default for SelectOptions {
             method: Method::Stepwise,
             f_in: 4.0,
             f_out: 4.0,
+            max_vif: 10.0,
             forced: vec![0],
             min_bins: 4,
             folds: 5,
@@ -515,6 +412,7 @@ impl Default for SelectOptions {
             min_excitation_snr: 3.0,
             min_points_per_param: 10,
             extra: Vec::new(),
+            nested: true,
         }
     }
 }
@@ -587,8 +485,21 @@ pub struct Selection {
     pub chosen: Vec<usize>,
     /// Index into `nested` of the structure chosen by the one-standard-error rule.
     pub chosen_k: usize,
-    /// Score of the final structure (`chosen`, after the backward pruning).
+    /// Score of the final structure (`chosen`, after the backward pruning). Optimistic:
+    /// the same folds chose it.
     pub pruned: CvScore,
+    /// The selection's own held-out score (with [`SelectOptions::nested`]): for each fold, the
+    /// whole selection (per-bin stepwise, frequencies, cross-validated path on the remaining
+    /// folds, one-standard-error rule, backward pruning) runs on the other folds' maneuvers,
+    /// and the structure it chooses, fitted on them, predicts the fold (Hastie, Tibshirani &
+    /// Friedman 2009, Section 7.10.2, "the right way"). This is the number to quote for
+    /// the selected structure; `pruned` is not. The bins, the excitation marks and the
+    /// coloured-residual inflation κ come from all maneuvers (they read the regressors and
+    /// the pool fit's residual colour, not which terms predict the held-out responses).
+    /// `columns` are the final structure's; per fold the chosen columns differ.
+    pub outer: Option<CvScore>,
+    /// Per fold, the columns the fold's own selection chose (empty without `nested`).
+    pub outer_chosen: Vec<Vec<usize>>,
 }
 
 fn median(mut v: Vec<f64>) -> f64 {
@@ -760,6 +671,32 @@ fn cv_score(
     min_points: usize,
     excitation: &Excitation<'_>,
 ) -> CvScore {
+    cv_score_per_fold(
+        grams,
+        trains,
+        folds,
+        fitted,
+        &|_| cols,
+        min_points,
+        excitation,
+        cols,
+    )
+}
+
+/// [`cv_score`] with the columns of each fold's training fit given by `cols_of(fold)` (the
+/// structure a selection chose on that fold's training maneuvers); `label` is the score's
+/// [`CvScore::columns`].
+#[allow(clippy::too_many_arguments)]
+fn cv_score_per_fold<'c>(
+    grams: &BinGrams,
+    trains: &FoldGrams,
+    folds: &FoldGrams,
+    fitted: &[bool],
+    cols_of: &dyn Fn(usize) -> &'c [usize],
+    min_points: usize,
+    excitation: &Excitation<'_>,
+    label: &[usize],
+) -> CvScore {
     let dim = grams.dim;
     let nf = folds.first().map_or(0, Vec::len);
     let mut per_fold = vec![(0.0, 0.0); nf]; // (sse, n)
@@ -775,7 +712,7 @@ fn cv_score(
                 continue;
             }
             let (train, strain, ntrain) = &trains[b][f];
-            excitation.excited(train, strain, *ntrain, dim, cols, &mut used);
+            excitation.excited(train, strain, *ntrain, dim, cols_of(f), &mut used);
             let fit = if *ntrain >= (min_points * used.len().max(1)) as f64 {
                 solve_subset_into(train, dim, &used, &mut work, &mut th)
             } else {
@@ -821,7 +758,7 @@ fn cv_score(
         f64::NAN
     };
     CvScore {
-        columns: cols.to_vec(),
+        columns: label.to_vec(),
         rms: mse.sqrt(),
         tic,
         mse,
@@ -1012,6 +949,7 @@ pub fn select_weighted(
                     kappa[b],
                     opts.f_in,
                     opts.f_out,
+                    opts.max_vif,
                 );
                 partial_f[b] = f;
                 sel
@@ -1177,7 +1115,57 @@ pub fn select_weighted(
     let all: Vec<usize> = (0..p).collect();
     let full = score(&all);
     let extra = opts.extra.iter().map(|c| score(c)).collect();
+    // nested cross-validation: the selection reruns on each fold's training maneuvers (the
+    // same fold assignment, so its inner folds are the other folds)
+    let (outer, outer_chosen) = if opts.nested {
+        let inner = SelectOptions {
+            nested: false,
+            ..opts.clone()
+        };
+        let select_fold = |f: usize| -> Result<Vec<usize>> {
+            let w: std::collections::HashMap<u64, f64> = fold_map
+                .iter()
+                .map(|(m, &fm)| (*m, if fm == f { 0.0 } else { weight(m) }))
+                .collect();
+            select_weighted(
+                design,
+                z,
+                maneuver,
+                pool_fit,
+                grams,
+                &inner,
+                Some(&w),
+                Some(&kappa),
+            )
+            .map(|s| s.chosen)
+        };
+        #[cfg(feature = "parallel")]
+        let per_fold: Vec<Vec<usize>> = {
+            use rayon::prelude::*;
+            (0..opts.folds)
+                .into_par_iter()
+                .map(select_fold)
+                .collect::<Result<_>>()?
+        };
+        #[cfg(not(feature = "parallel"))]
+        let per_fold: Vec<Vec<usize>> = (0..opts.folds).map(select_fold).collect::<Result<_>>()?;
+        let outer = cv_score_per_fold(
+            grams,
+            &trains,
+            &folds,
+            &fitted,
+            &|f| &per_fold[f],
+            opts.min_points_per_param,
+            &excitation,
+            &chosen,
+        );
+        (Some(outer), per_fold)
+    } else {
+        (None, Vec::new())
+    };
     Ok(Selection {
+        outer,
+        outer_chosen,
         pruned,
         selected,
         partial_f,
@@ -1307,7 +1295,9 @@ pub fn pool_bins_grams(
                 excitation,
                 excitation_snr,
                 vif: nan,
+                most_correlated: vec![None; p],
                 identifiable: vec![false; p],
+                smoothable: vec![false; p],
                 notes: vec![String::new(); p],
                 r2: f64::NAN,
                 condition_number: f64::NAN,
@@ -1353,6 +1343,7 @@ pub fn pool_bins_grams(
                     }
                 }
                 bin.identifiable[j] = why.is_empty();
+                bin.smoothable[j] = why.is_empty();
                 bin.notes[j] = why.join("; ");
             }
             bin
@@ -1398,6 +1389,8 @@ pub struct FlapFit {
     pub pool_fit: Option<BinnedFit>,
     /// Pool columns of the final structure, increasing.
     pub chosen: Vec<usize>,
+    /// Columns left out of the structure as collinear ([`collinear_to_prune`]), in order.
+    pub pruned: Vec<Pruned>,
     /// Per-bin fit of the final structure.
     pub fit: BinnedFit,
     /// Its smoothed parameters.
@@ -1408,7 +1401,9 @@ pub struct FlapFit {
 
 /// Identify one coefficient at one flap setting: optionally select the
 /// structure from the `pool` ([`select_structure`]), fit the chosen
-/// regressors bin by bin ([`fit_bins`]), smooth them
+/// regressors bin by bin ([`fit_bins`]), leaving out a term collinear in most
+/// bins when [`IdentifyOptions::prune_collinear`] ([`collinear_to_prune`],
+/// refitting after each), smooth them
 /// ([`smooth_parameters`]) and optionally bootstrap the smoothed parameters
 /// over maneuvers ([`bootstrap_smoothed`]).
 ///
@@ -1437,12 +1432,27 @@ pub fn identify_flap(
         }
         None => (None, None, None, (0..pool.ncols()).collect()),
     };
-    let design = if chosen.len() == pool.ncols() {
-        pool.clone()
-    } else {
-        subset_design(pool, &chosen)
+    let mut chosen = chosen;
+    let mut pruned = Vec::new();
+    let (design, fit) = loop {
+        let design = if chosen.len() == pool.ncols() {
+            pool.clone()
+        } else {
+            subset_design(pool, &chosen)
+        };
+        let fit = fit_bins(&design, z, alpha_deg, maneuver, identify)?;
+        if identify.prune_collinear {
+            let constant: Vec<bool> = design.exprs.iter().map(|e| e.is_constant()).collect();
+            if let Some((j, note)) = collinear_to_prune(&fit, &constant, identify.max_vif) {
+                pruned.push(Pruned {
+                    column: chosen.remove(j),
+                    note,
+                });
+                continue;
+            }
+        }
+        break (design, fit);
     };
-    let fit = fit_bins(&design, z, alpha_deg, maneuver, identify)?;
     let smoothed = smooth_parameters(&fit, smooth)?;
     let bootstrap = match boot {
         Some(bo) => {
@@ -1469,6 +1479,7 @@ pub fn identify_flap(
         selection,
         pool_fit,
         chosen,
+        pruned,
         fit,
         smoothed,
         bootstrap,
@@ -1610,6 +1621,103 @@ pub(crate) mod tests {
         assert!(sse < 1e-12);
         // a column duplicated is dependent
         assert!(solve_subset(&g, 3, &[0, 0]).is_none());
+    }
+
+    /// z = 0.5 x1 + 0.3 s + 0.2 x3 + noise, where the "spoiler" s = 0.8 x1 + 0.05 noise is
+    /// geared to x1 (VIF about 80 in every bin).
+    fn geared(n: usize, seed: u64) -> (Design, Vec<f64>, Vec<f64>, Vec<u64>) {
+        let mut rng = Stream::new(seed, 9);
+        let (mut x1, mut s, mut x3, mut z, mut alpha, mut man) =
+            (vec![], vec![], vec![], vec![], vec![], vec![]);
+        for i in 0..n {
+            let a = rng.range(-1.0, 1.0);
+            let sp = 0.8 * a + 0.05 * rng.normal();
+            let c = rng.range(-1.0, 1.0);
+            z.push(0.5 * a + 0.3 * sp + 0.2 * c + 0.01 * rng.normal());
+            x1.push(a);
+            s.push(sp);
+            x3.push(c);
+            alpha.push(5.0 + 15.0 * rng.uniform());
+            man.push((i / 400) as u64);
+        }
+        let lookup = |c: &str| -> Option<&[f64]> {
+            match c {
+                "x1" => Some(&x1),
+                "s" => Some(&s),
+                "x3" => Some(&x3),
+                _ => None,
+            }
+        };
+        let regs: Vec<(String, String)> = [("bias", "1"), ("a", "x1"), ("c", "x3"), ("sp", "s")]
+            .iter()
+            .map(|(a, b)| (a.to_string(), b.to_string()))
+            .collect();
+        let design = Design::build(&regs, &lookup, n).expect("design");
+        (design, z, alpha, man)
+    }
+
+    #[test]
+    fn a_term_collinear_in_most_bins_leaves_the_structure_and_its_partner_carries_it() {
+        let (design, z, alpha, man) = geared(20_000, 2);
+        let identify = iid_identify();
+        let sm = SmoothOptions::default();
+        let ff = identify_flap(&design, &z, &alpha, &man, &identify, None, &sm, None).expect("fit");
+        // the last listed collinear term leaves; the note names its partner
+        assert_eq!(ff.chosen, vec![0, 1, 2]);
+        assert_eq!(ff.pruned.len(), 1);
+        assert_eq!(ff.pruned[0].column, 3);
+        assert!(
+            ff.pruned[0].note.contains("collinear with 'a'"),
+            "{}",
+            ff.pruned[0].note
+        );
+        // x1's estimate carries the geared term: 0.5 + 0.3 * 0.8
+        for bin in ff.fit.bins.iter().filter(|b| b.note.is_empty()) {
+            assert!(bin.identifiable[1], "{:?}", bin.notes);
+            assert!((bin.params[1] - 0.74).abs() < 0.02, "{}", bin.params[1]);
+        }
+        // kept whole: both not identified, named against each other, yet in the table
+        let keep = IdentifyOptions {
+            prune_collinear: false,
+            ..identify.clone()
+        };
+        let whole = identify_flap(&design, &z, &alpha, &man, &keep, None, &sm, None).expect("fit");
+        assert!(whole.pruned.is_empty());
+        for bin in whole.fit.bins.iter().filter(|b| b.note.is_empty()) {
+            assert!(bin.vif[1] > 10.0 && bin.vif[3] > 10.0);
+            assert!(!bin.identifiable[1] && !bin.identifiable[3]);
+            assert!(
+                bin.notes[1].starts_with("collinear with 'sp'"),
+                "{}",
+                bin.notes[1]
+            );
+            assert!(
+                bin.notes[3].starts_with("collinear with 'a'"),
+                "{}",
+                bin.notes[3]
+            );
+            assert!(bin.smoothable[1] && bin.smoothable[3]);
+            assert!(bin.identifiable[2], "{}", bin.notes[2]);
+        }
+        // the smoothed tables keep the combination the data excite: a + 0.8 sp = 0.74
+        let (ta, ts) = (&whole.smoothed[1].values, &whole.smoothed[3].values);
+        for (va, vs) in ta.iter().zip(ts) {
+            if *va != 0.0 {
+                assert!((va + 0.8 * vs - 0.74).abs() < 0.02, "{va} {vs}");
+            }
+        }
+        // no limit: the condition-index rule alone identifies both
+        let loose = IdentifyOptions {
+            max_vif: f64::INFINITY,
+            ..identify
+        };
+        let free = identify_flap(&design, &z, &alpha, &man, &loose, None, &sm, None).expect("fit");
+        assert!(free.pruned.is_empty());
+        assert!(free
+            .fit
+            .bins
+            .iter()
+            .any(|b| b.identifiable[1] && b.identifiable[3]));
     }
 
     #[test]
