@@ -1,6 +1,6 @@
 """Benchmark: the whole Δ fit of a 200-maneuver campaign (5 flaps, 3 coefficients).
 
-``aerodelta.fit`` (default settings: structure selection over the 16-candidate pool with
+``aerodelta.fit`` (default settings: structure selection over the 17-candidate pool with
 cross-validation over maneuvers, per-bin fits with coloured-residual standard errors, smoothing,
 the model) against a straightforward per-bin loop in the same run: numpy builds the default
 structures' regressors, ``statsmodels.OLS`` fits every 0.2 deg bin (bins with fewer than 10

@@ -63,7 +63,7 @@ _TRUTH_REG = {
     "dr_deg": "dr_deg",
 }
 #: Regressors whose truth the campaign does not give (higher orders of a beta table).
-_UNKNOWN_TRUTH = {"beta_deg^2", "beta_deg^3"}
+_UNKNOWN_TRUTH = {"beta_deg^2", "beta_deg^3", "abs(beta_deg)"}
 MATERIAL = 0.2
 
 

@@ -91,7 +91,15 @@ DEFAULT_STRUCTURES: dict[str, list[tuple[str, str]]] = {
 #: for lateral stall modelling (thesis Section 2.2: beta, p, r, delta_a, delta_r, beta^2,
 #: beta^3). Klein's products with alpha (beta*alpha, p*alpha^2, alpha^3, ...) are left out:
 #: alpha is nearly constant inside a 0.2 deg bin, so each is collinear with its alpha-free
-#: term; the bin-by-bin fit gives every parameter its alpha dependence instead.
+#: term; the bin-by-bin fit gives every parameter its alpha dependence instead. ``|beta|``
+#: joins them for tables with a kink at beta = 0 (piecewise linear in beta, as JSBSim's and
+#: DAVE-ML's breakpoint tables are: the DHC-6's Clb(beta, alpha) changes slope at zero by a
+#: factor of five): with it, ``beta`` keeps the mean of the two one-sided slopes, the
+#: derivative at zero a central difference gives, and the intercept the value at zero;
+#: otherwise the kink leaks into the intercept and into terms correlated with |beta| (rates in
+#: wing rock). The stepwise regression's collinearity guard keeps it and ``beta^2`` from
+#: entering together. The order is the priority of :func:`fit`'s collinearity rule (a term
+#: collinear with an earlier one leaves the structure first).
 CANDIDATE_TERMS: list[tuple[str, str]] = [
     ("0", "1"),
     ("beta", "beta_deg"),
@@ -109,6 +117,7 @@ CANDIDATE_TERMS: list[tuple[str, str]] = [
     ("beta_ds", "beta_deg * ds_deg"),
     ("beta2", "beta_deg^2"),
     ("beta3", "beta_deg^3"),
+    ("beta_abs", "abs(beta_deg)"),
 ]
 
 #: Default candidate pools of the structure selection.
