@@ -1,7 +1,8 @@
 """Shared pieces of the extended-model exports (DAVE-ML and JSBSim).
 
 - :func:`parse_regressor`: the regressor language of ``aero_core::regressor`` as a small tree
-  (it is a subset of Python's expression syntax once ``^`` is written ``**``);
+  (it is a subset of Python's expression syntax once ``^`` is written ``**``); too deep an
+  expression is a ``DataError``, never a ``RecursionError`` or ``MemoryError``;
 - :data:`DERIVED_CHANNELS`: Δ-model channels computed from others, as the ingestion does;
 - :func:`check_states`: the sampled states where exported models are checked against the engine
   (below, inside and beyond the blend region of Eq. 3.12, at and between flap settings).
@@ -51,18 +52,65 @@ class Node:
     name: str = ""
 
 
+#: Limits of the regressor language, as ``aero_core::regressor::MAX_NESTING`` and
+#: ``MAX_DEPTH``: levels of parentheses, function arguments, unary minus and ``^`` open at
+#: once, and nodes from the root of the expression tree to its deepest leaf.
+MAX_NESTING = 64
+MAX_DEPTH = 256
+
+
+def shown(src: str) -> str:
+    """``src`` for messages: whole up to 200 characters, else its start and its length."""
+    return src if len(src) <= 200 else f"{src[:120]}... ({len(src)} characters)"
+
+
+def _tree_depth(tree: ast.AST) -> int:
+    """Depth of an expression tree in nodes (a leaf is 1, ``a + b`` is 2), without recursion;
+    a negated number is one leaf, as the engine folds it."""
+    deepest = 0
+    stack: list[tuple[ast.AST, int]] = [(tree, 1)]
+    while stack:
+        n, d = stack.pop()
+        deepest = max(deepest, d)
+        if isinstance(n, ast.UnaryOp):
+            inner = n.operand
+            while isinstance(inner, ast.UnaryOp):
+                inner = inner.operand
+            if not isinstance(inner, ast.Constant):
+                stack.append((n.operand, d + 1))
+        elif isinstance(n, ast.BinOp):
+            stack += [(n.left, d + 1), (n.right, d + 1)]
+        elif isinstance(n, ast.Call):
+            stack += [(a, d + 1) for a in n.args]
+    return deepest
+
+
 def parse_regressor(src: str) -> Node:
     """Parse a regressor expression (grammar of ``aero_core::regressor``).
 
     Raises
     ------
     DataError
-        Naming the expression and the unsupported construct.
+        Naming the expression and the unsupported construct; or an expression deeper than
+        :data:`MAX_DEPTH`, or nested too deeply for Python's parser (the engine refuses more
+        than :data:`MAX_NESTING` levels already).
     """
     try:
         tree = ast.parse(src.replace("^", "**"), mode="eval").body
     except SyntaxError as e:
-        raise DataError(f"regressor '{src}': not an expression ({e.msg})") from None
+        if "too many nested" in str(e.msg):
+            raise DataError(_too_nested(src)) from None
+        raise DataError(f"regressor '{shown(src)}': not an expression ({e.msg})") from None
+    except (MemoryError, RecursionError):
+        # CPython's parser gives up on deep nesting (unary minus, **) this way
+        raise DataError(_too_nested(src)) from None
+    depth = _tree_depth(tree)
+    if depth > MAX_DEPTH:
+        raise DataError(
+            f"regressor '{shown(src)}': is {depth} operations deep (each operator and function "
+            f"call on the way down counts, so a chain a + b + c is 3); at most {MAX_DEPTH} are "
+            "supported; split it into several regressors"
+        )
 
     def walk(n: ast.AST) -> Node:
         if isinstance(n, ast.Constant) and isinstance(n.value, int | float):
@@ -83,9 +131,19 @@ def parse_regressor(src: str) -> Node:
             and not n.keywords
         ):
             return Node(n.func.id, tuple(walk(a) for a in n.args))
-        raise DataError(f"regressor '{src}': unsupported construct '{ast.unparse(n)}'")
+        raise DataError(
+            f"regressor '{shown(src)}': unsupported construct '{shown(ast.unparse(n))}'"
+        )
 
     return walk(tree)
+
+
+def _too_nested(src: str) -> str:
+    return (
+        f"regressor '{shown(src)}': nests too deeply to parse; at most {MAX_NESTING} levels of "
+        "parentheses, function arguments, unary minus and ^ exponents are supported; simplify "
+        "the expression"
+    )
 
 
 def columns(node: Node) -> list[str]:

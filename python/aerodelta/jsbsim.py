@@ -22,6 +22,7 @@ properties that the file declares (value 0) and the aircraft must drive, e.g. fr
 from __future__ import annotations
 
 import math
+import re
 from collections.abc import Mapping
 from os import PathLike
 from typing import Any
@@ -69,11 +70,45 @@ def _num(x: float) -> str:
     return repr(float(x))
 
 
-def _factors(expr: str) -> list[str]:
+#: A JSBSim property path: components ``[A-Za-z_][A-Za-z0-9_.-]*`` with an optional ``[index]``
+#: joined by ``/`` (SimGear's property names), optionally rooted at ``/``; a leading ``-``
+#: negates it in a function (JSBSim's FGPropertyValue).
+_PROPERTY = re.compile(
+    r"-?/?[A-Za-z_][A-Za-z0-9_.\-]*(?:\[[0-9]+\])?(?:/[A-Za-z_][A-Za-z0-9_.\-]*(?:\[[0-9]+\])?)*"
+)
+
+
+def _property(name: str, what: str) -> str:
+    """``name`` if it is a JSBSim property path (so it needs no XML escaping), else a
+    ``DataError`` naming ``what`` it is for."""
+    if _PROPERTY.fullmatch(name) is None:
+        raise DataError(
+            f"{what}: '{name}' is not a JSBSim property name; use letters, digits, _ - . and "
+            "/ between the parts (e.g. fcs/left-aileron-pos-deg, propulsion/engine[1]/thrust-lbs)"
+        )
+    return name
+
+
+def _factors(expr: str, channel: str = "") -> list[str]:
+    what = f"JSBSim property mapping '{expr}'" + (f" of channel '{channel}'" if channel else "")
     out = [f.strip() for f in expr.split("*")]
     if not out or any(not f for f in out):
-        raise DataError(f"JSBSim property mapping '{expr}': give properties/numbers joined by '*'")
+        raise DataError(f"{what}: give properties/numbers joined by '*'")
+    for f in out:
+        if _is_number(f):
+            if not math.isfinite(float(f)):
+                raise DataError(f"{what}: '{f}' is not a finite number")
+        else:
+            _property(f, what)
     return out
+
+
+def _comment(text: str) -> str:
+    """``text`` safe inside an XML comment: escaped, with no ``--`` and no trailing ``-``."""
+    out = escape(text)
+    while "--" in out:
+        out = out.replace("--", "- -")
+    return out + " " if out.endswith("-") else out
 
 
 def _is_number(s: str) -> bool:
@@ -102,9 +137,12 @@ class _Writer:
         """The property holding channel ``ch`` (defining a function for it when needed)."""
         if ch in self.channel_prop:
             return self.channel_prop[ch]
-        name = f"aero/aerodelta/in/{ch}"
+        name = _property(
+            f"aero/aerodelta/in/{ch}",
+            f"Δ-model channel '{ch}' (the export names a property after it; rename the channel)",
+        )
         if ch in self.props:
-            fs = _factors(self.props[ch])
+            fs = _factors(self.props[ch], ch)
             for f in fs:
                 if f.startswith("aerodelta/") and f not in self.declared:
                     self.declared.append(f)
@@ -124,8 +162,8 @@ class _Writer:
                 f"properties={{'{ch}': 'some/property'}} (CLI --property {ch}=some/property)"
             )
         self.channel_fns.append(
-            f'  <function name="{name}">\n    <description>Δ-model channel {ch}</description>\n'
-            f"    {inner}\n  </function>"
+            f'  <function name="{name}">\n    <description>Δ-model channel {escape(ch)}'
+            f"</description>\n    {inner}\n  </function>"
         )
         self.channel_prop[ch] = name
         return name
@@ -188,7 +226,7 @@ class _Writer:
             if hi is not None:
                 inner = f"<min>{inner}<value>{_num(hi)}</value></min>"
             self.channel_fns.append(
-                f'  <function name="{name}">\n    <description>{ch} within the qualified '
+                f'  <function name="{name}">\n    <description>{escape(ch)} within the qualified '
                 f"model's limits</description>\n    {inner}\n  </function>"
             )
             self.channel_prop[f"{ch} (limited)"] = name
@@ -337,10 +375,10 @@ def jsbsim_xml(
             node = parse_regressor(t["regressor"])
             tab = w.table2(t, alpha_p, flap_p)
             if node.op == "const" and node.value == 1.0:
-                prods.append(f"    <!-- {t['name']} * 1 -->\n    {tab}")
+                prods.append(f"    <!-- {_comment(t['name'])} * 1 -->\n    {tab}")
             else:
                 prods.append(
-                    f"    <!-- {t['name']} * {escape(t['regressor'])} -->\n"
+                    f"    <!-- {_comment(t['name'])} * {_comment(t['regressor'])} -->\n"
                     f"    <product>{tab}\n      {w.expr(node)}</product>"
                 )
         fns.append(
@@ -397,11 +435,11 @@ def jsbsim_xml(
     prov = spec.get("provenance") or {}
     header = (
         '<?xml version="1.0"?>\n<!--\n  aerodelta extended-model increments (thesis Eq. 3.12), '
-        f"written by {escape(str(prov.get('library', 'aerodelta')))}; model data sha256 "
-        f"{escape(str(prov.get('data_sha256', '?')))}.\n  Add these functions to the aircraft's "
+        f"written by {_comment(str(prov.get('library', 'aerodelta')))}; model data sha256 "
+        f"{_comment(str(prov.get('data_sha256', '?')))}.\n  Add these functions to the aircraft's "
         "own aerodynamics (the qualified model).\n  Channels and the JSBSim properties they "
         "read (aerodelta/... ones are declared here with value 0:\n  drive them from the "
-        "aircraft, signs as in the Etkin convention):\n" + escape(mapping) + "\n-->\n"
+        "aircraft, signs as in the Etkin convention):\n" + _comment(mapping) + "\n-->\n"
     )
     axes_xml = "\n".join(
         f'  <axis name="{a}">\n' + "\n".join(fs) + "\n  </axis>" for a, fs in axes.items()

@@ -248,9 +248,15 @@ def _resolve_aircraft(aircraft: str | JsbsimAircraft, root: Path) -> tuple[Jsbsi
 
 _Node = tuple  # ("prop", name) | ("val", x) | ("table", vars, rows, cols, data) | (op, [children])
 _OPS = ("product", "sum", "difference", "quotient", "abs", "max", "min")
+#: Deepest function this evaluator reads (aircraft nest a handful of levels); a deeper one is
+#: left to JSBSim like any other function it cannot evaluate, keeping the recursions here
+#: (_parse_fn, _eval, _props) well inside Python's recursion limit.
+_MAX_FN_DEPTH = 100
 
 
-def _parse_fn(el: ET.Element) -> _Node | None:
+def _parse_fn(el: ET.Element, depth: int = 1) -> _Node | None:
+    if depth > _MAX_FN_DEPTH:
+        return None
     tag = el.tag
     if tag == "property":
         return ("prop", (el.text or "").strip())
@@ -272,7 +278,7 @@ def _parse_fn(el: ET.Element) -> _Node | None:
         body = np.array(rows[1:], dtype=float)
         return ("table", names, body[:, 0], cols, body[:, 1:])
     if tag in _OPS:
-        kids = [_parse_fn(c) for c in el if c.tag != "description"]
+        kids = [_parse_fn(c, depth + 1) for c in el if c.tag != "description"]
         if any(k is None for k in kids) or not kids:
             return None
         return (tag, kids)

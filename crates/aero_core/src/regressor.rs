@@ -23,9 +23,38 @@
 //!
 //! Names are column names; they may contain letters, digits and `_`, and may
 //! not start with a digit.
+//!
+//! Limits (far above any aerodynamic regressor, which nests a handful of
+//! levels; they keep a malformed or hostile expression from overflowing the
+//! stack of the parser or of the tree walks that follow it):
+//! - [`MAX_NESTING`]: parentheses, function arguments, unary minus and `^`
+//!   exponents each open one level while parsing; at most 64 may be open;
+//! - [`MAX_DEPTH`]: the parsed tree is at most 256 nodes deep, counting every
+//!   operator and function call on the way down, so a flat chain
+//!   `a + b + c + ...` may have at most 256 terms.
 
 use crate::error::{AeroError, Result};
 use std::fmt;
+
+/// Most levels of parentheses, function arguments, unary minus and `^`
+/// exponents open at once while parsing (see the module documentation).
+pub const MAX_NESTING: usize = 64;
+
+/// Deepest expression tree [`Expr::parse`] returns, in nodes (a leaf is 1,
+/// `a + b` is 2, `a + b + c` is 3).
+pub const MAX_DEPTH: usize = 256;
+
+/// `src` for messages: whole up to 200 characters, else its first 120
+/// characters, an ellipsis and its length.
+fn shown(src: &str) -> String {
+    let n = src.chars().count();
+    if n <= 200 {
+        src.to_string()
+    } else {
+        let head: String = src.chars().take(120).collect();
+        format!("{head}... ({n} characters)")
+    }
+}
 
 /// A parsed regressor expression.
 #[derive(Debug, Clone, PartialEq)]
@@ -231,8 +260,8 @@ fn tokenize(src: &str) -> Result<Vec<(usize, Tok)>> {
             let text: String = bytes[start..i].iter().collect();
             let v: f64 = text.parse().map_err(|_| {
                 AeroError::invalid(
-                    format!("regressor '{src}', column {}", start + 1),
-                    format!("'{text}' is not a number"),
+                    format!("regressor '{}', column {}", shown(src), start + 1),
+                    format!("'{}' is not a number", shown(&text)),
                 )
             })?;
             out.push((start, Tok::Num(v)));
@@ -247,7 +276,7 @@ fn tokenize(src: &str) -> Result<Vec<(usize, Tok)>> {
             i += 1;
         } else {
             return Err(AeroError::invalid(
-                format!("regressor '{src}', column {}", i + 1),
+                format!("regressor '{}', column {}", shown(src), i + 1),
                 format!(
                     "unexpected character '{c}'; use names, numbers, + - * / ^, ( ) and functions"
                 ),
@@ -257,20 +286,116 @@ fn tokenize(src: &str) -> Result<Vec<(usize, Tok)>> {
     Ok(out)
 }
 
+/// The nesting [`Parser`] reaches on `toks`, computed without recursion: the
+/// deepest level and the index of the token where nesting first passes
+/// [`MAX_NESTING`], if it does. Mirrors the parser: `(` (a group or an argument
+/// list) opens a level that its `)` closes; a unary `-` or a `^` opens a level
+/// that lasts until its operand ends, i.e. up to the next `+ - * / ,` or `)` of
+/// the same parenthesis level.
+fn nesting(toks: &[(usize, Tok)]) -> (usize, Option<usize>) {
+    let mut pending: Vec<usize> = vec![0]; // open unary/^ levels per parenthesis level
+    let (mut depth, mut max, mut first_over) = (0usize, 0usize, None);
+    for (k, (_, t)) in toks.iter().enumerate() {
+        let prev_is_operand =
+            k > 0 && matches!(toks[k - 1].1, Tok::Num(_) | Tok::Name(_) | Tok::Op(')'));
+        let top = pending.len() - 1;
+        match t {
+            Tok::Num(_) | Tok::Name(_) => {}
+            Tok::Op('(') => {
+                depth += 1;
+                pending.push(0);
+            }
+            Tok::Op(')') => {
+                if pending.len() > 1 {
+                    depth -= pending.pop().unwrap_or(0) + 1;
+                }
+            }
+            Tok::Op('-') if !prev_is_operand => {
+                pending[top] += 1;
+                depth += 1;
+            }
+            Tok::Op('^') => {
+                pending[top] += 1;
+                depth += 1;
+            }
+            Tok::Op(_) => {
+                depth -= pending[top];
+                pending[top] = 0;
+            }
+        }
+        max = max.max(depth);
+        if depth > MAX_NESTING && first_over.is_none() {
+            first_over = Some(k);
+        }
+    }
+    (max, first_over)
+}
+
 struct Parser<'a> {
     src: &'a str,
     toks: Vec<(usize, Tok)>,
     pos: usize,
+    /// Levels of nesting open now (bounded by [`MAX_NESTING`]).
+    nesting: usize,
+    /// Deepest tree seen, when deeper than [`MAX_DEPTH`], and the token index
+    /// where that first happened.
+    too_deep: Option<(usize, usize)>,
 }
+
+/// A parsed subexpression and the true depth of its tree. Subtrees deeper than
+/// [`MAX_DEPTH`] are replaced by a placeholder leaf (the parse then fails), so
+/// the tree built stays shallow while the true depth is still counted.
+type Node = (Expr, usize);
 
 impl Parser<'_> {
     fn err(&self, msg: impl Into<String>) -> AeroError {
-        let col = self
-            .toks
-            .get(self.pos)
-            .map_or(self.src.chars().count(), |t| t.0)
-            + 1;
-        AeroError::invalid(format!("regressor '{}', column {col}", self.src), msg)
+        self.err_at(self.pos, msg)
+    }
+
+    fn err_at(&self, tok: usize, msg: impl Into<String>) -> AeroError {
+        let col = self.toks.get(tok).map_or(self.src.chars().count(), |t| t.0) + 1;
+        AeroError::invalid(
+            format!("regressor '{}', column {col}", shown(self.src)),
+            msg,
+        )
+    }
+
+    fn nesting_err(&self, depth: usize, tok: usize) -> AeroError {
+        self.err_at(
+            tok,
+            format!(
+                "nests {depth} levels deep (parentheses, function arguments, unary minus and ^ \
+                 exponents); at most {MAX_NESTING} are supported; simplify the expression"
+            ),
+        )
+    }
+
+    /// Open one level of nesting; an error past [`MAX_NESTING`]. [`nesting`]
+    /// refuses such input before parsing, so this only backs it up.
+    fn enter(&mut self) -> Result<()> {
+        self.nesting += 1;
+        if self.nesting > MAX_NESTING {
+            return Err(self.nesting_err(self.nesting, self.pos));
+        }
+        Ok(())
+    }
+
+    fn leave(&mut self) {
+        self.nesting -= 1;
+    }
+
+    /// A node of true depth `depth`: `e` itself, or a placeholder leaf when
+    /// `depth` passes [`MAX_DEPTH`] (noted for the error at the end).
+    fn node(&mut self, e: Expr, depth: usize) -> Node {
+        if depth <= MAX_DEPTH {
+            return (e, depth);
+        }
+        match self.too_deep {
+            Some((d, _)) if d >= depth => {}
+            Some((_, at)) => self.too_deep = Some((depth, at)),
+            None => self.too_deep = Some((depth, self.pos.saturating_sub(1))),
+        }
+        (Expr::Const(0.0), depth)
     }
 
     fn peek(&self) -> Option<&Tok> {
@@ -286,61 +411,74 @@ impl Parser<'_> {
         }
     }
 
-    fn expr(&mut self) -> Result<Expr> {
-        let mut lhs = self.term()?;
+    fn expr(&mut self) -> Result<Node> {
+        let (mut lhs, mut depth) = self.term()?;
         loop {
             let op = if self.eat_op('+') {
                 BinOp::Add
             } else if self.eat_op('-') {
                 BinOp::Sub
             } else {
-                return Ok(lhs);
+                return Ok((lhs, depth));
             };
-            let rhs = self.term()?;
-            lhs = Expr::Bin(op, Box::new(lhs), Box::new(rhs));
+            let (rhs, rd) = self.term()?;
+            (lhs, depth) = self.node(
+                Expr::Bin(op, Box::new(lhs), Box::new(rhs)),
+                depth.max(rd) + 1,
+            );
         }
     }
 
-    fn term(&mut self) -> Result<Expr> {
-        let mut lhs = self.unary()?;
+    fn term(&mut self) -> Result<Node> {
+        let (mut lhs, mut depth) = self.unary()?;
         loop {
             let op = if self.eat_op('*') {
                 BinOp::Mul
             } else if self.eat_op('/') {
                 BinOp::Div
             } else {
-                return Ok(lhs);
+                return Ok((lhs, depth));
             };
-            let rhs = self.unary()?;
-            lhs = Expr::Bin(op, Box::new(lhs), Box::new(rhs));
+            let (rhs, rd) = self.unary()?;
+            (lhs, depth) = self.node(
+                Expr::Bin(op, Box::new(lhs), Box::new(rhs)),
+                depth.max(rd) + 1,
+            );
         }
     }
 
-    fn unary(&mut self) -> Result<Expr> {
+    fn unary(&mut self) -> Result<Node> {
         if self.eat_op('-') {
-            let e = self.unary()?;
+            self.enter()?;
+            let (e, depth) = self.unary()?;
+            self.leave();
             return Ok(match e {
-                Expr::Const(c) => Expr::Const(-c),
-                e => Expr::Neg(Box::new(e)),
+                Expr::Const(c) => (Expr::Const(-c), depth),
+                e => self.node(Expr::Neg(Box::new(e)), depth + 1),
             });
         }
         self.power()
     }
 
-    fn power(&mut self) -> Result<Expr> {
-        let base = self.atom()?;
+    fn power(&mut self) -> Result<Node> {
+        let (base, bd) = self.atom()?;
         if self.eat_op('^') {
-            let exp = self.unary()?;
-            return Ok(Expr::Bin(BinOp::Pow, Box::new(base), Box::new(exp)));
+            self.enter()?;
+            let (exp, ed) = self.unary()?;
+            self.leave();
+            return Ok(self.node(
+                Expr::Bin(BinOp::Pow, Box::new(base), Box::new(exp)),
+                bd.max(ed) + 1,
+            ));
         }
-        Ok(base)
+        Ok((base, bd))
     }
 
-    fn atom(&mut self) -> Result<Expr> {
+    fn atom(&mut self) -> Result<Node> {
         match self.peek().cloned() {
             Some(Tok::Num(v)) => {
                 self.pos += 1;
-                Ok(Expr::Const(v))
+                Ok((Expr::Const(v), 1))
             }
             Some(Tok::Name(name)) => {
                 self.pos += 1;
@@ -351,30 +489,37 @@ impl Parser<'_> {
                             "unknown function '{name}'; known: pos, neg, deadband, step, abs, sqrt, sin, cos, exp, min, max"
                         )));
                     };
-                    let mut args = vec![self.expr()?];
+                    self.enter()?;
+                    let (first, mut depth) = self.expr()?;
+                    let mut args = vec![first];
                     while self.eat_op(',') {
-                        args.push(self.expr()?);
+                        let (a, d) = self.expr()?;
+                        args.push(a);
+                        depth = depth.max(d);
                     }
                     if !self.eat_op(')') {
                         return Err(self.err("expected ')' to close the argument list"));
                     }
+                    self.leave();
                     if args.len() != arity {
                         return Err(self.err(format!(
                             "{name}() takes {arity} argument(s), got {}",
                             args.len()
                         )));
                     }
-                    Ok(Expr::Call(func, args))
+                    Ok(self.node(Expr::Call(func, args), depth + 1))
                 } else {
-                    Ok(Expr::Column(name))
+                    Ok((Expr::Column(name), 1))
                 }
             }
             Some(Tok::Op('(')) => {
                 self.pos += 1;
+                self.enter()?;
                 let e = self.expr()?;
                 if !self.eat_op(')') {
                     return Err(self.err("expected ')'"));
                 }
+                self.leave();
                 Ok(e)
             }
             Some(Tok::Op(c)) => Err(self.err(format!("unexpected '{c}'"))),
@@ -388,7 +533,8 @@ impl Expr {
     ///
     /// # Errors
     /// [`AeroError::InvalidInput`] naming the expression and the 1-based
-    /// column of the first problem.
+    /// column of the first problem, including nesting deeper than
+    /// [`MAX_NESTING`] or a tree deeper than [`MAX_DEPTH`].
     ///
     /// ```
     /// use aero_core::regressor::Expr;
@@ -399,16 +545,35 @@ impl Expr {
     /// ```
     pub fn parse(src: &str) -> Result<Expr> {
         let toks = tokenize(src)?;
-        let mut p = Parser { src, toks, pos: 0 };
+        let mut p = Parser {
+            src,
+            toks,
+            pos: 0,
+            nesting: 0,
+            too_deep: None,
+        };
         if p.toks.is_empty() {
             return Err(AeroError::invalid(
                 "regressor ''",
                 "is empty; write an expression such as 'beta_rad' or '1'",
             ));
         }
-        let e = p.expr()?;
+        if let (depth, Some(at)) = nesting(&p.toks) {
+            return Err(p.nesting_err(depth, at));
+        }
+        let (e, _) = p.expr()?;
         if p.pos != p.toks.len() {
             return Err(p.err("unexpected text after the end of the expression"));
+        }
+        if let Some((depth, at)) = p.too_deep {
+            return Err(p.err_at(
+                at,
+                format!(
+                    "is {depth} operations deep (each operator and function call on the way \
+                     down counts, so a chain a + b + c is 3); at most {MAX_DEPTH} are supported; \
+                     split it into several regressors"
+                ),
+            ));
         }
         Ok(e)
     }
@@ -562,8 +727,8 @@ impl Expr {
         }
         if max_depth > MAX_STACK {
             return Err(AeroError::invalid(
-                format!("regressor '{self}'"),
-                format!("nests {max_depth} levels deep; at most {MAX_STACK} are supported"),
+                format!("regressor '{}'", shown(&self.to_string())),
+                format!("needs an evaluation stack {max_depth} deep; at most {MAX_STACK} are supported; simplify the expression"),
             ));
         }
         Ok(BoundExpr {
@@ -778,5 +943,104 @@ mod tests {
             };
             assert_eq!(e.eval_point(&lookup).to_bits(), cols[i].to_bits());
         }
+    }
+
+    /// Parse `src` on a thread with Rust's default 2 MiB test stack, so a
+    /// recursion that is not bounded fails the test (by overflowing) instead
+    /// of passing on a larger main-thread stack.
+    fn parse_on_small_stack(src: String) -> Result<Expr> {
+        std::thread::Builder::new()
+            .stack_size(2 << 20)
+            .spawn(move || Expr::parse(&src))
+            .expect("spawn")
+            .join()
+            .expect("no panic")
+    }
+
+    fn too_deep(src: String) -> String {
+        let n = src.chars().count();
+        let e = parse_on_small_stack(src).expect_err("must be refused");
+        assert_eq!(e.kind(), crate::error::ErrorKind::InvalidInput);
+        let msg = e.to_string();
+        assert!(!msg.contains('\n'), "one line: {msg}");
+        assert!(msg.len() < 600, "short: {msg}");
+        assert!(msg.contains(&format!("({n} characters)")), "{msg}");
+        msg
+    }
+
+    #[test]
+    fn deep_parentheses_are_refused_not_overflowing() {
+        let src = format!("{}x{}", "(".repeat(20_000), ")".repeat(20_000));
+        let msg = too_deep(src);
+        assert!(
+            msg.contains("nests 20000 levels deep") && msg.contains("at most 64 are supported"),
+            "{msg}"
+        );
+        assert!(msg.contains("column 65"), "{msg}");
+        // Unbalanced: still refused on depth, not by recursing.
+        let msg = too_deep("(".repeat(20_000));
+        assert!(msg.contains("nests 20000 levels deep"), "{msg}");
+    }
+
+    #[test]
+    fn long_unary_minus_and_power_chains_are_refused() {
+        let msg = too_deep(format!("{}x", "-".repeat(20_000)));
+        assert!(msg.contains("nests 20000 levels deep"), "{msg}");
+        let msg = too_deep(vec!["x"; 20_001].join(" ^ "));
+        assert!(msg.contains("nests 20000 levels deep"), "{msg}");
+        let msg = too_deep(format!("{}1", "-".repeat(20_000)));
+        assert!(msg.contains("at most 64"), "{msg}");
+        let msg = too_deep(vec!["f(x)"; 300].join("^").replace('f', "abs"));
+        assert!(msg.contains("nests 300 levels deep"), "{msg}");
+        let calls = format!("{}x{}", "abs(".repeat(20_000), ")".repeat(20_000));
+        assert!(too_deep(calls).contains("nests 20000 levels deep"));
+    }
+
+    #[test]
+    fn long_flat_chains_are_refused_by_tree_depth() {
+        for op in ["+", "-", "*", "/"] {
+            let msg = too_deep(vec!["a"; 20_000].join(&format!(" {op} ")));
+            assert!(
+                msg.contains("is 20000 operations deep")
+                    && msg.contains("at most 256 are supported")
+                    && msg.contains("split it"),
+                "{msg}"
+            );
+        }
+        // Mixed: nesting within the limit around a long chain.
+        let src = format!(
+            "{}{}{}",
+            "(".repeat(60),
+            vec!["b"; 5_000].join("*"),
+            ")".repeat(60)
+        );
+        assert!(too_deep(src).contains("is 5000 operations deep"));
+    }
+
+    #[test]
+    fn expressions_at_the_limits_parse_and_evaluate() {
+        // 64 levels of each kind of nesting parse.
+        let x = [2.0];
+        let src = format!("{}x{}", "(".repeat(MAX_NESTING), ")".repeat(MAX_NESTING));
+        assert_eq!(eval(&src, &[("x", &x)]), vec![2.0]);
+        let src = format!("{}x", "-".repeat(MAX_NESTING));
+        assert_eq!(eval(&src, &[("x", &x)]), vec![2.0]);
+        let src = format!("{}x{}", "abs(".repeat(MAX_NESTING), ")".repeat(MAX_NESTING));
+        assert_eq!(eval(&src, &[("x", &x)]), vec![2.0]);
+        let src = format!("{}x", "-".repeat(MAX_NESTING + 1));
+        assert!(Expr::parse(&src).is_err());
+        // A chain of MAX_DEPTH terms is MAX_DEPTH deep and parses; one more does not.
+        let src = vec!["x"; MAX_DEPTH].join(" + ");
+        let e = parse_on_small_stack(src).expect("parses");
+        let lookup = |n: &str| (n == "x").then_some(&x[..]);
+        assert_eq!(e.eval_columns(&lookup, 1).expect("evaluates"), vec![512.0]);
+        assert_eq!(e.columns(), vec!["x"]);
+        assert!(e.to_string().len() > 1000);
+        let src = vec!["x"; MAX_DEPTH + 1].join(" + ");
+        let msg = parse_on_small_stack(src).unwrap_err().to_string();
+        assert!(msg.contains("is 257 operations deep"), "{msg}");
+        // Short expressions keep their whole text in messages.
+        let msg = Expr::parse("((beta)").unwrap_err().to_string();
+        assert!(msg.starts_with("regressor '((beta)', column 8"), "{msg}");
     }
 }

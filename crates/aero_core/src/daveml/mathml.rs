@@ -14,11 +14,37 @@
 //! `otherwise`. Angles of trigonometric functions are in radians (MathML).
 //! Booleans are 1.0 (true) and 0.0 (false); a `piecewise` with no true piece
 //! and no `otherwise` is NaN.
+//!
+//! A calculation may nest at most [`MAX_DEPTH`] elements below its `<math>`
+//! (real models nest a few dozen at most; long sums and products are one n-ary
+//! `<apply>`); deeper ones are refused before compiling, so neither the
+//! compiler nor the evaluation recurses without bound.
 
 use roxmltree::Node;
 
 use super::{elements, text_of, Source};
 use crate::error::Result;
+
+/// Most elements a calculation may nest below its `<math>` (a `<ci>` directly
+/// in `<math>` is 1 deep; `<apply><plus/><ci>a</ci><ci>b</ci></apply>` is 2).
+/// Regressors written by [`super::write`] (at most
+/// [`crate::regressor::MAX_DEPTH`] deep) stay well within it.
+pub const MAX_DEPTH: usize = 512;
+
+/// The depth of the deepest element below `math`, and the first element found
+/// deeper than [`MAX_DEPTH`], if any; without recursion.
+fn element_depth<'a, 'i>(math: Node<'a, 'i>) -> (usize, Option<Node<'a, 'i>>) {
+    let (mut max, mut first_over) = (0usize, None);
+    let mut stack: Vec<(Node, usize)> = elements(math).map(|n| (n, 1)).collect();
+    while let Some((node, depth)) = stack.pop() {
+        max = max.max(depth);
+        if depth > MAX_DEPTH && first_over.is_none() {
+            first_over = Some(node);
+        }
+        stack.extend(elements(node).map(|n| (n, depth + 1)));
+    }
+    (max, first_over)
+}
 
 /// A function of one argument.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -254,13 +280,57 @@ fn eval_nary(op: Nary, args: &[Expr], v: &[f64]) -> f64 {
     }
 }
 
+/// Compile the `<math>` of the calculation of variable `var` (its
+/// `<variableDef>`); `resolve` maps a `ci` name to a variable index.
+///
+/// # Errors
+/// As [`compile`]; a calculation nested deeper than [`MAX_DEPTH`] is an error
+/// naming the variable, its line and the line of the first element too deep.
+pub(crate) fn calculation(
+    src: &Source,
+    math: Node<'_, '_>,
+    resolve: &dyn Fn(&str) -> Option<usize>,
+    var: Node<'_, '_>,
+) -> Result<Expr> {
+    if let (depth, Some(deep)) = element_depth(math) {
+        return Err(src.err(
+            var,
+            format!(
+                "its calculation nests {depth} MathML elements deep (past {MAX_DEPTH} on line {}); \
+                 at most {MAX_DEPTH} are supported; write long sums and products as one n-ary \
+                 <apply><plus/> or <apply><times/>, or split the calculation into intermediate \
+                 variables",
+                src.line(deep)
+            ),
+        ));
+    }
+    compile_checked(src, math, resolve)
+}
+
 /// Compile the content of a `<math>` (or `<calculation>`) element; `resolve`
 /// maps a `ci` name to a variable index.
 ///
 /// # Errors
 /// A parse error naming the element and line for an unknown `ci`, an
-/// unsupported element or a wrong number of arguments.
+/// unsupported element, a wrong number of arguments or nesting deeper than
+/// [`MAX_DEPTH`].
+#[cfg(test)]
 pub(crate) fn compile(
+    src: &Source,
+    math: Node<'_, '_>,
+    resolve: &dyn Fn(&str) -> Option<usize>,
+) -> Result<Expr> {
+    if let (depth, Some(deep)) = element_depth(math) {
+        return Err(src.err(
+            deep,
+            format!("is nested {depth} MathML elements deep; at most {MAX_DEPTH} are supported"),
+        ));
+    }
+    compile_checked(src, math, resolve)
+}
+
+/// [`compile`] once the depth is known to be within [`MAX_DEPTH`].
+fn compile_checked(
     src: &Source,
     math: Node<'_, '_>,
     resolve: &dyn Fn(&str) -> Option<usize>,
@@ -297,7 +367,7 @@ fn expr(src: &Source, node: Node<'_, '_>, resolve: &dyn Fn(&str) -> Option<usize
         "false" => Ok(Expr::Const(0.0)),
         "notanumber" => Ok(Expr::Const(f64::NAN)),
         "infinity" => Ok(Expr::Const(f64::INFINITY)),
-        "semantics" | "math" => compile(src, node, resolve),
+        "semantics" | "math" => compile_checked(src, node, resolve),
         "piecewise" => piecewise(src, node, resolve),
         "apply" => apply(src, node, resolve),
         _ => Err(src.err(node, "is not a supported MathML element here")),
@@ -353,7 +423,7 @@ fn piecewise(
                 };
                 pieces.push((expr(src, *v, resolve)?, expr(src, *c, resolve)?));
             }
-            "otherwise" => otherwise = Some(Box::new(compile(src, k, resolve)?)),
+            "otherwise" => otherwise = Some(Box::new(compile_checked(src, k, resolve)?)),
             _ => {
                 return Err(src.err(
                     k,
@@ -392,10 +462,23 @@ fn apply(
     let mut args = Vec::with_capacity(rest.len());
     for a in rest {
         match a.tag_name().name() {
-            "degree" | "logbase" => qualifier = Some(compile(src, *a, resolve)?),
+            "degree" | "logbase" => qualifier = Some(compile_checked(src, *a, resolve)?),
             _ => args.push(expr(src, *a, resolve)?),
         }
     }
+    build(src, op_node, &op, args, qualifier)
+}
+
+/// The expression of operator `op` applied to compiled `args`: apart from
+/// [`apply`] so the recursion through `apply` keeps a small stack frame.
+#[inline(never)]
+fn build(
+    src: &Source,
+    op_node: Node<'_, '_>,
+    op: &str,
+    args: Vec<Expr>,
+    qualifier: Option<Expr>,
+) -> Result<Expr> {
     let n = args.len();
     let arity_err = |want: &str| {
         src.err(
@@ -422,7 +505,7 @@ fn apply(
         }
         Ok(Expr::Nary(m, args))
     };
-    match op.as_str() {
+    match op {
         "plus" => {
             if n == 1 {
                 Ok(args.into_iter().next().unwrap_or(Expr::Const(0.0)))

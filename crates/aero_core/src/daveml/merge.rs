@@ -10,8 +10,6 @@
 //! values to base inputs as well). Addition inputs whose `varID` is already a
 //! variable of the base are shared, not declared again.
 
-use roxmltree::{Document, ParsingOptions};
-
 use super::model::DaveModel;
 use super::write::{check_data, sections, ModelSpec};
 use crate::error::{AeroError, Result};
@@ -65,17 +63,9 @@ pub fn merge_xml(base: &str, base_name: &str, add: &ModelSpec) -> Result<String>
         }
     }
 
-    let opts = ParsingOptions {
-        allow_dtd: true,
-        ..ParsingOptions::default()
-    };
-    let doc = Document::parse_with_options(base, opts).map_err(|e| {
-        AeroError::parse(
-            base_name,
-            e.pos().row as usize,
-            format!("malformed XML: {e}"),
-        )
-    })?;
+    // Same byte offsets as `base` (the document type declaration is blanked).
+    let xml = super::without_doctype(base, base_name)?;
+    let doc = super::parse_document(&xml, base_name)?;
     let root = doc.root_element();
     let kids: Vec<_> = root.children().filter(|n| n.is_element()).collect();
     let last_end = |tags: &[&str]| {

@@ -33,6 +33,8 @@ pub mod parse;
 pub mod write;
 
 #[cfg(test)]
+mod limits_tests;
+#[cfg(test)]
 mod tests;
 
 pub use check::{CheckKind, CheckRow, Shot};
@@ -40,7 +42,184 @@ pub use merge::merge_xml;
 pub use model::{DaveModel, Variable};
 pub use write::{mathml_of, to_xml, write_model, CalcSpec, ModelSpec};
 
+use std::borrow::Cow;
+
 use crate::error::AeroError;
+
+/// The text to hand to the XML parser: `text` with its document type
+/// declaration (`<!DOCTYPE ...>`), if any, blanked out byte for byte (line
+/// breaks kept), so byte offsets and lines are those of `text`. The public
+/// models carry one naming the external DAVE-ML DTD, which is never read.
+///
+/// Refused with an error naming the file and line: an internal subset that
+/// declares entities (`<!ENTITY ...>`). DAVE-ML needs none, and expanding them
+/// is how a file of a few hundred kilobytes becomes gigabytes of text
+/// ("billion laughs", quadratic blowup). Parsing the result with DTDs
+/// disallowed then also refuses any declaration this scan did not find.
+pub(crate) fn without_doctype<'a>(text: &'a str, file: &str) -> crate::Result<Cow<'a, str>> {
+    let b = text.as_bytes();
+    let line = |pos: usize| {
+        1 + b[..pos.min(b.len())]
+            .iter()
+            .filter(|&&c| c == b'\n')
+            .count()
+    };
+    let find = |from: usize, pat: &[u8]| {
+        b.get(from..)
+            .and_then(|rest| rest.windows(pat.len()).position(|w| w == pat))
+            .map(|k| from + k)
+    };
+    let skip_ws = |mut i: usize| {
+        while b.get(i).is_some_and(u8::is_ascii_whitespace) {
+            i += 1;
+        }
+        i
+    };
+    // Prolog: BOM, XML declaration, comments, processing instructions.
+    let mut i = if b.starts_with(&[0xEF, 0xBB, 0xBF]) {
+        3
+    } else {
+        0
+    };
+    loop {
+        i = skip_ws(i);
+        let end = if b[i..].starts_with(b"<?") {
+            find(i + 2, b"?>").map(|k| k + 2)
+        } else if b[i..].starts_with(b"<!--") {
+            find(i + 4, b"-->").map(|k| k + 3)
+        } else {
+            break;
+        };
+        match end {
+            Some(e) => i = e,
+            // Unterminated: the XML parser names the problem.
+            None => return Ok(Cow::Borrowed(text)),
+        }
+    }
+    if !b[i..].starts_with(b"<!DOCTYPE") {
+        return Ok(Cow::Borrowed(text));
+    }
+    let start = i;
+    let unclosed = || {
+        AeroError::parse(
+            file,
+            line(start),
+            "the <!DOCTYPE> declaration is not closed; end it with '>' (or ']>' after an internal subset)",
+        )
+    };
+    // Name and external id, up to '[' or '>' outside quotes.
+    let mut j = start + 9;
+    let mut quote = None;
+    let subset = loop {
+        let c = *b.get(j).ok_or_else(unclosed)?;
+        j += 1;
+        match (quote, c) {
+            (Some(q), c) if c == q => quote = None,
+            (Some(_), _) => {}
+            (None, b'"' | b'\'') => quote = Some(c),
+            (None, b'[') => break true,
+            (None, b'>') => break false,
+            (None, _) => {}
+        }
+    };
+    if subset {
+        // Internal subset: declarations, comments, PIs, parameter-entity references.
+        loop {
+            j = skip_ws(j);
+            let rest = b.get(j..).filter(|r| !r.is_empty()).ok_or_else(unclosed)?;
+            if rest.starts_with(b"]") {
+                j = skip_ws(j + 1);
+                if b.get(j) != Some(&b'>') {
+                    return Err(unclosed());
+                }
+                j += 1;
+                break;
+            } else if rest.starts_with(b"<!--") {
+                j = find(j + 4, b"-->").ok_or_else(unclosed)? + 3;
+            } else if rest.starts_with(b"<?") {
+                j = find(j + 2, b"?>").ok_or_else(unclosed)? + 2;
+            } else if rest.starts_with(b"<!ENTITY") {
+                let k = skip_ws(j + 8);
+                let k = if b.get(k) == Some(&b'%') {
+                    skip_ws(k + 1)
+                } else {
+                    k
+                };
+                let name_end = (k..b.len())
+                    .find(|&e| b[e].is_ascii_whitespace() || b[e] == b'>')
+                    .unwrap_or(b.len());
+                let name = String::from_utf8_lossy(&b[k..name_end]);
+                return Err(AeroError::parse(
+                    file,
+                    line(j),
+                    format!(
+                        "<!ENTITY {name}>: the <!DOCTYPE> declares an XML entity; DAVE-ML files need \
+                         none and entity expansion can blow a small file up to gigabytes, so they \
+                         are not read; remove the <!ENTITY> declarations and write their text out"
+                    ),
+                ));
+            } else if rest.starts_with(b"<!") {
+                // <!ELEMENT>, <!ATTLIST>, <!NOTATION>: up to '>' outside quotes.
+                let mut quote = None;
+                j += 2;
+                loop {
+                    let c = *b.get(j).ok_or_else(unclosed)?;
+                    j += 1;
+                    match (quote, c) {
+                        (Some(q), c) if c == q => quote = None,
+                        (Some(_), _) => {}
+                        (None, b'"' | b'\'') => quote = Some(c),
+                        (None, b'>') => break,
+                        (None, _) => {}
+                    }
+                }
+            } else if rest.starts_with(b"%") {
+                j = find(j, b";").ok_or_else(unclosed)? + 1;
+            } else {
+                return Err(AeroError::parse(
+                    file,
+                    line(j),
+                    "unexpected text in the internal subset of the <!DOCTYPE> declaration; \
+                     DAVE-ML files need none: remove the '[ ... ]' part",
+                ));
+            }
+        }
+    }
+    let mut out = b.to_vec();
+    for c in &mut out[start..j] {
+        if *c != b'\n' {
+            *c = b' ';
+        }
+    }
+    // Only whole ASCII-delimited bytes were replaced by ASCII: still UTF-8.
+    String::from_utf8(out)
+        .map(Cow::Owned)
+        .map_err(|e| AeroError::parse(file, line(start), format!("not UTF-8 text: {e}")))
+}
+
+/// Parse XML `text` (from [`without_doctype`]) with document type declarations
+/// refused, naming `file` and the line of a syntax error.
+pub(crate) fn parse_document<'t>(
+    text: &'t str,
+    file: &str,
+) -> crate::Result<roxmltree::Document<'t>> {
+    let opts = roxmltree::ParsingOptions {
+        allow_dtd: false,
+        ..roxmltree::ParsingOptions::default()
+    };
+    roxmltree::Document::parse_with_options(text, opts).map_err(|e| {
+        let row = e.pos().row as usize;
+        match e {
+            roxmltree::Error::DtdDetected => AeroError::parse(
+                file,
+                row,
+                "a <!DOCTYPE> declaration where the XML prolog cannot hold one; put it before \
+                 the root element, after the XML declaration and comments",
+            ),
+            e => AeroError::parse(file, row, format!("malformed XML: {e}")),
+        }
+    })
+}
 
 /// Where a file's text lives: its name (for messages) and its line starts.
 #[derive(Debug, Clone)]

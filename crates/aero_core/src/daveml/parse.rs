@@ -4,12 +4,12 @@
 
 use std::collections::HashMap;
 
-use roxmltree::{Document, Node, ParsingOptions};
+use roxmltree::Node;
 
 use super::check::parse_check_data;
 use super::mathml;
 use super::model::{DaveModel, Def, Locator, Variable};
-use super::{child, elements, parse_numbers, text_of, Source};
+use super::{child, elements, parse_document, parse_numbers, text_of, without_doctype, Source};
 use crate::error::{AeroError, Result};
 use crate::table::{Axis, Extrapolation, Table, MAX_DIMS};
 
@@ -32,14 +32,8 @@ fn req_attr<'a>(src: &Source, node: Node<'a, '_>, attr: &str) -> Result<&'a str>
 /// Parse a whole DAVE-ML document.
 pub(crate) fn parse(text: &str, file: &str) -> Result<DaveModel> {
     let src = Source::new(file, text);
-    let opts = ParsingOptions {
-        allow_dtd: true,
-        ..ParsingOptions::default()
-    };
-    let doc = Document::parse_with_options(text, opts).map_err(|e| {
-        let pos = e.pos();
-        AeroError::parse(file, pos.row as usize, format!("malformed XML: {e}"))
-    })?;
+    let xml = without_doctype(text, file)?;
+    let doc = parse_document(&xml, file)?;
     let root = doc.root_element();
     if root.tag_name().name() != "DAVEfunc" {
         return Err(src.err(
@@ -61,7 +55,7 @@ pub(crate) fn parse(text: &str, file: &str) -> Result<DaveModel> {
     // Variables.
     let mut vars = Vec::new();
     let mut by_id: HashMap<String, usize> = HashMap::new();
-    let mut calcs: Vec<(usize, Node)> = Vec::new();
+    let mut calcs: Vec<(usize, Node, Node)> = Vec::new();
     for v in elements(root).filter(|n| n.tag_name().name() == "variableDef") {
         let id = req_attr(&src, v, "varID")?.trim().to_string();
         if let Some(&prev) = by_id.get(&id) {
@@ -94,7 +88,7 @@ pub(crate) fn parse(text: &str, file: &str) -> Result<DaveModel> {
         }
         by_id.insert(id, vars.len());
         if let Some(c) = child(v, "calculation") {
-            calcs.push((vars.len(), c));
+            calcs.push((vars.len(), v, c));
         }
         vars.push(var);
     }
@@ -103,9 +97,9 @@ pub(crate) fn parse(text: &str, file: &str) -> Result<DaveModel> {
     let mut defined_at: Vec<usize> = vec![0; n];
     let resolve = |s: &str| by_id.get(s.trim()).copied();
 
-    for (i, c) in calcs {
+    for (i, v, c) in calcs {
         let math = child(c, "math").ok_or_else(|| src.err(c, "holds no <math> element"))?;
-        defs[i] = Def::Calc(mathml::compile(&src, math, &resolve)?);
+        defs[i] = Def::Calc(mathml::calculation(&src, math, &resolve, v)?);
         defined_at[i] = src.line(c);
     }
 
@@ -459,13 +453,23 @@ fn topological_order(
                             .map(|&(s, _)| vars[s].id.as_str())
                             .collect();
                         cycle.push(vars[d].id.as_str());
+                        // A long cycle is shown by its ends, to keep the message one short line.
+                        let shown = if cycle.len() > 12 {
+                            format!(
+                                "of {} variables {} -> ... -> {}",
+                                cycle.len() - 1,
+                                cycle[..5].join(" -> "),
+                                cycle[cycle.len() - 5..].join(" -> ")
+                            )
+                        } else {
+                            cycle.join(" -> ")
+                        };
                         return Err(AeroError::parse(
                             src.file.clone(),
                             defined_at[d],
                             format!(
-                                "<variableDef varID=\"{}\">: dependency cycle {}; break it so no variable depends on itself",
+                                "<variableDef varID=\"{}\">: dependency cycle {shown}; break it so no variable depends on itself",
                                 vars[d].id,
-                                cycle.join(" -> ")
                             ),
                         ));
                     }
