@@ -64,6 +64,7 @@ use crate::partition::partition_alpha;
 use crate::sim::rng::Stream;
 
 mod collinear;
+mod path;
 mod stepwise;
 pub use collinear::{collinear_to_prune, Pruned};
 pub use stepwise::stepwise;
@@ -282,11 +283,15 @@ pub fn held_out(g: &[f64], dim: usize, cols: &[usize], theta: &[f64]) -> (f64, f
     let zz = g[zc * dim + zc];
     let mut cross = 0.0;
     let mut yy = 0.0;
+    // θᵀGθ over the lower triangle (G symmetric)
     for (i, &a) in cols.iter().enumerate() {
         cross += theta[i] * g[a * dim + zc];
-        for (j, &b) in cols.iter().enumerate() {
-            yy += theta[i] * theta[j] * g[a * dim + b];
+        let row = &g[a * dim..(a + 1) * dim];
+        let mut off = 0.0;
+        for (j, &b) in cols[..i].iter().enumerate() {
+            off += theta[j] * row[b];
         }
+        yy += theta[i] * (2.0 * off + theta[i] * row[a]);
     }
     ((zz - 2.0 * cross + yy).max(0.0), zz, yy.max(0.0))
 }
@@ -699,8 +704,7 @@ fn cv_score_per_fold<'c>(
 ) -> CvScore {
     let dim = grams.dim;
     let nf = folds.first().map_or(0, Vec::len);
-    let mut per_fold = vec![(0.0, 0.0); nf]; // (sse, n)
-    let (mut sse, mut zz, mut yy, mut n) = (0.0, 0.0, 0.0, 0.0);
+    let mut acc = CvAccum::new(nf);
     // buffers reused over the bins and folds (the path search calls this thousands of times)
     let (mut used, mut work, mut th) = (Vec::new(), Vec::new(), Vec::new());
     for (b, fg) in folds.iter().enumerate() {
@@ -720,50 +724,86 @@ fn cv_score_per_fold<'c>(
             };
             let (e, z2, y2) = match fit {
                 Some(_) => held_out(gf, dim, &used, &th),
-                None => {
-                    let z2 = gf[dim * dim - 1];
-                    (z2, z2, 0.0)
-                }
+                None => zero_prediction(gf, dim),
             };
-            sse += e;
-            zz += z2;
-            yy += y2;
-            n += nfold;
-            per_fold[f].0 += e;
-            per_fold[f].1 += nfold;
+            acc.add(f, e, z2, y2, *nfold);
         }
     }
-    let s2 = grams.scale[dim - 1].powi(2);
-    let mse = if n > 0.0 { s2 * sse / n } else { f64::NAN };
-    let all_folds: Vec<f64> = per_fold
-        .iter()
-        .map(|(e, c)| if *c > 0.0 { s2 * e / c } else { f64::NAN })
-        .collect();
-    let fold_mse: Vec<f64> = all_folds
-        .iter()
-        .copied()
-        .filter(|v| v.is_finite())
-        .collect();
-    let k = fold_mse.len() as f64;
-    let mse_se = if k > 1.0 {
-        let m = fold_mse.iter().sum::<f64>() / k;
-        (fold_mse.iter().map(|v| (v - m).powi(2)).sum::<f64>() / (k - 1.0) / k).sqrt()
-    } else {
-        f64::NAN
-    };
-    let den = (zz / n.max(1.0)).sqrt() + (yy / n.max(1.0)).sqrt();
-    let tic = if den > 0.0 {
-        (sse / n.max(1.0)).sqrt() / den
-    } else {
-        f64::NAN
-    };
-    CvScore {
-        columns: label.to_vec(),
-        rms: mse.sqrt(),
-        tic,
-        mse,
-        mse_se,
-        fold_mse: all_folds,
+    acc.finish(grams.scale[dim - 1].powi(2), label)
+}
+
+/// Held-out sums of a fold whose bin predicts zero Δ (no training fit).
+fn zero_prediction(gf: &[f64], dim: usize) -> (f64, f64, f64) {
+    let z2 = gf[dim * dim - 1];
+    (z2, z2, 0.0)
+}
+
+/// Sums of a cross-validated score over bins and folds.
+#[derive(Clone)]
+struct CvAccum {
+    sse: f64,
+    zz: f64,
+    yy: f64,
+    n: f64,
+    /// Per fold: (sse, n).
+    per_fold: Vec<(f64, f64)>,
+}
+
+impl CvAccum {
+    fn new(folds: usize) -> Self {
+        CvAccum {
+            sse: 0.0,
+            zz: 0.0,
+            yy: 0.0,
+            n: 0.0,
+            per_fold: vec![(0.0, 0.0); folds],
+        }
+    }
+
+    fn add(&mut self, f: usize, e: f64, z2: f64, y2: f64, nfold: f64) {
+        self.sse += e;
+        self.zz += z2;
+        self.yy += y2;
+        self.n += nfold;
+        self.per_fold[f].0 += e;
+        self.per_fold[f].1 += nfold;
+    }
+
+    /// The score, `s2` the squared scale of z.
+    fn finish(&self, s2: f64, label: &[usize]) -> CvScore {
+        let (sse, zz, yy, n) = (self.sse, self.zz, self.yy, self.n);
+        let mse = if n > 0.0 { s2 * sse / n } else { f64::NAN };
+        let all_folds: Vec<f64> = self
+            .per_fold
+            .iter()
+            .map(|(e, c)| if *c > 0.0 { s2 * e / c } else { f64::NAN })
+            .collect();
+        let fold_mse: Vec<f64> = all_folds
+            .iter()
+            .copied()
+            .filter(|v| v.is_finite())
+            .collect();
+        let k = fold_mse.len() as f64;
+        let mse_se = if k > 1.0 {
+            let m = fold_mse.iter().sum::<f64>() / k;
+            (fold_mse.iter().map(|v| (v - m).powi(2)).sum::<f64>() / (k - 1.0) / k).sqrt()
+        } else {
+            f64::NAN
+        };
+        let den = (zz / n.max(1.0)).sqrt() + (yy / n.max(1.0)).sqrt();
+        let tic = if den > 0.0 {
+            (sse / n.max(1.0)).sqrt() / den
+        } else {
+            f64::NAN
+        };
+        CvScore {
+            columns: label.to_vec(),
+            rms: mse.sqrt(),
+            tic,
+            mse,
+            mse_se,
+            fold_mse: all_folds,
+        }
     }
 }
 
@@ -1051,26 +1091,46 @@ pub fn select_weighted(
     let mut cols: Vec<usize> = opts.forced.clone();
     nested.push(score(&cols));
     let mut left = order.clone();
-    while let Some((i, s)) = left
-        .iter()
-        .enumerate()
-        .map(|(i, &c)| {
+    let mut scorer = path::PathScorer::new(
+        grams,
+        &trains,
+        &folds,
+        &fitted,
+        &cols,
+        opts.min_points_per_param,
+        &excitation,
+    );
+    let key = |s: &CvScore| {
+        if s.mse.is_finite() {
+            s.mse
+        } else {
+            f64::INFINITY
+        }
+    };
+    while !left.is_empty() {
+        let scores = scorer.scores(&left);
+        // in the test builds, every extended-factor score is checked against the refit
+        #[cfg(test)]
+        for (s, &c) in scores.iter().zip(&left) {
             let mut trial = cols.clone();
             trial.push(c);
-            (i, score(&trial))
-        })
-        .min_by(|a, b| {
-            let key = |s: &CvScore| {
-                if s.mse.is_finite() {
-                    s.mse
-                } else {
-                    f64::INFINITY
-                }
+            let r = score(&trial);
+            let close = |a: f64, b: f64| {
+                (a.is_nan() && b.is_nan()) || (a - b).abs() <= 1e-9 * a.abs().max(b.abs())
             };
-            key(&a.1).total_cmp(&key(&b.1))
-        })
-    {
-        cols.push(left.remove(i));
+            assert!(close(s.mse, r.mse) && close(s.tic, r.tic), "{s:?} vs {r:?}");
+            assert_eq!(s.columns, r.columns);
+        }
+        let Some((i, s)) = scores
+            .into_iter()
+            .enumerate()
+            .min_by(|a, b| key(&a.1).total_cmp(&key(&b.1)))
+        else {
+            break;
+        };
+        let c = left.remove(i);
+        scorer.add(c);
+        cols.push(c);
         nested.push(s);
     }
     let best = nested

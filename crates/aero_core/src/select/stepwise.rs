@@ -29,7 +29,7 @@ const PIVOT_TOL: f64 = 1e-10;
 /// Cholesky factor of the normal equations of a growing set of columns of an augmented
 /// Gram matrix (`dim × dim`, z last).
 #[derive(Clone)]
-struct Factor<'a> {
+pub(super) struct Factor<'a> {
     g: &'a [f64],
     dim: usize,
     cols: Vec<usize>,
@@ -42,17 +42,17 @@ struct Factor<'a> {
 }
 
 /// What a candidate column would add to a [`Factor`].
-struct Probe {
+pub(super) struct Probe {
     /// `L⁻¹ X_Sᵀ x_c`.
-    w: Vec<f64>,
+    pub(super) w: Vec<f64>,
     /// Pivot `x_cᵀx_c − wᵀw` (> 0).
-    d: f64,
+    pub(super) d: f64,
     /// New entry of `y`.
-    u: f64,
+    pub(super) u: f64,
 }
 
 impl<'a> Factor<'a> {
-    fn new(g: &'a [f64], dim: usize) -> Self {
+    pub(super) fn new(g: &'a [f64], dim: usize) -> Self {
         let zc = dim - 1;
         Factor {
             g,
@@ -75,14 +75,51 @@ impl<'a> Factor<'a> {
         f
     }
 
+    /// Estimates (scaled units) of the columns in and the probed column `c` appended:
+    /// with `θ_c = u / √d`, the others are `θ − θ_c L⁻ᵀ w` (one back substitution).
+    pub(super) fn theta_with(&self, theta: &[f64], w: &[f64], d: f64, u: f64, out: &mut Vec<f64>) {
+        let k = self.cols.len();
+        let tc = u / d.sqrt();
+        out.clear();
+        out.resize(k + 1, 0.0);
+        // v = L⁻ᵀ w, into out[..k]
+        for i in (0..k).rev() {
+            let mut s = w[i];
+            for m in i + 1..k {
+                s -= self.l[m][i] * out[m];
+            }
+            out[i] = s / self.l[i][i];
+        }
+        for i in 0..k {
+            out[i] = theta[i] - tc * out[i];
+        }
+        out[k] = tc;
+    }
+
     /// The forward substitution of column `c`; `None` when it is (numerically) dependent on
     /// the columns already in, or not finite.
-    fn probe(&self, c: usize) -> Option<Probe> {
+    pub(super) fn probe(&self, c: usize) -> Option<Probe> {
+        let mut w = Vec::with_capacity(self.cols.len() + 1);
+        let (d, u) = self.probe_into(c, &mut w)?;
+        Some(Probe { w, d, u })
+    }
+
+    /// [`Factor::probe`] into the caller's buffer `w` (`L⁻¹ X_Sᵀ x_c`); returns the pivot
+    /// `d` and the new entry `u` of `y`.
+    pub(super) fn probe_into(&self, c: usize, w: &mut Vec<f64>) -> Option<(f64, f64)> {
+        w.clear();
+        self.probe_cached(c, w)
+    }
+
+    /// [`Factor::probe_into`] continuing from a `w` computed against an earlier state of this
+    /// factor (its first `w.len()` columns): only the rows added since are substituted, `O(k)`
+    /// per new row. Extending the factor along a path of columns this way costs `O(k²)` per
+    /// candidate over the whole path instead of per step.
+    pub(super) fn probe_cached(&self, c: usize, w: &mut Vec<f64>) -> Option<(f64, f64)> {
         let (g, dim) = (self.g, self.dim);
         let zc = dim - 1;
         let k = self.cols.len();
-        let mut w = Vec::with_capacity(k + 1);
-        for i in 0..k {
+        for i in w.len().min(k)..k {
             let row = &self.l[i];
             let mut s = g[self.cols[i] * dim + c];
             for m in 0..i {
@@ -97,7 +134,7 @@ impl<'a> Factor<'a> {
         }
         let u =
             (g[c * dim + zc] - w.iter().zip(&self.y).map(|(a, b)| a * b).sum::<f64>()) / d.sqrt();
-        u.is_finite().then_some(Probe { w, d, u })
+        u.is_finite().then_some((d, u))
     }
 
     /// Residual sum of squares with the probed column added.
@@ -105,7 +142,12 @@ impl<'a> Factor<'a> {
         (self.sse - p.u * p.u).max(0.0)
     }
 
-    fn push(&mut self, c: usize, p: Probe) {
+    /// The columns in, in order.
+    pub(super) fn cols(&self) -> &[usize] {
+        &self.cols
+    }
+
+    pub(super) fn push(&mut self, c: usize, p: Probe) {
         self.sse = self.sse_with(&p);
         let mut row = p.w;
         row.push(p.d.sqrt());
@@ -115,7 +157,7 @@ impl<'a> Factor<'a> {
     }
 
     /// Estimates `θ = L⁻ᵀ y` (scaled units).
-    fn theta(&self) -> Vec<f64> {
+    pub(super) fn theta(&self) -> Vec<f64> {
         let k = self.cols.len();
         let mut th = vec![0.0; k];
         for i in (0..k).rev() {
