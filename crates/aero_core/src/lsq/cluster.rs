@@ -382,7 +382,12 @@ mod tests {
             ..OlsOptions::default()
         };
         let fit = || ols_rows_clustered(&x, n, 3, &z, &rows, &g, &opts).unwrap();
-        let pool = |t| rayon::ThreadPoolBuilder::new().num_threads(t).build().unwrap();
+        let pool = |t| {
+            rayon::ThreadPoolBuilder::new()
+                .num_threads(t)
+                .build()
+                .unwrap()
+        };
         let one = pool(1).install(fit).cluster.unwrap();
         let three = pool(3).install(fit).cluster.unwrap();
         assert_eq!(one, three);
