@@ -356,6 +356,8 @@ def test_polars_input_names_summary_and_immutability() -> None:
         "estimate",
         "std_err",
         "std_err_corrected",
+        "std_err_cluster",
+        "dof_cluster",
         "t",
         "p",
         "ci_lo",

@@ -5,7 +5,10 @@ equations), and reports what is needed to judge a model: conventional standard e
 standard errors corrected for coloured residuals (Morelli & Klein Eq. 5.80, SIDPAC
 ``r_colores``), t, p, partial F (thesis Eq. 2.5), R², adjusted R², fit error, PRESS, PSE,
 singular values, condition numbers, variance inflation factors and which parameters the
-data cannot identify.
+data cannot identify. Given a cluster id per row (``groups``, e.g. the maneuver), it also
+reports cluster-robust CR2 standard errors with Bell-McCaffrey degrees of freedom (Bell &
+McCaffrey 2002; Imbens & Kolesár 2016), valid under any correlation of the residuals inside
+a cluster (``aero_core::lsq::cluster``).
 """
 
 from __future__ import annotations
@@ -73,6 +76,48 @@ class OLSResults:
     def std_err_corrected(self) -> FloatArray | None:
         """Standard errors corrected for coloured residuals (Morelli & Klein Eq. 5.80)."""
         return self._f.std_err_colored
+
+    @property
+    def cov_cluster(self) -> FloatArray | None:
+        """Cluster-robust CR2 covariance, shape (p, p); None without ``groups``.
+
+        ``M [Σ_g X_gᵀ A_g e_g e_gᵀ A_g X_g] M`` with ``M = (XᵀX)⁻¹`` and
+        ``A_g = (I − H_gg)^(−1/2)`` (Bell & McCaffrey 2002). Entry (i, j) is in units of
+        ``params[i] · params[j]``. Rows and columns of parameters without a cluster-robust
+        error (see :attr:`notes_cluster`) are NaN.
+        """
+        return self._f.cov_cluster
+
+    @property
+    def std_err_cluster(self) -> FloatArray | None:
+        """Cluster-robust CR2 standard errors, units of :attr:`params`; None without ``groups``.
+
+        NaN where undefined: a single cluster alone determines the parameter (its reason in
+        :attr:`notes_cluster`). Unlike statsmodels' ``cov_type='cluster'`` (CR1) no
+        ``G/(G-1)`` factor is applied: the CR2 adjustment is unbiased under iid errors.
+        """
+        return self._f.std_err_cluster
+
+    @property
+    def dof_cluster(self) -> FloatArray | None:
+        """Bell-McCaffrey degrees of freedom of each cluster-robust error (dimensionless).
+
+        Use Student t with these (per parameter) for intervals and tests; at most
+        ``n_groups - 1`` in balanced designs, fewer when a few clusters carry most of a
+        regressor's excitation. None without ``groups``, NaN where the error is undefined.
+        """
+        return self._f.dof_cluster
+
+    @property
+    def n_groups(self) -> int | None:
+        """Number of distinct ``groups`` ids among the fitted rows; None without ``groups``."""
+        return self._f.n_clusters
+
+    @property
+    def notes_cluster(self) -> list[str] | None:
+        """Why each parameter has no cluster-robust error ("" when it has one); None without
+        ``groups``."""
+        return self._f.notes_cluster
 
     @property
     def tvalues(self) -> FloatArray:
@@ -220,23 +265,54 @@ class OLSResults:
         return self._f.dropped_rows
 
     # --- tables ----------------------------------------------------------------------
-    def conf_int(self, alpha: float = 0.05, corrected: bool = False) -> pl.DataFrame:
-        """Two-sided ``1 - alpha`` confidence intervals (Student t, ``df_resid`` dof).
+    def conf_int(
+        self, alpha: float = 0.05, corrected: bool = False, *, cluster: bool = False
+    ) -> pl.DataFrame:
+        """Two-sided ``1 - alpha`` confidence intervals, in units of :attr:`params`.
 
         Parameters
         ----------
         alpha
             Significance level, in (0, 1).
         corrected
-            Use the standard errors corrected for coloured residuals.
+            Use the standard errors corrected for coloured residuals (Student t,
+            ``df_resid`` dof).
+        cluster
+            Use the cluster-robust CR2 standard errors with Student t on each parameter's
+            Bell-McCaffrey dof (:attr:`dof_cluster`; needs ``groups``). NaN bounds where
+            the cluster-robust error is undefined.
 
         Returns
         -------
         polars.DataFrame
-            Columns ``name``, ``lower``, ``upper``.
+            Columns ``name``, ``lower``, ``upper``. Default: conventional standard errors,
+            Student t with ``df_resid`` dof.
         """
         if not 0.0 < alpha < 1.0:
             raise _core.OutOfRangeError(f"argument 'alpha': {alpha} is not in (0, 1)")
+        if cluster:
+            if corrected:
+                raise _core.InvalidInputError(
+                    "conf_int: give corrected=True or cluster=True, not both"
+                )
+            se_cl, dof_cl = self.std_err_cluster, self.dof_cluster
+            if se_cl is None or dof_cl is None:
+                raise _core.InvalidInputError(
+                    "conf_int(cluster=True): the fit was made without groups"
+                )
+            qs = np.array(
+                [
+                    _core.student_t_ppf(1.0 - alpha / 2.0, float(d)) if np.isfinite(d) else np.nan
+                    for d in dof_cl
+                ]
+            )
+            return pl.DataFrame(
+                {
+                    "name": self.names,
+                    "lower": self.params - qs * se_cl,
+                    "upper": self.params + qs * se_cl,
+                }
+            )
         se = self.std_err_corrected if corrected else self.std_err
         if se is None:
             raise _core.InvalidInputError(
@@ -250,19 +326,28 @@ class OLSResults:
     def summary(self, alpha: float = 0.05) -> pl.DataFrame:
         """One row per parameter.
 
-        Columns: ``name, estimate, std_err, std_err_corrected, t, p, ci_lo, ci_hi,
-        partial_f, vif, identifiable, note`` (interval at ``1 - alpha``, conventional
-        standard errors).
+        Columns: ``name, estimate, std_err, std_err_corrected, std_err_cluster,
+        dof_cluster, t, p, ci_lo, ci_hi, partial_f, vif, identifiable, note`` (t, p and the
+        interval at ``1 - alpha`` on the conventional standard errors; the cluster-robust
+        ones and their Bell-McCaffrey dof are NaN without ``groups``, and the note also
+        says why a parameter has no cluster-robust error).
         """
         ci = self.conf_int(alpha)
         se_c = self.std_err_corrected
         p = len(self.names)
+        nan = np.full(p, np.nan)
+        se_cl, dof_cl, nc = self.std_err_cluster, self.dof_cluster, self.notes_cluster
+        notes = self.notes
+        if nc is not None:
+            notes = ["; ".join(t for t in (a, b) if t) for a, b in zip(notes, nc, strict=True)]
         return pl.DataFrame(
             {
                 "name": self.names,
                 "estimate": self.params,
                 "std_err": self.std_err,
-                "std_err_corrected": se_c if se_c is not None else np.full(p, np.nan),
+                "std_err_corrected": se_c if se_c is not None else nan,
+                "std_err_cluster": se_cl if se_cl is not None else nan,
+                "dof_cluster": dof_cl if dof_cl is not None else nan,
                 "t": self.tvalues,
                 "p": self.pvalues,
                 "ci_lo": ci["lower"],
@@ -270,7 +355,7 @@ class OLSResults:
                 "partial_f": self.partial_f,
                 "vif": self.vif,
                 "identifiable": self.identifiable,
-                "note": self.notes,
+                "note": notes,
             }
         )
 
@@ -284,21 +369,33 @@ class OLSResults:
             f"PRESS {self.press:.6g}   PSE {self.pse:.6g}",
             f"  condition number {self.condition_number:.4g} (column-normalized), "
             f"{self.condition_number_unscaled:.4g} (as given)",
-            "",
         ]
+        se_cl, dof_cl, nc = self.std_err_cluster, self.dof_cluster, self.notes_cluster
+        if se_cl is not None:
+            lines.append(
+                f"  {self.n_groups} groups: cluster-robust CR2 errors (se_clust), "
+                "Bell-McCaffrey dof (dof_cl)"
+            )
+        lines.append("")
         w = max(8, *(len(n) for n in self.names))
+        cl_head = f" {'se_clust':>11} {'dof_cl':>7}" if se_cl is not None else ""
         head = (
-            f"  {'name':<{w}} {'estimate':>13} {'std_err':>11} {'se_corr':>11} "
+            f"  {'name':<{w}} {'estimate':>13} {'std_err':>11} {'se_corr':>11}{cl_head} "
             f"{'t':>9} {'p':>9} {'partial F':>11} {'VIF':>9}  note"
         )
         lines.append(head)
         se_c = self.std_err_corrected
         for j, name in enumerate(self.names):
             sc = f"{se_c[j]:11.4e}" if se_c is not None else f"{'-':>11}"
+            cl = ""
+            note = self.notes[j]
+            if se_cl is not None and dof_cl is not None and nc is not None:
+                cl = f" {se_cl[j]:11.4e} {dof_cl[j]:7.1f}"
+                note = "; ".join(t for t in (note, nc[j]) if t)
             lines.append(
-                f"  {name:<{w}} {self.params[j]:13.6g} {self.std_err[j]:11.4e} {sc} "
+                f"  {name:<{w}} {self.params[j]:13.6g} {self.std_err[j]:11.4e} {sc}{cl} "
                 f"{self.tvalues[j]:9.3f} {self.pvalues[j]:9.3g} {self.partial_f[j]:11.4g} "
-                f"{self.vif[j]:9.3g}  {self.notes[j]}"
+                f"{self.vif[j]:9.3g}  {note}"
             )
         return "\n".join(lines)
 
@@ -320,6 +417,7 @@ def ols(
     min_norm: bool = False,
     collinear_cond: float = 1e6,
     rows: npt.ArrayLike | None = None,
+    groups: npt.ArrayLike | pl.Series | None = None,
 ) -> OLSResults:
     """Ordinary least squares ``z ≈ X θ`` (thesis Eq. 2.12-2.13, 3.10) with statistics.
 
@@ -352,6 +450,15 @@ def ols(
         dependency and its parameters are marked not identifiable.
     rows
         Optional row indices: fit on this subset only (no copy of X).
+    groups
+        Optional cluster id of each row of X (N integers, units: none; e.g. the maneuver
+        id): rows of one cluster may have correlated residuals, rows of different clusters
+        not. Then the result also carries the cluster-robust CR2 covariance
+        (:attr:`~OLSResults.cov_cluster`), standard errors
+        (:attr:`~OLSResults.std_err_cluster`) and Bell-McCaffrey degrees of freedom
+        (:attr:`~OLSResults.dof_cluster`). Ids are labels (any integers, any order; rows of
+        a cluster need not be contiguous); with ``rows`` or ``drop_nan`` only the fitted
+        rows count. Integral floats are accepted; NaN is not.
 
     Returns
     -------
@@ -360,10 +467,12 @@ def ols(
     Raises
     ------
     InvalidInputError
-        Shapes do not match, or NaN/inf rows (the message lists them) without ``drop_nan``.
+        Shapes do not match, or NaN/inf rows (the message lists them) without ``drop_nan``;
+        ``groups`` not one integer id per row of X (length, NaN/inf, non-integral values,
+        non-numeric dtype).
     TooLittleDataError
         Not more rows than parameters, or X rank deficient (the message names the
-        dependent columns) without ``min_norm``.
+        dependent columns) without ``min_norm``; the fitted rows in fewer than 2 ``groups``.
 
     Examples
     --------
@@ -394,6 +503,7 @@ def ols(
             raise _core.InvalidInputError("argument 'rows': must be non-negative integers")
         ra = np.ascontiguousarray(ri, dtype=np.uint64)
     nm = [str(n) for n in names] if names is not None else None
+    ga = _groups(groups, xa.shape[0]) if groups is not None else None
     f = _core.ols(
         xa,
         za,
@@ -404,8 +514,49 @@ def ols(
         max_lag=max_lag,
         min_norm=min_norm,
         collinear_cond=collinear_cond,
+        groups=ga,
     )
+    if ga is not None and (f.n_clusters or 0) < 2:
+        raise _core.TooLittleDataError(
+            f"argument 'groups': the {f.nobs} fitted rows are in {f.n_clusters} group; "
+            "cluster-robust standard errors need at least 2"
+        )
     return OLSResults._from_core(f)
+
+
+def _groups(groups: npt.ArrayLike | pl.Series, n: int) -> npt.NDArray[np.uint64]:
+    """``groups`` as the engine's ``uint64`` cluster ids, refusing what is not one integer id
+    per row (signed ids are reinterpreted bit for bit: distinct ids stay distinct)."""
+    g = groups.to_numpy() if isinstance(groups, pl.Series) else np.asarray(groups)
+    if g.ndim != 1:
+        raise _core.InvalidInputError(
+            f"argument 'groups': must be 1-D (one cluster id per row of X), got shape {g.shape}"
+        )
+    if g.shape[0] != n:
+        raise _core.InvalidInputError(
+            f"argument 'groups': has {g.shape[0]} values but X has {n} rows"
+        )
+    if g.dtype.kind == "f":
+        bad = np.flatnonzero(~np.isfinite(g))
+        if bad.size:
+            raise _core.InvalidInputError(
+                f"argument 'groups': {bad.size} NaN/inf values (first at rows "
+                f"{bad[:5].tolist()}); give an integer cluster id for every row"
+            )
+        off = np.flatnonzero((g != np.round(g)) | (np.abs(g) > 2.0**53))
+        if off.size:
+            raise _core.InvalidInputError(
+                f"argument 'groups': not integer cluster ids (e.g. {g[off[0]]!r} at row "
+                f"{int(off[0])})"
+            )
+        g = g.astype(np.int64)
+    if g.dtype.kind == "u":
+        return np.ascontiguousarray(g, dtype=np.uint64)
+    if g.dtype.kind == "i":
+        return np.ascontiguousarray(g.astype(np.int64, copy=False)).view(np.uint64)
+    raise _core.InvalidInputError(
+        f"argument 'groups': must be integer cluster ids, got dtype {g.dtype}"
+    )
 
 
 __all__ = ["OLSResults", "ols"]

@@ -52,6 +52,32 @@ impl PyOlsFit {
     fn std_err_colored<'py>(&self, py: Python<'py>) -> Option<Bound<'py, PyArray1<f64>>> {
         self.0.std_err_colored.as_deref().map(|s| arr1(py, s))
     }
+    /// CR2 cluster-robust covariance (None without groups).
+    #[getter]
+    fn cov_cluster<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyArray2<f64>>>> {
+        let p = self.0.params.len();
+        self.0
+            .cluster
+            .as_ref()
+            .map(|c| arr2(py, &c.cov, p))
+            .transpose()
+    }
+    #[getter]
+    fn std_err_cluster<'py>(&self, py: Python<'py>) -> Option<Bound<'py, PyArray1<f64>>> {
+        self.0.cluster.as_ref().map(|c| arr1(py, &c.std_err))
+    }
+    #[getter]
+    fn dof_cluster<'py>(&self, py: Python<'py>) -> Option<Bound<'py, PyArray1<f64>>> {
+        self.0.cluster.as_ref().map(|c| arr1(py, &c.dof))
+    }
+    #[getter]
+    fn n_clusters(&self) -> Option<usize> {
+        self.0.cluster.as_ref().map(|c| c.n_clusters)
+    }
+    #[getter]
+    fn notes_cluster(&self) -> Option<Vec<String>> {
+        self.0.cluster.as_ref().map(|c| c.notes.clone())
+    }
     #[getter]
     fn t_values<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
         arr1(py, &self.0.t_values)
@@ -187,7 +213,7 @@ impl PyOlsFit {
 
 /// OLS of z on the columns of a C-contiguous (N, p) float64 X; see `aerodelta.ols`.
 #[pyfunction]
-#[pyo3(signature = (x, z, rows=None, names=None, drop_nan=false, colored=true, max_lag=None, min_norm=false, collinear_cond=lsq::COLLINEAR_COND_DEFAULT))]
+#[pyo3(signature = (x, z, rows=None, names=None, drop_nan=false, colored=true, max_lag=None, min_norm=false, collinear_cond=lsq::COLLINEAR_COND_DEFAULT, groups=None))]
 #[allow(clippy::too_many_arguments)]
 fn ols<'py>(
     py: Python<'py>,
@@ -200,6 +226,7 @@ fn ols<'py>(
     max_lag: Option<usize>,
     min_norm: bool,
     collinear_cond: f64,
+    groups: Option<PyReadonlyArray1<'py, u64>>,
 ) -> PyResult<PyOlsFit> {
     let (n, p) = (x.shape()[0], x.shape()[1]);
     let xs = x.as_slice()?;
@@ -216,9 +243,15 @@ fn ols<'py>(
         collinear_cond,
         names: names.unwrap_or_default(),
     };
-    let fit = detached(py, || match &rows {
-        Some(r) => lsq::ols_rows(xs, n, p, zs, r, &opts),
-        None => lsq::ols(xs, n, p, zs, &opts),
+    let gs = match &groups {
+        Some(g) => Some(g.as_slice()?),
+        None => None,
+    };
+    let fit = detached(py, || match (&rows, gs) {
+        (Some(r), Some(g)) => lsq::ols_rows_clustered(xs, n, p, zs, r, g, &opts),
+        (Some(r), None) => lsq::ols_rows(xs, n, p, zs, r, &opts),
+        (None, Some(g)) => lsq::ols_clustered(xs, n, p, zs, g, &opts),
+        (None, None) => lsq::ols(xs, n, p, zs, &opts),
     })?;
     Ok(PyOlsFit(fit))
 }

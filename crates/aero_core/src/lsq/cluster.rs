@@ -38,7 +38,12 @@
 //! Σλ = tr GᵀG,      Σλ² = Σ_g d_g² − 2 Σ_g d_g |t_g|² + ‖Σ_g t_g t_gᵀ‖²_F
 //! ```
 //!
-//! so the cost is O(N k²) for the cluster Gram matrices plus O(G k³).
+//! so the cost is O(N k²) for the cluster Gram matrices plus O(G k³). The
+//! Grams are accumulated cluster by cluster (in parallel over clusters, rows
+//! of a cluster in order, so the result does not depend on the number of
+//! threads) by the fit ([`super::ols_rows_clustered`]), which already has
+//! `B`, the rows and the residuals.
+//!
 //! A cluster whose leverage reaches 1 in some direction (it alone determines
 //! that combination of parameters) makes `A_g` undefined there: the
 //! parameters that load on that direction get NaN with a note, never a
@@ -95,15 +100,15 @@ fn f_cr2(l: f64) -> f64 {
 
 /// CR2 covariance and Bell-McCaffrey dof.
 ///
-/// `q` is `m × k` row-major (`Q = X B`, rows as fitted), `resid` the `m`
-/// residuals, `cluster[i] < n_clusters` the cluster of row `i`, `b` the
-/// `p × k` factor with `B Bᵀ = (XᵀX)⁻¹` (row-major).
+/// `w` holds the `n_clusters` Gram matrices `W_g = Q_gᵀQ_g` (`k × k`
+/// row-major each, one after the other; `Q = X B`), `s` the scores `Q_gᵀe_g`
+/// (`k` each), `b` the `p × k` factor with `B Bᵀ = (XᵀX)⁻¹` (row-major).
+/// With fewer than 2 clusters `w` and `s` are not read.
 pub(crate) fn cr2(
-    q: &[f64],
-    k: usize,
-    resid: &[f64],
-    cluster: &[usize],
+    w: &[f64],
+    s: &[f64],
     n_clusters: usize,
+    k: usize,
     b: &[f64],
     p: usize,
 ) -> ClusterCov {
@@ -117,28 +122,15 @@ pub(crate) fn cr2(
     if n_clusters < 2 {
         return nan("cluster-robust error undefined: fewer than 2 maneuvers");
     }
-    // Cluster Gram matrices W_g = Q_gᵀQ_g and scores Q_gᵀe_g, rows in order.
-    let mut w = vec![DMatrix::<f64>::zeros(k, k); n_clusters];
-    let mut s = vec![DVector::<f64>::zeros(k); n_clusters];
-    for (i, (&g, &e)) in cluster.iter().zip(resid).enumerate() {
-        let qi = &q[i * k..(i + 1) * k];
-        let (wg, sg) = (&mut w[g], &mut s[g]);
-        for a in 0..k {
-            sg[a] += qi[a] * e;
-            for c in 0..=a {
-                wg[(a, c)] += qi[a] * qi[c];
-            }
-        }
-    }
+    assert_eq!(w.len(), n_clusters * k * k, "cluster Gram matrices");
+    assert_eq!(s.len(), n_clusters * k, "cluster scores");
     let clusters: Vec<Cluster> = w
-        .into_iter()
-        .zip(s)
-        .map(|(mut wg, score)| {
-            for a in 0..k {
-                for c in 0..a {
-                    wg[(c, a)] = wg[(a, c)];
-                }
-            }
+        .chunks_exact(k * k)
+        .zip(s.chunks_exact(k))
+        .map(|(wg, sg)| {
+            // Symmetric by construction up to round-off: take the lower triangle.
+            let wg = DMatrix::from_fn(k, k, |a, c| wg[a.max(c) * k + a.min(c)]);
+            let score = DVector::from_column_slice(sg);
             let eig = SymmetricEigen::new(wg);
             Cluster {
                 vecs: eig.eigenvectors,
@@ -367,6 +359,40 @@ mod tests {
                 c.dof[j]
             );
         }
+    }
+
+    /// Clusters larger than one block of the Gram pass, rows of a cluster not
+    /// contiguous: the same result with 1 and with 3 threads, bit for bit (the
+    /// textbook check of that path is in tests/test_lsq_cluster.py).
+    #[cfg(feature = "parallel")]
+    #[test]
+    fn thread_count_does_not_change_the_cluster_covariance() {
+        let mut rng = ChaCha8Rng::seed_from_u64(21);
+        let (mut x, mut z, mut g) = (Vec::new(), Vec::new(), Vec::new());
+        for i in 0..15000usize {
+            let r = [1.0, normal(&mut rng), normal(&mut rng)];
+            z.push(0.5 - r[1] + 2.0 * r[2] + normal(&mut rng));
+            x.extend_from_slice(&r);
+            g.push(((i * 7) % 3) as u64 + 10 * (i / 7500) as u64);
+        }
+        let n = z.len();
+        let rows: Vec<usize> = (0..n).collect();
+        let opts = OlsOptions {
+            colored: false,
+            ..OlsOptions::default()
+        };
+        let fit = || ols_rows_clustered(&x, n, 3, &z, &rows, &g, &opts).unwrap();
+        let pool = |t| {
+            rayon::ThreadPoolBuilder::new()
+                .num_threads(t)
+                .build()
+                .unwrap()
+        };
+        let one = pool(1).install(fit).cluster.unwrap();
+        let three = pool(3).install(fit).cluster.unwrap();
+        assert_eq!(one, three);
+        assert_eq!(one.n_clusters, 6);
+        assert!(one.std_err.iter().all(|v| v.is_finite() && *v > 0.0));
     }
 
     /// Share of 95 % intervals `θ̂ ± t_{0.975, dof} se` that hold the truth,

@@ -20,6 +20,6 @@ mod pool;
 pub mod stats;
 
 pub use ols::{
-    ols, ols_rows, ols_rows_clustered, Collinearity, NearDependency, OlsFit, OlsOptions,
-    COLLINEAR_COND_DEFAULT, LOADING_EXACT_MIN, VDP_MIN, VIF_NOTE,
+    ols, ols_clustered, ols_rows, ols_rows_clustered, Collinearity, NearDependency, OlsFit,
+    OlsOptions, COLLINEAR_COND_DEFAULT, LOADING_EXACT_MIN, VDP_MIN, VIF_NOTE,
 };

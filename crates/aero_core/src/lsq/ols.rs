@@ -362,6 +362,31 @@ pub fn ols_rows(
     fit(x, nrows, ncols, z, Some(rows), None, opts)
 }
 
+/// [`ols`] with a cluster id per row (`clusters.len() == nrows`; e.g. the
+/// maneuver): the fit also carries the cluster-robust CR2 covariance with
+/// Bell-McCaffrey degrees of freedom ([`OlsFit::cluster`],
+/// [`super::cluster`]). Ids are arbitrary; rows dropped for non-finite
+/// values (`drop_nan`) do not count.
+///
+/// # Errors
+/// As [`ols`], and when `clusters` has another length than `z`.
+pub fn ols_clustered(
+    x: &[f64],
+    nrows: usize,
+    ncols: usize,
+    z: &[f64],
+    clusters: &[u64],
+    opts: &OlsOptions,
+) -> Result<OlsFit> {
+    if clusters.len() != nrows {
+        return Err(AeroError::invalid(
+            "clusters",
+            format!("has {} values but X has {nrows} rows", clusters.len()),
+        ));
+    }
+    fit(x, nrows, ncols, z, None, Some(clusters), opts)
+}
+
 /// [`ols_rows`] with a cluster id per input row (`clusters.len() == nrows`;
 /// in an alpha bin, the maneuver): the fit also carries the cluster-robust
 /// CR2 covariance with Bell-McCaffrey degrees of freedom
@@ -642,6 +667,130 @@ fn inv_upper(r: &Mat<f64>) -> Mat<f64> {
         }
     }
     inv
+}
+
+/// Cluster index of each fitted row and the number of clusters: the distinct
+/// ids sorted (so the numbering does not depend on the row order), looked up
+/// once per run of equal ids.
+fn cluster_index(ids: &[u64], rows: &Rows<'_>) -> (Vec<usize>, usize) {
+    let m = rows.m;
+    let mut uniq: Vec<u64> = Vec::new();
+    let mut prev = None;
+    for k in 0..m {
+        let v = ids[rows.get(k)];
+        if prev != Some(v) {
+            uniq.push(v);
+            prev = Some(v);
+        }
+    }
+    uniq.sort_unstable();
+    uniq.dedup();
+    let mut idx = Vec::with_capacity(m);
+    let (mut prev, mut cur) = (None, 0);
+    for k in 0..m {
+        let v = ids[rows.get(k)];
+        if prev != Some(v) {
+            cur = uniq.binary_search(&v).unwrap_or(0);
+            prev = Some(v);
+        }
+        idx.push(cur);
+    }
+    (idx, uniq.len())
+}
+
+/// Cluster Gram matrices `W_g = Q_gᵀQ_g` (`k × k` row-major, one after the
+/// other) and scores `Q_gᵀe_g` (`k` each), `Q = X B`, for the cluster
+/// ([`super::cluster`]). Clusters are processed in parallel, each on its own
+/// rows in order in blocks of [`CHUNK`] rows (`Q` block by one product with
+/// `B`, then `Qᵀ[Q | e]`): the sums do not depend on the number of threads,
+/// and nothing of size `N × k` is stored.
+fn cluster_grams(
+    x: &[f64],
+    p: usize,
+    rows: &Rows<'_>,
+    idx: &[usize],
+    ng: usize,
+    resid: &[f64],
+    b: &Mat<f64>,
+) -> (Vec<f64>, Vec<f64>) {
+    use faer::{Accum, MatMut, MatRef, Par};
+    let k = b.ncols();
+    // Fitted rows grouped by cluster, in row order inside each (counting sort).
+    let mut off = vec![0usize; ng + 1];
+    for &g in idx {
+        off[g + 1] += 1;
+    }
+    for g in 0..ng {
+        off[g + 1] += off[g];
+    }
+    let mut next = off[..ng].to_vec();
+    let mut order = vec![0usize; idx.len()];
+    for (i, &g) in idx.iter().enumerate() {
+        order[next[g]] = i;
+        next[g] += 1;
+    }
+    // Per-worker buffers: the block of X, then [Q | e], column-major.
+    let new_work = || (Vec::<f64>::new(), Vec::<f64>::new());
+    let one = |wk: &mut (Vec<f64>, Vec<f64>), g: usize, wg: &mut [f64], sg: &mut [f64]| {
+        let mut acc = Mat::<f64>::zeros(k, k + 1);
+        for blk in order[off[g]..off[g + 1]].chunks(CHUNK) {
+            let rn = blk.len();
+            let ld = padded(rn);
+            let (a, qe) = wk;
+            a.resize(ld * p, 0.0);
+            qe.resize(ld * (k + 1), 0.0);
+            for (i, &f) in blk.iter().enumerate() {
+                let r = rows.get(f);
+                for (j, &v) in x[r * p..(r + 1) * p].iter().enumerate() {
+                    a[j * ld + i] = v;
+                }
+                qe[k * ld + i] = resid[f];
+            }
+            let am = MatRef::from_column_major_slice_with_stride(a, rn, p, ld);
+            let mut qm = MatMut::from_column_major_slice_with_stride_mut(qe, rn, k + 1, ld);
+            faer::linalg::matmul::matmul(
+                qm.as_mut().subcols_mut(0, k),
+                Accum::Replace,
+                am,
+                b.as_ref(),
+                1.0,
+                Par::Seq,
+            );
+            let qr = qm.as_ref();
+            faer::linalg::matmul::matmul(
+                acc.as_mut(),
+                Accum::Add,
+                qr.subcols(0, k).transpose(),
+                qr,
+                1.0,
+                Par::Seq,
+            );
+        }
+        for a in 0..k {
+            for c in 0..k {
+                wg[a * k + c] = acc[(a, c)];
+            }
+            sg[a] = acc[(a, k)];
+        }
+    };
+    let mut w = vec![0.0; ng * k * k];
+    let mut s = vec![0.0; ng * k];
+    #[cfg(feature = "parallel")]
+    {
+        use rayon::prelude::*;
+        w.par_chunks_mut(k * k)
+            .zip(s.par_chunks_mut(k))
+            .enumerate()
+            .for_each_init(new_work, |wk, (g, (wg, sg))| one(wk, g, wg, sg));
+    }
+    #[cfg(not(feature = "parallel"))]
+    {
+        let mut wk = new_work();
+        for (g, (wg, sg)) in w.chunks_mut(k * k).zip(s.chunks_mut(k)).enumerate() {
+            one(&mut wk, g, wg, sg);
+        }
+    }
+    (w, s)
 }
 
 fn fit(
@@ -1032,22 +1181,14 @@ fn fit(
         give_real(q);
     }
     let cluster = clusters.map(|ids| {
-        // Cluster index of each fitted row (sorted distinct ids: deterministic).
-        let mut uniq: Vec<u64> = (0..m).map(|k| ids[rows.get(k)]).collect();
-        uniq.sort_unstable();
-        uniq.dedup();
-        let idx: Vec<usize> = (0..m)
-            .map(|k| uniq.binary_search(&ids[rows.get(k)]).unwrap_or(0))
-            .collect();
-        let mut q = vec![0.0; m * nb];
-        for k in 0..m {
-            let xr = &x[rows.get(k) * p..(rows.get(k) + 1) * p];
-            for a in 0..nb {
-                q[k * nb + a] = (0..p).map(|j| xr[j] * b[(j, a)]).sum();
-            }
-        }
+        let (idx, ng) = cluster_index(ids, &rows);
+        let (w, sc) = if ng >= 2 {
+            cluster_grams(x, p, &rows, &idx, ng, &resid[..m], &b)
+        } else {
+            (Vec::new(), Vec::new())
+        };
         let bflat: Vec<f64> = (0..p * nb).map(|ja| b[(ja / nb, ja % nb)]).collect();
-        cr2(&q, nb, &resid[..m], &idx, uniq.len(), &bflat, p)
+        cr2(&w, &sc, ng, nb, &bflat, p)
     });
     give_real(resid);
 
@@ -1159,6 +1300,29 @@ mod tests {
         // The R² etc. from a 2-chunk and a 1-chunk QR agree closely.
         let c = ols_rows(&x, n, p, &z, &rows[..1000], &OlsOptions::default()).unwrap();
         assert!(c.r2 > 0.9);
+    }
+
+    #[test]
+    fn clustered_on_all_rows_equals_the_row_list_path() {
+        let (n, p) = (5000, 3);
+        let x = design(n, p, 17);
+        let z: Vec<f64> = (0..n)
+            .map(|i| 0.5 * x[i * p + 1] - x[i * p + 2] + ((i * 7919) % 13) as f64 * 0.01)
+            .collect();
+        // Arbitrary, unsorted ids: 37 clusters of consecutive rows.
+        let ids: Vec<u64> = (0..n).map(|i| ((i / 137) as u64 * 7919) % 1009).collect();
+        let all: Vec<usize> = (0..n).collect();
+        let opts = OlsOptions::default();
+        let a = ols_clustered(&x, n, p, &z, &ids, &opts).unwrap();
+        let b = ols_rows_clustered(&x, n, p, &z, &all, &ids, &opts).unwrap();
+        assert_eq!(a.params, b.params);
+        let (ca, cb) = (a.cluster.unwrap(), b.cluster.unwrap());
+        assert_eq!(ca, cb);
+        assert_eq!(ca.n_clusters, n.div_ceil(137));
+        assert!(ca.std_err.iter().all(|s| s.is_finite() && *s > 0.0));
+        let e = ols_clustered(&x, n, p, &z, &ids[1..], &opts).unwrap_err();
+        assert_eq!(e.kind(), ErrorKind::InvalidInput);
+        assert!(e.to_string().contains("clusters"), "{e}");
     }
 
     #[test]
