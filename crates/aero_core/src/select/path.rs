@@ -103,7 +103,7 @@ impl<'g> PathScorer<'g> {
     /// Scores of `path + [c]` for each `c` of `cands`.
     pub(super) fn scores(&mut self, cands: &[usize]) -> Vec<CvScore> {
         let mut accs = vec![CvAccum::new(self.nf); cands.len()];
-        let mut th = Vec::new();
+        let (mut th, mut cols) = (Vec::new(), Vec::new());
         let (dim, min_points) = (self.dim, self.min_points);
         for (f, cell) in &mut self.cells {
             let k = cell.factor.as_ref().map_or(0, |fa| fa.cols().len());
@@ -116,7 +116,8 @@ impl<'g> PathScorer<'g> {
                         Some(fa) if enough => match fa.probe_cached(c, &mut cell.w[c]) {
                             Some((d, u)) => {
                                 fa.theta_with(&cell.theta, &cell.w[c], d, u, &mut th);
-                                let mut cols = fa.cols().to_vec();
+                                cols.clear();
+                                cols.extend_from_slice(fa.cols());
                                 cols.push(c);
                                 let s = held_out(cell.fold, dim, &cols, &th);
                                 if th.iter().all(|v| v.is_finite()) {
