@@ -19,7 +19,8 @@ coefficient:
   (alpha >= alpha_l); per identified material bin: relative error |estimate - truth| / |truth|
   (median and 90th percentile), the share whose 95 % CR2 interval (``ci95_lower``..
   ``ci95_upper``) holds the truth, the same for the bootstrap band (``band_lower``..
-  ``band_upper``) when run; the share of material bins identified; for the selection, the
+  ``band_upper``) when run, and for the smoothed parameter's band at the bin centre
+  (``smoothed``); the share of material bins identified; for the selection, the
   (seed, flap) cases where a material term is not kept;
 - **zero-truth terms**: share of identified bins (alpha >= alpha_l) of parameters whose
   truth is zero with ``p_value < 0.05`` (``beta_deg^2``, ``beta_deg^3`` are left out: the
@@ -176,6 +177,22 @@ def _bin_rows(result: ad.FitResult, camp: Path, config: FitConfig) -> pl.DataFra
         elif reg == "1":
             truth[i] = _true_intercept(camp, coef, flap, centre[i])
     has_band = "band_lower" in p.columns and config.bootstrap > 0
+    # the smoothed parameter's band at the bin centre (the table the simulator flies)
+    s_lo, s_hi = np.full(p.height, math.nan), np.full(p.height, math.nan)
+    if has_band:
+        sm = result.smoothed
+        for (coef, flap, name), g in sm.group_by(["coefficient", "flap_deg", "param"]):
+            if g["note"][0] != "":
+                continue  # set to zero: no band
+            rows = np.flatnonzero(
+                (p["coefficient"] == coef).to_numpy()
+                & (p["flap_deg"] == flap).to_numpy()
+                & (p["param"] == name).to_numpy()
+            )
+            gs = g.sort("alpha_deg")
+            grid = gs["alpha_deg"].to_numpy()
+            s_lo[rows] = np.interp(centre[rows], grid, gs["lower"].to_numpy())
+            s_hi[rows] = np.interp(centre[rows], grid, gs["upper"].to_numpy())
     out = p.select(
         "coefficient",
         "flap_deg",
@@ -192,6 +209,8 @@ def _bin_rows(result: ad.FitResult, camp: Path, config: FitConfig) -> pl.DataFra
         pl.Series("truth", truth),
         pl.Series("truth_known", known),
         pl.Series("alpha_l_deg", alpha_l),
+        pl.Series("smooth_lower", s_lo),
+        pl.Series("smooth_upper", s_hi),
     )
     if not has_band:
         out = out.with_columns(
@@ -330,6 +349,12 @@ def summarize(bins: pl.DataFrame, camps: pl.DataFrame, drops: pl.DataFrame) -> s
                 if okb.any()
                 else "-"
             )
+            if "smooth_lower" in mid.columns:
+                slo, shi = mid["smooth_lower"].to_numpy(), mid["smooth_upper"].to_numpy()
+                oks = np.isfinite(slo) & np.isfinite(shi)
+                if oks.any():
+                    inside_s = ((slo <= tr) & (tr <= shi))[oks]
+                    band += f"; smoothed {100 * np.mean(inside_s):.0f} %"
             zero = h.filter(pl.col("zero_truth") & pl.col("identifiable"))
             zsig = zero["p_value"].to_numpy() < 0.05
             if st == "stepwise" and drops.height:
