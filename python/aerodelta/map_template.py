@@ -137,7 +137,8 @@ _UNIT_TOKENS = {u.lower(): u for u in known_units()} | {
 }
 _UNIT_TOKENS |= {
     "degrees": "deg", "radians": "rad", "rads": "rad/s", "degs": "deg/s", "sec": "s",
-    "secs": "s", "msec": "ms", "kn": "kt", "mps2": "m/s2", "fps2": "ft/s2", "kgm3": "kg/m3",
+    "secs": "s", "msec": "ms", "kn": "kt", "mps2": "m/s2", "fps2": "ft/s2", "ftps2": "ft/s2",
+    "ftps": "ft/s", "ms2": "m/s2", "kgm3": "kg/m3",
     "slugft3": "slug/ft3", "nm": "N*m", "ftlbf": "ft*lbf", "degc": "degC", "degf": "degF",
     "k": "K", "pa": "Pa", "hpa": "hPa", "inhg": "inHg", "gs": "g",
 }  # fmt: skip

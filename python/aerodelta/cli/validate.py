@@ -16,7 +16,13 @@ from typing import Any
 
 import polars as pl
 
-from aerodelta.cli._data import add_data_arguments, load_data, maneuver_ids, output_file
+from aerodelta.cli._data import (
+    add_data_arguments,
+    existing_file,
+    load_data,
+    maneuver_ids,
+    output_file,
+)
 from aerodelta.exceptions import DataError
 
 HELP = "held-out metrics of a fitted Δ model: RMS and Theil coefficient, qualified vs extended"
@@ -81,6 +87,7 @@ def run(args: argparse.Namespace) -> int:
     from aerodelta.model import DeltaModel  # noqa: PLC0415
 
     out = output_file(args.out, example="validation.csv") if args.out else None
+    existing_file(args.model, "--model")
     model = DeltaModel.load(args.model)
     ids = maneuver_ids(args.held_out) if args.held_out else []
     data, src = load_data(args, progress=not args.no_progress)
