@@ -356,6 +356,13 @@ def test_bad_options_and_paths_give_one_line_and_write_nothing(
         (["ingest", ing, "--out", str(new)], "already an aerodelta ingest output"),
         (["ingest", *_user_args(layout), "--out", user], "campaign folder itself"),
         (["map-template", str(tmp_path / "none.csv")], "file not found"),
+        (["diagnose", ing, "--out", str(new), "--seed", "-1"], "--seed -1"),
+        (
+            ["fit", ing, "--out", str(new / "m.json"), "--holdout", "0.2", "--holdout-seed", "-1"],
+            "--holdout-seed -1",
+        ),
+        (["campaign", "--out", ing, "--quick"], "give --overwrite"),
+        (["demo", "--out", str(a_file), "--quick"], "is a file"),
     ]
     for argv, want in cases:
         err = _one_line_error(capsys, argv)

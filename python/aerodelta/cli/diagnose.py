@@ -82,6 +82,7 @@ def _effects(path: str) -> dict:
 
 def _check_options(args: argparse.Namespace) -> None:
     check_at_least(args.folds, "--folds", 2, "cross-validation holds out one fold of maneuvers")
+    check_at_least(args.seed, "--seed", 0)
     check_open_unit(args.alpha, "--alpha", "0.01")
     check_share(args.min_shrink, "--min-shrink", "0.02")
     check_share(args.min_shrink_broad, "--min-shrink-broad", "0.015")

@@ -20,6 +20,7 @@ import polars as pl
 from aerodelta._fsutil import write_atomic, write_text_atomic
 from aerodelta.cli._data import (
     add_data_arguments,
+    check_at_least,
     check_open_unit,
     load_data,
     output_file,
@@ -90,6 +91,7 @@ def run(args: argparse.Namespace) -> int:
     out = output_file(args.out)
     if args.holdout is not None:
         check_open_unit(args.holdout, "--holdout", "0.2")
+        check_at_least(args.holdout_seed, "--holdout-seed", 0)
     cfg = FitConfig.from_toml(args.config) if args.config else FitConfig()
     progress = not args.no_progress
     data, src = load_data(args, progress=progress)

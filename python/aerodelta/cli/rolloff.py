@@ -99,6 +99,7 @@ def run(args: argparse.Namespace) -> int:
 
     check_open_unit(args.level, "--level", "0.95")
     check_at_least(args.monte_carlo, "--monte-carlo", 0)
+    check_at_least(args.seed, "--seed", 0)
     if args.threads is not None:
         check_at_least(args.threads, "--threads", 1)
     existing_file(args.model, "--model")
