@@ -401,6 +401,20 @@ def _group_unit(cols: list[_Col]) -> str | None:
     return min(full, key=totals.__getitem__)
 
 
+def _not_numeric(s: pl.Series) -> str:
+    """Why a text column is left out: the first cell that is not a number, by row."""
+    text = s.cast(pl.Utf8)
+    bad = text.is_not_null() & text.str.strip_chars().cast(pl.Float64, strict=False).is_null()
+    rows = np.flatnonzero(bad.to_numpy())
+    if rows.size == 0:
+        return "not numeric"
+    r = int(rows[0])
+    cell = json.dumps(str(text[r]))[:40]
+    if rows.size < len(s):
+        return f"not numeric: row {r} holds {cell} ({rows.size} of {len(s)} cells are text)"
+    return f"not numeric (text such as {cell})"
+
+
 def map_template(record: str | Path) -> MapTemplate:
     """Guess a channel map for ``record`` (CSV, Parquet or ``.mat``): see the module text.
 
@@ -431,8 +445,7 @@ def map_template(record: str | Path) -> MapTemplate:
             continue
         channel, hint = guess_channel(name)
         if not s.dtype.is_numeric():
-            first = next((x for x in s.to_list() if x is not None), None)
-            note = f"not numeric (e.g. {json.dumps(str(first))[:40]})"
+            note = _not_numeric(s)
             if channel:
                 note += f"; its name suggests {channel}: fix the file's values to map it"
             out.guesses.append(Guess(name, channel, note=note))
