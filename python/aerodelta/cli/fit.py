@@ -49,7 +49,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "validate the model on them (e.g. 0.2)",
     )
     parser.add_argument(
-        "--holdout-seed", type=int, default=0, help="seed of the --holdout draw (default 0)"
+        "--holdout-seed",
+        type=int,
+        default=0,
+        metavar="N",
+        help="seed of the --holdout draw (default 0)",
     )
     parser.add_argument("--no-progress", action="store_true", help="no progress bars")
 
