@@ -10,15 +10,28 @@ from pathlib import Path
 
 
 def write_atomic(path: str | os.PathLike[str], write: Callable[[Path], object]) -> Path:
-    """Call ``write(tmp)`` on a temporary path beside ``path``, then rename it to ``path``."""
+    """Call ``write(tmp)`` on a temporary path beside ``path``, then rename it to ``path``.
+
+    An ``OSError`` names ``path``, never the temporary file (which the user never asked for).
+    """
     out = Path(path)
     tmp = out.with_name(f"{out.name}.tmp-{os.getpid()}")
     try:
         write(tmp)
         os.replace(tmp, out)
+    except OSError as e:
+        raise _naming(e, tmp, out) from e
     finally:
         tmp.unlink(missing_ok=True)
     return out
+
+
+def _naming(e: OSError, tmp: Path, out: Path) -> OSError:
+    """``e`` with ``out`` in place of ``tmp`` (same class and errno)."""
+    if e.errno is not None and e.strerror:
+        return type(e)(e.errno, e.strerror, str(out))
+    text = str(e).replace(str(tmp), str(out))
+    return type(e)(f"{text}" if str(out) in text else f"{out}: {text}")
 
 
 def write_text_atomic(path: str | os.PathLike[str], text: str) -> Path:

@@ -33,6 +33,8 @@ _register("ingest", "ingest")
 _register("diagnose", "diagnose")
 _register("rolloff", "rolloff")
 _register("report", "report")
+_register("validate", "validate")
+_register("map-template", "map_template")
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -10,6 +10,8 @@ import argparse
 import sys
 
 from aerodelta.campaign import effect_library, generate_campaign
+from aerodelta.cli._data import check_at_least, output_folder
+from aerodelta.exceptions import InvalidInputError
 
 HELP = "generate a virtual flight test campaign (synthetic stall maneuvers)"
 
@@ -82,6 +84,7 @@ def run(args: argparse.Namespace) -> int:
     if not args.out:
         print("aerodelta campaign: error: --out DIR is required", file=sys.stderr)
         return 2
+    _check_out(args)
     info = generate_campaign(
         args.out,
         effects=args.effects,
@@ -101,6 +104,16 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
+def _check_out(args: argparse.Namespace) -> None:
+    """Refuse a negative seed and an existing --out without --overwrite, before flying."""
+    check_at_least(args.seed, "--seed", 0)
+    out = output_folder(args.out)
+    if out.exists() and not args.overwrite:
+        raise InvalidInputError(
+            f"--out {out}: exists; choose another folder or give --overwrite to replace it"
+        )
+
+
 def _run_jsbsim(args: argparse.Namespace) -> int:
     from aerodelta.jsbsim_campaign import (  # noqa: PLC0415
         generate_jsbsim_campaign,
@@ -115,6 +128,7 @@ def _run_jsbsim(args: argparse.Namespace) -> int:
     if not args.out:
         print("aerodelta campaign: error: --out DIR is required", file=sys.stderr)
         return 2
+    _check_out(args)
     info = generate_jsbsim_campaign(
         args.out,
         aircraft=args.aircraft,

@@ -13,6 +13,7 @@ import numpy as np
 import polars as pl
 
 from aerodelta.campaign import generate_campaign
+from aerodelta.cli._data import check_at_least, output_folder
 from aerodelta.diagnosis import diagnose, write_outputs
 from aerodelta.fit import (
     COEFFICIENTS,
@@ -44,7 +45,9 @@ def run(args: argparse.Namespace) -> int:
     """Run ``aerodelta demo``."""
     from aerodelta.report import build_report  # noqa: PLC0415  (matplotlib: CLI start-up light)
 
-    out = Path(args.out)
+    check_at_least(args.seed, "--seed", 0)
+    check_at_least(args.bootstrap, "--bootstrap", 0)
+    out = output_folder(args.out)
     progress = not args.no_progress
     camp = out / "campaign"
     generate_campaign(

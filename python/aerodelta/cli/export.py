@@ -12,6 +12,7 @@ from __future__ import annotations
 import argparse
 import sys
 
+from aerodelta.cli._data import check_at_least, existing_file, output_file
 from aerodelta.exceptions import DataError
 from aerodelta.export import export_extended_daveml
 from aerodelta.jsbsim import export_jsbsim, jsbsim_properties
@@ -86,7 +87,20 @@ def run(args: argparse.Namespace) -> int:
             file=sys.stderr,
         )
         return 2
+    check_at_least(args.seed, "--seed", 0)
+    existing_file(args.model, "--model")
+    existing_file(args.qualified, "--qualified")
+    outs = [
+        output_file(v, o, example)
+        for v, o, example in (
+            (args.daveml, "--daveml", "extended.dml"),
+            (args.jsbsim, "--jsbsim", "delta.xml"),
+        )
+        if v
+    ]
     model = DeltaModel.load(args.model)
+    for p in outs:
+        p.parent.mkdir(parents=True, exist_ok=True)
     if args.daveml:
         out = export_extended_daveml(
             args.daveml,

@@ -11,15 +11,15 @@ import argparse
 import json
 import sys
 
+from aerodelta.cli._data import add_data_arguments, ingest_source, output_folder, resolve_data
+from aerodelta.exceptions import InvalidInputError
+
 HELP = "ingest and preprocess flight test records (CSV, Parquet, .mat)"
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Declare the options of ``aerodelta ingest``."""
-    parser.add_argument("--data", required=True, help="campaign folder or record file")
-    parser.add_argument("--aircraft", help="aircraft reference TOML (default DATA/aircraft.toml)")
-    parser.add_argument("--map", dest="channel_map", help="channel map TOML (default: canonical)")
-    parser.add_argument("--manifest", help="manifest CSV/Parquet (default DATA/manifest.csv)")
+    add_data_arguments(parser)
     parser.add_argument("--out", required=True, help="output folder")
     parser.add_argument(
         "--allow-interpolation", action="store_true", help="interpolate short NaN dropouts"
@@ -29,24 +29,40 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--apply-compat", action="store_true", help="remove estimated biases and scale factors"
     )
     parser.add_argument("--format", choices=("table", "json"), default="table")
-    parser.add_argument("--quiet", action="store_true", help="no progress bar")
+    parser.add_argument(
+        "--quiet", "--no-progress", dest="quiet", action="store_true", help="no progress bar"
+    )
+
+
+def _cli_wording(message: str) -> str:
+    """A finding's advice in the command's terms (the findings speak the API's)."""
+    return message.replace("pass apply_compat=True", "ingest with --apply-compat")
 
 
 def run(args: argparse.Namespace) -> int:
     """Run ``aerodelta ingest``; returns the exit status."""
-    from aerodelta.ingest import ingest  # noqa: PLC0415  (keeps CLI start-up light)
-
-    res = ingest(
-        args.data,
-        aircraft=args.aircraft,
-        channel_map=args.channel_map,
-        manifest=args.manifest,
+    if args.apply_compat and args.no_compat:
+        raise InvalidInputError("--apply-compat needs the compatibility check: drop --no-compat")
+    out = output_folder(args.out)
+    src = resolve_data(args)
+    if src.kind == "ingested":
+        raise InvalidInputError(
+            f"{src.path} is already an aerodelta ingest output (data.parquet); give the "
+            "campaign folder or a record file"
+        )
+    if src.path.is_dir() and out.resolve() == src.path.resolve():
+        raise InvalidInputError(
+            f"--out {out}: is the campaign folder itself; write the ingest output into a "
+            "folder of its own"
+        )
+    res = ingest_source(
+        src,
+        progress=not args.quiet,
         allow_interpolation=args.allow_interpolation,
         compat=not args.no_compat,
         apply_compat=args.apply_compat,
-        progress=not args.quiet,
     )
-    paths = res.write(args.out)
+    paths = res.write(out)
     findings = res.report_frame()
     summary = {
         "maneuvers": len(res.reports),
@@ -59,7 +75,8 @@ def run(args: argparse.Namespace) -> int:
     else:
         print(f"ingested {summary['maneuvers']} maneuvers, {summary['rows']} rows")
         for f in findings.filter(findings["severity"] == "warning").iter_rows(named=True):
-            print(f"warning: {f['file']} [{f['maneuver_id']}] {f['channel']}: {f['message']}")
+            msg = _cli_wording(f["message"])
+            print(f"warning: {f['file']} [{f['maneuver_id']}] {f['channel']}: {msg}")
         for p in paths:
             print(f"wrote {p}")
     sys.stdout.flush()

@@ -7,12 +7,15 @@ from __future__ import annotations
 
 import argparse
 import sys
-from pathlib import Path
 
-import polars as pl
-
-from aerodelta.exceptions import DataError
-from aerodelta.ingest import ingest
+from aerodelta.cli._data import (
+    add_data_arguments,
+    check_at_least,
+    existing_file,
+    load_data,
+    maneuver_ids,
+    output_folder,
+)
 
 HELP = "write the HTML validation report of a fitted Δ model"
 
@@ -20,18 +23,14 @@ HELP = "write the HTML validation report of a fitted Δ model"
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``aerodelta report``."""
     parser.add_argument("--model", required=True, help="model file from aerodelta fit (.json)")
-    parser.add_argument(
-        "--data",
-        required=True,
-        help="campaign folder (manifest.csv), aerodelta ingest output folder (data.parquet) "
-        "or a data.parquet file",
-    )
+    add_data_arguments(parser)
     parser.add_argument("--out", required=True, help="output folder")
     parser.add_argument("--diagnosis", help="diagnosis.json from aerodelta diagnose")
     parser.add_argument(
         "--held-out",
         default="",
-        help="maneuvers left out of the fit: comma-separated ids, or @FILE with one id per line",
+        help="maneuvers left out of the fit: comma-separated ids, or @FILE with one id per line "
+        "(aerodelta fit --holdout writes MODEL.holdout.txt)",
     )
     parser.add_argument(
         "--qualified",
@@ -50,40 +49,22 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--no-progress", action="store_true", help="no progress bars")
 
 
-def read_data(path: str | Path, *, progress: bool = False) -> pl.DataFrame:
-    """Ingested records from a campaign folder, an ingest output folder or a Parquet file."""
-    p = Path(path)
-    if p.is_file():
-        return pl.read_parquet(p)
-    if (p / "data.parquet").is_file():
-        return pl.read_parquet(p / "data.parquet")
-    if (p / "manifest.csv").is_file():
-        return ingest(p, compat=False, progress=progress).data
-    raise DataError(
-        f"{p}: neither a data.parquet file, an ingest output folder nor a campaign folder "
-        "(manifest.csv); run aerodelta ingest or pass the campaign folder"
-    )
-
-
-def held_out_ids(spec: str) -> list[str]:
-    """Ids from ``a,b,c`` or ``@file`` (one per line, ``#`` comments)."""
-    if spec.startswith("@"):
-        lines = Path(spec[1:]).read_text(encoding="utf-8").splitlines()
-        return [x.split("#")[0].strip() for x in lines if x.split("#")[0].strip()]
-    return [x.strip() for x in spec.split(",") if x.strip()]
-
-
 def run(args: argparse.Namespace) -> int:
     """Run ``aerodelta report``."""
     from aerodelta.report import build_report  # noqa: PLC0415  (matplotlib: CLI start-up light)
 
+    check_at_least(args.replays, "--replays", 0)
+    existing_file(args.model, "--model")
+    existing_file(args.diagnosis, "--diagnosis")
+    out = output_folder(args.out)
+    held = maneuver_ids(args.held_out)
     progress = not args.no_progress
-    data = read_data(args.data, progress=progress)
+    data, _ = load_data(args, progress=progress)
     res = build_report(
         args.model,
         data,
-        args.out,
-        held_out=held_out_ids(args.held_out),
+        out,
+        held_out=held,
         diagnosis_doc=args.diagnosis,
         qualified=args.qualified,
         replay_count=args.replays,

@@ -27,6 +27,14 @@ from pathlib import Path
 from typing import Any
 
 from aerodelta._fsutil import write_atomic
+from aerodelta.cli._data import (
+    add_data_arguments,
+    check_at_least,
+    check_open_unit,
+    existing_file,
+    load_data,
+    output_folder,
+)
 
 HELP = "detect roll-off events, per-flap statistics, runtime configuration, Monte Carlo"
 
@@ -36,7 +44,7 @@ N_EVENT_FIGURES = 3
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``aerodelta rolloff``."""
-    parser.add_argument("--data", required=True, help="campaign folder (records + manifest)")
+    add_data_arguments(parser)
     parser.add_argument("--out", required=True, help="output folder")
     parser.add_argument(
         "--model", help="fitted Δ model (JSON): its ΔC_l is removed from the residual too"
@@ -87,19 +95,20 @@ def run(args: argparse.Namespace) -> int:
     import aerodelta.rolloff as ro  # noqa: PLC0415
     from aerodelta.exceptions import InvalidInputError  # noqa: PLC0415
     from aerodelta.fit import model_frame, qualified_coefficients  # noqa: PLC0415
-    from aerodelta.ingest import ingest  # noqa: PLC0415
     from aerodelta.model import DeltaModel  # noqa: PLC0415
 
-    if not 0.0 < args.level < 1.0:
-        raise InvalidInputError(f"--level {args.level} must lie in (0, 1)")
-    if args.monte_carlo < 0:
-        raise InvalidInputError(f"--monte-carlo {args.monte_carlo} must be >= 0")
+    check_open_unit(args.level, "--level", "0.95")
+    check_at_least(args.monte_carlo, "--monte-carlo", 0)
+    check_at_least(args.seed, "--seed", 0)
+    if args.threads is not None:
+        check_at_least(args.threads, "--threads", 1)
+    existing_file(args.model, "--model")
     progress = not args.no_progress
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
+    out = output_folder(args.out)
     written: list[Path] = []
 
-    data = ingest(args.data, compat=False, progress=progress).data
+    data, _ = load_data(args, progress=progress)
+    out.mkdir(parents=True, exist_ok=True)
     residual = data["Cl_meas"].to_numpy().astype(np.float64)
     frame = model_frame(data)
     if args.qualified != "none":
