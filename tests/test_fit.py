@@ -168,3 +168,31 @@ def test_too_few_maneuvers_is_an_error(split: tuple[pl.DataFrame, pl.DataFrame])
     ids = split[0]["maneuver_id"].unique().sort().to_list()[:3]
     with pytest.raises(DataError, match="too little data"):
         ad.fit(split[0].filter(pl.col("maneuver_id").is_in(ids)))
+
+
+@pytest.mark.parametrize(
+    ("setting", "value", "message"),
+    [
+        ("bootstrap", "many", "bootstrap = 'many': give a whole number"),
+        ("bootstrap", 2.5, "bootstrap = 2.5: give a whole number"),
+        ("seed", -1, "seed = -1: give a whole number >= 0"),
+        ("p", "0.4", "p = '0.4': give a finite number"),
+        ("p", 0.0, "p = 0.0: the smoothing parameter"),
+        ("max_vif", float("nan"), "max_vif = nan: give a finite number"),
+        ("colored", "yes", "colored = 'yes': give true or false"),
+        ("cv_folds", 1, "cv_folds = 1: cross-validation needs at least 2"),
+        ("band_level", 95, "band_level = 95: give a confidence level in"),
+        ("alpha_l_deg", "8", "alpha_l_deg = '8': give an alpha in deg"),
+    ],
+)
+def test_a_setting_of_the_wrong_type_is_refused_in_one_line(
+    setting: str, value: object, message: str, tmp_path: Path
+) -> None:
+    with pytest.raises(DataError, match=message.replace("(", r"\(")):
+        ad.FitConfig(**{setting: value})  # type: ignore[arg-type]
+    # the same from a configuration file, where a string is the usual slip
+    if isinstance(value, str):
+        p = tmp_path / "fit.toml"
+        p.write_text(f'{setting} = "{value}"\n')
+        with pytest.raises(DataError, match=f"fit setting {setting}"):
+            ad.FitConfig.from_toml(p)

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import hashlib
 import math
+import numbers
 import os
 import re
 import sys
@@ -273,6 +274,52 @@ class FitConfig:
     band_hz: float | Mapping[str, float] | None = None
     nested_cv: bool = True
 
+    def __post_init__(self) -> None:
+        """Refuse a setting of the wrong type (a TOML string where a number belongs, a
+        float count, a negative count) with one line naming it."""
+        for name in _INT_SETTINGS:
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, numbers.Integral) or v < 0:
+                raise DataError(
+                    f"fit setting {name} = {v!r}: give a whole number >= 0 (default "
+                    f"{_DEFAULTS[name]!r})"
+                )
+        for name in _FLOAT_SETTINGS:
+            v = getattr(self, name)
+            if v is None and name in _OPTIONAL_SETTINGS:
+                continue
+            if isinstance(v, bool) or not isinstance(v, numbers.Real) or not math.isfinite(v):
+                raise DataError(
+                    f"fit setting {name} = {v!r}: give a finite number (default "
+                    f"{_DEFAULTS[name]!r})"
+                )
+        for name in _BOOL_SETTINGS:
+            v = getattr(self, name)
+            if not isinstance(v, bool):
+                raise DataError(f"fit setting {name} = {v!r}: give true or false")
+        if self.cv_folds < 2:
+            raise DataError(
+                f"fit setting cv_folds = {self.cv_folds}: cross-validation needs at least 2 "
+                "folds of maneuvers (default 5)"
+            )
+        if not 0.0 < self.band_level < 1.0:
+            raise DataError(
+                f"fit setting band_level = {self.band_level}: give a confidence level in (0, 1), "
+                "e.g. 0.95"
+            )
+        if not 0.0 < self.p <= 1.0:
+            raise DataError(
+                f"fit setting p = {self.p}: the smoothing parameter of Eq. 3.13 lies in (0, 1] "
+                "(thesis: 0.4)"
+            )
+        for name in ("alpha_l_deg", "alpha_u_deg"):
+            v = getattr(self, name)
+            vals = list(v.values()) if isinstance(v, Mapping) else [v]
+            if any(isinstance(x, bool) or not isinstance(x, numbers.Real) for x in vals):
+                raise DataError(
+                    f"fit setting {name} = {v!r}: give an alpha in deg, or one per flap"
+                )
+
     @classmethod
     def from_toml(cls, path: str | Path) -> FitConfig:
         """Read a configuration file.
@@ -300,6 +347,20 @@ class FitConfig:
             else:
                 kwargs[k] = v
         return cls(**kwargs)
+
+
+#: Settings of :class:`FitConfig` by type, for its check.
+_INT_SETTINGS = (
+    "min_points_per_param", "min_maneuvers", "min_maneuvers_identified", "min_identified_bins",
+    "min_selected_bins", "min_maneuvers_selection", "cv_folds", "seed", "bootstrap",
+)  # fmt: skip
+_FLOAT_SETTINGS = (
+    "width_deg", "max_width_deg", "min_excitation", "min_excitation_snr", "p", "grid_step_deg",
+    "past_stall_deg", "max_vif", "f_in", "f_out", "band_level",
+)  # fmt: skip
+_OPTIONAL_SETTINGS = ("max_width_deg", "max_vif")
+_BOOL_SETTINGS = ("colored", "weighted", "bootstrap_selection", "nested_cv")
+_DEFAULTS: dict[str, Any] = {}
 
 
 def _per_flap(value: float | Mapping[float, float], flap: float, name: str) -> float:
@@ -1131,3 +1192,12 @@ def validate_model(
     return pl.DataFrame(rows).with_columns(
         (pl.col("tic_extended") / pl.col("tic_qualified")).alias("tic_ratio")
     )
+
+
+_DEFAULTS.update(
+    {
+        f.name: f.default
+        for f in FitConfig.__dataclass_fields__.values()
+        if not callable(f.default_factory)  # type: ignore[arg-type]
+    }
+)
