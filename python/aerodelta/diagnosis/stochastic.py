@@ -12,12 +12,12 @@ maneuvers than the detector's false-event rate explains (a binomial tail test ag
 
 from __future__ import annotations
 
-import math
 from typing import Any
 
 import numpy as np
 import polars as pl
 
+from aerodelta import _core
 from aerodelta.rolloff import detect_rolloff
 
 #: Per-maneuver false-event rate allowed for the detector (issue 6's checks).
@@ -25,8 +25,14 @@ FALSE_EVENT_RATE = 0.10
 
 
 def _binom_sf(k: int, n: int, p: float) -> float:
-    """P(X >= k) for X ~ Binomial(n, p)."""
-    return float(sum(math.comb(n, i) * p**i * (1 - p) ** (n - i) for i in range(k, n + 1)))
+    """P(X >= k) for X ~ Binomial(n, p): the regularized incomplete beta ``I_p(k, n - k + 1)``
+    (Abramowitz & Stegun 26.5.24), which holds for any n (the term-by-term sum of
+    ``comb(n, i) p^i (1-p)^(n-i)`` overflowed a float past about 1,030 maneuvers)."""
+    if k <= 0:
+        return 1.0
+    if k > n:
+        return 0.0
+    return float(_core.beta_inc_reg(float(k), float(n - k + 1), float(p)))
 
 
 #: Standard deviation in alpha of a roll-off's moment, deg (thesis Figure 3.14 and its text).

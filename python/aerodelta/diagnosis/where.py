@@ -98,10 +98,18 @@ def gap_map(
             floors[f] = float((resid["r"] ** 2).mean())  # type: ignore[operator]
         else:
             floors[f] = float(np.var(df.filter(pl.col("flap") == f)["g"].to_numpy()))
-    per_m = df.group_by(["flap", "b", "phase", "m"]).agg(
-        pl.col("g").mean().alias("mean"), (pl.col("g") ** 2).mean().alias("ms"), pl.len().alias("n")
+    # in a fixed order (hash order made the sums below, hence diagnosis.json, differ from run
+    # to run in the last digits)
+    per_m = (
+        df.group_by(["flap", "b", "phase", "m"])
+        .agg(
+            pl.col("g").mean().alias("mean"),
+            (pl.col("g") ** 2).mean().alias("ms"),
+            pl.len().alias("n"),
+        )
+        .sort(["flap", "b", "phase", "m"])
     )
-    cells = per_m.group_by(["flap", "b", "phase"]).agg(
+    cells = per_m.group_by(["flap", "b", "phase"], maintain_order=True).agg(
         pl.col("mean").alias("means"),
         pl.col("ms").alias("mss"),
         pl.col("n").sum().alias("n"),
@@ -178,7 +186,7 @@ def worst_segments(
             pl.len().alias("n"),
         )
         .filter(pl.col("n") >= 5)
-        .sort("rms", descending=True)
+        .sort(["rms", "m", "w"], descending=[True, False, False])
         .unique("m", keep="first", maintain_order=True)
         .head(top)
     )
