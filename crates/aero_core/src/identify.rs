@@ -233,6 +233,44 @@ pub struct BinFit {
 }
 
 impl BinFit {
+    /// A bin of `n` samples from `n_maneuvers` maneuvers between the alpha `edges` before its
+    /// fit: every statistic NaN, nothing identified, no note.
+    pub fn unfitted(
+        edges: (f64, f64),
+        n: usize,
+        n_maneuvers: usize,
+        excitation: Vec<f64>,
+        excitation_snr: Vec<f64>,
+    ) -> Self {
+        let p = excitation.len();
+        let nan = vec![f64::NAN; p];
+        BinFit {
+            alpha_lo: edges.0,
+            alpha_hi: edges.1,
+            n,
+            n_maneuvers,
+            params: nan.clone(),
+            std_err: nan.clone(),
+            std_err_colored: nan.clone(),
+            std_err_cluster: nan.clone(),
+            dof_cluster: nan.clone(),
+            ci95_half_width: nan.clone(),
+            p_value: nan.clone(),
+            partial_f: nan.clone(),
+            excitation,
+            excitation_snr,
+            vif: nan,
+            most_correlated: vec![None; p],
+            identifiable: vec![false; p],
+            smoothable: vec![false; p],
+            notes: vec![String::new(); p],
+            r2: f64::NAN,
+            condition_number: f64::NAN,
+            residual_std: f64::NAN,
+            note: String::new(),
+        }
+    }
+
     /// The standard error of parameter `j` used for the adjacent-bin check:
     /// the cluster-robust one where defined, else the conventional one.
     pub fn se(&self, j: usize) -> f64 {
@@ -431,32 +469,13 @@ pub fn fit_bins(
             .collect();
         // a constant regressor's floor is zero: infinite
         let excitation_snr: Vec<f64> = (0..p).map(|j| snr(in_bin_std[j], floor[j])).collect();
-        let nan = vec![f64::NAN; p];
-        let mut bin = BinFit {
-            alpha_lo: partition.edges[b],
-            alpha_hi: partition.edges[b + 1],
-            n: rows.len(),
-            n_maneuvers: maneuvers.len(),
-            params: nan.clone(),
-            std_err: nan.clone(),
-            std_err_colored: nan.clone(),
-            std_err_cluster: nan.clone(),
-            dof_cluster: nan.clone(),
-            ci95_half_width: nan.clone(),
-            p_value: nan.clone(),
-            partial_f: nan.clone(),
+        let mut bin = BinFit::unfitted(
+            (partition.edges[b], partition.edges[b + 1]),
+            rows.len(),
+            maneuvers.len(),
             excitation,
             excitation_snr,
-            vif: nan,
-            most_correlated: vec![None; p],
-            identifiable: vec![false; p],
-            smoothable: vec![false; p],
-            notes: vec![String::new(); p],
-            r2: f64::NAN,
-            condition_number: f64::NAN,
-            residual_std: f64::NAN,
-            note: String::new(),
-        };
+        );
         if rows.len() < required || maneuvers.len() < opts.partition.min_maneuvers.max(1) {
             bin.note = format!(
                 "too little data: {} points from {} maneuvers, {} points and {} maneuvers required",

@@ -18,6 +18,7 @@
 //! simulator flying the same kind of maneuvers needs; their values are not the separate
 //! derivatives, and the note says so.
 
+use super::median;
 use crate::identify::BinnedFit;
 
 /// A term left out of a flap's structure.
@@ -27,19 +28,6 @@ pub struct Pruned {
     pub column: usize,
     /// Why, naming the term it is collinear with.
     pub note: String,
-}
-
-fn median(mut v: Vec<f64>) -> f64 {
-    if v.is_empty() {
-        return f64::NAN;
-    }
-    v.sort_by(f64::total_cmp);
-    let m = v.len() / 2;
-    if v.len() % 2 == 1 {
-        v[m]
-    } else {
-        0.5 * (v[m - 1] + v[m])
-    }
 }
 
 /// The column of `fit` to leave out and its note: the last non-constant column with a VIF

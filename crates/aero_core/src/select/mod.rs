@@ -1338,32 +1338,13 @@ pub fn pool_bins_grams(
             let excitation_snr: Vec<f64> = (0..p)
                 .map(|j| snr(var(g, s, *c, j).sqrt() * grams.scale[j], floor[j]))
                 .collect();
-            let nan = vec![f64::NAN; p];
-            let mut bin = BinFit {
-                alpha_lo: partition.edges[b],
-                alpha_hi: partition.edges[b + 1],
-                n: members[b].len(),
-                n_maneuvers: n_man,
-                params: nan.clone(),
-                std_err: nan.clone(),
-                std_err_colored: nan.clone(),
-                std_err_cluster: nan.clone(),
-                dof_cluster: nan.clone(),
-                ci95_half_width: nan.clone(),
-                p_value: nan.clone(),
-                partial_f: nan.clone(),
+            let mut bin = BinFit::unfitted(
+                (partition.edges[b], partition.edges[b + 1]),
+                members[b].len(),
+                n_man,
                 excitation,
                 excitation_snr,
-                vif: nan,
-                most_correlated: vec![None; p],
-                identifiable: vec![false; p],
-                smoothable: vec![false; p],
-                notes: vec![String::new(); p],
-                r2: f64::NAN,
-                condition_number: f64::NAN,
-                residual_std: f64::NAN,
-                note: String::new(),
-            };
+            );
             if members[b].len() < required || n_man < min_man {
                 bin.note = format!(
                     "too little data: {} points from {n_man} maneuvers, {required} points and \
