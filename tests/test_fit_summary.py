@@ -199,5 +199,9 @@ def test_fit_cli_prints_the_report(
     assert "qualified model: the built-in ADX-37 lateral model" in o
     assert "per 10-deg alpha range" in o and re.search(r"\n  Cl: [\d,]+ bin estimates", o)
     assert "structure as given (not selected: 8 maneuvers at this flap, 15 needed)" in o
+    assert main([*argv, "--verbose"]) == 0  # one section per bin
+    o = capsys.readouterr().out
+    assert "one section per alpha bin" in o
+    assert re.search(r"\n alpha \S+ to \S+ deg: [\d,]+ points, \d+ maneuvers, R² ", o)
     assert main([*argv, "--range", "0"]) == 1
     assert "--range 0" in capsys.readouterr().err

@@ -140,8 +140,7 @@ def run(args: argparse.Namespace) -> int:
     # the results report (FitResult.summary_text): header, identified share per coefficient
     # with the reasons for the rest, per coefficient and flap the parameter tables, the notes
     print(result.summary_text(None if args.verbose else args.range_deg, qualified=qualified))
-    ident = result.params.group_by("coefficient").agg(pl.col("identifiable").mean())
-    if ident.height == 0 or float(ident["identifiable"].max() or 0.0) == 0.0:
+    if result.params.is_empty() or not result.params["identifiable"].any():
         print(
             "aerodelta fit: error: no parameter is identified in any alpha bin, so no model is "
             "written (the reasons are listed above; fly more maneuvers per flap or see "
