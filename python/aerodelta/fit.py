@@ -518,8 +518,74 @@ class FitResult:
     notes: list[str] = field(default_factory=list)
 
     def summary(self) -> pl.DataFrame:
-        """Per-parameter table (statsmodels-like), sorted by coefficient, flap, alpha."""
+        """Per-parameter table (statsmodels-like), sorted by coefficient, flap, alpha.
+
+        One row per coefficient, flap, alpha bin and parameter (the ``params`` frame), for
+        scripts; the text report an engineer reads is :meth:`summary_text` (also
+        ``print(result)``), rendered from :meth:`summary_table`.
+        """
         return self.params.sort(["coefficient", "flap_deg", "alpha_lo_deg", "param"])
+
+    def summary_table(self, range_deg: float | None = 5.0) -> pl.DataFrame:
+        """The per-bin estimates aggregated over alpha ranges: the frame of :meth:`summary_text`.
+
+        Parameters
+        ----------
+        range_deg
+            Width of the alpha ranges, deg: a bin belongs to the range holding its centre
+            (ranges start at multiples of ``range_deg``). ``None``: one range per bin.
+
+        Returns
+        -------
+        polars.DataFrame
+            One row per coefficient, flap, range and parameter: ``alpha_lo_deg``/``alpha_hi_deg``
+            (the span of the range's bins), ``bins``, ``bins_fitted`` (finite estimate),
+            ``identified`` (bins where the parameter is identified), ``estimate``, ``std_err``
+            (CR2 cluster-robust), ``t`` and ``partial_f`` (medians over the fitted bins; one
+            bin's own values with ``range_deg=None``), ``pct_error`` (SIDPAC's
+            ``100 · std_err / |estimate|`` of those medians), ``reasons`` (why not identified,
+            shortened and counted, most frequent first: ``"collinear with 'dCl_r' in 12 of 40
+            bins"``), ``r2_min``/``r2_max`` and ``maneuvers_min``/``maneuvers_max`` over the
+            range's fitted bins.
+        """
+        return _summary_table(self.params, self.bins, range_deg)
+
+    def summary_text(
+        self,
+        range_deg: float | None = 5.0,
+        *,
+        qualified: str | None = None,
+        width: int = 100,
+    ) -> str:
+        """The results report an engineer reads (SIDPAC / statsmodels style), as text.
+
+        A header (data, qualified model, structure selection, standard errors, stall alpha
+        per flap in words), the identified share per coefficient with the reasons for the
+        rest, then per coefficient and flap: the structure, the cross-validated score, and a
+        table of the parameters per alpha range (estimate, standard error, % error, t,
+        partial F, identified bins and why not, R²), and the notes of the fit.
+
+        Parameters
+        ----------
+        range_deg
+            Alpha range per table section, deg (see :meth:`summary_table`); ``None`` for one
+            section per bin.
+        qualified
+            Where the qualified model came from (``"columns"`` or ``"adx37"``, as given to
+            :func:`fit` after ``"auto"`` was resolved); the result does not record it, so the
+            header says "not recorded" without it.
+        width
+            Line length the long lines (lists, notes, reasons) are wrapped to.
+
+        Returns
+        -------
+        str
+            The report; ``print(result)`` prints it with the defaults.
+        """
+        return _summary_text(self, range_deg=range_deg, qualified=qualified, width=width)
+
+    def __str__(self) -> str:
+        return self.summary_text()
 
     def identified_fraction(self) -> pl.DataFrame:
         """Share of fitted bins in which each parameter is identified, per coefficient/flap."""
@@ -589,6 +655,433 @@ class FitResult:
             out[f"d{coef}_lower"] = lo
             out[f"d{coef}_upper"] = hi
         return pl.DataFrame(out)
+
+
+#: Leading words of an engine note (``aero_core::identify``, ``aero_core::lsq``) and their short
+#: form in the summary tables; a note not listed keeps its text before the first colon.
+_REASON_PATTERNS: list[tuple[re.Pattern[str], str]] = [
+    (re.compile(r"^low excitation:.*noise floor"), "low excitation (near the noise floor)"),
+    (re.compile(r"^low excitation:"), "low excitation (against the flap's)"),
+    (re.compile(r"^\d+ maneuvers? in the bin \(minimum (\d+)\)"), r"fewer than \1 maneuvers"),
+    (re.compile(r"^bin not fitted: too little data"), "bin not fitted (too little data)"),
+    (re.compile(r"^cluster-robust error undefined"), "one maneuver alone determines it"),
+    (re.compile(r"^not identifiable: (\d+% of its variance)"), r"\1 near-collinear"),
+]
+
+
+def _short_reason(clause: str) -> str:
+    """One clause of a ``params`` note, shortened for a table: "collinear with 'dCl_r'
+    (estimate correlation 0.93): VIF 45 > 10" -> "collinear with 'dCl_r'"."""
+    c = clause.strip()
+    for pat, repl in _REASON_PATTERNS:
+        m = pat.match(c)
+        if m:
+            return m.expand(repl)
+    c = re.sub(r"^not identifiable: ", "", c)
+    c = re.sub(r"\s*\([^)]*\)", "", c)  # "(estimate correlation 0.93)", "(condition index ..)"
+    return c.split(":", 1)[0].strip() or "not identified"
+
+
+def _reason_kind(short: str) -> str:
+    """A shortened reason without the term names (the overview counts kinds)."""
+    if short.startswith(("collinear with", "near-collinear", "linearly dependent")):
+        return "collinear with other terms"
+    return short
+
+
+def _split_reasons(note: str) -> list[str]:
+    out: list[str] = []
+    for clause in note.split("; "):
+        if clause.strip():
+            s = _short_reason(clause)
+            if s not in out:
+                out.append(s)
+    return out or ["not identified"]
+
+
+def _count_reasons(notes: Sequence[str], n_bins: int) -> str:
+    """Why a parameter is not identified in the bins of one range, counted: ``notes`` holds
+    the note of each such bin. A bin collinear with other terms counts once, under the term its
+    estimate correlates with most ("collinear with 'dCl_r' (9), 'dCl_p' (3) in 12 of 40 bins");
+    with a single bin the reasons are given whole."""
+    if not notes:
+        return ""
+    if n_bins == 1:
+        return "; ".join(_split_reasons(notes[0]))
+    counts: dict[str, int] = {}
+    partners: dict[str, int] = {}
+    n_col = 0
+    for note in notes:
+        collinear = False
+        for r in _split_reasons(note):
+            m = re.match(r"collinear with ('[^']*')", r)
+            if m:
+                if not collinear:
+                    partners[m.group(1)] = partners.get(m.group(1), 0) + 1
+                    n_col += 1
+                collinear = True
+            else:
+                counts[r] = counts.get(r, 0) + 1
+    items: list[tuple[int, str]] = []
+    if n_col:
+        ranked = sorted(partners.items(), key=lambda kv: (-kv[1], kv[0]))
+        if len(ranked) == 1:
+            names = ranked[0][0]
+        else:
+            names = ", ".join(f"{name} ({k})" for name, k in ranked[:3])
+            names += ", ..." if len(ranked) > 3 else ""
+        items.append((n_col, f"collinear with {names}"))
+    items += [(k, r) for r, k in counts.items()]
+    items.sort(key=lambda kr: (-kr[0], kr[1]))
+    return "; ".join(f"{r} in {k} of {n_bins} bins" for k, r in items)
+
+
+def _summary_table(
+    params: pl.DataFrame, bins: pl.DataFrame, range_deg: float | None
+) -> pl.DataFrame:
+    """:meth:`FitResult.summary_table`."""
+    if range_deg is not None and not (math.isfinite(range_deg) and range_deg > 0):
+        raise DataError(f"summary: range_deg={range_deg!r}; give a width in deg > 0, or None")
+    keys = ["coefficient", "flap_deg", "alpha_lo_deg", "alpha_hi_deg"]
+    schema = {
+        "coefficient": pl.Utf8, "flap_deg": pl.Float64, "range": pl.Float64,
+        "alpha_lo_deg": pl.Float64, "alpha_hi_deg": pl.Float64, "param": pl.Utf8,
+        "regressor": pl.Utf8, "bins": pl.UInt32, "bins_fitted": pl.UInt32,
+        "identified": pl.UInt32, "points": pl.Int64, "estimate": pl.Float64,
+        "std_err": pl.Float64, "pct_error": pl.Float64, "t": pl.Float64,
+        "partial_f": pl.Float64, "reasons": pl.Utf8, "r2_min": pl.Float64, "r2_max": pl.Float64,
+        "maneuvers_min": pl.Int64, "maneuvers_max": pl.Int64,
+    }  # fmt: skip
+    if params.is_empty():
+        return pl.DataFrame(schema=schema)
+    centre = (pl.col("alpha_lo_deg") + pl.col("alpha_hi_deg")) / 2.0
+    rng = pl.col("alpha_lo_deg") if range_deg is None else (centre / range_deg).floor()
+    per_bin = bins.select(
+        *keys, pl.col("n"), pl.col("n_maneuvers"), pl.col("r2"),
+        pl.col("r2").is_finite().alias("bin_fitted"),
+    )  # fmt: skip
+    p = (
+        params.with_row_index("order")
+        .join(per_bin, on=keys, how="left")
+        .with_columns(rng.alias("range"), pl.col("estimate").is_finite().alias("fitted"))
+    )
+    group = ["coefficient", "flap_deg", "range", "param"]
+    fit_ok = pl.col("fitted")
+    ranges = p.group_by(["coefficient", "flap_deg", "range"]).agg(
+        pl.col("alpha_lo_deg").min(), pl.col("alpha_hi_deg").max(),
+        pl.struct(keys).n_unique().cast(pl.UInt32).alias("bins"),
+        pl.col("n").filter(pl.col("param") == pl.col("param").first()).sum().alias("points"),
+        pl.col("r2").filter(pl.col("bin_fitted")).min().alias("r2_min"),
+        pl.col("r2").filter(pl.col("bin_fitted")).max().alias("r2_max"),
+        pl.col("n_maneuvers").filter(pl.col("bin_fitted")).min().alias("maneuvers_min"),
+        pl.col("n_maneuvers").filter(pl.col("bin_fitted")).max().alias("maneuvers_max"),
+    )  # fmt: skip
+    agg = p.group_by(group).agg(
+        pl.col("order").min(), pl.col("regressor").first(),
+        fit_ok.sum().cast(pl.UInt32).alias("bins_fitted"),
+        pl.col("identifiable").sum().cast(pl.UInt32).alias("identified"),
+        pl.col("estimate").filter(fit_ok).median().alias("estimate"),
+        pl.col("std_err").filter(fit_ok & pl.col("std_err").is_finite()).median().alias("std_err"),
+        pl.col("t").filter(fit_ok & pl.col("t").is_finite()).median().alias("t"),
+        pl.col("partial_f").filter(fit_ok & pl.col("partial_f").is_finite()).median()
+        .alias("partial_f"),
+    )  # fmt: skip
+    out = agg.join(ranges, on=["coefficient", "flap_deg", "range"], how="left")
+    # why not: the shortened clauses of the notes of the bins where the parameter is not
+    # identified, counted once per bin, most frequent first
+    bad = p.filter(~pl.col("identifiable"))
+    per_key: dict[tuple[Any, ...], list[str]] = {}
+    for *key, note in bad.select(*group, "note").iter_rows():
+        per_key.setdefault(tuple(key), []).append(note)
+    keys = list(zip(*(out[c].to_list() for c in group), strict=True))
+    reasons = [
+        _count_reasons(per_key.get(k, []), n)
+        for k, n in zip(keys, out["bins"].to_list(), strict=True)
+    ]
+    coef_order = {c: i for i, c in enumerate(COEFFICIENTS)}
+    out = (
+        out.with_columns(
+            pl.Series("reasons", reasons, dtype=pl.Utf8),
+            (100.0 * pl.col("std_err") / pl.col("estimate").abs()).alias("pct_error"),
+            pl.col("coefficient").replace_strict(coef_order, default=99).alias("_c"),
+        )
+        .sort(["_c", "coefficient", "flap_deg", "range", "order"])
+        .drop("_c", "order")
+    )
+    return out.select(list(schema)).cast(schema)  # type: ignore[arg-type]
+
+
+def _fmt(v: float | None, spec: str, width: int) -> str:
+    """A number right-aligned in ``width``, "-" when missing or not finite."""
+    if v is None or not math.isfinite(v):
+        return f"{'-':>{width}}"
+    return f"{v:>{width}{spec}}"
+
+
+def _fmt_pct(v: float | None) -> str:
+    """A % error in 6 characters: one decimal below 1000, whole above, then powers of ten."""
+    if v is None or not math.isfinite(v):
+        return f"{'-':>6}"
+    return f"{v:6.1f}" if v < 999.95 else f"{v:6.0f}" if v < 99_999.5 else f"{v:6.0e}"
+
+
+def _fmt_f(v: float | None) -> str:
+    """A partial F in 9 characters."""
+    if v is None or not math.isfinite(v):
+        return f"{'-':>9}"
+    return f"{v:9.2f}" if v < 99_999.995 else f"{v:9.2e}"
+
+
+def _span(lo: float | None, hi: float | None, fmt: str = ".2f") -> str:
+    """``0.12-0.95`` (one value when equal, ``-`` when missing); non-negative values."""
+    if lo is None or hi is None or not (math.isfinite(lo) and math.isfinite(hi)):
+        return "-"
+    a, b = format(lo, fmt), format(hi, fmt)
+    return a if a == b else f"{a}-{b}"
+
+
+def _alpha_span(lo: float, hi: float) -> str:
+    return f"alpha {lo:.1f} to {hi:.1f} deg"
+
+
+def _wrap(text: str, width: int, indent: str = "    ", first: str = "") -> list[str]:
+    """``text`` wrapped to ``width``: the first line starts with ``first``, the others with
+    ``indent``."""
+    import textwrap  # noqa: PLC0415
+
+    return textwrap.wrap(
+        text, width=width, initial_indent=first, subsequent_indent=indent,
+        break_on_hyphens=False, break_long_words=False,
+    ) or [first.rstrip()]  # fmt: skip
+
+
+_QUALIFIED = {
+    "columns": "the simulator's predictions in the records (Cl_sim, Cn_sim, CY_sim)",
+    "adx37": "the built-in ADX-37 lateral model (qualified='adx37')",
+}
+
+
+def _summary_text(
+    r: FitResult, *, range_deg: float | None, qualified: str | None, width: int
+) -> str:
+    """:meth:`FitResult.summary_text`."""
+    table = _summary_table(r.params, r.bins, range_deg)
+    lines = _header_lines(r, range_deg=range_deg, qualified=qualified, width=width)
+    add = lines.append
+    if r.params.is_empty():
+        add("")
+        add("no parameter was fitted")
+    notes_left = list(r.notes)
+    for (coef, flap), block in table.group_by(["coefficient", "flap_deg"], maintain_order=True):
+        prefix = f"{coef} at flap {flap:g} deg: "
+        own = [n for n in notes_left if n.startswith(prefix)]
+        notes_left = [n for n in notes_left if not n.startswith(prefix)]
+        lines += _block_lines(
+            r, str(coef), float(flap), block, [n[len(prefix) :] for n in own],
+            per_bin=range_deg is None, width=width,
+        )  # fmt: skip
+    if notes_left:
+        add("")
+        add("notes:")
+        for note in notes_left:
+            lines += _wrap(note, width, "    ", "  ")
+    return "\n".join(lines)
+
+
+def _header_lines(
+    r: FitResult, *, range_deg: float | None, qualified: str | None, width: int
+) -> list[str]:
+    """Data, qualified model, structure selection, standard errors, identification rules,
+    stall alpha per flap, and the identified share per coefficient."""
+    spec = r.model.to_spec()
+    prov = spec.get("provenance", {})
+    cfg = prov.get("config", {})
+    flaps = sorted(r.stall_alpha_deg)
+    lines = [
+        "Δ-model identification: equation-error least squares per alpha bin (thesis 3.3-3.6)",
+        "=" * min(width, 88),
+    ]
+    data = f"{prov['maneuvers']} maneuvers, {prov['rows']:,} rows; " if prov else ""
+    lines.append(f"data: {data}flaps {', '.join(f'{f:g}' for f in flaps)} deg")
+    source = _QUALIFIED.get(qualified or "", qualified or "not recorded")
+    lines.append(f"qualified model: {source}")
+    sel = cfg.get("selection")
+    if sel:
+        how = "forward stepwise, partial F" if sel == "stepwise" else "orthogonal functions, PSE"
+        lines += _wrap(
+            f"structure: selected per coefficient and flap from the candidate pool ({how}), "
+            f"its size by {cfg.get('cv_folds', 5)}-fold cross-validation over maneuvers; a flap "
+            f"with fewer than {cfg.get('min_maneuvers_selection', 15)} maneuvers fits the given "
+            "structure",
+            width,
+        )
+    else:
+        lines.append("structure: as given (FitConfig.structures), no selection")
+    lines += _wrap(
+        "standard errors: CR2 cluster-robust by maneuver, Student t on Bell-McCaffrey dof; "
+        "% err = 100 * std err / |estimate| (SIDPAC); "
+        + (
+            f"per {range_deg:g}-deg alpha range the medians over its fitted bins"
+            if range_deg is not None
+            else "one section per alpha bin"
+        ),
+        width,
+    )
+    vif = cfg.get("max_vif")
+    lines += _wrap(
+        f"identified: at least {cfg.get('min_maneuvers_identified', 5)} maneuvers in the bin, "
+        f"excitation at least {100 * float(cfg.get('min_excitation', 0.05)):g}% of the flap's "
+        f"and {float(cfg.get('min_excitation_snr', 3.0)):g} times the noise floor, "
+        + (f"VIF at most {vif:g}, " if vif is not None else "")
+        + "no near dependency, a cluster-robust error",
+        width,
+    )
+    given = {float(k) for k in (cfg.get("stall_alpha_deg") or {})}
+    past = float(cfg.get("past_stall_deg", 10.0))
+    lines.append("stall alpha:")
+    for f in flaps:
+        a = r.stall_alpha_deg[f]
+        how = "given in the configuration" if f in given else "max C_L, detected"
+        lines.append(
+            f"  flap {f:g} deg: stall at {a:.1f} deg alpha ({how}); tables end at "
+            f"{a + past:.1f} deg"
+        )
+    if r.params.is_empty():
+        return lines
+    lines += ["", "identified share of the bin estimates (all flaps and bins):"]
+    present = set(r.params["coefficient"].to_list())
+    coefs = [c for c in COEFFICIENTS if c in present] + sorted(present - set(COEFFICIENTS))
+    for coef in coefs:
+        pc = r.params.filter(pl.col("coefficient") == coef)
+        share = float(pc["identifiable"].mean() or 0.0)
+        lines.append(f"  {coef}: {pc.height:,} bin estimates, {100 * share:.0f}% identified")
+        kinds: dict[str, int] = {}
+        for note in pc.filter(~pl.col("identifiable"))["note"].to_list():
+            for k in {_reason_kind(s) for s in _split_reasons(note)}:
+                kinds[k] = kinds.get(k, 0) + 1
+        if kinds:
+            ranked = sorted(kinds.items(), key=lambda kv: (-kv[1], kv[0]))
+            lines += _wrap(
+                "not identified: " + "; ".join(f"{n:,} x {k}" for k, n in ranked),
+                width, "      ", "    ",
+            )  # fmt: skip
+    return lines
+
+
+def _block_lines(
+    r: FitResult,
+    coef: str,
+    flap: float,
+    block: pl.DataFrame,
+    notes: Sequence[str],
+    *,
+    per_bin: bool,
+    width: int,
+) -> list[str]:
+    """One coefficient at one flap: bins, structure, cross-validation, notes, then the
+    parameter table per alpha range (a range without a fitted bin in one line)."""
+    b = r.bins.filter((pl.col("coefficient") == coef) & (pl.col("flap_deg") == flap))
+    fitted = b.filter(pl.col("r2").is_finite())
+    title = f"{coef}, flap {flap:g} deg"
+    lines = ["", f"{title} " + "-" * max(3, min(width, 88) - len(title) - 1)]
+    lo, hi = b["alpha_lo_deg"].min(), b["alpha_hi_deg"].max()
+    man = _span(fitted["n_maneuvers"].min(), fitted["n_maneuvers"].max(), ".0f")  # type: ignore[arg-type]
+    r2 = _span(fitted["r2"].min(), fitted["r2"].max())  # type: ignore[arg-type]
+    lines += _wrap(
+        f"{b.height} bins over {_alpha_span(lo, hi)} ({fitted.height} fitted), {man} "  # type: ignore[arg-type]
+        f"maneuvers per bin, R² {r2}",
+        width,
+    )
+    lines += _structure_lines(r.structure, coef, flap, block, width)
+    lines += _cv_lines(r.cross_validation, coef, flap, width)
+    for note in notes:
+        lines += _wrap(note, width, "        ", "  note: ")
+    w = max(9, *(len(p) for p in block["param"].to_list()))
+    lines.append(
+        f"  {'parameter':<{w}} {'estimate':>10} {'std err':>9} {'% err':>6} {'t':>7} "
+        f"{'partial F':>9} {'ident':>6}  why not identified"
+    )
+    for _, rows in block.group_by("range", maintain_order=True):
+        first = rows.row(0, named=True)
+        span = _alpha_span(first["alpha_lo_deg"], first["alpha_hi_deg"])
+        nb = first["bins"]
+        size = f"{first['points']:,} points" if per_bin else (
+            f"{nb} bin{'s' if nb != 1 else ''}, {first['points']:,} points"
+        )  # fmt: skip
+        if int(rows["bins_fitted"].max() or 0) == 0:
+            why = rows["reasons"][0] or "not fitted"
+            lines += _wrap(f" {span}: {size}; {why}", width, "    ")
+            continue
+        man = _span(first["maneuvers_min"], first["maneuvers_max"], ".0f")
+        per = "" if per_bin else " per bin"
+        lines.append(
+            f" {span}: {size}, {man} maneuvers{per}, R² {_span(first['r2_min'], first['r2_max'])}"
+        )
+        for row in rows.iter_rows(named=True):
+            left = (
+                f"  {row['param']:<{w}} {_fmt(row['estimate'], '.3e', 10)} "
+                f"{_fmt(row['std_err'], '.2e', 9)} {_fmt_pct(row['pct_error'])} "
+                f"{_fmt(row['t'], '.2f', 7)} {_fmt_f(row['partial_f'])} "
+                f"{str(row['identified']) + '/' + str(row['bins']):>6}"
+            )
+            why = row["reasons"]
+            if not why:
+                lines.append(left)
+            elif len(left) + 2 + len(why) <= width:
+                lines.append(f"{left}  {why}")
+            else:  # on the lines below, indented under the parameter
+                lines += [left, *_wrap(why, width, "        ", "      ")]
+    return lines
+
+
+def _structure_lines(
+    st: pl.DataFrame, coef: str, flap: float, block: pl.DataFrame, width: int
+) -> list[str]:
+    """The structure of one coefficient and flap: selected (how many of how many), or the
+    given structure and why it was not selected."""
+    names = ", ".join(dict.fromkeys(block["param"].to_list()))
+    rows = (
+        st.filter((pl.col("coefficient") == coef) & (pl.col("flap_deg") == flap))
+        if not st.is_empty()
+        else st
+    )
+    if rows.is_empty():
+        return _wrap(f"structure (as given): {names}", width)
+    if rows["bins_fitted"].is_null().all():
+        why = str(rows["note"][0]).split(";", 1)[0]
+        return _wrap(f"structure as given ({why}): {names}", width)
+    kept = int(rows["kept"].sum())
+    return _wrap(f"structure: {kept} of {rows.height} candidates kept: {names}", width)
+
+
+def _cv_lines(cv: pl.DataFrame, coef: str, flap: float, width: int) -> list[str]:
+    """The cross-validation of one coefficient and flap: held-out Theil inequality of the Δ
+    fit against the qualified model's error (1 would be the qualified model alone, Δ = 0)."""
+    if cv.is_empty():
+        return []
+    rows = cv.filter((pl.col("coefficient") == coef) & (pl.col("flap_deg") == flap))
+    if rows.is_empty():
+        return []
+    by = {r["structure"]: r for r in rows.iter_rows(named=True)}
+    parts = []
+    if "selected_outer" in by:
+        o = by["selected_outer"]
+        parts.append(
+            f"{_fmt(o['cv_tic'], '.3f', 0)} the selection (nested, honest; "
+            f"RMS {_fmt(o['cv_rms'], '.2e', 0)})"
+        )
+    labels = [
+        ("selected", "the chosen structure (optimistic)"), ("full", "the full pool"),
+        ("default", "the thesis structure"),
+    ]  # fmt: skip
+    for key, label in labels:
+        if key in by:
+            n = by[key]["n_params"]
+            parts.append(f"{_fmt(by[key]['cv_tic'], '.3f', 0)} {label}, {n} terms")
+    return _wrap(
+        "held-out TIC of Δ over maneuvers (1: the qualified model alone): " + "; ".join(parts),
+        width,
+    )
 
 
 def _maneuver_codes(data: pl.DataFrame) -> np.ndarray:

@@ -25,7 +25,7 @@ from aerodelta.cli._data import (
     load_data,
     output_file,
 )
-from aerodelta.exceptions import DataError
+from aerodelta.exceptions import DataError, InvalidInputError
 
 HELP = "identify the Δ (stall) model from flight test data"
 
@@ -54,6 +54,21 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default=0,
         metavar="N",
         help="seed of the --holdout draw (default 0)",
+    )
+    parser.add_argument(
+        "--range",
+        type=float,
+        default=5.0,
+        metavar="DEG",
+        dest="range_deg",
+        help="alpha range of the printed tables, deg: each row aggregates the bins of one "
+        "range (default 5)",
+    )
+    parser.add_argument(
+        "--verbose",
+        "-v",
+        action="store_true",
+        help="print one table section per alpha bin (every bin's estimates) instead of ranges",
     )
     parser.add_argument("--no-progress", action="store_true", help="no progress bars")
 
@@ -93,6 +108,11 @@ def run(args: argparse.Namespace) -> int:
     from aerodelta.fit import FitConfig, fit, validate_model  # noqa: PLC0415
 
     out = output_file(args.out)
+    if not (np.isfinite(args.range_deg) and args.range_deg > 0):
+        raise InvalidInputError(
+            f"--range {args.range_deg:g}: give an alpha range in deg > 0 (e.g. --range 5), or "
+            "--verbose for one table section per bin"
+        )
     if args.holdout is not None:
         check_open_unit(args.holdout, "--holdout", "0.2")
         check_at_least(args.holdout_seed, "--holdout-seed", 0)
@@ -113,35 +133,14 @@ def run(args: argparse.Namespace) -> int:
         test = data.filter(pl.col("maneuver_id").cast(pl.Utf8).is_in(held))
         data = data.filter(~pl.col("maneuver_id").cast(pl.Utf8).is_in(held))
     result = fit(data, qualified=args.model, config=cfg, progress=progress)
-    for note in result.notes:
-        print(f"note: {note}")
-    ident = result.params.group_by("coefficient").agg(
-        pl.len().alias("estimates"), pl.col("identifiable").mean().alias("identified")
-    )
-    for row in ident.sort("coefficient").iter_rows(named=True):
-        print(
-            f"{row['coefficient']}: {row['estimates']} bin estimates, "
-            f"{100 * row['identified']:.0f}% identified"
-        )
-    # why the rest is not identified: the first clause of each note without its numbers and
-    # term names (one line per kind of reason), most frequent first
-    why = (
-        result.params.filter(~pl.col("identifiable"))
-        .with_columns(
-            pl.col("note")
-            .str.split(":")
-            .list.first()
-            .str.replace(r"^collinear with .*", "collinear with other terms")
-            .str.replace(r"^\d+ maneuvers? in the bin", "too few maneuvers in the bin")
-            .alias("reason")
-        )
-        .group_by("coefficient", "reason")
-        .agg(pl.len().alias("n"))
-        .sort(["coefficient", "n"], descending=[False, True])
-    )
-    for row in why.iter_rows(named=True):
-        print(f"  {row['coefficient']} not identified: {row['n']} x {row['reason']}")
-    if ident.height == 0 or float(ident["identified"].max() or 0.0) == 0.0:
+    qualified = args.model
+    if qualified == "auto":  # as aerodelta.fit.qualified_coefficients resolves it
+        sim = all(f"{c}_sim" in data.columns for c in ("Cl", "Cn", "CY"))
+        qualified = "columns" if sim else "adx37"
+    # the results report (FitResult.summary_text): header, identified share per coefficient
+    # with the reasons for the rest, per coefficient and flap the parameter tables, the notes
+    print(result.summary_text(None if args.verbose else args.range_deg, qualified=qualified))
+    if result.params.is_empty() or not result.params["identifiable"].any():
         print(
             "aerodelta fit: error: no parameter is identified in any alpha bin, so no model is "
             "written (the reasons are listed above; fly more maneuvers per flap or see "
