@@ -18,8 +18,8 @@
 //! simulator flying the same kind of maneuvers needs; their values are not the separate
 //! derivatives, and the note says so.
 
-use super::median;
-use crate::identify::BinnedFit;
+use super::stepwise::Factor;
+use super::{median, BinGrams};
 
 /// A term left out of a flap's structure.
 #[derive(Debug, Clone, PartialEq)]
@@ -30,42 +30,106 @@ pub struct Pruned {
     pub note: String,
 }
 
-/// The column of `fit` to leave out and its note: the last non-constant column with a VIF
-/// above `max_vif` in more than half of the fitted bins (`None` when there is none). `constant`: per column of
-/// `fit`, whether it is the bias (never left out).
+/// What the collinearity rule reads of one fitted bin, per column of the structure.
+#[derive(Debug, Clone)]
+pub struct BinCollinearity {
+    /// Variance inflation factor (infinite for a column dependent on the others).
+    pub vif: Vec<f64>,
+    /// The other non-constant column whose estimate correlates most with this one's.
+    pub partner: Vec<Option<usize>>,
+    /// `|t|` of the estimate (conventional standard error).
+    pub t: Vec<f64>,
+}
+
+/// [`BinCollinearity`] of every fitted bin (`fitted[b]`) for the columns `cols` of `grams`
+/// (their augmented Gram matrices; constant columns, `constant[c]`, partialled out of the
+/// VIFs), from one Cholesky factor per bin: the rule is applied column after column without
+/// refitting the bins' QR. The vectors are indexed by position in `cols`, and so are the
+/// partners.
+pub fn gram_collinearity(
+    grams: &BinGrams,
+    fitted: &[bool],
+    cols: &[usize],
+    constant: &[bool],
+) -> Vec<BinCollinearity> {
+    let dim = grams.dim;
+    // constant columns first (they are partialled out), then the others in order
+    let order: Vec<usize> = (0..cols.len())
+        .filter(|&i| constant[cols[i]])
+        .chain((0..cols.len()).filter(|&i| !constant[cols[i]]))
+        .collect();
+    let nf = order.iter().filter(|&&i| constant[cols[i]]).count();
+    grams
+        .bins
+        .iter()
+        .zip(fitted)
+        .filter(|(_, f)| **f)
+        .map(|(bs, _)| {
+            let (g, _, n) = bs.total(dim, None);
+            let want: Vec<usize> = order.iter().map(|&i| cols[i]).collect();
+            let fac = Factor::of(&g, dim, &want);
+            let k = cols.len();
+            let mut out = BinCollinearity {
+                vif: vec![f64::INFINITY; k],
+                partner: vec![None; k],
+                t: vec![f64::NAN; k],
+            };
+            if fac.cols().len() < want.len() {
+                return out; // a dependent column: every VIF infinite, as QR would call it
+            }
+            let vifs = fac.vifs(nf);
+            let inv = fac.inverse();
+            let theta = fac.theta();
+            let s2 = fac.sse() / (n - k as f64).max(1.0);
+            for (pos, &i) in order.iter().enumerate() {
+                out.vif[i] = if pos < nf { 1.0 } else { vifs[pos - nf] };
+                out.t[i] = (theta[pos] / (s2 * inv[pos * k + pos]).sqrt()).abs();
+                out.partner[i] = order
+                    .iter()
+                    .enumerate()
+                    .filter(|&(q, &o)| q != pos && !constant[cols[o]])
+                    .map(|(q, &o)| {
+                        let r = inv[pos * k + q] / (inv[pos * k + pos] * inv[q * k + q]).sqrt();
+                        (o, if r.is_finite() { r.abs() } else { 0.0 })
+                    })
+                    .max_by(|a, b| a.1.total_cmp(&b.1).then(b.0.cmp(&a.0)))
+                    .map(|(o, _)| o);
+            }
+            out
+        })
+        .collect()
+}
+
+/// The column to leave out and its note: the last non-constant column with a VIF above
+/// `max_vif` in more than half of the fitted `bins` (`None` when there is none). Columns are
+/// those of `names`; `constant[j]`: the bias (never left out).
 pub fn collinear_to_prune(
-    fit: &BinnedFit,
+    bins: &[BinCollinearity],
+    names: &[String],
     constant: &[bool],
     max_vif: f64,
 ) -> Option<(usize, String)> {
     if !max_vif.is_finite() {
         return None;
     }
-    let fitted: Vec<_> = fit.bins.iter().filter(|b| b.note.is_empty()).collect();
-    let m = fitted.len();
-    let p = fit.names.len();
-    let mut worst: Option<(usize, f64, usize)> = None; // (column, median |t|, bins over)
-                                                       // the last listed term collinear in most bins
-    for j in (0..p).rev().filter(|&j| !constant[j]) {
-        let over = fitted.iter().filter(|b| b.vif[j] > max_vif).count();
-        if m == 0 || 2 * over <= m {
-            continue;
-        }
-        let t = median(
-            fitted
-                .iter()
-                .map(|b| (b.params[j] / b.std_err[j]).abs())
-                .filter(|t| t.is_finite())
-                .collect(),
-        );
-        worst = Some((j, if t.is_finite() { t } else { 0.0 }, over));
-        break;
-    }
-    let (j, t, over) = worst?;
+    let m = bins.len();
+    let p = names.len();
+    // the last listed term collinear in most bins
+    let (j, over) = (0..p).rev().filter(|&j| !constant[j]).find_map(|j| {
+        let over = bins.iter().filter(|b| b.vif[j] > max_vif).count();
+        (m > 0 && 2 * over > m).then_some((j, over))
+    })?;
+    let t = median(
+        bins.iter()
+            .map(|b| b.t[j])
+            .filter(|t| t.is_finite())
+            .collect(),
+    );
+    let t = if t.is_finite() { t } else { 0.0 };
     // the term it is most often most correlated with, over the bins where it is collinear
     let mut counts = vec![0usize; p];
-    for b in fitted.iter().filter(|b| b.vif[j] > max_vif) {
-        if let Some(k) = b.most_correlated[j] {
+    for b in bins.iter().filter(|b| b.vif[j] > max_vif) {
+        if let Some(k) = b.partner[j] {
             counts[k] += 1;
         }
     }
@@ -74,11 +138,10 @@ pub fn collinear_to_prune(
         .max_by(|&a, &b| counts[a].cmp(&counts[b]).then(b.cmp(&a)))
         .map_or_else(
             || "the other terms".to_string(),
-            |k| format!("'{}'", fit.names[k]),
+            |k| format!("'{}'", names[k]),
         );
     let vif = median(
-        fitted
-            .iter()
+        bins.iter()
             .map(|b| b.vif[j])
             .filter(|v| v.is_finite())
             .collect(),

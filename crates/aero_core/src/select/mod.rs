@@ -66,7 +66,7 @@ use crate::sim::rng::Stream;
 mod collinear;
 mod path;
 mod stepwise;
-pub use collinear::{collinear_to_prune, Pruned};
+pub use collinear::{collinear_to_prune, gram_collinearity, BinCollinearity, Pruned};
 pub use stepwise::stepwise;
 
 /// Per-maneuver sufficient statistics of one bin.
@@ -1475,24 +1475,48 @@ pub fn identify_flap(
     };
     let mut chosen = chosen;
     let mut pruned = Vec::new();
-    let (design, fit) = loop {
-        let design = if chosen.len() == pool.ncols() {
+    let subset = |cols: &[usize]| {
+        if cols.len() == pool.ncols() {
             pool.clone()
         } else {
-            subset_design(pool, &chosen)
-        };
-        let fit = fit_bins(&design, z, alpha_deg, maneuver, identify)?;
-        if identify.prune_collinear {
-            let constant: Vec<bool> = design.exprs.iter().map(|e| e.is_constant()).collect();
-            if let Some((j, note)) = collinear_to_prune(&fit, &constant, identify.max_vif) {
-                pruned.push(Pruned {
-                    column: chosen.remove(j),
-                    note,
-                });
-                continue;
+            subset_design(pool, cols)
+        }
+    };
+    let design0 = subset(&chosen);
+    let fit0 = fit_bins(&design0, z, alpha_deg, maneuver, identify)?;
+    let (design, fit) = if identify.prune_collinear && identify.max_vif.is_finite() {
+        // decide on the first fit's bins from their Gram matrices (one factor per bin and
+        // step), then fit the final structure once
+        let grams = bin_grams(&design0, z, &bin_members(&fit0), maneuver);
+        let fitted: Vec<bool> = fit0.bins.iter().map(|b| b.note.is_empty()).collect();
+        let constant0: Vec<bool> = design0.exprs.iter().map(|e| e.is_constant()).collect();
+        let mut keep: Vec<usize> = (0..design0.ncols()).collect();
+        loop {
+            // indexed by position in `keep`
+            let table = gram_collinearity(&grams, &fitted, &keep, &constant0);
+            let names: Vec<String> = keep.iter().map(|&j| design0.names[j].clone()).collect();
+            let constant: Vec<bool> = keep.iter().map(|&j| constant0[j]).collect();
+            match collinear_to_prune(&table, &names, &constant, identify.max_vif) {
+                Some((i, note)) => {
+                    pruned.push(Pruned {
+                        column: chosen[keep[i]],
+                        note,
+                    });
+                    keep.remove(i);
+                }
+                None => break,
             }
         }
-        break (design, fit);
+        if pruned.is_empty() {
+            (design0, fit0)
+        } else {
+            chosen = keep.iter().map(|&j| chosen[j]).collect();
+            let design = subset(&chosen);
+            let fit = fit_bins(&design, z, alpha_deg, maneuver, identify)?;
+            (design, fit)
+        }
+    } else {
+        (design0, fit0)
     };
     let smoothed = smooth_parameters(&fit, smooth)?;
     let bootstrap = match boot {
@@ -1759,6 +1783,31 @@ pub(crate) mod tests {
             .bins
             .iter()
             .any(|b| b.identifiable[1] && b.identifiable[3]));
+    }
+
+    #[test]
+    fn gram_collinearity_gives_the_qr_fits_vif_t_and_partner() {
+        let (design, z, alpha, man) = geared(20_000, 4);
+        let fit = fit_bins(&design, &z, &alpha, &man, &iid_identify()).expect("fit");
+        let grams = bin_grams(&design, &z, &bin_members(&fit), &man);
+        let fitted: Vec<bool> = fit.bins.iter().map(|b| b.note.is_empty()).collect();
+        let constant: Vec<bool> = design.exprs.iter().map(|e| e.is_constant()).collect();
+        let table = gram_collinearity(&grams, &fitted, &[0, 1, 2, 3], &constant);
+        let bins: Vec<&BinFit> = fit.bins.iter().filter(|b| b.note.is_empty()).collect();
+        assert_eq!(table.len(), bins.len());
+        for (t, b) in table.iter().zip(&bins) {
+            for j in 1..4 {
+                assert!(
+                    (t.vif[j] - b.vif[j]).abs() < 1e-6 * b.vif[j],
+                    "{} {}",
+                    t.vif[j],
+                    b.vif[j]
+                );
+                let tq = (b.params[j] / b.std_err[j]).abs();
+                assert!((t.t[j] - tq).abs() < 1e-6 * tq.max(1.0), "{} {tq}", t.t[j]);
+                assert_eq!(t.partner[j], b.most_correlated[j]);
+            }
+        }
     }
 
     #[test]

@@ -65,7 +65,7 @@ impl<'a> Factor<'a> {
     }
 
     /// Factor of `cols` in order, skipping any dependent on the earlier ones.
-    fn of(g: &'a [f64], dim: usize, cols: &[usize]) -> Self {
+    pub(super) fn of(g: &'a [f64], dim: usize, cols: &[usize]) -> Self {
         let mut f = Factor::new(g, dim);
         for &c in cols {
             if let Some(p) = f.probe(c) {
@@ -193,6 +193,12 @@ impl<'a> Factor<'a> {
     /// Largest variance inflation factor of the columns from position `nf` on, with the
     /// first `nf` (the forced columns) partialled out (see the module doc).
     fn max_vif(&self, nf: usize) -> f64 {
+        self.vifs(nf).into_iter().fold(1.0, f64::max)
+    }
+
+    /// Variance inflation factor of each column from position `nf` on (see the module doc),
+    /// in order.
+    pub(super) fn vifs(&self, nf: usize) -> Vec<f64> {
         let inv = self.inv_diag();
         (nf..self.cols.len())
             .map(|i| {
@@ -201,7 +207,37 @@ impl<'a> Factor<'a> {
                     self.g[c * self.dim + c] - self.l[i][..nf].iter().map(|v| v * v).sum::<f64>();
                 inv[i] * css.max(0.0)
             })
-            .fold(1.0, f64::max)
+            .collect()
+    }
+
+    /// `(X_SᵀX_S)⁻¹` (row-major `k × k`) from `L⁻¹`.
+    pub(super) fn inverse(&self) -> Vec<f64> {
+        let k = self.cols.len();
+        // columns of L⁻¹ (lower triangular), row-major in li
+        let mut li = vec![0.0; k * k];
+        for j in 0..k {
+            for i in j..k {
+                let mut s = if i == j { 1.0 } else { 0.0 };
+                for m in j..i {
+                    s -= self.l[i][m] * li[m * k + j];
+                }
+                li[i * k + j] = s / self.l[i][i];
+            }
+        }
+        let mut inv = vec![0.0; k * k];
+        for a in 0..k {
+            for b in 0..=a {
+                let v: f64 = (a..k).map(|m| li[m * k + a] * li[m * k + b]).sum();
+                inv[a * k + b] = v;
+                inv[b * k + a] = v;
+            }
+        }
+        inv
+    }
+
+    /// Residual sum of squares of z on the columns in.
+    pub(super) fn sse(&self) -> f64 {
+        self.sse
     }
 
     /// Residual sum of squares without the column at position `i`.
