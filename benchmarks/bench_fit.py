@@ -148,8 +148,8 @@ def main() -> None:
         peer_fit(data, stats=True)
         t_stats = time.perf_counter() - t0
         print(
-            "the same loop with the engine's per-bin statistics (HAC standard errors, condition "
-            f"number, VIF, excitation): {t_stats:.3f} s"
+            "the same loop with the engine's per-bin statistics (cluster-robust and HAC "
+            f"standard errors, condition number, VIF, excitation): {t_stats:.3f} s"
         )
         t0 = time.perf_counter()
         ad.fit(data, config=ad.FitConfig(nested_cv=False))
