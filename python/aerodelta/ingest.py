@@ -335,11 +335,22 @@ def _compat_one(g: pl.DataFrame) -> dict[str, object]:
     )
 
 
+#: A maneuver's estimate is reported on its own when it departs from the campaign median by
+#: more than this many robust standard deviations of the spread between maneuvers (and the
+#: practical threshold). The apparent biases that gusts cause are heavy-tailed: on the clean
+#: demo campaign (200 maneuvers, 0.5 m/s Dryden turbulence) the largest departures are 5.2
+#: (az) and 5.9 (beta) robust standard deviations, so a Gaussian 4-5 would cry wolf.
+COMPAT_OUTLIER_SPREADS = 8.0
+
 #: Campaigns of at least this many maneuvers judge the compatibility estimates against their
 #: spread between maneuvers; smaller ones against each maneuver's Cramér-Rao bound.
 COMPAT_MIN_CAMPAIGN = 5
 
-_COMPAT_UNITS = {"mps2": ("m/s²", 1.0), "rps": ("deg/s", 180.0 / np.pi), "rad": ("deg", 180.0 / np.pi)}
+_COMPAT_UNITS = {
+    "mps2": ("m/s²", 1.0),
+    "rps": ("deg/s", 180.0 / np.pi),
+    "rad": ("deg", 180.0 / np.pi),
+}
 
 
 def _compat_show(name: str, v: float) -> str:
@@ -369,7 +380,8 @@ def _run_compat(out: pl.DataFrame, reports: list[ValidationReport]) -> pl.DataFr
     maneuvers a bias is therefore reported when the campaign median exceeds the practical
     threshold and four standard errors of the median from the spread between maneuvers (one
     finding, given to every maneuver); a single maneuver only when it departs from the median
-    by more than the threshold and five robust standard deviations of that spread. Residual RMS
+    by more than the threshold and :data:`COMPAT_OUTLIER_SPREADS` robust standard deviations of
+    that spread. Residual RMS
     above :data:`_COMPAT_RMS_LIMITS` is reported when also above three times the campaign
     median (the campaign's own turbulence level). Smaller campaigns are judged maneuver by
     maneuver against the Cramér-Rao bounds.
@@ -399,7 +411,10 @@ def _run_compat(out: pl.DataFrame, reports: list[ValidationReport]) -> pl.DataFr
     # residual RMS per maneuver and output, in m/s and deg
     rms = np.array(
         [
-            [float(r) * (1.0 if o == "tas" else 180.0 / np.pi) for o, r in zip(res["outputs"], res["rms_after"], strict=False)]  # type: ignore[call-overload]
+            [
+                float(r) * (1.0 if o == "tas" else 180.0 / np.pi)
+                for o, r in zip(res["outputs"], res["rms_after"], strict=False)
+            ]  # type: ignore[call-overload]
             for res in results
         ]
     )
@@ -409,7 +424,15 @@ def _run_compat(out: pl.DataFrame, reports: list[ValidationReport]) -> pl.DataFr
         rep = by_id.get(mid)
         if rep is None:
             continue
-        if not res["converged"]:
+        worst = [
+            (o, v)
+            for o, v, lim, ref in zip(outputs, rms[i], _COMPAT_RMS_LIMITS, rms_ref, strict=False)
+            if v > lim and v > 3.0 * ref
+        ]
+        # in a campaign, a maneuver that stopped at the iteration limit with residuals like the
+        # others' (turbulence slows the convergence) is no finding; its estimates are judged
+        # with the others'
+        if not res["converged"] and (worst or not campaign):
             rep.add(
                 "warning",
                 "compat",
@@ -417,11 +440,6 @@ def _run_compat(out: pl.DataFrame, reports: list[ValidationReport]) -> pl.DataFr
                 f"data compatibility check did not converge in {res['iterations']} iterations "
                 "(inconsistent or unexcited data); its estimates are unreliable",
             )
-        worst = [
-            (o, v)
-            for o, v, lim, ref in zip(outputs, rms[i], _COMPAT_RMS_LIMITS, rms_ref, strict=False)
-            if v > lim and v > 3.0 * ref
-        ]
         if worst:
             what = ", ".join(f"{o} {v:.3g} {'m/s' if o == 'tas' else 'deg'} RMS" for o, v in worst)
             rep.add(
@@ -467,7 +485,7 @@ def _run_compat(out: pl.DataFrame, reports: list[ValidationReport]) -> pl.DataFr
                         f"{len(est)} maneuvers, ± {_compat_show(name, se_med)}; flight path "
                         f"reconstruction, thesis Section 2.4) in every maneuver alike: {fix}",
                     )
-        lim = max(thr, 5.0 * spread)
+        lim = max(thr, COMPAT_OUTLIER_SPREADS * spread)
         for mid, e, s in zip(ids, est, se, strict=True):
             if abs(e - med) > lim and abs(e - med) > 4 * s and mid in by_id:
                 by_id[mid].add(

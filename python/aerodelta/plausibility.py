@@ -70,9 +70,7 @@ class Cause:
             fixes.append(f'set unit = "{self.actual_unit}"')
         if self.flipped:
             parts.append("the sensor axis points the other way (sign reversed)")
-            fixes.append(
-                "remove scale = -1.0" if scale < 0 else "set scale = -1.0"
-            )
+            fixes.append("remove scale = -1.0" if scale < 0 else "set scale = -1.0")
         return " and ".join(parts), " and ".join(fixes) + " in the channel map"
 
 
@@ -153,7 +151,9 @@ def check_plausibility(
         col = f" (column '{source}')" if source else ""
         if r["verdict"] in ("mistake", "far"):
             where = f"{len(ids)} maneuver(s): {_files(ids, files)}"
-            lines.append(_line(name, col, where, r["k"], r["se"], what, r, causes[chk], unit, scale))
+            lines.append(
+                _line(name, col, where, r["k"], r["se"], what, r, causes[chk], unit, scale)
+            )
             continue
         # the campaign is plausible, but some maneuvers hold a named mistake (mixed files)
         bad: dict[int, list[str]] = {}
@@ -183,7 +183,7 @@ def check_plausibility(
     return lines, est
 
 
-def _line(  # noqa: PLR0913, PLR0917
+def _line(  # noqa: PLR0917
     name: str,
     col: str,
     where: str,

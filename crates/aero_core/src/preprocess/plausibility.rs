@@ -5,12 +5,13 @@
 //! $v = V\sin\beta$, $w = V\sin\alpha\cos\beta$; a steady wind does not change the
 //! equations; $g$ = 9.80665 m/s²):
 //!
-//! - accelerometers (specific force), sample by sample (thesis Eq. 3.1a-c solved for $a$):
-//!   $a_x = \dot u - rv + qw + g\sin\theta$, $a_y = \dot v - pw + ru - g\cos\theta\sin\phi$,
-//!   $a_z = \dot w - qu + pv - g\cos\theta\cos\phi$, with $\dot u, \dot v, \dot w$ from central
-//!   differences over ±[`DIFF_HALF_SPAN_S`] of the measured velocity components. Gravity
-//!   dominates: in level flight $a_z \approx -g$, so a z axis pointing up reads $-1$ times it and
-//!   load factors in g declared as m/s² read $1/9.81$ times it;
+//! - accelerometers (specific force) over windows of [`WINDOW_S`] (thesis Eq. 3.1a-c): the
+//!   change of the body velocity component less the integral of its rotational and gravity
+//!   terms ($rv - qw - g\sin\theta$, $pw - ru + g\cos\theta\sin\phi$,
+//!   $qu - pv + g\cos\theta\cos\phi$) against the integral of the measured specific force;
+//!   the slope is $1/k$. Gravity dominates: in level flight $a_z \approx -g$, so a z axis
+//!   pointing up reads $-1$ times the kinematic force and load factors in g declared as m/s²
+//!   read $1/9.81$ times it;
 //! - airspeed, angle of attack, sideslip and altitude over windows of [`WINDOW_S`]: the change
 //!   of the measured channel against the integral (trapezoids) of its kinematic rate,
 //!   $\dot V = (a + g_b)\cdot(u, v, w)/V$,
@@ -24,7 +25,8 @@
 //!   turbulence is noise on the measured side and does not bias the scale.
 //!
 //! The scale $k$ (measured = $k$ · kinematic) is the least-squares slope through the origin
-//! pooled over the campaign; its standard error is cluster-robust (by maneuver, and by blocks
+//! pooled over the campaign (for the accelerometers the slope is $1/k$, so that the gusts stay
+//! on the measured side); its standard error is cluster-robust (by maneuver, and by blocks
 //! of [`WINDOW_S`] within a maneuver; the larger is used), because neighbouring samples share
 //! the same gust. A channel is *plausible* when $k$ is within 20 % of 1 (0.8-1.25: sensor
 //! calibration, upwash and the approximations above stay well inside it), or when the data
@@ -39,8 +41,6 @@ use crate::error::{AeroError, Result};
 
 /// Standard gravity, m/s².
 pub const G0: f64 = 9.80665;
-/// Half span of the central differences of the velocity components, s.
-pub const DIFF_HALF_SPAN_S: f64 = 0.5;
 /// Window of the integrated checks and block of the standard errors, s.
 pub const WINDOW_S: f64 = 3.0;
 /// Plausible band of the scale: within 20 % of 1.
@@ -157,7 +157,7 @@ impl Pairs {
 
 /// Slope through the origin and its cluster-robust standard error over the given indices;
 /// clusters by `key`. Returns (k, se, clusters).
-fn slope(p: &Pairs, idx: &[usize], key: impl Fn(usize) -> usize) -> (f64, f64, usize) {
+fn slope(p: &Pairs, idx: &[usize], key: &dyn Fn(usize) -> usize) -> (f64, f64, usize) {
     let sxx: f64 = idx.iter().map(|&i| p.x[i] * p.x[i]).sum();
     let sxy: f64 = idx.iter().map(|&i| p.x[i] * p.y[i]).sum();
     if idx.is_empty() || sxx <= 0.0 {
@@ -171,15 +171,38 @@ fn slope(p: &Pairs, idx: &[usize], key: impl Fn(usize) -> usize) -> (f64, f64, u
     let g = acc.len();
     let s: f64 = acc.values().map(|v| v * v).sum();
     // small-sample correction of the cluster-robust variance
-    let c = if g > 1 { g as f64 / (g as f64 - 1.0) } else { 1.0 };
+    let c = if g > 1 {
+        g as f64 / (g as f64 - 1.0)
+    } else {
+        1.0
+    };
     (k, (c * s).sqrt() / sxx, g)
 }
 
-fn estimate(channel: &'static str, p: &Pairs, nm: usize, candidates: &[f64]) -> ScaleCheck {
+/// Invert a slope y = x / k into k with its standard error.
+fn inverted((s, se, g): (f64, f64, usize)) -> (f64, f64, usize) {
+    (1.0 / s, se / (s * s), g)
+}
+
+fn estimate(
+    channel: &'static str,
+    p: &Pairs,
+    nm: usize,
+    candidates: &[f64],
+    inverse: bool,
+) -> ScaleCheck {
     let all: Vec<usize> = (0..p.x.len()).collect();
     let nb = 1usize << 32;
-    let (k, se_b, blocks) = slope(p, &all, |i| p.man[i] * nb + p.block[i]);
-    let (_, se_m, mans) = slope(p, &all, |i| p.man[i]);
+    let fit = |idx: &[usize], key: &dyn Fn(usize) -> usize| {
+        let r = slope(p, idx, key);
+        if inverse {
+            inverted(r)
+        } else {
+            r
+        }
+    };
+    let (k, se_b, blocks) = fit(&all, &|i| p.man[i] * nb + p.block[i]);
+    let (_, se_m, mans) = fit(&all, &|i| p.man[i]);
     let se = if mans > 1 { se_b.max(se_m) } else { se_b };
     let mut by_man: Vec<Vec<usize>> = vec![Vec::new(); nm];
     for i in all {
@@ -188,7 +211,7 @@ fn estimate(channel: &'static str, p: &Pairs, nm: usize, candidates: &[f64]) -> 
     let per_maneuver = by_man
         .iter()
         .map(|idx| {
-            let (km, sem, bm) = slope(p, idx, |i| p.block[i]);
+            let (km, sem, bm) = fit(idx, &|i| p.block[i]);
             (km, sem, judge(km, sem, bm, candidates))
         })
         .collect();
@@ -213,11 +236,7 @@ struct Corrected {
 impl Corrected {
     fn vel(&self, i: usize) -> [f64; 3] {
         let (v, a, b) = (self.tas[i], self.alpha[i], self.beta[i]);
-        [
-            v * a.cos() * b.cos(),
-            v * b.sin(),
-            v * a.sin() * b.cos(),
-        ]
+        [v * a.cos() * b.cos(), v * b.sin(), v * a.sin() * b.cos()]
     }
 }
 
@@ -249,42 +268,32 @@ fn maneuver_ranges(inp: &PlausInput<'_>) -> Vec<(usize, usize, f64)> {
         .collect()
 }
 
-/// Sample pairs of an accelerometer check: measured specific force against the kinematic one.
+/// Window pairs of an accelerometer check: the integral of the measured specific force
+/// (x) against the change of the velocity component less the integral of the rotational and
+/// gravity terms (y): y = x / k. The gusts move the air-relative velocity, so they stay on the
+/// y side (noise, no bias of the slope), and a small specific force (ay in coordinated flight)
+/// leaves x small: not judged rather than biased.
 fn accel_pairs(inp: &PlausInput<'_>, c: &Corrected, axis: usize) -> Pairs {
-    let mut out = Pairs::default();
-    for (m, (a, b, dt)) in maneuver_ranges(inp).into_iter().enumerate() {
-        if !(dt > 0.0) {
-            continue;
-        }
-        let h = ((DIFF_HALF_SPAN_S / dt).round() as usize).max(1);
-        let stride = ((0.1 / dt).round() as usize).max(1);
-        let per_block = (WINDOW_S / dt).round().max(1.0) as usize;
-        let mut i = a + h;
-        while i + h < b {
-            let (vp, vm) = (c.vel(i + h), c.vel(i - h));
-            let span = inp.t[i + h] - inp.t[i - h];
-            let d = (vp[axis] - vm[axis]) / span;
-            let [u, v, w] = c.vel(i);
-            let (p, q, r) = (inp.rates[0][i], inp.rates[1][i], inp.rates[2][i]);
-            let (sf, cf) = inp.euler[0][i].sin_cos();
-            let (st, ct) = inp.euler[1][i].sin_cos();
-            let kin = match axis {
-                0 => d - r * v + q * w + G0 * st,
-                1 => d - p * w + r * u - G0 * ct * sf,
-                _ => d - q * u + p * v - G0 * ct * cf,
-            };
-            out.push(kin, inp.accel[axis][i], m, (i - a) / per_block);
-            i += stride;
-        }
-    }
-    out
+    let comp: Vec<f64> = (0..inp.t.len()).map(|i| c.vel(i)[axis]).collect();
+    window_pairs_with(
+        inp,
+        &comp,
+        |i| c.accel[axis][i],
+        |i| body_acc(inp, c, i)[axis] - c.accel[axis][i],
+    )
 }
 
 /// Window pairs of an integrated check: change of `meas` against the integral of `rate`.
-fn window_pairs(
+fn window_pairs(inp: &PlausInput<'_>, meas: &[f64], rate: impl Fn(usize) -> f64) -> Pairs {
+    window_pairs_with(inp, meas, rate, |_| 0.0)
+}
+
+/// Window pairs: x = integral of `rate`, y = change of `meas` less the integral of `sub`.
+fn window_pairs_with(
     inp: &PlausInput<'_>,
     meas: &[f64],
     rate: impl Fn(usize) -> f64,
+    sub: impl Fn(usize) -> f64,
 ) -> Pairs {
     let mut out = Pairs::default();
     for (m, (a, b, dt)) in maneuver_ranges(inp).into_iter().enumerate() {
@@ -293,20 +302,24 @@ fn window_pairs(
         }
         let len = (WINDOW_S / dt).round().max(1.0) as usize;
         let mut s = a;
-        let mut prev = rate(s);
-        let mut integ = 0.0;
+        let (mut prev, mut prev_sub) = (rate(s), sub(s));
+        let (mut integ, mut integ_sub) = (0.0, 0.0);
         let mut start = a;
         let mut block = 0;
         s += 1;
         while s < b {
-            let cur = rate(s);
-            integ += 0.5 * (prev + cur) * (inp.t[s] - inp.t[s - 1]);
+            let (cur, cur_sub) = (rate(s), sub(s));
+            let h = inp.t[s] - inp.t[s - 1];
+            integ += 0.5 * (prev + cur) * h;
+            integ_sub += 0.5 * (prev_sub + cur_sub) * h;
             prev = cur;
+            prev_sub = cur_sub;
             if s - start == len {
-                out.push(integ, meas[s] - meas[start], m, block);
+                out.push(integ, meas[s] - meas[start] - integ_sub, m, block);
                 block += 1;
                 start = s;
                 integ = 0.0;
+                integ_sub = 0.0;
             }
             s += 1;
         }
@@ -379,7 +392,7 @@ pub fn check(inp: &PlausInput<'_>, candidates: &Candidates<'_>) -> Result<Vec<Sc
     // accelerometers: az first (gravity), then ax, ay
     for (ci, axis) in [(0usize, 2usize), (1, 0), (2, 1)] {
         let pairs = accel_pairs(inp, &c, axis);
-        let r = estimate(CHECKS[ci], &pairs, nm, candidates[ci]);
+        let r = estimate(CHECKS[ci], &pairs, nm, candidates[ci], true);
         correct(&mut c.accel[axis], &r, candidates[ci]);
         out.push(r);
     }
@@ -391,7 +404,7 @@ pub fn check(inp: &PlausInput<'_>, candidates: &Candidates<'_>) -> Result<Vec<Sc
     };
     let meas_tas = c.tas.clone();
     let pairs = window_pairs(inp, &meas_tas, |i| vdot(&c, i));
-    let r = estimate(CHECKS[3], &pairs, nm, candidates[3]);
+    let r = estimate(CHECKS[3], &pairs, nm, candidates[3], false);
     correct(&mut c.tas, &r, candidates[3]);
     out.push(r);
     // angle of attack
@@ -401,7 +414,7 @@ pub fn check(inp: &PlausInput<'_>, candidates: &Candidates<'_>) -> Result<Vec<Sc
         let d = body_acc(inp, &c, i);
         (u * d[2] - w * d[0]) / (u * u + w * w)
     });
-    let r = estimate(CHECKS[4], &pairs, nm, candidates[4]);
+    let r = estimate(CHECKS[4], &pairs, nm, candidates[4], false);
     correct(&mut c.alpha, &r, candidates[4]);
     out.push(r);
     // sideslip
@@ -411,7 +424,7 @@ pub fn check(inp: &PlausInput<'_>, candidates: &Candidates<'_>) -> Result<Vec<Sc
         let b = c.beta[i];
         (d[1] - b.sin() * vdot(&c, i)) / (c.tas[i] * b.cos())
     });
-    let r = estimate(CHECKS[5], &pairs, nm, candidates[5]);
+    let r = estimate(CHECKS[5], &pairs, nm, candidates[5], false);
     correct(&mut c.beta, &r, candidates[5]);
     out.push(r);
     // altitude
@@ -422,7 +435,7 @@ pub fn check(inp: &PlausInput<'_>, candidates: &Candidates<'_>) -> Result<Vec<Sc
             let (st, ct) = inp.euler[1][i].sin_cos();
             u * st - v * sf * ct - w * cf * ct
         });
-        out.push(estimate(CHECKS[6], &pairs, nm, candidates[6]));
+        out.push(estimate(CHECKS[6], &pairs, nm, candidates[6], false));
     }
     Ok(out)
 }
@@ -455,7 +468,10 @@ mod tests {
             .iter()
             .map(|&s| 0.08 + 0.06 * (0.3 * s).sin() + 0.02 * (1.1 * s).sin())
             .collect();
-        let tas: Vec<f64> = t.iter().map(|&s| 70.0 - 0.3 * s + 3.0 * (0.2 * s).sin()).collect();
+        let tas: Vec<f64> = t
+            .iter()
+            .map(|&s| 70.0 - 0.3 * s + 3.0 * (0.2 * s).sin())
+            .collect();
         let gam: Vec<f64> = t.iter().map(|&s| 0.05 * (0.25 * s).sin()).collect();
         let theta: Vec<f64> = alpha.iter().zip(&gam).map(|(a, g)| a + g).collect();
         let d = |x: &[f64], i: usize| -> f64 {
@@ -497,7 +513,13 @@ mod tests {
         let ok = run(&ax, &az, &tas, &alpha, &h);
         for r in &ok {
             if r.channel == "ay" || r.channel == "beta" {
-                assert_eq!(r.verdict, Verdict::NotJudged, "{}: {:?}", r.channel, r.verdict);
+                assert_eq!(
+                    r.verdict,
+                    Verdict::NotJudged,
+                    "{}: {:?}",
+                    r.channel,
+                    r.verdict
+                );
                 continue;
             }
             assert!((r.k - 1.0).abs() < 0.02, "{} k = {}", r.channel, r.k);
