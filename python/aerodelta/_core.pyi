@@ -210,6 +210,7 @@ def plausibility_check(
     alpha: npt.NDArray[np.float64],
     beta: npt.NDArray[np.float64],
     euler: list[npt.NDArray[np.float64]],
+    vane_offset: list[npt.NDArray[np.float64]],
     h: npt.NDArray[np.float64] | None,
     candidates: list[list[float]],
 ) -> list[dict[str, Any]]: ...

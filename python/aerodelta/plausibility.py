@@ -138,6 +138,7 @@ def check_plausibility(
         a("alpha_cg_deg", d2r),
         a("beta_cg_deg", d2r),
         [a("phi_deg", d2r), a("theta_deg", d2r)],
+        [a("alpha_deg", d2r) - a("alpha_cg_deg", d2r), a("beta_deg", d2r) - a("beta_cg_deg", d2r)],
         h,
         [[c.ratio for c in causes[chk]] for chk in CHECKED],
     )

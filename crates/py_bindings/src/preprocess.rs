@@ -244,11 +244,11 @@ fn compat_check<'py>(
 
 /// Unit and sign plausibility of a campaign (`aero_core::preprocess::plausibility`): channels
 /// back to back (SI, rad), `offsets` the maneuver boundaries, `candidates` one list of
-/// ratios per check (order of `plausibility::CHECKS`). Returns one dict per check:
+/// ratios per check (order of `plausibility::CHECKS`), `vane_offset` vane minus CG alpha, beta. Returns one dict per check:
 /// `channel`, `k`, `se`, `blocks`, `verdict` ("plausible", "not_judged", "mistake", "far"),
 /// `candidate` (index or None), and per maneuver `k_m`, `se_m`, `verdict_m`, `candidate_m`.
 #[pyfunction]
-#[pyo3(signature = (offsets, t, accel, rates, tas, alpha, beta, euler, h, candidates))]
+#[pyo3(signature = (offsets, t, accel, rates, tas, alpha, beta, euler, vane_offset, h, candidates))]
 #[allow(clippy::too_many_arguments)]
 fn plausibility_check<'py>(
     py: Python<'py>,
@@ -260,15 +260,19 @@ fn plausibility_check<'py>(
     alpha: PyReadonlyArray1<'py, f64>,
     beta: PyReadonlyArray1<'py, f64>,
     euler: Vec<PyReadonlyArray1<'py, f64>>,
+    vane_offset: Vec<PyReadonlyArray1<'py, f64>>,
     h: Option<PyReadonlyArray1<'py, f64>>,
     candidates: Vec<Vec<f64>>,
 ) -> PyResult<Vec<Bound<'py, PyDict>>> {
     let (a, w, e) = (slices(&accel)?, slices(&rates)?, slices(&euler)?);
+    let vo = slices(&vane_offset)?;
     let nc = plausibility::CHECKS.len();
-    if a.len() != 3 || w.len() != 3 || e.len() != 2 || candidates.len() != nc {
+    if a.len() != 3 || w.len() != 3 || e.len() != 2 || vo.len() != 2 || candidates.len() != nc {
         return Err(crate::error::to_py(AeroError::invalid(
             "plausibility_check",
-            format!("accel and rates take three arrays, euler two (phi, theta), candidates {nc} lists"),
+            format!(
+                "accel and rates take three arrays, euler and vane_offset two, candidates {nc} lists"
+            ),
         )));
     }
     let hs = match &h {
@@ -284,6 +288,7 @@ fn plausibility_check<'py>(
         alpha: alpha.as_slice()?,
         beta: beta.as_slice()?,
         euler: [e[0], e[1]],
+        vane_offset: [vo[0], vo[1]],
         h: hs,
     };
     let cands: [&[f64]; 7] = std::array::from_fn(|i| candidates[i].as_slice());

@@ -74,6 +74,10 @@ pub struct PlausInput<'a> {
     pub beta: &'a [f64],
     /// Roll and pitch attitude, rad.
     pub euler: [&'a [f64]; 2],
+    /// Vane minus CG angle of attack and sideslip, rad (the lever-arm terms the vane transfer
+    /// removed; zeros for angles measured at the CG). A unit mistake scales the vane reading,
+    /// not the lever-arm term, so the check compares the vane channel.
+    pub vane_offset: [&'a [f64]; 2],
     /// Altitude, m (optional).
     pub h: Option<&'a [f64]>,
 }
@@ -280,20 +284,23 @@ fn accel_pairs(inp: &PlausInput<'_>, c: &Corrected, axis: usize) -> Pairs {
         &comp,
         |i| c.accel[axis][i],
         |i| body_acc(inp, c, i)[axis] - c.accel[axis][i],
+        None,
     )
 }
 
 /// Window pairs of an integrated check: change of `meas` against the integral of `rate`.
 fn window_pairs(inp: &PlausInput<'_>, meas: &[f64], rate: impl Fn(usize) -> f64) -> Pairs {
-    window_pairs_with(inp, meas, rate, |_| 0.0)
+    window_pairs_with(inp, meas, rate, |_| 0.0, None)
 }
 
-/// Window pairs: x = integral of `rate`, y = change of `meas` less the integral of `sub`.
+/// Window pairs: x = integral of `rate` plus the change of `x_add`, y = change of `meas` less
+/// the integral of `sub`.
 fn window_pairs_with(
     inp: &PlausInput<'_>,
     meas: &[f64],
     rate: impl Fn(usize) -> f64,
     sub: impl Fn(usize) -> f64,
+    x_add: Option<&[f64]>,
 ) -> Pairs {
     let mut out = Pairs::default();
     for (m, (a, b, dt)) in maneuver_ranges(inp).into_iter().enumerate() {
@@ -315,7 +322,8 @@ fn window_pairs_with(
             prev = cur;
             prev_sub = cur_sub;
             if s - start == len {
-                out.push(integ, meas[s] - meas[start] - integ_sub, m, block);
+                let dx = x_add.map_or(0.0, |x| x[s] - x[start]);
+                out.push(integ + dx, meas[s] - meas[start] - integ_sub, m, block);
                 block += 1;
                 start = s;
                 integ = 0.0;
@@ -350,6 +358,8 @@ pub fn check(inp: &PlausInput<'_>, candidates: &Candidates<'_>) -> Result<Vec<Sc
         inp.beta,
         inp.euler[0],
         inp.euler[1],
+        inp.vane_offset[0],
+        inp.vane_offset[1],
         inp.t,
     ];
     if let Some(h) = inp.h {
@@ -407,25 +417,48 @@ pub fn check(inp: &PlausInput<'_>, candidates: &Candidates<'_>) -> Result<Vec<Sc
     let r = estimate(CHECKS[3], &pairs, nm, candidates[3], false);
     correct(&mut c.tas, &r, candidates[3]);
     out.push(r);
-    // angle of attack
-    let alpha_meas = c.alpha.clone();
-    let pairs = window_pairs(inp, &alpha_meas, |i| {
-        let [u, _, w] = c.vel(i);
-        let d = body_acc(inp, &c, i);
-        (u * d[2] - w * d[0]) / (u * u + w * w)
-    });
+    // a named angle mistake scales the vane reading: vane = (cg + offset) / ratio
+    let correct_angle = |x: &mut Vec<f64>, off: &[f64], r: &ScaleCheck, cand: &[f64]| {
+        if let Verdict::Mistake(j) = r.verdict {
+            let f = cand[j];
+            x.iter_mut()
+                .zip(off)
+                .for_each(|(v, o)| *v = (*v + o) / f - o);
+        }
+    };
+    // angle of attack (the vane channel against the kinematic change at the CG plus the
+    // change of the lever-arm term)
+    let [off_a, off_b] = inp.vane_offset;
+    let alpha_vane: Vec<f64> = c.alpha.iter().zip(off_a).map(|(a, o)| a + o).collect();
+    let pairs = window_pairs_with(
+        inp,
+        &alpha_vane,
+        |i| {
+            let [u, _, w] = c.vel(i);
+            let d = body_acc(inp, &c, i);
+            (u * d[2] - w * d[0]) / (u * u + w * w)
+        },
+        |_| 0.0,
+        Some(off_a),
+    );
     let r = estimate(CHECKS[4], &pairs, nm, candidates[4], false);
-    correct(&mut c.alpha, &r, candidates[4]);
+    correct_angle(&mut c.alpha, off_a, &r, candidates[4]);
     out.push(r);
     // sideslip
-    let beta_meas = c.beta.clone();
-    let pairs = window_pairs(inp, &beta_meas, |i| {
-        let d = body_acc(inp, &c, i);
-        let b = c.beta[i];
-        (d[1] - b.sin() * vdot(&c, i)) / (c.tas[i] * b.cos())
-    });
+    let beta_vane: Vec<f64> = c.beta.iter().zip(off_b).map(|(a, o)| a + o).collect();
+    let pairs = window_pairs_with(
+        inp,
+        &beta_vane,
+        |i| {
+            let d = body_acc(inp, &c, i);
+            let b = c.beta[i];
+            (d[1] - b.sin() * vdot(&c, i)) / (c.tas[i] * b.cos())
+        },
+        |_| 0.0,
+        Some(off_b),
+    );
     let r = estimate(CHECKS[5], &pairs, nm, candidates[5], false);
-    correct(&mut c.beta, &r, candidates[5]);
+    correct_angle(&mut c.beta, off_b, &r, candidates[5]);
     out.push(r);
     // altitude
     if let Some(h) = inp.h {
@@ -506,6 +539,7 @@ mod tests {
                 alpha,
                 beta: &zero,
                 euler: [&zero, &theta],
+                vane_offset: [&zero, &zero],
                 h: Some(h),
             };
             check(&inp, &cs).unwrap()
