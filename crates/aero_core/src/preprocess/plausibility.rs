@@ -118,7 +118,7 @@ pub fn judge(k: f64, se: f64, blocks: usize, candidates: &[f64]) -> Verdict {
         return Verdict::NotJudged;
     }
     let far = if k <= 0.0 {
-        -k > Z * se || k == 0.0 && se == 0.0
+        -k > Z * se
     } else {
         let lo = BAND.recip();
         k - Z * se > BAND || k + Z * se < lo
@@ -164,7 +164,10 @@ impl Pairs {
 fn slope(p: &Pairs, idx: &[usize], key: &dyn Fn(usize) -> usize) -> (f64, f64, usize) {
     let sxx: f64 = idx.iter().map(|&i| p.x[i] * p.x[i]).sum();
     let sxy: f64 = idx.iter().map(|&i| p.x[i] * p.y[i]).sum();
-    if idx.is_empty() || sxx <= 0.0 {
+    let syy: f64 = idx.iter().map(|&i| p.y[i] * p.y[i]).sum();
+    // a channel that does not move at all (a stuck or unrecorded sensor: the sensor health
+    // checks report it) says nothing about its unit
+    if idx.is_empty() || sxx <= 0.0 || syy <= 0.0 {
         return (f64::NAN, f64::NAN, 0);
     }
     let k = sxy / sxx;
@@ -304,7 +307,7 @@ fn window_pairs_with(
 ) -> Pairs {
     let mut out = Pairs::default();
     for (m, (a, b, dt)) in maneuver_ranges(inp).into_iter().enumerate() {
-        if !(dt > 0.0) {
+        if dt.is_nan() || dt <= 0.0 {
             continue;
         }
         let len = (WINDOW_S / dt).round().max(1.0) as usize;
