@@ -201,6 +201,19 @@ def compat_check(
     euler: list[npt.NDArray[np.float64]],
     max_iter: int = 20,
 ) -> dict[str, object]: ...
+def plausibility_check(
+    offsets: list[int],
+    t: npt.NDArray[np.float64],
+    accel: list[npt.NDArray[np.float64]],
+    rates: list[npt.NDArray[np.float64]],
+    tas: npt.NDArray[np.float64],
+    alpha: npt.NDArray[np.float64],
+    beta: npt.NDArray[np.float64],
+    euler: list[npt.NDArray[np.float64]],
+    vane_offset: list[npt.NDArray[np.float64]],
+    h: npt.NDArray[np.float64] | None,
+    candidates: list[list[float]],
+) -> list[dict[str, Any]]: ...
 
 class OlsFit:
     @property

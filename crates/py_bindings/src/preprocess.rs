@@ -1,7 +1,7 @@
 //! Flight test preprocessing (`aero_core::preprocess`): conversion and error mapping only.
 use aero_core::preprocess::coefficients::MassGeometry;
 use aero_core::preprocess::smooth as core_smooth;
-use aero_core::preprocess::{compat, deriv, kinematics, maneuver};
+use aero_core::preprocess::{compat, deriv, kinematics, maneuver, plausibility};
 use aero_core::AeroError;
 use numpy::{IntoPyArray, PyArray1, PyReadonlyArray1};
 use pyo3::prelude::*;
@@ -242,6 +242,88 @@ fn compat_check<'py>(
     Ok(d)
 }
 
+/// Unit and sign plausibility of a campaign (`aero_core::preprocess::plausibility`): channels
+/// back to back (SI, rad), `offsets` the maneuver boundaries, `candidates` one list of
+/// ratios per check (order of `plausibility::CHECKS`), `vane_offset` vane minus CG alpha, beta. Returns one dict per check:
+/// `channel`, `k`, `se`, `blocks`, `verdict` ("plausible", "not_judged", "mistake", "far"),
+/// `candidate` (index or None), and per maneuver `k_m`, `se_m`, `verdict_m`, `candidate_m`.
+#[pyfunction]
+#[pyo3(signature = (offsets, t, accel, rates, tas, alpha, beta, euler, vane_offset, h, candidates))]
+#[allow(clippy::too_many_arguments)]
+fn plausibility_check<'py>(
+    py: Python<'py>,
+    offsets: Vec<usize>,
+    t: PyReadonlyArray1<'py, f64>,
+    accel: Vec<PyReadonlyArray1<'py, f64>>,
+    rates: Vec<PyReadonlyArray1<'py, f64>>,
+    tas: PyReadonlyArray1<'py, f64>,
+    alpha: PyReadonlyArray1<'py, f64>,
+    beta: PyReadonlyArray1<'py, f64>,
+    euler: Vec<PyReadonlyArray1<'py, f64>>,
+    vane_offset: Vec<PyReadonlyArray1<'py, f64>>,
+    h: Option<PyReadonlyArray1<'py, f64>>,
+    candidates: Vec<Vec<f64>>,
+) -> PyResult<Vec<Bound<'py, PyDict>>> {
+    let (a, w, e) = (slices(&accel)?, slices(&rates)?, slices(&euler)?);
+    let vo = slices(&vane_offset)?;
+    let nc = plausibility::CHECKS.len();
+    if a.len() != 3 || w.len() != 3 || e.len() != 2 || vo.len() != 2 || candidates.len() != nc {
+        return Err(crate::error::to_py(AeroError::invalid(
+            "plausibility_check",
+            format!(
+                "accel and rates take three arrays, euler and vane_offset two, candidates {nc} lists"
+            ),
+        )));
+    }
+    let hs = match &h {
+        Some(x) => Some(x.as_slice()?),
+        None => None,
+    };
+    let inp = plausibility::PlausInput {
+        offsets: &offsets,
+        t: t.as_slice()?,
+        accel: [a[0], a[1], a[2]],
+        rates: [w[0], w[1], w[2]],
+        tas: tas.as_slice()?,
+        alpha: alpha.as_slice()?,
+        beta: beta.as_slice()?,
+        euler: [e[0], e[1]],
+        vane_offset: [vo[0], vo[1]],
+        h: hs,
+    };
+    let cands: [&[f64]; 7] = std::array::from_fn(|i| candidates[i].as_slice());
+    let res = detached(py, || plausibility::check(&inp, &cands))?;
+    let word = |v: plausibility::Verdict| -> (&'static str, Option<usize>) {
+        match v {
+            plausibility::Verdict::Plausible => ("plausible", None),
+            plausibility::Verdict::NotJudged => ("not_judged", None),
+            plausibility::Verdict::Mistake(j) => ("mistake", Some(j)),
+            plausibility::Verdict::Far => ("far", None),
+        }
+    };
+    res.into_iter()
+        .map(|r| {
+            let d = PyDict::new(py);
+            d.set_item("channel", r.channel)?;
+            d.set_item("k", r.k)?;
+            d.set_item("se", r.se)?;
+            d.set_item("blocks", r.blocks)?;
+            let (v, c) = word(r.verdict);
+            d.set_item("verdict", v)?;
+            d.set_item("candidate", c)?;
+            let km: Vec<f64> = r.per_maneuver.iter().map(|x| x.0).collect();
+            let sm: Vec<f64> = r.per_maneuver.iter().map(|x| x.1).collect();
+            let (vm, cm): (Vec<&str>, Vec<Option<usize>>) =
+                r.per_maneuver.iter().map(|x| word(x.2)).unzip();
+            d.set_item("k_m", km)?;
+            d.set_item("se_m", sm)?;
+            d.set_item("verdict_m", vm)?;
+            d.set_item("candidate_m", cm)?;
+            Ok(d)
+        })
+        .collect()
+}
+
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(smooth, m)?)?;
     m.add_function(wrap_pyfunction!(smooth_deriv, m)?)?;
@@ -251,5 +333,6 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(preprocess_columns, m)?)?;
     m.add_function(wrap_pyfunction!(preprocess_batch, m)?)?;
     m.add_function(wrap_pyfunction!(compat_check, m)?)?;
+    m.add_function(wrap_pyfunction!(plausibility_check, m)?)?;
     Ok(())
 }

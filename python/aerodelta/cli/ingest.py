@@ -13,6 +13,7 @@ import sys
 
 from aerodelta.cli._data import add_data_arguments, ingest_source, output_folder, resolve_data
 from aerodelta.exceptions import InvalidInputError
+from aerodelta.ingest import summarise
 
 HELP = "ingest and preprocess flight test records (CSV, Parquet, .mat)"
 
@@ -74,9 +75,10 @@ def run(args: argparse.Namespace) -> int:
         print(json.dumps(summary, indent=2))
     else:
         print(f"ingested {summary['maneuvers']} maneuvers, {summary['rows']} rows")
-        for f in findings.filter(findings["severity"] == "warning").iter_rows(named=True):
-            msg = _cli_wording(f["message"])
-            print(f"warning: {f['file']} [{f['maneuver_id']}] {f['channel']}: {msg}")
+        # one line per channel and kind of finding, with the files that repeat it
+        warned = [f for r in res.reports for f in r.findings if f.severity == "warning"]
+        for line in summarise(warned):
+            print(f"warning: {_cli_wording(line)}")
         for p in paths:
             print(f"wrote {p}")
     sys.stdout.flush()

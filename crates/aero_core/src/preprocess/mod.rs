@@ -7,6 +7,7 @@
 //! - [`kinematics`]: accelerometer and vane transfers to the CG;
 //! - [`coefficients`]: measured Cl, Cn, CY (Eq. 3.2-3.4), CX, CZ, Cm;
 //! - [`compat`]: data compatibility / flight path reconstruction (Section 2.4);
+//! - [`plausibility`]: unit and sign plausibility of the channels from kinematic consistency;
 //! - [`maneuver`]: the per-maneuver pipeline and its parallel batch form.
 
 // Sample-indexed loops mirror the equations; iterator chains would hide them.
@@ -18,4 +19,5 @@ pub mod deriv;
 pub mod fft;
 pub mod kinematics;
 pub mod maneuver;
+pub mod plausibility;
 pub mod smooth;
