@@ -216,10 +216,11 @@ class FitConfig:
         resampled maneuvers (``aero_core::bootstrap::Reselect``): a kept term the replicate
         drops is zero there, so the bands carry the selection's own uncertainty (a band
         computed for a structure chosen on the same data lacks it). Over 20 virtual campaigns
-        the per-bin bands then held the truth in 93 %, 93 % and 92 % of the identified bins
-        (C_l, C_n, C_Y), against 78 %, 86 % and 89 % with ``False`` (the chosen structure
-        refitted in every replicate); it costs about 17 s for 100 replicates of a
-        160-maneuver campaign on 2 cores, against 1 s (``docs/identification.md``).
+        the per-bin bands then held the truth in 92 %, 92 % and 91 % of the identified bins
+        (C_l, C_n, C_Y; seeds 201-220), against 78 %, 85 % and 89 % with ``False`` (the chosen
+        structure refitted in every replicate); it costs about 11 s for 100 replicates of a
+        200-maneuver campaign on 2 cores, against 1 s without a bootstrap
+        (``benchmarks/bench_fit.py``, ``docs/identification.md``).
     band_hz
         Band-limited equation error (``aero_core::band``), off by default: the qualified-model
         error and every regressor are low-passed at this cut-off, Hz (one value, or one per
