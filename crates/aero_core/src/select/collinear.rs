@@ -33,7 +33,8 @@ pub struct Pruned {
 /// What the collinearity rule reads of one fitted bin, per column of the structure.
 #[derive(Debug, Clone)]
 pub struct BinCollinearity {
-    /// Variance inflation factor (infinite for a column dependent on the others).
+    /// Variance inflation factor (NaN for a column dependent on the earlier ones: the
+    /// near-dependency and excitation rules speak for it).
     pub vif: Vec<f64>,
     /// The other non-constant column whose estimate correlates most with this one's.
     pub partner: Vec<Option<usize>>,
@@ -67,29 +68,41 @@ pub fn gram_collinearity(
         .map(|(bs, _)| {
             let (g, _, n) = bs.total(dim, None);
             let want: Vec<usize> = order.iter().map(|&i| cols[i]).collect();
+            // a column dependent on earlier ones (all zero: a control never moved) is skipped
+            // by the factor: its VIF is left NaN, as the QR fit leaves it to the near-dependency
+            // and excitation rules, and the others are judged among themselves
             let fac = Factor::of(&g, dim, &want);
             let k = cols.len();
             let mut out = BinCollinearity {
-                vif: vec![f64::INFINITY; k],
+                vif: vec![f64::NAN; k],
                 partner: vec![None; k],
                 t: vec![f64::NAN; k],
             };
-            if fac.cols().len() < want.len() {
-                return out; // a dependent column: every VIF infinite, as QR would call it
-            }
-            let vifs = fac.vifs(nf);
+            let inside: Vec<usize> = order
+                .iter()
+                .copied()
+                .filter(|&i| fac.cols().contains(&cols[i]))
+                .collect();
+            let kin = inside.len();
+            let nf_in = inside
+                .iter()
+                .filter(|&&i| constant[cols[i]])
+                .count()
+                .min(nf);
+            let vifs = fac.vifs(nf_in);
             let inv = fac.inverse();
             let theta = fac.theta();
-            let s2 = fac.sse() / (n - k as f64).max(1.0);
-            for (pos, &i) in order.iter().enumerate() {
-                out.vif[i] = if pos < nf { 1.0 } else { vifs[pos - nf] };
-                out.t[i] = (theta[pos] / (s2 * inv[pos * k + pos]).sqrt()).abs();
-                out.partner[i] = order
+            let s2 = fac.sse() / (n - kin as f64).max(1.0);
+            for (pos, &i) in inside.iter().enumerate() {
+                out.vif[i] = if pos < nf_in { 1.0 } else { vifs[pos - nf_in] };
+                out.t[i] = (theta[pos] / (s2 * inv[pos * kin + pos]).sqrt()).abs();
+                out.partner[i] = inside
                     .iter()
                     .enumerate()
                     .filter(|&(q, &o)| q != pos && !constant[cols[o]])
                     .map(|(q, &o)| {
-                        let r = inv[pos * k + q] / (inv[pos * k + pos] * inv[q * k + q]).sqrt();
+                        let r =
+                            inv[pos * kin + q] / (inv[pos * kin + pos] * inv[q * kin + q]).sqrt();
                         (o, if r.is_finite() { r.abs() } else { 0.0 })
                     })
                     .max_by(|a, b| a.1.total_cmp(&b.1).then(b.0.cmp(&a.0)))

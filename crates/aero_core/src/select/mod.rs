@@ -1811,6 +1811,45 @@ pub(crate) mod tests {
     }
 
     #[test]
+    fn a_column_that_never_moves_leaves_the_others_vifs_alone() {
+        // the pool's x3 ("c") replaced by zeros: dependent on the bias in every bin
+        let (design, z, alpha, man) = geared(8_000, 6);
+        let mut zero = design.clone();
+        for r in 0..zero.nrows {
+            zero.values[r * 4 + 2] = 0.0;
+        }
+        let fit = fit_bins(&design, &z, &alpha, &man, &iid_identify()).expect("fit");
+        let members = bin_members(&fit);
+        let fitted: Vec<bool> = fit.bins.iter().map(|b| b.note.is_empty()).collect();
+        let constant = [true, false, false, false];
+        let with = gram_collinearity(
+            &bin_grams(&zero, &z, &members, &man),
+            &fitted,
+            &[0, 1, 2, 3],
+            &constant,
+        );
+        let without = gram_collinearity(
+            &bin_grams(&zero, &z, &members, &man),
+            &fitted,
+            &[0, 1, 3],
+            &constant,
+        );
+        for (a, b) in with.iter().zip(&without) {
+            assert!(a.vif[2].is_nan() && a.partner[2].is_none());
+            assert!((a.vif[1] - b.vif[1]).abs() < 1e-9 * b.vif[1]);
+            assert!((a.vif[3] - b.vif[2]).abs() < 1e-9 * b.vif[2]);
+            assert_eq!(a.partner[1], Some(3));
+        }
+        // and the zero column is not what the rule leaves out
+        let names: Vec<String> = ["bias", "a", "c", "sp"]
+            .iter()
+            .map(|s| s.to_string())
+            .collect();
+        let (j, _) = collinear_to_prune(&with, &names, &constant, 10.0).expect("sp is collinear");
+        assert_eq!(j, 3);
+    }
+
+    #[test]
     fn reselecting_bootstrap_zeroes_a_noise_term_the_replicates_drop() {
         use crate::bootstrap::{bootstrap_smoothed, BootstrapOptions, Reselect};
         let (design, z, alpha, man) = data(30_000, 3);
