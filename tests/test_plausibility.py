@@ -115,6 +115,17 @@ def test_cli_ingest_refuses_knots_in_the_users_layout(
     m = re.search(r"reads ([\d.]+)x", hits[0])
     assert m and float(m.group(1)) == pytest.approx(1 / KT, rel=0.1)
     assert not (out / "data.parquet").exists()
+    # the user may skip the check (records whose kinematics it cannot read); then the records
+    # go through, and the option means nothing for an ingest output
+    rc = main(
+        ["ingest", str(d), "--map", str(d / "map.toml"), "--out", str(out), "--quiet",
+         "--no-plausibility"]
+    )  # fmt: skip
+    assert rc == 0 and (out / "data.parquet").exists()
+    capsys.readouterr()
+    assert main(["fit", str(out), "--out", str(tmp_path / "m.json"), "--no-plausibility"]) != 0
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--no-plausibility applies to raw records" in err[0], err
 
 
 def test_cli_ingest_clean_campaign_prints_no_warning(

@@ -62,6 +62,13 @@ def add_data_arguments(parser: argparse.ArgumentParser, *, aircraft_help: str = 
     parser.add_argument(
         "--manifest", metavar="FILE", help="manifest CSV/Parquet (default DATA/manifest.csv)"
     )
+    parser.add_argument(
+        "--no-plausibility",
+        dest="plausibility",
+        action="store_false",
+        help="skip the kinematic unit and sign check of the raw records (docs/data.md, "
+        "Plausibility); for records whose kinematics the check cannot read",
+    )
 
 
 @dataclass(frozen=True)
@@ -77,6 +84,8 @@ class DataSource:
         ``"ingested"`` (an ingest output folder or its ``data.parquet``).
     aircraft, channel_map, manifest
         The files that apply (checked to exist), or None.
+    plausibility
+        Run the kinematic unit and sign check when the records are ingested.
     """
 
     path: Path
@@ -84,6 +93,7 @@ class DataSource:
     aircraft: Path | None = None
     channel_map: Path | None = None
     manifest: Path | None = None
+    plausibility: bool = True
 
     @property
     def parquet(self) -> Path:
@@ -176,8 +186,11 @@ def resolve_data(args: argparse.Namespace, *, aircraft_with_ingested: bool = Fal
         kind = "ingested"
     else:
         kind = "record"
+    plausibility = bool(getattr(args, "plausibility", True))
     if kind == "ingested":
         given = [o for o, v in (("--map", cmap), ("--manifest", manifest)) if v is not None]
+        if not plausibility:
+            given.append("--no-plausibility")
         if aircraft is not None and not aircraft_with_ingested:
             given.append("--aircraft")
         if given:
@@ -203,7 +216,9 @@ def resolve_data(args: argparse.Namespace, *, aircraft_with_ingested: bool = Fal
         aircraft = default
     if manifest is None and p.is_dir() and (p / "manifest.csv").is_file():
         manifest = p / "manifest.csv"
-    return DataSource(p, kind, aircraft=aircraft, channel_map=cmap, manifest=manifest)
+    return DataSource(
+        p, kind, aircraft=aircraft, channel_map=cmap, manifest=manifest, plausibility=plausibility
+    )
 
 
 def read_ingested(src: DataSource) -> pl.DataFrame:
@@ -244,7 +259,7 @@ def ingest_source(src: DataSource, *, progress: bool, **options: object) -> Inge
             channel_map=src.channel_map,
             manifest=src.manifest,
             progress=progress,
-            **options,  # type: ignore[arg-type]
+            **{"plausibility": src.plausibility, **options},  # type: ignore[arg-type]
         )
     except pl.exceptions.PolarsError as e:
         hint = " (check the records against --map)" if src.channel_map else ""
