@@ -6,10 +6,12 @@ import subprocess
 import sys
 from pathlib import Path
 
+import polars as pl
 import pytest
 
 import aerodelta as ad
 from aerodelta.cli import main
+from aerodelta.report.context import load_params
 
 
 def test_demo_quick_writes_model_and_validation(
@@ -31,6 +33,13 @@ def test_fit_cli_and_bad_config(tmp_path: Path, capsys: pytest.CaptureFixture[st
     assert main(["fit", "--data", str(camp), "--out", str(out), "--no-progress"]) == 0
     assert out.exists() and out.with_suffix(".params.parquet").exists()
     assert "identified" in capsys.readouterr().out
+    # the model file, written last, names its per-bin estimates by hash: a table from another
+    # fit (or a fit stopped between the two renames) is refused where it is read
+    assert load_params(out) is not None
+    params = out.with_suffix(".params.parquet")
+    pl.read_parquet(params).head(10).write_parquet(params)
+    with pytest.raises(ad.DataError, match=r"not the ones model.json was fitted with"):
+        load_params(out)
     bad = tmp_path / "bad.toml"
     bad.write_text("nonsense = 3\n")
     rc = main(["fit", "--data", str(camp), "--config", str(bad), "--out", str(out)])

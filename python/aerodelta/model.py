@@ -131,3 +131,49 @@ class DeltaModel:
 
     def __repr__(self) -> str:
         return f"DeltaModel({', '.join(self.coefficients)})"
+
+
+def _sha256(path: Path) -> str:
+    import hashlib  # noqa: PLC0415
+
+    h = hashlib.sha256()
+    with path.open("rb") as f:
+        for chunk in iter(lambda: f.read(1 << 20), b""):
+            h.update(chunk)
+    return h.hexdigest()
+
+
+def with_params_hash(model: DeltaModel, params_path: str | Path) -> DeltaModel:
+    """The model with the SHA-256 of its per-bin estimates file recorded in its provenance
+    (``provenance.params_sha256``): writing that file first and the model last commits the
+    pair, and :func:`check_params` tells a table from another fit."""
+    spec = model.to_spec()
+    prov = dict(spec.get("provenance") or {})
+    prov["params_sha256"] = _sha256(Path(params_path))
+    spec["provenance"] = prov
+    return DeltaModel.from_spec(spec, str(params_path))
+
+
+def check_params(model_path: str | Path, params_path: str | Path) -> None:
+    """Refuse a per-bin estimates file that is not the one the model file records (a fit
+    killed between its two renames, or files copied from different fits). Models without the
+    record (older files, the Python API's ``save``) are not checked.
+
+    Raises
+    ------
+    DataError
+        Naming both files.
+    """
+    from aerodelta.exceptions import DataError  # noqa: PLC0415
+
+    try:
+        prov = json.loads(Path(model_path).read_text()).get("provenance") or {}
+    except (OSError, ValueError):
+        return  # the model loader reports an unreadable model file
+    want = prov.get("params_sha256") if isinstance(prov, dict) else None
+    if want and _sha256(Path(params_path)) != want:
+        raise DataError(
+            f"{params_path}: these per-bin estimates are not the ones {Path(model_path).name} "
+            "was fitted with (another fit wrote one of the two files, or it was stopped "
+            "between them); run aerodelta fit again"
+        )

@@ -25,6 +25,7 @@ from aerodelta.fit import (
     validate_model,
 )
 from aerodelta.ingest import ingest
+from aerodelta.model import with_params_hash
 from aerodelta.truth import band_summary, campaign_effects
 
 HELP = "run the whole method on the built-in virtual flight test campaign"
@@ -60,8 +61,9 @@ def run(args: argparse.Namespace) -> int:
     train = data.filter(~pl.col("maneuver_id").is_in(held))
     test = data.filter(pl.col("maneuver_id").is_in(held))
     result = fit(train, config=FitConfig(bootstrap=args.bootstrap), progress=progress)
-    result.model.save(out / "model.json")
+    # the params table first, the model last recording its hash (committed together)
     result.summary().write_parquet(out / "model.params.parquet")
+    with_params_hash(result.model, out / "model.params.parquet").save(out / "model.json")
     v = validate_model(result.model, test)
     print(
         f"aerodelta demo: {len(ids)} maneuvers ({len(ids) - len(held)} fitted, {len(held)} held "

@@ -26,6 +26,7 @@ from aerodelta.cli._data import (
     output_file,
 )
 from aerodelta.exceptions import DataError, InvalidInputError
+from aerodelta.model import with_params_hash
 
 HELP = "identify the Δ (stall) model from flight test data"
 
@@ -149,9 +150,11 @@ def run(args: argparse.Namespace) -> int:
         )
         return 1
     out.parent.mkdir(parents=True, exist_ok=True)
-    result.model.save(out)
+    # the params table first, the model file last, recording the table's hash: a kill between
+    # the two renames leaves a table the model does not name, which the report refuses
     params = out.with_suffix(".params.parquet")
     write_atomic(params, result.summary().write_parquet)
+    with_params_hash(result.model, params).save(out)
     written = [out, params]
     if test is not None:
         v = validate_model(result.model, test, qualified=args.model)

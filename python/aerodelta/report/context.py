@@ -12,7 +12,7 @@ import polars as pl
 
 from aerodelta.exceptions import DataError
 from aerodelta.fit import COEFFICIENTS, model_frame, qualified_coefficients
-from aerodelta.model import DeltaModel
+from aerodelta.model import DeltaModel, check_params
 
 
 @dataclass
@@ -109,4 +109,7 @@ def build_context(
 def load_params(model_path: Path) -> pl.DataFrame | None:
     """The per-bin estimates written beside a model file (``<model>.params.parquet``)."""
     p = model_path.with_suffix(".params.parquet")
-    return pl.read_parquet(p) if p.exists() else None
+    if not p.exists():
+        return None
+    check_params(model_path, p)
+    return pl.read_parquet(p)
