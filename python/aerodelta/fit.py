@@ -283,7 +283,7 @@ class FitConfig:
             if isinstance(v, bool) or not isinstance(v, numbers.Integral) or v < 0:
                 raise DataError(
                     f"fit setting {name} = {v!r}: give a whole number >= 0 (default "
-                    f"{_DEFAULTS[name]!r})"
+                    f"{self.__dataclass_fields__[name].default!r})"
                 )
         for name in _FLOAT_SETTINGS:
             v = getattr(self, name)
@@ -292,7 +292,7 @@ class FitConfig:
             if isinstance(v, bool) or not isinstance(v, numbers.Real) or not math.isfinite(v):
                 raise DataError(
                     f"fit setting {name} = {v!r}: give a finite number (default "
-                    f"{_DEFAULTS[name]!r})"
+                    f"{self.__dataclass_fields__[name].default!r})"
                 )
         for name in _BOOL_SETTINGS:
             v = getattr(self, name)
@@ -361,7 +361,6 @@ _FLOAT_SETTINGS = (
 )  # fmt: skip
 _OPTIONAL_SETTINGS = ("max_width_deg", "max_vif")
 _BOOL_SETTINGS = ("colored", "weighted", "bootstrap_selection", "nested_cv")
-_DEFAULTS: dict[str, Any] = {}
 
 
 def _per_flap(value: float | Mapping[float, float], flap: float, name: str) -> float:
@@ -1686,12 +1685,3 @@ def validate_model(
     return pl.DataFrame(rows).with_columns(
         (pl.col("tic_extended") / pl.col("tic_qualified")).alias("tic_ratio")
     )
-
-
-_DEFAULTS.update(
-    {
-        f.name: f.default
-        for f in FitConfig.__dataclass_fields__.values()
-        if not callable(f.default_factory)  # type: ignore[arg-type]
-    }
-)

@@ -587,7 +587,11 @@ pub fn fit_bins(
 
 /// `|ρ_jk|` of parameter `j`'s estimate with every other non-constant parameter `k`
 /// (conventional covariance `cov`, `p × p` row-major), largest first (NaN counted as 0).
-fn estimate_correlations(cov: &[f64], const_col: &[bool], j: usize) -> Vec<(usize, f64)> {
+pub(crate) fn estimate_correlations(
+    cov: &[f64],
+    const_col: &[bool],
+    j: usize,
+) -> Vec<(usize, f64)> {
     let p = const_col.len();
     let mut r: Vec<(usize, f64)> = (0..p)
         .filter(|&k| k != j && !const_col[k])

@@ -362,6 +362,17 @@ pub fn ols_rows(
     fit(x, nrows, ncols, z, Some(rows), None, opts)
 }
 
+/// One cluster id per row of X.
+fn check_clusters(clusters: &[u64], nrows: usize) -> Result<()> {
+    if clusters.len() != nrows {
+        return Err(AeroError::invalid(
+            "clusters",
+            format!("has {} values but X has {nrows} rows", clusters.len()),
+        ));
+    }
+    Ok(())
+}
+
 /// [`ols`] with a cluster id per row (`clusters.len() == nrows`; e.g. the
 /// maneuver): the fit also carries the cluster-robust CR2 covariance with
 /// Bell-McCaffrey degrees of freedom ([`OlsFit::cluster`],
@@ -378,12 +389,7 @@ pub fn ols_clustered(
     clusters: &[u64],
     opts: &OlsOptions,
 ) -> Result<OlsFit> {
-    if clusters.len() != nrows {
-        return Err(AeroError::invalid(
-            "clusters",
-            format!("has {} values but X has {nrows} rows", clusters.len()),
-        ));
-    }
+    check_clusters(clusters, nrows)?;
     fit(x, nrows, ncols, z, None, Some(clusters), opts)
 }
 
@@ -403,12 +409,7 @@ pub fn ols_rows_clustered(
     clusters: &[u64],
     opts: &OlsOptions,
 ) -> Result<OlsFit> {
-    if clusters.len() != nrows {
-        return Err(AeroError::invalid(
-            "clusters",
-            format!("has {} values but X has {nrows} rows", clusters.len()),
-        ));
-    }
+    check_clusters(clusters, nrows)?;
     if let Some(&bad) = rows.iter().find(|&&r| r >= nrows) {
         return Err(AeroError::out_of_range(
             "ols rows",

@@ -20,6 +20,8 @@
 
 use super::stepwise::Factor;
 use super::{median, BinGrams};
+use crate::identify::estimate_correlations;
+use crate::identify::BinnedFit;
 
 /// A term left out of a flap's structure.
 #[derive(Debug, Clone, PartialEq)]
@@ -42,36 +44,47 @@ pub struct BinCollinearity {
     pub t: Vec<f64>,
 }
 
-/// [`BinCollinearity`] of every fitted bin (`fitted[b]`) for the columns `cols` of `grams`
-/// (their augmented Gram matrices; constant columns, `constant[c]`, partialled out of the
-/// VIFs), from one Cholesky factor per bin: the rule is applied column after column without
-/// refitting the bins' QR. The vectors are indexed by position in `cols`, and so are the
-/// partners.
+/// Each fitted bin's (note empty) augmented Gram matrix summed over its maneuvers, and its
+/// sample count: the input of [`gram_collinearity`], computed once per structure.
+pub fn fitted_totals(grams: &BinGrams, fit: &BinnedFit) -> Vec<(Vec<f64>, f64)> {
+    grams
+        .bins
+        .iter()
+        .zip(&fit.bins)
+        .filter(|(_, b)| b.note.is_empty())
+        .map(|(bs, _)| {
+            let (g, _, n) = bs.total(grams.dim, None);
+            (g, n)
+        })
+        .collect()
+}
+
+/// [`BinCollinearity`] of every bin of `totals` (each fitted bin's augmented Gram matrix,
+/// `dim × dim`, and its sample count: [`BinStats::total`](super::BinStats::total)) for the
+/// columns `cols` (constant columns, `constant[c]`, partialled out of the VIFs), from one
+/// Cholesky factor per bin: the rule is applied column after column without refitting the
+/// bins' QR. The vectors are indexed by position in `cols`, and so are the partners.
 pub fn gram_collinearity(
-    grams: &BinGrams,
-    fitted: &[bool],
+    totals: &[(Vec<f64>, f64)],
+    dim: usize,
     cols: &[usize],
     constant: &[bool],
 ) -> Vec<BinCollinearity> {
-    let dim = grams.dim;
     // constant columns first (they are partialled out), then the others in order
     let order: Vec<usize> = (0..cols.len())
         .filter(|&i| constant[cols[i]])
         .chain((0..cols.len()).filter(|&i| !constant[cols[i]]))
         .collect();
     let nf = order.iter().filter(|&&i| constant[cols[i]]).count();
-    grams
-        .bins
+    totals
         .iter()
-        .zip(fitted)
-        .filter(|(_, f)| **f)
-        .map(|(bs, _)| {
-            let (g, _, n) = bs.total(dim, None);
+        .map(|(g, n)| {
+            let n = *n;
             let want: Vec<usize> = order.iter().map(|&i| cols[i]).collect();
             // a column dependent on earlier ones (all zero: a control never moved) is skipped
             // by the factor: its VIF is left NaN, as the QR fit leaves it to the near-dependency
             // and excitation rules, and the others are judged among themselves
-            let fac = Factor::of(&g, dim, &want);
+            let fac = Factor::of(g, dim, &want);
             let k = cols.len();
             let mut out = BinCollinearity {
                 vif: vec![f64::NAN; k],
@@ -93,20 +106,13 @@ pub fn gram_collinearity(
             let inv = fac.inverse();
             let theta = fac.theta();
             let s2 = fac.sse() / (n - kin as f64).max(1.0);
+            let const_in: Vec<bool> = inside.iter().map(|&i| constant[cols[i]]).collect();
             for (pos, &i) in inside.iter().enumerate() {
                 out.vif[i] = if pos < nf_in { 1.0 } else { vifs[pos - nf_in] };
                 out.t[i] = (theta[pos] / (s2 * inv[pos * kin + pos]).sqrt()).abs();
-                out.partner[i] = inside
-                    .iter()
-                    .enumerate()
-                    .filter(|&(q, &o)| q != pos && !constant[cols[o]])
-                    .map(|(q, &o)| {
-                        let r =
-                            inv[pos * kin + q] / (inv[pos * kin + pos] * inv[q * kin + q]).sqrt();
-                        (o, if r.is_finite() { r.abs() } else { 0.0 })
-                    })
-                    .max_by(|a, b| a.1.total_cmp(&b.1).then(b.0.cmp(&a.0)))
-                    .map(|(o, _)| o);
+                out.partner[i] = estimate_correlations(&inv, &const_in, pos)
+                    .first()
+                    .map(|&(q, _)| inside[q]);
             }
             out
         })

@@ -66,7 +66,9 @@ use crate::sim::rng::Stream;
 mod collinear;
 mod path;
 mod stepwise;
-pub use collinear::{collinear_to_prune, gram_collinearity, BinCollinearity, Pruned};
+pub use collinear::{
+    collinear_to_prune, fitted_totals, gram_collinearity, BinCollinearity, Pruned,
+};
 pub use stepwise::stepwise;
 
 /// Per-maneuver sufficient statistics of one bin.
@@ -1488,12 +1490,12 @@ pub fn identify_flap(
         // decide on the first fit's bins from their Gram matrices (one factor per bin and
         // step), then fit the final structure once
         let grams = bin_grams(&design0, z, &bin_members(&fit0), maneuver);
-        let fitted: Vec<bool> = fit0.bins.iter().map(|b| b.note.is_empty()).collect();
+        let totals = fitted_totals(&grams, &fit0);
         let constant0: Vec<bool> = design0.exprs.iter().map(|e| e.is_constant()).collect();
         let mut keep: Vec<usize> = (0..design0.ncols()).collect();
         loop {
             // indexed by position in `keep`
-            let table = gram_collinearity(&grams, &fitted, &keep, &constant0);
+            let table = gram_collinearity(&totals, grams.dim, &keep, &constant0);
             let names: Vec<String> = keep.iter().map(|&j| design0.names[j].clone()).collect();
             let constant: Vec<bool> = keep.iter().map(|&j| constant0[j]).collect();
             match collinear_to_prune(&table, &names, &constant, identify.max_vif) {
@@ -1790,9 +1792,13 @@ pub(crate) mod tests {
         let (design, z, alpha, man) = geared(20_000, 4);
         let fit = fit_bins(&design, &z, &alpha, &man, &iid_identify()).expect("fit");
         let grams = bin_grams(&design, &z, &bin_members(&fit), &man);
-        let fitted: Vec<bool> = fit.bins.iter().map(|b| b.note.is_empty()).collect();
         let constant: Vec<bool> = design.exprs.iter().map(|e| e.is_constant()).collect();
-        let table = gram_collinearity(&grams, &fitted, &[0, 1, 2, 3], &constant);
+        let table = gram_collinearity(
+            &fitted_totals(&grams, &fit),
+            grams.dim,
+            &[0, 1, 2, 3],
+            &constant,
+        );
         let bins: Vec<&BinFit> = fit.bins.iter().filter(|b| b.note.is_empty()).collect();
         assert_eq!(table.len(), bins.len());
         for (t, b) in table.iter().zip(&bins) {
@@ -1819,21 +1825,11 @@ pub(crate) mod tests {
             zero.values[r * 4 + 2] = 0.0;
         }
         let fit = fit_bins(&design, &z, &alpha, &man, &iid_identify()).expect("fit");
-        let members = bin_members(&fit);
-        let fitted: Vec<bool> = fit.bins.iter().map(|b| b.note.is_empty()).collect();
+        let grams = bin_grams(&zero, &z, &bin_members(&fit), &man);
+        let totals = fitted_totals(&grams, &fit);
         let constant = [true, false, false, false];
-        let with = gram_collinearity(
-            &bin_grams(&zero, &z, &members, &man),
-            &fitted,
-            &[0, 1, 2, 3],
-            &constant,
-        );
-        let without = gram_collinearity(
-            &bin_grams(&zero, &z, &members, &man),
-            &fitted,
-            &[0, 1, 3],
-            &constant,
-        );
+        let with = gram_collinearity(&totals, grams.dim, &[0, 1, 2, 3], &constant);
+        let without = gram_collinearity(&totals, grams.dim, &[0, 1, 3], &constant);
         for (a, b) in with.iter().zip(&without) {
             assert!(a.vif[2].is_nan() && a.partner[2].is_none());
             assert!((a.vif[1] - b.vif[1]).abs() < 1e-9 * b.vif[1]);
