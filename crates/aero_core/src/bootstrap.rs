@@ -33,9 +33,7 @@
 
 use crate::error::{AeroError, Result};
 use crate::identify::{smooth_parameters, BinnedFit, Design, SmoothOptions, SmoothedParameter};
-use crate::select::{
-    bin_grams, bin_members, select_weighted, solve_subset, BinGrams, SelectOptions,
-};
+use crate::select::{bin_grams, bin_members, select_chosen, solve_subset, BinGrams, SelectOptions};
 use crate::sim::rng::{derive_seed, Stream};
 
 /// One replicate: smoothed values per parameter on the grid, the bin
@@ -257,22 +255,18 @@ pub fn bootstrap_smoothed(
                     .filter(|(_, c)| **c > 0.0)
                     .map(|(id, c)| (*id, *c))
                     .collect();
-                // the replicate's selection only: its nested score is not used
-                let so = SelectOptions {
-                    nested: false,
-                    ..rs.select.clone()
-                };
-                let sel = select_weighted(
+                // the replicate's selection only (no reporting scores, no nested score)
+                let chosen = select_chosen(
                     rs.pool,
                     z,
                     maneuver,
                     rs.pool_fit,
                     rs.grams,
-                    &so,
+                    rs.select,
                     Some(&w),
                     Some(rs.kappa),
                 )?;
-                rs.chosen.iter().map(|c| sel.chosen.contains(c)).collect()
+                rs.chosen.iter().map(|c| chosen.contains(c)).collect()
             }
         };
         let cols: Vec<usize> = (0..p).filter(|&j| keep[j]).collect();

@@ -121,6 +121,41 @@ impl BinStats {
         }
         (g, s, n)
     }
+
+    /// [`BinStats::total`] per fold in one pass over the maneuvers: the k-th maneuver of
+    /// the bin adds `weight(k)` times its sums to fold `fold(k)` (none: to no fold). Each
+    /// fold's sums come out bit for bit as `total` with the fold's weights (the same
+    /// maneuvers in the same order).
+    pub fn fold_totals(
+        &self,
+        dim: usize,
+        folds: usize,
+        fold: impl Fn(usize) -> Option<usize>,
+        weight: impl Fn(usize) -> f64,
+    ) -> Vec<(Vec<f64>, Vec<f64>, f64)> {
+        let mut out = vec![(vec![0.0; dim * dim], vec![0.0; dim], 0.0); folds];
+        for k in 0..self.maneuvers.len() {
+            let Some(f) = fold(k).filter(|&f| f < folds) else {
+                continue;
+            };
+            let w = weight(k);
+            if w == 0.0 {
+                continue;
+            }
+            let (g, s, n) = &mut out[f];
+            *n += w * self.n[k] as f64;
+            for (a, b) in g
+                .iter_mut()
+                .zip(&self.gram[k * dim * dim..(k + 1) * dim * dim])
+            {
+                *a += w * b;
+            }
+            for (a, b) in s.iter_mut().zip(&self.sums[k * dim..(k + 1) * dim]) {
+                *a += w * b;
+            }
+        }
+        out
+    }
 }
 
 /// Accumulate the per-(bin, maneuver) augmented Gram matrices of `design`
@@ -442,6 +477,18 @@ pub struct CvScore {
 }
 
 impl CvScore {
+    /// The score of `columns` when it was not computed (NaN everywhere).
+    pub fn not_computed(columns: &[usize]) -> Self {
+        CvScore {
+            columns: columns.to_vec(),
+            rms: f64::NAN,
+            tic: f64::NAN,
+            mse: f64::NAN,
+            mse_se: f64::NAN,
+            fold_mse: Vec::new(),
+        }
+    }
+
     /// Standard error of the mean fold-by-fold difference `self − other` of the held-out
     /// MSE (paired over the folds; NaN with fewer than two common folds).
     ///
@@ -613,7 +660,13 @@ pub fn bin_members(fit: &BinnedFit) -> Vec<Vec<usize>> {
 /// Cross-validation folds: fold index of each maneuver id (sorted ids,
 /// seeded shuffle, round robin).
 fn fold_of(maneuver: &[u64], folds: usize, seed: u64) -> std::collections::HashMap<u64, usize> {
-    let mut ids: Vec<u64> = maneuver.to_vec();
+    // rows come in runs per maneuver: collapse the runs before sorting
+    let mut ids: Vec<u64> = Vec::new();
+    for &m in maneuver {
+        if ids.last() != Some(&m) {
+            ids.push(m);
+        }
+    }
     ids.sort_unstable();
     ids.dedup();
     let mut rng = Stream::new(seed, 0x5e1ec7);
@@ -909,6 +962,54 @@ pub fn select_weighted(
     weights: Option<&std::collections::HashMap<u64, f64>>,
     kappa: Option<&[f64]>,
 ) -> Result<Selection> {
+    select_impl(
+        design, z, maneuver, pool_fit, grams, opts, weights, kappa, true,
+    )
+}
+
+/// The columns [`select_weighted`] chooses, without the scores that only report on them
+/// (the full pool's, the extra structures', the chosen structure's own and the nested
+/// cross-validation): what a bootstrap replicate and a nested fold's inner selection use.
+/// The decisions are those of [`select_weighted`] to the bit (the same computation up to
+/// `chosen`).
+///
+/// # Errors
+/// As [`select_weighted`].
+#[allow(clippy::too_many_arguments)]
+pub fn select_chosen(
+    design: &Design,
+    z: &[f64],
+    maneuver: &[u64],
+    pool_fit: &BinnedFit,
+    grams: &BinGrams,
+    opts: &SelectOptions,
+    weights: Option<&std::collections::HashMap<u64, f64>>,
+    kappa: Option<&[f64]>,
+) -> Result<Vec<usize>> {
+    let so = SelectOptions {
+        nested: false,
+        ..opts.clone()
+    };
+    select_impl(
+        design, z, maneuver, pool_fit, grams, &so, weights, kappa, false,
+    )
+    .map(|s| s.chosen)
+}
+
+/// [`select_weighted`]; with `report` false, the reporting scores (`full`, `extra`,
+/// `pruned`) are not computed and left as [`CvScore::not_computed`].
+#[allow(clippy::too_many_arguments)]
+fn select_impl(
+    design: &Design,
+    z: &[f64],
+    maneuver: &[u64],
+    pool_fit: &BinnedFit,
+    grams: &BinGrams,
+    opts: &SelectOptions,
+    weights: Option<&std::collections::HashMap<u64, f64>>,
+    kappa: Option<&[f64]>,
+    report: bool,
+) -> Result<Selection> {
     check_inputs(design, z, maneuver, pool_fit, opts)?;
     let weight = |m: &u64| weights.map_or(1.0, |w| w.get(m).copied().unwrap_or(0.0));
     if grams.bins.len() != pool_fit.bins.len() || grams.dim != design.ncols() + 1 {
@@ -1012,16 +1113,12 @@ pub fn select_weighted(
         .bins
         .iter()
         .map(|bs| {
-            (0..opts.folds)
-                .map(|f| {
-                    let w: Vec<f64> = bs
-                        .maneuvers
-                        .iter()
-                        .map(|m| f64::from(u8::from(fold_map.get(m) == Some(&f))) * weight(m))
-                        .collect();
-                    bs.total(dim, Some(&w))
-                })
-                .collect()
+            bs.fold_totals(
+                dim,
+                opts.folds,
+                |k| fold_map.get(&bs.maneuvers[k]).copied(),
+                |k| weight(&bs.maneuvers[k]),
+            )
         })
         .collect();
 
@@ -1172,34 +1269,40 @@ pub fn select_weighted(
             _ => break,
         }
     }
-    let pruned = score(&chosen);
-    chosen.sort_unstable();
     let all: Vec<usize> = (0..p).collect();
-    let full = score(&all);
-    let extra = opts.extra.iter().map(|c| score(c)).collect();
+    let (pruned, full, extra) = if report {
+        let pruned = score(&chosen);
+        (
+            pruned,
+            score(&all),
+            opts.extra.iter().map(|c| score(c)).collect(),
+        )
+    } else {
+        (
+            CvScore::not_computed(&chosen),
+            CvScore::not_computed(&all),
+            Vec::new(),
+        )
+    };
+    chosen.sort_unstable();
     // nested cross-validation: the selection reruns on each fold's training maneuvers (the
     // same fold assignment, so its inner folds are the other folds)
     let (outer, outer_chosen) = if opts.nested {
-        let inner = SelectOptions {
-            nested: false,
-            ..opts.clone()
-        };
         let select_fold = |f: usize| -> Result<Vec<usize>> {
             let w: std::collections::HashMap<u64, f64> = fold_map
                 .iter()
                 .map(|(m, &fm)| (*m, if fm == f { 0.0 } else { weight(m) }))
                 .collect();
-            select_weighted(
+            select_chosen(
                 design,
                 z,
                 maneuver,
                 pool_fit,
                 grams,
-                &inner,
+                opts,
                 Some(&w),
                 Some(&kappa),
             )
-            .map(|s| s.chosen)
         };
         #[cfg(feature = "parallel")]
         let per_fold: Vec<Vec<usize>> = {
