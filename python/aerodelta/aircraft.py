@@ -13,17 +13,24 @@ Schema (see ``docs/data.md``)::
 from __future__ import annotations
 
 import math
-import sys
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from aerodelta._toml import read_toml
+from aerodelta.channels import CHANNELS
 from aerodelta.exceptions import DataError
 
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover
-    import tomli as tomllib
+#: The tables of the aircraft file and their keys.
+_KEYS = {
+    "geometry": ("S_m2", "b_m", "cbar_m"),
+    "mass": ("mass_kg", "Ixx_kgm2", "Iyy_kgm2", "Izz_kgm2", "Ixz_kgm2"),
+    "propulsion": (
+        "n_engines", "prop_inertia_kgm2", "prop_rotation", "prop_rpm_channel", "prop_rpm_fixed",
+        "prop_efficiency",
+    ),
+    "sensors": ("accel_m", "alpha_vane_m", "beta_vane_m"),
+}  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -83,51 +90,95 @@ class Aircraft:
         DataError
             Naming the file, the table and key at fault.
         """
-        path = Path(path)
-        try:
-            with path.open("rb") as f:
-                doc = tomllib.load(f)
-        except tomllib.TOMLDecodeError as e:
-            raise DataError(f"{path}: not valid TOML: {e}") from e
+        doc, _ = read_toml(path, "aircraft reference")
         return cls.from_dict(doc, source=str(path))
 
     @classmethod
     def from_dict(cls, doc: dict[str, Any], source: str = "<dict>") -> Aircraft:
         """Build from the parsed TOML structure (same schema as :meth:`from_toml`)."""
         problems: list[str] = []
+        for k, v in doc.items():
+            if k in _KEYS:
+                if not isinstance(v, dict):
+                    problems.append(f"{k} = {v!r} must be a table [{k}]")
+                    continue
+                unknown = sorted(set(v) - set(_KEYS[k]))
+                if unknown:
+                    problems.append(
+                        f"[{k}] has unknown key(s) {', '.join(unknown)} (known: "
+                        f"{', '.join(_KEYS[k])})"
+                    )
+            elif k != "name":
+                problems.append(f"unknown key or table '{k}' (known: name, {', '.join(_KEYS)})")
 
-        def num(table: str, key: str, positive: bool = True, default: float | None = None) -> float:
-            t = doc.get(table, {})
+        def table(name: str) -> dict[str, Any]:
+            t = doc.get(name, {})
+            return t if isinstance(t, dict) else {}
+
+        def num(
+            table_: str, key: str, positive: bool = True, default: float | None = None
+        ) -> float:
+            t = table(table_)
             if key not in t:
                 if default is not None:
                     return default
-                problems.append(f"[{table}] {key} is missing")
+                problems.append(f"[{table_}] {key} is missing")
                 return math.nan
             v = t[key]
             if not isinstance(v, (int, float)) or isinstance(v, bool) or not math.isfinite(v):
-                problems.append(f"[{table}] {key} = {v!r} is not a finite number")
+                problems.append(f"[{table_}] {key} = {v!r} is not a finite number")
                 return math.nan
             if positive and v <= 0:
-                problems.append(f"[{table}] {key} = {v} must be positive")
+                problems.append(f"[{table_}] {key} = {v} must be positive")
             return float(v)
 
         def vec(key: str) -> tuple[float, float, float]:
-            v = doc.get("sensors", {}).get(key, [0.0, 0.0, 0.0])
+            v = table("sensors").get(key, [0.0, 0.0, 0.0])
             if (
                 not isinstance(v, list)
                 or len(v) != 3
-                or not all(isinstance(x, (int, float)) for x in v)
+                or not all(
+                    isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
+                    for x in v
+                )
             ):
-                problems.append(f"[sensors] {key} = {v!r} must be a list of 3 numbers (m)")
+                problems.append(f"[sensors] {key} = {v!r} must be a list of 3 finite numbers (m)")
                 return (0.0, 0.0, 0.0)
             return (float(v[0]), float(v[1]), float(v[2]))
 
-        prop = doc.get("propulsion", {})
+        prop = table("propulsion")
         rot = prop.get("prop_rotation", "same")
         if rot not in ("same", "opposite"):
             problems.append(f"[propulsion] prop_rotation = {rot!r} must be 'same' or 'opposite'")
+        n_eng = prop.get("n_engines", 2)
+        if isinstance(n_eng, bool) or not isinstance(n_eng, int) or n_eng < 0:
+            problems.append(f"[propulsion] n_engines = {n_eng!r} must be a whole number >= 0")
+            n_eng = 0
+        rpm_channel = prop.get("prop_rpm_channel")
+        if rpm_channel is not None and (
+            not isinstance(rpm_channel, str) or rpm_channel not in CHANNELS
+        ):
+            problems.append(
+                f"[propulsion] prop_rpm_channel = {rpm_channel!r} must name a canonical channel "
+                '(e.g. "prop_rpm"; map the record\'s column onto it in the channel map)'
+            )
+            rpm_channel = None
+        rpm_fixed = (
+            num("propulsion", "prop_rpm_fixed", positive=True) if "prop_rpm_fixed" in prop else None
+        )
+        efficiency = num("propulsion", "prop_efficiency", default=0.8)
+        if efficiency > 1.0:
+            problems.append(
+                f"[propulsion] prop_efficiency = {efficiency} must lie in (0, 1] (e.g. 0.8)"
+            )
+        inertia = num("propulsion", "prop_inertia_kgm2", positive=False, default=0.0)
+        if inertia < 0.0:
+            problems.append(f"[propulsion] prop_inertia_kgm2 = {inertia} must be >= 0")
+        name = doc.get("name", "")
+        if not isinstance(name, str):
+            problems.append(f"name = {name!r} must be a string")
         ac = cls(
-            name=str(doc.get("name", "")),
+            name=str(name),
             S_m2=num("geometry", "S_m2"),
             b_m=num("geometry", "b_m"),
             cbar_m=num("geometry", "cbar_m"),
@@ -136,15 +187,15 @@ class Aircraft:
             Iyy_kgm2=num("mass", "Iyy_kgm2"),
             Izz_kgm2=num("mass", "Izz_kgm2"),
             Ixz_kgm2=num("mass", "Ixz_kgm2", positive=False),
-            n_engines=int(prop.get("n_engines", 2)),
-            prop_inertia_kgm2=num("propulsion", "prop_inertia_kgm2", positive=False, default=0.0),
+            n_engines=int(n_eng),
+            prop_inertia_kgm2=inertia,
             prop_rotation=str(rot),
-            prop_rpm_channel=prop.get("prop_rpm_channel"),
-            prop_rpm_fixed=(float(prop["prop_rpm_fixed"]) if "prop_rpm_fixed" in prop else None),
+            prop_rpm_channel=rpm_channel,
+            prop_rpm_fixed=rpm_fixed,
             accel_m=vec("accel_m"),
             alpha_vane_m=vec("alpha_vane_m"),
             beta_vane_m=vec("beta_vane_m"),
-            prop_efficiency=num("propulsion", "prop_efficiency", default=0.8),
+            prop_efficiency=efficiency,
         )
         if not problems and ac.Ixz_kgm2**2 >= ac.Ixx_kgm2 * ac.Izz_kgm2:
             problems.append(

@@ -20,23 +20,21 @@ refused, naming the lines: the guesses are checked by a person before they are u
 
 from __future__ import annotations
 
+import math
 import re
-import sys
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import polars as pl
 
+from aerodelta._toml import read_toml
 from aerodelta.channels import CHANNELS
 from aerodelta.exceptions import DataError
 from aerodelta.units import canonical_name, factor_offset
 
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover
-    import tomli as tomllib
-
+#: The keys of one channel's entry.
+_ENTRY_KEYS = ("source", "unit", "scale", "offset")
 
 _STRING = re.compile(r'"(?:[^"\\\n]|\\.)*"|\'[^\'\n]*\'')
 _REVIEW = re.compile(r"#\s*REVIEW\b")
@@ -84,13 +82,7 @@ class ChannelMap:
             Unknown canonical names, units or dimension mismatches, naming the entry.
         """
         path = Path(path)
-        try:
-            text = path.read_bytes().decode("utf-8")
-            doc = tomllib.loads(text)
-        except UnicodeDecodeError as e:
-            raise DataError(f"{path}: not a UTF-8 text file (a channel map is TOML)") from e
-        except tomllib.TOMLDecodeError as e:
-            raise DataError(f"{path}: not valid TOML: {e}") from e
+        doc, text = read_toml(path, "channel map")
         review = unreviewed_lines(text)
         if review:
             shown = ", ".join(f"line {n} {key}" for n, key in review[:12])
@@ -109,28 +101,65 @@ class ChannelMap:
         if not isinstance(chans, dict) or not chans:
             raise DataError(f"{source}: a [channels] table with at least one entry is required")
         entries = []
-        problems = []
+        problems = [
+            f"unknown table or key '{k}' (a channel map holds one [channels] table)"
+            for k in doc
+            if k != "channels"
+        ]
         for name, spec in chans.items():
             if name not in CHANNELS:
-                problems.append(f"'{name}' is not a canonical channel")
+                problems.append(f"'{name}' is not a canonical channel (docs/data.md)")
                 continue
             if not isinstance(spec, dict) or "source" not in spec or "unit" not in spec:
-                problems.append(f'\'{name}\' needs source = "..." and unit = "..."')
+                problems.append(f'\'{name}\' needs {{ source = "COLUMN", unit = "UNIT" }}')
+                continue
+            unknown = sorted(set(spec) - set(_ENTRY_KEYS))
+            if unknown:
+                problems.append(
+                    f"'{name}': unknown key(s) {', '.join(unknown)} (known: "
+                    f"{', '.join(_ENTRY_KEYS)})"
+                )
+                continue
+            src, unit = spec["source"], spec["unit"]
+            if not isinstance(src, str) or not src:
+                problems.append(f"'{name}': source = {src!r} must be a column name (a string)")
+                continue
+            if not isinstance(unit, str):
+                problems.append(f"'{name}': unit = {unit!r} must be a string (e.g. \"deg\")")
                 continue
             try:
-                factor_offset(spec["unit"], CHANNELS[name].unit)
+                factor_offset(unit, CHANNELS[name].unit)
             except DataError as e:
                 problems.append(f"'{name}': {e}")
+                continue
+            nums = {k: spec.get(k, d) for k, d in (("scale", 1.0), ("offset", 0.0))}
+            bad = [
+                f"'{name}': {k} = {v!r} must be a finite number"
+                for k, v in nums.items()
+                if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v)
+            ]
+            if not bad and nums["scale"] == 0:
+                bad.append(f"'{name}': scale = 0 would make every value the offset")
+            if bad:
+                problems += bad
                 continue
             entries.append(
                 ChannelEntry(
                     name=name,
-                    source=str(spec["source"]),
-                    unit=canonical_name(spec["unit"]),
-                    scale=float(spec.get("scale", 1.0)),
-                    offset=float(spec.get("offset", 0.0)),
+                    source=src,
+                    unit=canonical_name(unit),
+                    scale=float(nums["scale"]),
+                    offset=float(nums["offset"]),
                 )
             )
+        seen: dict[str, str] = {}
+        for e in entries:
+            if e.source in seen:
+                problems.append(
+                    f"column '{e.source}' is mapped to both '{seen[e.source]}' and '{e.name}'; "
+                    "map each column once"
+                )
+            seen.setdefault(e.source, e.name)
         if problems:
             raise DataError(f"{source}: invalid channel map: " + "; ".join(problems))
         return cls(tuple(entries), source)
@@ -143,7 +172,8 @@ class ChannelMap:
         DataError
             When a mapped source column is absent from ``file``.
         """
-        have = set(lf.collect_schema().names())
+        schema = lf.collect_schema()
+        have = set(schema.names())
         missing = [f"'{e.source}' (for {e.name})" for e in self.entries if e.source not in have]
         if missing:
             raise DataError(
@@ -151,6 +181,14 @@ class ChannelMap:
                 + ", ".join(missing)
                 + f"; the file has: {', '.join(sorted(have))}"
             )
+        for e in self.entries:
+            dtype = schema[e.source]
+            if not (dtype.is_numeric() or dtype == pl.Utf8):
+                what = "true/false" if dtype == pl.Boolean else str(dtype)
+                raise DataError(
+                    f"{file}: column '{e.source}' (mapped to {e.name}) holds {what} values, not "
+                    "numbers"
+                )
         mapped = {e.name for e in self.entries}
         sources = {e.source for e in self.entries}
         exprs = []

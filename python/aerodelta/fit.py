@@ -33,13 +33,9 @@ from tqdm import tqdm
 
 from aerodelta import _core
 from aerodelta._core import __version__
+from aerodelta._toml import read_toml
 from aerodelta.exceptions import DataError
 from aerodelta.model import SCHEMA, DeltaModel
-
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover
-    import tomli as tomllib
 
 COEFFICIENTS = ("Cl", "Cn", "CY")
 
@@ -316,10 +312,117 @@ class FitConfig:
         for name in ("alpha_l_deg", "alpha_u_deg"):
             v = getattr(self, name)
             vals = list(v.values()) if isinstance(v, Mapping) else [v]
-            if any(isinstance(x, bool) or not isinstance(x, numbers.Real) for x in vals):
+            if any(
+                isinstance(x, bool) or not isinstance(x, numbers.Real) or not math.isfinite(x)
+                for x in vals
+            ):
                 raise DataError(
                     f"fit setting {name} = {v!r}: give an alpha in deg, or one per flap"
                 )
+        self._check_ranges()
+        self._check_structures()
+
+    def _check_ranges(self) -> None:
+        """Refuse values outside their meaning (a bin of zero width, an unknown selection)."""
+        for name in ("width_deg", "grid_step_deg", "f_in", "f_out"):
+            if getattr(self, name) <= 0:
+                raise DataError(f"fit setting {name} = {getattr(self, name)!r}: must be > 0")
+        for name in ("past_stall_deg", "min_excitation", "min_excitation_snr"):
+            if getattr(self, name) < 0:
+                raise DataError(f"fit setting {name} = {getattr(self, name)!r}: must be >= 0")
+        if self.max_width_deg is not None and self.max_width_deg < self.width_deg:
+            raise DataError(
+                f"fit setting max_width_deg = {self.max_width_deg!r}: the widest merged bin "
+                f"cannot be narrower than width_deg = {self.width_deg!r}"
+            )
+        if self.max_vif is not None and self.max_vif <= 1.0:
+            raise DataError(
+                f"fit setting max_vif={self.max_vif!r}: a variance inflation factor is at least "
+                "1; give a limit above 1 (Klein & Morelli: 10) or none"
+            )
+        if self.min_points_per_param < 1 or self.min_maneuvers < 1:
+            name = "min_points_per_param" if self.min_points_per_param < 1 else "min_maneuvers"
+            raise DataError(f"fit setting {name} = 0: must be at least 1")
+        if self.selection not in (None, "stepwise", "mof"):
+            raise DataError(
+                f"fit setting selection={self.selection!r}: use 'stepwise', 'mof' or None "
+                '("none" in a TOML file)'
+            )
+        bands = (
+            dict(self.band_hz)
+            if isinstance(self.band_hz, Mapping)
+            else ({} if self.band_hz is None else {"": self.band_hz})
+        )
+        for c, b in bands.items():
+            if c and c not in COEFFICIENTS:
+                raise DataError(
+                    f"fit setting band_hz: unknown coefficient '{c}'; use {list(COEFFICIENTS)}"
+                )
+            if isinstance(b, bool) or not isinstance(b, numbers.Real) or not 0 < b < math.inf:
+                raise DataError(
+                    f"fit setting band_hz{'.' + c if c else ''} = {b!r}: give a positive "
+                    "cut-off in Hz (e.g. 2.5) or none"
+                )
+        if not isinstance(self.stall_alpha_deg, Mapping):
+            raise DataError(
+                f"fit setting stall_alpha_deg = {self.stall_alpha_deg!r}: give a table of flap = "
+                'alpha, both in deg (e.g. [stall_alpha_deg] "10.0" = 17.5)'
+            )
+        for flap, a in self.stall_alpha_deg.items():
+            if not all(
+                isinstance(x, numbers.Real) and not isinstance(x, bool) and math.isfinite(x)
+                for x in (flap, a)
+            ):
+                raise DataError(
+                    f"fit setting stall_alpha_deg: {flap!r} = {a!r}: give flap = alpha, both in deg"
+                )
+        lo, hi = self.alpha_l_deg, self.alpha_u_deg
+        flaps = {*(lo if isinstance(lo, Mapping) else ()), *(hi if isinstance(hi, Mapping) else ())}
+        pairs = []
+        for f in sorted(flaps) or [None]:
+            a = lo.get(f) if isinstance(lo, Mapping) else lo
+            b = hi.get(f) if isinstance(hi, Mapping) else hi
+            if a is not None and b is not None:  # a flap one table lacks: refused when fitted
+                pairs.append((f, a, b))
+        for f, a, b in pairs:
+            if a > b:
+                at = "" if f is None else f" at flap {f:g}"
+                raise DataError(
+                    f"fit settings alpha_l_deg = {a:g} and alpha_u_deg = {b:g}{at}: the blend "
+                    "starts at alpha_l_deg and ends at alpha_u_deg, so alpha_l_deg <= alpha_u_deg"
+                )
+
+    def _check_structures(self) -> None:
+        """Refuse structures and candidate pools that are not ``{coefficient: [(name,
+        expression), ...]}`` with known coefficients and one name per term."""
+        for what, table in (("structures", self.structures), ("candidates", self.candidates)):
+            if table is None:
+                continue
+            if not isinstance(table, Mapping):
+                raise DataError(
+                    f"fit setting {what} = {table!r}: give a table of coefficient = "
+                    '[["name", "expression"], ...]'
+                )
+            for c, terms in table.items():
+                if c not in COEFFICIENTS:
+                    raise DataError(f"{what}: unknown coefficient '{c}'; use {list(COEFFICIENTS)}")
+                ok = isinstance(terms, Sequence) and not isinstance(terms, str) and all(
+                    isinstance(t, Sequence) and not isinstance(t, str) and len(t) == 2
+                    and all(isinstance(x, str) and x.strip() for x in t)
+                    for t in terms
+                )  # fmt: skip
+                if not ok:
+                    raise DataError(
+                        f'{what} {c} = {terms!r}: give a list of ["name", "expression"] '
+                        "pairs of strings"
+                    )
+                names = [t[0] for t in terms]
+                twice = sorted({n for n in names if names.count(n) > 1})
+                if twice:
+                    raise DataError(
+                        f"{what} {c}: term name(s) {', '.join(twice)} given twice; name each "
+                        "term once"
+                    )
 
     @classmethod
     def from_toml(cls, path: str | Path) -> FitConfig:
@@ -327,27 +430,89 @@ class FitConfig:
 
         The file may hold the scalar settings at top level, ``[structures]`` and
         ``[candidates]`` tables of ``coefficient = [["name", "expression"], ...]``;
-        ``[stall_alpha_deg]`` maps flap (as a string key) to alpha.
+        ``[stall_alpha_deg]`` maps flap (as a string key) to alpha; ``alpha_l_deg``,
+        ``alpha_u_deg`` and ``band_hz`` take one value or a table (per flap, per coefficient).
+
+        Raises
+        ------
+        DataError
+            Naming the file and the setting (a file that cannot be read, a setting that is
+            unknown, of the wrong type or out of range).
+        InvalidInputError
+            A regressor expression the engine cannot parse (too deep, unknown function),
+            naming the file, coefficient and term.
         """
         p = Path(path)
-        try:
-            raw = tomllib.loads(p.read_text())
-        except (OSError, tomllib.TOMLDecodeError) as e:
-            raise DataError(f"{p}: cannot read the fit configuration: {e}") from e
+        raw, _ = read_toml(p, "fit configuration")
         kwargs: dict[str, Any] = {}
         known = set(cls.__dataclass_fields__)
         for k, v in raw.items():
             if k not in known:
                 raise DataError(f"{p}: unknown setting '{k}'; valid settings are {sorted(known)}")
-            if k in ("structures", "candidates"):
-                kwargs[k] = {c: [tuple(t) for t in terms] for c, terms in v.items()}
-            elif k in ("selection", "band_hz", "max_vif"):
-                kwargs[k] = None if str(v).lower() == "none" else v
-            elif k == "stall_alpha_deg":
-                kwargs[k] = {float(f): float(a) for f, a in v.items()}
+            if k in ("structures", "candidates") and isinstance(v, dict):
+                kwargs[k] = {
+                    c: [tuple(t) if isinstance(t, list) else t for t in terms]
+                    if isinstance(terms, list)
+                    else terms
+                    for c, terms in v.items()
+                }
+            elif k in ("selection", "band_hz", "max_vif") and isinstance(v, str):
+                kwargs[k] = None if v.lower() == "none" else v
+            elif k in ("stall_alpha_deg", "alpha_l_deg", "alpha_u_deg") and isinstance(v, dict):
+                kwargs[k] = {_flap_key(p, k, f): a for f, a in v.items()}
             else:
                 kwargs[k] = v
-        return cls(**kwargs)
+        try:
+            cfg = cls(**kwargs)
+        except DataError as e:
+            raise DataError(f"{p}: {e}") from None
+        for what in ("structures", "candidates"):
+            table = getattr(cfg, what) if what in raw else None
+            if table:
+                _parse_regressors(table, f"{p} [{what}]")
+        return cfg
+
+
+def _flap_key(path: Path, setting: str, key: str) -> float:
+    """A flap setting written as a TOML key (``"10.0" = 17.5``)."""
+    try:
+        flap = float(key)
+    except ValueError:
+        flap = math.nan
+    if not math.isfinite(flap):
+        raise DataError(
+            f"{path}: [{setting}] key '{key}' is not a flap setting in deg; write e.g. "
+            '"10.0" = 17.5'
+        )
+    return flap
+
+
+def _parse_regressors(table: Mapping[str, Sequence[tuple[str, str]]], source: str) -> None:
+    """Parse every regressor of ``table`` with the engine (as a model holding them as terms):
+    an expression it cannot read is refused where it was written, before any data is read.
+
+    Raises
+    ------
+    InvalidInputError
+        From the engine, naming ``source``, the coefficient and the term.
+    """
+    import json  # noqa: PLC0415
+
+    coefs = {
+        c: {
+            "terms": [
+                {"name": n, "regressor": e, "alpha_deg": [0.0, 1.0], "values": [[0.0, 0.0]]}
+                for n, e in terms
+            ],
+            "alpha_l_deg": [0.0],
+            "alpha_u_deg": [1.0],
+        }
+        for c, terms in table.items()
+        if terms
+    }
+    if coefs:
+        spec = {"schema": SCHEMA, "flaps_deg": [0.0], "coefficients": coefs}
+        _core.DeltaModel.from_json(json.dumps(spec), source)
 
 
 #: Settings of :class:`FitConfig` by type, for its check.
@@ -381,7 +546,7 @@ def model_frame(data: pl.DataFrame) -> pl.DataFrame:
     for a in ("alpha", "beta"):
         cg = f"{a}_cg_deg"
         if cg in out.columns:
-            out = out.drop(f"{a}_deg").rename({cg: f"{a}_deg"})
+            out = out.drop(f"{a}_deg", strict=False).rename({cg: f"{a}_deg"})
     return out
 
 

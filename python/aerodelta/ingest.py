@@ -169,41 +169,64 @@ def ingest(  # noqa: PLR0917
         else ChannelMap.from_toml(channel_map)
     )
     man: pl.DataFrame | None
+    man_name = "manifest"
     if isinstance(manifest, pl.DataFrame):
         man = manifest
     elif manifest is not None:
-        man = read_manifest(manifest)
+        man, man_name = read_manifest(manifest), str(manifest)
     elif isinstance(data, (str, Path)) and (Path(data) / "manifest.csv").is_file():
-        man = read_manifest(Path(data) / "manifest.csv")
+        man_name = str(Path(data) / "manifest.csv")
+        man = read_manifest(man_name)
     else:
         man = None
-    sources = find_records(list(data) if isinstance(data, (list, tuple)) else data, man)
+    sources = find_records(list(data) if isinstance(data, (list, tuple)) else data, man, man_name)
     frames: list[pl.DataFrame] = []
     kept: list[tuple[str, int]] = []
     reports: list[ValidationReport] = []
 
     def lazy(path: Path) -> pl.LazyFrame:
         lf = scan_record(path)
-        if cmap is not None:
-            return cmap.apply(lf, str(path))
-        return lf.select(cs.by_name(*CHANNELS, "maneuver_id", require_all=False))
+        try:
+            if cmap is not None:
+                return cmap.apply(lf, str(path))
+            return lf.select(cs.by_name(*CHANNELS, "maneuver_id", require_all=False))
+        except pl.exceptions.PolarsError as e:
+            raise read_error(path, e, cmap) from e
 
     # files holding several maneuvers are read once and split by maneuver_id
     multi: dict[Path, dict[str, pl.DataFrame]] = {}
 
     def split(path: Path) -> dict[str, pl.DataFrame]:
         if path not in multi:
-            df = lazy(path).with_columns(pl.col("maneuver_id").cast(pl.Utf8)).collect()
+            try:
+                df = lazy(path).with_columns(pl.col("maneuver_id").cast(pl.Utf8)).collect()
+            except pl.exceptions.PolarsError as e:
+                raise read_error(path, e, cmap) from e
             parts = df.partition_by("maneuver_id", as_dict=True, maintain_order=True)
             multi[path] = {str(k[0]): g for k, g in parts.items()}
         return multi[path]
 
+    def collect_singles(part: Sequence[RecordSource]) -> list[pl.DataFrame]:
+        paths = [s.path for s in part if not s.multi]
+        lfs = [lazy(p) for p in paths]
+        try:
+            return pl.collect_all(lfs)
+        except pl.exceptions.PolarsError as e:  # name the file: read them one by one
+            for p, lf in zip(paths, lfs, strict=True):
+                try:
+                    lf.collect()
+                except pl.exceptions.PolarsError as e1:
+                    raise read_error(p, e1, cmap) from e1
+            raise DataError(f"cannot read the records: {_first_line(e)}") from e
+
+    if not sources:
+        raise DataError(f"{data}: no maneuver to ingest")
     bar = tqdm(total=len(sources), desc="ingest", unit="maneuver", disable=not progress)
     raws: list[pl.DataFrame] = []
     chunk = 64  # single-maneuver files read in parallel by one polars collect_all
     for i0 in range(0, len(sources), chunk):
         part = sources[i0 : i0 + chunk]
-        singles = iter(pl.collect_all([lazy(s.path) for s in part if not s.multi]))
+        singles = iter(collect_singles(part))
         for s in part:
             raw = split(s.path)[s.maneuver_id] if s.multi else next(singles)
             raws.append(raw.drop("maneuver_id") if "maneuver_id" in raw.columns else raw)
@@ -224,6 +247,8 @@ def ingest(  # noqa: PLR0917
     errors = [f for r in reports for f in r.errors]
     if errors:
         lines = summarise(errors)
+        if len(lines) == 1:  # one problem (or one repeated alike): one line
+            raise DataError(lines[0])
         shown = lines[:25]
         more = f"\n... and {len(lines) - 25} more" if len(lines) > 25 else ""
         raise DataError(
@@ -252,7 +277,7 @@ def ingest(  # noqa: PLR0917
             allc = _apply_compat(allc, compat_df)
             out, smoothing = preprocess_frame(allc, ac, smooth=smooth)
             compat_df = compat_df.with_columns(pl.lit(True).alias("applied"))
-    out = _attach_manifest(out, man, reports)
+    out = _attach_manifest(out, man, reports, man_name)
     return IngestResult(out, reports, compat_df, smoothing, plaus_df)
 
 
@@ -518,7 +543,10 @@ def _apply_compat(df: pl.DataFrame, compat: pl.DataFrame) -> pl.DataFrame:
 
 
 def _attach_manifest(
-    out: pl.DataFrame, man: pl.DataFrame | None, reports: list[ValidationReport]
+    out: pl.DataFrame,
+    man: pl.DataFrame | None,
+    reports: list[ValidationReport],
+    man_name: str = "manifest",
 ) -> pl.DataFrame:
     if man is None:
         for r in reports:
@@ -536,9 +564,15 @@ def _attach_manifest(
     meta = man.select("maneuver_id", "flap_deg", "kind", "pusher").rename(
         {"flap_deg": "flap_manifest_deg"}
     )
-    missing = set(out["maneuver_id"].unique()) - set(meta["maneuver_id"])
+    missing = sorted(set(out["maneuver_id"].unique()) - set(meta["maneuver_id"]))
     if missing:
-        raise DataError(f"manifest has no row for maneuver(s) {sorted(missing)}")
+        files = {r.maneuver_id: Path(r.file).name for r in reports}
+        shown = ", ".join(f"{m} ({files.get(m, '?')})" for m in missing[:5])
+        more = f" and {len(missing) - 5} more" if len(missing) > 5 else ""
+        raise DataError(
+            f"{man_name}: no row for maneuver(s) {shown}{more}; add a row per record (or a "
+            "'file' column naming the records to read)"
+        )
     # maneuvers are contiguous: join the manifest on the run values, then repeat each row
     runs = out.select(pl.col("maneuver_id").rle()).unnest("maneuver_id")
     per = runs.select(pl.col("value").alias("maneuver_id")).join(
@@ -556,18 +590,69 @@ def _attach_manifest(
 
 def summarise(findings: Sequence[Finding]) -> list[str]:
     """One line per channel and kind of finding: the first maneuver's message, then how many
-    other maneuvers repeat it and their files (findings of one kind differ only in numbers)."""
-    groups: dict[tuple[str, str, str], list[Finding]] = {}
+    other maneuvers repeat it and their files (findings of one kind differ only in numbers).
+    Findings of one maneuver that differ only in their channel (a row missing every value, a
+    file without the channels) are one line naming the channels."""
+    merged: dict[tuple[str, str, str, str, str], list[Finding]] = {}
     for f in findings:
-        key = (f.severity, f.channel, re.sub(r"[-+]?\d[\d.eE+-]*", "#", f.message))
-        groups.setdefault(key, []).append(f)
+        merged.setdefault((f.severity, f.file, f.maneuver_id, f.rows, f.message), []).append(f)
+    groups: dict[tuple[str, str, str], list[tuple[Finding, list[str]]]] = {}
+    for fs in merged.values():
+        chans = [f.channel for f in fs]
+        key = (fs[0].severity, ", ".join(chans), re.sub(r"[-+]?\d[\d.eE+-]*", "#", fs[0].message))
+        groups.setdefault(key, []).append((fs[0], chans))
     lines = []
     for fs in groups.values():
-        first = fs[0]
+        first, chans = fs[0]
+        text = str(first) if len(chans) == 1 else _channels_line(first, chans)
         if len(fs) == 1:
-            lines.append(str(first))
+            lines.append(text)
             continue
-        names = sorted({Path(f.file).name for f in fs})
+        names = sorted({Path(f.file).name for f, _ in fs})
         shown = ", ".join(names[:3]) + (f" and {len(names) - 3} more" if len(names) > 3 else "")
-        lines.append(f"{first} [and {len(fs) - 1} more maneuver(s) alike; files: {shown}]")
+        lines.append(f"{text} [and {len(fs) - 1} more maneuver(s) alike; files: {shown}]")
     return lines
+
+
+def _channels_line(f: Finding, channels: list[str]) -> str:
+    rows = f", rows {f.rows}" if f.rows else ""
+    shown = ", ".join(channels[:6]) + (
+        f" and {len(channels) - 6} more" if len(channels) > 6 else ""
+    )
+    return f"{f.file} [{f.maneuver_id}] {len(channels)} channels ({shown}){rows}: {f.message}"
+
+
+def _first_line(e: BaseException) -> str:
+    text = str(e).strip()
+    return text.splitlines()[0] if text else type(e).__name__
+
+
+def read_error(path: Path, e: Exception, cmap: ChannelMap | None = None) -> DataError:
+    """A polars error reading the record ``path`` as one line naming the file; a cell that is
+    not a number is located (column and row) by reading the file as text."""
+    msg = _first_line(e)
+    if path.suffix.lower() == ".csv" and re.search(r"conver|parse|could not", msg):
+        try:
+            text = pl.read_csv(path, infer_schema=False)
+        except pl.exceptions.PolarsError:
+            text = None
+        if text is not None:
+            wanted = set(CHANNELS) | ({x.source for x in cmap.entries} if cmap else set())
+            for c in text.columns:
+                if c not in wanted:
+                    continue
+                s = text[c].str.strip_chars()
+                bad = np.flatnonzero(
+                    (
+                        s.is_not_null() & (s != "") & s.cast(pl.Float64, strict=False).is_null()
+                    ).to_numpy()
+                )
+                if bad.size:
+                    r = int(bad[0])
+                    n = f" ({bad.size} cells in this column)" if bad.size > 1 else ""
+                    return DataError(
+                        f"{path}: column '{c}', row {r} (line {r + 2} of the file): "
+                        f"{text[c][r]!r} is not a number{n}; fix or clear the cell"
+                    )
+    hint = " (check the records against the channel map)" if cmap is not None else ""
+    return DataError(f"{path}: cannot read the record: {msg}{hint}")

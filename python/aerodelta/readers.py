@@ -8,6 +8,9 @@ Parquet) has ``maneuver_id, flap_deg, kind, pusher`` plus free metadata and opti
 
 from __future__ import annotations
 
+import os
+import re
+from collections import Counter
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -34,15 +37,39 @@ def scan_record(path: str | Path) -> pl.LazyFrame:
     """
     path = Path(path)
     suffix = path.suffix.lower()
+    if path.is_dir():
+        raise DataError(f"{path}: is a folder, not a record file")
     if not path.is_file():
         raise DataError(f"{path}: record file not found")
+    if suffix not in RECORD_SUFFIXES:
+        raise DataError(
+            f"{path}: unsupported record format '{suffix}' (use .csv, .parquet or .mat)"
+        )
+    if path.stat().st_size == 0:
+        raise DataError(f"{path}: cannot read the record: the file is empty (0 bytes)")
     if suffix == ".parquet":
         return pl.scan_parquet(path)
     if suffix == ".csv":
+        _check_csv_header(path)
         return pl.scan_csv(path, infer_schema_length=10000)
-    if suffix == ".mat":
-        return _read_mat(path).lazy()
-    raise DataError(f"{path}: unsupported record format '{suffix}' (use .csv, .parquet or .mat)")
+    return _read_mat(path).lazy()
+
+
+def _check_csv_header(path: Path) -> None:
+    """Refuse a CSV header that names a column twice (polars would rename the second copy and
+    read the first as the channel, silently)."""
+    with path.open("rb") as f:
+        head = f.readline(1 << 20)
+    names = [
+        n.strip().strip('"').strip()
+        for n in head.decode("utf-8", errors="replace").lstrip("\ufeff").rstrip("\r\n").split(",")
+    ]
+    twice = sorted(n for n, k in Counter(names).items() if k > 1)
+    if twice:
+        raise DataError(
+            f"{path}: the header names column(s) {', '.join(repr(n) for n in twice)} more than "
+            "once; keep one column per name"
+        )
 
 
 def _read_mat(path: Path) -> pl.DataFrame:
@@ -53,7 +80,7 @@ def _read_mat(path: Path) -> pl.DataFrame:
     try:
         raw = loadmat(path, squeeze_me=True, struct_as_record=False)
     except Exception as e:
-        raise DataError(f"{path}: cannot read MATLAB file: {e}") from e
+        raise DataError(f"{path}: cannot read MATLAB file: {_first_line(e)}") from e
     vars_ = {k: v for k, v in raw.items() if not k.startswith("__")}
     if len(vars_) == 1:
         (only,) = vars_.values()
@@ -90,16 +117,42 @@ def read_manifest(path: str | Path) -> pl.DataFrame:
         Missing columns, duplicate ids, unknown kinds or non-boolean pusher values, naming rows.
     """
     path = Path(path)
+    if path.is_dir():
+        raise DataError(f"{path}: is a folder; give the manifest file (CSV or Parquet)")
     if not path.is_file():
         raise DataError(f"{path}: manifest not found")
-    df = pl.read_parquet(path) if path.suffix.lower() == ".parquet" else pl.read_csv(path)
+    text_cols = ("maneuver_id", "kind", "pusher", "file", "flap_deg")
+    try:
+        if path.suffix.lower() == ".parquet":
+            df = pl.read_parquet(path)
+        else:
+            header = pl.scan_csv(path, infer_schema_length=0).collect_schema().names()
+            df = pl.read_csv(path, schema_overrides={c: pl.Utf8 for c in text_cols if c in header})
+    except (pl.exceptions.PolarsError, OSError, ValueError) as e:
+        raise DataError(f"{path}: cannot read the manifest: {_first_line(e)}") from e
     missing = [c for c in ("maneuver_id", "flap_deg", "kind", "pusher") if c not in df.columns]
     if missing:
-        raise DataError(f"{path}: manifest lacks column(s) {', '.join(missing)}")
+        raise DataError(
+            f"{path}: manifest lacks column(s) {', '.join(missing)} (it needs maneuver_id, "
+            "flap_deg, kind, pusher; docs/data.md)"
+        )
+    if df.height == 0:
+        raise DataError(f"{path}: the manifest lists no maneuver (no rows below the header)")
+    ids = df["maneuver_id"].cast(pl.Utf8).str.strip_chars()
+    empty = np.flatnonzero((ids.is_null() | (ids == "")).to_numpy())
+    if empty.size:
+        raise DataError(f"{path}: column 'maneuver_id', rows {_rows(empty)}: empty")
+    flap_text = df["flap_deg"].cast(pl.Utf8).str.strip_chars()
+    flap = flap_text.cast(pl.Float64, strict=False)
+    bad_flap = np.flatnonzero((flap.is_null() | flap.is_nan() | flap.is_infinite()).to_numpy())
+    if bad_flap.size:
+        shown = sorted({str(v) for v in flap_text.gather(bad_flap).to_list()})[:5]
+        raise DataError(
+            f"{path}: column 'flap_deg', rows {_rows(bad_flap)}: {', '.join(shown)} is not a "
+            "flap angle in deg; give a number in every row"
+        )
     df = df.with_columns(
-        pl.col("maneuver_id").cast(pl.Utf8),
-        pl.col("flap_deg").cast(pl.Float64),
-        pl.col("kind").cast(pl.Utf8),
+        ids.alias("maneuver_id"), flap.alias("flap_deg"), pl.col("kind").cast(pl.Utf8)
     )
     dup = df.filter(pl.col("maneuver_id").is_duplicated())
     if dup.height:
@@ -107,22 +160,38 @@ def read_manifest(path: str | Path) -> pl.DataFrame:
             f"{path}: duplicated maneuver_id {sorted(set(dup['maneuver_id']))} "
             f"(rows {_rows(np.flatnonzero(df['maneuver_id'].is_duplicated().to_numpy()))})"
         )
-    bad_kind = np.flatnonzero(~df["kind"].is_in(KINDS).to_numpy())
+    bad_kind = np.flatnonzero(~df["kind"].is_in(KINDS).fill_null(False).to_numpy())
     if bad_kind.size:
         raise DataError(
             f"{path}: column 'kind', rows {_rows(bad_kind)}: unknown kind(s) "
-            f"{sorted(set(df['kind'].gather(bad_kind)))}; allowed: {', '.join(KINDS)}"
+            f"{sorted({str(k) for k in df['kind'].gather(bad_kind)})}; allowed: {', '.join(KINDS)}"
         )
     pusher = df["pusher"]
-    if pusher.dtype != pl.Boolean:
-        s = pusher.cast(pl.Utf8).str.to_lowercase()
-        truthy = s.is_in(["true", "1", "yes"])
-        falsy = s.is_in(["false", "0", "no"])
+    if pusher.dtype != pl.Boolean or pusher.null_count():
+        s = pusher.cast(pl.Utf8).str.strip_chars().str.to_lowercase()
+        truthy = s.is_in(["true", "1", "yes"]).fill_null(False)
+        falsy = s.is_in(["false", "0", "no"]).fill_null(False)
         bad = np.flatnonzero(~(truthy | falsy).to_numpy())
         if bad.size:
-            raise DataError(f"{path}: column 'pusher', rows {_rows(bad)}: not true/false")
+            raise DataError(
+                f"{path}: column 'pusher', rows {_rows(bad)}: not true/false (also 1/0, yes/no)"
+            )
         df = df.with_columns(truthy.alias("pusher"))
+    if "file" in df.columns:
+        f = df["file"].cast(pl.Utf8).str.strip_chars()
+        empty = np.flatnonzero((f.is_null() | (f == "")).to_numpy())
+        if empty.size:
+            raise DataError(
+                f"{path}: column 'file', rows {_rows(empty)}: empty; give each maneuver's record "
+                "file (relative to the campaign folder), or drop the column"
+            )
+        df = df.with_columns(f.alias("file"))
     return df
+
+
+def _first_line(e: BaseException) -> str:
+    text = str(e).strip()
+    return text.splitlines()[0] if text else type(e).__name__
 
 
 def _rows(idx: np.ndarray | list[int]) -> str:
@@ -154,13 +223,21 @@ class RecordSource:
 
 
 def find_records(
-    data: str | Path | list[str | Path], manifest: pl.DataFrame | None = None
+    data: str | Path | list[str | Path],
+    manifest: pl.DataFrame | None = None,
+    manifest_name: str = "manifest",
 ) -> list[RecordSource]:
     """List the maneuvers in a campaign folder, a file, or a list of files.
 
-    A folder with a manifest that has a ``file`` column uses it; otherwise every record file
-    in the folder and its ``records/`` subfolder is one maneuver named by its stem, or several
-    when it has a ``maneuver_id`` column.
+    A folder with a manifest that has a ``file`` column uses it (paths relative to the folder,
+    never outside it); otherwise every record file in the folder and its ``records/`` subfolder
+    is one maneuver named by its stem, or several when it has a ``maneuver_id`` column.
+
+    Raises
+    ------
+    DataError
+        A manifest path that is absolute or leaves the folder, or names no record file
+        (``manifest_name`` and the row named); a record whose columns cannot be read.
     """
     if isinstance(data, (list, tuple)):
         files = [Path(p) for p in data]
@@ -173,8 +250,10 @@ def find_records(
             base = d
             if manifest is not None and "file" in manifest.columns:
                 return [
-                    RecordSource(str(mid), d / str(f))
-                    for mid, f in zip(manifest["maneuver_id"], manifest["file"], strict=False)
+                    RecordSource(str(mid), _manifest_file(d, str(f), i, manifest_name))
+                    for i, (mid, f) in enumerate(
+                        zip(manifest["maneuver_id"], manifest["file"], strict=True)
+                    )
                 ]
             files = sorted(
                 p
@@ -190,10 +269,34 @@ def find_records(
     out: list[RecordSource] = []
     for f in files:
         lf = scan_record(f)
-        if "maneuver_id" in lf.collect_schema().names():
-            ids = lf.select(pl.col("maneuver_id").cast(pl.Utf8).unique(maintain_order=True))
-            for mid in ids.collect()["maneuver_id"]:
-                out.append(RecordSource(str(mid), f, multi=True))
+        try:
+            names = lf.collect_schema().names()
+            if "maneuver_id" in names:
+                ids = lf.select(pl.col("maneuver_id").cast(pl.Utf8).unique(maintain_order=True))
+                mids = ids.collect()["maneuver_id"].to_list()
+        except pl.exceptions.PolarsError as e:
+            raise DataError(f"{f}: cannot read the record: {_first_line(e)}") from e
+        if "maneuver_id" in names:
+            out.extend(RecordSource(str(mid), f, multi=True) for mid in mids)
         else:
             out.append(RecordSource(f.stem, f))
     return out
+
+
+_PARENT = re.compile(r"(^|[\\/])\.\.([\\/]|$)")
+
+
+def _manifest_file(folder: Path, rel: str, row: int, manifest_name: str) -> Path:
+    """The record file a manifest row names, confined to the campaign folder."""
+    where = f"{manifest_name}: column 'file', row {row}"
+    if os.path.isabs(rel) or rel.startswith(("/", "\\")) or _PARENT.search(rel):
+        raise DataError(
+            f"{where}: '{rel}' is outside the campaign folder {folder}; give the record's path "
+            "relative to that folder, without '..' (copy or link the record into it)"
+        )
+    p = folder / rel
+    if p.is_dir():
+        raise DataError(f"{where}: '{rel}' is a folder in {folder}, not a record file")
+    if not p.is_file():
+        raise DataError(f"{where}: '{rel}' not found in the campaign folder {folder}")
+    return p

@@ -52,7 +52,8 @@ class Finding:
 
     def __str__(self) -> str:
         rows = f", rows {self.rows}" if self.rows else ""
-        return f"{self.file} [{self.maneuver_id}] channel '{self.channel}'{rows}: {self.message}"
+        where = f" channel '{self.channel}'" if self.channel else ""
+        return f"{self.file} [{self.maneuver_id}]{where}{rows}: {self.message}"
 
 
 @dataclass
@@ -135,6 +136,16 @@ def validate(
     """
     rep = ValidationReport(file, maneuver_id)
     cols = set(df.columns)
+    if not cols & set(REQUIRED):
+        rep.add(
+            "error",
+            "",
+            "",
+            f"no column is a channel of the canonical schema (none named {', '.join(REQUIRED[:4])}"
+            ", ...; docs/data.md): give a channel map for the file's own column names "
+            "(aerodelta map-template writes one), or check that it is comma-separated",
+        )
+        return df, rep
     for c in REQUIRED:
         if c not in cols:
             rep.add("error", c, "", "required channel missing; map it in the channel map")
@@ -150,6 +161,7 @@ def validate(
     if n < 20:
         rep.add("error", "t", "", f"{n} samples; a maneuver needs at least 20")
         return df, rep
+    df = _numeric_channels(df, rep)
     names = [c for c in df.columns if c in CHANNELS]
     # one 2-D copy; the checks below run column-wise on it and loop only over columns at fault
     if names == df.columns and all(t == pl.Float64 for t in df.schema.values()):
@@ -237,6 +249,73 @@ def validate(
     return df, rep
 
 
+def _numeric_channels(df: pl.DataFrame, rep: ValidationReport) -> pl.DataFrame:
+    """Channels of a type other than a number refused (text cells named by row, true/false,
+    lists); numbers stored as text converted. The refused columns are dropped."""
+    refused = []
+    as_text = []
+    for c, dtype in df.schema.items():
+        if c not in CHANNELS or dtype.is_numeric():
+            continue
+        if dtype == pl.Utf8:
+            s = df[c].str.strip_chars()
+            num = s.cast(pl.Float64, strict=False)
+            bad = np.flatnonzero((s.is_not_null() & (s != "") & num.is_null()).to_numpy())
+            if not bad.size:
+                as_text.append(c)
+                continue
+            rep.add(
+                "error",
+                c,
+                _rows(bad),
+                f"{bad.size} cell(s) are not numbers (the first: {s[int(bad[0])]!r}); fix or "
+                "clear them",
+            )
+        else:
+            what = "true/false" if dtype == pl.Boolean else f"{dtype}"
+            rep.add(
+                "error", c, "", f"holds {what} values, not numbers; give the channel as numbers"
+            )
+        refused.append(c)
+    if as_text:
+        df = df.with_columns(
+            pl.col(c).str.strip_chars().cast(pl.Float64, strict=False) for c in as_text
+        )
+    return df.drop(refused) if refused else df
+
+
+#: Median sample intervals outside which the time cannot be in seconds, s.
+_DT_RANGE = (1e-4, 0.5)
+
+
+def _time_unit_check(t: np.ndarray, rep: ValidationReport) -> None:
+    """Refuse a median time step no flight test record has in seconds (10 Hz-10 kHz)."""
+    if len(t) < 2:
+        return
+    with np.errstate(invalid="ignore"):
+        dt = float(np.nanmedian(np.diff(t)))
+    if not np.isfinite(dt) or dt <= 0.0:
+        return
+    if dt > _DT_RANGE[1]:
+        rep.add(
+            "error",
+            "t",
+            "",
+            f"median time step {dt:.4g} s ({1.0 / dt:.3g} Hz), far slower than flight test "
+            'records: the time looks like milliseconds declared as seconds; declare unit = "ms" '
+            "for t in the channel map",
+        )
+    elif dt < _DT_RANGE[0]:
+        rep.add(
+            "error",
+            "t",
+            "",
+            f"median time step {dt:.3g} s ({1.0 / dt:.3g} Hz), far faster than flight test "
+            "records: the time looks like seconds declared in a smaller unit; declare its unit "
+            "in the channel map",
+        )
+
+
 def _unit_checks(
     data: dict[str, np.ndarray],
     rep: ValidationReport,
@@ -245,6 +324,8 @@ def _unit_checks(
 ) -> None:
     """Refuse unit errors that the data betrays (``finite``: every required channel known to
     be finite; ``az_median``: the median of az when already known)."""
+    if "t" in data:
+        _time_unit_check(data["t"], rep)
     if finite is None:
         finite = all(np.isfinite(data[c]).all() for c in data if c in REQUIRED)
     a = data.get("alpha_deg")
@@ -499,7 +580,8 @@ def screen_many(
         x = cols.get(c)
         if x is None:
             continue
-        ptp = np.maximum.reduceat(x, starts) - np.minimum.reduceat(x, starts)
+        with np.errstate(invalid="ignore"):  # inf - inf: the finite check refuses those
+            ptp = np.maximum.reduceat(x, starts) - np.minimum.reduceat(x, starts)
         same = np.concatenate((np.diff(x) == 0.0, [False]))
         same[starts[1:] - 1] = False
         repeats = np.add.reduceat(same.view(np.int8).astype(np.int64), starts)

@@ -10,6 +10,7 @@ import argparse
 import importlib
 import sys
 from collections.abc import Sequence
+from typing import NoReturn
 
 from aerodelta import __version__
 from aerodelta.exceptions import AerodeltaError
@@ -37,9 +38,34 @@ _register("validate", "validate")
 _register("map-template", "map_template")
 
 
+def cli_wording(message: str, command: str) -> str:
+    """A message's advice in the command line's terms (the library's messages name the Python
+    API's arguments)."""
+    interp = (
+        "give --allow-interpolation"
+        if command == "ingest"
+        else "run aerodelta ingest --allow-interpolation and give its output folder"
+    )
+    for api, cli in (
+        ("pass allow_interpolation=True", interp),
+        ("pass apply_compat=True", "ingest with --apply-compat"),
+        ("pass overwrite=True", "give --overwrite"),
+        ("pass aircraft=PATH (TOML)", "give --aircraft FILE (TOML)"),
+    ):
+        message = message.replace(api, cli)
+    return message
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse, with a refused command line as one line (no usage block above it)."""
+
+    def error(self, message: str) -> NoReturn:
+        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser with every registered subcommand."""
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="aerodelta",
         description="Extend a simulator's aero model into stall from flight test data; "
         "diagnose the sim-to-real gap.",
@@ -51,14 +77,16 @@ def build_parser() -> argparse.ArgumentParser:
         mod = importlib.import_module(f"aerodelta.cli.{modname}")
         p = sub.add_parser(name, help=mod.HELP, description=mod.__doc__)
         mod.add_arguments(p)
-        p.set_defaults(_run=mod.run)
+        p.set_defaults(_run=mod.run, _parser=p)
     return parser
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``aerodelta`` command; returns the exit status."""
     parser = build_parser()
-    args = parser.parse_args(argv)
+    args, extra = parser.parse_known_args(argv)
+    if extra:  # named by the subcommand's parser, in its words
+        getattr(args, "_parser", parser).error(f"unrecognized arguments: {' '.join(extra)}")
     if getattr(args, "_run", None) is None:
         parser.print_help(sys.stderr)
         return 2
@@ -67,7 +95,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     except (AerodeltaError, OSError) as e:
         if args.debug:
             raise
-        print(f"aerodelta {args.command}: error: {e}", file=sys.stderr)
+        print(
+            f"aerodelta {args.command}: error: {cli_wording(str(e), args.command)}", file=sys.stderr
+        )
         return 1
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)

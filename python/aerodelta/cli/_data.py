@@ -18,6 +18,9 @@ The other files an ingest output holds (``compat.csv``, ``smoothing.csv``,
 from __future__ import annotations
 
 import argparse
+import shutil
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -28,6 +31,7 @@ if TYPE_CHECKING:
     import polars as pl
 
     from aerodelta.ingest import IngestResult
+    from aerodelta.model import DeltaModel
 
 #: Files ``aerodelta ingest`` writes beside ``data.parquet``.
 INGEST_FILES = ("data.parquet", "validation.json", "smoothing.csv", "compat.csv")
@@ -133,6 +137,30 @@ def existing_file(value: str | None, option: str) -> Path | None:
     if not p.is_file():
         raise InvalidInputError(f"{option} {p}: file not found")
     return p
+
+
+def load_model(value: str | Path, option: str = "--model") -> DeltaModel:
+    """A Δ model file (``aerodelta fit`` output) for a command: it exists, loads, and corrects
+    the coefficients the commands know (Cl, Cn, CY).
+
+    Raises
+    ------
+    InvalidInputError, ParseError
+        The option or the file named.
+    """
+    from aerodelta.fit import COEFFICIENTS  # noqa: PLC0415
+    from aerodelta.model import DeltaModel  # noqa: PLC0415
+
+    p = existing_file(str(value), option)
+    assert p is not None
+    model = DeltaModel.load(p)
+    unknown = [c for c in model.coefficients if c not in COEFFICIENTS]
+    if unknown:
+        raise InvalidInputError(
+            f"{option} {p}: corrects coefficient(s) {', '.join(unknown)}; an aerodelta model "
+            f"corrects {', '.join(COEFFICIENTS)}"
+        )
+    return model
 
 
 def _is_ingested_parquet(p: Path) -> bool:
@@ -342,14 +370,91 @@ def output_file(value: str, option: str = "--out", example: str = "model.json") 
 
 
 def maneuver_ids(spec: str, option: str = "--held-out") -> list[str]:
-    """Ids from ``a,b,c`` or ``@FILE`` (one per line, ``#`` comments)."""
+    """Ids from ``a,b,c`` or ``@FILE`` (one per line, ``#`` comments); an empty ``spec`` is no
+    selection (``[]``), a spec naming no id is refused."""
+    if not spec:
+        return []
     if spec.startswith("@"):
         path = Path(spec[1:])
+        if path.is_dir():
+            raise InvalidInputError(f"{option} @{path}: is a folder; give a file of ids")
         if not path.is_file():
             raise InvalidInputError(f"{option} @{path}: file not found")
         try:
             lines = path.read_text(encoding="utf-8").splitlines()
         except UnicodeDecodeError as e:
             raise InvalidInputError(f"{option} @{path}: not a UTF-8 text file") from e
-        return [x.split("#")[0].strip() for x in lines if x.split("#")[0].strip()]
-    return [x.strip() for x in spec.split(",") if x.strip()]
+        ids = [x.split("#")[0].strip() for x in lines if x.split("#")[0].strip()]
+    else:
+        ids = [x.strip() for x in spec.split(",") if x.strip()]
+    if not ids:
+        raise InvalidInputError(
+            f"{option} {spec}: names no maneuver; give ids as a,b,c or @FILE (one per line)"
+        )
+    return ids
+
+
+@contextmanager
+def created(folder: Path) -> Iterator[Path]:
+    """Create ``folder`` (and missing parents) for a command's outputs; if the command fails
+    before it returns, the folders created here are removed with what was written into them,
+    so a refused or interrupted command leaves nothing half-written. Existing folders (and
+    what they held) are kept."""
+    top = None
+    for p in (folder, *folder.parents):
+        if p.exists():
+            break
+        top = p
+    folder.mkdir(parents=True, exist_ok=True)
+    try:
+        yield folder
+    except BaseException:
+        if top is not None:
+            shutil.rmtree(top, ignore_errors=True)
+        raise
+
+
+def check_outputs(
+    src: DataSource | None,
+    option: str,
+    *,
+    folder: Path | None = None,
+    files: Sequence[Path] = (),
+    inputs: Sequence[Path | None] = (),
+) -> None:
+    """Refuse outputs that would overwrite an input file, or land where the campaign's records
+    are read from (``DATA`` and ``DATA/records``: a CSV or Parquet output there would be read
+    as a flight record the next time).
+
+    Raises
+    ------
+    InvalidInputError
+        Naming the option and the file.
+    """
+    from aerodelta.readers import RECORD_SUFFIXES  # noqa: PLC0415
+
+    given = [p for p in inputs if p is not None]
+    if src is not None:
+        given += [p for p in (src.aircraft, src.channel_map, src.manifest) if p is not None]
+        given.append(src.parquet if src.kind == "ingested" else src.path)
+    taken = {p.resolve(): p for p in given if p.exists()}
+    for f in files:
+        if f.resolve() in taken:
+            raise InvalidInputError(
+                f"{option} {f}: would overwrite the input {taken[f.resolve()]}; write the "
+                "output elsewhere"
+            )
+    if src is None or src.kind != "campaign":
+        return
+    reads = {src.path.resolve(), (src.path / "records").resolve()}
+    if folder is not None and folder.resolve() in reads:
+        raise InvalidInputError(
+            f"{option} {folder}: is where the campaign's records are read from; its outputs "
+            "would be read as flight records the next time: write them into a folder of their own"
+        )
+    for f in files:
+        if f.parent.resolve() in reads and f.suffix.lower() in RECORD_SUFFIXES:
+            raise InvalidInputError(
+                f"{option} {f}: writes {f.name} where the campaign's records are read from (it "
+                "would be read as a flight record the next time); write it elsewhere"
+            )

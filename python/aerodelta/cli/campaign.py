@@ -7,6 +7,7 @@ the records (``docs/jsbsim_campaign.md``)."""
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 
 from aerodelta.campaign import effect_library, generate_campaign
@@ -20,8 +21,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``aerodelta campaign``."""
     parser.add_argument(
         "--effects",
-        default="default",
-        help="truth effects: 'default', 'none', or name[=magnitude],... (1 = design magnitude)",
+        help="truth effects: 'default' (the default), 'none', or name[=magnitude],... (1 = design "
+        "magnitude)",
     )
     parser.add_argument("--seed", type=int, default=0, help="campaign seed (same seed, same files)")
     parser.add_argument("--quick", action="store_true", help="40 maneuvers instead of 200")
@@ -40,10 +41,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="builtin ADX-37 truth aircraft, or a JSBSim aircraft (pip install "
         "'aerodelta[jsbsim]')",
     )
-    parser.add_argument("--aircraft", default="f15", help="JSBSim aircraft (f15, DHC6)")
+    parser.add_argument("--aircraft", help="JSBSim aircraft (f15, the default, or DHC6)")
     parser.add_argument(
         "--withhold",
-        default="default",
         help="JSBSim: lateral terms the qualified model freezes past --withhold-alpha "
         "(comma list of XML term names, 'default' or 'none'; --list-terms)",
     )
@@ -79,6 +79,7 @@ def run(args: argparse.Namespace) -> int:
             print(f"{e['name']:24s} {e['kind']:12s} {where:22s} {terms}")
             print(f"{'':24s} {e['description']}")
         return 0
+    _check_options(args)
     if args.simulator == "jsbsim":
         return _run_jsbsim(args)
     if not args.out:
@@ -87,7 +88,7 @@ def run(args: argparse.Namespace) -> int:
     _check_out(args)
     info = generate_campaign(
         args.out,
-        effects=args.effects,
+        effects="default" if args.effects is None else args.effects,
         seed=args.seed,
         size="quick" if args.quick else "default",
         noise=args.noise_scale,
@@ -102,6 +103,33 @@ def run(args: argparse.Namespace) -> int:
     eff = ", ".join(f"{k}={v:g}" for k, v in info.effects.items()) or "none"
     print(f"wrote {info.n_maneuvers} maneuvers to {info.path} (seed {info.seed}; effects: {eff})")
     return 0
+
+
+def _check_options(args: argparse.Namespace) -> None:
+    """Refuse values without meaning and options of the other simulator."""
+    for value, option in (
+        (args.noise_scale, "--noise-scale"),
+        (args.excitation, "--excitation"),
+        (args.turbulence, "--turbulence"),
+    ):
+        if value is not None and not (math.isfinite(value) and value >= 0.0):
+            raise InvalidInputError(f"{option} {value:g}: give a finite scale >= 0 (0: none)")
+    if args.turbulence is not None and args.no_turbulence:
+        raise InvalidInputError("--turbulence and --no-turbulence contradict; give one")
+    if args.simulator == "builtin":
+        other = {
+            "--aircraft": args.aircraft,
+            "--withhold": args.withhold,
+            "--withhold-alpha": args.withhold_alpha,
+            "--list-terms": args.list_terms,
+        }
+        needs = "--simulator jsbsim"
+    else:
+        other = {"--effects": args.effects, "--no-rolloff": args.no_rolloff}
+        needs = "--simulator builtin"
+    given = [o for o, v in other.items() if v]
+    if given:
+        raise InvalidInputError(f"{given[0]} applies to {needs} only; drop it or give {needs}")
 
 
 def _check_out(args: argparse.Namespace) -> None:
@@ -120,8 +148,9 @@ def _run_jsbsim(args: argparse.Namespace) -> int:
         lateral_terms,
     )
 
+    aircraft = args.aircraft or "f15"
     if args.list_terms:
-        for t in lateral_terms(args.aircraft):
+        for t in lateral_terms(aircraft):
             flag = "alpha-dependent" if t["alpha_dependent"] else ""
             print(f"{t['name']:12s} {t['coefficient']:3s} {flag}")
         return 0
@@ -131,10 +160,10 @@ def _run_jsbsim(args: argparse.Namespace) -> int:
     _check_out(args)
     info = generate_jsbsim_campaign(
         args.out,
-        aircraft=args.aircraft,
+        aircraft=aircraft,
         seed=args.seed,
         size="quick" if args.quick else "default",
-        withhold=args.withhold,
+        withhold="default" if args.withhold is None else args.withhold,
         withhold_alpha_deg=args.withhold_alpha,
         noise=args.noise_scale,
         turbulence=0.0 if args.no_turbulence or args.turbulence is None else args.turbulence,

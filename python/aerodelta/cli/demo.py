@@ -8,12 +8,14 @@ from __future__ import annotations
 import argparse
 import sys
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import polars as pl
 
+from aerodelta._fsutil import write_atomic
 from aerodelta.campaign import generate_campaign
-from aerodelta.cli._data import check_at_least, output_folder
+from aerodelta.cli._data import check_at_least, created, output_folder
 from aerodelta.diagnosis import diagnose, write_outputs
 from aerodelta.fit import (
     COEFFICIENTS,
@@ -49,6 +51,12 @@ def run(args: argparse.Namespace) -> int:
     check_at_least(args.seed, "--seed", 0)
     check_at_least(args.bootstrap, "--bootstrap", 0)
     out = output_folder(args.out)
+    with created(out):  # a demo stopped part way leaves no folder it made
+        return _demo(args, out, build_report)
+
+
+def _demo(args: argparse.Namespace, out: Path, build_report: Any) -> int:
+    """The demo's steps, writing into ``out``."""
     progress = not args.no_progress
     camp = out / "campaign"
     generate_campaign(
@@ -62,7 +70,7 @@ def run(args: argparse.Namespace) -> int:
     test = data.filter(pl.col("maneuver_id").is_in(held))
     result = fit(train, config=FitConfig(bootstrap=args.bootstrap), progress=progress)
     # the params table first, the model last recording its hash (committed together)
-    result.summary().write_parquet(out / "model.params.parquet")
+    write_atomic(out / "model.params.parquet", result.summary().write_parquet)
     with_params_hash(result.model, out / "model.params.parquet").save(out / "model.json")
     v = validate_model(result.model, test)
     print(

@@ -8,26 +8,37 @@ here), gap_map.csv, effects.csv, shrink.csv and predictions.parquet."""
 from __future__ import annotations
 
 import argparse
-import sys
+import re
 from pathlib import Path
 
+import polars as pl
+
+from aerodelta._exportutil import shown
+from aerodelta._toml import read_toml
 from aerodelta.cli._data import (
     add_data_arguments,
     check_at_least,
     check_open_unit,
+    check_outputs,
     check_share,
+    created,
     existing_file,
-    load_data,
+    load_model,
+    load_records,
     output_folder,
+    resolve_data,
 )
 from aerodelta.diagnosis import DiagnoseConfig, SelectionConfig, diagnose, write_outputs
 from aerodelta.diagnosis.vocabulary import default_vocabulary
 from aerodelta.exceptions import DataError
+from aerodelta.fit import COEFFICIENTS, model_frame
 
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover
-    import tomli as tomllib
+#: Columns the diagnosis adds to the ingested records (zero when absent), which a user
+#: effect may read besides those of ``aerodelta.fit.model_frame``.
+_ADDED = (
+    "kind", "da_deg", "dr_deg", "ds_deg", "ct_left", "ct_right", "alphadot_dps", "betadot_dps",
+    "pdot_dps2", "rdot_dps2", "qbar_pa", "ct_diff",
+)  # fmt: skip
 
 HELP = "diagnose the sim-to-real gap: where, which effect, how far it shrinks"
 
@@ -60,8 +71,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--min-shrink-broad",
         type=float,
-        default=defaults.min_shrink_broad,
-        help="smaller share accepted for a broad effect (signed-rank test at alpha/10)",
+        help="smaller share accepted for a broad effect (signed-rank test at alpha/10; "
+        f"default {defaults.min_shrink_broad:g}, at most --min-shrink)",
     )
     parser.add_argument("--per-flap", action="store_true", help="one alpha curve per flap")
     parser.add_argument("--seed", type=int, default=0, help="seed of folds and tests")
@@ -69,15 +80,71 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--no-progress", action="store_true", help="no progress bars")
 
 
-def _effects(path: str) -> dict:
-    p = Path(path)
-    if not p.is_file():
-        raise DataError(f"--effects {p}: file not found")
-    try:
-        with p.open("rb") as fh:
-            return tomllib.load(fh)
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as e:
-        raise DataError(f"--effects {p}: not valid TOML: {e}") from e
+def _effects(path: str) -> dict[str, dict[str, list[str]]]:
+    """The user effects of ``--effects FILE``, checked: ``[name]`` tables of ``coefficient =
+    ['expression', ...]`` (polars SQL expressions over the records' columns)."""
+    p = existing_file(path, "--effects")
+    assert p is not None
+    doc, _ = read_toml(p, "effects file")
+    if not doc:
+        raise DataError(f"--effects {p}: defines no effect; write [name] Cl = ['expression']")
+    for name, per in doc.items():
+        if not isinstance(per, dict) or not per:
+            raise DataError(
+                f"{p}: effect '{name}': give a table [{name}] of coefficient = ['expression', ...]"
+            )
+        for coef, exprs in per.items():
+            where = f"{p}: effect '{name}', {coef}"
+            if coef not in COEFFICIENTS:
+                raise DataError(
+                    f"{p}: effect '{name}': unknown coefficient '{coef}'; use "
+                    f"{', '.join(COEFFICIENTS)}"
+                )
+            if (
+                not isinstance(exprs, list)
+                or not exprs
+                or not all(isinstance(e, str) and e.strip() for e in exprs)
+            ):
+                raise DataError(f"{where} = {exprs!r}: give a list of expression strings")
+            for e in exprs:
+                try:
+                    pl.sql_expr(e)
+                except Exception as err:  # polars raises several kinds for a bad expression
+                    raise DataError(
+                        f"{where}: '{shown(e)}' is not an expression polars reads "
+                        f"({_first_line(err)[:200]})"
+                    ) from None
+    return doc
+
+
+def _first_line(e: BaseException) -> str:
+    text = str(e).strip()
+    return text.splitlines()[0] if text else type(e).__name__
+
+
+def _check_effect_columns(
+    effects: dict[str, dict[str, list[str]]], path: str, data: pl.DataFrame
+) -> None:
+    """Refuse a user effect that reads a column the records do not have."""
+    names = {*model_frame(data.head(0)).columns, *_ADDED}
+    empty = pl.DataFrame(schema={n: pl.Float64 for n in names})
+    for name, per in effects.items():
+        for coef, exprs in per.items():
+            for e in exprs:
+                try:
+                    empty.select(pl.sql_expr(e))
+                except pl.exceptions.ColumnNotFoundError as err:
+                    m = re.search(r'"([^"]+)"', str(err))
+                    col = m.group(1) if m else _first_line(err)[:80]
+                    raise DataError(
+                        f"{path}: effect '{name}', {coef}: '{shown(e)}' reads '{col}', which "
+                        "is not a column of the ingested records (docs/data.md)"
+                    ) from None
+                except Exception as err:
+                    raise DataError(
+                        f"{path}: effect '{name}', {coef}: '{shown(e)}' cannot be evaluated on "
+                        f"the records ({_first_line(err)[:200]})"
+                    ) from None
 
 
 def _check_options(args: argparse.Namespace) -> None:
@@ -85,7 +152,13 @@ def _check_options(args: argparse.Namespace) -> None:
     check_at_least(args.seed, "--seed", 0)
     check_open_unit(args.alpha, "--alpha", "0.01")
     check_share(args.min_shrink, "--min-shrink", "0.02")
-    check_share(args.min_shrink_broad, "--min-shrink-broad", "0.015")
+    if args.min_shrink_broad is not None:
+        check_share(args.min_shrink_broad, "--min-shrink-broad", "0.015")
+        if args.min_shrink_broad > args.min_shrink:
+            raise DataError(
+                f"--min-shrink-broad {args.min_shrink_broad:g}: the share a broad effect needs "
+                f"is at most --min-shrink ({args.min_shrink:g}); give a smaller value"
+            )
     existing_file(args.model, "--model")
 
 
@@ -101,16 +174,13 @@ def run(args: argparse.Namespace) -> int:
     """Run ``aerodelta diagnose``."""
     _check_options(args)
     out = output_folder(args.out)
-    vocab = default_vocabulary()
-    if args.effects:
-        vocab = vocab.with_user_effects(_effects(args.effects))
+    broad = args.min_shrink_broad
+    if broad is None:  # the default, lowered to a smaller --min-shrink
+        broad = min(SelectionConfig().min_shrink_broad, args.min_shrink)
     cfg = DiagnoseConfig(
         folds=args.folds,
         selection=SelectionConfig(
-            alpha=args.alpha,
-            min_shrink=args.min_shrink,
-            min_shrink_broad=min(args.min_shrink_broad, args.min_shrink),
-            seed=args.seed,
+            alpha=args.alpha, min_shrink=args.min_shrink, min_shrink_broad=broad, seed=args.seed
         ),
         per_flap=args.per_flap,
         seed=args.seed,
@@ -119,7 +189,18 @@ def run(args: argparse.Namespace) -> int:
     for value, option in ((args.data or args.data_option, "DATA"), (args.aircraft, "--aircraft")):
         if value:
             _guard_truth(Path(value), option)
-    data, src = load_data(args, progress=progress, aircraft_with_ingested=True)
+    src = resolve_data(args, aircraft_with_ingested=True)
+    model = existing_file(args.model, "--model")
+    effects_file = existing_file(args.effects, "--effects")
+    check_outputs(src, "--out", folder=out, inputs=[model, effects_file])
+    effects = _effects(args.effects) if args.effects else None
+    if model is not None and model.suffix.lower() == ".json":
+        load_model(model)  # refused here in the command's words, before the data are read
+    data = load_records(src, progress=progress)
+    vocab = default_vocabulary()
+    if effects is not None:
+        _check_effect_columns(effects, args.effects, data)
+        vocab = vocab.with_user_effects(effects)
     d = diagnose(
         data,
         args.model,
@@ -128,7 +209,8 @@ def run(args: argparse.Namespace) -> int:
         aircraft=src.aircraft,
         progress=progress,
     )
-    paths = write_outputs(d.result, d.predictions, out)
+    with created(out):
+        paths = write_outputs(d.result, d.predictions, out)
     print(d.summary())
     print(f"wrote {', '.join(str(p) for p in paths)}")
     return 0

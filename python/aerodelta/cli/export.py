@@ -11,12 +11,19 @@ from __future__ import annotations
 
 import argparse
 import sys
+from contextlib import ExitStack
 
-from aerodelta.cli._data import check_at_least, existing_file, output_file
+from aerodelta.cli._data import (
+    check_at_least,
+    check_outputs,
+    created,
+    existing_file,
+    load_model,
+    output_file,
+)
 from aerodelta.exceptions import DataError
 from aerodelta.export import export_extended_daveml
 from aerodelta.jsbsim import export_jsbsim, jsbsim_properties
-from aerodelta.model import DeltaModel
 
 HELP = "export the extended model to DAVE-ML and/or JSBSim"
 
@@ -61,10 +68,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--side-axis",
-        default="SIDE",
         choices=["SIDE", "Y"],
         help="JSBSim: axis of the side force (SIDE for AXIAL/NORMAL or DRAG/LIFT aircraft, "
-        "Y for X/Y/Z aircraft)",
+        "the default; Y for X/Y/Z aircraft)",
     )
     parser.add_argument(
         "--jsbsim-qualified",
@@ -75,55 +81,90 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--seed", type=int, default=0, help="seed of the sampled check states")
 
 
+def _usage(message: str) -> int:
+    """A refused combination of options: one error line, status 2 (as argparse's)."""
+    print(f"aerodelta export: error: {message} (see aerodelta export --help)", file=sys.stderr)
+    return 2
+
+
+def _known(pairs: dict[str, str], option: str, known: list[str], what: str) -> None:
+    unknown = [k for k in pairs if k not in known]
+    if unknown:
+        k = unknown[0]
+        raise DataError(
+            f"{option} {k}={pairs[k]}: the model has no {what} '{k}' (it has: {', '.join(known)})"
+        )
+
+
 def run(args: argparse.Namespace) -> int:
     """Run ``aerodelta export``."""
     if not args.daveml and not args.jsbsim:
-        print("aerodelta export: give --daveml OUT.dml and/or --jsbsim OUT.xml", file=sys.stderr)
-        return 2
+        return _usage("give --daveml OUT.dml and/or --jsbsim OUT.xml")
     if args.jsbsim_qualified and args.qualified:
-        print(
-            "aerodelta export: --jsbsim-qualified writes the built-in ADX-37 qualified model; "
-            "a --qualified DAVE-ML file is not translated to JSBSim",
-            file=sys.stderr,
+        return _usage(
+            "--jsbsim-qualified writes the built-in ADX-37 qualified model; a --qualified "
+            "DAVE-ML file is not translated to JSBSim"
         )
-        return 2
+    for given, option, needs, value in (
+        (args.property, "--property", "--jsbsim", args.jsbsim),
+        (args.side_axis, "--side-axis", "--jsbsim", args.jsbsim),
+        (args.jsbsim_qualified, "--jsbsim-qualified", "--jsbsim", args.jsbsim),
+        (args.map, "--map", "--daveml", args.daveml),
+        (args.coef, "--coef", "--daveml", args.daveml),
+        (args.qualified, "--qualified", "--daveml", args.daveml),
+    ):
+        if given and not value:
+            return _usage(f"{option} applies to the {needs} export; give {needs} OUT too")
     check_at_least(args.seed, "--seed", 0)
-    existing_file(args.model, "--model")
-    existing_file(args.qualified, "--qualified")
-    outs = [
-        output_file(v, o, example)
+    model_file = existing_file(args.model, "--model")
+    qualified = existing_file(args.qualified, "--qualified")
+    outs = {
+        o: output_file(v, o, example)
         for v, o, example in (
             (args.daveml, "--daveml", "extended.dml"),
             (args.jsbsim, "--jsbsim", "delta.xml"),
         )
         if v
-    ]
-    model = DeltaModel.load(args.model)
-    for p in outs:
-        p.parent.mkdir(parents=True, exist_ok=True)
-    if args.daveml:
-        out = export_extended_daveml(
-            args.daveml,
-            model,
-            args.qualified,
-            channel_map=_pairs(args.map, "--map"),
-            coefficients=_pairs(args.coef, "--coef"),
-            seed=args.seed,
-        )
-        print(
-            f"wrote {args.daveml}: outputs {', '.join(out.model.outputs)}; {out.n_checks} check "
-            f"cases, largest relative difference to the engine {out.max_rel_error:.2e}"
-        )
+    }
+    if len(outs) == 2 and outs["--daveml"].resolve() == outs["--jsbsim"].resolve():
+        raise DataError(f"--daveml and --jsbsim name the same file {args.daveml}; give two files")
+    check_outputs(None, "--daveml" if args.daveml else "--jsbsim", files=list(outs.values()),
+                  inputs=[model_file, qualified])  # fmt: skip
+    model = load_model(model_file)
+    channel_map = _pairs(args.map, "--map")
+    coefs = _pairs(args.coef, "--coef")
+    props = _pairs(args.property, "--property")
+    _known(channel_map, "--map", model.input_columns, "channel")
+    _known(coefs, "--coef", model.coefficients, "coefficient")
+    _known(props, "--property", model.input_columns, "channel")
     if args.jsbsim:
-        props = _pairs(args.property, "--property")
-        export_jsbsim(
-            args.jsbsim,
-            model,
-            props,
-            side_axis=args.side_axis,
-            qualified=args.jsbsim_qualified,
-        )
+        try:  # every property checked before anything is written
+            jsbsim_properties(model, props)
+        except DataError as e:
+            raise DataError(f"--property: {e}") from None
+    side_axis = args.side_axis or "SIDE"
+    with ExitStack() as stack:
+        for p in outs.values():  # folders made for the files; removed if the export fails
+            stack.enter_context(created(p.parent))
+        if args.daveml:
+            out = export_extended_daveml(
+                args.daveml,
+                model,
+                args.qualified,
+                channel_map=channel_map,
+                coefficients=coefs,
+                seed=args.seed,
+            )
+            print(
+                f"wrote {args.daveml}: outputs {', '.join(out.model.outputs)}; {out.n_checks} "
+                f"check cases, largest relative difference to the engine {out.max_rel_error:.2e}"
+            )
+        if args.jsbsim:
+            export_jsbsim(
+                args.jsbsim, model, props, side_axis=side_axis, qualified=args.jsbsim_qualified
+            )
+    if args.jsbsim:
         print(f"wrote {args.jsbsim}: channels read from JSBSim properties:")
-        for ch, p in jsbsim_properties(model, props).items():
-            print(f"  {ch:<14} {p}")
+        for ch, prop in jsbsim_properties(model, props).items():
+            print(f"  {ch:<14} {prop}")
     return 0

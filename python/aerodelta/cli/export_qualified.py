@@ -6,7 +6,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from aerodelta.cli._data import output_file
+from aerodelta.cli._data import created, output_file
 from aerodelta.export import export_qualified_daveml
 
 HELP = "write the built-in qualified model (ADX-37) as DAVE-ML"
@@ -20,8 +20,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     """Run ``aerodelta export-qualified``."""
     out = output_file(args.out, "OUT", "adx37.dml")
-    out.parent.mkdir(parents=True, exist_ok=True)
-    m = export_qualified_daveml(out)
+    with created(out.parent):
+        m = export_qualified_daveml(out)
     print(f"wrote {args.out}: inputs {', '.join(m.inputs)}; outputs {', '.join(m.outputs)}")
     print("verify with: aerodelta check-daveml " + str(args.out), file=sys.stderr)
     return 0

@@ -22,8 +22,12 @@ from aerodelta.cli._data import (
     add_data_arguments,
     check_at_least,
     check_open_unit,
-    load_data,
+    check_outputs,
+    created,
+    existing_file,
+    load_records,
     output_file,
+    resolve_data,
 )
 from aerodelta.exceptions import DataError, InvalidInputError
 from aerodelta.model import with_params_hash
@@ -52,7 +56,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--holdout-seed",
         type=int,
-        default=0,
         metavar="N",
         help="seed of the --holdout draw (default 0)",
     )
@@ -114,12 +117,24 @@ def run(args: argparse.Namespace) -> int:
             f"--range {args.range_deg:g}: give an alpha range in deg > 0 (e.g. --range 5), or "
             "--verbose for one table section per bin"
         )
+    if args.holdout is None and args.holdout_seed is not None:
+        raise InvalidInputError(
+            f"--holdout-seed {args.holdout_seed}: seeds the --holdout draw; give --holdout F "
+            "too, or drop it"
+        )
     if args.holdout is not None:
         check_open_unit(args.holdout, "--holdout", "0.2")
+        args.holdout_seed = 0 if args.holdout_seed is None else args.holdout_seed
         check_at_least(args.holdout_seed, "--holdout-seed", 0)
-    cfg = FitConfig.from_toml(args.config) if args.config else FitConfig()
+    config = existing_file(args.config, "--config")
+    src = resolve_data(args)
+    outs = [out, out.with_suffix(".params.parquet")]
+    if args.holdout is not None:
+        outs += [out.with_suffix(".holdout.txt"), out.with_suffix(".validation.csv")]
+    check_outputs(src, "--out", files=outs, inputs=[config])
+    cfg = FitConfig.from_toml(config) if config else FitConfig()
     progress = not args.no_progress
-    data, src = load_data(args, progress=progress)
+    data = load_records(src, progress=progress)
     held: list[str] = []
     test = None
     if args.holdout is not None:
@@ -149,15 +164,16 @@ def run(args: argparse.Namespace) -> int:
             file=sys.stderr,
         )
         return 1
-    out.parent.mkdir(parents=True, exist_ok=True)
-    # the params table first, the model file last, recording the table's hash: a kill between
-    # the two renames leaves a table the model does not name, which the report refuses
-    params = out.with_suffix(".params.parquet")
-    write_atomic(params, result.summary().write_parquet)
-    with_params_hash(result.model, params).save(out)
+    v = validate_model(result.model, test, qualified=args.model) if test is not None else None
+    with created(out.parent):
+        # the params table first, the model file last, recording the table's hash: a kill
+        # between the two renames leaves a table the model does not name, which the report
+        # refuses
+        params = out.with_suffix(".params.parquet")
+        write_atomic(params, result.summary().write_parquet)
+        with_params_hash(result.model, params).save(out)
     written = [out, params]
-    if test is not None:
-        v = validate_model(result.model, test, qualified=args.model)
+    if v is not None:
         n_all = len(held) + int(data["maneuver_id"].n_unique())
         print(
             f"held out {len(held)} of {n_all} maneuvers (--holdout {args.holdout:g}, "

@@ -11,7 +11,15 @@ import argparse
 import json
 import sys
 
-from aerodelta.cli._data import add_data_arguments, ingest_source, output_folder, resolve_data
+from aerodelta.cli import cli_wording
+from aerodelta.cli._data import (
+    add_data_arguments,
+    check_outputs,
+    created,
+    ingest_source,
+    output_folder,
+    resolve_data,
+)
 from aerodelta.exceptions import InvalidInputError
 from aerodelta.ingest import summarise
 
@@ -35,11 +43,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
 
 
-def _cli_wording(message: str) -> str:
-    """A finding's advice in the command's terms (the findings speak the API's)."""
-    return message.replace("pass apply_compat=True", "ingest with --apply-compat")
-
-
 def run(args: argparse.Namespace) -> int:
     """Run ``aerodelta ingest``; returns the exit status."""
     if args.apply_compat and args.no_compat:
@@ -56,6 +59,7 @@ def run(args: argparse.Namespace) -> int:
             f"--out {out}: is the campaign folder itself; write the ingest output into a "
             "folder of its own"
         )
+    check_outputs(src, "--out", folder=out)
     res = ingest_source(
         src,
         progress=not args.quiet,
@@ -63,7 +67,8 @@ def run(args: argparse.Namespace) -> int:
         compat=not args.no_compat,
         apply_compat=args.apply_compat,
     )
-    paths = res.write(out)
+    with created(out):
+        paths = res.write(out)
     findings = res.report_frame()
     summary = {
         "maneuvers": len(res.reports),
@@ -78,7 +83,7 @@ def run(args: argparse.Namespace) -> int:
         # one line per channel and kind of finding, with the files that repeat it
         warned = [f for r in res.reports for f in r.findings if f.severity == "warning"]
         for line in summarise(warned):
-            print(f"warning: {_cli_wording(line)}")
+            print(f"warning: {cli_wording(line, 'ingest')}")
         for p in paths:
             print(f"wrote {p}")
     sys.stdout.flush()

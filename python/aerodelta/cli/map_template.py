@@ -9,7 +9,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from aerodelta.cli._data import existing_file, output_file
+from aerodelta.cli._data import created, existing_file, output_file
 from aerodelta.exceptions import InvalidInputError
 
 HELP = "write a channel-map skeleton (TOML) from a record's columns, units guessed for review"
@@ -42,8 +42,8 @@ def run(args: argparse.Namespace) -> int:
     if out is None:
         sys.stdout.write(text)
     else:
-        out.parent.mkdir(parents=True, exist_ok=True)
-        write_text_atomic(out, text)
+        with created(out.parent):
+            write_text_atomic(out, text)
         print(f"wrote {out}")
     print(
         f"{len(t.mapped)} column(s) mapped, each marked '# REVIEW'; {len(left)} left out"

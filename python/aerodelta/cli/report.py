@@ -7,15 +7,22 @@ from __future__ import annotations
 
 import argparse
 import sys
+from pathlib import Path
+from typing import Any
 
 from aerodelta.cli._data import (
     add_data_arguments,
     check_at_least,
+    check_outputs,
+    created,
     existing_file,
-    load_data,
+    load_model,
+    load_records,
     maneuver_ids,
     output_folder,
+    resolve_data,
 )
+from aerodelta.exceptions import DataError
 
 HELP = "write the HTML validation report of a fitted Δ model"
 
@@ -49,29 +56,54 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--no-progress", action="store_true", help="no progress bars")
 
 
+def _diagnosis(path: Path) -> dict[str, Any]:
+    """``--diagnosis FILE`` read and checked (``aerodelta.report.diagnosis.load_diagnosis``),
+    with the failures it lets through (bytes that are not text, nesting too deep) as one line."""
+    from aerodelta.report.diagnosis import load_diagnosis  # noqa: PLC0415
+
+    try:
+        return load_diagnosis(path)
+    except (UnicodeDecodeError, RecursionError) as e:
+        what = "not UTF-8 text" if isinstance(e, UnicodeDecodeError) else "nested too deeply"
+        raise DataError(
+            f"--diagnosis {path}: cannot read the diagnosis ({what}); give the diagnosis.json "
+            "of aerodelta diagnose"
+        ) from None
+
+
 def run(args: argparse.Namespace) -> int:
     """Run ``aerodelta report``."""
     from aerodelta.report import build_report  # noqa: PLC0415  (matplotlib: CLI start-up light)
+    from aerodelta.report.context import load_params  # noqa: PLC0415
 
     check_at_least(args.replays, "--replays", 0)
-    existing_file(args.model, "--model")
-    existing_file(args.diagnosis, "--diagnosis")
+    model_file = existing_file(args.model, "--model")
+    diagnosis_file = existing_file(args.diagnosis, "--diagnosis")
+    assert model_file is not None
     out = output_folder(args.out)
     held = maneuver_ids(args.held_out)
     progress = not args.no_progress
-    data, _ = load_data(args, progress=progress)
-    res = build_report(
-        args.model,
-        data,
-        out,
-        held_out=held,
-        diagnosis_doc=args.diagnosis,
-        qualified=args.qualified,
-        replay_count=args.replays,
-        replay_controls=args.replay_controls,
-        svg=not args.no_svg,
-        progress=progress,
-    )
+    src = resolve_data(args)
+    check_outputs(src, "--out", folder=out, inputs=[model_file, diagnosis_file])
+    # every input file read before the output folder is made: a bad one leaves nothing behind
+    model = load_model(model_file)
+    params = load_params(model_file)
+    doc = _diagnosis(diagnosis_file) if diagnosis_file is not None else None
+    data = load_records(src, progress=progress)
+    with created(out):
+        res = build_report(
+            model,
+            data,
+            out,
+            params_table=params,
+            held_out=held,
+            diagnosis_doc=doc,
+            qualified=args.qualified,
+            replay_count=args.replays,
+            replay_controls=args.replay_controls,
+            svg=not args.no_svg,
+            progress=progress,
+        )
     print(f"report: {res.html} ({len(res.figures)} figure files) in {res.seconds:.1f} s")
     for k, v in res.timings().items():
         print(f"  {k:<12} {v:6.2f} s", file=sys.stderr)

@@ -31,9 +31,13 @@ from aerodelta.cli._data import (
     add_data_arguments,
     check_at_least,
     check_open_unit,
+    check_outputs,
+    created,
     existing_file,
-    load_data,
+    load_model,
+    load_records,
     output_folder,
+    resolve_data,
 )
 
 HELP = "detect roll-off events, per-flap statistics, runtime configuration, Monte Carlo"
@@ -63,7 +67,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         metavar="N",
         help="fly N straight stalls per flap setting with the derived configuration",
     )
-    parser.add_argument("--seed", type=int, default=0, help="Monte Carlo seed")
+    parser.add_argument("--seed", type=int, help="Monte Carlo seed (default 0)")
     parser.add_argument("--level", type=float, default=0.95, help="confidence level")
     parser.add_argument("--threads", type=int, help="Monte Carlo threads (default: all cores)")
     parser.add_argument("--no-figures", action="store_true", help="skip the PNG figures")
@@ -88,6 +92,33 @@ def _write_json(path: Path, obj: Any) -> Path:
 
 def run(args: argparse.Namespace) -> int:
     """Run ``aerodelta rolloff``; returns the exit status."""
+    from aerodelta.exceptions import InvalidInputError  # noqa: PLC0415  (CLI start-up light)
+
+    check_open_unit(args.level, "--level", "0.95")
+    check_at_least(args.monte_carlo, "--monte-carlo", 0)
+    for value, option in ((args.threads, "--threads"), (args.seed, "--seed")):
+        if value is not None and not args.monte_carlo:
+            raise InvalidInputError(
+                f"{option} {value}: applies to the Monte Carlo; give --monte-carlo N too, or "
+                "drop it"
+            )
+    args.seed = 0 if args.seed is None else args.seed
+    check_at_least(args.seed, "--seed", 0)
+    if args.threads is not None:
+        check_at_least(args.threads, "--threads", 1)
+    model_file = existing_file(args.model, "--model")
+    progress = not args.no_progress
+    out = output_folder(args.out)
+    src = resolve_data(args)
+    check_outputs(src, "--out", folder=out, inputs=[model_file])
+    m = load_model(model_file) if model_file is not None else None
+    data = load_records(src, progress=progress)
+    with created(out):
+        return _run(args, data, m, out, progress)
+
+
+def _run(args: argparse.Namespace, data: Any, m: Any, out: Path, progress: bool) -> int:
+    """The computation and the files of ``aerodelta rolloff`` (``m``: the Δ model or None)."""
     import numpy as np  # noqa: PLC0415  (keeps CLI start-up light)
     import polars as pl  # noqa: PLC0415
     from tqdm import tqdm  # noqa: PLC0415
@@ -95,30 +126,16 @@ def run(args: argparse.Namespace) -> int:
     import aerodelta.rolloff as ro  # noqa: PLC0415
     from aerodelta.exceptions import InvalidInputError  # noqa: PLC0415
     from aerodelta.fit import model_frame, qualified_coefficients  # noqa: PLC0415
-    from aerodelta.model import DeltaModel  # noqa: PLC0415
 
-    check_open_unit(args.level, "--level", "0.95")
-    check_at_least(args.monte_carlo, "--monte-carlo", 0)
-    check_at_least(args.seed, "--seed", 0)
-    if args.threads is not None:
-        check_at_least(args.threads, "--threads", 1)
-    existing_file(args.model, "--model")
-    progress = not args.no_progress
-    out = output_folder(args.out)
     written: list[Path] = []
-
-    data, _ = load_data(args, progress=progress)
-    out.mkdir(parents=True, exist_ok=True)
     residual = data["Cl_meas"].to_numpy().astype(np.float64)
     frame = model_frame(data)
     if args.qualified != "none":
         residual = residual - qualified_coefficients(frame, args.qualified)["Cl_qual"].to_numpy()
-    if args.model:
-        m = DeltaModel.load(args.model)
-        if "Cl" in m.coefficients:
-            residual = residual - m.evaluate(frame, coefficients=["Cl"])["dCl_blended"].to_numpy()
+    if m is not None and "Cl" in m.coefficients:
+        residual = residual - m.evaluate(frame, coefficients=["Cl"])["dCl_blended"].to_numpy()
     model_col = None
-    if args.qualified != "none" or args.model:
+    if args.qualified != "none" or m is not None:
         model_col = "Cl_model"  # what the residual removed: drawn beside the measured C_l
         data = data.with_columns(pl.Series(model_col, data["Cl_meas"].to_numpy() - residual))
     events = ro.detect_rolloff(data, residual=residual)

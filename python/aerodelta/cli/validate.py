@@ -18,10 +18,14 @@ import polars as pl
 
 from aerodelta.cli._data import (
     add_data_arguments,
+    check_outputs,
+    created,
     existing_file,
-    load_data,
+    load_model,
+    load_records,
     maneuver_ids,
     output_file,
+    resolve_data,
 )
 from aerodelta.exceptions import DataError
 
@@ -83,14 +87,16 @@ def _json_safe(x: Any) -> Any:
 
 def run(args: argparse.Namespace) -> int:
     """Run ``aerodelta validate``."""
-    from aerodelta.fit import validate_model  # noqa: PLC0415
-    from aerodelta.model import DeltaModel  # noqa: PLC0415
+    from aerodelta.fit import model_frame, validate_model  # noqa: PLC0415
 
     out = output_file(args.out, example="validation.csv") if args.out else None
-    existing_file(args.model, "--model")
-    model = DeltaModel.load(args.model)
-    ids = maneuver_ids(args.held_out) if args.held_out else []
-    data, src = load_data(args, progress=not args.no_progress)
+    model_file = existing_file(args.model, "--model")
+    assert model_file is not None
+    ids = maneuver_ids(args.held_out)
+    src = resolve_data(args)
+    check_outputs(src, "--out", files=[out] if out else [], inputs=[model_file])
+    model = load_model(model_file)
+    data = load_records(src, progress=not args.no_progress)
     if ids:
         have = set(data["maneuver_id"].cast(pl.Utf8).unique().to_list())
         missing = [m for m in ids if m not in have]
@@ -101,6 +107,12 @@ def run(args: argparse.Namespace) -> int:
                 f"{src.describe()}; give the data the model was fitted from"
             )
         data = data.filter(pl.col("maneuver_id").cast(pl.Utf8).is_in(ids))
+    lacking = sorted(set(model.input_columns) - set(model_frame(data.head(0)).columns))
+    if lacking:
+        raise DataError(
+            f"{src.describe()}: no column {', '.join(lacking)}, which the model {model_file} "
+            "reads; give records with those channels"
+        )
     v = with_rms_ratio(validate_model(model, data, qualified=args.qualified))
     n = int(data["maneuver_id"].n_unique())
     if args.json:
@@ -118,7 +130,7 @@ def run(args: argparse.Namespace) -> int:
     if out is not None:
         from aerodelta._fsutil import write_atomic  # noqa: PLC0415
 
-        out.parent.mkdir(parents=True, exist_ok=True)
-        write_atomic(out, v.write_csv)
+        with created(out.parent):
+            write_atomic(out, v.write_csv)
         print(f"wrote {out}", file=sys.stderr)
     return 0

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import argparse
 
-from aerodelta.cli._data import output_file
+from aerodelta.cli._data import created, output_file
 from aerodelta.daveml import write_example_model
 
 HELP = "write the example lateral-directional DAVE-ML model (with its own check cases)"
@@ -19,8 +19,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     out = output_file(args.out, "OUT", "example_aero.dml")
-    out.parent.mkdir(parents=True, exist_ok=True)
-    model = write_example_model(out)
+    with created(out.parent):
+        model = write_example_model(out)
     print(
         f"wrote {args.out}: model '{model.name}', inputs {', '.join(model.inputs)}; "
         f"outputs {', '.join(model.outputs)}; {model.n_shots} check cases"
