@@ -58,6 +58,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--list-terms", action="store_true", help="JSBSim: list the aircraft's lateral terms"
     )
     parser.add_argument("--no-turbulence", action="store_true", help="calm air")
+    parser.add_argument("--no-progress", action="store_true", help="no progress bars")
     parser.add_argument("--no-rolloff", action="store_true", help="no stochastic roll-off")
     parser.add_argument(
         "--excitation", type=float, default=1.0, help="pilot doublets/stick-noise scale"
@@ -98,7 +99,7 @@ def run(args: argparse.Namespace) -> int:
         rolloff=not args.no_rolloff,
         excitation=args.excitation,
         overwrite=args.overwrite,
-        progress=True,
+        progress=not args.no_progress,
     )
     eff = ", ".join(f"{k}={v:g}" for k, v in info.effects.items()) or "none"
     print(f"wrote {info.n_maneuvers} maneuvers to {info.path} (seed {info.seed}; effects: {eff})")
@@ -168,7 +169,7 @@ def _run_jsbsim(args: argparse.Namespace) -> int:
         noise=args.noise_scale,
         turbulence=0.0 if args.no_turbulence or args.turbulence is None else args.turbulence,
         overwrite=args.overwrite,
-        progress=True,
+        progress=not args.no_progress,
     )
     held = ", ".join(info.withheld) or "none"
     print(
