@@ -30,7 +30,9 @@ def _naming(e: OSError, tmp: Path, out: Path) -> OSError:
     """``e`` with ``out`` in place of ``tmp`` (same class and errno)."""
     if e.errno is not None and e.strerror:
         return type(e)(e.errno, e.strerror, str(out))
-    text = str(e).replace(str(tmp), str(out))
+    # polars shortens long paths ('...-of-root/x/data.csv.tmp-123'): drop the temporary suffix
+    # wherever the name appears, whole or shortened
+    text = str(e).replace(str(tmp), str(out)).replace(tmp.name[len(out.name) :], "")
     return type(e)(f"{text}" if str(out) in text else f"{out}: {text}")
 
 
