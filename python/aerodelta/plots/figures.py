@@ -1,0 +1,362 @@
+"""The figures of the validation report, one function each: ``draw(**data) -> Figure`` from
+plain data (numpy arrays, numbers, strings, lists and dicts of them) computed by the report
+sections (:mod:`aerodelta.report`). Nothing here computes a result: each function only places
+what it is given, so it can run in a worker process that loads neither polars nor the engine
+(:mod:`aerodelta.plots._pool`). Call them under :func:`aerodelta.plots.style` (as
+:meth:`aerodelta.plots.FigureSink.plot` does). matplotlib is imported inside the functions, so
+the sections can name them without loading it.
+
+Units are those of the data given (angles in deg, time in s); sizes in inches.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from aerodelta.plots import COLORS, new_figure
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
+
+#: Colours of the flap settings (in order of the settings drawn).
+FLAP_COLORS = ("#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b")
+
+Panel = dict[str, Any]
+
+
+def tic_scatter(*, panels: Sequence[Panel]) -> Figure:
+    """Theil inequality coefficient per maneuver, qualified (x) against extended (y), one panel
+    per coefficient.
+
+    Each panel: ``coef``; ``fitted`` and ``held`` as ``(tic_qual, tic_ext)`` arrays (``None``:
+    none); ``hi``, the end of the dashed identity line.
+    """
+    fig, ax = new_figure(1, len(panels), height=2.9)
+    for k, pan in enumerate(panels):
+        a = ax[0, k]
+        for key, mk, col, lab in (
+            ("fitted", "o", "#1f77b4", "fitted"),
+            ("held", "^", "#ff7f0e", "held out"),
+        ):
+            if pan[key] is not None:
+                x, y = pan[key]
+                a.scatter(x, y, s=12, marker=mk, color=col, label=lab)
+        a.plot([0, pan["hi"]], [0, pan["hi"]], color="#999", lw=0.8, ls="--")
+        a.set_title(f"{pan['coef']}: TIC per maneuver")
+        a.set_xlabel("TIC qualified")
+        a.set_ylabel("TIC extended")
+        a.legend(loc="upper left")
+    return fig
+
+
+def time_history(
+    *,
+    t: np.ndarray,
+    meas: np.ndarray,
+    qual: np.ndarray,
+    ext: np.ndarray,
+    alpha: np.ndarray,
+    active: np.ndarray | None,
+    ylabel: str,
+    title: str,
+) -> Figure:
+    """Measured, qualified and extended coefficient against time ``t`` [s], with alpha [deg]
+    below, shaded where ``active`` (the Δ model blended in; ``None``: nowhere)."""
+    fig, ax = new_figure(2, 1, height=3.6, sharex=True, gridspec_kw={"height_ratios": [3, 1]})
+    a0, a1 = ax[0, 0], ax[1, 0]
+    a0.plot(t, meas, color=COLORS["meas"], lw=0.8, label="measured")
+    a0.plot(t, qual, color=COLORS["qual"], lw=1.0, label="qualified")
+    a0.plot(t, ext, color=COLORS["ext"], lw=1.2, label="extended")
+    a0.set_ylabel(ylabel)
+    a0.legend(loc="best", ncol=3)
+    a0.set_title(title, fontsize=8.5)
+    a1.plot(t, alpha, color="#555", lw=0.9)
+    if active is not None:
+        a1.fill_between(
+            t,
+            0,
+            1,
+            where=active,
+            transform=a1.get_xaxis_transform(),
+            color=COLORS["band"],
+            alpha=0.35,
+            lw=0,
+            label="Δ model active",
+        )
+        a1.legend(loc="upper right")
+    a1.set_ylabel("α [deg]")
+    a1.set_xlabel("t [s]")
+    return fig
+
+
+def effect(*, panels: Sequence[Panel], ylabel: str, ext_label: str) -> Figure:
+    """One derivative against alpha, one panel per flap setting.
+
+    Each panel: ``flap``, ``alpha`` [deg], ``dq`` (qualified, or ``None``), ``ext`` (extended),
+    ``stall`` [deg] or ``None``, and ``bins`` (``None`` or ``c``, ``y``, ``half`` arrays of the
+    identified bins: centre [deg], value and 95 % half-width; ``c_bad``, ``y_bad`` of the
+    others; ``band``: the half-width along ``alpha`` and ``inside``, where it is drawn).
+    """
+    n = len(panels)
+    fig, ax = new_figure(1, n, width=min(2.3 * n + 0.6, 12.0), height=2.6, sharey=True)
+    for k, pan in enumerate(panels):
+        a = ax[0, k]
+        alpha, ext = pan["alpha"], pan["ext"]
+        if pan["dq"] is not None:
+            a.plot(alpha, pan["dq"], color=COLORS["qual"], lw=1.1, label="qualified")
+        a.plot(alpha, ext, color=COLORS["ext"], lw=1.4, label=ext_label)
+        b = pan["bins"]
+        if b is not None:
+            a.errorbar(
+                b["c"], b["y"], yerr=b["half"], fmt="o", ms=2.5, color="#444",
+                elinewidth=0.6, capsize=0, label="bins",
+            )  # fmt: skip
+            if len(b["c_bad"]):
+                a.plot(b["c_bad"], b["y_bad"], "x", color="#999", ms=4, label="not identified")
+            if b["band"] is not None:
+                a.fill_between(
+                    alpha,
+                    ext - b["band"],
+                    ext + b["band"],
+                    where=b["inside"],
+                    color=COLORS["band"],
+                    alpha=0.5,
+                    lw=0,
+                    label="95 % band",
+                )
+        if pan["stall"] is not None:
+            a.axvline(pan["stall"], color="#777", ls="--", lw=0.8)
+        a.set_title(f"flap {pan['flap']:g}")
+        a.set_xlabel("α [deg]")
+    ax[0, 0].set_ylabel(ylabel)
+    ax[0, 0].legend(loc="best", fontsize=6.5)
+    return fig
+
+
+def parameters(*, panels: Sequence[Panel], flaps: Sequence[float], ncol: int = 4) -> Figure:
+    """Δ parameters against alpha, one panel per parameter, the flap settings in colour.
+
+    Each panel: ``title`` and ``series``, one per flap drawn: ``flap``, ``c``, ``est``, ``half``
+    (identified bins: centre [deg], estimate, 95 % half-width), ``c_bad`` (bins not
+    identified, drawn at zero) and ``table`` (``(alpha, values)`` of the model, or ``None``).
+    """
+    from matplotlib.ticker import MaxNLocator  # noqa: PLC0415
+
+    nrow = max(1, -(-len(panels) // ncol))
+    h = 2.0 * nrow + 0.5
+    fig, ax = new_figure(nrow, ncol, width=10.5, height=h, sharex=True, layout=None)
+    fig.subplots_adjust(left=0.07, right=0.99, bottom=0.45 / h, top=1 - 0.5 / h, wspace=0.35,
+                        hspace=0.45)  # fmt: skip
+    index = {f: i for i, f in enumerate(flaps)}
+    for k, pan in enumerate(panels):
+        a = ax[k // ncol, k % ncol]
+        for s in pan["series"]:
+            col = FLAP_COLORS[index[s["flap"]] % len(FLAP_COLORS)]
+            a.errorbar(
+                s["c"], s["est"], yerr=s["half"], fmt="o", ms=2.0, color=col,
+                elinewidth=0.5, capsize=0, alpha=0.8, label=f"flap {s['flap']:g}",
+            )  # fmt: skip
+            if s["table"] is not None:
+                a.plot(s["table"][0], s["table"][1], color=col, lw=1.2)
+            if len(s["c_bad"]):
+                a.plot(s["c_bad"], np.zeros(len(s["c_bad"])), "x", color=col, ms=3.5, mew=0.8)
+        a.set_title(pan["title"], fontsize=7.5)
+        a.yaxis.set_major_locator(MaxNLocator(4))
+    for k in range(len(panels), nrow * ncol):
+        ax[k // ncol, k % ncol].set_visible(False)
+    for a in ax[-1, :]:
+        a.set_xlabel("α [deg]")
+    fig.legend(*ax[0, 0].get_legend_handles_labels(), loc="upper center", ncol=len(flaps),
+               fontsize=7, frameon=False)  # fmt: skip
+    return fig
+
+
+def error_vs_regressor(*, rows: Sequence[Panel]) -> Figure:
+    """Model error against candidate regressors, one row of panels per alpha bin.
+
+    Each row: ``ylabel`` and ``panels``: ``xlabel``, ``x``, ``z`` (the points, thinned by the
+    caller; drawn rasterized in the SVG) and ``fit`` (``None`` or ``(xs, ys, label)``, the bin's
+    least-squares line).
+    """
+    ncol = max(len(r["panels"]) for r in rows)
+    fig, ax = new_figure(len(rows), ncol, width=10.0, height=2.0 * len(rows) + 0.4)
+    for i, row in enumerate(rows):
+        for j, pan in enumerate(row["panels"]):
+            a = ax[i, j]
+            (pts,) = a.plot(pan["x"], pan["z"], ".", ms=1.5, color="#555", alpha=0.5)
+            pts.set_rasterized(True)
+            if pan["fit"] is not None:
+                xs, ys, label = pan["fit"]
+                a.plot(xs, ys, color=COLORS["ext"], lw=1.2, label=label)
+                a.legend(loc="best", fontsize=6)
+            a.set_xlabel(pan["xlabel"])
+            if j == 0:
+                a.set_ylabel(row["ylabel"])
+    return fig
+
+
+def replay(*, panels: Sequence[Panel]) -> Figure:
+    """Flight record against the 6-DOF replays, one panel per state.
+
+    Each panel: ``title``, ``t`` and ``y`` of the record and ``runs``: ``(t, y, colour,
+    label)`` per replay.
+    """
+    fig, ax = new_figure(1, len(panels), width=11.0, height=2.4)
+    for k, pan in enumerate(panels):
+        a = ax[0, k]
+        a.plot(pan["t"], pan["y"], color=COLORS["meas"], lw=0.9, label="flight record")
+        for ts, ys, col, lab in pan["runs"]:
+            a.plot(ts, ys, color=col, lw=1.0, label=lab)
+        a.set_title(pan["title"])
+        a.set_xlabel("t [s]")
+    ax[0, 0].legend(loc="best", fontsize=6.5)
+    return fig
+
+
+def rolloff_drc_maxroll(
+    *, drc: Sequence[Panel], max_roll: Sequence[Panel], flaps: Sequence[float], limit_deg: float
+) -> Figure:
+    """Left: aileron [deg] against dynamic roll φ' [deg] per flap (``drc``: ``x``, ``y``
+    thinned by the caller, drawn rasterized in the SVG). Right: maximum bank [deg] per straight
+    stall per flap (``max_roll``: ``x``, ``y``) against ``limit_deg``."""
+    fig, ax = new_figure(1, 2, width=10.0, height=3.4)
+    a = ax[0, 0]
+    for k, (pan, flap) in enumerate(zip(drc, flaps, strict=True)):
+        (pts,) = a.plot(
+            pan["x"], pan["y"], ".", ms=1.0, color=FLAP_COLORS[k % len(FLAP_COLORS)],
+            alpha=0.5, label=f"flap {flap:g}",
+        )  # fmt: skip
+        pts.set_rasterized(True)
+    a.axhline(0, color="#666", lw=0.6)
+    a.axvline(0, color="#666", lw=0.6)
+    for x in (-limit_deg, limit_deg):
+        a.axvline(x, color="#b42318", lw=0.8, ls="--")
+    a.set_xlabel("dynamic roll φ' = φ + φ̇·1 s [deg]")
+    a.set_ylabel("aileron δa [deg] (+ rolls left)")
+    a.set_title("Dynamic roll control, straight stalls (quadrants I/III: recovering)")
+    a.legend(loc="best", markerscale=6, fontsize=6.5)
+    b = ax[0, 1]
+    for k, pan in enumerate(max_roll):
+        b.scatter(pan["x"], pan["y"], s=12, color=FLAP_COLORS[k % len(FLAP_COLORS)])
+    b.axhline(limit_deg, color="#b42318", ls="--", lw=1.0, label=f"{limit_deg:g} deg (FAR 25.203)")
+    b.set_xticks(range(len(flaps)), [f"flap {f:g}" for f in flaps])
+    b.set_ylabel("max |φ| [deg]")
+    b.set_title("Maximum bank angle per straight stall")
+    b.legend(loc="best")
+    return fig
+
+
+#: Colours of the envelope's confidence levels (none, low, moderate, high).
+ENVELOPE_COLORS = ("#f2f2f2", "#fdd49e", "#9ecae1", "#2171b5")
+
+
+def envelope(*, panels: Sequence[Panel], levels: Sequence[str]) -> Figure:
+    """Confidence level per alpha-beta cell, one panel per flap.
+
+    Each panel: ``flap``, ``a_edges`` and ``b_edges`` (cell edges, deg), ``level`` (index into
+    ``levels`` per cell, alpha × beta) and ``stall`` [deg] or ``None``.
+    """
+    from matplotlib.colors import BoundaryNorm, ListedColormap  # noqa: PLC0415
+
+    cmap = ListedColormap(list(ENVELOPE_COLORS))
+    norm = BoundaryNorm([-0.5, 0.5, 1.5, 2.5, 3.5], cmap.N)
+    n = len(panels)
+    fig, ax = new_figure(1, n, width=min(2.4 * n + 1.0, 12.5), height=3.4, sharey=True)
+    im = None
+    for k, pan in enumerate(panels):
+        a = ax[0, k]
+        be, ae = pan["b_edges"], pan["a_edges"]
+        # the cells are a regular 1 deg grid: an image, one pixel per cell (in the SVG too,
+        # drawn unsmoothed), instead of one path per cell
+        im = a.imshow(
+            pan["level"], cmap=cmap, norm=norm, origin="lower", aspect="auto",
+            interpolation="none", extent=(be[0], be[-1], ae[0], ae[-1]),
+        )  # fmt: skip
+        a.set_xlim(be[0], be[-1])
+        if pan["stall"] is not None:
+            a.axhline(pan["stall"], color="#b42318", ls="--", lw=0.8)
+        a.set_title(f"flap {pan['flap']:g}")
+        a.set_xlabel("β [deg]")
+    if panels:  # the axes share alpha: the union of the panels' ranges (and stall lines)
+        ends = [v for p in panels for v in (p["a_edges"][0], p["a_edges"][-1], p["stall"])]
+        ax[0, 0].set_ylim(min(v for v in ends if v is not None),
+                          max(v for v in ends if v is not None))  # fmt: skip
+    ax[0, 0].set_ylabel("α [deg]")
+    if im is not None:
+        cb = fig.colorbar(im, ax=ax[0, -1], ticks=[0, 1, 2, 3])
+        cb.ax.set_yticklabels(list(levels))
+    return fig
+
+
+def gap_map(*, flaps: Sequence[float], coefs: Sequence[str], cells: Sequence[Panel]) -> Figure:
+    """Gap RMS per alpha region (bars from ``lo`` to ``hi`` deg) and coefficient, one panel per
+    flap; colour: ``rms`` over ``top`` (the coefficient's largest); outlined where
+    ``significant``.
+
+    ``cells``: one per (flap index ``k``, coefficient index ``j``) with ``lo``, ``hi``, ``rms``,
+    ``significant`` arrays and ``top``.
+    """
+    from matplotlib import colormaps  # noqa: PLC0415
+    from matplotlib.cm import ScalarMappable  # noqa: PLC0415
+    from matplotlib.colors import Normalize  # noqa: PLC0415
+
+    n = len(flaps)
+    fig, ax = new_figure(1, n, width=min(2.2 * n + 1.2, 12.0), height=3.2, sharey=True)
+    cmap = colormaps["YlOrRd"]
+    for c in cells:
+        a = ax[0, c["k"]]
+        top = c["top"]
+        norm = Normalize(0.0, top if np.isfinite(top) and top > 0 else 1.0)
+        a.bar(
+            np.full(len(c["lo"]), c["j"]),
+            c["hi"] - c["lo"],
+            bottom=c["lo"],
+            width=0.9,
+            color=cmap(norm(np.nan_to_num(c["rms"]))),
+            edgecolor=["#000" if x else "none" for x in c["significant"]],
+            linewidth=0.8,
+        )
+    for k, flap in enumerate(flaps):
+        ax[0, k].set_xticks(range(len(coefs)), list(coefs))
+        ax[0, k].set_title(f"flap {flap:g}")
+    ax[0, 0].set_ylabel("α [deg]")
+    fig.colorbar(
+        ScalarMappable(Normalize(0, 1), cmap),
+        ax=ax[0, -1],
+        label="gap RMS / largest of the coefficient",
+    )
+    return fig
+
+
+def shrink(*, panels: Sequence[Panel]) -> Figure:
+    """Held-out gap RMS as the ranked effects are added, one panel per coefficient (``coef``,
+    ``y``: the gap before and after each effect, ``labels``)."""
+    n = len(panels)
+    fig, ax = new_figure(1, n, width=min(3.4 * n, 12.0), height=2.8)
+    for k, pan in enumerate(panels):
+        a = ax[0, k]
+        y = pan["y"]
+        a.plot(range(len(y)), y, "o-", color="#1f77b4")
+        a.set_xticks(range(len(y)), pan["labels"], rotation=35, ha="right", fontsize=7)
+        a.set_title(f"{pan['coef']}: held-out gap RMS as effects are added")
+        a.set_ylim(bottom=0)
+    return fig
+
+
+__all__ = [
+    "ENVELOPE_COLORS",
+    "FLAP_COLORS",
+    "effect",
+    "envelope",
+    "error_vs_regressor",
+    "gap_map",
+    "parameters",
+    "replay",
+    "rolloff_drc_maxroll",
+    "shrink",
+    "tic_scatter",
+    "time_history",
+]
