@@ -25,6 +25,30 @@ if TYPE_CHECKING:
 FLAP_COLORS = ("#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b")
 
 Panel = dict[str, Any]
+Titles = list[tuple[Any, str, dict[str, Any]]]
+
+
+def _legend(ax: Any, **kw: Any) -> None:
+    """A legend inside ``ax``, left out of the constrained layout (it lies inside the axes, so
+    the layout is the same without measuring it, which costs a 'best' placement per pass)."""
+    ax.legend(**kw).set_in_layout(False)
+
+
+def _pinned(lo: float, hi: float) -> bool:
+    """Whether a y axis over ``[lo, hi]`` shows neither an offset nor an exponent above it:
+    values between 1e-3 and 1e5 in magnitude (matplotlib writes 1e-5 to 1e6 in plain
+    notation) spanning at least 1 % of it (an offset needs a span under 0.1 %)."""
+    mag = max(abs(lo), abs(hi))
+    return bool(np.isfinite(mag)) and 1e-3 <= mag < 1e5 and abs(hi - lo) >= 0.01 * mag
+
+
+def _set_titles(titles: Titles) -> None:
+    """Set the panel titles once the data are drawn. A title is pinned just above its axes
+    (``y=1``, where matplotlib puts it anyway) when no offset text can sit there; else
+    matplotlib places it, measuring the axis at every draw to clear the offset text."""
+    for ax, text, kw in titles:
+        lo, hi = ax.get_ylim()
+        ax.set_title(text, y=1.0 if _pinned(lo, hi) else None, **kw)
 
 
 def tic_scatter(*, panels: Sequence[Panel]) -> Figure:
@@ -35,6 +59,7 @@ def tic_scatter(*, panels: Sequence[Panel]) -> Figure:
     none); ``hi``, the end of the dashed identity line.
     """
     fig, ax = new_figure(1, len(panels), height=2.9)
+    titles: Titles = []
     for k, pan in enumerate(panels):
         a = ax[0, k]
         for key, mk, col, lab in (
@@ -45,10 +70,11 @@ def tic_scatter(*, panels: Sequence[Panel]) -> Figure:
                 x, y = pan[key]
                 a.scatter(x, y, s=12, marker=mk, color=col, label=lab)
         a.plot([0, pan["hi"]], [0, pan["hi"]], color="#999", lw=0.8, ls="--")
-        a.set_title(f"{pan['coef']}: TIC per maneuver")
+        titles.append((a, f"{pan['coef']}: TIC per maneuver", {}))
         a.set_xlabel("TIC qualified")
         a.set_ylabel("TIC extended")
-        a.legend(loc="upper left")
+        _legend(a, loc="upper left")
+    _set_titles(titles)
     return fig
 
 
@@ -66,13 +92,14 @@ def time_history(
     """Measured, qualified and extended coefficient against time ``t`` [s], with alpha [deg]
     below, shaded where ``active`` (the Δ model blended in; ``None``: nowhere)."""
     fig, ax = new_figure(2, 1, height=3.6, sharex=True, gridspec_kw={"height_ratios": [3, 1]})
+    titles: Titles = []
     a0, a1 = ax[0, 0], ax[1, 0]
     a0.plot(t, meas, color=COLORS["meas"], lw=0.8, label="measured")
     a0.plot(t, qual, color=COLORS["qual"], lw=1.0, label="qualified")
     a0.plot(t, ext, color=COLORS["ext"], lw=1.2, label="extended")
     a0.set_ylabel(ylabel)
-    a0.legend(loc="best", ncol=3)
-    a0.set_title(title, fontsize=8.5)
+    _legend(a0, loc="best", ncol=3)
+    titles.append((a0, title, {"fontsize": 8.5}))
     a1.plot(t, alpha, color="#555", lw=0.9)
     if active is not None:
         a1.fill_between(
@@ -86,9 +113,10 @@ def time_history(
             lw=0,
             label="Δ model active",
         )
-        a1.legend(loc="upper right")
+        _legend(a1, loc="upper right")
     a1.set_ylabel("α [deg]")
     a1.set_xlabel("t [s]")
+    _set_titles(titles)
     return fig
 
 
@@ -102,6 +130,7 @@ def effect(*, panels: Sequence[Panel], ylabel: str, ext_label: str) -> Figure:
     """
     n = len(panels)
     fig, ax = new_figure(1, n, width=min(2.3 * n + 0.6, 12.0), height=2.6, sharey=True)
+    titles: Titles = []
     for k, pan in enumerate(panels):
         a = ax[0, k]
         alpha, ext = pan["alpha"], pan["ext"]
@@ -129,10 +158,11 @@ def effect(*, panels: Sequence[Panel], ylabel: str, ext_label: str) -> Figure:
                 )
         if pan["stall"] is not None:
             a.axvline(pan["stall"], color="#777", ls="--", lw=0.8)
-        a.set_title(f"flap {pan['flap']:g}")
+        titles.append((a, f"flap {pan['flap']:g}", {}))
         a.set_xlabel("α [deg]")
     ax[0, 0].set_ylabel(ylabel)
-    ax[0, 0].legend(loc="best", fontsize=6.5)
+    _legend(ax[0, 0], loc="best", fontsize=6.5)
+    _set_titles(titles)
     return fig
 
 
@@ -148,6 +178,7 @@ def parameters(*, panels: Sequence[Panel], flaps: Sequence[float], ncol: int = 4
     nrow = max(1, -(-len(panels) // ncol))
     h = 2.0 * nrow + 0.5
     fig, ax = new_figure(nrow, ncol, width=10.5, height=h, sharex=True, layout=None)
+    titles: Titles = []
     fig.subplots_adjust(left=0.07, right=0.99, bottom=0.45 / h, top=1 - 0.5 / h, wspace=0.35,
                         hspace=0.45)  # fmt: skip
     index = {f: i for i, f in enumerate(flaps)}
@@ -163,7 +194,7 @@ def parameters(*, panels: Sequence[Panel], flaps: Sequence[float], ncol: int = 4
                 a.plot(s["table"][0], s["table"][1], color=col, lw=1.2)
             if len(s["c_bad"]):
                 a.plot(s["c_bad"], np.zeros(len(s["c_bad"])), "x", color=col, ms=3.5, mew=0.8)
-        a.set_title(pan["title"], fontsize=7.5)
+        titles.append((a, pan["title"], {"fontsize": 7.5}))
         a.yaxis.set_major_locator(MaxNLocator(4))
     for k in range(len(panels), nrow * ncol):
         ax[k // ncol, k % ncol].set_visible(False)
@@ -171,6 +202,7 @@ def parameters(*, panels: Sequence[Panel], flaps: Sequence[float], ncol: int = 4
         a.set_xlabel("α [deg]")
     fig.legend(*ax[0, 0].get_legend_handles_labels(), loc="upper center", ncol=len(flaps),
                fontsize=7, frameon=False)  # fmt: skip
+    _set_titles(titles)
     return fig
 
 
@@ -183,6 +215,7 @@ def error_vs_regressor(*, rows: Sequence[Panel]) -> Figure:
     """
     ncol = max(len(r["panels"]) for r in rows)
     fig, ax = new_figure(len(rows), ncol, width=10.0, height=2.0 * len(rows) + 0.4)
+    titles: Titles = []
     for i, row in enumerate(rows):
         for j, pan in enumerate(row["panels"]):
             a = ax[i, j]
@@ -191,10 +224,11 @@ def error_vs_regressor(*, rows: Sequence[Panel]) -> Figure:
             if pan["fit"] is not None:
                 xs, ys, label = pan["fit"]
                 a.plot(xs, ys, color=COLORS["ext"], lw=1.2, label=label)
-                a.legend(loc="best", fontsize=6)
+                _legend(a, loc="best", fontsize=6)
             a.set_xlabel(pan["xlabel"])
             if j == 0:
                 a.set_ylabel(row["ylabel"])
+    _set_titles(titles)
     return fig
 
 
@@ -205,14 +239,16 @@ def replay(*, panels: Sequence[Panel]) -> Figure:
     label)`` per replay.
     """
     fig, ax = new_figure(1, len(panels), width=11.0, height=2.4)
+    titles: Titles = []
     for k, pan in enumerate(panels):
         a = ax[0, k]
         a.plot(pan["t"], pan["y"], color=COLORS["meas"], lw=0.9, label="flight record")
         for ts, ys, col, lab in pan["runs"]:
             a.plot(ts, ys, color=col, lw=1.0, label=lab)
-        a.set_title(pan["title"])
+        titles.append((a, pan["title"], {}))
         a.set_xlabel("t [s]")
-    ax[0, 0].legend(loc="best", fontsize=6.5)
+    _legend(ax[0, 0], loc="best", fontsize=6.5)
+    _set_titles(titles)
     return fig
 
 
@@ -223,6 +259,7 @@ def rolloff_drc_maxroll(
     thinned by the caller, drawn rasterized in the SVG). Right: maximum bank [deg] per straight
     stall per flap (``max_roll``: ``x``, ``y``) against ``limit_deg``."""
     fig, ax = new_figure(1, 2, width=10.0, height=3.4)
+    titles: Titles = []
     a = ax[0, 0]
     for k, (pan, flap) in enumerate(zip(drc, flaps, strict=True)):
         (pts,) = a.plot(
@@ -236,16 +273,17 @@ def rolloff_drc_maxroll(
         a.axvline(x, color="#b42318", lw=0.8, ls="--")
     a.set_xlabel("dynamic roll φ' = φ + φ̇·1 s [deg]")
     a.set_ylabel("aileron δa [deg] (+ rolls left)")
-    a.set_title("Dynamic roll control, straight stalls (quadrants I/III: recovering)")
-    a.legend(loc="best", markerscale=6, fontsize=6.5)
+    titles.append((a, "Dynamic roll control, straight stalls (quadrants I/III: recovering)", {}))
+    _legend(a, loc="best", markerscale=6, fontsize=6.5)
     b = ax[0, 1]
     for k, pan in enumerate(max_roll):
         b.scatter(pan["x"], pan["y"], s=12, color=FLAP_COLORS[k % len(FLAP_COLORS)])
     b.axhline(limit_deg, color="#b42318", ls="--", lw=1.0, label=f"{limit_deg:g} deg (FAR 25.203)")
     b.set_xticks(range(len(flaps)), [f"flap {f:g}" for f in flaps])
     b.set_ylabel("max |φ| [deg]")
-    b.set_title("Maximum bank angle per straight stall")
-    b.legend(loc="best")
+    titles.append((b, "Maximum bank angle per straight stall", {}))
+    _legend(b, loc="best")
+    _set_titles(titles)
     return fig
 
 
@@ -265,6 +303,7 @@ def envelope(*, panels: Sequence[Panel], levels: Sequence[str]) -> Figure:
     norm = BoundaryNorm([-0.5, 0.5, 1.5, 2.5, 3.5], cmap.N)
     n = len(panels)
     fig, ax = new_figure(1, n, width=min(2.4 * n + 1.0, 12.5), height=3.4, sharey=True)
+    titles: Titles = []
     im = None
     for k, pan in enumerate(panels):
         a = ax[0, k]
@@ -278,7 +317,7 @@ def envelope(*, panels: Sequence[Panel], levels: Sequence[str]) -> Figure:
         a.set_xlim(be[0], be[-1])
         if pan["stall"] is not None:
             a.axhline(pan["stall"], color="#b42318", ls="--", lw=0.8)
-        a.set_title(f"flap {pan['flap']:g}")
+        titles.append((a, f"flap {pan['flap']:g}", {}))
         a.set_xlabel("β [deg]")
     if panels:  # the axes share alpha: the union of the panels' ranges (and stall lines)
         ends = [v for p in panels for v in (p["a_edges"][0], p["a_edges"][-1], p["stall"])]
@@ -288,6 +327,7 @@ def envelope(*, panels: Sequence[Panel], levels: Sequence[str]) -> Figure:
     if im is not None:
         cb = fig.colorbar(im, ax=ax[0, -1], ticks=[0, 1, 2, 3])
         cb.ax.set_yticklabels(list(levels))
+    _set_titles(titles)
     return fig
 
 
@@ -305,6 +345,7 @@ def gap_map(*, flaps: Sequence[float], coefs: Sequence[str], cells: Sequence[Pan
 
     n = len(flaps)
     fig, ax = new_figure(1, n, width=min(2.2 * n + 1.2, 12.0), height=3.2, sharey=True)
+    titles: Titles = []
     cmap = colormaps["YlOrRd"]
     for c in cells:
         a = ax[0, c["k"]]
@@ -321,13 +362,14 @@ def gap_map(*, flaps: Sequence[float], coefs: Sequence[str], cells: Sequence[Pan
         )
     for k, flap in enumerate(flaps):
         ax[0, k].set_xticks(range(len(coefs)), list(coefs))
-        ax[0, k].set_title(f"flap {flap:g}")
+        titles.append((ax[0, k], f"flap {flap:g}", {}))
     ax[0, 0].set_ylabel("α [deg]")
     fig.colorbar(
         ScalarMappable(Normalize(0, 1), cmap),
         ax=ax[0, -1],
         label="gap RMS / largest of the coefficient",
     )
+    _set_titles(titles)
     return fig
 
 
@@ -336,13 +378,15 @@ def shrink(*, panels: Sequence[Panel]) -> Figure:
     ``y``: the gap before and after each effect, ``labels``)."""
     n = len(panels)
     fig, ax = new_figure(1, n, width=min(3.4 * n, 12.0), height=2.8)
+    titles: Titles = []
     for k, pan in enumerate(panels):
         a = ax[0, k]
         y = pan["y"]
         a.plot(range(len(y)), y, "o-", color="#1f77b4")
         a.set_xticks(range(len(y)), pan["labels"], rotation=35, ha="right", fontsize=7)
-        a.set_title(f"{pan['coef']}: held-out gap RMS as effects are added")
+        titles.append((a, f"{pan['coef']}: held-out gap RMS as effects are added", {}))
         a.set_ylim(bottom=0)
+    _set_titles(titles)
     return fig
 
 
