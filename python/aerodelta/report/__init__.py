@@ -23,6 +23,7 @@ import polars as pl
 from tqdm import tqdm
 
 from aerodelta._fsutil import write_text_atomic
+from aerodelta.exceptions import InvalidInputError
 from aerodelta.model import DeltaModel
 from aerodelta.plots import FigureSink
 from aerodelta.report import (
@@ -36,7 +37,7 @@ from aerodelta.report import (
 )
 from aerodelta.report.context import build_context, load_params
 from aerodelta.report.diagnosis import load_diagnosis
-from aerodelta.report.html import Section, esc, page
+from aerodelta.report.html import Section, esc, generated_at, page
 from aerodelta.report.metrics import (
     all_metrics,
     maneuver_metrics,
@@ -138,6 +139,7 @@ def build_report(
     ReportResult
     """
     t0 = time.perf_counter()
+    generated = generated_at()  # a bad SOURCE_DATE_EPOCH is refused before the work
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     if isinstance(model, (str, Path)):
@@ -157,6 +159,8 @@ def build_report(
                 f.unlink()
     if workers is None:
         workers = default_workers(data.height)
+    elif workers < 0:
+        raise InvalidInputError(f"workers={workers}: use 0 (draw here) or a positive count")
     with FigureSink(figdir, svg=svg, workers=workers) as sink:
         steps = [
             ("time histories", lambda c: timehistory.section(c, sink)),
@@ -205,7 +209,11 @@ def build_report(
         f"{' and SVG' if svg else ''}.</p>"
     )
     doc_html = page(
-        title, f"Δ model validation (thesis Chapter 4), {n_man} maneuvers", intro, sections
+        title,
+        f"Δ model validation (thesis Chapter 4), {n_man} maneuvers",
+        intro,
+        sections,
+        generated=generated,
     )
     target = out / REPORT_NAME
     write_text_atomic(target, doc_html)
@@ -221,8 +229,9 @@ def build_report(
     )
 
 
-#: Records (samples) from which :func:`build_report` draws in worker processes by default.
-POOL_MIN_SAMPLES = 100_000
+#: Records (samples) from which :func:`build_report` draws in worker processes by default
+#: (about ten maneuvers; a toy report is drawn before two interpreters would have started).
+POOL_MIN_SAMPLES = 20_000
 #: Worker processes :func:`build_report` uses by default.
 POOL_WORKERS = 2
 
