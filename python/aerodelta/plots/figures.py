@@ -42,6 +42,34 @@ def _pinned(lo: float, hi: float) -> bool:
     return bool(np.isfinite(mag)) and 1e-3 <= mag < 1e5 and abs(hi - lo) >= 0.01 * mag
 
 
+def _errorbars(
+    ax: Any,
+    x: np.ndarray,
+    y: np.ndarray,
+    half: np.ndarray,
+    *,
+    ms: float,
+    color: str,
+    elinewidth: float,
+    alpha: float | None = None,
+    label: str | None = None,
+) -> None:
+    """Points ``y`` at ``x`` with symmetric error bars ``y ± half``, drawn as ``errorbar`` does
+    (bars below the markers, no caps) but all bars as one path: an SVG writes one element
+    instead of one per bar. The legend entry is an empty ``errorbar`` (the same glyph)."""
+    if len(x):
+        n = len(x)
+        xs = np.repeat(np.asarray(x, dtype=float), 3)
+        xs[2::3] = np.nan
+        ys = np.column_stack([y - half, y + half, np.full(n, np.nan)]).ravel()
+        ax.plot(xs, ys, color=color, lw=elinewidth, alpha=alpha, solid_capstyle="butt", zorder=2)
+        ax.plot(x, y, "o", ms=ms, color=color, alpha=alpha, zorder=2.1)
+    ax.errorbar(
+        [], [], yerr=[], fmt="o", ms=ms, color=color, elinewidth=elinewidth, capsize=0,
+        alpha=alpha, label=label,
+    )  # fmt: skip
+
+
 def _set_titles(titles: Titles) -> None:
     """Set the panel titles once the data are drawn. A title is pinned just above its axes
     (``y=1``, where matplotlib puts it anyway) when no offset text can sit there; else
@@ -139,10 +167,9 @@ def effect(*, panels: Sequence[Panel], ylabel: str, ext_label: str) -> Figure:
         a.plot(alpha, ext, color=COLORS["ext"], lw=1.4, label=ext_label)
         b = pan["bins"]
         if b is not None:
-            a.errorbar(
-                b["c"], b["y"], yerr=b["half"], fmt="o", ms=2.5, color="#444",
-                elinewidth=0.6, capsize=0, label="bins",
-            )  # fmt: skip
+            _errorbars(
+                a, b["c"], b["y"], b["half"], ms=2.5, color="#444", elinewidth=0.6, label="bins"
+            )
             if len(b["c_bad"]):
                 a.plot(b["c_bad"], b["y_bad"], "x", color="#999", ms=4, label="not identified")
             if b["band"] is not None:
@@ -186,9 +213,9 @@ def parameters(*, panels: Sequence[Panel], flaps: Sequence[float], ncol: int = 4
         a = ax[k // ncol, k % ncol]
         for s in pan["series"]:
             col = FLAP_COLORS[index[s["flap"]] % len(FLAP_COLORS)]
-            a.errorbar(
-                s["c"], s["est"], yerr=s["half"], fmt="o", ms=2.0, color=col,
-                elinewidth=0.5, capsize=0, alpha=0.8, label=f"flap {s['flap']:g}",
+            _errorbars(
+                a, s["c"], s["est"], s["half"], ms=2.0, color=col, elinewidth=0.5, alpha=0.8,
+                label=f"flap {s['flap']:g}",
             )  # fmt: skip
             if s["table"] is not None:
                 a.plot(s["table"][0], s["table"][1], color=col, lw=1.2)
