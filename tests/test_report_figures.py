@@ -252,3 +252,89 @@ def test_source_date_epoch_fixes_the_stamp(monkeypatch: pytest.MonkeyPatch) -> N
     monkeypatch.setenv("SOURCE_DATE_EPOCH", "soon")
     with pytest.raises(InvalidInputError, match="SOURCE_DATE_EPOCH='soon'"):
         generated_at()
+
+
+def _wide_jobs() -> list[tuple[Any, dict[str, Any]]]:
+    """Figures with long tick labels (-0.00025), an offset text and two-line titles."""
+    t = np.linspace(0.0, 30.0, 500)
+    tiny = -2.5e-4 + 2e-4 * np.sin(t)
+    offset = 1000.0 + 1e-3 * np.sin(t)  # an axis with an offset (+1e3) above it
+    panel = {"flap": 0.0, "alpha": t, "dq": tiny, "ext": tiny * 1.1, "stall": 15.0, "bins": None}
+    return [
+        (
+            figures.time_history,
+            {
+                "t": t,
+                "meas": tiny,
+                "qual": tiny,
+                "ext": tiny,
+                "alpha": offset,
+                "active": None,
+                "ylabel": "$C_l$",
+                "title": "first line\nsecond line",
+            },
+        ),
+        (
+            figures.effect,
+            {"panels": [panel, panel, panel], "ylabel": "Cl_beta [1/deg]", "ext_label": "extended"},
+        ),
+        (
+            figures.replay,
+            {
+                "panels": [
+                    {
+                        "title": f"s{k}",
+                        "t": t,
+                        "y": offset if k else tiny,
+                        "runs": [(t, tiny, "#d62728", "replay")],
+                    }
+                    for k in range(4)
+                ]
+            },
+        ),
+        (
+            figures.tic_scatter,
+            {
+                "panels": [
+                    {"coef": c, "fitted": (t, tiny), "held": None, "hi": 30.0} for c in ("Cl", "Cn")
+                ]
+            },
+        ),
+        (
+            figures.error_vs_regressor,
+            {
+                "rows": [
+                    {
+                        "ylabel": f"row {i}",
+                        "panels": [
+                            {"xlabel": "x", "x": offset, "z": tiny, "fit": None},
+                            {"xlabel": "y", "x": t, "z": offset, "fit": None},
+                        ],
+                    }
+                    for i in range(2)
+                ]
+            },
+        ),
+    ]
+
+
+@pytest.mark.parametrize("job", range(5))
+def test_panels_of_the_fixed_layout_fit_the_figure_and_clear_each_other(job: int) -> None:
+    # the reference is matplotlib's own measure of everything drawn around each panel
+    draw, kw = _wide_jobs()[job]
+    with style():
+        fig = draw(**kw)
+        render(fig, dpi=110, svg=False)
+        canvas = FigureCanvasAgg(fig)
+        canvas.draw()
+        r = canvas.get_renderer()
+        boxes = [a.get_tightbbox(r) for a in fig.axes if a.get_visible()]
+    page_box = fig.bbox
+    for b in boxes:
+        assert b.x0 >= page_box.x0 - 1 and b.y0 >= page_box.y0 - 1, (b, page_box)
+        assert b.x1 <= page_box.x1 + 1 and b.y1 <= page_box.y1 + 1, (b, page_box)
+    for k, a in enumerate(boxes):
+        for b in boxes[k + 1 :]:
+            w = min(a.x1, b.x1) - max(a.x0, b.x0)
+            h = min(a.y1, b.y1) - max(a.y0, b.y0)
+            assert w <= 1 or h <= 1, (a, b)

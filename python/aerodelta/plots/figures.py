@@ -70,6 +70,98 @@ def _errorbars(
     )  # fmt: skip
 
 
+#: Space around each panel's texts and at the figure's edges, points, and the extra space
+#: between panels, fraction of the figure's width or height (the constrained layout's
+#: defaults: 3/72 in and 0.02).
+PAD_PT = 3.0
+SPACE = 0.02
+#: Gap between an axis and its offset text, points (matplotlib's ``Axis.OFFSETTEXTPAD``).
+OFFSET_PAD_PT = 3.0
+
+
+def _margins(ax: Any, r: Any) -> tuple[float, float, float, float]:
+    """How far the decorations of ``ax`` reach beyond its box (left, right, bottom, top),
+    pixels: tick marks, tick labels inside the view, the axis labels beside them, offset texts
+    and the title. The axis labels and offset texts are placed by matplotlib only when drawn,
+    so they are added by size."""
+    import matplotlib as mpl  # noqa: PLC0415
+
+    box = ax.get_window_extent(r)
+    px = r.points_to_pixels(1.0)
+    left = right = bottom = top = lifted = 0.0
+    for axis, name in ((ax.xaxis, "x"), (ax.yaxis, "y")):
+        axis.get_majorticklabels()  # places the ticks for the current view and size
+        lo, hi = sorted(axis.get_view_interval())
+        tol = 1e-9 * max(abs(lo), abs(hi), 1.0)
+        ticks = [t for t in axis.get_major_ticks() if lo - tol <= t.get_loc() <= hi + tol]
+        size = px * float(mpl.rcParams[f"{name}tick.major.size"])
+        near = size if any(t.tick1line.get_visible() for t in ticks) else 0.0
+        for t in (tk.label1 for tk in ticks):
+            if t.get_visible() and t.get_text():
+                b = t.get_window_extent(r)
+                left, right = max(left, box.x0 - b.x0), max(right, b.x1 - box.x1)
+                bottom, top = max(bottom, box.y0 - b.y0), max(top, b.y1 - box.y1)
+                near = max(near, box.y0 - b.y0 if name == "x" else box.x0 - b.x0)
+        label = axis.label
+        if label.get_visible() and label.get_text():
+            b = label.get_window_extent(r)
+            pad = px * axis.labelpad
+            if name == "x":
+                bottom = max(bottom, near + pad + b.height)
+            else:
+                left = max(left, near + pad + b.width)
+        off = axis.offsetText
+        off.set_text(axis.get_major_formatter().get_offset())  # as drawing will
+        if off.get_visible() and off.get_text():
+            h = off.get_window_extent(r).height + px * OFFSET_PAD_PT
+            if name == "x":  # under the tick labels
+                bottom = max(bottom, near + h)
+            else:  # above the axes, under a title lifted to clear it
+                lifted = h
+                top = max(top, h)
+    if ax.title.get_text():
+        top = max(top, ax.title.get_window_extent(r).y1 - box.y1 + lifted)
+    return left, right, bottom, top
+
+
+def _grid_layout(fig: Figure, ax: np.ndarray) -> None:
+    """Place a grid of panels as the constrained layout would, for less: the margins and gaps
+    are the extents of each panel's decorations beyond its axes (:func:`_margins`, measured,
+    not drawn) plus :data:`PAD_PT` (and :data:`SPACE` between panels), in two passes (the
+    ticks of the placed axes may differ). For figures whose decorations are ticks, axis
+    labels, offset texts and titles only (no colorbar, no figure legend, no rotated labels);
+    legends inside the axes do not count."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg  # noqa: PLC0415
+
+    fig.set_layout_engine("none")
+    r = FigureCanvasAgg(fig).get_renderer()
+    w_pt, h_pt = fig.get_size_inches() * 72.0
+    pt = 72.0 / fig.dpi
+    nrow, ncol = ax.shape
+    for _ in range(2):
+        left, right = np.zeros(ncol), np.zeros(ncol)
+        bottom, top = np.zeros(nrow), np.zeros(nrow)
+        for (i, j), a in np.ndenumerate(ax):
+            if a.get_visible():
+                m = np.array(_margins(a, r)) * pt
+                left[j], right[j] = max(left[j], m[0]), max(right[j], m[1])
+                bottom[i], top[i] = max(bottom[i], m[2]), max(top[i], m[3])
+        gap_w = (right[:-1] + left[1:]).max(initial=0.0) + 2 * PAD_PT + SPACE * w_pt
+        gap_h = (bottom[:-1] + top[1:]).max(initial=0.0) + 2 * PAD_PT + SPACE * h_pt
+        x0, x1 = left[0] + PAD_PT, w_pt - right[-1] - PAD_PT
+        y0, y1 = bottom[-1] + PAD_PT, h_pt - top[0] - PAD_PT
+        width = (x1 - x0 - (ncol - 1) * gap_w) / ncol
+        height = (y1 - y0 - (nrow - 1) * gap_h) / nrow
+        fig.subplots_adjust(
+            left=x0 / w_pt,
+            right=x1 / w_pt,
+            bottom=y0 / h_pt,
+            top=y1 / h_pt,
+            wspace=gap_w / width if ncol > 1 else 0.0,
+            hspace=gap_h / height if nrow > 1 else 0.0,
+        )
+
+
 def _set_titles(titles: Titles) -> None:
     """Set the panel titles once the data are drawn. A title is pinned just above its axes
     (``y=1``, where matplotlib puts it anyway) when no offset text can sit there; else
@@ -86,7 +178,7 @@ def tic_scatter(*, panels: Sequence[Panel]) -> Figure:
     Each panel: ``coef``; ``fitted`` and ``held`` as ``(tic_qual, tic_ext)`` arrays (``None``:
     none); ``hi``, the end of the dashed identity line.
     """
-    fig, ax = new_figure(1, len(panels), height=2.9)
+    fig, ax = new_figure(1, len(panels), height=2.9, layout=None)
     titles: Titles = []
     for k, pan in enumerate(panels):
         a = ax[0, k]
@@ -103,6 +195,7 @@ def tic_scatter(*, panels: Sequence[Panel]) -> Figure:
         a.set_ylabel("TIC extended")
         _legend(a, loc="upper left")
     _set_titles(titles)
+    _grid_layout(fig, ax)
     return fig
 
 
@@ -119,7 +212,9 @@ def time_history(
 ) -> Figure:
     """Measured, qualified and extended coefficient against time ``t`` [s], with alpha [deg]
     below, shaded where ``active`` (the Δ model blended in; ``None``: nowhere)."""
-    fig, ax = new_figure(2, 1, height=3.6, sharex=True, gridspec_kw={"height_ratios": [3, 1]})
+    fig, ax = new_figure(
+        2, 1, height=3.6, sharex=True, gridspec_kw={"height_ratios": [3, 1]}, layout=None
+    )
     titles: Titles = []
     a0, a1 = ax[0, 0], ax[1, 0]
     a0.plot(t, meas, color=COLORS["meas"], lw=0.8, label="measured")
@@ -145,6 +240,7 @@ def time_history(
     a1.set_ylabel("α [deg]")
     a1.set_xlabel("t [s]")
     _set_titles(titles)
+    _grid_layout(fig, ax)
     return fig
 
 
@@ -157,7 +253,7 @@ def effect(*, panels: Sequence[Panel], ylabel: str, ext_label: str) -> Figure:
     others; ``band``: the half-width along ``alpha`` and ``inside``, where it is drawn).
     """
     n = len(panels)
-    fig, ax = new_figure(1, n, width=min(2.3 * n + 0.6, 12.0), height=2.6, sharey=True)
+    fig, ax = new_figure(1, n, width=min(2.3 * n + 0.6, 12.0), height=2.6, sharey=True, layout=None)
     titles: Titles = []
     for k, pan in enumerate(panels):
         a = ax[0, k]
@@ -190,6 +286,7 @@ def effect(*, panels: Sequence[Panel], ylabel: str, ext_label: str) -> Figure:
     ax[0, 0].set_ylabel(ylabel)
     _legend(ax[0, 0], loc="best", fontsize=6.5)
     _set_titles(titles)
+    _grid_layout(fig, ax)
     return fig
 
 
@@ -241,7 +338,7 @@ def error_vs_regressor(*, rows: Sequence[Panel]) -> Figure:
     least-squares line).
     """
     ncol = max(len(r["panels"]) for r in rows)
-    fig, ax = new_figure(len(rows), ncol, width=10.0, height=2.0 * len(rows) + 0.4)
+    fig, ax = new_figure(len(rows), ncol, width=10.0, height=2.0 * len(rows) + 0.4, layout=None)
     titles: Titles = []
     for i, row in enumerate(rows):
         for j, pan in enumerate(row["panels"]):
@@ -256,6 +353,7 @@ def error_vs_regressor(*, rows: Sequence[Panel]) -> Figure:
             if j == 0:
                 a.set_ylabel(row["ylabel"])
     _set_titles(titles)
+    _grid_layout(fig, ax)
     return fig
 
 
@@ -265,7 +363,7 @@ def replay(*, panels: Sequence[Panel]) -> Figure:
     Each panel: ``title``, ``t`` and ``y`` of the record and ``runs``: ``(t, y, colour,
     label)`` per replay.
     """
-    fig, ax = new_figure(1, len(panels), width=11.0, height=2.4)
+    fig, ax = new_figure(1, len(panels), width=11.0, height=2.4, layout=None)
     titles: Titles = []
     for k, pan in enumerate(panels):
         a = ax[0, k]
@@ -276,6 +374,7 @@ def replay(*, panels: Sequence[Panel]) -> Figure:
         a.set_xlabel("t [s]")
     _legend(ax[0, 0], loc="best", fontsize=6.5)
     _set_titles(titles)
+    _grid_layout(fig, ax)
     return fig
 
 
