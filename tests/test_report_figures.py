@@ -315,10 +315,34 @@ def _wide_jobs() -> list[tuple[Any, dict[str, Any]]]:
                 ]
             },
         ),
+        (
+            figures.rolloff_drc_maxroll,
+            {
+                "drc": [{"x": 40 * np.sin(t), "y": 20 * np.cos(t)}] * 2,
+                "max_roll": [
+                    {"x": np.zeros(3) + k, "y": np.array([5.0, 25.0, 60.0])} for k in range(2)
+                ],
+                "flaps": [0.0, 35.0],
+                "limit_deg": 20.0,
+            },
+        ),
+        (
+            figures.shrink,
+            {
+                "panels": [
+                    {
+                        "coef": c,
+                        "y": np.array([3e-4, 2e-4, 1.5e-4]),
+                        "labels": ["qualified", "a_rather_long_effect_name", "time_skew"],
+                    }
+                    for c in ("Cl", "Cn", "CY (long)")
+                ]
+            },
+        ),
     ]
 
 
-@pytest.mark.parametrize("job", range(5))
+@pytest.mark.parametrize("job", range(7))
 def test_panels_of_the_fixed_layout_fit_the_figure_and_clear_each_other(job: int) -> None:
     # the reference is matplotlib's own measure of everything drawn around each panel
     draw, kw = _wide_jobs()[job]

@@ -119,17 +119,20 @@ def _margins(ax: Any, r: Any) -> tuple[float, float, float, float]:
             else:  # above the axes, under a title lifted to clear it
                 lifted = h
                 top = max(top, h)
-    if ax.title.get_text():
-        top = max(top, ax.title.get_window_extent(r).y1 - box.y1 + lifted)
+    if ax.title.get_text():  # above the axes; a long one reaches past its sides too
+        b = ax.title.get_window_extent(r)
+        top = max(top, b.y1 - box.y1 + lifted)
+        left, right = max(left, box.x0 - b.x0), max(right, b.x1 - box.x1)
     return left, right, bottom, top
 
 
 def _grid_layout(fig: Figure, ax: np.ndarray) -> None:
     """Place a grid of panels as the constrained layout would, for less: the margins and gaps
     are the extents of each panel's decorations beyond its axes (:func:`_margins`, measured,
-    not drawn) plus :data:`PAD_PT` (and :data:`SPACE` between panels), in two passes (the
-    ticks of the placed axes may differ). For figures whose decorations are ticks, axis
-    labels, offset texts and titles only (no colorbar, no figure legend, no rotated labels);
+    not drawn) plus :data:`PAD_PT` (and :data:`SPACE` between panels), placed again until
+    no margin grows (the ticks of the placed axes may differ, and a title wider than its
+    panel reaches further as the panel narrows). For figures whose decorations are ticks, axis
+    labels (rotated ones too), offset texts and titles only (no colorbar, no figure legend);
     legends inside the axes do not count."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg  # noqa: PLC0415
 
@@ -138,7 +141,8 @@ def _grid_layout(fig: Figure, ax: np.ndarray) -> None:
     w_pt, h_pt = fig.get_size_inches() * 72.0
     pt = 72.0 / fig.dpi
     nrow, ncol = ax.shape
-    for _ in range(2):
+    used: np.ndarray | None = None
+    for _ in range(4):  # until no margin grows (two passes unless a long title is squeezed)
         left, right = np.zeros(ncol), np.zeros(ncol)
         bottom, top = np.zeros(nrow), np.zeros(nrow)
         for (i, j), a in np.ndenumerate(ax):
@@ -146,6 +150,12 @@ def _grid_layout(fig: Figure, ax: np.ndarray) -> None:
                 m = np.array(_margins(a, r)) * pt
                 left[j], right[j] = max(left[j], m[0]), max(right[j], m[1])
                 bottom[i], top[i] = max(bottom[i], m[2]), max(top[i], m[3])
+        need = np.concatenate([left, right, bottom, top])
+        if used is not None and np.all(need <= used + 0.5):
+            return
+        used = need if used is None else np.maximum(used, need)
+        left, right = used[:ncol], used[ncol : 2 * ncol]
+        bottom, top = used[2 * ncol : 2 * ncol + nrow], used[2 * ncol + nrow :]
         gap_w = (right[:-1] + left[1:]).max(initial=0.0) + 2 * PAD_PT + SPACE * w_pt
         gap_h = (bottom[:-1] + top[1:]).max(initial=0.0) + 2 * PAD_PT + SPACE * h_pt
         x0, x1 = left[0] + PAD_PT, w_pt - right[-1] - PAD_PT
@@ -384,7 +394,7 @@ def rolloff_drc_maxroll(
     """Left: aileron [deg] against dynamic roll φ' [deg] per flap (``drc``: ``x``, ``y``
     thinned by the caller, drawn rasterized in the SVG). Right: maximum bank [deg] per straight
     stall per flap (``max_roll``: ``x``, ``y``) against ``limit_deg``."""
-    fig, ax = new_figure(1, 2, width=10.0, height=3.4)
+    fig, ax = new_figure(1, 2, width=10.0, height=3.4, layout=None)
     titles: Titles = []
     a = ax[0, 0]
     for k, (pan, flap) in enumerate(zip(drc, flaps, strict=True)):
@@ -410,6 +420,7 @@ def rolloff_drc_maxroll(
     titles.append((b, "Maximum bank angle per straight stall", {}))
     _legend(b, loc="best")
     _set_titles(titles)
+    _grid_layout(fig, ax)
     return fig
 
 
@@ -503,7 +514,7 @@ def shrink(*, panels: Sequence[Panel]) -> Figure:
     """Held-out gap RMS as the ranked effects are added, one panel per coefficient (``coef``,
     ``y``: the gap before and after each effect, ``labels``)."""
     n = len(panels)
-    fig, ax = new_figure(1, n, width=min(3.4 * n, 12.0), height=2.8)
+    fig, ax = new_figure(1, n, width=min(3.4 * n, 12.0), height=2.8, layout=None)
     titles: Titles = []
     for k, pan in enumerate(panels):
         a = ax[0, k]
@@ -513,6 +524,7 @@ def shrink(*, panels: Sequence[Panel]) -> Figure:
         titles.append((a, f"{pan['coef']}: held-out gap RMS as effects are added", {}))
         a.set_ylim(bottom=0)
     _set_titles(titles)
+    _grid_layout(fig, ax)
     return fig
 
 
