@@ -126,6 +126,7 @@ _TOKEN = re.compile(r"<!--aerodelta-figure:(\d+)-->")
 
 @dataclass
 class _Pending:
+    number: int
     slug: str
     name: str
     caption: str
@@ -213,7 +214,7 @@ class FigureSink:
         while len(self._pending) >= 2 * self._pool.size:
             self._drain(block_first=True)
         fut = self._pool.submit(draw, data, dpi=self.dpi, svg=self.svg)
-        self._pending.append(_Pending(slug, name, caption, fut, draw, data))
+        self._pending.append(_Pending(self.count, slug, name, caption, fut, draw, data))
         self._drain(block_first=False)
         return f"<!--aerodelta-figure:{self.count}-->"
 
@@ -225,8 +226,7 @@ class FigureSink:
             out = job.future.result()
             if out is None:  # the worker is gone: draw it here (same bytes)
                 out = draw_and_render(job.draw, job.kwargs, dpi=self.dpi, svg=self.svg)
-            number = int(job.slug[:3])
-            self._done[number] = self._emit(job.slug, job.name, job.caption, *out)
+            self._done[job.number] = self._emit(job.slug, job.name, job.caption, *out)
 
     def finish(self) -> None:
         """Wait for the figures drawn in workers and write them (in figure order)."""
