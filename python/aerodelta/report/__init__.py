@@ -10,6 +10,7 @@ Sections: time-history matches (4.1), effect plots (4.2), identified parameters 
 
 from __future__ import annotations
 
+import os
 import re
 import sys
 import time
@@ -22,6 +23,7 @@ import polars as pl
 from tqdm import tqdm
 
 from aerodelta._fsutil import write_text_atomic
+from aerodelta.exceptions import InvalidInputError
 from aerodelta.model import DeltaModel
 from aerodelta.plots import FigureSink
 from aerodelta.report import (
@@ -35,7 +37,7 @@ from aerodelta.report import (
 )
 from aerodelta.report.context import build_context, load_params
 from aerodelta.report.diagnosis import load_diagnosis
-from aerodelta.report.html import Section, esc, page
+from aerodelta.report.html import Section, esc, generated_at, page
 from aerodelta.report.metrics import (
     all_metrics,
     maneuver_metrics,
@@ -64,12 +66,16 @@ class ReportResult:
         The sections built, with their tables and timings.
     seconds
         Total time, s.
+    figure_wait
+        Time spent waiting, after the last section, for the figures drawn in worker
+        processes, s.
     """
 
     html: Path
     figures: list[Path]
     sections: list[Section] = field(default_factory=list)
     seconds: float = 0.0
+    figure_wait: float = 0.0
 
     def timings(self) -> dict[str, float]:
         """Seconds per section."""
@@ -90,6 +96,7 @@ def build_report(
     svg: bool = True,
     title: str = "aerodelta validation report",
     progress: bool = False,
+    workers: int | None = None,
 ) -> ReportResult:
     """Build the validation report.
 
@@ -121,12 +128,18 @@ def build_report(
         Report title.
     progress
         Progress bar on stderr.
+    workers
+        Worker processes drawing the figures while the sections are computed (0: draw in this
+        process). ``None``: :func:`default_workers` (two on a multi-core machine when the records
+        hold at least :data:`POOL_MIN_SAMPLES` samples, else none). The files are the same
+        bytes either way.
 
     Returns
     -------
     ReportResult
     """
     t0 = time.perf_counter()
+    generated = generated_at()  # a bad SOURCE_DATE_EPOCH is refused before the work
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     if isinstance(model, (str, Path)):
@@ -144,35 +157,47 @@ def build_report(
         for f in figdir.iterdir():
             if re.fullmatch(r"\d{3}_.+\.(png|svg)", f.name):
                 f.unlink()
-    sink = FigureSink(figdir, svg=svg)
-    steps = [
-        ("time histories", lambda c: timehistory.section(c, sink)),
-        ("effects", lambda c: effects.section(c, sink)),
-        ("parameters", lambda c: params.section(c, sink)),
-        (
-            "6-DOF replay",
-            lambda c: replay.section(c, sink, count=replay_count, controls=replay_controls),
-        ),
-        ("roll-off", lambda c: rolloff_section.section(c, sink)),
-        ("envelope", lambda c: envelope.section(c, sink)),
-        ("diagnosis", lambda c: diagnosis.section(c.diagnosis, sink)),
-    ]
-    bar = tqdm(
-        total=len(steps) + 2, desc="report", unit="step", file=sys.stderr, disable=not progress
-    )
-    bar.set_postfix_str("models along the records")
-    ctx = build_context(
-        model, data, params=params_table, held_out=held_out, qualified=qualified, diagnosis=doc
-    )
-    prep = time.perf_counter() - t0
-    bar.update(1)
-    sections: list[Section] = []
-    for name, fn in steps:
-        bar.set_postfix_str(name)
+    if workers is None:
+        workers = default_workers(data.height)
+    elif workers < 0:
+        raise InvalidInputError(f"workers={workers}: use 0 (draw here) or a positive count")
+    with FigureSink(figdir, svg=svg, workers=workers) as sink:
+        steps = [
+            ("time histories", lambda c: timehistory.section(c, sink)),
+            ("effects", lambda c: effects.section(c, sink)),
+            ("parameters", lambda c: params.section(c, sink)),
+            (
+                "6-DOF replay",
+                lambda c: replay.section(c, sink, count=replay_count, controls=replay_controls),
+            ),
+            ("roll-off", lambda c: rolloff_section.section(c, sink)),
+            ("envelope", lambda c: envelope.section(c, sink)),
+            ("diagnosis", lambda c: diagnosis.section(c.diagnosis, sink)),
+        ]
+        bar = tqdm(
+            total=len(steps) + 3, desc="report", unit="step", file=sys.stderr, disable=not progress
+        )
+        bar.set_postfix_str("models along the records")
+        ctx = build_context(
+            model, data, params=params_table, held_out=held_out, qualified=qualified, diagnosis=doc
+        )
+        prep = time.perf_counter() - t0
+        bar.update(1)
+        sections: list[Section] = []
+        for name, fn in steps:
+            bar.set_postfix_str(name)
+            ts = time.perf_counter()
+            s = fn(ctx)
+            s.seconds = time.perf_counter() - ts
+            sections.append(s)
+            bar.update(1)
+        # the figures still being drawn in the workers (their time is not in any section's)
+        bar.set_postfix_str("figures")
         ts = time.perf_counter()
-        s = fn(ctx)
-        s.seconds = time.perf_counter() - ts
-        sections.append(s)
+        sink.finish()
+        for s in sections:
+            s.body = [sink.fill(b) for b in s.body]
+        figure_wait = time.perf_counter() - ts
         bar.update(1)
     bar.set_postfix_str("writing HTML")
     n_man = ctx.data["maneuver_id"].n_unique()
@@ -184,7 +209,11 @@ def build_report(
         f"{' and SVG' if svg else ''}.</p>"
     )
     doc_html = page(
-        title, f"Δ model validation (thesis Chapter 4), {n_man} maneuvers", intro, sections
+        title,
+        f"Δ model validation (thesis Chapter 4), {n_man} maneuvers",
+        intro,
+        sections,
+        generated=generated,
     )
     target = out / REPORT_NAME
     write_text_atomic(target, doc_html)
@@ -196,7 +225,26 @@ def build_report(
         figures=list(sink.written),
         sections=[prep_sec, *sections],
         seconds=time.perf_counter() - t0,
+        figure_wait=figure_wait,
     )
+
+
+#: Records (samples) from which :func:`build_report` draws in worker processes by default
+#: (about ten maneuvers; a toy report is drawn before two interpreters would have started).
+POOL_MIN_SAMPLES = 20_000
+#: Worker processes :func:`build_report` uses by default.
+POOL_WORKERS = 2
+
+
+def default_workers(samples: int) -> int:
+    """Figure workers for a report of ``samples`` records: :data:`POOL_WORKERS` when the
+    process may run on two or more CPUs and ``samples >= POOL_MIN_SAMPLES``, else 0 (a small
+    report is drawn faster than two interpreters start)."""
+    try:
+        cpus = len(os.sched_getaffinity(0))
+    except AttributeError:  # not on Linux
+        cpus = os.cpu_count() or 1
+    return POOL_WORKERS if cpus >= 2 and samples >= POOL_MIN_SAMPLES else 0
 
 
 __all__ = [
@@ -204,6 +252,7 @@ __all__ = [
     "ReportResult",
     "all_metrics",
     "build_report",
+    "default_workers",
     "load_diagnosis",
     "maneuver_metrics",
     "offset_removed_rms",

@@ -23,12 +23,9 @@ from typing import Any
 
 import numpy as np
 import polars as pl
-from matplotlib import colormaps
-from matplotlib.cm import ScalarMappable
-from matplotlib.colors import Normalize
 
 from aerodelta.exceptions import DataError
-from aerodelta.plots import FigureSink, new_figure
+from aerodelta.plots import FigureSink, figures
 from aerodelta.report.html import Section, esc, p, table
 
 SCHEMA = "aerodelta.diagnosis/1"
@@ -132,71 +129,54 @@ def effects_frame(doc: Mapping[str, Any]) -> pl.DataFrame:
 def _gap_map(sink: FigureSink, wf: pl.DataFrame) -> str | None:
     if wf.height == 0:
         return None
-    g = wf.group_by(["flap_deg", "coefficient", "alpha_lo_deg", "alpha_hi_deg"]).agg(
-        pl.col("rms").max(), pl.col("significant").any()
-    )
+    keys = ["flap_deg", "coefficient", "alpha_lo_deg", "alpha_hi_deg"]
+    # sorted: the bars are drawn in the same order every run (same figure bytes)
+    g = wf.group_by(keys).agg(pl.col("rms").max(), pl.col("significant").any()).sort(keys)
     flaps = sorted(g["flap_deg"].unique().to_list())
     coefs = sorted(g["coefficient"].unique().to_list())
-    fig, ax = new_figure(
-        1, len(flaps), width=min(2.2 * len(flaps) + 1.2, 12.0), height=3.2, sharey=True
-    )
-    cmap = colormaps["YlOrRd"]
+    top = {
+        c: float(np.nanmax(g.filter(pl.col("coefficient") == c)["rms"].to_numpy())) for c in coefs
+    }
+    cells = []
     for k, flap in enumerate(flaps):
-        a = ax[0, k]
         for j, c in enumerate(coefs):
             s = g.filter((pl.col("flap_deg") == flap) & (pl.col("coefficient") == c))
-            rms = s["rms"].to_numpy()
-            top = np.nanmax(g.filter(pl.col("coefficient") == c)["rms"].to_numpy())
-            norm = Normalize(0.0, top if np.isfinite(top) and top > 0 else 1.0)
-            a.bar(
-                np.full(s.height, j),
-                s["alpha_hi_deg"] - s["alpha_lo_deg"],
-                bottom=s["alpha_lo_deg"],
-                width=0.9,
-                color=cmap(norm(np.nan_to_num(rms))),
-                edgecolor=["#000" if x else "none" for x in s["significant"]],
-                linewidth=0.8,
+            cells.append(
+                {
+                    "k": k,
+                    "j": j,
+                    "lo": s["alpha_lo_deg"].to_numpy(),
+                    "hi": s["alpha_hi_deg"].to_numpy(),
+                    "rms": s["rms"].to_numpy(),
+                    "significant": s["significant"].to_list(),
+                    "top": top[c],
+                }
             )
-        a.set_xticks(range(len(coefs)), coefs)
-        a.set_title(f"flap {flap:g}")
-    ax[0, 0].set_ylabel("α [deg]")
-    fig.colorbar(
-        ScalarMappable(Normalize(0, 1), cmap),
-        ax=ax[0, -1],
-        label="gap RMS / largest of the coefficient",
-    )
-    return sink.add(
-        fig,
+    return sink.plot(
+        figures.gap_map,
         "diagnosis_gap_map",
         "Gap map: RMS of measured − simulated per alpha region and coefficient, per flap "
         "(largest over flight phases, scaled per coefficient); outlined: significant against "
         "the noise floor.",
+        flaps=flaps,
+        coefs=coefs,
+        cells=cells,
     )
 
 
 def _shrink_plot(sink: FigureSink, ef: pl.DataFrame) -> str | None:
     if ef.height == 0:
         return None
-    coefs = sorted(ef["coefficient"].unique().to_list())
-    fig, ax = new_figure(1, len(coefs), width=min(3.4 * len(coefs), 12.0), height=2.8)
-    for k, c in enumerate(coefs):
-        a = ax[0, k]
+    panels = []
+    for c in sorted(ef["coefficient"].unique().to_list()):
         s = ef.filter(pl.col("coefficient") == c).sort("rank")
         y = np.concatenate([[s["gap_rms_before"][0]], s["gap_rms_after"].to_numpy()])
-        a.plot(range(len(y)), y, "o-", color="#1f77b4")
-        a.set_xticks(
-            range(len(y)),
-            ["qualified", *s["effect"].to_list()],
-            rotation=35,
-            ha="right",
-            fontsize=7,
-        )
-        a.set_title(f"{c}: held-out gap RMS as effects are added")
-        a.set_ylim(bottom=0)
-    return sink.add(
-        fig,
+        panels.append({"coef": c, "y": y, "labels": ["qualified", *s["effect"].to_list()]})
+    return sink.plot(
+        figures.shrink,
         "diagnosis_shrink",
         "Held-out gap RMS before and after adding each ranked effect (greedy).",
+        panels=panels,
     )
 
 

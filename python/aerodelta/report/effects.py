@@ -5,12 +5,14 @@ per-bin estimates and a 95 % confidence band."""
 from __future__ import annotations
 
 import re
+from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 import polars as pl
 
 from aerodelta.fit import qualified_coefficients
-from aerodelta.plots import COLORS, FigureSink, new_figure
+from aerodelta.plots import FigureSink, figures
 from aerodelta.report.context import ReportContext
 from aerodelta.report.html import Section, p, table
 
@@ -46,35 +48,61 @@ _QUAL_INPUTS = (
 )
 
 
-def _grid_frame(
-    ctx: ReportContext, flap: float, alpha: np.ndarray, channel: str, value: float
-) -> pl.DataFrame:
-    cols = {c: np.zeros_like(alpha) for c in (*_QUAL_INPUTS, *ctx.model.input_columns)}
-    cols["alpha_deg"] = alpha
-    cols["flap_deg"] = np.full_like(alpha, flap)
-    cols["tas_mps"] = np.full_like(alpha, 60.0)
-    cols[channel] = np.full_like(alpha, value)
+#: One derivative to evaluate: (coefficient, channel, perturbation, flap [deg], alpha [deg]).
+DerivativeSpec = tuple[str, str, float, float, np.ndarray]
+
+
+def _grid_frame(ctx: ReportContext, specs: Sequence[DerivativeSpec]) -> pl.DataFrame:
+    """Inputs of every spec at +h then -h, one block of rows each (zero other inputs)."""
+    sizes = [2 * s[4].size for s in specs]
+    n = sum(sizes)
+    names = dict.fromkeys((*_QUAL_INPUTS, *ctx.model.input_columns, *(s[1] for s in specs)))
+    cols = {c: np.zeros(n) for c in names}
+    cols["tas_mps"] = np.full(n, 60.0)
+    i = 0
+    for (_, channel, h, flap, alpha), m in zip(specs, sizes, strict=True):
+        k = m // 2
+        cols["alpha_deg"][i : i + m] = np.concatenate([alpha, alpha])
+        cols["flap_deg"][i : i + m] = flap
+        cols[channel][i : i + k] = h
+        cols[channel][i + k : i + m] = -h
+        i += m
     return pl.DataFrame(cols)
+
+
+def derivatives(
+    ctx: ReportContext, specs: Sequence[DerivativeSpec]
+) -> list[tuple[np.ndarray | None, np.ndarray]]:
+    """:func:`derivative` of each spec, with one evaluation of the models for all of them
+    (the models are evaluated row by row, so the batch changes no value)."""
+    if not specs:
+        return []
+    f = _grid_frame(ctx, specs)
+    ev = ctx.model.evaluate(f, coefficients=sorted({s[0] for s in specs}))
+    q = qualified_coefficients(f, "adx37") if ctx.qualified == "adx37" else None
+    out: list[tuple[np.ndarray | None, np.ndarray]] = []
+    i = 0
+    for coef, _, h, _, alpha in specs:
+        k = alpha.size
+        d = ev[f"d{coef}_blended"].to_numpy()[i : i + 2 * k]
+        dd = (d[:k] - d[k:]) / (2 * h)
+        dq = None
+        if q is not None:
+            qv = q[f"{coef}_qual"].to_numpy()[i : i + 2 * k]
+            dq = (qv[:k] - qv[k:]) / (2 * h)
+        out.append((dq, dd))
+        i += 2 * k
+    return out
 
 
 def derivative(
     ctx: ReportContext, coef: str, channel: str, h: float, *, flap: float, alpha: np.ndarray
 ) -> tuple[np.ndarray | None, np.ndarray]:
     """Qualified (``None`` when the qualified model is only given as record columns) and Δ
-    (blended) derivative of ``coef`` with respect to ``channel`` along ``alpha`` at ``flap``."""
-    out = []
-    for sign in (1.0, -1.0):
-        f = _grid_frame(ctx, flap, alpha, channel, sign * h)
-        d = ctx.model.evaluate(f, coefficients=[coef])[f"d{coef}_blended"].to_numpy()
-        q = (
-            qualified_coefficients(f, "adx37")[f"{coef}_qual"].to_numpy()
-            if ctx.qualified == "adx37"
-            else None
-        )
-        out.append((q, d))
-    (qp, dp), (qm, dm) = out
-    dq = None if qp is None or qm is None else (qp - qm) / (2 * h)
-    return dq, (dp - dm) / (2 * h)
+    (blended) derivative of ``coef`` with respect to ``channel`` along ``alpha`` [deg] at
+    ``flap`` [deg]: the central difference ``(C(+h) - C(-h)) / 2h`` (per unit of ``channel``)
+    at zero other inputs and 60 m/s."""
+    return derivatives(ctx, [(coef, channel, h, flap, np.asarray(alpha, dtype=float))])[0]
 
 
 def _regressor_gain(regressor: str, channel: str, h: float) -> float | None:
@@ -96,6 +124,38 @@ def _bins(ctx: ReportContext, coef: str, channel: str, flap: float) -> pl.DataFr
         & pl.col("regressor").str.contains(channel, literal=True)
     )
     return g if g.height else None
+
+
+def _bin_marks(ctx: ReportContext, spec: DerivativeSpec, base: np.ndarray) -> dict[str, Any] | None:
+    """The per-bin estimates of a derivative on the qualified value ``base`` along its alpha:
+    identified bins with 95 % half-widths, the others, and the half-width of the band along
+    ``alpha`` (drawn around the extended curve)."""
+    coef, channel, h, flap, alpha = spec
+    bins = _bins(ctx, coef, channel, flap)
+    if bins is None:
+        return None
+    gain = _regressor_gain(str(bins["regressor"][0]), channel, h)
+    if gain is None or gain <= 0:
+        return None
+    c = 0.5 * (bins["alpha_lo_deg"].to_numpy() + bins["alpha_hi_deg"].to_numpy())
+    est = gain * bins["estimate"].to_numpy()
+    # 95 % interval: cluster-robust (CR2) error with Bell-McCaffrey t
+    half = gain * (bins["ci95_upper"].to_numpy() - bins["estimate"].to_numpy())
+    ok = bins["identifiable"].to_numpy() & np.isfinite(half)
+    qb = np.interp(c, alpha, base)
+    band = inside = None
+    if ok.sum() >= 2:
+        inside = (alpha >= c[ok].min()) & (alpha <= c[ok].max())
+        band = np.interp(alpha, c[ok], half[ok])
+    return {
+        "c": c[ok],
+        "y": qb[ok] + est[ok],
+        "half": half[ok],
+        "c_bad": c[~ok],
+        "y_bad": qb[~ok],
+        "band": band,
+        "inside": inside,
+    }
 
 
 def section(ctx: ReportContext, sink: FigureSink) -> Section:
@@ -121,70 +181,33 @@ def section(ctx: ReportContext, sink: FigureSink) -> Section:
         )
     )
     flaps = ctx.flaps
+    effects = [e for e in EFFECTS if e[1] in ctx.coefficients]
+    grids = {}
+    for flap in flaps:
+        stall = ctx.stall_alpha_deg.get(flap)
+        grids[flap] = np.linspace(-2.0, (stall + 12.0) if stall is not None else 30.0, 121)
+    specs = [(coef, ch, h, flap, grids[flap]) for _, coef, ch, h, _ in effects for flap in flaps]
+    values = iter(derivatives(ctx, specs))
     rows = []
-    for name, coef, channel, h, unit in EFFECTS:
-        if coef not in ctx.coefficients:
-            continue
-        fig, ax = new_figure(
-            1, len(flaps), width=min(2.3 * len(flaps) + 0.6, 12.0), height=2.6, sharey=True
-        )
-        for k, flap in enumerate(flaps):
-            a = ax[0, k]
+    for name, coef, channel, h, unit in effects:
+        panels = []
+        for flap in flaps:
             stall = ctx.stall_alpha_deg.get(flap)
-            hi = (stall + 12.0) if stall is not None else 30.0
-            alpha = np.linspace(-2.0, hi, 121)
-            dq, dd = derivative(ctx, coef, channel, h, flap=flap, alpha=alpha)
+            alpha = grids[flap]
+            hi = alpha[-1]
+            dq, dd = next(values)
             base = dq if dq is not None else np.zeros_like(alpha)
             ext = base + dd
-            if dq is not None:
-                a.plot(alpha, dq, color=COLORS["qual"], lw=1.1, label="qualified")
-            a.plot(
-                alpha,
-                ext,
-                color=COLORS["ext"],
-                lw=1.4,
-                label="extended" if dq is not None else "Δ (blended)",
+            panels.append(
+                {
+                    "flap": flap,
+                    "alpha": alpha,
+                    "dq": dq,
+                    "ext": ext,
+                    "stall": stall,
+                    "bins": _bin_marks(ctx, (coef, channel, h, flap, alpha), base),
+                }
             )
-            bins = _bins(ctx, coef, channel, flap)
-            if bins is not None:
-                gain = _regressor_gain(str(bins["regressor"][0]), channel, h)
-                if gain is not None and gain > 0:
-                    c = 0.5 * (bins["alpha_lo_deg"].to_numpy() + bins["alpha_hi_deg"].to_numpy())
-                    est = gain * bins["estimate"].to_numpy()
-                    # 95 % interval: cluster-robust (CR2) error with Bell-McCaffrey t
-                    half = gain * (bins["ci95_upper"].to_numpy() - bins["estimate"].to_numpy())
-                    ok = bins["identifiable"].to_numpy() & np.isfinite(half)
-                    qb = np.interp(c, alpha, base)
-                    a.errorbar(
-                        c[ok],
-                        qb[ok] + est[ok],
-                        yerr=half[ok],
-                        fmt="o",
-                        ms=2.5,
-                        color="#444",
-                        elinewidth=0.6,
-                        capsize=0,
-                        label="bins",
-                    )
-                    if (~ok).any():
-                        a.plot(c[~ok], qb[~ok], "x", color="#999", ms=4, label="not identified")
-                    if ok.sum() >= 2:
-                        inside = (alpha >= c[ok].min()) & (alpha <= c[ok].max())
-                        band = np.interp(alpha, c[ok], half[ok])
-                        a.fill_between(
-                            alpha,
-                            ext - band,
-                            ext + band,
-                            where=inside,
-                            color=COLORS["band"],
-                            alpha=0.5,
-                            lw=0,
-                            label="95 % band",
-                        )
-            if stall is not None:
-                a.axvline(stall, color="#777", ls="--", lw=0.8)
-            a.set_title(f"flap {flap:g}")
-            a.set_xlabel("α [deg]")
             sel = alpha <= (stall + 10.0 if stall is not None else hi)
             i = int(np.argmax(sel * alpha))
             rows.append(
@@ -196,15 +219,16 @@ def section(ctx: ReportContext, sink: FigureSink) -> Section:
                     "alpha_deg": float(alpha[i]),
                 }
             )
-        ax[0, 0].set_ylabel(f"{name} [{unit}]")
-        ax[0, 0].legend(loc="best", fontsize=6.5)
         sec.body.append(f"<h3>{name}</h3>")
         sec.body.append(
-            sink.add(
-                fig,
+            sink.plot(
+                figures.effect,
                 f"effect_{name}",
                 f"{name} against alpha per flap, qualified vs extended (cf. thesis Figures "
                 "4.9-4.13).",
+                panels=panels,
+                ylabel=f"{name} [{unit}]",
+                ext_label="extended" if ctx.qualified == "adx37" else "Δ (blended)",
             )
         )
     if rows:

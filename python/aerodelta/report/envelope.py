@@ -18,9 +18,8 @@ from __future__ import annotations
 
 import numpy as np
 import polars as pl
-from matplotlib.colors import BoundaryNorm, ListedColormap
 
-from aerodelta.plots import FigureSink, new_figure
+from aerodelta.plots import FigureSink, figures
 from aerodelta.report.context import ReportContext
 from aerodelta.report.html import Section, p, table
 
@@ -123,26 +122,18 @@ def section(ctx: ReportContext, sink: FigureSink) -> Section:
             "tables, 10 deg beyond stall); <b>none</b>: no data, the model is extrapolated there."
         )
     )
-    cmap = ListedColormap(["#f2f2f2", "#fdd49e", "#9ecae1", "#2171b5"])
-    norm = BoundaryNorm([-0.5, 0.5, 1.5, 2.5, 3.5], cmap.N)
     flaps = ctx.flaps
-    fig, ax = new_figure(
-        1, len(flaps), width=min(2.4 * len(flaps) + 1.0, 12.5), height=3.4, sharey=True
-    )
     rows = []
-    im = None
-    for k, flap in enumerate(flaps):
+    panels = []
+    for flap in flaps:
         a_edges, b_edges, cells = coverage(ctx, flap)
         lvl = np.array([LEVELS.index(x) for x in cells["level"]]).reshape(
             len(a_edges) - 1, len(b_edges) - 1
         )
-        a = ax[0, k]
-        im = a.pcolormesh(b_edges, a_edges, lvl, cmap=cmap, norm=norm)
         stall = ctx.stall_alpha_deg.get(flap)
-        if stall is not None:
-            a.axhline(stall, color="#b42318", ls="--", lw=0.8)
-        a.set_title(f"flap {flap:g}")
-        a.set_xlabel("β [deg]")
+        panels.append(
+            {"flap": flap, "a_edges": a_edges, "b_edges": b_edges, "level": lvl, "stall": stall}
+        )
         hi = cells.filter(pl.col("level") == "high")
         row = {"flap_deg": flap}
         for lev in LEVELS[1:]:
@@ -156,17 +147,15 @@ def section(ctx: ReportContext, sink: FigureSink) -> Section:
         )  # type: ignore[operator]
         row["stall_alpha_deg"] = stall if stall is not None else float("nan")
         rows.append(row)
-    ax[0, 0].set_ylabel("α [deg]")
-    if im is not None:
-        cb = fig.colorbar(im, ax=ax[0, -1], ticks=[0, 1, 2, 3])
-        cb.ax.set_yticklabels(list(LEVELS))
     sec.body.append(
-        sink.add(
-            fig,
+        sink.plot(
+            figures.envelope,
             "envelope",
             "Validation envelope per flap: confidence of the extended model in "
             "each alpha-beta cell "
             "(grey: no data; orange: low; light blue: moderate; dark blue: high); dashed: stall.",
+            panels=panels,
+            levels=list(LEVELS),
         )
     )
     t = pl.DataFrame(rows)

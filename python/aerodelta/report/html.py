@@ -6,11 +6,14 @@ from __future__ import annotations
 import datetime as _dt
 import html
 import math
+import os
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
 import polars as pl
+
+from aerodelta.exceptions import InvalidInputError
 
 
 @dataclass
@@ -123,8 +126,32 @@ details{margin:6px 0} summary{cursor:pointer;color:#1f3b57}
 """
 
 
-def page(title: str, subtitle: str, intro: str, sections: Sequence[Section]) -> str:
-    """The whole report: header, navigation, summary page, then each section."""
+def generated_at() -> _dt.datetime:
+    """The report's generation time (UTC): now, or ``SOURCE_DATE_EPOCH`` (s since 1970, the
+    reproducible-builds.org convention, which matplotlib follows too) when it is set, so the
+    same inputs give the same bytes."""
+    epoch = os.environ.get("SOURCE_DATE_EPOCH", "").strip()
+    if not epoch:
+        return _dt.datetime.now(_dt.timezone.utc)
+    try:
+        return _dt.datetime.fromtimestamp(int(epoch), _dt.timezone.utc)
+    except (ValueError, OverflowError, OSError):
+        raise InvalidInputError(
+            f"SOURCE_DATE_EPOCH={epoch!r} is not a time in whole seconds since 1970-01-01 UTC; "
+            "set it to an integer such as 1700000000, or unset it"
+        ) from None
+
+
+def page(
+    title: str,
+    subtitle: str,
+    intro: str,
+    sections: Sequence[Section],
+    *,
+    generated: _dt.datetime | None = None,
+) -> str:
+    """The whole report: header, navigation, summary page, then each section; ``generated``
+    (default :func:`generated_at`) is stamped in the header."""
     nav = "".join(f'<a href="#{esc(s.key)}">{esc(s.title)}</a>' for s in sections)
     cards = []
     for s in sections:
@@ -141,7 +168,7 @@ def page(title: str, subtitle: str, intro: str, sections: Sequence[Section]) -> 
         f'<section id="{esc(s.key)}"><h2>{esc(s.title)}</h2>{"".join(s.body)}</section>'
         for s in sections
     )
-    stamp = _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
+    stamp = (generated or generated_at()).strftime("%Y-%m-%d %H:%M UTC")
     return (
         '<!DOCTYPE html>\n<html lang="en"><head><meta charset="utf-8">'
         '<meta name="viewport" content="width=device-width, initial-scale=1">'

@@ -104,8 +104,12 @@ def maneuver_metrics(
     """
     held = set(held_out)
     extra = [c for c in ("flap_deg", "kind", "pusher") if c in frame.columns]
+    used = [f"{c}_{m}" for c in coefficients for m in ("meas", "qual", "ext")]
     rows = []
-    for (mid,), g in frame.group_by(["maneuver_id"], maintain_order=True):
+    # only the columns scored: the groups are gathered from them, not from every channel
+    for (mid,), g in frame.select("maneuver_id", *extra, *used).group_by(
+        ["maneuver_id"], maintain_order=True
+    ):
         info = {c: g[c][0] for c in extra}
         for c in coefficients:
             meas = g[f"{c}_meas"].to_numpy()

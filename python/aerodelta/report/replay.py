@@ -13,7 +13,7 @@ import polars as pl
 from aerodelta.campaign import replay
 from aerodelta.exceptions import AerodeltaError
 from aerodelta.model import DeltaModel
-from aerodelta.plots import COLORS, FigureSink, new_figure
+from aerodelta.plots import COLORS, FigureSink, figures
 from aerodelta.report.context import ReportContext
 from aerodelta.report.html import Section, p, table
 
@@ -212,7 +212,6 @@ def section(
             rows.append({"maneuver_id": mid, "bounded": False, "reason": f"replay failed: {e}"})
             continue
         ok, why = divergence(sim)
-        fig, ax = new_figure(1, len(STATES), width=11.0, height=2.4)
         row: dict[str, object] = {
             "maneuver_id": mid,
             "flap_deg": float(rec["flap_deg"][0]),
@@ -224,26 +223,25 @@ def section(
             "max_bank_deg_ext": float(np.nanmax(np.abs(sim["phi_deg"].to_numpy()))),
         }
         tr = rec["t"].to_numpy()
-        for k, s in enumerate(STATES):
-            a = ax[0, k]
+        panels = []
+        for s in STATES:
             y = rec[_REC[s]].to_numpy()
-            a.plot(tr, y, color=COLORS["meas"], lw=0.9, label="flight record")
+            runs = []
             for name, run, col in (("qual", qual, COLORS["qual"]), ("ext", sim, COLORS["ext"])):
                 ts, ys = run["t"].to_numpy(), run[s].to_numpy()
                 lab = "replay, extended" if name == "ext" else "replay, qualified"
-                a.plot(ts, ys, color=col, lw=1.0, label=lab)
+                runs.append((ts, ys, col, lab))
                 err = np.interp(tr, ts, ys) - y
                 row[f"rms_{s}_{name}"] = float(np.sqrt(np.nanmean(err**2)))
-            a.set_title(s)
-            a.set_xlabel("t [s]")
-        ax[0, 0].legend(loc="best", fontsize=6.5)
+            panels.append({"title": s, "t": tr, "y": y, "runs": runs})
         sec.body.append(
-            sink.add(
-                fig,
+            sink.plot(
+                figures.replay,
                 f"replay_{mid}",
                 f"6-DOF replay of {mid} (flap {row['flap_deg']:g}): flight record vs the "
                 f"simulator with the extended and the qualified model; divergence check of the "
                 f"extended replay: {why}.",
+                panels=panels,
             )
         )
         rows.append(row)

@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 import polars as pl
 
-from aerodelta.plots import FigureSink, new_figure
+from aerodelta.plots import FigureSink, figures
 from aerodelta.report.context import ReportContext
 from aerodelta.report.html import Section, details, p, table
 from aerodelta.rolloff import (
@@ -19,8 +19,6 @@ from aerodelta.rolloff import (
     max_roll_straight_stalls,
     rolloff_statistics,
 )
-
-_FLAP_COLORS = ("#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b")
 
 
 def section(ctx: ReportContext, sink: FigureSink) -> Section:
@@ -85,9 +83,8 @@ def section(ctx: ReportContext, sink: FigureSink) -> Section:
 
     straight = d.filter(pl.col("kind") == "straight") if "kind" in d.columns else d
     flaps = sorted(float(f) for f in straight["flap_deg"].unique())
-    fig, ax = new_figure(1, 2, width=10.0, height=3.4)
-    a = ax[0, 0]
-    for k, flap in enumerate(flaps):
+    drc = []
+    for flap in flaps:
         s = straight.filter(pl.col("flap_deg") == flap)
         th = s["theta_deg"].to_numpy() if "theta_deg" in s.columns else np.zeros(s.height)
         q = s["q_dps"].to_numpy() if "q_dps" in s.columns else np.zeros(s.height)
@@ -95,48 +92,25 @@ def section(ctx: ReportContext, sink: FigureSink) -> Section:
         phid = euler_roll_rate(s["p_dps"].to_numpy(), q, r, s["phi_deg"].to_numpy(), th)
         dphi = dynamic_roll(s["phi_deg"].to_numpy(), phid)
         step = max(1, s.height // 4000)
-        a.plot(
-            dphi[::step],
-            s["da_deg"].to_numpy()[::step],
-            ".",
-            ms=1.0,
-            color=_FLAP_COLORS[k % len(_FLAP_COLORS)],
-            alpha=0.5,
-            label=f"flap {flap:g}",
-        )
-    a.axhline(0, color="#666", lw=0.6)
-    a.axvline(0, color="#666", lw=0.6)
-    for x in (-FAR25_203_MAX_ROLL_DEG, FAR25_203_MAX_ROLL_DEG):
-        a.axvline(x, color="#b42318", lw=0.8, ls="--")
-    a.set_xlabel("dynamic roll φ' = φ + φ̇·1 s [deg]")
-    a.set_ylabel("aileron δa [deg] (+ rolls left)")
-    a.set_title("Dynamic roll control, straight stalls (quadrants I/III: recovering)")
-    a.legend(loc="best", markerscale=6, fontsize=6.5)
+        drc.append({"x": dphi[::step], "y": s["da_deg"].to_numpy()[::step]})
     mr = max_roll_straight_stalls(d)
-    b = ax[0, 1]
+    max_roll = []
     for k, flap in enumerate(flaps):
         g = mr.filter(pl.col("flap_deg") == flap)
         x = np.full(g.height, k) + np.linspace(-0.25, 0.25, max(g.height, 1))[: g.height]
-        b.scatter(x, g["max_roll_deg"], s=12, color=_FLAP_COLORS[k % len(_FLAP_COLORS)])
-    b.axhline(
-        FAR25_203_MAX_ROLL_DEG,
-        color="#b42318",
-        ls="--",
-        lw=1.0,
-        label=f"{FAR25_203_MAX_ROLL_DEG:g} deg (FAR 25.203)",
-    )
-    b.set_xticks(range(len(flaps)), [f"flap {f:g}" for f in flaps])
-    b.set_ylabel("max |φ| [deg]")
-    b.set_title("Maximum bank angle per straight stall")
-    b.legend(loc="best")
+        max_roll.append({"x": x, "y": g["max_roll_deg"].to_numpy()})
     sec.body.append(
-        sink.add(
-            fig,
+        sink.plot(
+            figures.rolloff_drc_maxroll,
             "rolloff_drc_maxroll",
             "Left: aileron against dynamic roll attitude φ' (thesis Eq. 3.20, Figure 3.12); the "
             "red dashed lines mark ±20 deg for scale (the QLC envelope itself is not drawn). "
             "Right: maximum bank angle of each straight stall against the 20 deg requirement "
             "(FAR 25.203, Figure 3.13).",
+            drc=drc,
+            max_roll=max_roll,
+            flaps=flaps,
+            limit_deg=FAR25_203_MAX_ROLL_DEG,
         )
     )
     if mr.height:

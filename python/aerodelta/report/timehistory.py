@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 import polars as pl
 
-from aerodelta.plots import COLORS, FigureSink, new_figure
+from aerodelta.plots import FigureSink, figures
 from aerodelta.report.context import ReportContext
 from aerodelta.report.html import Section, details, esc, p, table
 from aerodelta.report.metrics import maneuver_metrics, overall_metrics, rank_fits
@@ -16,73 +16,53 @@ _LABEL = {"Cl": "$C_l$", "Cn": "$C_n$", "CY": "$C_Y$"}
 
 
 def _plot_maneuver(
-    ctx: ReportContext, sink: FigureSink, mid: str, coef: str, *, rank: str, row: dict[str, object]
+    ctx: ReportContext,
+    sink: FigureSink,
+    g: pl.DataFrame,
+    mid: str,
+    coef: str,
+    *,
+    rank: str,
+    row: dict[str, object],
 ) -> str:
-    g = ctx.data.filter(pl.col("maneuver_id") == mid).sort("t")
-    t = g["t"].to_numpy()
-    fig, ax = new_figure(2, 1, height=3.6, sharex=True, gridspec_kw={"height_ratios": [3, 1]})
-    a0, a1 = ax[0, 0], ax[1, 0]
-    a0.plot(t, g[f"{coef}_meas"].to_numpy(), color=COLORS["meas"], lw=0.8, label="measured")
-    a0.plot(t, g[f"{coef}_qual"].to_numpy(), color=COLORS["qual"], lw=1.0, label="qualified")
-    a0.plot(t, g[f"{coef}_ext"].to_numpy(), color=COLORS["ext"], lw=1.2, label="extended")
-    a0.set_ylabel(_LABEL.get(coef, coef))
-    a0.legend(loc="best", ncol=3)
+    """Figure of one maneuver's records ``g`` (sorted by time)."""
     held = "held out" if row["held_out"] else "fitted"
-    a0.set_title(
-        f"{coef} {rank} fit: {mid} ({held})\nflap {row.get('flap_deg', '')}, "
-        f"{row.get('kind', '')}, pusher {row.get('pusher', '')}; TIC qualified "
-        f"{row['tic_qual']:.3f} → extended {row['tic_ext']:.3f}",
-        fontsize=8.5,
-    )
-    a1.plot(t, g["alpha_deg"].to_numpy(), color="#555", lw=0.9)
     w = g[f"w_{coef}"].to_numpy() if f"w_{coef}" in g.columns else None
-    if w is not None and np.any(w > 0):
-        a1.fill_between(
-            t,
-            0,
-            1,
-            where=w > 0,
-            transform=a1.get_xaxis_transform(),
-            color=COLORS["band"],
-            alpha=0.35,
-            lw=0,
-            label="Δ model active",
-        )
-        a1.legend(loc="upper right")
-    a1.set_ylabel("α [deg]")
-    a1.set_xlabel("t [s]")
-    return sink.add(
-        fig,
+    return sink.plot(
+        figures.time_history,
         f"th_{coef}_{rank}_{mid}",
         f"{coef} time history, {rank} fit ({mid}, {held}): measured, qualified and extended "
         "model (roll-off off); lower panel: angle of attack, shaded where the Δ model is blended "
         "in (cf. thesis Figures 4.1-4.8).",
+        t=g["t"].to_numpy(),
+        meas=g[f"{coef}_meas"].to_numpy(),
+        qual=g[f"{coef}_qual"].to_numpy(),
+        ext=g[f"{coef}_ext"].to_numpy(),
+        alpha=g["alpha_deg"].to_numpy(),
+        active=(w > 0) if w is not None and np.any(w > 0) else None,
+        ylabel=_LABEL.get(coef, coef),
+        title=f"{coef} {rank} fit: {mid} ({held})\nflap {row.get('flap_deg', '')}, "
+        f"{row.get('kind', '')}, pusher {row.get('pusher', '')}; TIC qualified "
+        f"{row['tic_qual']:.3f} → extended {row['tic_ext']:.3f}",
     )
 
 
 def _scatter(ctx: ReportContext, sink: FigureSink, per: pl.DataFrame) -> str:
-    fig, ax = new_figure(1, len(ctx.coefficients), height=2.9)
-    for k, c in enumerate(ctx.coefficients):
-        a = ax[0, k]
+    panels = []
+    for c in ctx.coefficients:
         g = per.filter(pl.col("coefficient") == c)
-        for held, mk, col, lab in (
-            (False, "o", "#1f77b4", "fitted"),
-            (True, "^", "#ff7f0e", "held out"),
-        ):
+        pan: dict[str, object] = {"coef": c}
+        for key, held in (("fitted", False), ("held", True)):
             s = g.filter(pl.col("held_out") == held)
-            if s.height:
-                a.scatter(s["tic_qual"], s["tic_ext"], s=12, marker=mk, color=col, label=lab)
-        hi = float(np.nanmax(g["tic_qual"].to_numpy())) if g.height else 1.0
-        a.plot([0, hi], [0, hi], color="#999", lw=0.8, ls="--")
-        a.set_title(f"{c}: TIC per maneuver")
-        a.set_xlabel("TIC qualified")
-        a.set_ylabel("TIC extended")
-        a.legend(loc="upper left")
-    return sink.add(
-        fig,
+            pan[key] = (s["tic_qual"].to_numpy(), s["tic_ext"].to_numpy()) if s.height else None
+        pan["hi"] = float(np.nanmax(g["tic_qual"].to_numpy())) if g.height else 1.0
+        panels.append(pan)
+    return sink.plot(
+        figures.tic_scatter,
         "th_tic_scatter",
         "Theil inequality coefficient per maneuver, qualified (x) vs extended (y); points below "
         "the dashed line are improved by the extended model.",
+        panels=panels,
     )
 
 
@@ -119,14 +99,21 @@ def section(ctx: ReportContext, sink: FigureSink) -> Section:
     sec.body.append("<h3>Overall (pooled over samples)</h3>")
     sec.body.append(table(overall.select(cols)))
     sec.body.append(_scatter(ctx, sink, per))
+    ranks = {c: rank_fits(per, c) for c in ctx.coefficients}
+    chosen = sorted({mid for r in ranks.values() for mid in r.values()})
+    records = {
+        str(k[0]): g.sort("t")
+        for k, g in ctx.data.filter(pl.col("maneuver_id").is_in(chosen)).group_by(
+            ["maneuver_id"], maintain_order=True
+        )
+    }
     for c in ctx.coefficients:
-        ranks = rank_fits(per, c)
         sec.body.append(f"<h3>{esc(c)}: best, typical and worst fit (ranked by extended TIC)</h3>")
-        for rank, mid in ranks.items():
+        for rank, mid in ranks[c].items():
             row = per.filter((pl.col("coefficient") == c) & (pl.col("maneuver_id") == mid)).row(
                 0, named=True
             )
-            sec.body.append(_plot_maneuver(ctx, sink, mid, c, rank=rank, row=row))
+            sec.body.append(_plot_maneuver(ctx, sink, records[mid], mid, c, rank=rank, row=row))
     show = (
         ["maneuver_id", "coefficient", "held_out"]
         + [x for x in ("flap_deg", "kind", "pusher") if x in per.columns]
