@@ -12,12 +12,13 @@ import numpy as np
 import polars as pl
 import pytest
 
+import aerodelta as ad
 from _report_data import diagnosis_fixture, quick_fit, quick_report
 from aerodelta.campaign import replay, trim
 from aerodelta.cli import main
 from aerodelta.model import DeltaModel
 from aerodelta.plots import FigureSink
-from aerodelta.report import ReportResult
+from aerodelta.report import ReportResult, build_report
 from aerodelta.report import diagnosis as diag
 from aerodelta.report.context import ReportContext
 from aerodelta.report.effects import derivative
@@ -214,3 +215,27 @@ def test_cli_report(tmp_path: Path) -> None:
     assert "No diagnosis given" in html
     assert f"flaps {flap:g} deg" in html
     assert not list((tmp_path / "out" / "figures").glob("*.svg"))
+
+
+def test_load_diagnosis_refuses_binary_and_deep_files_in_one_line(tmp_path: Path) -> None:
+    """A binary file or a JSON nested past the parser's depth is a DataError naming the file."""
+    b = tmp_path / "d.json"
+    b.write_bytes(b"\xff\xfe\x00garbage")
+    with pytest.raises(ad.DataError, match="not UTF-8") as e:
+        diag.load_diagnosis(b)
+    assert str(b) in str(e.value) and "\n" not in str(e.value)
+    d = tmp_path / "deep.json"
+    d.write_text("[" * 200_000 + "]" * 200_000)
+    with pytest.raises(ad.DataError, match="nested too deep") as e:
+        diag.load_diagnosis(d)
+    assert str(d) in str(e.value)
+
+
+def test_build_report_reads_its_inputs_before_making_the_folder(tmp_path: Path) -> None:
+    """A model file that cannot be read leaves no report folder behind."""
+    m = tmp_path / "model.json"
+    m.write_text("{not json")
+    out = tmp_path / "rep"
+    with pytest.raises(ad.AerodeltaError):
+        build_report(m, pl.DataFrame({"t": [0.0]}), out)
+    assert not out.exists()

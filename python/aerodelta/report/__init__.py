@@ -141,7 +141,7 @@ def build_report(
     t0 = time.perf_counter()
     generated = generated_at()  # a bad SOURCE_DATE_EPOCH is refused before the work
     out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
+    # every input is read before the output folder is made (a bad input leaves nothing behind)
     if isinstance(model, (str, Path)):
         path = Path(model)
         if params_table is None:
@@ -152,6 +152,7 @@ def build_report(
         if isinstance(diagnosis_doc, (str, Path))
         else (dict(diagnosis_doc) if diagnosis_doc is not None else None)
     )
+    out.mkdir(parents=True, exist_ok=True)
     figdir = out / "figures"
     if figdir.is_dir():  # figures of an earlier report in the same folder
         for f in figdir.iterdir():

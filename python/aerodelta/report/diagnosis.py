@@ -35,6 +35,15 @@ def load_diagnosis(path: str | Path) -> dict[str, Any]:
     """Read and check a ``diagnosis.json``."""
     try:
         doc = json.loads(Path(path).read_text(encoding="utf-8"))
+    except UnicodeDecodeError as e:
+        raise DataError(
+            f"{path}: cannot read the diagnosis: not UTF-8 text (byte {e.start}); give the "
+            "diagnosis.json written by aerodelta diagnose"
+        ) from e
+    except RecursionError as e:
+        raise DataError(
+            f"{path}: cannot read the diagnosis: nested too deep for a diagnosis.json"
+        ) from e
     except (OSError, json.JSONDecodeError) as e:
         raise DataError(f"{path}: cannot read the diagnosis ({e})") from e
     if not isinstance(doc, dict) or doc.get("schema") != SCHEMA:
