@@ -29,7 +29,7 @@ from aerodelta.diagnosis.cv import (
     row_prediction,
     solve,
 )
-from aerodelta.diagnosis.data import load_inputs
+from aerodelta.diagnosis.data import load_inputs, maneuver_codes
 from aerodelta.diagnosis.regressors import (
     delayed_controls,
     design_columns,
@@ -409,8 +409,7 @@ def _diagnose(  # noqa: PLR0917 - the arguments of diagnose(), passed through
             f"the diagnosis needs at least {cfg.folds} maneuvers for {cfg.folds}-fold "
             f"cross-validation by maneuver; the data hold {man.height}"
         )
-    code = {m: i for i, m in enumerate(man["maneuver_id"].to_list())}
-    mcode = np.array([code[m] for m in frame["maneuver_id"].to_list()], dtype=np.int64)
+    mcode = maneuver_codes(frame)[1]  # index in ``man`` (sorted by maneuver_id)
     flaps = sorted(set(man["flap_deg"].to_list()))
     fidx = np.searchsorted(np.array(flaps), frame["flap_deg"].to_numpy())
     folds_m = _fold_ids(man, cfg.folds, cfg.seed)
@@ -486,6 +485,7 @@ def _diagnose(  # noqa: PLR0917 - the arguments of diagnose(), passed through
                     ),
                     nuis.shape[1],
                 )  # fmt: skip
+                del nuis
                 stats = fold_stats(design, folds_m)
                 sel = forward_select(design, stats, cands, cfg.selection)
         rows = {
@@ -517,6 +517,8 @@ def _diagnose(  # noqa: PLR0917 - the arguments of diagnose(), passed through
             "effects": effects,
             "shrink": _shrink_table(y, meas, region, steps_),
         }
+        # this coefficient's rows and statistics go before the next one's are built
+        del aero_x, glob_x, design, stats, sel, rows, steps_
     coefs["Cl"]["rolloff"] = {k: v for k, v in ro.items() if k != "centres"}
     coefs["Cl"]["rolloff"]["events_profiled_out"] = len(ro["centres"]) if ro["detected"] else 0
     if ro["detected"]:

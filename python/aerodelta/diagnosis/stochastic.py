@@ -18,6 +18,7 @@ import numpy as np
 import polars as pl
 
 from aerodelta import _core
+from aerodelta.diagnosis.data import maneuver_codes
 from aerodelta.rolloff import detect_rolloff
 
 #: Per-maneuver false-event rate allowed for the detector (issue 6's checks).
@@ -96,11 +97,11 @@ def _spike_columns(
 
 def _by_maneuver(frame: pl.DataFrame) -> tuple[dict[str, np.ndarray], np.ndarray, np.ndarray]:
     """Row indices of each maneuver in time order, and the alpha and time columns."""
-    names, code = np.unique(frame["maneuver_id"].to_numpy(), return_inverse=True)
+    names, code = maneuver_codes(frame)
     t = frame["t"].to_numpy() if "t" in frame.columns else np.arange(frame.height, dtype=float)
     order = np.lexsort((t, code))
-    bounds = np.searchsorted(code[order], np.arange(names.size + 1))
-    rows = {str(m): order[bounds[i] : bounds[i + 1]] for i, m in enumerate(names)}
+    bounds = np.searchsorted(code[order], np.arange(len(names) + 1))
+    rows = {m: order[bounds[i] : bounds[i + 1]] for i, m in enumerate(names)}
     return rows, frame["alpha_deg"].to_numpy(), t
 
 
@@ -180,6 +181,13 @@ def refine_centres(
     return out
 
 
+#: The channels :func:`aerodelta.rolloff.detect_rolloff` reads (it is given only these: it
+#: splits the records by maneuver, copying every column it is given).
+DETECTOR_CHANNELS = (
+    "maneuver_id", "t", "alpha_deg", "Cl_meas", "da_deg", "dr_deg", "ds_deg", "flap_deg", "kind",
+)  # fmt: skip
+
+
 def rolloff_finding(frame: pl.DataFrame, residual: np.ndarray) -> dict[str, Any]:
     """Roll-off events in the unexplained C_l gap, and whether they are more than chance."""
     need = {"maneuver_id", "t", "alpha_deg", "da_deg"}
@@ -189,7 +197,7 @@ def rolloff_finding(frame: pl.DataFrame, residual: np.ndarray) -> dict[str, Any]
     try:
         # the frame's alpha_deg is already the CG-referred alpha (the detector's default channel)
         ev = detect_rolloff(
-            frame,
+            frame.select([c for c in DETECTOR_CHANNELS if c in frame.columns]),
             residual=np.asarray(residual, dtype=np.float64),
             kinds=None,
             alpha="alpha_deg",

@@ -81,10 +81,12 @@ def gap_map(
     rule at false-discovery rate ``alpha`` over all cells, and the effect is material (|bias|
     at least half the noise floor's RMS, or a mean square 25 % above the floor).
     """
+    # single-chunk columns: polars sums chunk by chunk, so the records' chunking (the diagnosis
+    # does not copy the records into one) would otherwise move the last digits
     df = pl.DataFrame(
         {
-            "m": frame["maneuver_id"],
-            "flap": frame["flap_deg"],
+            "m": frame["maneuver_id"].rechunk(),
+            "flap": frame["flap_deg"].rechunk(),
             "b": np.floor(frame["alpha_deg"].to_numpy() / bin_deg) * bin_deg,
             "phase": phase,
             "g": gap,
@@ -168,9 +170,9 @@ def worst_segments(
     RMS, traceable to maneuver and time."""
     df = pl.DataFrame(
         {
-            "m": frame["maneuver_id"],
-            "t": frame["t"],
-            "a": frame["alpha_deg"],
+            "m": frame["maneuver_id"].rechunk(),
+            "t": frame["t"].rechunk(),
+            "a": frame["alpha_deg"].rechunk(),
             "w": np.floor(frame["t"].to_numpy() / window_s),
             "g2": gap * gap,
         }
