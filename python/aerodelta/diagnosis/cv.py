@@ -81,7 +81,8 @@ class Design:
     - ``off[m, r, s, k]``: ``G_m[k*R + r, (k+1)*R + s]`` (its transpose below the diagonal);
     - ``cross[m, r, g, k]``: ``G_m[k*R + r, K*R + g]``;
     - ``glob[m, g, h]``: ``G_m[K*R + g, K*R + h]``;
-    - ``lowrank[m]`` (``n_local x rank``, or ``None``): ``F_m`` with ``G_m = blocks - F_m F_m'``
+    - ``lowrank`` (``n_local x r``, or ``None``) and ``lowrank_of`` (``r``): the columns of
+      every maneuver's ``F_m`` side by side and the maneuver of each, ``G_m = blocks - F_m F_m'``
       (the per-maneuver nuisance profiled out, :func:`profile_out`).
 
     :meth:`dense_gram` (and the ``gram`` view) writes one out in full.
@@ -99,7 +100,8 @@ class Design:
     xty: FloatArray  # (M, n_local), local layout
     yty: FloatArray
     n_rows: IntArray
-    lowrank: FloatArray | None = None  # (M, n_local, rank)
+    lowrank: FloatArray | None = None  # (n_local, r): F_m of every maneuver, side by side
+    lowrank_of: IntArray | None = None  # (r,): the maneuver of each column, ascending
 
     @property
     def n_local(self) -> int:
@@ -115,8 +117,8 @@ class Design:
     def nbytes(self) -> int:
         """Bytes held by the per-maneuver statistics."""
         arrays = [self.diag, self.off, self.cross, self.glob, self.xty, self.yty, self.n_rows]
-        if self.lowrank is not None:
-            arrays.append(self.lowrank)
+        if self.lowrank is not None and self.lowrank_of is not None:
+            arrays += [self.lowrank, self.lowrank_of]
         return int(sum(a.nbytes for a in arrays))
 
     def gram_sum(self, maneuvers: IntArray) -> FloatArray:
@@ -141,8 +143,8 @@ class Design:
         out[:kr, kr:] = cc
         out[kr:, :kr] = cc.T
         out[kr:, kr:] = self.glob[idx].sum(axis=0)
-        if self.lowrank is not None:
-            f = self.lowrank[idx].transpose(1, 0, 2).reshape(p, -1)
+        if self.lowrank is not None and self.lowrank_of is not None:
+            f = self.lowrank[:, np.isin(self.lowrank_of, idx)]
             out -= f @ f.T
         return out
 
@@ -158,8 +160,8 @@ class Design:
         out = np.concatenate(
             [aero.transpose(0, 2, 1).reshape(self.n_maneuvers, -1), self.glob[:, ag, ag]], axis=1
         )
-        if self.lowrank is not None:
-            out -= np.einsum("mpr,mpr->mp", self.lowrank, self.lowrank)
+        if self.lowrank is not None and self.lowrank_of is not None:
+            np.subtract.at(out, self.lowrank_of, (self.lowrank * self.lowrank).T)
         return out
 
     @property
@@ -217,7 +219,7 @@ def build_design(  # noqa: PLR0917 - the reduction's inputs, all positional by d
     flap: IntArray,
     alpha_deg: FloatArray,
     aero: FloatArray,
-    glob: FloatArray,
+    glob: FloatArray | Sequence[FloatArray],
     aero_names: list[str],
     global_names: list[str],
     grid: HatGrid,
@@ -236,9 +238,11 @@ def build_design(  # noqa: PLR0917 - the reduction's inputs, all positional by d
     alpha_deg
         Angle of attack per row, deg.
     aero, glob
-        Aerodynamic (``n x R``) and global (``n x Gn``) regressor columns.
+        Aerodynamic (``n x R``) and global (``n x Gn``) regressor columns; ``glob`` may be
+        given as blocks of columns (side by side, not copied into one matrix).
     """
-    r_n, g_n = aero.shape[1], glob.shape[1]
+    blocks = [glob] if isinstance(glob, np.ndarray) else list(glob)
+    r_n, g_n = aero.shape[1], sum(b.shape[1] for b in blocks)
     k_n = grid.n
     m_n = n_maneuvers
     j, w1 = grid.locate(alpha_deg)
@@ -269,7 +273,14 @@ def build_design(  # noqa: PLR0917 - the reduction's inputs, all positional by d
         rows = order[lo:hi]
         x = aero[rows]
         w1r = w1[rows, None]
-        z = np.hstack([x * (1.0 - w1r), x * w1r, glob[rows], y[rows, None]])
+        z = np.empty((rows.size, iy + 1))
+        np.multiply(x, 1.0 - w1r, out=z[:, i0])
+        np.multiply(x, w1r, out=z[:, i1])
+        col = 2 * r_n
+        for blk in blocks:
+            z[:, col : col + blk.shape[1]] = blk[rows]
+            col += blk.shape[1]
+        z[:, iy] = y[rows]
         for segs, s in _segment_grams(z, starts[a:b] - lo, lens[a:b]):
             m, k = seg_m[a + segs], seg_j[a + segs]
             # (m, k) is one segment: no index repeats within one assignment
@@ -317,7 +328,6 @@ def profile_out(design: Design, n_nuisance: int) -> Design:
     kr = k_n * r_n
     g_keep = len(design.global_names) - n_nuisance
     p_keep = kr + g_keep
-    m_n = design.n_maneuvers
     xty = design.xty[:, :p_keep].copy()
     yty = design.yty.copy()
     factors: dict[int, FloatArray] = {}
@@ -340,12 +350,12 @@ def profile_out(design: Design, n_nuisance: int) -> Design:
         lam, vec = np.linalg.eigh(g_nn_l)
         keep = lam > 1e-10 * float(np.abs(lam).max())
         factors[int(m)] = g_dn @ (vec[:, keep] / np.sqrt(lam[keep]))
-    lowrank = None
+    lowrank, lowrank_of = None, None
     if factors:
-        rank = max(f.shape[1] for f in factors.values())
-        lowrank = np.zeros((m_n, p_keep, rank))
-        for m, f in factors.items():
-            lowrank[m, :, : f.shape[1]] = f
+        lowrank = np.hstack([factors[m] for m in sorted(factors)])
+        lowrank_of = np.concatenate(
+            [np.full(factors[m].shape[1], m, dtype=np.int64) for m in sorted(factors)]
+        )
     return Design(
         design.grid,
         design.n_flaps,
@@ -360,6 +370,7 @@ def profile_out(design: Design, n_nuisance: int) -> Design:
         yty,
         design.n_rows.copy(),
         lowrank,
+        lowrank_of,
     )
 
 
@@ -504,7 +515,7 @@ def solve(
 def _quadratic_forms(
     design: Design, ms: IntArray, theta: FloatArray, cols: tuple[IntArray, IntArray]
 ) -> FloatArray:
-    """``theta' G_m theta - 2 theta' b_m`` for each maneuver in ``ms`` (one flap's local
+    """``theta' G_m theta - 2 theta' b_m`` for each maneuver in ``ms`` (ascending; one flap's local
     ``theta``, zero off ``cols``), from the blocks of :class:`Design`."""
     k_n, r_n = design.grid.n, len(design.aero_names)
     kr = k_n * r_n
@@ -526,9 +537,12 @@ def _quadratic_forms(
             out += 2.0 * (design.cross[np.ix_(ms, ridx, gidx)].reshape(n, -1) @ wc.ravel())
     if gidx.size:
         out += design.glob[np.ix_(ms, gidx, gidx)].reshape(n, -1) @ np.outer(g, g).ravel()
-    if design.lowrank is not None:
-        v = np.einsum("mcr,c->mr", design.lowrank[np.ix_(ms, idx)], theta[idx])
-        out -= np.einsum("mr,mr->m", v, v)
+    if design.lowrank is not None and design.lowrank_of is not None:
+        own = np.isin(design.lowrank_of, ms)
+        if own.any():
+            v = theta[idx] @ design.lowrank[np.ix_(idx, np.flatnonzero(own))]
+            pos = np.searchsorted(ms, design.lowrank_of[own])
+            out -= np.bincount(pos, weights=v * v, minlength=n)
     return out
 
 
@@ -551,6 +565,34 @@ def heldout_sse(
             if ms.size:
                 sse[ms] = design.yty[ms] + _quadratic_forms(design, ms, th[f], cols)
     return sse, thetas
+
+
+def fold_prediction(  # noqa: PLR0917 - rows' columns, positional by design
+    design: Design,
+    thetas: Sequence[Sequence[FloatArray]],
+    fold: IntArray,
+    flap: IntArray,
+    alpha_deg: FloatArray,
+    aero: FloatArray,
+    glob: FloatArray,
+) -> FloatArray:
+    """:func:`row_prediction` of each row with its fold's parameters (``thetas[fold][flap]``),
+    in one pass over the rows."""
+    k_n, r_n = design.grid.n, len(design.aero_names)
+    kr = k_n * r_n
+    j, w1 = design.grid.locate(alpha_deg)
+    th = np.stack([np.stack([t[:kr].reshape(k_n, r_n) for t in tq]) for tq in thetas])
+    used = np.flatnonzero(np.any(th != 0.0, axis=(0, 1, 2)))
+    out = np.zeros(alpha_deg.size)
+    if used.size:
+        tu = th[..., used]
+        coef = tu[fold, flap, j] * (1.0 - w1)[:, None] + tu[fold, flap, j + 1] * w1[:, None]
+        out = np.einsum("nr,nr->n", coef, aero[:, used])
+    if glob.shape[1]:
+        for q, tq in enumerate(thetas):
+            m = fold == q
+            out[m] += glob[m] @ tq[0][kr:]
+    return out
 
 
 def row_prediction(  # noqa: PLR0917 - rows' columns, positional by design
@@ -730,10 +772,14 @@ def _call_sums(stream: _SignBytes, rows: int, weights: FloatArray) -> Iterator[F
         raw = stream.take(k * n).reshape(k, n)
         if n % 8:
             raw = np.concatenate([raw, np.zeros((k, groups * 8 - n), dtype=np.uint8)], axis=1)
-        words = np.ascontiguousarray(raw).view("<u8")
-        top = (words >> np.uint64(7)) & np.uint64(0x0101010101010101)
-        pattern = (top * np.uint64(0x0102040810204080)) >> np.uint64(56)
-        yield table[(pattern + offset).astype(np.intp)].sum(axis=1)
+        # in place on the bytes just taken (the stream keeps none of them)
+        w = np.ascontiguousarray(raw).view("<u8")
+        np.right_shift(w, np.uint64(7), out=w)
+        np.bitwise_and(w, np.uint64(0x0101010101010101), out=w)
+        np.multiply(w, np.uint64(0x0102040810204080), out=w)
+        np.right_shift(w, np.uint64(56), out=w)
+        np.add(w, offset, out=w)
+        yield np.take(table, w.view(np.int64)).sum(axis=1)
         done += k
     stream.take(-(rows * n) % 4)  # the rest of the call's last 32-bit word
 

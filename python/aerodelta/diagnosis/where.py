@@ -69,7 +69,11 @@ def region_of(alpha: np.ndarray, flap: np.ndarray, stall: dict[float, float]) ->
 
 
 def gap_map(
-    frame: pl.DataFrame, gap: np.ndarray, phase: np.ndarray, bin_deg: float, alpha: float
+    frame: pl.DataFrame,
+    gap: np.ndarray,
+    phase: np.ndarray | pl.Series,
+    bin_deg: float,
+    alpha: float,
 ) -> list[dict[str, Any]]:
     """The gap per flap, alpha bin and phase: bias, RMS and significance.
 
