@@ -13,7 +13,10 @@ import pytest
 
 from aerodelta.campaign import generate_campaign
 from aerodelta.diagnosis import cv, diagnose
+from aerodelta.diagnosis.stochastic import DETECTOR_CHANNELS
+from aerodelta.fit import model_frame, qualified_coefficients
 from aerodelta.ingest import ingest
+from aerodelta.rolloff import detect_rolloff
 
 
 def _local_rows(alpha, aero, glob, grid):
@@ -175,14 +178,40 @@ def test_sign_flip_draws_are_numpys(n):
                 assert cv._flip_p(weights, thr, n_perm, 9) == want
 
 
-def test_diagnosis_traced_memory_per_row(tmp_path):
+@pytest.fixture(scope="module")
+def quick(tmp_path_factory):
+    """A quick virtual campaign (40 maneuvers) with the default effects and roll-offs."""
+    camp = tmp_path_factory.mktemp("memory") / "campaign"
+    generate_campaign(camp, seed=0, size="quick", overwrite=True)
+    return ingest(camp, compat=False, progress=False).data
+
+
+def test_roll_off_detector_is_given_every_channel_it_reads(quick):
+    """The diagnosis hands the roll-off detector only :data:`DETECTOR_CHANNELS` (it copies
+    every column it is given, maneuver by maneuver): the events are those found on all the
+    records' columns."""
+    frame = model_frame(quick)
+    # the qualified model's C_l error: the roll-off spikes are in it
+    residual = (
+        frame["Cl_meas"].to_numpy() - qualified_coefficients(frame, "adx37")["Cl_qual"].to_numpy()
+    )
+    full = detect_rolloff(frame, residual=residual, kinds=None, alpha="alpha_deg")
+    few = detect_rolloff(
+        frame.select([c for c in DETECTOR_CHANNELS if c in frame.columns]),
+        residual=residual,
+        kinds=None,
+        alpha="alpha_deg",
+    )
+    assert full.height > 0
+    assert few.equals(full)
+
+
+def test_diagnosis_traced_memory_per_row(quick):
     """A whole diagnosis (roll-off search and profiling included) on a quick campaign: the
     peak of the arrays it allocates stays under 1.5 kB per row of data. Holding a dense Gram
     matrix per maneuver took 4.3 kB per row here (350 MB for 40 maneuvers) and grew with the
     maneuvers; the rows' own regressor columns take about 0.9 kB."""
-    camp = tmp_path / "campaign"
-    generate_campaign(camp, seed=0, size="quick", overwrite=True)
-    data = ingest(camp, compat=False, progress=False).data
+    data = quick
     tracemalloc.start()
     try:
         tracemalloc.reset_peak()

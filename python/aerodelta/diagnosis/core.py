@@ -53,7 +53,15 @@ from aerodelta.diagnosis.vocabulary import (
     Vocabulary,
     default_vocabulary,
 )
-from aerodelta.diagnosis.where import gap_map, phases, region_of, stall_alphas, worst_segments
+from aerodelta.diagnosis.where import (
+    PHASES,
+    REGIONS,
+    gap_map,
+    phase_codes,
+    region_codes,
+    stall_alphas,
+    worst_segments,
+)
 from aerodelta.exceptions import DataError
 from aerodelta.fit import theil_inequality
 
@@ -420,12 +428,12 @@ def _diagnose(  # noqa: PLR0917 - the arguments of diagnose(), passed through
     folds_m = _fold_ids(man, cfg.folds, cfg.seed)
     alpha = frame["alpha_deg"].to_numpy()
     stall = stall_alphas(frame)
-    # as a polars column once (each conversion of 400,000 numpy strings took 70 ms)
-    phase = pl.Series("phase", phases(frame, stall))
-    region_np = region_of(alpha, frame["flap_deg"].to_numpy(), stall)
-    region_rows = {r: np.flatnonzero(region_np == r) for r in ("pre_stall", "stall", "post_stall")}
-    region = pl.Series("region", region_np)
-    del region_np
+    # polars string columns built from codes (a conversion of 400,000 numpy strings took 0.1 s)
+    phase = pl.Series("phase", PHASES).gather(phase_codes(frame, stall))
+    rcode = region_codes(alpha, frame["flap_deg"].to_numpy(), stall)
+    region_rows = {r: np.flatnonzero(rcode == i) for i, r in enumerate(REGIONS)}
+    region = pl.Series("region", REGIONS).gather(rcode)
+    del rcode
     grid = HatGrid.covering(alpha, cfg.knot_deg)
     dflap = fidx if cfg.per_flap else np.zeros_like(fidx)
     n_dflaps = len(flaps) if cfg.per_flap else 1

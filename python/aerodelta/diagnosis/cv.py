@@ -197,20 +197,20 @@ CHUNK_ROWS = 32768
 _PAD_LENGTHS = np.unique(np.ceil(1.25 ** np.arange(80)).astype(np.int64))
 
 
-def _segment_grams(
-    z: FloatArray, starts: IntArray, lens: IntArray
-) -> Iterator[tuple[IntArray, FloatArray]]:
+def _segment_grams(z: FloatArray, starts: IntArray, lens: IntArray) -> FloatArray:
     """``Z_s' Z_s`` of each segment ``s`` (rows ``starts[s]`` to ``starts[s] + lens[s]`` of
-    ``z``), grouped by padded length: yields (segment indices, ``(B, P, P)`` products)."""
+    ``z``, whose last row is zeros: the padding), ``(S, P, P)``; segments of one padded
+    length are reduced by one batched product."""
     pad = _PAD_LENGTHS[np.searchsorted(_PAD_LENGTHS, lens)]
-    zp = np.vstack([z, np.zeros((1, z.shape[1]))])  # the last row: zero padding
+    p = z.shape[1]
+    out = np.empty((starts.size, p, p))
     for length in np.unique(pad):
         segs = np.flatnonzero(pad == length)
         offs = np.arange(length)
-        rows = starts[segs, None] + offs
-        rows = np.where(offs < lens[segs, None], rows, z.shape[0])
-        zb = zp[rows]
-        yield segs, np.matmul(zb.transpose(0, 2, 1), zb)
+        rows = np.where(offs < lens[segs, None], starts[segs, None] + offs, z.shape[0] - 1)
+        zb = z[rows]
+        out[segs] = np.matmul(zb.transpose(0, 2, 1), zb)
+    return out
 
 
 def build_design(  # noqa: PLR0917 - the reduction's inputs, all positional by design
@@ -273,27 +273,28 @@ def build_design(  # noqa: PLR0917 - the reduction's inputs, all positional by d
         rows = order[lo:hi]
         x = aero[rows]
         w1r = w1[rows, None]
-        z = np.empty((rows.size, iy + 1))
-        np.multiply(x, 1.0 - w1r, out=z[:, i0])
-        np.multiply(x, w1r, out=z[:, i1])
+        z = np.empty((rows.size + 1, iy + 1))  # the last row: zeros, the segments' padding
+        z[-1] = 0.0
+        np.multiply(x, 1.0 - w1r, out=z[:-1, i0])
+        np.multiply(x, w1r, out=z[:-1, i1])
         col = 2 * r_n
         for blk in blocks:
-            z[:, col : col + blk.shape[1]] = blk[rows]
+            z[:-1, col : col + blk.shape[1]] = blk[rows]
             col += blk.shape[1]
-        z[:, iy] = y[rows]
-        for segs, s in _segment_grams(z, starts[a:b] - lo, lens[a:b]):
-            m, k = seg_m[a + segs], seg_j[a + segs]
-            # (m, k) is one segment: no index repeats within one assignment
-            diag[m, :, :, k] += s[:, i0, i0]
-            diag[m, :, :, k + 1] += s[:, i1, i1]
-            off[m, :, :, k] += s[:, i0, i1]
-            cross[m, :, :, k] += s[:, i0, ig]
-            cross[m, :, :, k + 1] += s[:, i1, ig]
-            xa[m, k] += s[:, i0, iy]
-            xa[m, k + 1] += s[:, i1, iy]
-            np.add.at(gl, m, s[:, ig, ig])
-            np.add.at(xg, m, s[:, ig, iy])
-            np.add.at(yty, m, s[:, iy, iy])
+        z[:-1, iy] = y[rows]
+        s = _segment_grams(z, starts[a:b] - lo, lens[a:b])
+        m, k = seg_m[a:b], seg_j[a:b]
+        # (m, k) is one segment: no index repeats within one assignment
+        diag[m, :, :, k] += s[:, i0, i0]
+        diag[m, :, :, k + 1] += s[:, i1, i1]
+        off[m, :, :, k] += s[:, i0, i1]
+        cross[m, :, :, k] += s[:, i0, ig]
+        cross[m, :, :, k + 1] += s[:, i1, ig]
+        xa[m, k] += s[:, i0, iy]
+        xa[m, k + 1] += s[:, i1, iy]
+        np.add.at(gl, m, s[:, ig, ig])
+        np.add.at(xg, m, s[:, ig, iy])
+        np.add.at(yty, m, s[:, iy, iy])
     man_flap = np.zeros(m_n, dtype=np.int64)
     first = np.searchsorted(m_sorted, np.arange(m_n))
     has = np.bincount(m_sorted, minlength=m_n)[:m_n] > 0
@@ -672,9 +673,10 @@ def signed_rank_p(d: FloatArray, n_perm: int, seed: int) -> float:
     dist = np.zeros(n * (n + 1) // 2 + 1)
     dist[0] = 1.0
     for k in range(1, n + 1):
-        shifted = np.zeros_like(dist)
-        shifted[k:] = dist[:-k]
-        dist = 0.5 * (dist + shifted)
+        # in place on the entries that can be non-zero after k terms (sums up to k(k+1)/2)
+        top = k * (k + 1) // 2 + 1
+        dist[k:top] += dist[: top - k]  # numpy reads overlapping inputs as if copied first
+        dist[:top] *= 0.5
     return float(min(1.0, dist[w_plus:].sum()))
 
 

@@ -119,7 +119,7 @@ def _sorted_by_maneuver_and_time(frame: pl.DataFrame) -> bool:
     """True when the rows are in ``(maneuver_id, t)`` order with no repeated pair (then
     sorting them would return them unchanged)."""
     m, t = pl.col("maneuver_id"), pl.col("t")
-    step = (m > m.shift(1)) | ((m == m.shift(1)) & (t > t.shift(1)))
+    step = ((m > m.shift(1)) | ((m == m.shift(1)) & (t > t.shift(1)))).fill_null(False)
     return bool(frame.select(step.slice(1).all()).item()) if frame.height > 1 else True
 
 
