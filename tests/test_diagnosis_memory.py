@@ -148,6 +148,26 @@ def test_heldout_errors_of_a_profiled_design_match_dense_refits():
             assert sse[m] == pytest.approx(ref, rel=1e-8, abs=1e-12)
 
 
+def test_sparse_nuisance_columns_give_the_dense_statistics():
+    """Roll-off nuisance columns passed by their non-zero entries (SparseColumns, not an
+    n x 2K matrix of zeros) give the same statistics, number for number."""
+    y, man, flap, alpha, aero, glob, grid = _toy(seed=9)
+    rng = np.random.default_rng(4)
+    rows, vals = [], []
+    for j in range(3):  # a column lives on a few rows of a few maneuvers
+        r = np.sort(rng.choice(man.size, 60 + 20 * j, replace=False))
+        rows.append(r)
+        vals.append(rng.normal(size=r.size))
+    sparse = cv.SparseColumns(man.size, rows, vals)
+    names = ([f"a{i}" for i in range(3)], ["g0", "g1", "n0", "n1", "n2"])
+    args = (y, man, flap, alpha, aero)
+    d_sparse = cv.build_design(*args, (glob, sparse), *names, grid, 15, 2)
+    d_dense = cv.build_design(*args, np.hstack([glob, sparse.dense()]), *names, grid, 15, 2)
+    for f in ("diag", "off", "cross", "glob", "xty", "yty"):
+        np.testing.assert_array_equal(getattr(d_sparse, f), getattr(d_dense, f))
+    assert np.count_nonzero(d_sparse.glob[:, 2:, 2:]) > 0
+
+
 def _flip_p_numpy(weights, w, n_perm, seed):
     """The sign-flip estimate drawn as numpy draws it (the reference of the fast path)."""
     rng = np.random.default_rng(seed)

@@ -45,7 +45,7 @@ from aerodelta.diagnosis.select import (
     forward_select,
 )
 from aerodelta.diagnosis.simulator import load_simulator
-from aerodelta.diagnosis.stochastic import event_regressors, rolloff_finding
+from aerodelta.diagnosis.stochastic import event_columns, rolloff_finding
 from aerodelta.diagnosis.vocabulary import (
     COEFFICIENTS,
     NEEDS_MODEL,
@@ -494,7 +494,7 @@ def _diagnose(  # noqa: PLR0917 - the arguments of diagnose(), passed through
                 # each event's moment, with its own random amplitude, profiled out of its
                 # maneuver (Frisch-Waugh); the deterministic effects are then selected again
                 del design, stats, sel, fitted, resid  # before the next design is built
-                nuis = event_regressors(frame, ro["centres"])
+                nuis = event_columns(frame, ro["centres"])
                 design = profile_out(
                     build_design(
                         y, mcode, dflap, alpha, aero_x, (glob_x, nuis),

@@ -188,6 +188,28 @@ class _DenseGrams(Sequence[FloatArray]):
         return (self._d.dense_gram(m) for m in range(len(self)))
 
 
+@dataclass(frozen=True)
+class SparseColumns:
+    """Columns that are zero but on a few rows (a roll-off event's nuisance columns live on
+    its maneuver's rows near the spike): per column, the rows and the values there."""
+
+    n_rows: int
+    rows: list[IntArray]
+    values: list[FloatArray]
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        """``(rows, columns)`` of the matrix they stand for."""
+        return self.n_rows, len(self.rows)
+
+    def dense(self) -> FloatArray:
+        """The columns written out, ``n_rows x columns``."""
+        out = np.zeros(self.shape)
+        for j, (r, v) in enumerate(zip(self.rows, self.values, strict=True)):
+            out[r, j] = v
+        return out
+
+
 #: Rows reduced at once by :func:`build_design` (bounds its working memory to about this many
 #: rows of ``2R + Gn + 1`` numbers, whatever the campaign's size).
 CHUNK_ROWS = 32768
@@ -219,7 +241,7 @@ def build_design(  # noqa: PLR0917 - the reduction's inputs, all positional by d
     flap: IntArray,
     alpha_deg: FloatArray,
     aero: FloatArray,
-    glob: FloatArray | Sequence[FloatArray],
+    glob: FloatArray | Sequence[FloatArray | SparseColumns],
     aero_names: list[str],
     global_names: list[str],
     grid: HatGrid,
@@ -239,7 +261,8 @@ def build_design(  # noqa: PLR0917 - the reduction's inputs, all positional by d
         Angle of attack per row, deg.
     aero, glob
         Aerodynamic (``n x R``) and global (``n x Gn``) regressor columns; ``glob`` may be
-        given as blocks of columns (side by side, not copied into one matrix).
+        given as blocks of columns side by side (not copied into one matrix), dense or
+        :class:`SparseColumns`.
     """
     blocks = [glob] if isinstance(glob, np.ndarray) else list(glob)
     r_n, g_n = aero.shape[1], sum(b.shape[1] for b in blocks)
@@ -265,6 +288,19 @@ def build_design(  # noqa: PLR0917 - the reduction's inputs, all positional by d
     yty = np.zeros(m_n)
     i0, i1 = slice(0, r_n), slice(r_n, 2 * r_n)
     ig, iy = slice(2 * r_n, 2 * r_n + g_n), 2 * r_n + g_n
+    # a sparse block's entries by their position in the sorted rows (``order``)
+    sparse: dict[int, list[tuple[IntArray, FloatArray]]] = {}
+    if any(isinstance(b, SparseColumns) for b in blocks):
+        where = np.empty(n, dtype=np.int64)
+        where[order] = np.arange(n)
+        for bi, blk in enumerate(blocks):
+            if isinstance(blk, SparseColumns):
+                cols = []
+                for r, v in zip(blk.rows, blk.values, strict=True):
+                    pos = where[r]
+                    o = np.argsort(pos, kind="stable")
+                    cols.append((pos[o], v[o]))
+                sparse[bi] = cols
     # chunks of whole segments of about CHUNK_ROWS rows
     cut = np.searchsorted(starts, np.arange(CHUNK_ROWS, n, CHUNK_ROWS))
     bounds = np.unique(np.concatenate([[0], cut, [starts.size]]))
@@ -278,8 +314,14 @@ def build_design(  # noqa: PLR0917 - the reduction's inputs, all positional by d
         np.multiply(x, 1.0 - w1r, out=z[:-1, i0])
         np.multiply(x, w1r, out=z[:-1, i1])
         col = 2 * r_n
-        for blk in blocks:
-            z[:-1, col : col + blk.shape[1]] = blk[rows]
+        for bi, blk in enumerate(blocks):
+            if isinstance(blk, SparseColumns):
+                z[:-1, col : col + blk.shape[1]] = 0.0
+                for jj, (pos, v) in enumerate(sparse[bi]):
+                    i, e = np.searchsorted(pos, [lo, hi])
+                    z[pos[i:e] - lo, col + jj] = v[i:e]
+            else:
+                z[:-1, col : col + blk.shape[1]] = blk[rows]
             col += blk.shape[1]
         z[:-1, iy] = y[rows]
         s = _segment_grams(z, starts[a:b] - lo, lens[a:b])
