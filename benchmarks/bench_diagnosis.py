@@ -1,6 +1,7 @@
-"""Diagnosis speed (issue 7): a 200-maneuver campaign, the full vocabulary, 5-fold
-cross-validation by maneuver, against a straightforward statsmodels loop over the same
-candidate fits, in the same run.
+"""Diagnosis speed and memory (issues 7, 17 and 18): a 200-maneuver campaign, the full
+vocabulary, 5-fold cross-validation by maneuver, against a straightforward statsmodels loop
+over the same candidate fits, in the same run; then the time and the peak memory of the
+diagnosis per maneuver at several campaign sizes.
 
 The peer refits every candidate model of the greedy selection on the training maneuvers of
 each fold with ``statsmodels.OLS`` on the dense design (the same hat-basis columns, per
@@ -8,17 +9,27 @@ coefficient) and predicts the held-out fold. Its first selection step is timed i
 scaled to the number of candidate fits the aerodelta run made (printed), since the whole loop
 would take many minutes.
 
-    python benchmarks/bench_diagnosis.py [--size default|N]
+Memory is the process's peak resident set during ``diagnose`` above its resident set just
+before (the peak is reset first where Linux allows, ``/proc/self/clear_refs``), and the peak
+of the arrays numpy allocates (tracemalloc, in a second run: it slows numpy down).
+
+    python benchmarks/bench_diagnosis.py [--size default|N] [--scaling 2,5,10] [--no-peer]
+
+``--scaling`` takes repetitions per (flap, kind, pusher) cell of the virtual campaign (40
+maneuvers each).
 """
 
 from __future__ import annotations
 
 import argparse
+import resource
 import tempfile
 import time
+import tracemalloc
 from pathlib import Path
 
 import numpy as np
+import polars as pl
 import statsmodels.api as sm
 
 from aerodelta.campaign import generate_campaign
@@ -71,15 +82,64 @@ def peer_first_step(data, folds_of_row, knot_deg):
     return time.perf_counter() - t0, fits
 
 
+def _status_mb(key: str) -> float | None:
+    """``VmRSS``/``VmHWM`` of this process from ``/proc/self/status``, MB (None elsewhere)."""
+    try:
+        with open("/proc/self/status", encoding="ascii") as fh:
+            for line in fh:
+                if line.startswith(key + ":"):
+                    return int(line.split()[1]) / 1024.0
+    except OSError:
+        pass
+    return None
+
+
+def _reset_peak() -> bool:
+    """Reset the kernel's peak resident set of this process (Linux); False if not possible."""
+    try:
+        with open("/proc/self/clear_refs", "w", encoding="ascii") as fh:
+            fh.write("5")
+    except OSError:
+        return False
+    return True
+
+
+def measure(data: pl.DataFrame) -> dict[str, float]:
+    """Wall and CPU time of ``diagnose(data)``, the peak resident set it adds, MB, and (second
+    run) the peak of numpy's allocations, MB."""
+    before = _status_mb("VmRSS")
+    reset = _reset_peak()
+    max_before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+    t0, c0 = time.perf_counter(), time.process_time()
+    diagnose(data)
+    wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+    peak = _status_mb("VmHWM") if reset else None
+    if peak is None or before is None:
+        # no reset: the lifetime peaks after and before (understates if ingest peaked higher)
+        peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+        before = max_before
+    tracemalloc.start()
+    diagnose(data)
+    traced = tracemalloc.get_traced_memory()[1] / 1e6
+    tracemalloc.stop()
+    return {"wall": wall, "cpu": cpu, "rss_added": peak - before, "traced": traced}
+
+
+def _campaign(size: str | int, tmp: str) -> pl.DataFrame:
+    camp = Path(tmp) / f"c{size}"
+    generate_campaign(camp, effects="default", seed=7, size=size)
+    return ingest(camp, compat=False, progress=False).data
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--size", default="default")
+    ap.add_argument("--scaling", default="2,5,10", help="repetitions per cell ('' for none)")
+    ap.add_argument("--no-peer", action="store_true", help="skip the statsmodels comparison")
     args = ap.parse_args()
     size = int(args.size) if args.size.isdigit() else args.size
     with tempfile.TemporaryDirectory() as tmp:
-        camp = Path(tmp) / "c"
-        generate_campaign(camp, effects="default", seed=7, size=size)
-        data = ingest(camp, compat=False, progress=False).data
+        data = _campaign(size, tmp)
     n_fits = {"n": 0}
     orig = core.forward_select
 
@@ -95,23 +155,47 @@ def main() -> int:
     ours = time.perf_counter() - t0
     core.forward_select = orig
     man = sorted(set(data["maneuver_id"].to_list()))
-    fold_of = {m: i % 5 for i, m in enumerate(man)}
-    folds_of_row = np.array([fold_of[m] for m in d.predictions["maneuver_id"].to_list()])
-    peer_t, peer_fits = peer_first_step(data, folds_of_row, core.DiagnoseConfig().knot_deg)
-    peer_total = peer_t / peer_fits * n_fits["n"]
     print(f"campaign: {len(man)} maneuvers, {data.height} rows")
     print(
         f"aerodelta diagnose (everything, incl. the gap map and roll-off): {ours:.1f} s "
-        f"(target < 30 s), about {n_fits['n']} candidate fits"
+        f"(issue 17 floor: <= 5 s for 200 maneuvers), about {n_fits['n']} candidate fits"
     )
-    print(
-        f"statsmodels loop: {peer_fits} candidate fits in {peer_t:.1f} s "
-        f"({1000 * peer_t / peer_fits:.0f} ms per fit) -> {peer_total:.0f} s for the same "
-        f"{n_fits['n']} fits"
-    )
-    print(f"ratio statsmodels / aerodelta: {peer_total / ours:.1f}x (floor >= 10x)")
+    if not args.no_peer:
+        fold_of = {m: i % 5 for i, m in enumerate(man)}
+        folds_of_row = np.array([fold_of[m] for m in d.predictions["maneuver_id"].to_list()])
+        peer_t, peer_fits = peer_first_step(data, folds_of_row, core.DiagnoseConfig().knot_deg)
+        peer_total = peer_t / peer_fits * n_fits["n"]
+        print(
+            f"statsmodels loop: {peer_fits} candidate fits in {peer_t:.1f} s "
+            f"({1000 * peer_t / peer_fits:.0f} ms per fit) -> {peer_total:.0f} s for the same "
+            f"{n_fits['n']} fits"
+        )
+        print(f"ratio statsmodels / aerodelta: {peer_total / ours:.1f}x (floor >= 10x)")
     for c in ("Cl", "Cn", "CY"):
         print(f"  {c}: verdict {d.verdict(c)}; significant {d.significant_effects(c)}")
+    del d, data
+    reps = [int(x) for x in args.scaling.split(",") if x.strip()]
+    if reps:
+        print(
+            "\ntime and peak memory per maneuver (peak resident set added by diagnose; numpy's "
+            "own peak, tracemalloc)"
+        )
+        print(
+            f"{'maneuvers':>9} {'rows':>9} {'wall s':>7} {'cpu s':>6} {'ms/man':>7} "
+            f"{'RSS+ MB':>8} {'MB/man':>7} {'numpy MB':>9} {'kB/man':>7}"
+        )
+    for r in reps:
+        with tempfile.TemporaryDirectory() as tmp:
+            data = _campaign(r, tmp)
+        n_man = int(data["maneuver_id"].n_unique())
+        m = measure(data)
+        print(
+            f"{n_man:>9} {data.height:>9} {m['wall']:>7.1f} {m['cpu']:>6.1f} "
+            f"{1000 * m['wall'] / n_man:>7.1f} {m['rss_added']:>8.0f} "
+            f"{m['rss_added'] / n_man:>7.2f} {m['traced']:>9.0f} "
+            f"{1000 * m['traced'] / n_man:>7.0f}"
+        )
+        del data
     return 0
 
 

@@ -24,12 +24,13 @@ from aerodelta.diagnosis.cv import (
     FoldStats,
     HatGrid,
     build_design,
+    fold_prediction,
     fold_stats,
     profile_out,
     row_prediction,
     solve,
 )
-from aerodelta.diagnosis.data import load_inputs
+from aerodelta.diagnosis.data import load_inputs, maneuver_codes
 from aerodelta.diagnosis.regressors import (
     delayed_controls,
     design_columns,
@@ -44,7 +45,7 @@ from aerodelta.diagnosis.select import (
     forward_select,
 )
 from aerodelta.diagnosis.simulator import load_simulator
-from aerodelta.diagnosis.stochastic import event_regressors, rolloff_finding
+from aerodelta.diagnosis.stochastic import event_columns, rolloff_finding
 from aerodelta.diagnosis.vocabulary import (
     COEFFICIENTS,
     NEEDS_MODEL,
@@ -52,7 +53,15 @@ from aerodelta.diagnosis.vocabulary import (
     Vocabulary,
     default_vocabulary,
 )
-from aerodelta.diagnosis.where import gap_map, phases, region_of, stall_alphas, worst_segments
+from aerodelta.diagnosis.where import (
+    PHASES,
+    REGIONS,
+    gap_map,
+    phase_codes,
+    region_codes,
+    stall_alphas,
+    worst_segments,
+)
 from aerodelta.exceptions import DataError
 from aerodelta.fit import theil_inequality
 
@@ -200,14 +209,13 @@ def _cv_prediction(
 ) -> np.ndarray:
     """Held-out prediction per row of a model (each row predicted by its fold's complement)."""
     cols = columns_for(design, model)
-    pred = np.zeros(rows["y"].size)
-    for q in range(len(stats.train_gram)):
-        th = solve(design, stats.train_gram[q], stats.train_xty[q], cols)
-        m = rows["fold"] == q
-        pred[m] = row_prediction(
-            design, th, rows["flap"][m], rows["alpha"][m], rows["aero"][m], rows["glob"][m]
-        )
-    return pred
+    thetas = [
+        solve(design, stats.train_gram[q], stats.train_xty[q], cols)
+        for q in range(len(stats.train_gram))
+    ]
+    return fold_prediction(
+        design, thetas, rows["fold"], rows["flap"], rows["alpha"], rows["aero"], rows["glob"]
+    )
 
 
 def _effect_rows(
@@ -312,30 +320,35 @@ def _global_params(design: Design, theta: list[np.ndarray], cand: Candidate) -> 
 def _shrink_table(
     y: np.ndarray,
     meas: np.ndarray,
-    region: np.ndarray,
+    regions: dict[str, np.ndarray],
     steps: Sequence[tuple[str, np.ndarray]],
 ) -> list[dict[str, Any]]:
     """Held-out gap before and after each step (timing alignment, then each selected
-    effect), cumulatively, per alpha region."""
+    effect), cumulatively, over all rows and per alpha region (``regions``: each region's
+    row indices)."""
     out = []
     prev = np.zeros_like(y)
     for k, (name, pred) in enumerate(steps):
         for reg in ("all", "pre_stall", "stall", "post_stall"):
-            m = np.ones(y.size, bool) if reg == "all" else region == reg
-            if not m.any():
+            idx = regions.get(reg)
+            if reg == "all":
+                y_m, meas_m, prev_m, pred_m = y, meas, prev, pred
+            elif idx is not None and idx.size:
+                y_m, meas_m, prev_m, pred_m = y[idx], meas[idx], prev[idx], pred[idx]
+            else:
                 continue
-            sim_b = meas[m] - (y[m] - prev[m])
-            sim_a = meas[m] - (y[m] - pred[m])
+            sim_b = meas_m - (y_m - prev_m)
+            sim_a = meas_m - (y_m - pred_m)
             out.append(
                 {
                     "step": k + 1,
                     "effect": name,
                     "region": reg,
-                    "n_points": int(m.sum()),
-                    "rms_before": _rms(y[m] - prev[m]),
-                    "rms_after": _rms(y[m] - pred[m]),
-                    "tic_before": theil_inequality(meas[m], sim_b),
-                    "tic_after": theil_inequality(meas[m], sim_a),
+                    "n_points": int(y_m.size),
+                    "rms_before": _rms(y_m - prev_m),
+                    "rms_after": _rms(y_m - pred_m),
+                    "tic_before": theil_inequality(meas_m, sim_b),
+                    "tic_after": theil_inequality(meas_m, sim_a),
                 }
             )
         prev = pred
@@ -409,15 +422,18 @@ def _diagnose(  # noqa: PLR0917 - the arguments of diagnose(), passed through
             f"the diagnosis needs at least {cfg.folds} maneuvers for {cfg.folds}-fold "
             f"cross-validation by maneuver; the data hold {man.height}"
         )
-    code = {m: i for i, m in enumerate(man["maneuver_id"].to_list())}
-    mcode = np.array([code[m] for m in frame["maneuver_id"].to_list()], dtype=np.int64)
+    mcode = maneuver_codes(frame)[1]  # index in ``man`` (sorted by maneuver_id)
     flaps = sorted(set(man["flap_deg"].to_list()))
     fidx = np.searchsorted(np.array(flaps), frame["flap_deg"].to_numpy())
     folds_m = _fold_ids(man, cfg.folds, cfg.seed)
     alpha = frame["alpha_deg"].to_numpy()
     stall = stall_alphas(frame)
-    phase = phases(frame, stall)
-    region = region_of(alpha, frame["flap_deg"].to_numpy(), stall)
+    # polars string columns built from codes (a conversion of 400,000 numpy strings took 0.1 s)
+    phase = pl.Series("phase", PHASES).gather(phase_codes(frame, stall))
+    rcode = region_codes(alpha, frame["flap_deg"].to_numpy(), stall)
+    region_rows = {r: np.flatnonzero(rcode == i) for i, r in enumerate(REGIONS)}
+    region = pl.Series("region", REGIONS).gather(rcode)
+    del rcode
     grid = HatGrid.covering(alpha, cfg.knot_deg)
     dflap = fidx if cfg.per_flap else np.zeros_like(fidx)
     n_dflaps = len(flaps) if cfg.per_flap else 1
@@ -477,15 +493,17 @@ def _diagnose(  # noqa: PLR0917 - the arguments of diagnose(), passed through
             if ro["detected"]:
                 # each event's moment, with its own random amplitude, profiled out of its
                 # maneuver (Frisch-Waugh); the deterministic effects are then selected again
-                nuis = event_regressors(frame, ro["centres"])
+                del design, stats, sel, fitted, resid  # before the next design is built
+                nuis = event_columns(frame, ro["centres"])
                 design = profile_out(
                     build_design(
-                        y, mcode, dflap, alpha, aero_x, np.hstack([glob_x, nuis]),
+                        y, mcode, dflap, alpha, aero_x, (glob_x, nuis),
                         aero_names, [*glob_names, *(f"__rolloff{j}" for j in range(nuis.shape[1]))],
                         grid, man.height, n_dflaps,
                     ),
                     nuis.shape[1],
                 )  # fmt: skip
+                del nuis
                 stats = fold_stats(design, folds_m)
                 sel = forward_select(design, stats, cands, cfg.selection)
         rows = {
@@ -515,8 +533,10 @@ def _diagnose(  # noqa: PLR0917 - the arguments of diagnose(), passed through
             "where": gap_map(frame, y, phase, cfg.where_bin_deg, cfg.where_alpha),
             "worst_segments": worst_segments(frame, y),
             "effects": effects,
-            "shrink": _shrink_table(y, meas, region, steps_),
+            "shrink": _shrink_table(y, meas, region_rows, steps_),
         }
+        # this coefficient's rows and statistics go before the next one's are built
+        del aero_x, glob_x, design, stats, sel, rows, steps_
     coefs["Cl"]["rolloff"] = {k: v for k, v in ro.items() if k != "centres"}
     coefs["Cl"]["rolloff"]["events_profiled_out"] = len(ro["centres"]) if ro["detected"] else 0
     if ro["detected"]:
@@ -568,8 +588,8 @@ def _diagnose(  # noqa: PLR0917 - the arguments of diagnose(), passed through
         "coefficients": coefs,
     }
     preds = frame.select("maneuver_id", "t", "alpha_deg", "flap_deg").with_columns(
-        pl.Series("phase", phase),
-        pl.Series("region", region),
+        phase,
+        region,
         *[pl.Series(k, v) for k, v in pred_cols.items()],
     )
     return Diagnosis(result, preds)

@@ -7,17 +7,27 @@ continuous counterpart of the thesis's per-bin Δ parameters (Section 3.3, Eq. 3
 (measurement) regressor enters with one parameter. Every fit is equation-error least squares.
 
 Each maneuver's rows are reduced once to ``G_m = D_m' D_m``, ``b_m = D_m' y_m`` and
-``y_m' y_m`` over its flap's columns (the hat basis makes ``D_m`` sparse: only two knots per row
-are non-zero, so the reduction costs ``O(n (2R + G)^2)``). A fold's training normal equations
-are then the total minus the fold's, and the held-out squared error of maneuver ``m`` under
-parameters ``theta`` is ``y_m'y_m - 2 theta' b_m + theta' G_m theta``: cross-validation by
-maneuver (never by sample: neighbouring samples are correlated) costs one small solve per fold.
+``y_m' y_m`` over its flap's columns. A fold's training normal equations are then the total
+minus the fold's, and the held-out squared error of maneuver ``m`` under parameters ``theta``
+is ``y_m'y_m - 2 theta' b_m + theta' G_m theta``: cross-validation by maneuver (never by
+sample: neighbouring samples are correlated) costs one small solve per fold.
+
+``G_m`` is never held dense. A row touches only two neighbouring knots (the hat basis), so
+``G_m`` is block-tridiagonal in the knots: per knot an ``R x R`` block, per pair of
+neighbouring knots one more, per knot an ``R x Gn`` block against the global columns, and
+the ``Gn x Gn`` global block (:class:`Design`), ``2 K R^2 + K R Gn + Gn^2`` numbers per
+maneuver instead of ``(K R + Gn)^2`` (about 150 kB instead of 2.9 MB for C_l on a 1-deg
+grid). Profiling out per-maneuver nuisance columns (:func:`profile_out`) adds a low-rank
+term, ``G_m = band_m - F_m F_m'``. The quadratic forms of the held-out errors are evaluated
+on these blocks directly, for all maneuvers of a fold at once.
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
-from dataclasses import dataclass
+import functools
+import itertools
+from collections.abc import Iterator, Sequence
+from dataclasses import dataclass, field
 
 import numpy as np
 import numpy.typing as npt
@@ -62,6 +72,20 @@ class Design:
     Local layout (one per flap; a maneuver has one flap): alpha-dependent columns ``k*R + r``
     (``K`` knots, ``R`` aerodynamic regressors), then the ``Gn`` global columns, which are
     shared by every flap.
+
+    ``G_m``, the Gram matrix of maneuver ``m`` on the local layout, is held as its non-zero
+    blocks (the hat basis makes it block-tridiagonal in the knots), regressor-pair major so
+    that a model's regressors are contiguous runs over the knots:
+
+    - ``diag[m, r, s, k]``: ``G_m[k*R + r, k*R + s]``;
+    - ``off[m, r, s, k]``: ``G_m[k*R + r, (k+1)*R + s]`` (its transpose below the diagonal);
+    - ``cross[m, r, g, k]``: ``G_m[k*R + r, K*R + g]``;
+    - ``glob[m, g, h]``: ``G_m[K*R + g, K*R + h]``;
+    - ``lowrank`` (``n_local x r``, or ``None``) and ``lowrank_of`` (``r``): the columns of
+      every maneuver's ``F_m`` side by side and the maneuver of each, ``G_m = blocks - F_m F_m'``
+      (the per-maneuver nuisance profiled out, :func:`profile_out`).
+
+    :meth:`dense_gram` (and the ``gram`` view) writes one out in full.
     """
 
     grid: HatGrid
@@ -69,15 +93,146 @@ class Design:
     aero_names: list[str]
     global_names: list[str]
     man_flap: IntArray  # flap index per maneuver
-    gram: list[FloatArray]  # per maneuver, local layout
-    xty: list[FloatArray]
+    diag: FloatArray  # (M, R, R, K)
+    off: FloatArray  # (M, R, R, K-1)
+    cross: FloatArray  # (M, R, Gn, K)
+    glob: FloatArray  # (M, Gn, Gn)
+    xty: FloatArray  # (M, n_local), local layout
     yty: FloatArray
     n_rows: IntArray
+    lowrank: FloatArray | None = None  # (n_local, r): F_m of every maneuver, side by side
+    lowrank_of: IntArray | None = None  # (r,): the maneuver of each column, ascending
 
     @property
     def n_local(self) -> int:
         """Columns of one flap's local layout."""
         return self.grid.n * len(self.aero_names) + len(self.global_names)
+
+    @property
+    def n_maneuvers(self) -> int:
+        """Maneuvers (rows of the per-maneuver statistics)."""
+        return int(self.yty.size)
+
+    @property
+    def nbytes(self) -> int:
+        """Bytes held by the per-maneuver statistics."""
+        arrays = [self.diag, self.off, self.cross, self.glob, self.xty, self.yty, self.n_rows]
+        if self.lowrank is not None and self.lowrank_of is not None:
+            arrays += [self.lowrank, self.lowrank_of]
+        return int(sum(a.nbytes for a in arrays))
+
+    def gram_sum(self, maneuvers: IntArray) -> FloatArray:
+        """``sum_m G_m`` over ``maneuvers`` (indices), dense on the local layout."""
+        idx = np.asarray(maneuvers, dtype=np.int64)
+        k_n, r_n, g_n = self.grid.n, len(self.aero_names), len(self.global_names)
+        kr = k_n * r_n
+        p = kr + g_n
+        out = np.zeros((p, p))
+        if idx.size == 0:
+            return out
+        d = self.diag[idx].sum(axis=0)
+        o = self.off[idx].sum(axis=0)
+        c = self.cross[idx].sum(axis=0)
+        a4 = np.zeros((k_n, r_n, k_n, r_n))
+        kk = np.arange(k_n)
+        a4[kk, :, kk, :] = d.transpose(2, 0, 1)
+        a4[kk[:-1], :, kk[1:], :] = o.transpose(2, 0, 1)
+        a4[kk[1:], :, kk[:-1], :] = o.transpose(2, 1, 0)
+        out[:kr, :kr] = a4.reshape(kr, kr)
+        cc = c.transpose(2, 0, 1).reshape(kr, g_n)
+        out[:kr, kr:] = cc
+        out[kr:, :kr] = cc.T
+        out[kr:, kr:] = self.glob[idx].sum(axis=0)
+        if self.lowrank is not None and self.lowrank_of is not None:
+            f = self.lowrank[:, np.isin(self.lowrank_of, idx)]
+            out -= f @ f.T
+        return out
+
+    def dense_gram(self, m: int) -> FloatArray:
+        """``G_m`` written out on the local layout (``n_local x n_local``)."""
+        return self.gram_sum(np.array([m], dtype=np.int64))
+
+    def gram_diagonals(self) -> FloatArray:
+        """``diag(G_m)`` per maneuver, ``(M, n_local)``."""
+        r_n, g_n = len(self.aero_names), len(self.global_names)
+        ar, ag = np.arange(r_n), np.arange(g_n)
+        aero = self.diag[:, ar, ar, :]  # (M, R, K)
+        out = np.concatenate(
+            [aero.transpose(0, 2, 1).reshape(self.n_maneuvers, -1), self.glob[:, ag, ag]], axis=1
+        )
+        if self.lowrank is not None and self.lowrank_of is not None:
+            np.subtract.at(out, self.lowrank_of, (self.lowrank * self.lowrank).T)
+        return out
+
+    @property
+    def gram(self) -> Sequence[FloatArray]:
+        """``G_m`` per maneuver, each written out dense when it is read (for checks)."""
+        return _DenseGrams(self)
+
+
+class _DenseGrams(Sequence[FloatArray]):
+    """Read-only sequence of a design's per-maneuver Gram matrices, built on access."""
+
+    def __init__(self, design: Design) -> None:
+        self._d = design
+
+    def __len__(self) -> int:
+        return self._d.n_maneuvers
+
+    def __getitem__(self, m: int) -> FloatArray:  # type: ignore[override]
+        if not -len(self) <= m < len(self):
+            raise IndexError(m)
+        return self._d.dense_gram(m % len(self))
+
+    def __iter__(self) -> Iterator[FloatArray]:
+        return (self._d.dense_gram(m) for m in range(len(self)))
+
+
+@dataclass(frozen=True)
+class SparseColumns:
+    """Columns that are zero but on a few rows (a roll-off event's nuisance columns live on
+    its maneuver's rows near the spike): per column, the rows and the values there."""
+
+    n_rows: int
+    rows: list[IntArray]
+    values: list[FloatArray]
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        """``(rows, columns)`` of the matrix they stand for."""
+        return self.n_rows, len(self.rows)
+
+    def dense(self) -> FloatArray:
+        """The columns written out, ``n_rows x columns``."""
+        out = np.zeros(self.shape)
+        for j, (r, v) in enumerate(zip(self.rows, self.values, strict=True)):
+            out[r, j] = v
+        return out
+
+
+#: Rows reduced at once by :func:`build_design` (bounds its working memory to about this many
+#: rows of ``2R + Gn + 1`` numbers, whatever the campaign's size).
+CHUNK_ROWS = 32768
+
+#: Lengths to which :func:`build_design` pads the per-(maneuver, knot) segments so that
+#: segments of one padded length are reduced by one batched product (zero rows add nothing).
+_PAD_LENGTHS = np.unique(np.ceil(1.25 ** np.arange(80)).astype(np.int64))
+
+
+def _segment_grams(z: FloatArray, starts: IntArray, lens: IntArray) -> FloatArray:
+    """``Z_s' Z_s`` of each segment ``s`` (rows ``starts[s]`` to ``starts[s] + lens[s]`` of
+    ``z``, whose last row is zeros: the padding), ``(S, P, P)``; segments of one padded
+    length are reduced by one batched product."""
+    pad = _PAD_LENGTHS[np.searchsorted(_PAD_LENGTHS, lens)]
+    p = z.shape[1]
+    out = np.empty((starts.size, p, p))
+    for length in np.unique(pad):
+        segs = np.flatnonzero(pad == length)
+        offs = np.arange(length)
+        rows = np.where(offs < lens[segs, None], starts[segs, None] + offs, z.shape[0] - 1)
+        zb = z[rows]
+        out[segs] = np.matmul(zb.transpose(0, 2, 1), zb)
+    return out
 
 
 def build_design(  # noqa: PLR0917 - the reduction's inputs, all positional by design
@@ -86,14 +241,15 @@ def build_design(  # noqa: PLR0917 - the reduction's inputs, all positional by d
     flap: IntArray,
     alpha_deg: FloatArray,
     aero: FloatArray,
-    glob: FloatArray,
+    glob: FloatArray | Sequence[FloatArray | SparseColumns],
     aero_names: list[str],
     global_names: list[str],
     grid: HatGrid,
     n_maneuvers: int,
     n_flaps: int,
 ) -> Design:
-    """Reduce the rows to per-maneuver ``G_m``, ``b_m``, ``y_m'y_m``.
+    """Reduce the rows to per-maneuver ``G_m``, ``b_m``, ``y_m'y_m`` (block form, see
+    :class:`Design`), :data:`CHUNK_ROWS` rows at a time.
 
     Parameters
     ----------
@@ -104,50 +260,93 @@ def build_design(  # noqa: PLR0917 - the reduction's inputs, all positional by d
     alpha_deg
         Angle of attack per row, deg.
     aero, glob
-        Aerodynamic (``n x R``) and global (``n x Gn``) regressor columns.
+        Aerodynamic (``n x R``) and global (``n x Gn``) regressor columns; ``glob`` may be
+        given as blocks of columns side by side (not copied into one matrix), dense or
+        :class:`SparseColumns`.
     """
-    r_n, g_n = aero.shape[1], glob.shape[1]
+    blocks = [glob] if isinstance(glob, np.ndarray) else list(glob)
+    r_n, g_n = aero.shape[1], sum(b.shape[1] for b in blocks)
     k_n = grid.n
-    n_local = k_n * r_n + g_n
+    m_n = n_maneuvers
     j, w1 = grid.locate(alpha_deg)
-    w0 = 1.0 - w1
     order = np.lexsort((j, maneuver))
     m_sorted = maneuver[order]
-    bounds = np.searchsorted(m_sorted, np.arange(n_maneuvers + 1))
-    man_flap = np.zeros(n_maneuvers, dtype=np.int64)
-    gram: list[FloatArray] = []
-    xty: list[FloatArray] = []
-    yty = np.zeros(n_maneuvers)
-    n_rows = np.zeros(n_maneuvers, dtype=np.int64)
-    for m in range(n_maneuvers):
-        rows = order[bounds[m] : bounds[m + 1]]
-        g_m = np.zeros((n_local, n_local))
-        b_m = np.zeros(n_local)
-        if rows.size:
-            man_flap[m] = int(flap[rows[0]])
-            jm = j[rows]
-            cuts = np.flatnonzero(np.diff(jm)) + 1
-            for seg in np.split(np.arange(rows.size), cuts):
-                rr = rows[seg]
-                jj = int(jm[seg[0]])
-                xa = aero[rr]
-                d = np.hstack([xa * w0[rr, None], xa * w1[rr, None], glob[rr]])
-                idx = np.concatenate(
-                    [
-                        jj * r_n + np.arange(r_n),
-                        (jj + 1) * r_n + np.arange(r_n),
-                        k_n * r_n + np.arange(g_n),
-                    ]
-                )
-                g_m[np.ix_(idx, idx)] += d.T @ d
-                b_m[idx] += d.T @ y[rr]
-            yty[m] = float(y[rows] @ y[rows])
-            n_rows[m] = rows.size
-        gram.append(g_m)
-        xty.append(b_m)
+    j_sorted = j[order]
+    n = order.size
+    new = np.ones(n, dtype=bool)
+    if n:
+        new[1:] = (np.diff(m_sorted) != 0) | (np.diff(j_sorted) != 0)
+    starts = np.flatnonzero(new)
+    lens = np.diff(np.append(starts, n))
+    seg_m, seg_j = m_sorted[starts], j_sorted[starts]
+    diag = np.zeros((m_n, r_n, r_n, k_n))
+    off = np.zeros((m_n, r_n, r_n, k_n - 1))
+    cross = np.zeros((m_n, r_n, g_n, k_n))
+    gl = np.zeros((m_n, g_n, g_n))
+    xa = np.zeros((m_n, k_n, r_n))
+    xg = np.zeros((m_n, g_n))
+    yty = np.zeros(m_n)
+    i0, i1 = slice(0, r_n), slice(r_n, 2 * r_n)
+    ig, iy = slice(2 * r_n, 2 * r_n + g_n), 2 * r_n + g_n
+    # a sparse block's entries by their position in the sorted rows (``order``)
+    sparse: dict[int, list[tuple[IntArray, FloatArray]]] = {}
+    if any(isinstance(b, SparseColumns) for b in blocks):
+        where = np.empty(n, dtype=np.int64)
+        where[order] = np.arange(n)
+        for bi, blk in enumerate(blocks):
+            if isinstance(blk, SparseColumns):
+                cols = []
+                for r, v in zip(blk.rows, blk.values, strict=True):
+                    pos = where[r]
+                    o = np.argsort(pos, kind="stable")
+                    cols.append((pos[o], v[o]))
+                sparse[bi] = cols
+    # chunks of whole segments of about CHUNK_ROWS rows
+    cut = np.searchsorted(starts, np.arange(CHUNK_ROWS, n, CHUNK_ROWS))
+    bounds = np.unique(np.concatenate([[0], cut, [starts.size]]))
+    for a, b in itertools.pairwise(bounds):
+        lo, hi = int(starts[a]), int(starts[b]) if b < starts.size else n
+        rows = order[lo:hi]
+        x = aero[rows]
+        w1r = w1[rows, None]
+        z = np.empty((rows.size + 1, iy + 1))  # the last row: zeros, the segments' padding
+        z[-1] = 0.0
+        np.multiply(x, 1.0 - w1r, out=z[:-1, i0])
+        np.multiply(x, w1r, out=z[:-1, i1])
+        col = 2 * r_n
+        for bi, blk in enumerate(blocks):
+            if isinstance(blk, SparseColumns):
+                z[:-1, col : col + blk.shape[1]] = 0.0
+                for jj, (pos, v) in enumerate(sparse[bi]):
+                    i, e = np.searchsorted(pos, [lo, hi])
+                    z[pos[i:e] - lo, col + jj] = v[i:e]
+            else:
+                z[:-1, col : col + blk.shape[1]] = blk[rows]
+            col += blk.shape[1]
+        z[:-1, iy] = y[rows]
+        s = _segment_grams(z, starts[a:b] - lo, lens[a:b])
+        m, k = seg_m[a:b], seg_j[a:b]
+        # (m, k) is one segment: no index repeats within one assignment
+        diag[m, :, :, k] += s[:, i0, i0]
+        diag[m, :, :, k + 1] += s[:, i1, i1]
+        off[m, :, :, k] += s[:, i0, i1]
+        cross[m, :, :, k] += s[:, i0, ig]
+        cross[m, :, :, k + 1] += s[:, i1, ig]
+        xa[m, k] += s[:, i0, iy]
+        xa[m, k + 1] += s[:, i1, iy]
+        np.add.at(gl, m, s[:, ig, ig])
+        np.add.at(xg, m, s[:, ig, iy])
+        np.add.at(yty, m, s[:, iy, iy])
+    man_flap = np.zeros(m_n, dtype=np.int64)
+    first = np.searchsorted(m_sorted, np.arange(m_n))
+    has = np.bincount(m_sorted, minlength=m_n)[:m_n] > 0
+    man_flap[has] = flap[order[first[has]]]
+    n_rows = np.bincount(maneuver, minlength=m_n)[:m_n].astype(np.int64)
+    xty = np.concatenate([xa.reshape(m_n, k_n * r_n), xg], axis=1)
     return Design(
-        grid, n_flaps, list(aero_names), list(global_names), man_flap, gram, xty, yty, n_rows
-    )
+        grid, n_flaps, list(aero_names), list(global_names), man_flap, diag, off, cross, gl,
+        xty, yty, n_rows,
+    )  # fmt: skip
 
 
 def profile_out(design: Design, n_nuisance: int) -> Design:
@@ -159,36 +358,62 @@ def profile_out(design: Design, n_nuisance: int) -> Design:
     off its own nuisance columns, ``G_DD - G_DN G_NN^+ G_ND`` and so on: every later fit,
     held-out or not, is then the fit with each maneuver's nuisance amplitudes estimated from
     that maneuver alone. Columns a maneuver does not use (all zero) drop out of ``G_NN^+``.
+
+    ``G_DN G_NN^+ G_ND`` is kept as ``F F'`` with ``F = G_DN V L^{-1/2}`` (``V L V'`` the
+    eigendecomposition of ``G_NN`` over the eigenvalues ``G_NN^+`` keeps: those above
+    ``1e-10`` of the largest; a Gram matrix has no negative ones beyond rounding).
     """
     if n_nuisance <= 0:
         return design
-    p = design.n_local
-    keep = p - n_nuisance
-    gram, xty, yty = [], [], design.yty.copy()
-    for m, (g, b) in enumerate(zip(design.gram, design.xty, strict=True)):
-        g_dd, g_dn, g_nn = g[:keep, :keep], g[:keep, keep:], g[keep:, keep:]
-        b_d, b_n = b[:keep], b[keep:]
+    if design.lowrank is not None:
+        raise ValueError("profile_out: this design's nuisance columns were profiled out already")
+    k_n, r_n = design.grid.n, len(design.aero_names)
+    kr = k_n * r_n
+    g_keep = len(design.global_names) - n_nuisance
+    p_keep = kr + g_keep
+    xty = design.xty[:, :p_keep].copy()
+    yty = design.yty.copy()
+    factors: dict[int, FloatArray] = {}
+    for m in np.flatnonzero(np.any(design.glob[:, g_keep:, g_keep:] != 0.0, axis=(1, 2))):
+        g_nn = design.glob[m, g_keep:, g_keep:]
         live = np.diag(g_nn) > 0.0
-        if live.any():
-            g_nn_l = g_nn[np.ix_(live, live)]
-            inv = np.linalg.pinv(g_nn_l, rcond=1e-10, hermitian=True)
-            g_dn_l = g_dn[:, live]
-            gram.append(g_dd - g_dn_l @ inv @ g_dn_l.T)
-            xty.append(b_d - g_dn_l @ (inv @ b_n[live]))
-            yty[m] = max(float(design.yty[m] - b_n[live] @ inv @ b_n[live]), 0.0)
-        else:
-            gram.append(g_dd.copy())
-            xty.append(b_d.copy())
+        if not live.any():
+            continue
+        g_dn = np.vstack(
+            [
+                design.cross[m][:, g_keep:, :].transpose(2, 0, 1).reshape(kr, n_nuisance),
+                design.glob[m, :g_keep, g_keep:],
+            ]
+        )[:, live]
+        g_nn_l = g_nn[np.ix_(live, live)]
+        inv = np.linalg.pinv(g_nn_l, rcond=1e-10, hermitian=True)
+        b_n = design.xty[m, p_keep:][live]
+        xty[m] = design.xty[m, :p_keep] - g_dn @ (inv @ b_n)
+        yty[m] = max(float(design.yty[m] - b_n @ inv @ b_n), 0.0)
+        lam, vec = np.linalg.eigh(g_nn_l)
+        keep = lam > 1e-10 * float(np.abs(lam).max())
+        factors[int(m)] = g_dn @ (vec[:, keep] / np.sqrt(lam[keep]))
+    lowrank, lowrank_of = None, None
+    if factors:
+        lowrank = np.hstack([factors[m] for m in sorted(factors)])
+        lowrank_of = np.concatenate(
+            [np.full(factors[m].shape[1], m, dtype=np.int64) for m in sorted(factors)]
+        )
     return Design(
         design.grid,
         design.n_flaps,
         list(design.aero_names),
-        list(design.global_names[: len(design.global_names) - n_nuisance]),
+        list(design.global_names[:g_keep]),
         design.man_flap.copy(),
-        gram,
+        design.diag,  # shared: the nuisance columns are global ones
+        design.off,
+        np.ascontiguousarray(design.cross[:, :, :g_keep, :]),
+        np.ascontiguousarray(design.glob[:, :g_keep, :g_keep]),
         xty,
         yty,
         design.n_rows.copy(),
+        lowrank,
+        lowrank_of,
     )
 
 
@@ -206,11 +431,10 @@ def penalty(design: Design) -> list[FloatArray]:
     k_n, r_n = design.grid.n, len(design.aero_names)
     d2 = np.diff(np.eye(k_n), n=2, axis=0)
     rough = d2.T @ d2
+    diags = design.gram_diagonals()
     out = []
     for f in range(design.n_flaps):
-        diag = np.zeros(design.n_local)
-        for m in np.flatnonzero(design.man_flap == f):
-            diag += np.diag(design.gram[m])
+        diag = diags[design.man_flap == f].sum(axis=0)
         pen = np.zeros((design.n_local, design.n_local))
         for r in range(r_n):
             idx = np.arange(k_n) * r_n + r
@@ -232,6 +456,7 @@ class FoldStats:
     train_xty: list[list[FloatArray]]
     total_gram: list[FloatArray]  # [flap], penalised
     total_xty: list[FloatArray]
+    members: list[list[IntArray]] = field(default_factory=list)  # [fold][flap]: maneuvers
 
 
 def fold_stats(design: Design, folds: IntArray) -> FoldStats:
@@ -240,17 +465,28 @@ def fold_stats(design: Design, folds: IntArray) -> FoldStats:
     n_f, p = design.n_flaps, design.n_local
     g = np.zeros((n_q, n_f, p, p))
     x = np.zeros((n_q, n_f, p))
-    for m, q in enumerate(folds):
-        f = design.man_flap[m]
-        g[q, f] += design.gram[m]
-        x[q, f] += design.xty[m]
+    members = [
+        [np.flatnonzero((folds == q) & (design.man_flap == f)) for f in range(n_f)]
+        for q in range(n_q)
+    ]
+    for q in range(n_q):
+        for f in range(n_f):
+            idx = members[q][f]
+            if idx.size:
+                g[q, f] = design.gram_sum(idx)
+                x[q, f] = design.xty[idx].sum(axis=0)
     pen = penalty(design)
     tg = g.sum(axis=0)
     tx = x.sum(axis=0)
     train_g = [[tg[f] - g[q, f] + pen[f] for f in range(n_f)] for q in range(n_q)]
     train_x = [[tx[f] - x[q, f] for f in range(n_f)] for q in range(n_q)]
     return FoldStats(
-        folds, train_g, train_x, [tg[f] + pen[f] for f in range(n_f)], [tx[f] for f in range(n_f)]
+        folds,
+        train_g,
+        train_x,
+        [tg[f] + pen[f] for f in range(n_f)],
+        [tx[f] for f in range(n_f)],
+        members,
     )
 
 
@@ -319,6 +555,40 @@ def solve(
     return thetas
 
 
+def _quadratic_forms(
+    design: Design, ms: IntArray, theta: FloatArray, cols: tuple[IntArray, IntArray]
+) -> FloatArray:
+    """``theta' G_m theta - 2 theta' b_m`` for each maneuver in ``ms`` (ascending; one flap's local
+    ``theta``, zero off ``cols``), from the blocks of :class:`Design`."""
+    k_n, r_n = design.grid.n, len(design.aero_names)
+    kr = k_n * r_n
+    a_cols, g_cols = cols
+    ridx = np.unique(a_cols % r_n) if r_n else a_cols
+    gidx = g_cols - kr
+    idx = np.concatenate(cols)
+    n = ms.size
+    out = -2.0 * (design.xty[np.ix_(ms, idx)] @ theta[idx])
+    a = theta[:kr].reshape(k_n, r_n)[:, ridx].T  # (r, K)
+    g = theta[g_cols]
+    if ridx.size:
+        wd = a[:, None, :] * a[None, :, :]
+        out += design.diag[np.ix_(ms, ridx, ridx)].reshape(n, -1) @ wd.ravel()
+        wo = a[:, None, :-1] * a[None, :, 1:]
+        out += 2.0 * (design.off[np.ix_(ms, ridx, ridx)].reshape(n, -1) @ wo.ravel())
+        if gidx.size:
+            wc = a[:, None, :] * g[None, :, None]
+            out += 2.0 * (design.cross[np.ix_(ms, ridx, gidx)].reshape(n, -1) @ wc.ravel())
+    if gidx.size:
+        out += design.glob[np.ix_(ms, gidx, gidx)].reshape(n, -1) @ np.outer(g, g).ravel()
+    if design.lowrank is not None and design.lowrank_of is not None:
+        own = np.isin(design.lowrank_of, ms)
+        if own.any():
+            v = theta[idx] @ design.lowrank[np.ix_(idx, np.flatnonzero(own))]
+            pos = np.searchsorted(ms, design.lowrank_of[own])
+            out -= np.bincount(pos, weights=v * v, minlength=n)
+    return out
+
+
 def heldout_sse(
     design: Design, stats: FoldStats, cols: tuple[IntArray, IntArray]
 ) -> tuple[FloatArray, list[list[FloatArray]]]:
@@ -327,16 +597,45 @@ def heldout_sse(
     n_q = len(stats.train_gram)
     thetas = []
     sse = design.yty.copy()
-    # the parameters are zero off the model's columns: the quadratic forms need only those
-    idx = np.concatenate(cols)
+    members = stats.members or [
+        [np.flatnonzero((stats.folds == q) & (design.man_flap == f)) for f in range(design.n_flaps)]
+        for q in range(n_q)
+    ]
     for q in range(n_q):
         th = solve(design, stats.train_gram[q], stats.train_xty[q], cols)
         thetas.append(th)
-        for m in np.flatnonzero(stats.folds == q):
-            t = th[design.man_flap[m]][idx]
-            g = design.gram[m][np.ix_(idx, idx)]
-            sse[m] = design.yty[m] - 2.0 * t @ design.xty[m][idx] + t @ g @ t
+        for f, ms in enumerate(members[q]):
+            if ms.size:
+                sse[ms] = design.yty[ms] + _quadratic_forms(design, ms, th[f], cols)
     return sse, thetas
+
+
+def fold_prediction(  # noqa: PLR0917 - rows' columns, positional by design
+    design: Design,
+    thetas: Sequence[Sequence[FloatArray]],
+    fold: IntArray,
+    flap: IntArray,
+    alpha_deg: FloatArray,
+    aero: FloatArray,
+    glob: FloatArray,
+) -> FloatArray:
+    """:func:`row_prediction` of each row with its fold's parameters (``thetas[fold][flap]``),
+    in one pass over the rows."""
+    k_n, r_n = design.grid.n, len(design.aero_names)
+    kr = k_n * r_n
+    j, w1 = design.grid.locate(alpha_deg)
+    th = np.stack([np.stack([t[:kr].reshape(k_n, r_n) for t in tq]) for tq in thetas])
+    used = np.flatnonzero(np.any(th != 0.0, axis=(0, 1, 2)))
+    out = np.zeros(alpha_deg.size)
+    if used.size:
+        tu = th[..., used]
+        coef = tu[fold, flap, j] * (1.0 - w1)[:, None] + tu[fold, flap, j + 1] * w1[:, None]
+        out = np.einsum("nr,nr->n", coef, aero[:, used])
+    if glob.shape[1]:
+        for q, tq in enumerate(thetas):
+            m = fold == q
+            out[m] += glob[m] @ tq[0][kr:]
+    return out
 
 
 def row_prediction(  # noqa: PLR0917 - rows' columns, positional by design
@@ -351,8 +650,13 @@ def row_prediction(  # noqa: PLR0917 - rows' columns, positional by design
     k_n, r_n = design.grid.n, len(design.aero_names)
     j, w1 = design.grid.locate(alpha_deg)
     th = np.stack([t[: k_n * r_n].reshape(k_n, r_n) for t in thetas])
-    coef = th[flap, j] * (1.0 - w1)[:, None] + th[flap, j + 1] * w1[:, None]
-    out = np.einsum("nr,nr->n", coef, aero)
+    # only the regressors the model uses (the others' parameters are all zero)
+    used = np.flatnonzero(np.any(th != 0.0, axis=(0, 1)))
+    out = np.zeros(alpha_deg.size)
+    if used.size:
+        tu = th[:, :, used]
+        coef = tu[flap, j] * (1.0 - w1)[:, None] + tu[flap, j + 1] * w1[:, None]
+        out = np.einsum("nr,nr->n", coef, aero[:, used])
     if glob.shape[1]:
         out = out + glob @ thetas[0][k_n * r_n :]
     return out
@@ -411,9 +715,10 @@ def signed_rank_p(d: FloatArray, n_perm: int, seed: int) -> float:
     dist = np.zeros(n * (n + 1) // 2 + 1)
     dist[0] = 1.0
     for k in range(1, n + 1):
-        shifted = np.zeros_like(dist)
-        shifted[k:] = dist[:-k]
-        dist = 0.5 * (dist + shifted)
+        # in place on the entries that can be non-zero after k terms (sums up to k(k+1)/2)
+        top = k * (k + 1) // 2 + 1
+        dist[k:top] += dist[: top - k]  # numpy reads overlapping inputs as if copied first
+        dist[:top] *= 0.5
     return float(min(1.0, dist[w_plus:].sum()))
 
 
@@ -454,21 +759,116 @@ def improvement_test(d: FloatArray, n_perm: int, seed: int) -> tuple[float, floa
 #: Draws added when a sign-flip p-value lands in the far tail (see :func:`_flip_p`).
 TAIL_DRAWS = 10
 
+#: Rows of random signs of one ``Generator.integers`` call of the sign-flip draws.
+_DRAW_CALL = 50_000
+
+#: Sign-flip draws are summed in blocks of about this many signs (bounds the memory of a
+#: test whatever the number of maneuvers: a few arrays of 4 MB).
+_SIGNS_BLOCK = 1 << 22
+
+#: Bit ``i`` of pattern ``p``: +1 or -1, the sign of the ``i``-th of 8 consecutive maneuvers.
+_PATTERN_SIGNS = ((np.arange(256)[:, None] >> np.arange(8)[None, :]) & 1) * 2.0 - 1.0
+
+
+class _SignBytes:
+    """The bytes from which ``Generator.integers(0, 2, dtype=np.int8)`` draws its values,
+    read straight from the bit generator.
+
+    numpy draws an 8-bit integer from the next byte of a buffered 32-bit output (the 32-bit
+    outputs of PCG64 being the halves of its 64-bit ones, low half first), and the value in
+    ``[0, 2)`` is that byte's top bit (Lemire's method, which never rejects for a range of 2).
+    Each call starts a new 32-bit word, so it uses ``4 * ceil(size / 4)`` bytes.
+    :func:`_sign_bytes_match` checks this against numpy at first use.
+    """
+
+    def __init__(self, seed: int) -> None:
+        self._bits = np.random.default_rng(seed).bit_generator
+        self._left = np.zeros(0, dtype=np.uint8)
+
+    def take(self, n: int) -> npt.NDArray[np.uint8]:
+        """The next ``n`` bytes."""
+        need = n - self._left.size
+        buf = self._left
+        if need > 0:
+            words = np.asarray(self._bits.random_raw((need + 7) // 8), dtype="<u8")
+            buf = np.concatenate([buf, words.view(np.uint8)]) if buf.size else words.view(np.uint8)
+        out, self._left = buf[:n], buf[n:]
+        return out
+
+
+def _call_sums(stream: _SignBytes, rows: int, weights: FloatArray) -> Iterator[FloatArray]:
+    """``signs @ weights`` for the signs of one ``integers(0, 2, size=(rows, n),
+    dtype=np.int8) * 2 - 1`` call, in blocks of draws.
+
+    The top bits of each 8 bytes of a draw are gathered into one 8-bit pattern (a multiply
+    that moves bit ``8i + 7`` of a little-endian word to bit ``56 + i``), and the sum of the
+    8 signed weights is read from a table of the 256 patterns per group of 8 maneuvers."""
+    n = weights.size
+    groups = -(-n // 8)
+    padded = np.zeros(groups * 8)
+    padded[:n] = weights
+    table = (padded.reshape(groups, 8) @ _PATTERN_SIGNS.T).ravel()  # (groups * 256)
+    offset = (256 * np.arange(groups, dtype=np.uint64))[None, :]
+    block = max(1, _SIGNS_BLOCK // max(n, 1))
+    done = 0
+    while done < rows:
+        k = min(block, rows - done)
+        raw = stream.take(k * n).reshape(k, n)
+        if n % 8:
+            raw = np.concatenate([raw, np.zeros((k, groups * 8 - n), dtype=np.uint8)], axis=1)
+        # in place on the bytes just taken (the stream keeps none of them)
+        w = np.ascontiguousarray(raw).view("<u8")
+        np.right_shift(w, np.uint64(7), out=w)
+        np.bitwise_and(w, np.uint64(0x0101010101010101), out=w)
+        np.multiply(w, np.uint64(0x0102040810204080), out=w)
+        np.right_shift(w, np.uint64(56), out=w)
+        np.add(w, offset, out=w)
+        yield np.take(table, w.view(np.int64)).sum(axis=1)
+        done += k
+    stream.take(-(rows * n) % 4)  # the rest of the call's last 32-bit word
+
+
+@functools.cache
+def _sign_bytes_match() -> bool:
+    """True when :class:`_SignBytes` reproduces this numpy's ``integers`` draws."""
+    for seed, n, calls in ((3, 7, (3, 5, 2)), (11, 200, (20, 9))):
+        rng = np.random.default_rng(seed)
+        stream = _SignBytes(seed)
+        for k in calls:
+            w = 2.0 ** np.arange(n) % 251.0  # integers: the sums are exact in any order
+            ref = (rng.integers(0, 2, size=(k, n), dtype=np.int8) * 2 - 1) @ w
+            if not np.array_equal(ref, np.concatenate(list(_call_sums(stream, k, w)))):
+                return False
+    return True
+
 
 def _flip_p(weights: FloatArray, w: float, n_perm: int, seed: int) -> float:
     """``P(sum(s * weights) >= w)`` under random signs ``s``, by ``n_perm`` seeded draws,
     ``(1 + hits) / (1 + draws)``. When fewer than 20 draws reach ``w`` the estimate is
     mostly its floor ``1/(n_perm + 1)``, which a Bonferroni factor then multiplies: with 20
     candidates and the two combined tests, no effect could reach p < 0.01 at 4,000 draws. So
-    ``TAIL_DRAWS - 1`` times as many draws are added (same seed, same answer)."""
-    rng = np.random.default_rng(seed)
+    ``TAIL_DRAWS - 1`` times as many draws are added (same seed, same answer).
+
+    The signs are those of ``Generator(seed).integers(0, 2, size=(k, n), dtype=np.int8)``
+    called for at most :data:`_DRAW_CALL` draws at a time, read in blocks of about
+    :data:`_SIGNS_BLOCK` signs (:func:`_call_sums`; numpy's own calls if it draws otherwise).
+    The sums are added in another order than ``signs @ weights``: the same for integer
+    weights (ranks), within rounding otherwise."""
+    weights = np.asarray(weights, dtype=np.float64)
     n = weights.size
+    fast = _sign_bytes_match()
+    stream = _SignBytes(seed)
+    rng = np.random.default_rng(seed)
     hits, draws = 0, 0
     total = n_perm
     while draws < total:
-        k = min(total - draws, 50_000)
-        signs = rng.integers(0, 2, size=(k, n), dtype=np.int8) * 2 - 1
-        hits += int(np.sum(signs @ weights >= w))
+        k = min(total - draws, _DRAW_CALL)
+        if fast:
+            for sums in _call_sums(stream, k, weights):
+                hits += int(np.count_nonzero(sums >= w))
+        else:
+            signs8 = rng.integers(0, 2, size=(k, n), dtype=np.int8) * 2 - 1
+            hits += int(np.sum(signs8 @ weights >= w))
         draws += k
         if draws == n_perm and hits < 20:
             total = n_perm * TAIL_DRAWS

@@ -5,6 +5,7 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
+import numpy as np
 import polars as pl
 
 from aerodelta.aircraft import Aircraft
@@ -98,9 +99,34 @@ def load_inputs(
         frame = frame.with_columns((pl.col("ct_left") - pl.col("ct_right")).alias("ct_diff"))
     num = [c for c in frame.columns if frame[c].dtype.is_float()]
     before = frame.height
-    frame = frame.filter(pl.all_horizontal([pl.col(c).is_finite() for c in REQUIRED if c in num]))
-    if frame.height < before:
+    finite = pl.all_horizontal([pl.col(c).is_finite() for c in REQUIRED if c in num])
+    # filter and sort only when they change something: each copies every column of the records
+    if int(frame.select(finite.not_().sum()).item()) > 0:
+        frame = frame.filter(finite)
         notes.append(f"{before - frame.height} rows with non-finite values dropped")
     if frame.height == 0:
         raise DataError("no usable rows: every row has a missing required channel")
-    return frame.sort(["maneuver_id", "t"]), ac, notes
+    if _sorted_by_maneuver_and_time(frame):
+        # what the sort would have flagged (polars takes faster paths, summing in another
+        # order, on a column it knows sorted)
+        frame = frame.with_columns(pl.col("maneuver_id").set_sorted())
+    else:
+        frame = frame.sort(["maneuver_id", "t"])
+    return frame, ac, notes
+
+
+def _sorted_by_maneuver_and_time(frame: pl.DataFrame) -> bool:
+    """True when the rows are in ``(maneuver_id, t)`` order with no repeated pair (then
+    sorting them would return them unchanged)."""
+    m, t = pl.col("maneuver_id"), pl.col("t")
+    step = ((m > m.shift(1)) | ((m == m.shift(1)) & (t > t.shift(1)))).fill_null(False)
+    return bool(frame.select(step.slice(1).all()).item()) if frame.height > 1 else True
+
+
+def maneuver_codes(frame: pl.DataFrame) -> tuple[list[str], np.ndarray]:
+    """The sorted distinct ``maneuver_id`` values and each row's index among them (what
+    ``np.unique(ids, return_inverse=True)`` gives, without an object array of the ids)."""
+    ids = frame["maneuver_id"]
+    names = [str(m) for m in ids.unique().sort().to_list()]
+    code = (ids.rank("dense") - 1).cast(pl.Int64).to_numpy()
+    return names, code

@@ -112,17 +112,16 @@ def design_columns(
 ) -> tuple[np.ndarray, np.ndarray]:
     """The aerodynamic (``n x R``) and global (``n x Gn``) regressor matrices of ``coef``."""
     exprs = {**AERO_REGRESSORS, **vocab.user_regressors}
-    if aero_names:
+    # filled column by column into one row-major array (no intermediate copies)
+    aero_x = np.empty((frame.height, len(aero_names)))
+    for i, a in enumerate(aero_names):
         # with_columns broadcasts a literal (the constant regressor) to the frame's height
-        tmp = [f"__reg{i}" for i in range(len(aero_names))]
-        aero = frame.with_columns(
-            [exprs[a].cast(pl.Float64).alias(t) for a, t in zip(aero_names, tmp, strict=True)]
-        ).select(tmp)
-        aero_x = np.ascontiguousarray(aero.to_numpy(), dtype=np.float64)
-    else:
-        aero_x = np.zeros((frame.height, 0))
-    aero_x = np.where(np.isfinite(aero_x), aero_x, 0.0)
-    cols = [meas[g][coef] for g in glob_names]
-    glob_x = np.column_stack(cols) if cols else np.zeros((frame.height, 0))
-    glob_x = np.where(np.isfinite(glob_x), glob_x, 0.0)
+        aero_x[:, i] = frame.with_columns(exprs[a].cast(pl.Float64).alias("__reg"))[
+            "__reg"
+        ].to_numpy()
+    aero_x[~np.isfinite(aero_x)] = 0.0
+    glob_x = np.empty((frame.height, len(glob_names)))
+    for i, g in enumerate(glob_names):
+        glob_x[:, i] = meas[g][coef]
+    glob_x[~np.isfinite(glob_x)] = 0.0
     return aero_x, glob_x

@@ -18,6 +18,8 @@ import numpy as np
 import polars as pl
 
 from aerodelta import _core
+from aerodelta.diagnosis.cv import SparseColumns
+from aerodelta.diagnosis.data import maneuver_codes
 from aerodelta.rolloff import detect_rolloff
 
 #: Per-maneuver false-event rate allowed for the detector (issue 6's checks).
@@ -96,11 +98,11 @@ def _spike_columns(
 
 def _by_maneuver(frame: pl.DataFrame) -> tuple[dict[str, np.ndarray], np.ndarray, np.ndarray]:
     """Row indices of each maneuver in time order, and the alpha and time columns."""
-    names, code = np.unique(frame["maneuver_id"].to_numpy(), return_inverse=True)
+    names, code = maneuver_codes(frame)
     t = frame["t"].to_numpy() if "t" in frame.columns else np.arange(frame.height, dtype=float)
     order = np.lexsort((t, code))
-    bounds = np.searchsorted(code[order], np.arange(names.size + 1))
-    rows = {str(m): order[bounds[i] : bounds[i + 1]] for i, m in enumerate(names)}
+    bounds = np.searchsorted(code[order], np.arange(len(names) + 1))
+    rows = {m: order[bounds[i] : bounds[i + 1]] for i, m in enumerate(names)}
     return rows, frame["alpha_deg"].to_numpy(), t
 
 
@@ -120,22 +122,41 @@ def event_regressors(
     :func:`draw_index`), the alpha travelled past the centre once the stall has reached it
     (:func:`travelled_alpha`, so the spike is not met again on the way down), and zero once
     the spike is spent. Their amplitudes are a random draw per event, so they are profiled out
-    per maneuver (:func:`aerodelta.diagnosis.cv.profile_out`), never predicted."""
+    per maneuver (:func:`aerodelta.diagnosis.cv.profile_out`), never predicted.
+
+    :func:`event_columns` gives the same columns without their zeros."""
+    return event_columns(frame, centres, sigma_deg).dense()
+
+
+def event_columns(
+    frame: pl.DataFrame,
+    centres: list[tuple[str, float, float]],
+    sigma_deg: float = ROLLOFF_SIGMA_DEG,
+) -> SparseColumns:
+    """The columns of :func:`event_regressors` as their non-zero entries (a column is zero
+    but on its events' maneuvers, from the draw until the spike is spent)."""
     rows_of, alpha, t = _by_maneuver(frame)
     per: dict[str, list[tuple[float, float]]] = {}
     for m, ac, tp in centres:
         if m in rows_of:
             per.setdefault(m, []).append((float(ac), float(tp)))
     k = max((len(v) for v in per.values()), default=0)
-    out = np.zeros((frame.height, 2 * k))
+    rows: list[list[np.ndarray]] = [[] for _ in range(2 * k)]
+    vals: list[list[np.ndarray]] = [[] for _ in range(2 * k)]
     for m, cs in per.items():
-        rows = rows_of[m]
+        r_m = rows_of[m]
         for j, (ac, tp) in enumerate(sorted(cs, key=lambda x: x[0])):
-            start = draw_index(alpha[rows], t[rows], tp)
-            g, ug = _spike_columns(alpha[rows], start, ac, sigma_deg)
-            out[rows, 2 * j] = g
-            out[rows, 2 * j + 1] = ug
-    return out
+            start = draw_index(alpha[r_m], t[r_m], tp)
+            g, ug = _spike_columns(alpha[r_m], start, ac, sigma_deg)
+            for c, v in ((2 * j, g), (2 * j + 1, ug)):
+                nz = np.flatnonzero(v)
+                rows[c].append(r_m[nz])
+                vals[c].append(v[nz])
+    return SparseColumns(
+        frame.height,
+        [np.concatenate(r) if r else np.zeros(0, dtype=np.int64) for r in rows],
+        [np.concatenate(v) if v else np.zeros(0) for v in vals],
+    )
 
 
 #: Centres tried above a spike's peak alpha, deg (:func:`refine_centres`).
@@ -180,6 +201,13 @@ def refine_centres(
     return out
 
 
+#: The channels :func:`aerodelta.rolloff.detect_rolloff` reads (it is given only these: it
+#: splits the records by maneuver, copying every column it is given).
+DETECTOR_CHANNELS = (
+    "maneuver_id", "t", "alpha_deg", "Cl_meas", "da_deg", "dr_deg", "ds_deg", "flap_deg", "kind",
+)  # fmt: skip
+
+
 def rolloff_finding(frame: pl.DataFrame, residual: np.ndarray) -> dict[str, Any]:
     """Roll-off events in the unexplained C_l gap, and whether they are more than chance."""
     need = {"maneuver_id", "t", "alpha_deg", "da_deg"}
@@ -189,7 +217,7 @@ def rolloff_finding(frame: pl.DataFrame, residual: np.ndarray) -> dict[str, Any]
     try:
         # the frame's alpha_deg is already the CG-referred alpha (the detector's default channel)
         ev = detect_rolloff(
-            frame,
+            frame.select([c for c in DETECTOR_CHANNELS if c in frame.columns]),
             residual=np.asarray(residual, dtype=np.float64),
             kinds=None,
             alpha="alpha_deg",

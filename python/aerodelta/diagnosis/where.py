@@ -36,19 +36,27 @@ def stall_alphas(frame: pl.DataFrame) -> dict[float, float]:
     return out
 
 
-def phases(frame: pl.DataFrame, stall: dict[float, float], margin_deg: float = 1.0) -> np.ndarray:
-    """Flight phase per row: ``pre_stall`` until alpha first reaches ``stall - margin``,
-    ``stall`` until alpha falls back below it after its peak, then ``recovery``."""
-    out = np.empty(frame.height, dtype=object)
+#: Flight phases, in the order of :func:`phase_codes`.
+PHASES = ("pre_stall", "stall", "recovery")
+#: Alpha regions, in the order of :func:`region_codes`.
+REGIONS = ("pre_stall", "stall", "post_stall")
+
+
+def phase_codes(
+    frame: pl.DataFrame, stall: dict[float, float], margin_deg: float = 1.0
+) -> np.ndarray:
+    """Flight phase per row as an index into :data:`PHASES` (see :func:`phases`); the rows of
+    a maneuver are consecutive."""
+    out = np.zeros(frame.height, dtype=np.int8)
     a = frame["alpha_deg"].to_numpy()
     f = frame["flap_deg"].to_numpy()
-    ids = frame["maneuver_id"].to_numpy()
-    starts = np.flatnonzero(np.r_[True, ids[1:] != ids[:-1]])
-    ends = np.r_[starts[1:], ids.size]
+    m = pl.col("maneuver_id")
+    new = frame.select((m != m.shift(1)).fill_null(True)).to_series().to_numpy()
+    starts = np.flatnonzero(new)
+    ends = np.r_[starts[1:], frame.height]
     for s, e in zip(starts, ends, strict=True):
         thr = stall.get(float(f[s]), DEFAULT_STALL_DEG) - margin_deg
         seg = a[s:e]
-        out[s:e] = "pre_stall"
         above = np.flatnonzero(seg >= thr)
         if above.size == 0:
             continue
@@ -56,20 +64,37 @@ def phases(frame: pl.DataFrame, stall: dict[float, float], margin_deg: float = 1
         peak = enter + int(np.argmax(seg[enter:]))
         below = np.flatnonzero(seg[peak:] < thr)
         leave = peak + below[0] if below.size else seg.size
-        out[s + enter : s + leave] = "stall"
-        out[s + leave : e] = "recovery"
-    return out.astype(str)
+        out[s + enter : s + leave] = 1
+        out[s + leave : e] = 2
+    return out
+
+
+def phases(frame: pl.DataFrame, stall: dict[float, float], margin_deg: float = 1.0) -> np.ndarray:
+    """Flight phase per row: ``pre_stall`` until alpha first reaches ``stall - margin``,
+    ``stall`` until alpha falls back below it after its peak, then ``recovery``."""
+    return np.array(PHASES)[phase_codes(frame, stall, margin_deg)]
+
+
+def region_codes(alpha: np.ndarray, flap: np.ndarray, stall: dict[float, float]) -> np.ndarray:
+    """Alpha region per row as an index into :data:`REGIONS` (see :func:`region_of`)."""
+    s = np.full(np.shape(flap), DEFAULT_STALL_DEG)
+    for f, a in stall.items():
+        s[flap == f] = a
+    return np.where(alpha < s - 2.0, 0, np.where(alpha <= s + 3.0, 1, 2)).astype(np.int8)
 
 
 def region_of(alpha: np.ndarray, flap: np.ndarray, stall: dict[float, float]) -> np.ndarray:
     """Alpha region per row: ``pre_stall`` (alpha < stall - 2), ``stall`` (to stall + 3),
     ``post_stall`` (beyond)."""
-    s = np.array([stall.get(float(x), DEFAULT_STALL_DEG) for x in flap])
-    return np.where(alpha < s - 2.0, "pre_stall", np.where(alpha <= s + 3.0, "stall", "post_stall"))
+    return np.array(REGIONS)[region_codes(alpha, flap, stall)]
 
 
 def gap_map(
-    frame: pl.DataFrame, gap: np.ndarray, phase: np.ndarray, bin_deg: float, alpha: float
+    frame: pl.DataFrame,
+    gap: np.ndarray,
+    phase: np.ndarray | pl.Series,
+    bin_deg: float,
+    alpha: float,
 ) -> list[dict[str, Any]]:
     """The gap per flap, alpha bin and phase: bias, RMS and significance.
 
@@ -81,10 +106,12 @@ def gap_map(
     rule at false-discovery rate ``alpha`` over all cells, and the effect is material (|bias|
     at least half the noise floor's RMS, or a mean square 25 % above the floor).
     """
+    # single-chunk columns: polars sums chunk by chunk, so the records' chunking (the diagnosis
+    # does not copy the records into one) would otherwise move the last digits
     df = pl.DataFrame(
         {
-            "m": frame["maneuver_id"],
-            "flap": frame["flap_deg"],
+            "m": frame["maneuver_id"].rechunk(),
+            "flap": frame["flap_deg"].rechunk(),
             "b": np.floor(frame["alpha_deg"].to_numpy() / bin_deg) * bin_deg,
             "phase": phase,
             "g": gap,
@@ -168,9 +195,9 @@ def worst_segments(
     RMS, traceable to maneuver and time."""
     df = pl.DataFrame(
         {
-            "m": frame["maneuver_id"],
-            "t": frame["t"],
-            "a": frame["alpha_deg"],
+            "m": frame["maneuver_id"].rechunk(),
+            "t": frame["t"].rechunk(),
+            "a": frame["alpha_deg"].rechunk(),
             "w": np.floor(frame["t"].to_numpy() / window_s),
             "g2": gap * gap,
         }
