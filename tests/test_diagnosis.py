@@ -496,3 +496,25 @@ def test_timing_nuisance_is_judged_again_once_the_aerodynamic_effects_are_in(tru
         st = sel.final_scores["time_skew"]
         assert st.sse_before is not None  # scored by leaving it out of the final model
         assert abs(st.parameters["m_time_skew"]) < 0.008
+
+
+def test_user_effects_refused_in_one_line_and_a_lone_regressor_accepted() -> None:
+    """Vocabulary.with_user_effects: an unknown coefficient, a regressor that is not SQL, or a
+    value of the wrong type is an InvalidInputError naming the effect; one regressor given as
+    a string (not a list) is one regressor, not one per character."""
+    from aerodelta.diagnosis.vocabulary import default_vocabulary  # noqa: PLC0415
+    from aerodelta.exceptions import InvalidInputError  # noqa: PLC0415
+
+    v = default_vocabulary()
+    with pytest.raises(InvalidInputError, match="user effect 'x': unknown coefficient 'Cm'"):
+        v.with_user_effects({"x": {"Cm": ["beta_deg"]}})
+    with pytest.raises(InvalidInputError, match="is not a SQL expression") as e:
+        v.with_user_effects({"x": {"Cl": ["beta_deg * * rhat"]}})
+    assert "\n" not in str(e.value)
+    with pytest.raises(InvalidInputError, match="neither a SQL expression"):
+        v.with_user_effects({"x": {"Cl": [3.0]}})  # type: ignore[list-item]
+    with pytest.raises(InvalidInputError, match="coefficient: \\[regressor"):
+        v.with_user_effects({"x": ["beta_deg"]})  # type: ignore[dict-item]
+    lone = v.with_user_effects({"x": {"Cl": "beta_deg * rhat"}})  # type: ignore[dict-item]
+    user = [c for c in lone.candidates["Cl"] if c.name == "x"]
+    assert len(user) == 1 and len(user[0].regressors) == 1

@@ -28,6 +28,8 @@ from typing import Literal
 
 import polars as pl
 
+from aerodelta.exceptions import InvalidInputError
+
 COEFFICIENTS = ("Cl", "Cn", "CY")
 
 Kind = Literal["aerodynamic", "measurement", "user"]
@@ -171,13 +173,38 @@ class Vocabulary:
         cands = {c: list(v) for c, v in self.candidates.items()}
         regs = dict(self.user_regressors)
         for name, per_coef in effects.items():
-            for coef, exprs in per_coef.items():
+            if not isinstance(per_coef, Mapping):
+                raise InvalidInputError(
+                    f"user effect '{name}': give {{coefficient: [regressor, ...]}}, not "
+                    f"{type(per_coef).__name__}"
+                )
+            for coef, given in per_coef.items():
                 if coef not in COEFFICIENTS:
-                    raise ValueError(f"user effect '{name}': unknown coefficient '{coef}'")
+                    raise InvalidInputError(
+                        f"user effect '{name}': unknown coefficient '{coef}'; use one of "
+                        f"{', '.join(COEFFICIENTS)}"
+                    )
+                # one regressor given alone, not a list of characters
+                exprs = [given] if isinstance(given, str | pl.Expr) else given
                 names = []
                 for i, e in enumerate(exprs):
                     key = f"user:{name}:{coef}:{i}"
-                    regs[key] = pl.sql_expr(e) if isinstance(e, str) else e
+                    if isinstance(e, str):
+                        try:
+                            regs[key] = pl.sql_expr(e)
+                        except Exception as err:  # polars raises several SQL error classes
+                            first = str(err).strip().splitlines()[0] if str(err).strip() else ""
+                            raise InvalidInputError(
+                                f"user effect '{name}', {coef}: regressor {e!r} is not a SQL "
+                                f"expression over the data's columns ({first})"
+                            ) from err
+                    elif isinstance(e, pl.Expr):
+                        regs[key] = e
+                    else:
+                        raise InvalidInputError(
+                            f"user effect '{name}', {coef}: regressor {e!r} is neither a SQL "
+                            "expression string nor a polars expression"
+                        )
                     names.append(key)
                 cands.setdefault(coef, []).append(Candidate(name, "user", tuple(names)))
         return Vocabulary(cands, regs)
