@@ -605,4 +605,31 @@ mod tests {
             .to_string()
             .contains("da_deg"));
     }
+
+    #[test]
+    fn model_bytes_that_are_not_utf8_name_the_line() {
+        let mut b = br#"{"schema": "aerodelta.model/1",
+"flaps_deg": [0], "coefficients": {}}"#
+            .to_vec();
+        b.insert(40, 0xFF);
+        let e = DeltaModel::from_slice(&b, "m.json").unwrap_err();
+        assert_eq!(e.kind(), crate::error::ErrorKind::Parse);
+        let msg = e.to_string();
+        assert!(msg.starts_with("m.json:2: invalid unicode code point"), "{msg}");
+    }
+
+    #[test]
+    fn long_names_in_a_model_give_short_messages() {
+        let long = "n".repeat(100_000);
+        let text = format!(
+            r#"{{"schema": "aerodelta.model/1", "flaps_deg": [0], "coefficients": {{"Cl": {{"terms": [{{"name": "{long}", "regressor": "1 +", "alpha_deg": [10], "values": [[1]]}}], "alpha_l_deg": [10], "alpha_u_deg": [12]}}}}}}"#
+        );
+        let msg = DeltaModel::from_json(&text, "m.json").unwrap_err().to_string();
+        assert!(msg.len() < 600 && msg.contains("(100000 characters)"), "{msg}");
+        let msg = DeltaModel::from_json(&format!(r#"{{"schema": "{long}"}}"#), "m.json")
+            .unwrap_err()
+            .to_string();
+        assert!(msg.len() < 1000 && msg.starts_with("m.json:1: missing field"), "{msg}");
+    }
+
 }

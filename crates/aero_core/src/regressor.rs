@@ -21,6 +21,9 @@
 //! - `step(x)` (1 for $x > 0$, else 0), `abs`, `sqrt`, `sin`, `cos`, `exp`,
 //!   `min(a, b)`, `max(a, b)`.
 //!
+//! `a ^ b` with a whole `b` of at most 16 in magnitude is computed by
+//! multiplication (`x^2` is `x*x` exactly), otherwise as `powf`.
+//!
 //! Names are column names; they may contain letters, digits and `_`, and may
 //! not start with a digit.
 //!
@@ -1132,6 +1135,33 @@ mod tests {
             ")".repeat(60)
         );
         assert!(too_deep(src).contains("is 5000 operations deep"));
+    }
+
+    #[test]
+    fn trees_past_max_nodes_are_refused_and_extra_arguments_counted() {
+        // A sum of 16 products of 64 factors: 16 * (64 + 63) + 15 = 2047
+        // nodes, 81 deep; one more factor passes MAX_NODES.
+        let row = vec!["a"; 64].join("*");
+        let src = vec![row.as_str(); 16].join("+");
+        let e = parse_on_small_stack(src.clone()).expect("2047 nodes parse");
+        let a = [1.5];
+        let lookup = |n: &str| (n == "a").then_some(&a[..]);
+        let want = 16.0 * 1.5f64.powi(64);
+        let got = e.eval_columns(&lookup, 1).expect("evaluates")[0];
+        assert!((got - want).abs() <= 1e-12 * want, "{got} {want}");
+        let msg = too_deep(format!("{src}*a*a"));
+        assert!(
+            msg.contains("has 2051 numbers, names, operators and function calls; at most 2048"),
+            "{msg}"
+        );
+        // Arguments past a function's arity are counted, not kept.
+        let msg = Expr::parse(&format!("min({})", vec!["a"; 5000].join(",")))
+            .unwrap_err()
+            .to_string();
+        assert!(msg.contains("min() takes 2 argument(s), got 5000"), "{msg}");
+        // Messages quote the expression on one line.
+        let msg = Expr::parse("a +\n* b").unwrap_err().to_string();
+        assert!(msg.starts_with("regressor 'a +\\n* b', column 5: unexpected '*'"), "{msg}");
     }
 
     #[test]

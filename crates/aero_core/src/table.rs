@@ -1077,6 +1077,15 @@ fn run_chunks(out: &mut [f64], work: impl Fn(usize, &mut [f64])) {
 
 #[cfg(test)]
 mod tests {
+
+    #[test]
+    fn a_breakpoint_product_past_usize_is_an_error_not_a_wrap() {
+        let axis = |k: usize| Axis::new(format!("x{k}"), (0..256).map(f64::from).collect());
+        let axes: Vec<Axis> = (0..8).map(|k| axis(k).expect("axis")).collect();
+        // 256^8 = 2^64 wrapped to 0 and matched an empty value list.
+        let e = Table::new(axes, Vec::new()).unwrap_err().to_string();
+        assert!(e.contains("need more than memory can hold"), "{e}");
+    }
     use super::*;
     use proptest::prelude::*;
 
