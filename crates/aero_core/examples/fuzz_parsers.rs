@@ -132,6 +132,9 @@ struct Stats {
     worst_floor: Option<(i64, usize, usize, String)>,
     /// Largest peak of a small input.
     max_small_peak: usize,
+    /// Per input class (the origin up to its first parenthesis): cases over
+    /// the floor, and the worst (peak / input, case, input bytes).
+    over_by_class: std::collections::BTreeMap<String, (u64, f64, u64, usize)>,
     examples: Vec<String>,
 }
 
@@ -230,6 +233,13 @@ fn run_parser(args: &Args, p: Parser, strategy: &proptest::strategy::BoxedStrate
         let excess = peak as i64 - floor_bytes(len) as i64;
         if excess > 0 {
             st.over_floor += 1;
+            let class = case.origin.split('(').next().unwrap_or("").to_string();
+            let r = peak as f64 / len.max(1) as f64;
+            let e = st.over_by_class.entry(class).or_insert((0, 0.0, i, len));
+            e.0 += 1;
+            if r > e.1 {
+                (e.1, e.2, e.3) = (r, i, len);
+            }
             let f = save(&args.save, p, i, "memory", &case);
             note(
                 &mut st,
@@ -291,6 +301,11 @@ fn report(args: &Args, p: Parser, st: &Stats) -> bool {
             ))
             .unwrap_or_default()
     );
+    for (class, (count, r, i, len)) in &st.over_by_class {
+        println!(
+            "{n}: over the floor: {count} cases of {class}, worst {r:.1}x (case {i}, {len} bytes)"
+        );
+    }
     let pass = st.crashes == 0
         && st.hangs == 0
         && st.violations == 0

@@ -615,7 +615,10 @@ mod tests {
         let e = DeltaModel::from_slice(&b, "m.json").unwrap_err();
         assert_eq!(e.kind(), crate::error::ErrorKind::Parse);
         let msg = e.to_string();
-        assert!(msg.starts_with("m.json:2: invalid unicode code point"), "{msg}");
+        assert!(
+            msg.starts_with("m.json:2: invalid unicode code point"),
+            "{msg}"
+        );
     }
 
     #[test]
@@ -624,12 +627,19 @@ mod tests {
         let text = format!(
             r#"{{"schema": "aerodelta.model/1", "flaps_deg": [0], "coefficients": {{"Cl": {{"terms": [{{"name": "{long}", "regressor": "1 +", "alpha_deg": [10], "values": [[1]]}}], "alpha_l_deg": [10], "alpha_u_deg": [12]}}}}}}"#
         );
-        let msg = DeltaModel::from_json(&text, "m.json").unwrap_err().to_string();
-        assert!(msg.len() < 600 && msg.contains("(100000 characters)"), "{msg}");
+        let msg = DeltaModel::from_json(&text, "m.json")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            msg.len() < 600 && msg.contains("(100000 characters)"),
+            "{msg}"
+        );
         let msg = DeltaModel::from_json(&format!(r#"{{"schema": "{long}"}}"#), "m.json")
             .unwrap_err()
             .to_string();
-        assert!(msg.len() < 1000 && msg.starts_with("m.json:1: missing field"), "{msg}");
+        assert!(
+            msg.len() < 1000 && msg.starts_with("m.json:1: missing field"),
+            "{msg}"
+        );
     }
-
 }

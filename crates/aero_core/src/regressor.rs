@@ -1161,7 +1161,10 @@ mod tests {
         assert!(msg.contains("min() takes 2 argument(s), got 5000"), "{msg}");
         // Messages quote the expression on one line.
         let msg = Expr::parse("a +\n* b").unwrap_err().to_string();
-        assert!(msg.starts_with("regressor 'a +\\n* b', column 5: unexpected '*'"), "{msg}");
+        assert!(
+            msg.starts_with("regressor 'a +\\n* b', column 5: unexpected '*'"),
+            "{msg}"
+        );
     }
 
     #[test]

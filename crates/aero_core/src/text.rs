@@ -113,8 +113,14 @@ mod tests {
         // Escapes count towards the length: 300 control characters are clipped.
         let ctl = "\u{11}".repeat(300);
         let s = shown(&ctl);
-        assert!(s.chars().count() < 200 && s.ends_with("... (300 characters)"), "{s}");
+        assert!(
+            s.chars().count() < 200 && s.ends_with("... (300 characters)"),
+            "{s}"
+        );
         let line = one_line(&format!("m.dml:1: {ctl}"));
-        assert!(line.chars().count() < 650 && !line.contains('\u{11}'), "{line}");
+        assert!(
+            line.chars().count() < 650 && !line.contains('\u{11}'),
+            "{line}"
+        );
     }
 }

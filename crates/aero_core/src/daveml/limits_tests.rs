@@ -258,12 +258,22 @@ fn a_gridded_table_referenced_by_many_functions_is_read_once_and_shared() {
         })
         .collect();
     assert_eq!(tables.len(), 2000);
-    let (values, bps) = (tables[0].values().as_ptr(), tables[0].axes()[0].breakpoints().as_ptr());
+    let (values, bps) = (
+        tables[0].values().as_ptr(),
+        tables[0].axes()[0].breakpoints().as_ptr(),
+    );
     assert!(tables.iter().all(|t| t.values().as_ptr() == values));
-    assert!(tables.iter().all(|t| t.axes()[0].breakpoints().as_ptr() == bps));
+    assert!(tables
+        .iter()
+        .all(|t| t.axes()[0].breakpoints().as_ptr() == bps));
     // Each keeps its own limits: y_k(a) = max(a, k) on the identity table.
     let v = m.evaluate(&[("a", 1234.5)]).expect("evaluates");
-    for (k, want) in [(0usize, 1234.5), (1000, 1234.5), (1500, 1500.0), (1999, 1999.0)] {
+    for (k, want) in [
+        (0usize, 1234.5),
+        (1000, 1234.5),
+        (1500, 1500.0),
+        (1999, 1999.0),
+    ] {
         let i = m.index_of(&format!("y{k}")).expect("y");
         assert_eq!(v[i], want, "y{k}");
     }
@@ -292,7 +302,9 @@ fn breakpoints_whose_product_overflows_are_refused() {
     for k in 0..8 {
         body.push_str(&format!("<bpRef bpID=\"B{k}\"/>"));
     }
-    body.push_str("</breakpointRefs><dataTable></dataTable></griddedTableDef></functionDefn></function>");
+    body.push_str(
+        "</breakpointRefs><dataTable></dataTable></griddedTableDef></functionDefn></function>",
+    );
     let msg = refused(format!("{HEAD}{body}</DAVEfunc>\n"));
     assert!(
         msg.contains("has 0 values but its breakpoints (a0:256 x a1:256")
@@ -352,7 +364,10 @@ fn comments_and_processing_instructions_are_blanked_not_changed_in_meaning() {
     assert_eq!(text.matches('=').count() - xml.matches('=').count(), 1005);
     // The error line is the file's: the unknown <ci> on line 7.
     let msg = refused(text.clone());
-    assert!(msg.starts_with("m.dml:7: <ci>: unknown varID 'nope'"), "{msg}");
+    assert!(
+        msg.starts_with("m.dml:7: <ci>: unknown varID 'nope'"),
+        "{msg}"
+    );
     let ok = text.replace("<ci>nope</ci>", "<ci>y</ci>");
     let m = load_small_stack(ok).expect("loads");
     assert_eq!(m.variables()[0].description, "x = 1  and y");
@@ -362,7 +377,8 @@ fn comments_and_processing_instructions_are_blanked_not_changed_in_meaning() {
 
 #[test]
 fn bytes_that_are_not_utf8_are_a_parse_error_naming_line_and_offset() {
-    let mut b = format!("{HEAD}<variableDef name=\"a\" varID=\"a\" units=\"nd\"/>\n</DAVEfunc>").into_bytes();
+    let mut b = format!("{HEAD}<variableDef name=\"a\" varID=\"a\" units=\"nd\"/>\n</DAVEfunc>")
+        .into_bytes();
     let at = b.len() - 12;
     b.insert(at, 0xFF);
     let e = DaveModel::from_bytes(&b, "m.dml").expect_err("refused");
@@ -380,7 +396,8 @@ fn messages_quoting_huge_or_multi_line_values_stay_one_short_line() {
         "{HEAD}<variableDef name=\"a\" varID=\"{long}\" units=\"nd\" initialValue=\"1&#10;2\"/></DAVEfunc>"
     ));
     assert!(
-        msg.contains("(1048576 characters)") && msg.contains("attribute initialValue=\"1\\n2\" is not a number"),
+        msg.contains("(1048576 characters)")
+            && msg.contains("attribute initialValue=\"1\\n2\" is not a number"),
         "{msg}"
     );
 }

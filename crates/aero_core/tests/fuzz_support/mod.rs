@@ -665,8 +665,8 @@ fn case(origin: &str, bytes: Vec<u8>) -> Case {
     }
 }
 
-/// Sizes of the adversaries: `big` for the floor runner, smaller (but still
-/// 100,000 deep) for the debug-build tests.
+/// Sizes of the adversaries: `big` for the floor runner (inputs up to some
+/// 8 MB), smaller (but still 100,000 deep) for the debug-build tests.
 #[derive(Debug, Clone, Copy)]
 pub struct Scale {
     pub big: bool,
@@ -1202,11 +1202,11 @@ fn xml_adversary(scale: Scale) -> BoxedStrategy<XmlAdversary> {
         1 => log_uniform(1, many).prop_map(A::ManyVariables),
         1 => (log_uniform(1, many / 4), log_uniform(1, 100_000)).prop_map(|(m, n)| A::SharedTable(m, n)),
         1 => (log_uniform(1, many / 4), log_uniform(1, 10_000))
-            .prop_map(|(m, n)| A::SharedBreakpoints(m, n)),
+            .prop_map(|(m, n)| A::SharedBreakpoints(m.min(2_000_000 / n).max(1), n)),
         1 => (log_uniform(1, many / 4), log_uniform(1, many / 4)).prop_map(|(s, n)| A::ManyShots(s, n)),
-        1 => log_uniform(1, many / 2).prop_map(A::ManyFunctions),
-        1 => log_uniform(1, many / 2).prop_map(A::Chain),
-        1 => log_uniform(1, many / 2).prop_map(A::Cycle),
+        1 => log_uniform(1, many / 4).prop_map(A::ManyFunctions),
+        1 => log_uniform(1, many / 4).prop_map(A::Chain),
+        1 => log_uniform(1, many / 4).prop_map(A::Cycle),
         1 => (1usize..=12).prop_map(A::BillionLaughs),
         1 => (log_uniform(1, 1 << 20), log_uniform(1, 1 << 16)).prop_map(|(l, r)| A::Quadratic(l, r)),
         1 => Just(A::ExternalEntity),
@@ -1394,8 +1394,7 @@ pub fn render_xml(a: &XmlAdversary) -> Vec<u8> {
             5 => format!("<!DOCTYPE DAVEfunc \"{}\n<DAVEfunc/>", "x".repeat(*n)),
             6 => format!("<!DOCTYPE DAVEfunc [{}]>\n<DAVEfunc/>", "%pe;".repeat(*n)),
             _ => format!("<?xml version=\"1.0\"?>{}<!DOCTYPE DAVEfunc>\n<DAVEfunc/>", "<?p?>".repeat(*n)),
-        }
-        .into(),
+        },
         A::Dense(k, n) => {
             // Markup as dense as XML allows, inside a valid model.
             let body = match k % 9 {
@@ -1716,6 +1715,7 @@ pub fn mathml_cases(scale: Scale) -> BoxedStrategy<Case> {
         2 => (0usize..5, log_uniform(1, many))
             .prop_map(|(op, n)| case("wide", render_xml(&XmlAdversary::MathWide(op, n)))),
         1 => (log_uniform(1, many / 4), log_uniform(1, 64)).prop_map(|(n, d)| {
+            let n = n.min(200_000 / d).max(1);
             // Many calculations, each nested a little: the depth check per calculation.
             let mut body = input_var("a", Some(0.5));
             for k in 0..n {
@@ -2249,8 +2249,8 @@ fn model_adversary(scale: Scale) -> BoxedStrategy<ModelAdversary> {
         2 => (0usize..4, log_uniform(10, 100_000), any::<bool>()).prop_map(|(f, d, o)| M::Deep(f, d, o)),
         1 => log_uniform(1, many * 5).prop_map(M::ManyAlpha),
         1 => log_uniform(1, many).prop_map(M::ManyFlaps),
-        1 => log_uniform(1, many / 2).prop_map(M::ManyTerms),
-        1 => log_uniform(1, many / 2).prop_map(M::ManyCoefficients),
+        1 => log_uniform(1, many / 4).prop_map(M::ManyTerms),
+        1 => log_uniform(1, many / 8).prop_map(M::ManyCoefficients),
         1 => (0usize..6, log_uniform(1, long)).prop_map(|(f, n)| M::LongString(f, n)),
         1 => (0usize..5, 0usize..12).prop_map(|(f, k)| M::Number(f, k)),
         2 => reg_adversary(scale).prop_map(M::Regressor),
