@@ -25,6 +25,7 @@ use serde::{Deserialize, Serialize};
 use crate::error::{AeroError, Result, ResultExt};
 use crate::regressor::{BoundExpr, Expr};
 use crate::table::{Axis, Table};
+use crate::text::{one_line, shown};
 
 /// Schema identifier written into every model file.
 pub const DELTA_MODEL_SCHEMA: &str = "aerodelta.model/1";
@@ -146,16 +147,19 @@ impl DeltaModel {
                 "model schema",
                 format!(
                     "is '{}', this library reads '{DELTA_MODEL_SCHEMA}'",
-                    spec.schema
+                    shown(&spec.schema)
                 ),
             ));
         }
         let nflap = spec.flaps_deg.len();
-        let flap_axis = Axis::new(spec.flap_channel.clone(), spec.flaps_deg.clone())
+        // Axis names only label messages: long or multi-line ones are shown clipped.
+        let flap_axis = Axis::new(shown(&spec.flap_channel), spec.flaps_deg.clone())
             .context("model flaps_deg")?;
-        let mut coefficients = Vec::new();
+        // Sized up front: a model file may hold many small coefficients, and a
+        // vector grown by doubling would take twice their memory.
+        let mut coefficients = Vec::with_capacity(spec.coefficients.len());
         for (cname, c) in &spec.coefficients {
-            let place = format!("coefficient {cname}");
+            let place = format!("coefficient {}", shown(cname));
             for (what, v) in [
                 ("alpha_l_deg", &c.alpha_l_deg),
                 ("alpha_u_deg", &c.alpha_u_deg),
@@ -175,9 +179,9 @@ impl DeltaModel {
                     ));
                 }
             }
-            let mut terms = Vec::new();
+            let mut terms = Vec::with_capacity(c.terms.len());
             for t in &c.terms {
-                let tplace = format!("{place}, term '{}'", t.name);
+                let tplace = format!("{place}, term '{}'", shown(&t.name));
                 let expr = Expr::parse(&t.regressor).context(tplace.clone())?;
                 if t.values.len() != nflap {
                     return Err(AeroError::invalid(
@@ -188,7 +192,7 @@ impl DeltaModel {
                         ),
                     ));
                 }
-                let alpha_axis = Axis::new(spec.alpha_channel.clone(), t.alpha_deg.clone())
+                let alpha_axis = Axis::new(shown(&spec.alpha_channel), t.alpha_deg.clone())
                     .context(tplace.clone())?;
                 let mut flat = Vec::with_capacity(nflap * t.alpha_deg.len());
                 for (k, row) in t.values.iter().enumerate() {
@@ -248,10 +252,11 @@ impl DeltaModel {
             self.spec.alpha_channel.clone(),
             self.spec.flap_channel.clone(),
         ];
+        let mut seen: std::collections::HashSet<String> = out.iter().cloned().collect();
         for c in &self.coefficients {
             for t in &c.terms {
                 for col in t.expr.columns() {
-                    if !out.contains(&col) {
+                    if seen.insert(col.clone()) {
                         out.push(col);
                     }
                 }
@@ -261,15 +266,16 @@ impl DeltaModel {
     }
 
     fn coefficient(&self, name: &str) -> Result<&Coefficient> {
+        // In name order (built from the spec's BTreeMap).
         self.coefficients
-            .iter()
-            .find(|c| c.name == name)
-            .ok_or_else(|| {
+            .binary_search_by(|c| c.name.as_str().cmp(name))
+            .map(|k| &self.coefficients[k])
+            .map_err(|_| {
                 AeroError::invalid(
-                    format!("coefficient '{name}'"),
+                    format!("coefficient '{}'", shown(name)),
                     format!(
                         "is not in the model (it has {})",
-                        self.coefficient_names().join(", ")
+                        shown(&self.coefficient_names().join(", "))
                     ),
                 )
             })
@@ -398,8 +404,18 @@ impl DeltaModel {
     /// # Errors
     /// [`AeroError::Parse`] with the line for malformed JSON; validation errors as [`DeltaModel::new`].
     pub fn from_json(text: &str, source: &str) -> Result<Self> {
-        let spec: DeltaModelSpec = serde_json::from_str(text)
-            .map_err(|e| AeroError::parse(source, e.line(), e.to_string()))?;
+        Self::from_slice(text.as_bytes(), source)
+    }
+
+    /// Parse and validate a JSON document given as bytes (a file's
+    /// contents); `source` names it in errors.
+    ///
+    /// # Errors
+    /// As [`DeltaModel::from_json`]; bytes that are not UTF-8 are a parse
+    /// error with their line.
+    pub fn from_slice(bytes: &[u8], source: &str) -> Result<Self> {
+        let spec: DeltaModelSpec = serde_json::from_slice(bytes)
+            .map_err(|e| AeroError::parse(source, e.line(), one_line(&e.to_string())))?;
         DeltaModel::new(spec).context(source.to_string())
     }
 
@@ -408,8 +424,8 @@ impl DeltaModel {
     /// # Errors
     /// I/O, parse and validation errors naming the file.
     pub fn load(path: &Path) -> Result<Self> {
-        let text = std::fs::read_to_string(path).map_err(|e| AeroError::io(path, e))?;
-        Self::from_json(&text, &path.display().to_string())
+        let bytes = std::fs::read(path).map_err(|e| AeroError::io(path, e))?;
+        Self::from_slice(&bytes, &path.display().to_string())
     }
 
     /// Save atomically (temporary file in the same folder, then rename).
@@ -588,5 +604,42 @@ mod tests {
             .unwrap_err()
             .to_string()
             .contains("da_deg"));
+    }
+
+    #[test]
+    fn model_bytes_that_are_not_utf8_name_the_line() {
+        let mut b = br#"{"schema": "aerodelta.model/1",
+"flaps_deg": [0], "coefficients": {}}"#
+            .to_vec();
+        b.insert(40, 0xFF);
+        let e = DeltaModel::from_slice(&b, "m.json").unwrap_err();
+        assert_eq!(e.kind(), crate::error::ErrorKind::Parse);
+        let msg = e.to_string();
+        assert!(
+            msg.starts_with("m.json:2: invalid unicode code point"),
+            "{msg}"
+        );
+    }
+
+    #[test]
+    fn long_names_in_a_model_give_short_messages() {
+        let long = "n".repeat(100_000);
+        let text = format!(
+            r#"{{"schema": "aerodelta.model/1", "flaps_deg": [0], "coefficients": {{"Cl": {{"terms": [{{"name": "{long}", "regressor": "1 +", "alpha_deg": [10], "values": [[1]]}}], "alpha_l_deg": [10], "alpha_u_deg": [12]}}}}}}"#
+        );
+        let msg = DeltaModel::from_json(&text, "m.json")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            msg.len() < 600 && msg.contains("(100000 characters)"),
+            "{msg}"
+        );
+        let msg = DeltaModel::from_json(&format!(r#"{{"schema": "{long}"}}"#), "m.json")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            msg.len() < 1000 && msg.starts_with("m.json:1: missing field"),
+            "{msg}"
+        );
     }
 }

@@ -59,5 +59,6 @@ pub mod select;
 pub mod sim;
 pub mod spline;
 pub mod table;
+mod text;
 
 pub use error::{AeroError, ErrorKind, Result, ResultExt};

@@ -21,6 +21,9 @@
 //! - `step(x)` (1 for $x > 0$, else 0), `abs`, `sqrt`, `sin`, `cos`, `exp`,
 //!   `min(a, b)`, `max(a, b)`.
 //!
+//! `a ^ b` with a whole `b` of at most 16 in magnitude is computed by
+//! multiplication (`x^2` is `x*x` exactly), otherwise as `powf`.
+//!
 //! Names are column names; they may contain letters, digits and `_`, and may
 //! not start with a digit.
 //!
@@ -31,9 +34,13 @@
 //!   exponents each open one level while parsing; at most 64 may be open;
 //! - [`MAX_DEPTH`]: the parsed tree is at most 256 nodes deep, counting every
 //!   operator and function call on the way down, so a flat chain
-//!   `a + b + c + ...` may have at most 256 terms.
+//!   `a + b + c + ...` may have at most 256 terms;
+//! - [`MAX_NODES`]: the tree has at most 2048 nodes (numbers, names,
+//!   operators and calls), so a parse never takes more than a few hundred
+//!   kilobytes, whatever the input.
 
 use crate::error::{AeroError, Result};
+use crate::text::shown;
 use std::fmt;
 
 /// Most levels of parentheses, function arguments, unary minus and `^`
@@ -44,17 +51,11 @@ pub const MAX_NESTING: usize = 64;
 /// `a + b` is 2, `a + b + c` is 3).
 pub const MAX_DEPTH: usize = 256;
 
-/// `src` for messages: whole up to 200 characters, else its first 120
-/// characters, an ellipsis and its length.
-fn shown(src: &str) -> String {
-    let n = src.chars().count();
-    if n <= 200 {
-        src.to_string()
-    } else {
-        let head: String = src.chars().take(120).collect();
-        format!("{head}... ({n} characters)")
-    }
-}
+/// Most nodes (numbers, names, operators, function calls) of a tree
+/// [`Expr::parse`] returns: it bounds the memory of a parse whatever the
+/// shape of the expression (a tree node takes some 32 bytes, more than the
+/// two characters of `*a`).
+pub const MAX_NODES: usize = 2048;
 
 /// A parsed regressor expression.
 #[derive(Debug, Clone, PartialEq)]
@@ -221,148 +222,223 @@ impl fmt::Display for Expr {
     }
 }
 
-#[derive(Debug, Clone, PartialEq)]
-enum Tok {
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Tok<'a> {
     Num(f64),
-    Name(String),
+    Name(&'a str),
     Op(char),
 }
 
-fn tokenize(src: &str) -> Result<Vec<(usize, Tok)>> {
-    let bytes: Vec<char> = src.chars().collect();
-    let mut out = Vec::new();
-    let mut i = 0;
-    while i < bytes.len() {
-        let c = bytes[i];
-        if c.is_whitespace() {
-            i += 1;
-        } else if c.is_ascii_digit()
-            || (c == '.' && i + 1 < bytes.len() && bytes[i + 1].is_ascii_digit())
-        {
-            let start = i;
-            while i < bytes.len() && (bytes[i].is_ascii_digit() || bytes[i] == '.') {
-                i += 1;
-            }
-            if i < bytes.len() && (bytes[i] == 'e' || bytes[i] == 'E') {
-                let save = i;
-                i += 1;
-                if i < bytes.len() && (bytes[i] == '+' || bytes[i] == '-') {
-                    i += 1;
-                }
-                if i < bytes.len() && bytes[i].is_ascii_digit() {
-                    while i < bytes.len() && bytes[i].is_ascii_digit() {
-                        i += 1;
-                    }
-                } else {
-                    i = save;
-                }
-            }
-            let text: String = bytes[start..i].iter().collect();
-            let v: f64 = text.parse().map_err(|_| {
-                AeroError::invalid(
-                    format!("regressor '{}', column {}", shown(src), start + 1),
-                    format!("'{}' is not a number", shown(&text)),
-                )
-            })?;
-            out.push((start, Tok::Num(v)));
-        } else if c.is_alphabetic() || c == '_' {
-            let start = i;
-            while i < bytes.len() && (bytes[i].is_alphanumeric() || bytes[i] == '_') {
-                i += 1;
-            }
-            out.push((start, Tok::Name(bytes[start..i].iter().collect())));
-        } else if "+-*/^(),".contains(c) {
-            out.push((i, Tok::Op(c)));
-            i += 1;
-        } else {
-            return Err(AeroError::invalid(
-                format!("regressor '{}', column {}", shown(src), i + 1),
-                format!(
-                    "unexpected character '{c}'; use names, numbers, + - * / ^, ( ) and functions"
-                ),
-            ));
-        }
+impl Tok<'_> {
+    /// Whether the token ends an operand (so a following `-` is binary).
+    fn ends_operand(self) -> bool {
+        matches!(self, Tok::Num(_) | Tok::Name(_) | Tok::Op(')'))
     }
-    Ok(out)
 }
 
-/// The nesting [`Parser`] reaches on `toks`, computed without recursion: the
-/// deepest level and the index of the token where nesting first passes
-/// [`MAX_NESTING`], if it does. Mirrors the parser: `(` (a group or an argument
-/// list) opens a level that its `)` closes; a unary `-` or a `^` opens a level
-/// that lasts until its operand ends, i.e. up to the next `+ - * / ,` or `)` of
-/// the same parenthesis level.
-fn nesting(toks: &[(usize, Tok)]) -> (usize, Option<usize>) {
-    let mut pending: Vec<usize> = vec![0]; // open unary/^ levels per parenthesis level
-    let (mut depth, mut max, mut first_over) = (0usize, 0usize, None);
-    for (k, (_, t)) in toks.iter().enumerate() {
-        let prev_is_operand =
-            k > 0 && matches!(toks[k - 1].1, Tok::Num(_) | Tok::Name(_) | Tok::Op(')'));
-        let top = pending.len() - 1;
-        match t {
-            Tok::Num(_) | Tok::Name(_) => {}
-            Tok::Op('(') => {
-                depth += 1;
-                pending.push(0);
-            }
-            Tok::Op(')') => {
-                if pending.len() > 1 {
-                    depth -= pending.pop().unwrap_or(0) + 1;
-                }
-            }
-            Tok::Op('-') if !prev_is_operand => {
-                pending[top] += 1;
-                depth += 1;
-            }
-            Tok::Op('^') => {
-                pending[top] += 1;
-                depth += 1;
-            }
-            Tok::Op(_) => {
-                depth -= pending[top];
-                pending[top] = 0;
-            }
-        }
-        max = max.max(depth);
-        if depth > MAX_NESTING && first_over.is_none() {
-            first_over = Some(k);
-        }
-    }
-    (max, first_over)
-}
-
-struct Parser<'a> {
+/// The tokens of a regressor, one at a time (nothing is stored: memory stays
+/// independent of the expression's length), each with its 0-based column in
+/// characters.
+struct Lexer<'a> {
     src: &'a str,
-    toks: Vec<(usize, Tok)>,
-    pos: usize,
-    /// Levels of nesting open now (bounded by [`MAX_NESTING`]).
-    nesting: usize,
-    /// Deepest tree seen, when deeper than [`MAX_DEPTH`], and the token index
-    /// where that first happened.
-    too_deep: Option<(usize, usize)>,
+    /// Byte offset of the next character.
+    at: usize,
+    /// Its column, in characters.
+    col: usize,
 }
 
-/// A parsed subexpression and the true depth of its tree. Subtrees deeper than
-/// [`MAX_DEPTH`] are replaced by a placeholder leaf (the parse then fails), so
-/// the tree built stays shallow while the true depth is still counted.
-type Node = (Expr, usize);
-
-impl Parser<'_> {
-    fn err(&self, msg: impl Into<String>) -> AeroError {
-        self.err_at(self.pos, msg)
+impl<'a> Lexer<'a> {
+    fn new(src: &'a str) -> Self {
+        Lexer { src, at: 0, col: 0 }
     }
 
-    fn err_at(&self, tok: usize, msg: impl Into<String>) -> AeroError {
-        let col = self.toks.get(tok).map_or(self.src.chars().count(), |t| t.0) + 1;
+    fn error(&self, col: usize, msg: impl Into<String>) -> AeroError {
         AeroError::invalid(
-            format!("regressor '{}', column {col}", shown(self.src)),
+            format!("regressor '{}', column {}", shown(self.src), col + 1),
             msg,
         )
     }
 
-    fn nesting_err(&self, depth: usize, tok: usize) -> AeroError {
+    /// The next token and its column; `None` at the end.
+    fn next_tok(&mut self) -> Result<Option<(usize, Tok<'a>)>> {
+        let src = self.src;
+        let mut chars = src[self.at..].chars();
+        let c = loop {
+            match chars.next() {
+                None => return Ok(None),
+                Some(c) if c.is_whitespace() => {
+                    self.at += c.len_utf8();
+                    self.col += 1;
+                }
+                Some(c) => break c,
+            }
+        };
+        let (start, col) = (self.at, self.col);
+        let b = src.as_bytes();
+        let digit = |i: usize| b.get(i).is_some_and(u8::is_ascii_digit);
+        let tok = if c.is_ascii_digit() || (c == '.' && digit(start + 1)) {
+            // ASCII only: digits and points, then an optional exponent.
+            let mut i = start;
+            while b.get(i).is_some_and(|&d| d.is_ascii_digit() || d == b'.') {
+                i += 1;
+            }
+            if matches!(b.get(i), Some(b'e' | b'E')) {
+                let mut j = i + 1;
+                if matches!(b.get(j), Some(b'+' | b'-')) {
+                    j += 1;
+                }
+                if digit(j) {
+                    while digit(j) {
+                        j += 1;
+                    }
+                    i = j;
+                }
+            }
+            let text = &src[start..i];
+            let v: f64 = text
+                .parse()
+                .map_err(|_| self.error(col, format!("'{}' is not a number", shown(text))))?;
+            self.at = i;
+            self.col += i - start;
+            Tok::Num(v)
+        } else if c.is_alphabetic() || c == '_' {
+            let mut end = start;
+            for ch in src[start..].chars() {
+                if !(ch.is_alphanumeric() || ch == '_') {
+                    break;
+                }
+                end += ch.len_utf8();
+                self.col += 1;
+            }
+            self.at = end;
+            Tok::Name(&src[start..end])
+        } else if "+-*/^(),".contains(c) {
+            self.at += 1;
+            self.col += 1;
+            Tok::Op(c)
+        } else {
+            return Err(self.error(
+                col,
+                format!(
+                    "unexpected character '{}'; use names, numbers, + - * / ^, ( ) and functions",
+                    c.escape_debug()
+                ),
+            ));
+        };
+        Ok(Some((col, tok)))
+    }
+}
+
+/// What a first pass over the tokens finds: their count, the nesting the
+/// [`Parser`] reaches (the deepest level, and the column where it first passes
+/// [`MAX_NESTING`], if it does), computed without recursion. Mirrors the
+/// parser: `(` (a group or an argument list) opens a level that its `)`
+/// closes; a unary `-` or a `^` opens a level that lasts until its operand
+/// ends, i.e. up to the next `+ - * / ,` or `)` of the same parenthesis level.
+///
+/// # Errors
+/// The first token that is not one of the language (as [`Lexer::next_tok`]).
+fn scan(src: &str) -> Result<(usize, usize, Option<usize>)> {
+    let mut lx = Lexer::new(src);
+    // Open unary/^ levels per parenthesis level, kept only for the levels
+    // that have some: (parenthesis level, count); 32 bits each (the input is
+    // shorter than 4 GiB), so the stack stays within 4 bytes per character.
+    let mut pending: Vec<(u32, u32)> = Vec::new();
+    if u32::try_from(src.len()).is_err() {
+        return Err(AeroError::invalid(
+            format!("regressor '{}'", shown(src)),
+            "is longer than 4 GiB; write a short expression",
+        ));
+    }
+    let (mut level, mut depth, mut max, mut first_over) = (0u32, 0usize, 0usize, None);
+    let (mut count, mut prev): (usize, Option<Tok>) = (0, None);
+    fn take_pending(pending: &mut Vec<(u32, u32)>, level: u32) -> usize {
+        match pending.last() {
+            Some(&(l, n)) if l == level => {
+                pending.pop();
+                n as usize
+            }
+            _ => 0,
+        }
+    }
+    while let Some((col, t)) = lx.next_tok()? {
+        count += 1;
+        match t {
+            Tok::Num(_) | Tok::Name(_) => {}
+            Tok::Op('(') => {
+                depth += 1;
+                level += 1;
+            }
+            Tok::Op(')') => {
+                if level > 0 {
+                    depth -= take_pending(&mut pending, level) + 1;
+                    level -= 1;
+                }
+            }
+            Tok::Op(c) if c == '^' || (c == '-' && !prev.is_some_and(Tok::ends_operand)) => {
+                match pending.last_mut() {
+                    Some((l, n)) if *l == level => *n += 1,
+                    _ => pending.push((level, 1)),
+                }
+                depth += 1;
+            }
+            Tok::Op(_) => depth -= take_pending(&mut pending, level),
+        }
+        prev = Some(t);
+        max = max.max(depth);
+        if depth > MAX_NESTING && first_over.is_none() {
+            first_over = Some(col);
+        }
+    }
+    Ok((count, max, first_over))
+}
+
+struct Parser<'a> {
+    src: &'a str,
+    lexer: Lexer<'a>,
+    /// The next token and its column (`None` at the end).
+    next: Option<(usize, Tok<'a>)>,
+    /// Column of the last token consumed.
+    last_col: usize,
+    /// Levels of nesting open now (bounded by [`MAX_NESTING`]).
+    nesting: usize,
+    /// Deepest tree seen, when deeper than [`MAX_DEPTH`], and the column
+    /// where that first happened.
+    too_deep: Option<(usize, usize)>,
+    /// Nodes of the tree (every number, name, operator and call).
+    nodes: usize,
+    /// Column where the tree first passed [`MAX_NODES`].
+    too_big: Option<usize>,
+}
+
+/// A parsed subexpression and the true depth of its tree. Subtrees deeper than
+/// [`MAX_DEPTH`], and every node past the [`MAX_NODES`]th, are replaced by a
+/// placeholder leaf (the parse then fails), so the tree built stays small
+/// while the true depth and size are still counted.
+type Node = (Expr, usize);
+
+impl<'a> Parser<'a> {
+    fn err(&self, msg: impl Into<String>) -> AeroError {
+        let col = self.next.map_or_else(|| self.src.chars().count(), |t| t.0);
+        self.err_at(col, msg)
+    }
+
+    fn err_at(&self, col: usize, msg: impl Into<String>) -> AeroError {
+        self.lexer.error(col, msg)
+    }
+
+    /// Consume the next token.
+    fn bump(&mut self) -> Result<()> {
+        if let Some((col, _)) = self.next {
+            self.last_col = col;
+        }
+        self.next = self.lexer.next_tok()?;
+        Ok(())
+    }
+
+    fn nesting_err(&self, depth: usize, col: usize) -> AeroError {
         self.err_at(
-            tok,
+            col,
             format!(
                 "nests {depth} levels deep (parentheses, function arguments, unary minus and ^ \
                  exponents); at most {MAX_NESTING} are supported; simplify the expression"
@@ -370,12 +446,13 @@ impl Parser<'_> {
         )
     }
 
-    /// Open one level of nesting; an error past [`MAX_NESTING`]. [`nesting`]
+    /// Open one level of nesting; an error past [`MAX_NESTING`]. [`scan`]
     /// refuses such input before parsing, so this only backs it up.
     fn enter(&mut self) -> Result<()> {
         self.nesting += 1;
         if self.nesting > MAX_NESTING {
-            return Err(self.nesting_err(self.nesting, self.pos));
+            let col = self.next.map_or(self.last_col, |t| t.0);
+            return Err(self.nesting_err(self.nesting, col));
         }
         Ok(())
     }
@@ -384,39 +461,53 @@ impl Parser<'_> {
         self.nesting -= 1;
     }
 
+    /// Count one more node; whether the tree is still within [`MAX_NODES`].
+    fn count(&mut self) -> bool {
+        self.nodes += 1;
+        if self.nodes > MAX_NODES {
+            self.too_big.get_or_insert(self.last_col);
+            return false;
+        }
+        true
+    }
+
     /// A node of true depth `depth`: `e` itself, or a placeholder leaf when
-    /// `depth` passes [`MAX_DEPTH`] (noted for the error at the end).
+    /// `depth` passes [`MAX_DEPTH`] (noted for the error at the end) or the
+    /// tree has passed [`MAX_NODES`].
     fn node(&mut self, e: Expr, depth: usize) -> Node {
-        if depth <= MAX_DEPTH {
+        let small = self.count();
+        if depth <= MAX_DEPTH && small {
             return (e, depth);
         }
-        match self.too_deep {
-            Some((d, _)) if d >= depth => {}
-            Some((_, at)) => self.too_deep = Some((depth, at)),
-            None => self.too_deep = Some((depth, self.pos.saturating_sub(1))),
+        if depth > MAX_DEPTH {
+            match self.too_deep {
+                Some((d, _)) if d >= depth => {}
+                Some((_, at)) => self.too_deep = Some((depth, at)),
+                None => self.too_deep = Some((depth, self.last_col)),
+            }
         }
         (Expr::Const(0.0), depth)
     }
 
-    fn peek(&self) -> Option<&Tok> {
-        self.toks.get(self.pos).map(|t| &t.1)
+    fn peek(&self) -> Option<Tok<'a>> {
+        self.next.map(|t| t.1)
     }
 
-    fn eat_op(&mut self, c: char) -> bool {
-        if self.peek() == Some(&Tok::Op(c)) {
-            self.pos += 1;
-            true
+    fn eat_op(&mut self, c: char) -> Result<bool> {
+        if self.peek() == Some(Tok::Op(c)) {
+            self.bump()?;
+            Ok(true)
         } else {
-            false
+            Ok(false)
         }
     }
 
     fn expr(&mut self) -> Result<Node> {
         let (mut lhs, mut depth) = self.term()?;
         loop {
-            let op = if self.eat_op('+') {
+            let op = if self.eat_op('+')? {
                 BinOp::Add
-            } else if self.eat_op('-') {
+            } else if self.eat_op('-')? {
                 BinOp::Sub
             } else {
                 return Ok((lhs, depth));
@@ -432,9 +523,9 @@ impl Parser<'_> {
     fn term(&mut self) -> Result<Node> {
         let (mut lhs, mut depth) = self.unary()?;
         loop {
-            let op = if self.eat_op('*') {
+            let op = if self.eat_op('*')? {
                 BinOp::Mul
-            } else if self.eat_op('/') {
+            } else if self.eat_op('/')? {
                 BinOp::Div
             } else {
                 return Ok((lhs, depth));
@@ -448,7 +539,7 @@ impl Parser<'_> {
     }
 
     fn unary(&mut self) -> Result<Node> {
-        if self.eat_op('-') {
+        if self.eat_op('-')? {
             self.enter()?;
             let (e, depth) = self.unary()?;
             self.leave();
@@ -462,7 +553,7 @@ impl Parser<'_> {
 
     fn power(&mut self) -> Result<Node> {
         let (base, bd) = self.atom()?;
-        if self.eat_op('^') {
+        if self.eat_op('^')? {
             self.enter()?;
             let (exp, ed) = self.unary()?;
             self.leave();
@@ -475,54 +566,64 @@ impl Parser<'_> {
     }
 
     fn atom(&mut self) -> Result<Node> {
-        match self.peek().cloned() {
-            Some(Tok::Num(v)) => {
-                self.pos += 1;
+        match self.next {
+            Some((_, Tok::Num(v))) => {
+                self.bump()?;
+                self.count();
                 Ok((Expr::Const(v), 1))
             }
-            Some(Tok::Name(name)) => {
-                self.pos += 1;
-                if self.eat_op('(') {
-                    let Some((func, arity)) = Func::from_name(&name) else {
-                        self.pos -= 2;
-                        return Err(self.err(format!(
-                            "unknown function '{name}'; known: pos, neg, deadband, step, abs, sqrt, sin, cos, exp, min, max"
-                        )));
+            Some((name_col, Tok::Name(name))) => {
+                self.bump()?;
+                if self.eat_op('(')? {
+                    let Some((func, arity)) = Func::from_name(name) else {
+                        return Err(self.err_at(
+                            name_col,
+                            format!(
+                                "unknown function '{}'; known: pos, neg, deadband, step, abs, sqrt, sin, cos, exp, min, max",
+                                shown(name)
+                            ),
+                        ));
                     };
                     self.enter()?;
                     let (first, mut depth) = self.expr()?;
                     let mut args = vec![first];
-                    while self.eat_op(',') {
+                    let mut given = 1;
+                    while self.eat_op(',')? {
                         let (a, d) = self.expr()?;
-                        args.push(a);
+                        // Arguments past the arity are counted, not kept.
+                        given += 1;
+                        if given <= arity {
+                            args.push(a);
+                        }
                         depth = depth.max(d);
                     }
-                    if !self.eat_op(')') {
+                    if !self.eat_op(')')? {
                         return Err(self.err("expected ')' to close the argument list"));
                     }
                     self.leave();
-                    if args.len() != arity {
-                        return Err(self.err(format!(
-                            "{name}() takes {arity} argument(s), got {}",
-                            args.len()
-                        )));
+                    if given != arity {
+                        return Err(
+                            self.err(format!("{name}() takes {arity} argument(s), got {given}"))
+                        );
                     }
                     Ok(self.node(Expr::Call(func, args), depth + 1))
+                } else if self.count() {
+                    Ok((Expr::Column(name.to_string()), 1))
                 } else {
-                    Ok((Expr::Column(name), 1))
+                    Ok((Expr::Const(0.0), 1))
                 }
             }
-            Some(Tok::Op('(')) => {
-                self.pos += 1;
+            Some((_, Tok::Op('('))) => {
+                self.bump()?;
                 self.enter()?;
                 let e = self.expr()?;
-                if !self.eat_op(')') {
+                if !self.eat_op(')')? {
                     return Err(self.err("expected ')'"));
                 }
                 self.leave();
                 Ok(e)
             }
-            Some(Tok::Op(c)) => Err(self.err(format!("unexpected '{c}'"))),
+            Some((_, Tok::Op(c))) => Err(self.err(format!("unexpected '{c}'"))),
             None => Err(self.err("unexpected end of expression")),
         }
     }
@@ -531,10 +632,15 @@ impl Parser<'_> {
 impl Expr {
     /// Parse a regressor expression.
     ///
+    /// Memory is bounded by the tree returned (at most [`MAX_NODES`] nodes)
+    /// and the nesting: tokens are read one at a time, twice (a first pass
+    /// checks every token and the nesting before the tree is built).
+    ///
     /// # Errors
     /// [`AeroError::InvalidInput`] naming the expression and the 1-based
     /// column of the first problem, including nesting deeper than
-    /// [`MAX_NESTING`] or a tree deeper than [`MAX_DEPTH`].
+    /// [`MAX_NESTING`], a tree deeper than [`MAX_DEPTH`] or larger than
+    /// [`MAX_NODES`].
     ///
     /// ```
     /// use aero_core::regressor::Expr;
@@ -544,34 +650,48 @@ impl Expr {
     /// assert_eq!(out, vec![-3.0, 0.0, 0.0, 0.0, 2.0]);
     /// ```
     pub fn parse(src: &str) -> Result<Expr> {
-        let toks = tokenize(src)?;
+        let (count, depth, over) = scan(src)?;
         let mut p = Parser {
             src,
-            toks,
-            pos: 0,
+            lexer: Lexer::new(src),
+            next: None,
+            last_col: 0,
             nesting: 0,
             too_deep: None,
+            nodes: 0,
+            too_big: None,
         };
-        if p.toks.is_empty() {
+        if count == 0 {
             return Err(AeroError::invalid(
                 "regressor ''",
                 "is empty; write an expression such as 'beta_rad' or '1'",
             ));
         }
-        if let (depth, Some(at)) = nesting(&p.toks) {
-            return Err(p.nesting_err(depth, at));
+        if let Some(col) = over {
+            return Err(p.nesting_err(depth, col));
         }
+        p.bump()?;
         let (e, _) = p.expr()?;
-        if p.pos != p.toks.len() {
+        if p.next.is_some() {
             return Err(p.err("unexpected text after the end of the expression"));
         }
-        if let Some((depth, at)) = p.too_deep {
+        if let Some((depth, col)) = p.too_deep {
             return Err(p.err_at(
-                at,
+                col,
                 format!(
                     "is {depth} operations deep (each operator and function call on the way \
                      down counts, so a chain a + b + c is 3); at most {MAX_DEPTH} are supported; \
                      split it into several regressors"
+                ),
+            ));
+        }
+        if let Some(col) = p.too_big {
+            return Err(p.err_at(
+                col,
+                format!(
+                    "has {} numbers, names, operators and function calls; at most {MAX_NODES} \
+                     are supported; split it into several regressors",
+                    p.nodes
                 ),
             ));
         }
@@ -1015,6 +1135,36 @@ mod tests {
             ")".repeat(60)
         );
         assert!(too_deep(src).contains("is 5000 operations deep"));
+    }
+
+    #[test]
+    fn trees_past_max_nodes_are_refused_and_extra_arguments_counted() {
+        // A sum of 16 products of 64 factors: 16 * (64 + 63) + 15 = 2047
+        // nodes, 81 deep; one more factor passes MAX_NODES.
+        let row = vec!["a"; 64].join("*");
+        let src = vec![row.as_str(); 16].join("+");
+        let e = parse_on_small_stack(src.clone()).expect("2047 nodes parse");
+        let a = [1.5];
+        let lookup = |n: &str| (n == "a").then_some(&a[..]);
+        let want = 16.0 * 1.5f64.powi(64);
+        let got = e.eval_columns(&lookup, 1).expect("evaluates")[0];
+        assert!((got - want).abs() <= 1e-12 * want, "{got} {want}");
+        let msg = too_deep(format!("{src}*a*a"));
+        assert!(
+            msg.contains("has 2051 numbers, names, operators and function calls; at most 2048"),
+            "{msg}"
+        );
+        // Arguments past a function's arity are counted, not kept.
+        let msg = Expr::parse(&format!("min({})", vec!["a"; 5000].join(",")))
+            .unwrap_err()
+            .to_string();
+        assert!(msg.contains("min() takes 2 argument(s), got 5000"), "{msg}");
+        // Messages quote the expression on one line.
+        let msg = Expr::parse("a +\n* b").unwrap_err().to_string();
+        assert!(
+            msg.starts_with("regressor 'a +\\n* b', column 5: unexpected '*'"),
+            "{msg}"
+        );
     }
 
     #[test]

@@ -19,6 +19,7 @@
 //! A NaN input gives a NaN output; nothing here panics on user data.
 
 use crate::error::{AeroError, Result};
+use std::sync::Arc;
 
 /// The largest number of table dimensions.
 pub const MAX_DIMS: usize = 8;
@@ -52,7 +53,9 @@ impl std::str::FromStr for Extrapolation {
 pub struct Axis {
     /// Name of the independent variable (for messages and exports).
     pub name: String,
-    breakpoints: Vec<f64>,
+    /// Shared between clones: many tables of a DAVE-ML file use one
+    /// breakpoint set.
+    breakpoints: Arc<Vec<f64>>,
     /// Policy below the first breakpoint.
     pub below: Extrapolation,
     /// Policy above the last breakpoint.
@@ -101,7 +104,7 @@ impl Axis {
         let uniform = uniform_spacing(&breakpoints);
         Ok(Axis {
             name,
-            breakpoints,
+            breakpoints: Arc::new(breakpoints),
             below: Extrapolation::Hold,
             above: Extrapolation::Hold,
             min: None,
@@ -263,7 +266,9 @@ fn uniform_spacing(bp: &[f64]) -> Option<(f64, f64)> {
 #[derive(Debug, Clone, PartialEq)]
 pub struct Table {
     axes: Vec<Axis>,
-    values: Vec<f64>,
+    /// Shared between clones and between the tables of a DAVE-ML file that
+    /// reference one `griddedTableDef`.
+    values: Arc<Vec<f64>>,
     strides: [usize; MAX_DIMS],
     /// Offset of each of the 2^n cell corners from the cell's first node
     /// (bit n-1-k of the corner index selects the upper node on axis k).
@@ -278,22 +283,34 @@ impl Table {
     /// [`MAX_DIMS`], or when the number of values differs from the product of
     /// the breakpoint counts (the message gives both).
     pub fn new(axes: Vec<Axis>, values: Vec<f64>) -> Result<Self> {
+        Self::from_shared(axes, Arc::new(values))
+    }
+
+    /// [`Table::new`] with values shared with other tables (no copy).
+    ///
+    /// # Errors
+    /// As [`Table::new`].
+    pub fn from_shared(axes: Vec<Axis>, values: Arc<Vec<f64>>) -> Result<Self> {
         if axes.is_empty() || axes.len() > MAX_DIMS {
             return Err(AeroError::invalid(
                 "table",
                 format!("has {} axes; a table has 1 to {MAX_DIMS} axes", axes.len()),
             ));
         }
-        let expected: usize = axes.iter().map(|a| a.breakpoints.len()).product();
-        if values.len() != expected {
+        let expected = axes
+            .iter()
+            .try_fold(1usize, |p, a| p.checked_mul(a.breakpoints.len()));
+        if expected != Some(values.len()) {
             let shape: Vec<String> = axes
                 .iter()
-                .map(|a| format!("{}:{}", a.name, a.breakpoints.len()))
+                .map(|a| format!("{}:{}", crate::text::shown(&a.name), a.breakpoints.len()))
                 .collect();
+            let need =
+                expected.map_or_else(|| "more than memory can hold".into(), |n| n.to_string());
             return Err(AeroError::invalid(
                 "table",
                 format!(
-                    "has {} values but its breakpoints ({}) need {expected}",
+                    "has {} values but its breakpoints ({}) need {need}",
                     values.len(),
                     shape.join(" x ")
                 ),
@@ -1060,6 +1077,15 @@ fn run_chunks(out: &mut [f64], work: impl Fn(usize, &mut [f64])) {
 
 #[cfg(test)]
 mod tests {
+
+    #[test]
+    fn a_breakpoint_product_past_usize_is_an_error_not_a_wrap() {
+        let axis = |k: usize| Axis::new(format!("x{k}"), (0..256).map(f64::from).collect());
+        let axes: Vec<Axis> = (0..8).map(|k| axis(k).expect("axis")).collect();
+        // 256^8 = 2^64 wrapped to 0 and matched an empty value list.
+        let e = Table::new(axes, Vec::new()).unwrap_err().to_string();
+        assert!(e.contains("need more than memory can hold"), "{e}");
+    }
     use super::*;
     use proptest::prelude::*;
 

@@ -8,11 +8,14 @@
 //! tolerance of their shot, so a model passes its internal checks exactly when
 //! its outputs are verified to the same accuracy.
 
+use std::collections::HashMap;
+
 use roxmltree::Node;
 
 use super::model::DaveModel;
 use super::{child, elements, text_of, Source};
 use crate::error::Result;
+use crate::text::shown;
 
 /// Tolerance of a check output that gives no `<tol>`.
 pub const DEFAULT_TOL: f64 = 1e-6;
@@ -84,17 +87,22 @@ enum Role {
 fn number(src: &Source, node: Node<'_, '_>) -> Result<f64> {
     let t = text_of(node);
     t.parse::<f64>()
-        .map_err(|_| src.err(node, format!("'{t}' is not a number")))
+        .map_err(|_| src.err(node, format!("'{}' is not a number", shown(&t))))
 }
+
+/// Variables by `name`, in file order.
+type ByName<'m> = HashMap<&'m str, Vec<usize>>;
 
 /// Resolve a `<signal>` to (variable, value, tolerance).
 fn signal(
     src: &Source,
     sig: Node<'_, '_>,
     model: &DaveModel,
+    by_name: &ByName<'_>,
     shot: &str,
     role: Role,
 ) -> Result<(usize, f64, Option<f64>)> {
+    let shot = shown(shot);
     let value_node = child(sig, "signalValue")
         .ok_or_else(|| src.err(sig, format!("in shot '{shot}' has no <signalValue>")))?;
     let value = number(src, value_node)?;
@@ -105,6 +113,7 @@ fn signal(
     if let Some(idn) = child(sig, "varID").or_else(|| child(sig, "signalID")) {
         let id = text_of(idn);
         let i = model.index_of(&id).ok_or_else(|| {
+            let id = shown(&id);
             src.err(
                 idn,
                 format!("in shot '{shot}': unknown varID '{id}'; no <variableDef varID=\"{id}\">"),
@@ -120,11 +129,12 @@ fn signal(
     })?;
     let name = text_of(name_node);
     let vars = model.variables();
-    let mut cands: Vec<usize> = (0..vars.len()).filter(|&i| vars[i].name == name).collect();
+    let mut cands: Vec<usize> = by_name.get(name.as_str()).cloned().unwrap_or_default();
     if cands.is_empty() {
         cands = model.index_of(&name).into_iter().collect();
     }
     if cands.is_empty() {
+        let name = shown(&name);
         return Err(src.err(
             name_node,
             format!("in shot '{shot}': unknown signal '{name}'; no <variableDef name=\"{name}\">"),
@@ -142,8 +152,8 @@ fn signal(
             return Err(src.err(
                 u,
                 format!(
-                    "unit mismatch in shot '{shot}', signal '{name}': the check gives '{units}' but <variableDef varID=\"{}\"> (line {}) is in '{}'; give the value in '{}'",
-                    v.id, v.line, v.units, v.units
+                    "unit mismatch in shot '{shot}', signal '{}': the check gives '{}' but <variableDef varID=\"{}\"> (line {}) is in '{}'; give the value in '{}'",
+                    shown(&name), shown(&units), shown(&v.id), v.line, shown(&v.units), shown(&v.units)
                 ),
             ));
         }
@@ -167,6 +177,10 @@ pub(crate) fn parse_check_data(
     cd: Node<'_, '_>,
     model: &DaveModel,
 ) -> Result<Vec<Shot>> {
+    let mut by_name: ByName<'_> = HashMap::new();
+    for (i, v) in model.variables().iter().enumerate() {
+        by_name.entry(v.name.as_str()).or_default().push(i);
+    }
     let mut shots = Vec::new();
     for s in elements(cd).filter(|n| n.tag_name().name() == "staticShot") {
         let name = s.attribute("name").unwrap_or("").trim().to_string();
@@ -187,24 +201,25 @@ pub(crate) fn parse_check_data(
                 .unwrap_or_default()
         };
         for sig in signals("checkInputs") {
-            let (i, v, _) = signal(src, sig, model, &name, Role::Input)?;
+            let (i, v, _) = signal(src, sig, model, &by_name, &name, Role::Input)?;
             if !model.is_free(i) {
                 return Err(src.err(
                     sig,
                     format!(
-                        "in shot '{name}': '{}' is computed by the model and cannot be a check input",
-                        model.variables()[i].id
+                        "in shot '{}': '{}' is computed by the model and cannot be a check input",
+                        shown(&name),
+                        shown(&model.variables()[i].id)
                     ),
                 ));
             }
             shot.inputs.push((i, v));
         }
         for sig in signals("internalValues") {
-            let (i, v, _) = signal(src, sig, model, &name, Role::Internal)?;
+            let (i, v, _) = signal(src, sig, model, &by_name, &name, Role::Internal)?;
             shot.internals.push((i, v));
         }
         for sig in signals("checkOutputs") {
-            let (i, v, t) = signal(src, sig, model, &name, Role::Output)?;
+            let (i, v, t) = signal(src, sig, model, &by_name, &name, Role::Output)?;
             shot.outputs.push((i, v, t.unwrap_or(DEFAULT_TOL)));
         }
         if let Err(e) = model.input_indices(

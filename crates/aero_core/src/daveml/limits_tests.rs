@@ -222,3 +222,182 @@ fn long_calculation_chain_loads_and_a_long_cycle_is_one_line() {
         "{msg}"
     );
 }
+
+/// `n` functions looking up one `griddedTableDef` of `len` values through
+/// `griddedTableRef`, function `k` clamping its input at `min = k`.
+fn shared_table(n: usize, len: usize) -> String {
+    let vals: Vec<String> = (0..len).map(|k| k.to_string()).collect();
+    let mut body = format!(
+        "<variableDef name=\"a\" varID=\"a\" units=\"nd\"><isInput/></variableDef>\n\
+         <breakpointDef bpID=\"B\"><bpVals>{}</bpVals></breakpointDef>\n\
+         <griddedTableDef gtID=\"T\"><breakpointRefs><bpRef bpID=\"B\"/></breakpointRefs><dataTable>{}</dataTable></griddedTableDef>\n",
+        vals.join(" "),
+        vals.join(",")
+    );
+    for k in 0..n {
+        body.push_str(&format!(
+            "<variableDef name=\"y{k}\" varID=\"y{k}\" units=\"nd\"/><function name=\"f{k}\">\
+             <independentVarRef varID=\"a\" min=\"{k}\"/><dependentVarRef varID=\"y{k}\"/>\
+             <functionDefn><griddedTableRef gtID=\"T\"/></functionDefn></function>\n"
+        ));
+    }
+    format!("{HEAD}{body}</DAVEfunc>\n")
+}
+
+#[test]
+fn a_gridded_table_referenced_by_many_functions_is_read_once_and_shared() {
+    // 2000 references to a 20,000-value table: 320 MB if each function kept
+    // its own copy of the values and breakpoints.
+    let m = load_small_stack(shared_table(2000, 20_000)).expect("loads");
+    let tables: Vec<&crate::table::Table> = m
+        .defs
+        .iter()
+        .filter_map(|d| match d {
+            model::Def::Table { table, .. } => Some(table),
+            _ => None,
+        })
+        .collect();
+    assert_eq!(tables.len(), 2000);
+    let (values, bps) = (
+        tables[0].values().as_ptr(),
+        tables[0].axes()[0].breakpoints().as_ptr(),
+    );
+    assert!(tables.iter().all(|t| t.values().as_ptr() == values));
+    assert!(tables
+        .iter()
+        .all(|t| t.axes()[0].breakpoints().as_ptr() == bps));
+    // Each keeps its own limits: y_k(a) = max(a, k) on the identity table.
+    let v = m.evaluate(&[("a", 1234.5)]).expect("evaluates");
+    for (k, want) in [
+        (0usize, 1234.5),
+        (1000, 1234.5),
+        (1500, 1500.0),
+        (1999, 1999.0),
+    ] {
+        let i = m.index_of(&format!("y{k}")).expect("y");
+        assert_eq!(v[i], want, "y{k}");
+    }
+    // One locator per distinct (variable, limits): 2000.
+    assert_eq!(m.locators.len(), 2000);
+}
+
+#[test]
+fn breakpoints_whose_product_overflows_are_refused() {
+    // 8 sets of 256 breakpoints need 256^8 = 2^64 values: the product wrapped
+    // to 0 and an empty dataTable was accepted (then looked up out of bounds).
+    let bps: Vec<String> = (0..256).map(|k| k.to_string()).collect();
+    let mut body = String::new();
+    for k in 0..8 {
+        body.push_str(&format!(
+            "<variableDef name=\"a{k}\" varID=\"a{k}\" units=\"nd\" initialValue=\"1\"/>\
+             <breakpointDef bpID=\"B{k}\"><bpVals>{}</bpVals></breakpointDef>\n",
+            bps.join(" ")
+        ));
+    }
+    body.push_str("<variableDef name=\"y\" varID=\"y\" units=\"nd\"/><function name=\"f\">");
+    for k in 0..8 {
+        body.push_str(&format!("<independentVarRef varID=\"a{k}\"/>"));
+    }
+    body.push_str("<dependentVarRef varID=\"y\"/><functionDefn><griddedTableDef><breakpointRefs>");
+    for k in 0..8 {
+        body.push_str(&format!("<bpRef bpID=\"B{k}\"/>"));
+    }
+    body.push_str(
+        "</breakpointRefs><dataTable></dataTable></griddedTableDef></functionDefn></function>",
+    );
+    let msg = refused(format!("{HEAD}{body}</DAVEfunc>\n"));
+    assert!(
+        msg.contains("has 0 values but its breakpoints (a0:256 x a1:256")
+            && msg.contains("need more than memory can hold"),
+        "{msg}"
+    );
+}
+
+#[test]
+fn attribute_and_namespace_floods_are_refused_with_the_line() {
+    // The XML parser compares attributes pairwise: 300,000 took minutes.
+    let attrs: String = (0..65).map(|k| format!(" a{k}=\"\"")).collect();
+    let msg = refused(format!(
+        "{HEAD}<variableDef name=\"a\" varID=\"a\" units=\"nd\">\n<description><b{attrs}/></description></variableDef></DAVEfunc>"
+    ));
+    assert!(
+        msg.starts_with("m.dml:4: <b> has 65 attributes; at most 64 are read"),
+        "{msg}"
+    );
+    // 35 elements declaring 2 prefixes each.
+    let ns: String = (0..35)
+        .map(|k| format!("<b xmlns:p{k}=\"urn:x\" xmlns:q{k}=\"urn:y\"/>"))
+        .collect();
+    let msg = refused(format!("{HEAD}{ns}</DAVEfunc>"));
+    assert!(
+        msg.contains("declares more than 64 XML namespace prefixes"),
+        "{msg}"
+    );
+    // 64 attributes, and one namespace declared on every element, are fine.
+    let attrs: String = (0..64).map(|k| format!(" a{k}=\"\"")).collect();
+    let many_math: String = (0..200)
+        .map(|k| format!("<variableDef name=\"v{k}\" varID=\"v{k}\" units=\"nd\"><calculation><math xmlns=\"http://www.w3.org/1998/Math/MathML\"><cn>{k}</cn></math></calculation></variableDef>\n"))
+        .collect();
+    let m = load_small_stack(format!(
+        "{HEAD}<variableDef name=\"a\" varID=\"a\" units=\"nd\"><description><b{attrs}/></description></variableDef>{many_math}</DAVEfunc>"
+    ))
+    .expect("loads");
+    assert_eq!(m.variables().len(), 201);
+}
+
+#[test]
+fn comments_and_processing_instructions_are_blanked_not_changed_in_meaning() {
+    // '<' and '=' in comments and PIs are blanked before the DOM parse (the
+    // parser reserves memory per '<' and '='); nothing the reader uses moves.
+    let text = format!(
+        "<?xml version=\"1.0\"?>\n<!-- a<=b -->\n<DAVEfunc xmlns=\"http://daveml.org/2010/DAVEML\">\n\
+         <variableDef name=\"a\" varID=\"a\" units=\"nd\" initialValue=\"2\"><description>x = 1 <!-- {} --> and<?pi k=\"<\"?> y</description><isInput/></variableDef>\n\
+         <variableDef name=\"y\" varID=\"y\" units=\"nd\"/>\n\
+         <function name=\"f\"><independentVarPts varID=\"a\">1,<!--<=-->2<?p=?> 3</independentVarPts><dependentVarPts varID=\"y\">10 20<!-- = --> 30</dependentVarPts></function>\n\
+         <variableDef name=\"z\" varID=\"zz\" units=\"nd\"><calculation><math><ci>nope</ci></math></calculation></variableDef>\n</DAVEfunc>\n",
+        "<=".repeat(1000)
+    );
+    let xml = xml_text(&text, "m.dml").expect("scans");
+    assert_eq!(xml.len(), text.len());
+    assert!(xml.starts_with("<?xml version=\"1.0\"?>"));
+    assert_eq!(text.matches('<').count() - xml.matches('<').count(), 1003);
+    assert_eq!(text.matches('=').count() - xml.matches('=').count(), 1005);
+    // The error line is the file's: the unknown <ci> on line 7.
+    let msg = refused(text.clone());
+    assert!(
+        msg.starts_with("m.dml:7: <ci>: unknown varID 'nope'"),
+        "{msg}"
+    );
+    let ok = text.replace("<ci>nope</ci>", "<ci>y</ci>");
+    let m = load_small_stack(ok).expect("loads");
+    assert_eq!(m.variables()[0].description, "x = 1  and y");
+    let v = m.evaluate(&[("a", 2.5)]).expect("evaluates");
+    assert_eq!(v[m.index_of("y").expect("y")], 25.0);
+}
+
+#[test]
+fn bytes_that_are_not_utf8_are_a_parse_error_naming_line_and_offset() {
+    let mut b = format!("{HEAD}<variableDef name=\"a\" varID=\"a\" units=\"nd\"/>\n</DAVEfunc>")
+        .into_bytes();
+    let at = b.len() - 12;
+    b.insert(at, 0xFF);
+    let e = DaveModel::from_bytes(&b, "m.dml").expect_err("refused");
+    assert_eq!(e.kind(), ErrorKind::Parse);
+    assert_eq!(
+        e.to_string(),
+        format!("m.dml:3: not UTF-8 text: byte 0xFF at offset {at} is not valid UTF-8; save the file as UTF-8")
+    );
+}
+
+#[test]
+fn messages_quoting_huge_or_multi_line_values_stay_one_short_line() {
+    let long = "v".repeat(1 << 20);
+    let msg = refused(format!(
+        "{HEAD}<variableDef name=\"a\" varID=\"{long}\" units=\"nd\" initialValue=\"1&#10;2\"/></DAVEfunc>"
+    ));
+    assert!(
+        msg.contains("(1048576 characters)")
+            && msg.contains("attribute initialValue=\"1\\n2\" is not a number"),
+        "{msg}"
+    );
+}

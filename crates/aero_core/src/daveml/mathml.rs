@@ -24,6 +24,7 @@ use roxmltree::Node;
 
 use super::{elements, text_of, Source};
 use crate::error::Result;
+use crate::text::shown;
 
 /// Most elements a calculation may nest below its `<math>` (a `<ci>` directly
 /// in `<math>` is 1 deep; `<apply><plus/><ci>a</ci><ci>b</ci></apply>` is 2).
@@ -31,17 +32,24 @@ use crate::error::Result;
 /// [`crate::regressor::MAX_DEPTH`] deep) stay well within it.
 pub const MAX_DEPTH: usize = 512;
 
-/// The depth of the deepest element below `math`, and the first element found
-/// deeper than [`MAX_DEPTH`], if any; without recursion.
+/// The depth of the deepest element below `math`, and the first element (in
+/// document order) deeper than [`MAX_DEPTH`], if any; without recursion: a
+/// walk in document order keeping the chain of open elements (4 bytes each,
+/// siblings are not kept).
 fn element_depth<'a, 'i>(math: Node<'a, 'i>) -> (usize, Option<Node<'a, 'i>>) {
     let (mut max, mut first_over) = (0usize, None);
-    let mut stack: Vec<(Node, usize)> = elements(math).map(|n| (n, 1)).collect();
-    while let Some((node, depth)) = stack.pop() {
+    let mut chain: Vec<roxmltree::NodeId> = vec![math.id()];
+    for n in math.descendants().skip(1).filter(Node::is_element) {
+        let parent = n.parent().map(|p| p.id());
+        while chain.len() > 1 && chain.last().copied() != parent {
+            chain.pop();
+        }
+        chain.push(n.id());
+        let depth = chain.len() - 1;
         max = max.max(depth);
         if depth > MAX_DEPTH && first_over.is_none() {
-            first_over = Some(node);
+            first_over = Some(n);
         }
-        stack.extend(elements(node).map(|n| (n, depth + 1)));
     }
     (max, first_over)
 }
@@ -335,13 +343,16 @@ fn compile_checked(
     math: Node<'_, '_>,
     resolve: &dyn Fn(&str) -> Option<usize>,
 ) -> Result<Expr> {
-    let kids: Vec<Node> = elements(math).collect();
-    match kids.as_slice() {
-        [one] => expr(src, *one, resolve),
-        [] => Err(src.err(math, "holds no expression")),
-        _ => Err(src.err(
+    let mut kids = elements(math);
+    match (kids.next(), kids.next()) {
+        (Some(one), None) => expr(src, one, resolve),
+        (None, _) => Err(src.err(math, "holds no expression")),
+        (Some(_), Some(_)) => Err(src.err(
             math,
-            format!("holds {} expressions; give exactly one", kids.len()),
+            format!(
+                "holds {} expressions; give exactly one",
+                elements(math).count()
+            ),
         )),
     }
 }
@@ -353,6 +364,7 @@ fn expr(src: &Source, node: Node<'_, '_>, resolve: &dyn Fn(&str) -> Option<usize
         "ci" => {
             let name = text_of(node);
             resolve(&name).map(Expr::Var).ok_or_else(|| {
+                let name = shown(&name);
                 src.err(
                     node,
                     format!(
@@ -391,7 +403,7 @@ fn cn(src: &Source, node: Node<'_, '_>) -> Result<f64> {
     };
     let num = |s: &str| -> Result<f64> {
         s.parse::<f64>()
-            .map_err(|_| src.err(node, format!("'{s}' is not a number")))
+            .map_err(|_| src.err(node, format!("'{}' is not a number", shown(s))))
     };
     match (node.attribute("type"), parts.as_slice()) {
         (_, [one]) => num(one),
@@ -411,17 +423,17 @@ fn piecewise(
     for k in elements(node) {
         match k.tag_name().name() {
             "piece" => {
-                let parts: Vec<Node> = elements(k).collect();
-                let [v, c] = parts.as_slice() else {
+                let mut parts = elements(k);
+                let (Some(v), Some(c), None) = (parts.next(), parts.next(), parts.next()) else {
                     return Err(src.err(
                         k,
                         format!(
                             "has {} children; a piece holds a value then a condition",
-                            parts.len()
+                            elements(k).count()
                         ),
                     ));
                 };
-                pieces.push((expr(src, *v, resolve)?, expr(src, *c, resolve)?));
+                pieces.push((expr(src, v, resolve)?, expr(src, c, resolve)?));
             }
             "otherwise" => otherwise = Some(Box::new(compile_checked(src, k, resolve)?)),
             _ => {
@@ -448,22 +460,24 @@ fn apply(
     node: Node<'_, '_>,
     resolve: &dyn Fn(&str) -> Option<usize>,
 ) -> Result<Expr> {
-    let kids: Vec<Node> = elements(node).collect();
-    let Some((&op_node, rest)) = kids.split_first() else {
+    // The children are walked, not collected: an <apply> may have many.
+    let mut kids = elements(node);
+    let Some(op_node) = kids.next() else {
         return Err(src.err(node, "is empty; give an operator and its arguments"));
     };
-    let op = op_name(op_node);
+    let n_rest = elements(node).count() - 1;
+    let op = shown(&op_name(op_node));
     // `<apply><piecewise>...</piecewise></apply>` (F16_aero.dml) is the piecewise itself.
-    if rest.is_empty() && matches!(op.as_str(), "piecewise" | "ci" | "cn" | "apply") {
+    if n_rest == 0 && matches!(op.as_str(), "piecewise" | "ci" | "cn" | "apply") {
         return expr(src, op_node, resolve);
     }
     // Qualifiers (degree, logbase) come first among the arguments.
     let mut qualifier = None;
-    let mut args = Vec::with_capacity(rest.len());
-    for a in rest {
+    let mut args = Vec::with_capacity(n_rest);
+    for a in kids {
         match a.tag_name().name() {
-            "degree" | "logbase" => qualifier = Some(compile_checked(src, *a, resolve)?),
-            _ => args.push(expr(src, *a, resolve)?),
+            "degree" | "logbase" => qualifier = Some(compile_checked(src, a, resolve)?),
+            _ => args.push(expr(src, a, resolve)?),
         }
     }
     build(src, op_node, &op, args, qualifier)

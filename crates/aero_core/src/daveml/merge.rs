@@ -64,7 +64,7 @@ pub fn merge_xml(base: &str, base_name: &str, add: &ModelSpec) -> Result<String>
     }
 
     // Same byte offsets as `base` (the document type declaration is blanked).
-    let xml = super::without_doctype(base, base_name)?;
+    let xml = super::xml_text(base, base_name)?;
     let doc = super::parse_document(&xml, base_name)?;
     let root = doc.root_element();
     let kids: Vec<_> = root.children().filter(|n| n.is_element()).collect();

@@ -45,18 +45,194 @@ pub use write::{mathml_of, to_xml, write_model, CalcSpec, ModelSpec};
 use std::borrow::Cow;
 
 use crate::error::AeroError;
+use crate::text::{one_line, shown};
 
-/// The text to hand to the XML parser: `text` with its document type
-/// declaration (`<!DOCTYPE ...>`), if any, blanked out byte for byte (line
-/// breaks kept), so byte offsets and lines are those of `text`. The public
-/// models carry one naming the external DAVE-ML DTD, which is never read.
+/// Most attributes one element may have (DAVE-ML elements have a handful; the
+/// XML parser checks them for duplicates pairwise).
+pub const MAX_ATTRIBUTES: usize = 64;
+
+/// Most distinct namespace prefixes (`xmlns`, `xmlns:p`) a file may declare
+/// (DAVE-ML files use one to three; the XML parser copies those in scope into
+/// every element declaring one).
+pub const MAX_NAMESPACES: usize = 64;
+
+/// The text to hand to the XML parser, byte for byte as long as `text`
+/// (line breaks kept), so byte offsets and lines are those of `text`:
+/// - the document type declaration (`<!DOCTYPE ...>`), if any, blanked out
+///   (the public models carry one naming the external DAVE-ML DTD, which is
+///   never read);
+/// - `<` and `=` inside comments and processing instructions blanked: the
+///   reader never looks there, and the XML parser reserves some 70 bytes of
+///   memory for every `<` and `=` of the file before it starts.
 ///
 /// Refused with an error naming the file and line: an internal subset that
 /// declares entities (`<!ENTITY ...>`). DAVE-ML needs none, and expanding them
 /// is how a file of a few hundred kilobytes becomes gigabytes of text
 /// ("billion laughs", quadratic blowup). Parsing the result with DTDs
-/// disallowed then also refuses any declaration this scan did not find.
-pub(crate) fn without_doctype<'a>(text: &'a str, file: &str) -> crate::Result<Cow<'a, str>> {
+/// disallowed then also refuses any declaration this scan did not find. Also
+/// refused: an element with more than [`MAX_ATTRIBUTES`] attributes, more
+/// than [`MAX_NAMESPACES`] namespace prefixes (the XML parser's time grows
+/// with their square).
+pub(crate) fn xml_text<'a>(text: &'a str, file: &str) -> crate::Result<Cow<'a, str>> {
+    let line = |pos: usize| {
+        1 + text.as_bytes()[..pos.min(text.len())]
+            .iter()
+            .filter(|&&c| c == b'\n')
+            .count()
+    };
+    let doctype = doctype_span(text, file)?;
+    let blank = markup_scan(text.as_bytes(), doctype, file, &line)?;
+    if doctype.is_none() && blank.is_empty() {
+        return Ok(Cow::Borrowed(text));
+    }
+    let mut out = text.as_bytes().to_vec();
+    if let Some((start, end)) = doctype {
+        for c in &mut out[start..end] {
+            if *c != b'\n' {
+                *c = b' ';
+            }
+        }
+    }
+    for (start, end) in blank {
+        for c in &mut out[start..end] {
+            if matches!(*c, b'<' | b'=') {
+                *c = b' ';
+            }
+        }
+    }
+    // Only ASCII bytes were replaced by ASCII: still UTF-8.
+    String::from_utf8(out)
+        .map(Cow::Owned)
+        .map_err(|e| AeroError::parse(file, 1, format!("not UTF-8 text: {e}")))
+}
+
+/// Byte offset of the first `pat` in `b` at or after `from`.
+fn find(b: &[u8], from: usize, pat: &[u8]) -> Option<usize> {
+    b.get(from..)
+        .and_then(|rest| rest.windows(pat.len()).position(|w| w == pat))
+        .map(|k| from + k)
+}
+
+/// Outside the document type declaration `doctype`: the spans of comments
+/// and processing instructions (not the XML declaration) holding a `<` or
+/// `=`, and the limits on attributes and namespace declarations. Stops
+/// quietly at anything unterminated: the XML parser names the problem.
+fn markup_scan(
+    b: &[u8],
+    doctype: Option<(usize, usize)>,
+    file: &str,
+    line: &dyn Fn(usize) -> usize,
+) -> crate::Result<Vec<(usize, usize)>> {
+    let mut blank = Vec::new();
+    let mut prefixes: std::collections::HashSet<&[u8]> = std::collections::HashSet::new();
+    let declaration_at = usize::from(b.starts_with(&[0xEF, 0xBB, 0xBF])) * 3;
+    let mut i = 0;
+    let holds = |s: usize, e: usize| b[s..e].iter().any(|&c| matches!(c, b'<' | b'='));
+    while let Some(k) = b.get(i..).and_then(|r| r.iter().position(|&c| c == b'<')) {
+        let s = i + k;
+        let rest = &b[s..];
+        if let Some((_, end)) = doctype.filter(|d| d.0 == s) {
+            i = end;
+        } else if rest.starts_with(b"<!--") {
+            let Some(e) = find(b, s + 4, b"-->") else {
+                break;
+            };
+            if holds(s + 4, e) {
+                blank.push((s + 4, e));
+            }
+            i = e + 3;
+        } else if rest.starts_with(b"<![CDATA[") {
+            let Some(e) = find(b, s + 9, b"]]>") else {
+                break;
+            };
+            i = e + 3;
+        } else if rest.starts_with(b"<?") {
+            let Some(e) = find(b, s + 2, b"?>") else {
+                break;
+            };
+            let declaration = s == declaration_at
+                && rest.starts_with(b"<?xml")
+                && rest
+                    .get(5)
+                    .is_some_and(|c| c.is_ascii_whitespace() || *c == b'?');
+            if !declaration && holds(s + 2, e) {
+                blank.push((s + 2, e));
+            }
+            i = e + 2;
+        } else if rest.starts_with(b"<!") {
+            i = s + 2;
+        } else {
+            // A tag: up to '>' outside quotes, counting attributes ('=')
+            // and namespace declarations.
+            let (mut j, mut quote, mut attributes) = (s + 1, None, 0usize);
+            let end = loop {
+                let Some(&c) = b.get(j) else { break None };
+                match (quote, c) {
+                    (Some(q), c) if c == q => quote = None,
+                    (Some(_), _) => {}
+                    (None, b'"' | b'\'') => quote = Some(c),
+                    (None, b'>') => break Some(j),
+                    (None, b'=') => attributes += 1,
+                    (None, c) if c.is_ascii_whitespace() => {
+                        let name = &b[j + 1..];
+                        if name.starts_with(b"xmlns")
+                            && name
+                                .get(5)
+                                .is_some_and(|&d| d == b':' || d == b'=' || d.is_ascii_whitespace())
+                        {
+                            let len = name
+                                .iter()
+                                .position(|&d| d == b'=' || d.is_ascii_whitespace())
+                                .unwrap_or(name.len());
+                            prefixes.insert(&name[..len]);
+                        }
+                    }
+                    (None, _) => {}
+                }
+                j += 1;
+            };
+            let Some(end) = end else { break };
+            let tag = || {
+                let name: Vec<u8> = b[s + 1..end]
+                    .iter()
+                    .take_while(|c| !c.is_ascii_whitespace() && !matches!(c, b'/' | b'>'))
+                    .copied()
+                    .collect();
+                shown(&String::from_utf8_lossy(&name))
+            };
+            if attributes > MAX_ATTRIBUTES {
+                return Err(AeroError::parse(
+                    file,
+                    line(s),
+                    format!(
+                        "<{}> has {attributes} attributes; at most {MAX_ATTRIBUTES} are read \
+                         (DAVE-ML elements have a handful); remove the others",
+                        tag()
+                    ),
+                ));
+            }
+            if prefixes.len() > MAX_NAMESPACES {
+                return Err(AeroError::parse(
+                    file,
+                    line(s),
+                    format!(
+                        "<{}>: the file declares more than {MAX_NAMESPACES} XML namespace \
+                         prefixes (DAVE-ML files use one to three); remove the others",
+                        tag()
+                    ),
+                ));
+            }
+            i = end + 1;
+        }
+    }
+    Ok(blank)
+}
+
+/// The span of the document type declaration (`<!DOCTYPE ...>`), if any.
+///
+/// # Errors
+/// An internal subset declaring entities, or a declaration not closed.
+fn doctype_span(text: &str, file: &str) -> crate::Result<Option<(usize, usize)>> {
     let b = text.as_bytes();
     let line = |pos: usize| {
         1 + b[..pos.min(b.len())]
@@ -64,11 +240,7 @@ pub(crate) fn without_doctype<'a>(text: &'a str, file: &str) -> crate::Result<Co
             .filter(|&&c| c == b'\n')
             .count()
     };
-    let find = |from: usize, pat: &[u8]| {
-        b.get(from..)
-            .and_then(|rest| rest.windows(pat.len()).position(|w| w == pat))
-            .map(|k| from + k)
-    };
+    let find = |from: usize, pat: &[u8]| find(b, from, pat);
     let skip_ws = |mut i: usize| {
         while b.get(i).is_some_and(u8::is_ascii_whitespace) {
             i += 1;
@@ -93,11 +265,11 @@ pub(crate) fn without_doctype<'a>(text: &'a str, file: &str) -> crate::Result<Co
         match end {
             Some(e) => i = e,
             // Unterminated: the XML parser names the problem.
-            None => return Ok(Cow::Borrowed(text)),
+            None => return Ok(None),
         }
     }
     if !b[i..].starts_with(b"<!DOCTYPE") {
-        return Ok(Cow::Borrowed(text));
+        return Ok(None);
     }
     let start = i;
     let unclosed = || {
@@ -148,7 +320,7 @@ pub(crate) fn without_doctype<'a>(text: &'a str, file: &str) -> crate::Result<Co
                 let name_end = (k..b.len())
                     .find(|&e| b[e].is_ascii_whitespace() || b[e] == b'>')
                     .unwrap_or(b.len());
-                let name = String::from_utf8_lossy(&b[k..name_end]);
+                let name = shown(&String::from_utf8_lossy(&b[k..name_end]));
                 return Err(AeroError::parse(
                     file,
                     line(j),
@@ -185,19 +357,10 @@ pub(crate) fn without_doctype<'a>(text: &'a str, file: &str) -> crate::Result<Co
             }
         }
     }
-    let mut out = b.to_vec();
-    for c in &mut out[start..j] {
-        if *c != b'\n' {
-            *c = b' ';
-        }
-    }
-    // Only whole ASCII-delimited bytes were replaced by ASCII: still UTF-8.
-    String::from_utf8(out)
-        .map(Cow::Owned)
-        .map_err(|e| AeroError::parse(file, line(start), format!("not UTF-8 text: {e}")))
+    Ok(Some((start, j)))
 }
 
-/// Parse XML `text` (from [`without_doctype`]) with document type declarations
+/// Parse XML `text` (from [`xml_text`]) with document type declarations
 /// refused, naming `file` and the line of a syntax error.
 pub(crate) fn parse_document<'t>(
     text: &'t str,
@@ -216,7 +379,7 @@ pub(crate) fn parse_document<'t>(
                 "a <!DOCTYPE> declaration where the XML prolog cannot hold one; put it before \
                  the root element, after the XML declaration and comments",
             ),
-            e => AeroError::parse(file, row, format!("malformed XML: {e}")),
+            e => AeroError::parse(file, row, one_line(&format!("malformed XML: {e}"))),
         }
     })
 }
@@ -253,7 +416,7 @@ impl Source {
         AeroError::parse(
             self.file.clone(),
             self.line(node),
-            format!("{}: {}", describe(node), msg.as_ref()),
+            one_line(&format!("{}: {}", describe(node), msg.as_ref())),
         )
     }
 }
@@ -263,10 +426,10 @@ pub(crate) fn describe(node: roxmltree::Node<'_, '_>) -> String {
     let tag = node.tag_name().name();
     for key in ["varID", "bpID", "gtID", "name"] {
         if let Some(v) = node.attribute(key) {
-            return format!("<{tag} {key}=\"{v}\">");
+            return format!("<{} {key}=\"{}\">", shown(tag), shown(v));
         }
     }
-    format!("<{tag}>")
+    format!("<{}>", shown(tag))
 }
 
 /// Parse a list of numbers separated by commas and/or white space, naming the
@@ -286,7 +449,8 @@ pub(crate) fn parse_numbers(
                 src.err(
                     node,
                     format!(
-                        "'{tok}' is not a number (value {} of the list)",
+                        "'{}' is not a number (value {} of the list)",
+                        shown(tok),
                         out.len() + 1
                     ),
                 )

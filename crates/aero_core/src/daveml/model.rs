@@ -2,13 +2,14 @@
 //! variable in a topological order fixed at load, each limited to its
 //! `minValue`/`maxValue`.
 
-use std::collections::HashMap;
+use std::collections::{HashMap, HashSet};
 use std::path::Path;
 
 use super::check::Shot;
 use super::mathml::Expr;
 use crate::error::{AeroError, Result};
 use crate::table::{Table, MAX_DIMS};
+use crate::text::shown;
 
 /// One `variableDef`.
 #[derive(Debug, Clone, PartialEq)]
@@ -136,8 +137,31 @@ impl DaveModel {
     /// cases whose units differ from the variable's.
     pub fn from_file(path: impl AsRef<Path>) -> Result<Self> {
         let path = path.as_ref();
-        let text = std::fs::read_to_string(path).map_err(|e| AeroError::io(path, e))?;
-        Self::from_str(&text, &path.display().to_string())
+        let bytes = std::fs::read(path).map_err(|e| AeroError::io(path, e))?;
+        Self::from_bytes(&bytes, &path.display().to_string())
+    }
+
+    /// Compile DAVE-ML bytes (the contents of a file); `name` names the file
+    /// in messages.
+    ///
+    /// # Errors
+    /// As [`DaveModel::from_str`]; bytes that are not UTF-8 are a parse error
+    /// naming the line and byte offset of the first bad byte.
+    pub fn from_bytes(bytes: &[u8], name: &str) -> Result<Self> {
+        let text = std::str::from_utf8(bytes).map_err(|e| {
+            let at = e.valid_up_to();
+            let line = 1 + bytes[..at].iter().filter(|&&c| c == b'\n').count();
+            AeroError::parse(
+                name,
+                line,
+                format!(
+                    "not UTF-8 text: byte 0x{:02X} at offset {at} is not valid UTF-8; \
+                     save the file as UTF-8",
+                    bytes[at]
+                ),
+            )
+        })?;
+        Self::from_str(text, name)
     }
 
     /// Compile DAVE-ML text; `name` names the file in messages.
@@ -198,9 +222,10 @@ impl DaveModel {
     ) -> Result<Vec<usize>> {
         let mut idx = Vec::new();
         for id in ids {
+            let place = || format!("model '{}', input '{}'", shown(&self.name), shown(id));
             let Some(i) = self.index_of(id) else {
                 return Err(AeroError::invalid(
-                    format!("model '{}', input '{id}'", self.name),
+                    place(),
                     format!(
                         "is not a varID of the model; its inputs are {}",
                         self.input_list()
@@ -209,19 +234,27 @@ impl DaveModel {
             };
             if !self.is_free(i) {
                 return Err(AeroError::invalid(
-                    format!("model '{}', input '{id}'", self.name),
+                    place(),
                     "is computed by the model and cannot be set; pass only its inputs",
                 ));
             }
             idx.push(i);
         }
-        for &r in &self.required {
-            if !idx.contains(&r) {
+        // Every required input is given when as many distinct ones are
+        // among them as there are (linear: a file may have many of both).
+        let given: HashSet<usize> = idx
+            .iter()
+            .copied()
+            .filter(|&i| self.vars[i].initial_value.is_none())
+            .collect();
+        if given.len() != self.required.len() {
+            if let Some(&r) = self.required.iter().find(|r| !given.contains(r)) {
                 return Err(AeroError::invalid(
-                    format!("model '{}'", self.name),
+                    format!("model '{}'", shown(&self.name)),
                     format!(
                         "input '{}' ({}) is missing and has no initialValue; give it a value",
-                        self.vars[r].id, self.vars[r].name
+                        shown(&self.vars[r].id),
+                        shown(&self.vars[r].name)
                     ),
                 ));
             }
@@ -231,7 +264,7 @@ impl DaveModel {
 
     fn input_list(&self) -> String {
         let ids: Vec<&str> = self.inputs().iter().map(|v| v.id.as_str()).collect();
-        ids.join(", ")
+        shown(&ids.join(", "))
     }
 
     /// Evaluate every variable for inputs given as `(varID, value)`; inputs not

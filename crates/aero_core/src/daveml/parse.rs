@@ -3,24 +3,27 @@
 //! its line.
 
 use std::collections::HashMap;
+use std::sync::Arc;
 
 use roxmltree::Node;
 
 use super::check::parse_check_data;
 use super::mathml;
 use super::model::{DaveModel, Def, Locator, Variable};
-use super::{child, elements, parse_document, parse_numbers, text_of, without_doctype, Source};
+use super::{child, elements, parse_document, parse_numbers, text_of, xml_text, Source};
 use crate::error::{AeroError, Result};
 use crate::table::{Axis, Extrapolation, Table, MAX_DIMS};
+use crate::text::shown;
 
 fn opt_f64(src: &Source, node: Node<'_, '_>, attr: &str) -> Result<Option<f64>> {
     match node.attribute(attr) {
         None => Ok(None),
-        Some(s) => s
-            .trim()
-            .parse::<f64>()
-            .map(Some)
-            .map_err(|_| src.err(node, format!("attribute {attr}=\"{s}\" is not a number"))),
+        Some(s) => s.trim().parse::<f64>().map(Some).map_err(|_| {
+            src.err(
+                node,
+                format!("attribute {attr}=\"{}\" is not a number", shown(s)),
+            )
+        }),
     }
 }
 
@@ -32,7 +35,7 @@ fn req_attr<'a>(src: &Source, node: Node<'a, '_>, attr: &str) -> Result<&'a str>
 /// Parse a whole DAVE-ML document.
 pub(crate) fn parse(text: &str, file: &str) -> Result<DaveModel> {
     let src = Source::new(file, text);
-    let xml = without_doctype(text, file)?;
+    let xml = xml_text(text, file)?;
     let doc = parse_document(&xml, file)?;
     let root = doc.root_element();
     if root.tag_name().name() != "DAVEfunc" {
@@ -63,7 +66,8 @@ pub(crate) fn parse(text: &str, file: &str) -> Result<DaveModel> {
             return Err(src.err(
                 v,
                 format!(
-                    "varID '{id}' is already declared on line {prev_line}; varIDs must be unique"
+                    "varID '{}' is already declared on line {prev_line}; varIDs must be unique",
+                    shown(&id)
                 ),
             ));
         }
@@ -103,8 +107,9 @@ pub(crate) fn parse(text: &str, file: &str) -> Result<DaveModel> {
         defined_at[i] = src.line(c);
     }
 
-    // Breakpoint sets, checked strictly increasing.
-    let mut bps: HashMap<String, Vec<f64>> = HashMap::new();
+    // Breakpoint sets, checked strictly increasing once: the tables using a
+    // set share its breakpoints.
+    let mut bps: HashMap<String, Axis> = HashMap::new();
     for b in root
         .descendants()
         .filter(|n| n.tag_name().name() == "breakpointDef")
@@ -112,8 +117,8 @@ pub(crate) fn parse(text: &str, file: &str) -> Result<DaveModel> {
         let id = req_attr(&src, b, "bpID")?.trim().to_string();
         let vals_node = child(b, "bpVals").ok_or_else(|| src.err(b, "holds no <bpVals>"))?;
         let vals = parse_numbers(&src, vals_node)?;
-        Axis::new(id.clone(), vals.clone()).map_err(|e| src.err(b, e.to_string()))?;
-        bps.insert(id, vals);
+        let axis = Axis::new(id.clone(), vals).map_err(|e| src.err(b, e.to_string()))?;
+        bps.insert(id, axis);
     }
 
     // Shared gridded tables by gtID.
@@ -127,15 +132,17 @@ pub(crate) fn parse(text: &str, file: &str) -> Result<DaveModel> {
         }
     }
 
-    // Functions.
+    // Functions. The values of a gridded table are read once, however many
+    // functions reference it (a griddedTableRef).
+    let mut data: HashMap<roxmltree::NodeId, Arc<Vec<f64>>> = HashMap::new();
     for f in elements(root).filter(|n| n.tag_name().name() == "function") {
-        let (dep, def) = function(&src, f, &resolve, &bps, &gts)?;
+        let (dep, def) = function(&src, f, &resolve, &bps, &gts, &mut data)?;
         if defined_at[dep] != 0 {
             return Err(src.err(
                 f,
                 format!(
                     "defines variable '{}' which is already defined on line {}; a variable has one calculation or one function",
-                    vars[dep].id, defined_at[dep]
+                    shown(&vars[dep].id), defined_at[dep]
                 ),
             ));
         }
@@ -173,26 +180,45 @@ pub(crate) fn parse(text: &str, file: &str) -> Result<DaveModel> {
 
 /// One [`Locator`] per distinct (variable, axis) pair among the tables, so a
 /// point locates e.g. alpha in a breakpoint set once for all tables sharing it.
+/// Found by hashing, in time linear in the tables: each distinct breakpoint
+/// set is hashed by content once.
 fn share_locators(defs: &mut [Def]) -> Vec<Locator> {
+    /// (variable, axis name, breakpoint set, below, above, min, max).
+    type Key = (usize, String, usize, u8, u8, Option<u64>, Option<u64>);
     let mut locators: Vec<Locator> = Vec::new();
+    let mut by_alloc: HashMap<(usize, usize), usize> = HashMap::new();
+    let mut by_content: HashMap<Vec<u64>, usize> = HashMap::new();
+    let mut by_key: HashMap<Key, usize> = HashMap::new();
     for d in defs.iter_mut() {
         if let Def::Table { table, args, locs } = d {
             locs.clear();
             for (k, &var) in args.iter().enumerate() {
                 let axis = &table.axes()[k];
-                let l = match locators
-                    .iter()
-                    .position(|l| l.var == var && &l.axis == axis)
-                {
-                    Some(l) => l,
-                    None => {
-                        locators.push(Locator {
-                            var,
-                            axis: axis.clone(),
-                        });
-                        locators.len() - 1
-                    }
-                };
+                let bp = axis.breakpoints();
+                let set = *by_alloc
+                    .entry((bp.as_ptr() as usize, bp.len()))
+                    .or_insert_with(|| {
+                        let next = by_content.len();
+                        *by_content
+                            .entry(bp.iter().map(|x| x.to_bits()).collect())
+                            .or_insert(next)
+                    });
+                let key = (
+                    var,
+                    axis.name.clone(),
+                    set,
+                    axis.below as u8,
+                    axis.above as u8,
+                    axis.min.map(f64::to_bits),
+                    axis.max.map(f64::to_bits),
+                );
+                let l = *by_key.entry(key).or_insert_with(|| {
+                    locators.push(Locator {
+                        var,
+                        axis: axis.clone(),
+                    });
+                    locators.len() - 1
+                });
                 locs.push(l);
             }
         }
@@ -218,7 +244,10 @@ fn extrapolation(src: &Source, node: Node<'_, '_>) -> Result<(Extrapolation, Ext
         if i != "linear" {
             return Err(src.err(
                 node,
-                format!("interpolate=\"{i}\" is not supported; only linear interpolation is"),
+                format!(
+                    "interpolate=\"{}\" is not supported; only linear interpolation is",
+                    shown(i)
+                ),
             ));
         }
     }
@@ -229,7 +258,10 @@ fn extrapolation(src: &Source, node: Node<'_, '_>) -> Result<(Extrapolation, Ext
         Some("both") => Ok((Linear, Linear)),
         Some(other) => Err(src.err(
             node,
-            format!("extrapolate=\"{other}\" is not one of neither, min, max, both"),
+            format!(
+                "extrapolate=\"{}\" is not one of neither, min, max, both",
+                shown(other)
+            ),
         )),
     }
 }
@@ -249,6 +281,7 @@ fn var_ref(
 ) -> Result<usize> {
     let id = req_attr(src, node, "varID")?;
     resolve(id).ok_or_else(|| {
+        let id = shown(id);
         src.err(
             node,
             format!("unknown varID '{id}'; declare it with a <variableDef varID=\"{id}\">"),
@@ -260,8 +293,9 @@ fn function(
     src: &Source,
     f: Node<'_, '_>,
     resolve: &dyn Fn(&str) -> Option<usize>,
-    bps: &HashMap<String, Vec<f64>>,
+    bps: &HashMap<String, Axis>,
     gts: &HashMap<String, Node>,
+    data: &mut HashMap<roxmltree::NodeId, Arc<Vec<f64>>>,
 ) -> Result<(usize, Def)> {
     let fname = f.attribute("name").unwrap_or("");
     // Simple form: independentVarPts+ then dependentVarPts.
@@ -329,6 +363,7 @@ fn function(
         "griddedTableRef" => {
             let id = req_attr(src, tnode, "gtID")?.trim();
             *gts.get(id).ok_or_else(|| {
+                let id = shown(id);
                 src.err(
                     tnode,
                     format!("unknown gtID '{id}'; no <griddedTableDef gtID=\"{id}\"> in the file"),
@@ -338,7 +373,11 @@ fn function(
         other => {
             return Err(src.err(
                 tnode,
-                format!("<{other}> is not supported; only gridded tables are (function '{fname}')"),
+                format!(
+                    "<{}> is not supported; only gridded tables are (function '{}')",
+                    shown(other),
+                    shown(fname)
+                ),
             ))
         }
     };
@@ -371,24 +410,35 @@ fn function(
     let mut args = Vec::with_capacity(refs.len());
     for (r, (iv_node, iv)) in refs.iter().zip(ivs) {
         let id = req_attr(src, *r, "bpID")?.trim();
-        let vals = bps.get(id).ok_or_else(|| {
-            src.err(
-                *r,
-                format!("unknown bpID '{id}'; no <breakpointDef bpID=\"{id}\"> in the file"),
-            )
-        })?;
-        let axis = Axis::new(iv_node.attribute("varID").unwrap_or(id), vals.clone())
-            .map_err(|e| src.err(*r, e.to_string()))?
+        let mut axis = bps
+            .get(id)
+            .ok_or_else(|| {
+                let id = shown(id);
+                src.err(
+                    *r,
+                    format!("unknown bpID '{id}'; no <breakpointDef bpID=\"{id}\"> in the file"),
+                )
+            })?
+            .clone();
+        axis.name = iv_node.attribute("varID").unwrap_or(id).to_string();
+        let axis = axis
             .with_extrapolation(iv.below, iv.above)
             .with_limits(iv.min, iv.max)
             .map_err(|e| src.err(iv_node, e.to_string()))?;
         axes.push(axis);
         args.push(iv.var);
     }
-    let data =
+    let data_node =
         child(table_node, "dataTable").ok_or_else(|| src.err(table_node, "has no <dataTable>"))?;
-    let values = parse_numbers(src, data)?;
-    let table = Table::new(axes, values).map_err(|e| src.err(table_node, e.to_string()))?;
+    let values = match data.get(&data_node.id()) {
+        Some(v) => v.clone(),
+        None => {
+            let v = Arc::new(parse_numbers(src, data_node)?);
+            data.insert(data_node.id(), v.clone());
+            v
+        }
+    };
+    let table = Table::from_shared(axes, values).map_err(|e| src.err(table_node, e.to_string()))?;
     Ok((
         dep,
         Def::Table {
@@ -448,13 +498,13 @@ fn topological_order(
                     }
                     Mark::Active => {
                         let pos = stack.iter().position(|&(s, _)| s == d).unwrap_or(0);
-                        let mut cycle: Vec<&str> = stack[pos..]
+                        let mut cycle: Vec<String> = stack[pos..]
                             .iter()
-                            .map(|&(s, _)| vars[s].id.as_str())
+                            .map(|&(s, _)| shown(&vars[s].id))
                             .collect();
-                        cycle.push(vars[d].id.as_str());
+                        cycle.push(shown(&vars[d].id));
                         // A long cycle is shown by its ends, to keep the message one short line.
-                        let shown = if cycle.len() > 12 {
+                        let ends = if cycle.len() > 12 {
                             format!(
                                 "of {} variables {} -> ... -> {}",
                                 cycle.len() - 1,
@@ -468,8 +518,8 @@ fn topological_order(
                             src.file.clone(),
                             defined_at[d],
                             format!(
-                                "<variableDef varID=\"{}\">: dependency cycle {shown}; break it so no variable depends on itself",
-                                vars[d].id,
+                                "<variableDef varID=\"{}\">: dependency cycle {ends}; break it so no variable depends on itself",
+                                shown(&vars[d].id),
                             ),
                         ));
                     }
