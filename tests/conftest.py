@@ -32,3 +32,13 @@ def daveml_dir() -> Path:
             pytest.fail(f"{msg} (AERODELTA_REQUIRE_SHARED is set: CI runs the reference checks)")
         pytest.skip(msg)
     return d
+
+
+@pytest.fixture(scope="session")
+def quick_campaign(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The quick virtual campaign, seed 5, generated once for the session (read only)."""
+    import aerodelta as ad  # noqa: PLC0415  (the DAVE-ML checks above need no engine)
+
+    out = tmp_path_factory.mktemp("quick5") / "camp"
+    ad.generate_campaign(out, seed=5, size="quick", progress=False)
+    return out

@@ -15,10 +15,8 @@ from aerodelta.fit import DEFAULT_STRUCTURES, model_frame
 
 
 @pytest.fixture(scope="module")
-def campaign(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    out = tmp_path_factory.mktemp("fit") / "camp"
-    ad.generate_campaign(out, seed=5, size="quick", progress=False)
-    return out
+def campaign(quick_campaign: Path) -> Path:
+    return quick_campaign
 
 
 @pytest.fixture(scope="module")

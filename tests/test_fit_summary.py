@@ -16,10 +16,8 @@ Row = tuple[str, float, str, str]
 
 
 @pytest.fixture(scope="module")
-def campaign(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    out = tmp_path_factory.mktemp("summary") / "camp"
-    ad.generate_campaign(out, seed=5, size="quick", progress=False)
-    return out
+def campaign(quick_campaign: Path) -> Path:
+    return quick_campaign
 
 
 @pytest.fixture(scope="module")
