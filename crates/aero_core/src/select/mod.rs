@@ -98,34 +98,17 @@ pub struct BinGrams {
 
 impl BinStats {
     /// Weighted sum over maneuvers (`weights[k]` for the k-th maneuver of the
-    /// bin, or all ones): Gram matrix, sums and number of samples.
+    /// bin, or all ones): Gram matrix, sums and number of samples ([`BinStats::fold_totals`]
+    /// with one fold).
     pub fn total(&self, dim: usize, weights: Option<&[f64]>) -> (Vec<f64>, Vec<f64>, f64) {
-        let mut g = vec![0.0; dim * dim];
-        let mut s = vec![0.0; dim];
-        let mut n = 0.0;
-        for k in 0..self.maneuvers.len() {
-            let w = weights.map_or(1.0, |w| w[k]);
-            if w == 0.0 {
-                continue;
-            }
-            n += w * self.n[k] as f64;
-            for (a, b) in g
-                .iter_mut()
-                .zip(&self.gram[k * dim * dim..(k + 1) * dim * dim])
-            {
-                *a += w * b;
-            }
-            for (a, b) in s.iter_mut().zip(&self.sums[k * dim..(k + 1) * dim]) {
-                *a += w * b;
-            }
-        }
-        (g, s, n)
+        let mut one = self.fold_totals(dim, 1, |_| Some(0), |k| weights.map_or(1.0, |w| w[k]));
+        one.pop()
+            .unwrap_or_else(|| (vec![0.0; dim * dim], vec![0.0; dim], 0.0))
     }
 
-    /// [`BinStats::total`] per fold in one pass over the maneuvers: the k-th maneuver of
-    /// the bin adds `weight(k)` times its sums to fold `fold(k)` (none: to no fold). Each
-    /// fold's sums come out bit for bit as `total` with the fold's weights (the same
-    /// maneuvers in the same order).
+    /// Weighted sums per fold in one pass over the maneuvers: the k-th maneuver of the bin
+    /// adds `weight(k)` times its Gram matrix, sums and sample count to fold `fold(k)` (none:
+    /// to no fold), maneuvers in order; a zero weight adds nothing.
     pub fn fold_totals(
         &self,
         dim: usize,
