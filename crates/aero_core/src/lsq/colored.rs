@@ -32,7 +32,8 @@
 //! truncated, not tapered, estimate: `S` is then recomputed from the
 //! truncated sequence and may have negative values).
 
-use std::sync::{Arc, Mutex, OnceLock};
+use std::collections::BTreeMap;
+use std::sync::{Arc, Mutex};
 
 use faer::Mat;
 use realfft::num_complex::Complex;
@@ -69,16 +70,63 @@ pub fn fast_len(n: usize) -> usize {
 type Fwd = Arc<dyn RealToComplex<f64>>;
 type Inv = Arc<dyn ComplexToReal<f64>>;
 
-/// One planner for the process: FFT plans (twiddles) are cached by length,
-/// so repeated fits on the same number of rows skip the planning.
+/// FFT plans cached by length, each made by a **fresh** planner.
+///
+/// rustfft's planner builds a transform from the inner transforms it has
+/// already cached, so the decomposition chosen for a length (and the last
+/// bits of its result) depended on which lengths the process-wide planner
+/// had planned before; with bins fitted in parallel that order follows the
+/// threads' timing, and `std_err_colored` differed in the last digit from run
+/// to run (20 of the 300 fast lengths of the test below, 1,000 to 60,000,
+/// gave other bits after a warmed planner). A plan made by a fresh planner
+/// is a function of its length alone; the cache only saves the planning. It
+/// is emptied when the cached lengths sum past [`PLAN_CACHE_MAX`] (results
+/// do not depend on it).
+struct PlanCache<V> {
+    plans: BTreeMap<usize, V>,
+    total_len: usize,
+}
+
+/// Largest sum of the cached transforms' lengths (about 16 bytes of twiddles
+/// per unit of length and kind of plan).
+const PLAN_CACHE_MAX: usize = 1 << 23;
+
+impl<V: Clone> PlanCache<V> {
+    const fn new() -> Self {
+        PlanCache {
+            plans: BTreeMap::new(),
+            total_len: 0,
+        }
+    }
+
+    fn get(&mut self, len: usize, make: impl FnOnce() -> V) -> V {
+        if let Some(v) = self.plans.get(&len) {
+            return v.clone();
+        }
+        if self.total_len + len > PLAN_CACHE_MAX {
+            self.plans.clear();
+            self.total_len = 0;
+        }
+        let v = make();
+        self.plans.insert(len, v.clone());
+        self.total_len += len;
+        v
+    }
+}
+
+type PlanMap<V> = Mutex<PlanCache<V>>;
+
+fn locked<V>(m: &'static PlanMap<V>) -> std::sync::MutexGuard<'static, PlanCache<V>> {
+    m.lock().unwrap_or_else(|poisoned| poisoned.into_inner())
+}
+
+/// The forward (and, with `inverse`, the inverse) real transform of length
+/// `l`, each made by a fresh planner ([`PlanCache`]).
 fn plans(l: usize, inverse: bool) -> (Fwd, Option<Inv>) {
-    static PLANNER: OnceLock<Mutex<RealFftPlanner<f64>>> = OnceLock::new();
-    let mut pl = PLANNER
-        .get_or_init(|| Mutex::new(RealFftPlanner::new()))
-        .lock()
-        .unwrap_or_else(|poisoned| poisoned.into_inner());
-    let fwd = pl.plan_fft_forward(l);
-    let inv = inverse.then(|| pl.plan_fft_inverse(l));
+    static FWD: PlanMap<Fwd> = Mutex::new(PlanCache::new());
+    static INV: PlanMap<Inv> = Mutex::new(PlanCache::new());
+    let fwd = locked(&FWD).get(l, || RealFftPlanner::new().plan_fft_forward(l));
+    let inv = inverse.then(|| locked(&INV).get(l, || RealFftPlanner::new().plan_fft_inverse(l)));
     (fwd, inv)
 }
 
@@ -378,14 +426,11 @@ fn even_len_23(n: usize) -> usize {
     best
 }
 
-/// Plans of the complex transforms of the second step (cached by length).
+/// Plans of the complex transforms of the second step, each made by a
+/// fresh planner and cached by length ([`PlanCache`]).
 fn cplx_plan(len: usize) -> Arc<dyn rustfft::Fft<f64>> {
-    static PLANNER: OnceLock<Mutex<rustfft::FftPlanner<f64>>> = OnceLock::new();
-    PLANNER
-        .get_or_init(|| Mutex::new(rustfft::FftPlanner::new()))
-        .lock()
-        .unwrap_or_else(|poisoned| poisoned.into_inner())
-        .plan_fft_forward(len)
+    static PLANS: PlanMap<Arc<dyn rustfft::Fft<f64>>> = Mutex::new(PlanCache::new());
+    locked(&PLANS).get(len, || rustfft::FftPlanner::new().plan_fft_forward(len))
 }
 
 /// The all-lag middle matrix `M` of [`toeplitz_gram_cols`] by a four-step
@@ -607,6 +652,43 @@ fn fourstep_gram(cols: &[Vec<f64>], v: &[f64], l2: usize) -> Result<Mat<f64>> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A plan depends on its length only, not on what was planned before:
+    /// after the cache has planned other lengths (longest first, and their
+    /// doubles, which rustfft's planner would reuse as inner transforms), the
+    /// transform of every length has the bits of a fresh planner's. With the
+    /// process-wide planner this code had, 20 of these 300 lengths differed.
+    #[test]
+    fn plans_do_not_depend_on_what_was_planned_before() {
+        let lens: Vec<usize> = (0..300).map(|i| padded_len(500 + i * 97)).collect();
+        for &l in lens.iter().rev() {
+            plans(l * 2, true);
+            plans(l, false);
+        }
+        let mut seed = 7u64;
+        let mut next = || {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            ((seed >> 11) as f64) / ((1u64 << 53) as f64) - 0.5
+        };
+        let mut differ = Vec::new();
+        for &l in &lens {
+            let x: Vec<f64> = (0..l).map(|_| next()).collect();
+            let run = |f: Fwd| {
+                let mut b = x.clone();
+                let mut o = vec![Complex::new(0.0, 0.0); l / 2 + 1];
+                f.process(&mut b, &mut o).expect("fft");
+                o
+            };
+            let cached = run(plans(l, false).0);
+            let fresh = run(RealFftPlanner::new().plan_fft_forward(l));
+            if cached != fresh {
+                differ.push(l);
+            }
+        }
+        assert!(differ.is_empty(), "lengths planned differently: {differ:?}");
+    }
 
     /// Direct O(N²) double sum, the definition.
     fn direct(x: &[Vec<f64>], v: &[f64], max_lag: Option<usize>) -> Vec<Vec<f64>> {
