@@ -320,7 +320,20 @@ def test_json_contract_keys(diagnoses, tmp_path):
         assert set(r["effects"][0]) >= {
             "effect", "rank", "significant", "ambiguous_with", "alpha_range_deg",
             "gap_rms_before", "gap_rms_after", "shrink_fraction", "statistic", "p_value",
+            "outer_shrink_fraction", "outer_p_value", "outer_chosen_folds",
         }  # fmt: skip
+        assert set(r["outer"]) >= {
+            "folds", "n_maneuvers", "shrink_fraction", "shrink_fraction_timing",
+            "shrink_fraction_effects", "p_value_effects", "chosen_per_fold", "chosen_in_folds",
+        }  # fmt: skip
+        assert r["outer"]["n_maneuvers"] == doc["data"]["n_maneuvers"]
+    # the withheld dihedral effect holds out of sample: chosen in every outer fold, most of
+    # its in-sample shrink kept on maneuvers no choice saw
+    top = doc["coefficients"]["Cl"]["effects"][0]
+    assert top["effect"] == "dihedral" and top["outer_chosen_folds"] == 5
+    assert top["outer_shrink_fraction"] >= 0.8 * top["shrink_fraction"]
+    assert doc["coefficients"]["Cl"]["outer"]["p_value_effects"] < 0.01
+    assert "outer folds" in (tmp_path / "diagnosis.txt").read_text()
 
 
 def test_gap_numbers_match_a_direct_computation(campaigns, diagnoses):

@@ -31,6 +31,7 @@ from aerodelta.diagnosis.cv import (
     solve,
 )
 from aerodelta.diagnosis.data import load_inputs, maneuver_codes
+from aerodelta.diagnosis.nested import effect_outer, outer_evaluation, outer_summary
 from aerodelta.diagnosis.regressors import (
     delayed_controls,
     design_columns,
@@ -91,6 +92,9 @@ class DiagnoseConfig:
         five times the data per parameter; the gap map is per flap either way).
     seed
         Seed of the fold assignment and of the randomization tests.
+    nested
+        Also run the outer-fold evaluation (:mod:`aerodelta.diagnosis.nested`): the selection
+        redone without each fold, scored on it; about ``folds`` times the selection's time.
     """
 
     folds: int = 5
@@ -101,6 +105,7 @@ class DiagnoseConfig:
     measurement: bool = True
     per_flap: bool = False
     seed: int = 0
+    nested: bool = True
 
 
 @dataclass
@@ -511,6 +516,18 @@ def _diagnose(  # noqa: PLR0917 - the arguments of diagnose(), passed through
             "aero": aero_x, "glob": glob_x,
         }  # fmt: skip
         effects, steps_ = _effect_rows(sel, design, stats, rows)
+        outer = None
+        if cfg.nested:
+            ev = outer_evaluation(design, folds_m, cands, cfg.selection)
+            outer = outer_summary(ev, cfg.selection.n_perm, cfg.seed + 17)
+            for i, e in enumerate(effects):
+                share, p_out, k = effect_outer(
+                    ev, e["effect"], cfg.selection.n_perm, cfg.seed + 29 + 2 * i
+                )
+                e["outer_shrink_fraction"] = share
+                e["outer_p_value"] = p_out
+                e["outer_chosen_folds"] = k
+            del ev
         final_pred = steps_[-1][1] if steps_ else np.zeros_like(y)
         pred_cols[f"{coef}_gap"] = y
         pred_cols[f"{coef}_explained"] = final_pred
@@ -535,6 +552,8 @@ def _diagnose(  # noqa: PLR0917 - the arguments of diagnose(), passed through
             "effects": effects,
             "shrink": _shrink_table(y, meas, region_rows, steps_),
         }
+        if outer is not None:
+            coefs[coef]["outer"] = outer
         # this coefficient's rows and statistics go before the next one's are built
         del aero_x, glob_x, design, stats, sel, rows, steps_
     coefs["Cl"]["rolloff"] = {k: v for k, v in ro.items() if k != "centres"}
@@ -557,6 +576,15 @@ def _diagnose(  # noqa: PLR0917 - the arguments of diagnose(), passed through
                 "shrink_fraction": 0.0,
                 "statistic": float(ro["n_events"]),
                 "p_value": ro["p_value"],
+                **(
+                    {
+                        "outer_shrink_fraction": None,
+                        "outer_p_value": None,
+                        "outer_chosen_folds": None,
+                    }
+                    if cfg.nested
+                    else {}
+                ),
             },
         )
         if coefs["Cl"]["verdict"] == "none":
@@ -582,6 +610,7 @@ def _diagnose(  # noqa: PLR0917 - the arguments of diagnose(), passed through
             "ambiguity_p": cfg.selection.ambiguity_p,
             "n_perm": cfg.selection.n_perm,
             "seed": cfg.seed,
+            "nested": cfg.nested,
         },
         "stall_alpha_deg": {str(k): v for k, v in stall.items()},
         "not_testable": not_testable,

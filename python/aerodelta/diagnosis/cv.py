@@ -164,6 +164,35 @@ class Design:
             np.subtract.at(out, self.lowrank_of, (self.lowrank * self.lowrank).T)
         return out
 
+    def subset(self, maneuvers: IntArray) -> Design:
+        """The statistics of ``maneuvers`` only (ascending indices), renumbered ``0..``: the
+        design an outer fold's selection sees (:mod:`aerodelta.diagnosis.nested`)."""
+        idx = np.asarray(maneuvers, dtype=np.int64)
+        if idx.size > 1 and np.any(np.diff(idx) <= 0):
+            raise ValueError("Design.subset: maneuver indices must be ascending and distinct")
+        lowrank, lowrank_of = None, None
+        if self.lowrank is not None and self.lowrank_of is not None:
+            keep = np.isin(self.lowrank_of, idx)
+            if keep.any():
+                lowrank = np.ascontiguousarray(self.lowrank[:, keep])
+                lowrank_of = np.searchsorted(idx, self.lowrank_of[keep]).astype(np.int64)
+        return Design(
+            self.grid,
+            self.n_flaps,
+            list(self.aero_names),
+            list(self.global_names),
+            self.man_flap[idx],
+            self.diag[idx],
+            self.off[idx],
+            self.cross[idx],
+            self.glob[idx],
+            self.xty[idx],
+            self.yty[idx],
+            self.n_rows[idx],
+            lowrank,
+            lowrank_of,
+        )
+
     @property
     def gram(self) -> Sequence[FloatArray]:
         """``G_m`` per maneuver, each written out dense when it is read (for checks)."""
@@ -586,6 +615,27 @@ def _quadratic_forms(
             v = theta[idx] @ design.lowrank[np.ix_(idx, np.flatnonzero(own))]
             pos = np.searchsorted(ms, design.lowrank_of[own])
             out -= np.bincount(pos, weights=v * v, minlength=n)
+    return out
+
+
+def model_sse(
+    design: Design,
+    maneuvers: IntArray,
+    thetas: Sequence[FloatArray],
+    cols: tuple[IntArray, IntArray],
+) -> FloatArray:
+    """Squared error of the model ``thetas`` (per flap, on ``cols``) on each of ``maneuvers``
+    (indices into ``design``), in their order: ``y'y - 2 theta'b + theta'G theta``."""
+    ms = np.asarray(maneuvers, dtype=np.int64)
+    out = design.yty[ms].astype(float)
+    if sum(c.size for c in cols) == 0:
+        return out
+    for f in range(design.n_flaps):
+        sel = np.flatnonzero(design.man_flap[ms] == f)
+        if sel.size:
+            order = np.argsort(ms[sel], kind="stable")
+            mf = ms[sel][order]
+            out[sel[order]] += _quadratic_forms(design, mf, thetas[f], cols)
     return out
 
 

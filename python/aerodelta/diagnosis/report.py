@@ -57,6 +57,25 @@ def summary_text(result: dict[str, Any]) -> str:
         sig = [e for e in r["effects"] if e["significant"] and e.get("kind") != "stochastic"]
         if not sig:
             lines.append("  no significant unmodelled effect")
+        outer = r.get("outer")
+        if outer:
+            lines.append(
+                f"  outer folds (the selection redone without each of the {outer['folds']} "
+                f"folds and scored on it; {outer['n_maneuvers']} maneuvers): the chosen effects "
+                f"remove {100 * outer['shrink_fraction_effects']:.1f}% of the gap "
+                f"(p = {outer['p_value_effects']:.2g}), timing alignment "
+                f"{100 * outer['shrink_fraction_timing']:.1f}%"
+            )
+            others = {
+                k: v
+                for k, v in outer["chosen_in_folds"].items()
+                if k not in {e["effect"] for e in sig}
+            }
+            if others:
+                lines.append(
+                    "  chosen in some outer folds only: "
+                    + ", ".join(f"{k} {v}/{outer['folds']}" for k, v in others.items())
+                )
         for e in sig:
             lo, hi = e["alpha_range_deg"]
             amb = (
@@ -66,11 +85,17 @@ def summary_text(result: dict[str, Any]) -> str:
             )
             ok = lo is not None and math.isfinite(lo)
             rng = f"alpha {lo:.0f}..{hi:.0f} deg" if ok else "alpha ?"
+            out = (
+                f"; outer: chosen {e['outer_chosen_folds']}/{outer['folds']}, "
+                f"shrink {100 * e['outer_shrink_fraction']:.0f}%"
+                if outer and e.get("outer_chosen_folds") is not None
+                else ""
+            )
             lines.append(
                 f"  {e['rank']}. {e['effect']:<24} {rng:<18} held-out rms "
                 f"{e['gap_rms_before']:.5f} -> {e['gap_rms_after']:.5f} "
                 f"(shrink {100 * e['shrink_fraction']:.0f}% of the gap), "
-                f"p = {e['p_value']:.2g}{amb}"
+                f"p = {e['p_value']:.2g}{out}{amb}"
             )
         cells = [w for w in r["where"] if w["significant"]]
         if cells:

@@ -175,7 +175,7 @@ def robust_gain(d: FloatArray) -> float:
     return float(np.clip(d, -np.inf, q).sum())
 
 
-def _material_change(sse_before: FloatArray, sse_after: FloatArray) -> FloatArray:
+def material_change(sse_before: FloatArray, sse_after: FloatArray) -> FloatArray:
     """Per-maneuver held-out improvement, with changes under 0.1 % of the maneuver's own
     squared gap set to zero: a candidate whose regressor is zero in a maneuver (thrust
     difference in a symmetric-thrust stall) moves that maneuver's error only through the
@@ -196,7 +196,7 @@ def score(  # noqa: PLR0917 - internal scoring step
 ) -> Step:
     """Held-out score of adding ``cand`` to ``base``."""
     sse, thetas = heldout_sse(design, stats, _cols(design, [*base, cand]))
-    d = _material_change(sse_before, sse)
+    d = material_change(sse_before, sse)
     t, p = improvement_test(d, cfg.n_perm, seed)
     params: dict[str, float] = {}
     material = True
@@ -288,7 +288,7 @@ def forward_select(
             if name == best.candidate.name:
                 continue
             if _passes(s, cfg, total0):
-                d = _material_change(s.sse, best.sse)
+                d = material_change(s.sse, best.sse)
                 _, p_pair = sign_flip_pvalue(d, cfg.n_perm, cfg.seed + 31 + step_i)
                 if p_pair > cfg.ambiguity_p:
                     rivals.append(name)
