@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from aerodelta.diagnosis import cv
+from aerodelta.diagnosis import cv, select
 from aerodelta.diagnosis.nested import effect_outer, outer_evaluation, outer_summary
 from aerodelta.diagnosis.select import SelectionConfig
 from aerodelta.diagnosis.vocabulary import Candidate
@@ -175,3 +175,36 @@ def test_an_outer_fold_choice_never_depends_on_its_own_maneuvers():
         float((clean.sse_timing - clean.sse_model).sum() / clean.sse_gap.sum())
     )
     assert s_clean["p_value_effects"] < 0.01
+
+
+@pytest.mark.parametrize("true_skew", [0.0, 0.02])
+def test_choices_without_the_report_are_the_same_choices(true_skew):
+    """``forward_select(report=False)`` (tests for the largest gain only, no rivals) keeps the
+    same effects, in the same order, with the same p-values, as the full selection."""
+    rng = np.random.default_rng(12)
+    n_man, per = 60, 150
+    man = np.repeat(np.arange(n_man), per)
+    alpha = rng.uniform(0.0, 30.0, man.size)
+    phat, beta, own = rng.normal(size=(3, man.size))
+    stall = (alpha > 15.0).astype(float)
+    timing = 25.0 * stall * phat + 25.0 * own
+    y = stall * phat + 0.2 * beta + true_skew * 25.0 * own + 0.3 * rng.normal(size=man.size)
+    grid = cv.HatGrid.covering(alpha, 1.0)
+    design = cv.build_design(
+        y, man, np.zeros(man.size, dtype=np.int64), alpha, np.column_stack([phat, beta]),
+        timing[:, None], ["phat", "beta"], ["m_time_skew"], grid, n_man, 1,
+    )  # fmt: skip
+    stats = cv.fold_stats(design, np.arange(n_man) % 5)
+    cands = [
+        Candidate("time_skew", "measurement", ("m_time_skew",)),
+        Candidate("roll_damping", "aerodynamic", ("phat",)),
+        Candidate("dihedral", "aerodynamic", ("beta",)),
+    ]
+    cfg = SelectionConfig(n_perm=400)
+    full = select.forward_select(design, stats, cands, cfg)
+    lean = select.forward_select(design, stats, cands, cfg, report=False)
+    got = [(s.candidate.name, s.p_value, s.rank) for s in lean.selected]
+    assert got == [(s.candidate.name, s.p_value, s.rank) for s in full.selected]
+    assert {"roll_damping", "dihedral"} <= {n for n, _, _ in got}
+    for a, b in zip(lean.selected, full.selected, strict=True):
+        np.testing.assert_array_equal(a.sse_after, b.sse_after)

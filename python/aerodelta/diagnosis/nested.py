@@ -143,7 +143,11 @@ def outer_evaluation(
         inner_folds = np.searchsorted(np.unique(folds[inner_idx]), folds[inner_idx])
         stats = fold_stats(inner, inner_folds)
         sel = forward_select(
-            inner, stats, candidates, replace(cfg, seed=cfg.seed + _FOLD_SEED * (o + 1))
+            inner,
+            stats,
+            candidates,
+            replace(cfg, seed=cfg.seed + _FOLD_SEED * (o + 1)),
+            report=False,
         )
         total = (stats.total_gram, stats.total_xty)
         nuis = list(sel.nuisance)

@@ -193,11 +193,13 @@ def score(  # noqa: PLR0917 - internal scoring step
     cfg: SelectionConfig,
     n_tests: int,
     seed: int,
+    tests: bool = True,
 ) -> Step:
-    """Held-out score of adding ``cand`` to ``base``."""
+    """Held-out score of adding ``cand`` to ``base`` (with ``tests=False`` the randomization
+    tests are skipped: statistic 0, p-values 1)."""
     sse, thetas = heldout_sse(design, stats, _cols(design, [*base, cand]))
     d = material_change(sse_before, sse)
-    t, p = improvement_test(d, cfg.n_perm, seed)
+    t, p = improvement_test(d, cfg.n_perm, seed) if tests else (0.0, 1.0)
     params: dict[str, float] = {}
     material = True
     if cand.global_:
@@ -245,9 +247,20 @@ def _left_out(  # noqa: PLR0917 - internal scoring step
 
 
 def forward_select(
-    design: Design, stats: FoldStats, candidates: Sequence[Candidate], cfg: SelectionConfig
+    design: Design,
+    stats: FoldStats,
+    candidates: Sequence[Candidate],
+    cfg: SelectionConfig,
+    report: bool = True,
 ) -> Selection:
-    """Greedy forward selection (see the module doc)."""
+    """Greedy forward selection (see the module doc).
+
+    With ``report=False`` only the choices are made, as the outer folds of
+    :mod:`aerodelta.diagnosis.nested` need them: at each step the randomization tests run for
+    the candidate of largest gain only (the one the step keeps or stops at; the same seeds,
+    so the same decisions), ambiguous rivals are not looked for, and the unselected
+    candidates' scores carry no p-values.
+    """
     sse0 = design.yty.copy()
     total0 = float(sse0.sum())
     nuis = [c for c in candidates if c.name in NUISANCE]
@@ -271,21 +284,27 @@ def forward_select(
     step_i = 0
     while remaining:
         n_tests = len(remaining)
+        seeds = {c.name: cfg.seed + 7919 * step_i + i for i, c in enumerate(remaining)}
         scores = {
             c.name: score(
-                design, stats, current, c, sse_cur, cfg, n_tests, cfg.seed + 7919 * step_i + i
+                design, stats, current, c, sse_cur, cfg, n_tests, seeds[c.name], tests=report
             )
-            for i, c in enumerate(remaining)
+            for c in remaining
         }
         eligible = [s for s in scores.values() if s.material]
         if not eligible:
             break
         best = max(eligible, key=lambda s: s.gain)
+        if not report:
+            name = best.candidate.name
+            best = scores[name] = score(
+                design, stats, current, best.candidate, sse_cur, cfg, n_tests, seeds[name]
+            )
         if not (_passes(best, cfg, total0) and len(selected) < cfg.max_effects):
             break
         rivals = []
         for name, s in scores.items():
-            if name == best.candidate.name:
+            if name == best.candidate.name or not report:
                 continue
             if _passes(s, cfg, total0):
                 d = material_change(s.sse, best.sse)
