@@ -23,6 +23,12 @@ def _rate(frame: pl.DataFrame, col: str) -> np.ndarray:
     return np.where(np.isfinite(d), d, 0.0)
 
 
+def _rate_of(frame: pl.DataFrame, values: np.ndarray) -> np.ndarray:
+    """:func:`_rate` of an array aligned with ``frame``'s rows, per maneuver, unit/s."""
+    tmp = frame.select("maneuver_id", "t").with_columns(pl.Series("__v", values))
+    return _rate(tmp, "__v")
+
+
 #: Time step of the directional differences of the lag and skew regressors, s.
 _EPS_S = 0.02
 
@@ -72,11 +78,21 @@ def measurement_columns(
 
     ``m_alpha_bias``/``m_beta_bias``: ``-dC/d(angle)`` per deg of vane bias; ``m_control_lag``:
     ``-dC/dtau`` with every control delayed by tau (s); ``m_time_skew``: ``+dC/dtau`` with the
-    air data (alpha, beta) delayed; ``m_acc_dx``/``m_acc_dz``: the side-force coefficient
-    picked up per metre of accelerometer displacement (``m/(qbar S) rdot`` and
-    ``-m/(qbar S) pdot``; C_Y only, zero for C_l and C_n).
+    air data (alpha, beta) delayed, or with a black-box simulator (``*_sim`` columns) every
+    input delayed, ``+dC_sim/dt`` (with the accelerometer offset, the measurement effects
+    such a simulator can test); ``m_acc_dx``/``m_acc_dz``: the side-force coefficient picked up
+    per metre of accelerometer displacement (``m/(qbar S) rdot`` and ``-m/(qbar S) pdot``;
+    C_Y only, zero for C_l and C_n).
     """
     out: dict[str, dict[str, np.ndarray]] = {}
+    if not sim.differentiable:
+        # A black-box simulator (the records' *_sim columns) cannot be evaluated at perturbed
+        # states, but a timing skew acts on its whole output: with the simulator's inputs
+        # tau seconds late (or the measured coefficients tau early), C_sim(t) = C(t - tau)
+        # and the gap gains +tau dC_sim/dt, the sign of the model-based skew above. Measured
+        # rate gyros 10 ms late give tau = -0.01 s.
+        pred = sim.predict(frame)
+        out["m_time_skew"] = {c: _rate_of(frame, pred[c]) for c in COEFFICIENTS}
     if sim.differentiable:
         sa = sim.sensitivity(frame, "alpha_deg", deg_step())
         sb = sim.sensitivity(frame, "beta_deg", deg_step())

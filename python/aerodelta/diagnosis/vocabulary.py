@@ -12,7 +12,8 @@ every alpha and flap, its regressor the first-order effect of that error on the 
 - ``control_lag`` (tau, s): the recorded controls lead the acting ones,
   ``gap = -tau sum_d dC_sim/d(delta) d(delta)/dt``;
 - ``time_skew`` (tau, s): air data recorded late, ``gap = tau (dC_sim/dalpha alphadot +
-  dC_sim/dbeta betadot)``;
+  dC_sim/dbeta betadot)``; with a black-box simulator (``*_sim`` columns, which cannot be
+  evaluated at other states) every input late, ``gap = tau dC_sim/dt`` along the record;
 - ``accelerometer_offset`` (dx, dz, m; C_Y only): the measured side force picks up
   ``m/(qbar S) (rdot dx - pdot dz)`` (omega-dot cross r).
 
@@ -140,7 +141,7 @@ MEASUREMENT: dict[str, list[tuple[str, tuple[str, ...]]]] = {
 MEASUREMENT["CY"] = [*MEASUREMENT["CY"], ("accelerometer_offset", ("m_acc_dx", "m_acc_dz"))]
 
 #: Measurement candidates that need the simulator's sensitivities (a loadable model).
-NEEDS_MODEL = frozenset({"alpha_vane_bias", "beta_vane_bias", "control_lag", "time_skew"})
+NEEDS_MODEL = frozenset({"alpha_vane_bias", "beta_vane_bias", "control_lag"})
 
 
 @dataclass(frozen=True)
