@@ -559,3 +559,42 @@ def test_user_effects_refused_in_one_line_and_a_lone_regressor_accepted() -> Non
     lone = v.with_user_effects({"x": {"Cl": "beta_deg * rhat"}})  # type: ignore[dict-item]
     user = [c for c in lone.candidates["Cl"] if c.name == "x"]
     assert len(user) == 1 and len(user[0].regressors) == 1
+
+
+def test_rolloff_search_that_cannot_run_says_why(monkeypatch):
+    """Fail loudly: records without the aileron channel, or data the detector refuses, give a
+    visible note ('roll-off not searched: ...', printed in the report), and an unexpected
+    error inside the detector propagates instead of reading as 'no roll-off'."""
+    from aerodelta.diagnosis import stochastic  # noqa: PLC0415
+    from aerodelta.diagnosis.report import summary_text  # noqa: PLC0415
+
+    n = 50
+    f = pl.DataFrame(
+        {
+            "maneuver_id": ["a"] * n, "t": np.arange(n) * 0.02,
+            "alpha_deg": np.linspace(0, 20, n), "da_deg": np.zeros(n), "Cl_meas": np.zeros(n),
+        }
+    )  # fmt: skip
+    r = stochastic.rolloff_finding(f.drop("da_deg"), np.zeros(n))
+    assert r["note"] == "roll-off not searched: the records lack ['da_deg']"
+    assert not r["detected"]
+    r = stochastic.rolloff_finding(f, np.zeros(7))
+    assert r["note"].startswith("roll-off not searched: roll-off detection: residual has shape")
+    assert "note" not in stochastic.rolloff_finding(f, np.zeros(n))
+
+    def broken(*_a, **_k):
+        raise RuntimeError("bug in the detector")
+
+    monkeypatch.setattr(stochastic, "detect_rolloff", broken)
+    with pytest.raises(RuntimeError, match="bug in the detector"):
+        stochastic.rolloff_finding(f, np.zeros(n))
+    empty = {
+        "verdict": "none", "gap": {"rms": 0.0, "bias": 0.0, "tic": 0.0},
+        "remaining_gap": {"rms": 0.0, "tic": 0.0},
+        "effects": [], "where": [], "rolloff": {"note": "roll-off not searched: x"},
+    }  # fmt: skip
+    doc = {
+        "simulator": "s", "data": {"n_maneuvers": 1, "n_points": n, "flaps_deg": [0.0], "folds": 5},
+        "coefficients": {c: empty for c in ("Cl", "Cn", "CY")},
+    }  # fmt: skip
+    assert "  roll-off not searched: x" in summary_text(doc).splitlines()

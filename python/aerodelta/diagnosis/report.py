@@ -47,6 +47,8 @@ def summary_text(result: dict[str, Any]) -> str:
             f"TIC {r['remaining_gap']['tic']:.3f}"
         )
         ro = r.get("rolloff") or {}
+        if ro.get("note"):
+            lines.append(f"  {ro['note']}")
         if ro.get("detected"):
             lines.append(
                 f"  roll-off spikes in {ro['n_maneuvers_with_events']} of {ro['n_searched']} "

@@ -20,6 +20,7 @@ import polars as pl
 from aerodelta import _core
 from aerodelta.diagnosis.cv import SparseColumns
 from aerodelta.diagnosis.data import maneuver_codes
+from aerodelta.exceptions import AerodeltaError
 from aerodelta.rolloff import detect_rolloff
 
 #: Per-maneuver false-event rate allowed for the detector (issue 6's checks).
@@ -211,9 +212,14 @@ DETECTOR_CHANNELS = (
 def rolloff_finding(frame: pl.DataFrame, residual: np.ndarray) -> dict[str, Any]:
     """Roll-off events in the unexplained C_l gap, and whether they are more than chance."""
     need = {"maneuver_id", "t", "alpha_deg", "da_deg"}
-    if not need <= set(frame.columns):
+
+    def not_searched(why: str) -> dict[str, Any]:
         return {"detected": False, "n_events": 0, "n_searched": 0, "p_value": 1.0,
-                "alpha_range_deg": [float("nan")] * 2, "events": [], "centres": []}  # fmt: skip
+                "alpha_range_deg": [float("nan")] * 2, "events": [], "centres": [],
+                "note": f"roll-off not searched: {why}"}  # fmt: skip
+
+    if not need <= set(frame.columns):
+        return not_searched(f"the records lack {sorted(need - set(frame.columns))}")
     try:
         # the frame's alpha_deg is already the CG-referred alpha (the detector's default channel)
         ev = detect_rolloff(
@@ -222,10 +228,8 @@ def rolloff_finding(frame: pl.DataFrame, residual: np.ndarray) -> dict[str, Any]
             kinds=None,
             alpha="alpha_deg",
         )
-    except Exception as exc:
-        return {"detected": False, "n_events": 0, "n_searched": 0, "p_value": 1.0,
-                "alpha_range_deg": [float("nan")] * 2, "events": [], "centres": [],
-                "error": str(exc)}  # fmt: skip
+    except AerodeltaError as exc:  # the detector refusing these data; anything else propagates
+        return not_searched(str(exc).splitlines()[0] if str(exc) else type(exc).__name__)
     acc = ev.filter(pl.col("accepted")) if ev.height else ev
     n_man = int(frame["maneuver_id"].n_unique())
     k = int(acc["maneuver_id"].n_unique()) if acc.height else 0
