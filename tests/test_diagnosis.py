@@ -15,7 +15,8 @@ from scipy import stats
 import aerodelta
 from aerodelta.campaign import generate_campaign
 from aerodelta.cli import main
-from aerodelta.diagnosis import cv, select, write_outputs
+from aerodelta.diagnosis import band, cv, select, write_outputs
+from aerodelta.diagnosis.core import DiagnoseConfig
 from aerodelta.diagnosis.select import SelectionConfig, forward_select
 from aerodelta.diagnosis.stochastic import event_regressors, refine_centres
 from aerodelta.diagnosis.vocabulary import Candidate
@@ -337,11 +338,50 @@ def test_json_contract_keys(diagnoses, tmp_path):
 
 
 def test_gap_numbers_match_a_direct_computation(campaigns, diagnoses):
+    """The gap is C_meas minus the simulator's output low-passed per maneuver at the cut-off
+    ingest's smoother chose for the coefficient's channel (the cut-offs taken here from
+    ingest's own smoothing report, not recomputed)."""
+    camp, data = campaigns["dihedral"]
+    frame = model_frame(data).sort(["maneuver_id", "t"])
+    q = qualified_coefficients(frame)
+    report = ingest(camp, compat=False, progress=False).smoothing
+    cut = {(r["maneuver_id"], r["channel"]): r["cutoff_hz"] for r in report.iter_rows(named=True)}
+    ids, t = frame["maneuver_id"].to_numpy(), frame["t"].to_numpy()
+    for coef, ch in (("Cl", "p_dps"), ("Cn", "r_dps"), ("CY", "ay_mps2")):
+        sim = q[f"{coef}_qual"].to_numpy().copy()
+        for m in np.unique(ids):
+            i = np.flatnonzero(ids == m)
+            sim[i] = band.lowpass(sim[i], float(np.median(np.diff(t[i]))), cut[(m, ch)])
+        gap = frame[f"{coef}_meas"].to_numpy() - sim
+        g = diagnoses["dihedral"].result["coefficients"][coef]["gap"]
+        assert g["rms"] == pytest.approx(float(np.sqrt(np.mean(gap**2))), rel=1e-9)
+        assert g["bias"] == pytest.approx(float(gap.mean()), rel=1e-9, abs=1e-12)
+
+
+def test_band_match_lowpass_passes_the_band_and_removes_what_is_above_without_delay():
+    """Closed forms: a sine at half the cut-off comes out unchanged (no gain, no phase), one at
+    twice the cut-off is removed, the end points and a straight line are kept."""
+    dt, n, fc = 0.02, 1500, 3.0
+    t = np.arange(n) * dt
+    slow = np.sin(2 * np.pi * 0.5 * fc * t)
+    fast = np.sin(2 * np.pi * 2.0 * fc * t)
+    ramp = 0.3 + 0.01 * t
+    out = band.lowpass(slow + fast + ramp, dt, fc)
+    inner = slice(100, n - 100)  # away from the ends' reflection
+    np.testing.assert_allclose(out[inner], (slow + ramp)[inner], atol=2e-3)
+    ends = (slow + fast + ramp)[[0, -1]]  # kept (to the periodic extension's 1e-5)
+    np.testing.assert_allclose(out[[0, -1]], ends, atol=1e-5)
+    np.testing.assert_allclose(band.lowpass(ramp, dt, fc), ramp, atol=1e-12)
+
+
+def test_gap_without_band_match_is_the_raw_difference(campaigns):
     _, data = campaigns["dihedral"]
     frame = model_frame(data).sort(["maneuver_id", "t"])
     q = qualified_coefficients(frame)
     gap = frame["Cl_meas"].to_numpy() - q["Cl_qual"].to_numpy()
-    g = diagnoses["dihedral"].result["coefficients"]["Cl"]["gap"]
+    d = aerodelta.diagnose(data, config=DiagnoseConfig(band_match=False, nested=False))
+    g = d.result["coefficients"]["Cl"]["gap"]
+    assert d.result["settings"]["band_match"] is False
     assert g["rms"] == pytest.approx(float(np.sqrt(np.mean(gap**2))), rel=1e-9)
     assert g["bias"] == pytest.approx(float(gap.mean()), rel=1e-9, abs=1e-12)
 

@@ -81,6 +81,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="skip the outer-fold evaluation (the selection redone without each fold and "
         "scored on it; about a fifth of the run time)",
     )
+    parser.add_argument(
+        "--no-band-match",
+        action="store_true",
+        help="compare the simulator's output at its full band (default: low-passed per "
+        "maneuver to the band of the measured coefficients, as ingest smoothed them)",
+    )
     parser.add_argument("--seed", type=int, default=0, help="seed of folds and tests")
     parser.add_argument("--out", required=True, help="output folder")
     parser.add_argument("--no-progress", action="store_true", help="no progress bars")
@@ -191,6 +197,7 @@ def run(args: argparse.Namespace) -> int:
         per_flap=args.per_flap,
         seed=args.seed,
         nested=not args.no_nested,
+        band_match=not args.no_band_match,
     )
     progress = not args.no_progress
     for value, option in ((args.data or args.data_option, "DATA"), (args.aircraft, "--aircraft")):

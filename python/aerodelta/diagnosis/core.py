@@ -19,6 +19,7 @@ from threadpoolctl import threadpool_limits
 from tqdm import tqdm
 
 from aerodelta._core import __version__
+from aerodelta.diagnosis.band import band_cutoffs, band_match
 from aerodelta.diagnosis.cv import (
     Design,
     FoldStats,
@@ -68,6 +69,9 @@ from aerodelta.fit import theil_inequality
 
 SCHEMA = "aerodelta.diagnosis/1"
 
+#: Measurement regressors computed from the simulator's output (band-matched with it).
+SIM_REGRESSORS = ("m_alpha_bias", "m_beta_bias", "m_control_lag", "m_time_skew")
+
 
 @dataclass(frozen=True)
 class DiagnoseConfig:
@@ -92,6 +96,9 @@ class DiagnoseConfig:
         five times the data per parameter; the gap map is per flap either way).
     seed
         Seed of the fold assignment and of the randomization tests.
+    band_match
+        Pass the simulator's output through the band of the measured coefficients before the
+        gap is formed (:mod:`aerodelta.diagnosis.band`).
     nested
         Also run the outer-fold evaluation (:mod:`aerodelta.diagnosis.nested`): the selection
         redone without each fold, scored on it; about ``folds`` times the selection's time.
@@ -106,6 +113,7 @@ class DiagnoseConfig:
     per_flap: bool = False
     seed: int = 0
     nested: bool = True
+    band_match: bool = True
 
 
 @dataclass
@@ -417,6 +425,15 @@ def _diagnose(  # noqa: PLR0917 - the arguments of diagnose(), passed through
     sim = load_simulator(model, frame, ac.cbar_m)
     sim_c = sim.predict(frame)
     meas_cols = measurement_columns(frame, sim, ac)
+    cutoffs: dict[str, np.ndarray] = {}
+    if cfg.band_match:
+        # the simulator's output (and what is computed from it) in the band of the measured
+        # coefficients, which come from smoothed rates and accelerations (band.py)
+        cutoffs = band_cutoffs(frame)
+        sim_c = band_match(frame, sim_c, cutoffs)
+        for name in SIM_REGRESSORS:
+            if name in meas_cols:
+                meas_cols[name] = band_match(frame, meas_cols[name], cutoffs)
     man = (
         frame.group_by("maneuver_id", maintain_order=True)
         .agg(pl.col("flap_deg").first(), pl.col("kind").first())
@@ -492,7 +509,10 @@ def _diagnose(  # noqa: PLR0917 - the arguments of diagnose(), passed through
                 # roll-off spikes in campaigns that had none
                 g = design.global_names.index("m_control_lag")
                 tau = float(th[0][design.grid.n * len(design.aero_names) + g])
-                exact = sim.predict(delayed_controls(frame, tau))["Cl"] - sim_c["Cl"]
+                late = sim.predict(delayed_controls(frame, tau))
+                if cfg.band_match:
+                    late = band_match(frame, {"Cl": late["Cl"]}, cutoffs)
+                exact = late["Cl"] - sim_c["Cl"]
                 resid = resid + tau * glob_x[:, g] - exact
             ro = rolloff_finding(frame, resid)
             if ro["detected"]:
@@ -611,6 +631,7 @@ def _diagnose(  # noqa: PLR0917 - the arguments of diagnose(), passed through
             "n_perm": cfg.selection.n_perm,
             "seed": cfg.seed,
             "nested": cfg.nested,
+            "band_match": cfg.band_match,
         },
         "stall_alpha_deg": {str(k): v for k, v in stall.items()},
         "not_testable": not_testable,
