@@ -359,17 +359,23 @@ impl<'s> Parser<'s> {
 
     fn run(&mut self) -> crate::Result<()> {
         let b = self.b;
-        if let Some(k) = b
-            .iter()
-            .position(|&c| c < 0x20 && !matches!(c, b'\t' | b'\n' | b'\r'))
-        {
-            return Err(self.err(
-                k,
+        // Characters XML does not allow: controls, U+FFFE and U+FFFF.
+        let bad = b.iter().enumerate().position(|(k, &c)| {
+            (c < 0x20 && !matches!(c, b'\t' | b'\n' | b'\r'))
+                || (c == 0xEF
+                    && b.get(k + 1) == Some(&0xBF)
+                    && matches!(b.get(k + 2), Some(0xBE | 0xBF)))
+        });
+        if let Some(k) = bad {
+            let msg = if b[k] == 0xEF {
+                "the non-character U+FFFE or U+FFFF is not allowed in XML; remove it".to_string()
+            } else {
                 format!(
                     "the control character U+{:04X} is not allowed in XML; remove it",
                     b[k]
-                ),
-            ));
+                )
+            };
+            return Err(self.err(k, msg));
         }
         let decl_at = usize::from(b.starts_with(&[0xEF, 0xBB, 0xBF])) * 3;
         let mut pos = decl_at;
@@ -450,7 +456,7 @@ impl<'s> Parser<'s> {
         let mut i = 0;
         while let Some(k) = s[i..]
             .iter()
-            .position(|&c| matches!(c, b'&' | b'\r' | b']' | 0xEF))
+            .position(|&c| matches!(c, b'&' | b'\r' | b']'))
         {
             let at = i + k;
             match s[at] {
@@ -490,18 +496,7 @@ impl<'s> Parser<'s> {
                     }
                     i = at + 1;
                 }
-                _ => {
-                    // U+FFFE and U+FFFF are not XML characters.
-                    if s[at..].starts_with(&[0xEF, 0xBF, 0xBE])
-                        || s[at..].starts_with(&[0xEF, 0xBF, 0xBF])
-                    {
-                        return Err(self.err(
-                            start + at,
-                            "the non-character U+FFFE or U+FFFF is not allowed in XML; remove it",
-                        ));
-                    }
-                    i = at + 1;
-                }
+                _ => i = at + 1,
             }
         }
         self.extend_run(start, end, decode);
