@@ -332,6 +332,80 @@ fn reference(r: &[u8]) -> Option<char> {
     }
 }
 
+/// Check the body of the XML declaration (after `<?xml`, before `?>`):
+/// `version="1.x"`, then optionally `encoding="..."` and `standalone="yes|no"`,
+/// in this order, each after white space.
+fn declaration(body: &[u8]) -> Result<(), String> {
+    let mut rest = body;
+    let mut seen = 0;
+    loop {
+        let ws = rest.iter().take_while(|&&c| is_ws(c)).count();
+        rest = &rest[ws..];
+        if rest.is_empty() {
+            break;
+        }
+        if ws == 0 {
+            return Err("white space must separate its parts".into());
+        }
+        let name_len = rest
+            .iter()
+            .take_while(|&&c| c.is_ascii_alphabetic())
+            .count();
+        let (name, after) = rest.split_at(name_len);
+        let order = match name {
+            b"version" => 1,
+            b"encoding" => 2,
+            b"standalone" => 3,
+            _ => {
+                return Err(format!(
+                    "'{}' is not one of version, encoding, standalone",
+                    shown(&String::from_utf8_lossy(&rest[..rest.len().min(40)]))
+                ))
+            }
+        };
+        if order <= seen || (seen == 0 && order != 1) {
+            return Err("give version first, then encoding and standalone, each once".into());
+        }
+        seen = order;
+        let name = String::from_utf8_lossy(name);
+        let after = &after[after.iter().take_while(|&&c| is_ws(c)).count()..];
+        let Some(after) = after.strip_prefix(b"=") else {
+            return Err(format!("{name} has no '='"));
+        };
+        let after = &after[after.iter().take_while(|&&c| is_ws(c)).count()..];
+        let Some((&q, after)) = after
+            .split_first()
+            .filter(|(q, _)| matches!(q, b'"' | b'\''))
+        else {
+            return Err(format!("the value of {name} is not in quotes"));
+        };
+        let Some(end) = after.iter().position(|&c| c == q) else {
+            return Err(format!("the value of {name} is not closed"));
+        };
+        let v = &after[..end];
+        let ok = match order {
+            1 => v.len() > 2 && v.starts_with(b"1.") && v[2..].iter().all(u8::is_ascii_digit),
+            2 => {
+                v.first().is_some_and(u8::is_ascii_alphabetic)
+                    && v.iter()
+                        .all(|&c| c.is_ascii_alphanumeric() || matches!(c, b'.' | b'_' | b'-'))
+            }
+            _ => v == b"yes" || v == b"no",
+        };
+        if !ok {
+            return Err(format!(
+                "{name}=\"{}\" is not valid",
+                shown(&String::from_utf8_lossy(v))
+            ));
+        }
+        rest = &after[end + 1..];
+    }
+    if seen == 0 {
+        return Err("it lacks version=\"1.0\"".into());
+    }
+    Ok(())
+}
+
 impl<'s> Parser<'s> {
     fn line(&self, pos: usize) -> usize {
         1 + self.b[..pos.min(self.b.len())]
@@ -644,11 +718,17 @@ impl<'s> Parser<'s> {
                 "a processing instruction '<?' without a valid target name",
             ));
         }
-        if target.eq_ignore_ascii_case(b"xml") && pos != decl_at {
-            return Err(self.err(
-                pos,
-                "an XML declaration '<?xml ...?>' that is not at the very start of the file",
-            ));
+        if target.eq_ignore_ascii_case(b"xml") {
+            if pos != decl_at || target != b"xml" {
+                return Err(self.err(
+                    pos,
+                    "an XML declaration '<?xml ...?>' that is not at the very start of the file \
+                     (or not in lower case)",
+                ));
+            }
+            if let Err(msg) = declaration(&self.b[target_end..e]) {
+                return Err(self.err(pos, format!("the XML declaration: {msg}")));
+            }
         }
         self.close_run();
         Ok(e + 2)
@@ -1108,6 +1188,14 @@ mod tests {
             ("<r><!-- a </r>", "t.xml:1: malformed XML: a comment '<!--' is not closed"),
             ("<r><![CDATA[ a </r>", "t.xml:1: malformed XML: a '<![CDATA[' section is not closed"),
             ("<r>\n<?xml version=\"1.0\"?></r>", "t.xml:2: malformed XML: an XML declaration"),
+            ("<?xml?><r/>", "t.xml:1: malformed XML: the XML declaration: it lacks version"),
+            ("<?xml version=\"2.0\"?><r/>", "t.xml:1: malformed XML: the XML declaration: version=\"2.0\" is not valid"),
+            ("<?xml version=\"1.0\" standalonu=\"no\"?><r/>", "t.xml:1: malformed XML: the XML declaration: 'standalonu"),
+            ("<?xml version=\"1.0\" standalone=\"?>\n<r/>", "t.xml:1: malformed XML: the XML declaration: the value of standalone is not closed"),
+            ("<?xml v<b>ersion=\"1.0\"?><r/>", "t.xml:1: malformed XML: the XML declaration: 'v<b>ersion"),
+            ("<?xml encoding=\"UTF-8\" version=\"1.0\"?><r/>", "t.xml:1: malformed XML: the XML declaration: give version first"),
+            ("<?xml version=\"1.0\"encoding=\"UTF-8\"?><r/>", "t.xml:1: malformed XML: the XML declaration: white space"),
+            ("<?xml`version=\"1.0\"?><r/>", "t.xml:1: malformed XML: a processing instruction '<?' without a valid target"),
             ("<r><p:a/></r>", "t.xml:1: malformed XML: 'p:a' uses the namespace prefix 'p', which is not declared"),
             ("<r><a p:x=\"1\"/></r>", "t.xml:1: malformed XML: 'p:x' uses the namespace prefix 'p'"),
             ("<r><a:b:c xmlns:a=\"u\"/></r>", "t.xml:1: malformed XML: 'a:b:c' is not a valid qualified name"),
@@ -1124,6 +1212,8 @@ mod tests {
             let msg = refused(text);
             assert!(msg.starts_with(want), "{text:?}: {msg}");
         }
+        doc("\u{FEFF}<?xml version='1.1' encoding=\"ISO-8859-1\" standalone='no' ?>\n<r/>");
+        doc("<?xml version=\"1.0\"?><?xml-stylesheet href=\"a\"?><r/>");
         // Declared prefixes are in scope below their element only.
         doc("<r xmlns:p=\"u\"><p:a p:x=\"1\" xml:lang=\"en\"/></r>");
         doc("<r><a xmlns:p=\"u\" p:x=\"1\"><p:b/></a></r>");
