@@ -51,12 +51,12 @@ use crate::error::AeroError;
 use crate::text::{one_line, shown};
 
 /// Most attributes one element may have (DAVE-ML elements have a handful; the
-/// XML parser checks them for duplicates pairwise).
+/// XML reader checks them for duplicates pairwise).
 pub const MAX_ATTRIBUTES: usize = 64;
 
 /// Most distinct namespace prefixes (`xmlns`, `xmlns:p`) a file may declare
-/// (DAVE-ML files use one to three; the XML parser copies those in scope into
-/// every element declaring one).
+/// (DAVE-ML files use one to three; the XML reader keeps a count of open
+/// declarations per prefix).
 pub const MAX_NAMESPACES: usize = 64;
 
 /// The text to hand to the XML reader ([`xml`]), byte for byte as long as
@@ -65,16 +65,16 @@ pub const MAX_NAMESPACES: usize = 64;
 ///   (the public models carry one naming the external DAVE-ML DTD, which is
 ///   never read);
 /// - `<` and `=` inside comments and processing instructions blanked (the
-///   reader never looks there).
+///   reader never looks there; the DOM reader used before reserved memory
+///   for every `<` and `=`).
 ///
 /// Refused with an error naming the file and line: an internal subset that
 /// declares entities (`<!ENTITY ...>`). DAVE-ML needs none, and expanding them
 /// is how a file of a few hundred kilobytes becomes gigabytes of text
-/// ("billion laughs", quadratic blowup). Parsing the result with DTDs
-/// disallowed then also refuses any declaration this scan did not find. Also
+/// ("billion laughs", quadratic blowup). The XML reader then refuses any
+/// `<!DOCTYPE>` this scan did not find (one outside the prolog). Also
 /// refused: an element with more than [`MAX_ATTRIBUTES`] attributes, more
-/// than [`MAX_NAMESPACES`] namespace prefixes (the XML parser's time grows
-/// with their square).
+/// than [`MAX_NAMESPACES`] namespace prefixes.
 #[cfg(test)]
 pub(crate) fn xml_text<'a>(text: &'a str, file: &str) -> crate::Result<Cow<'a, str>> {
     xml_text_counted(text, file).map(|(t, _)| t)
@@ -151,8 +151,9 @@ fn markup_scan(
 ) -> crate::Result<(Vec<(usize, usize)>, xml::Counts)> {
     let mut blank = Vec::new();
     let mut counts = xml::Counts::default();
-    // End of the previous markup: characters between it and the next '<' are a text run.
-    let mut last = 0;
+    // End of the previous markup: characters between it and the next '<' are
+    // text; text and CDATA sections not separated by other markup are one run.
+    let (mut last, mut in_run) = (0, false);
     let mut prefixes: std::collections::HashSet<&[u8]> = std::collections::HashSet::new();
     let declaration_at = usize::from(b.starts_with(&[0xEF, 0xBB, 0xBF])) * 3;
     let mut i = 0;
@@ -161,8 +162,10 @@ fn markup_scan(
         let s = i + k;
         let rest = &b[s..];
         if s > last {
-            counts.texts += 1;
+            counts.texts += usize::from(!in_run);
+            in_run = true;
         }
+        let cdata = rest.starts_with(b"<![CDATA[");
         if let Some((_, end)) = doctype.filter(|d| d.0 == s) {
             i = end;
         } else if rest.starts_with(b"<!--") {
@@ -177,7 +180,7 @@ fn markup_scan(
             let Some(e) = find(b, s + 9, b"]]>") else {
                 break;
             };
-            counts.texts += 1;
+            counts.texts += usize::from(!in_run);
             i = e + 3;
         } else if rest.starts_with(b"<?") {
             let Some(e) = find(b, s + 2, b"?>") else {
@@ -254,8 +257,9 @@ fn markup_scan(
             i = end + 1;
         }
         last = i;
+        in_run = cdata;
     }
-    if b.len() > last {
+    if b.len() > last && !in_run {
         counts.texts += 1;
     }
     Ok((blank, counts))
@@ -297,7 +301,7 @@ fn doctype_span(text: &str, file: &str) -> crate::Result<Option<(usize, usize)>>
         };
         match end {
             Some(e) => i = e,
-            // Unterminated: the XML parser names the problem.
+            // Unterminated: the XML reader names the problem.
             None => return Ok(None),
         }
     }
