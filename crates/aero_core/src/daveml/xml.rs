@@ -407,6 +407,14 @@ fn declaration(body: &[u8]) -> Result<(), String> {
     Ok(())
 }
 
+/// The body of the reference starting with the `&` at `at` in `s` (`amp`,
+/// `#65`): the name characters and `#` up to a `;`; `None` when no `;` ends them.
+fn ref_body(s: &[u8], at: usize) -> Option<&[u8]> {
+    let rest = s.get(at + 1..)?;
+    let len = rest.iter().position(|&c| !(is_name_char(c) || c == b'#'))?;
+    (rest[len] == b';').then(|| &rest[..len])
+}
+
 impl<'s> Parser<'s> {
     fn line(&self, pos: usize) -> usize {
         1 + self.b[..pos.min(self.b.len())]
@@ -536,12 +544,11 @@ impl<'s> Parser<'s> {
             let at = i + k;
             match s[at] {
                 b'&' => {
-                    let semi = s[at..].iter().position(|&c| c == b';');
-                    let body = semi.map(|e| &s[at + 1..at + e]);
+                    let body = ref_body(s, at);
                     if body.and_then(reference).is_none() {
                         let shown_ref = match body {
                             Some(r) => format!("'&{};'", shown(&String::from_utf8_lossy(r))),
-                            None => "'&' without ';'".to_string(),
+                            None => "'&'".to_string(),
                         };
                         let what = match body {
                             Some(r) if r.first() == Some(&b'#') => {
@@ -552,7 +559,9 @@ impl<'s> Parser<'s> {
                                  &apos; &quot; and character references are read",
                                 shown(&String::from_utf8_lossy(r))
                             ),
-                            None => "is not a reference; write a literal '&' as &amp;".into(),
+                            None => "does not start a reference '&name;'; write a literal '&' \
+                                     as &amp;"
+                                .into(),
                         };
                         return Err(self.err(start + at, format!("{shown_ref} {what}")));
                     }
@@ -1075,12 +1084,12 @@ impl<'s> Parser<'s> {
                 break;
             }
             if v[k] == b'&' {
-                let semi = v[k..].iter().position(|&c| c == b';').map(|e| k + e);
-                let c = semi.and_then(|e| reference(&v[k + 1..e]));
-                let (Some(e), Some(c)) = (semi, c) else {
-                    let r = semi.map_or_else(
-                        || "'&' without ';'".to_string(),
-                        |e| format!("'&{};'", shown(&String::from_utf8_lossy(&v[k + 1..e]))),
+                let body = ref_body(v, k);
+                let c = body.and_then(reference);
+                let (Some(body), Some(c)) = (body, c) else {
+                    let r = body.map_or_else(
+                        || "'&'".to_string(),
+                        |r| format!("'&{};'", shown(&String::from_utf8_lossy(r))),
                     );
                     return Err(self.err(
                         vs + k,
@@ -1092,7 +1101,7 @@ impl<'s> Parser<'s> {
                     ));
                 };
                 self.decoded.push(c);
-                i = e + 1;
+                i = k + body.len() + 2;
             } else {
                 // Attribute-value normalization: a line end or tab is a space.
                 self.decoded.push(' ');
@@ -1178,7 +1187,9 @@ mod tests {
             ("<!-- only -->\n", "t.xml:2: malformed XML: the document has no root element"),
             ("<r>&nope;</r>", "t.xml:1: malformed XML: '&nope;' is an unknown entity reference 'nope'"),
             ("<r>&#0;</r>", "t.xml:1: malformed XML: '&#0;' is not a character XML allows"),
-            ("<r>a & b</r>", "t.xml:1: malformed XML: '&' without ';'"),
+            ("<r>a & b;</r>", "t.xml:1: malformed XML: '&' does not start a reference"),
+            ("<r>a &b c;</r>", "t.xml:1: malformed XML: '&' does not start a reference"),
+            ("<r a=\"x & y;\"/>", "t.xml:1: malformed XML: '&' in the value of attribute 'a'"),
             ("<r a=\"<\"/>", "t.xml:1: malformed XML: '<' in the value of attribute 'a'"),
             ("<r a=\"&x;\"/>", "t.xml:1: malformed XML: '&x;' in the value of attribute 'a'"),
             ("<r a=1/>", "t.xml:1: malformed XML: the value of attribute 'a' of <r> is not in quotes"),
