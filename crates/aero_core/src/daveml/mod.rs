@@ -408,13 +408,10 @@ pub(crate) struct Source {
 
 impl Source {
     pub(crate) fn new(file: &str, text: &str) -> Self {
-        let b = text.as_bytes();
-        let mut line_starts = Vec::with_capacity(1 + b.iter().filter(|&&c| c == b'\n').count());
+        let mut line_starts = Vec::with_capacity(1 + text.matches('\n').count());
         line_starts.push(0);
         line_starts.extend(
-            b.iter()
-                .enumerate()
-                .filter(|(_, &c)| c == b'\n')
+            text.match_indices('\n')
                 .map(|(i, _)| u32::try_from(i + 1).unwrap_or(u32::MAX)),
         );
         Source {

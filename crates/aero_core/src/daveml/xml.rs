@@ -23,6 +23,11 @@
 //! [`super::xml_text`] in the prolog, refused anywhere else). Namespace URIs
 //! are not resolved: elements are matched by their local name, attributes by
 //! their unprefixed name, as the DAVE-ML reader always did.
+//!
+//! Errors are one line, "malformed XML: ..." at the line of the offending
+//! markup; an element never closed is reported at the line where the
+//! innermost unclosed element opened (the root's line when only
+//! `</DAVEfunc>` is missing).
 
 use std::borrow::Cow;
 use std::collections::HashMap;
@@ -149,7 +154,10 @@ impl<'a> Node<'a> {
             return "";
         }
         let name = self.doc.slice((d.start + 1, d.start + 1 + d.name_len));
-        name.rsplit(':').next().unwrap_or(name)
+        match name.as_bytes().iter().rposition(|&c| c == b':') {
+            Some(k) => name.get(k + 1..).unwrap_or(name),
+            None => name,
+        }
     }
 
     /// The value of the unprefixed attribute `name`, unescaped and normalized.
@@ -442,23 +450,30 @@ impl<'s> Parser<'s> {
 
     fn run(&mut self) -> crate::Result<()> {
         let b = self.b;
-        // Characters XML does not allow: controls, U+FFFE and U+FFFF.
-        let bad = b.iter().enumerate().position(|(k, &c)| {
-            (c < 0x20 && !matches!(c, b'\t' | b'\n' | b'\r'))
-                || (c == 0xEF
-                    && b.get(k + 1) == Some(&0xBF)
-                    && matches!(b.get(k + 2), Some(0xBE | 0xBF)))
-        });
-        if let Some(k) = bad {
-            let msg = if b[k] == 0xEF {
-                "the non-character U+FFFE or U+FFFF is not allowed in XML; remove it".to_string()
-            } else {
-                format!(
-                    "the control character U+{:04X} is not allowed in XML; remove it",
-                    b[k]
-                )
-            };
-            return Err(self.err(k, msg));
+        // Characters XML does not allow: controls, U+FFFE and U+FFFF (a
+        // simple predicate first, so the scan of the whole text stays fast).
+        let mut from = 0;
+        while let Some(k) = b[from..]
+            .iter()
+            .position(|&c| (c < 0x20 && !matches!(c, b'\t' | b'\n' | b'\r')) || c == 0xEF)
+        {
+            let k = from + k;
+            if b[k] != 0xEF {
+                return Err(self.err(
+                    k,
+                    format!(
+                        "the control character U+{:04X} is not allowed in XML; remove it",
+                        b[k]
+                    ),
+                ));
+            }
+            if b.get(k + 1) == Some(&0xBF) && matches!(b.get(k + 2), Some(0xBE | 0xBF)) {
+                return Err(self.err(
+                    k,
+                    "the non-character U+FFFE or U+FFFF is not allowed in XML; remove it",
+                ));
+            }
+            from = k + 1;
         }
         let decl_at = usize::from(b.starts_with(&[0xEF, 0xBB, 0xBF])) * 3;
         let mut pos = decl_at;
