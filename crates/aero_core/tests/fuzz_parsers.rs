@@ -6,8 +6,7 @@
 //! computed here). Each case runs on its own thread with a 2 MiB stack and
 //! must end within a minute (debug build), with `Ok` or a typed one-line
 //! error naming the file, and a parse heap within the floor: 20 times the
-//! input plus 64 KiB for regressors and model files; for DAVE-ML and MathML,
-//! read through a DOM, 80 times (dense markup; see `XML_DOM_RATIO`).
+//! input plus 64 KiB, for every parser.
 //!
 //! The floor itself (10^5 cases per parser, release) is run by
 //! `benchmarks/fuzz_parsers.sh`; the seeds here are fixed, so a failure
@@ -21,7 +20,6 @@ use std::time::Duration;
 
 use fuzz_support::{
     cases, daveml_seeds, measure, Parser, Scale, Verdict, Violation, FLOOR_RATIO, FLOOR_SLACK,
-    XML_DOM_RATIO,
 };
 use proptest::test_runner::{Config, RngSeed, TestCaseError, TestRunner};
 
@@ -41,10 +39,7 @@ fn run(parser: Parser, n: u32, seed: u64) {
         max_shrink_iters: 64,
         ..Config::default()
     });
-    let ratio = match parser {
-        Parser::DaveMl | Parser::MathMl => XML_DOM_RATIO,
-        Parser::Regressor | Parser::ModelFile => FLOOR_RATIO,
-    };
+    let ratio = FLOOR_RATIO;
     let (ok, refused, largest) = (Cell::new(0u32), Cell::new(0u32), Cell::new(0usize));
     let outcome = runner.run(&strategy, |c| {
         let (len, origin) = (c.bytes.len(), c.origin.clone());

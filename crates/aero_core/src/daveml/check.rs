@@ -10,10 +10,8 @@
 
 use std::collections::HashMap;
 
-use roxmltree::Node;
-
 use super::model::DaveModel;
-use super::{child, elements, text_of, Source};
+use super::{child, elements, text_of, Node, Source};
 use crate::error::Result;
 use crate::text::shown;
 
@@ -84,7 +82,7 @@ enum Role {
     Output,
 }
 
-fn number(src: &Source, node: Node<'_, '_>) -> Result<f64> {
+fn number(src: &Source, node: Node<'_>) -> Result<f64> {
     let t = text_of(node);
     t.parse::<f64>()
         .map_err(|_| src.err(node, format!("'{}' is not a number", shown(&t))))
@@ -96,7 +94,7 @@ type ByName<'m> = HashMap<&'m str, Vec<usize>>;
 /// Resolve a `<signal>` to (variable, value, tolerance).
 fn signal(
     src: &Source,
-    sig: Node<'_, '_>,
+    sig: Node<'_>,
     model: &DaveModel,
     by_name: &ByName<'_>,
     shot: &str,
@@ -172,17 +170,13 @@ fn signal(
 }
 
 /// Read every `staticShot` of a `checkData` element.
-pub(crate) fn parse_check_data(
-    src: &Source,
-    cd: Node<'_, '_>,
-    model: &DaveModel,
-) -> Result<Vec<Shot>> {
+pub(crate) fn parse_check_data(src: &Source, cd: Node<'_>, model: &DaveModel) -> Result<Vec<Shot>> {
     let mut by_name: ByName<'_> = HashMap::new();
     for (i, v) in model.variables().iter().enumerate() {
         by_name.entry(v.name.as_str()).or_default().push(i);
     }
     let mut shots = Vec::new();
-    for s in elements(cd).filter(|n| n.tag_name().name() == "staticShot") {
+    for s in elements(cd).filter(|n| n.tag_name() == "staticShot") {
         let name = s.attribute("name").unwrap_or("").trim().to_string();
         let mut shot = Shot {
             name: name.clone(),
@@ -193,11 +187,7 @@ pub(crate) fn parse_check_data(
         };
         let signals = |tag: &str| -> Vec<Node> {
             child(s, tag)
-                .map(|c| {
-                    elements(c)
-                        .filter(|n| n.tag_name().name() == "signal")
-                        .collect()
-                })
+                .map(|c| elements(c).filter(|n| n.tag_name() == "signal").collect())
                 .unwrap_or_default()
         };
         for sig in signals("checkInputs") {

@@ -20,9 +20,7 @@
 //! `<apply>`); deeper ones are refused before compiling, so neither the
 //! compiler nor the evaluation recurses without bound.
 
-use roxmltree::Node;
-
-use super::{elements, text_of, Source};
+use super::{elements, text_of, Node, Source};
 use crate::error::Result;
 use crate::text::shown;
 
@@ -34,17 +32,16 @@ pub const MAX_DEPTH: usize = 512;
 
 /// The depth of the deepest element below `math`, and the first element (in
 /// document order) deeper than [`MAX_DEPTH`], if any; without recursion: a
-/// walk in document order keeping the chain of open elements (4 bytes each,
-/// siblings are not kept).
-fn element_depth<'a, 'i>(math: Node<'a, 'i>) -> (usize, Option<Node<'a, 'i>>) {
+/// walk in document order keeping the chain of open elements (siblings are
+/// not kept).
+fn element_depth(math: Node<'_>) -> (usize, Option<Node<'_>>) {
     let (mut max, mut first_over) = (0usize, None);
-    let mut chain: Vec<roxmltree::NodeId> = vec![math.id()];
-    for n in math.descendants().skip(1).filter(Node::is_element) {
-        let parent = n.parent().map(|p| p.id());
-        while chain.len() > 1 && chain.last().copied() != parent {
+    let mut chain: Vec<Node<'_>> = vec![math];
+    for n in math.descendants().skip(1).filter(|n| n.is_element()) {
+        while chain.len() > 1 && !chain.last().is_some_and(|p| p.contains(n)) {
             chain.pop();
         }
-        chain.push(n.id());
+        chain.push(n);
         let depth = chain.len() - 1;
         max = max.max(depth);
         if depth > MAX_DEPTH && first_over.is_none() {
@@ -296,9 +293,9 @@ fn eval_nary(op: Nary, args: &[Expr], v: &[f64]) -> f64 {
 /// naming the variable, its line and the line of the first element too deep.
 pub(crate) fn calculation(
     src: &Source,
-    math: Node<'_, '_>,
+    math: Node<'_>,
     resolve: &dyn Fn(&str) -> Option<usize>,
-    var: Node<'_, '_>,
+    var: Node<'_>,
 ) -> Result<Expr> {
     if let (depth, Some(deep)) = element_depth(math) {
         return Err(src.err(
@@ -325,7 +322,7 @@ pub(crate) fn calculation(
 #[cfg(test)]
 pub(crate) fn compile(
     src: &Source,
-    math: Node<'_, '_>,
+    math: Node<'_>,
     resolve: &dyn Fn(&str) -> Option<usize>,
 ) -> Result<Expr> {
     if let (depth, Some(deep)) = element_depth(math) {
@@ -340,7 +337,7 @@ pub(crate) fn compile(
 /// [`compile`] once the depth is known to be within [`MAX_DEPTH`].
 fn compile_checked(
     src: &Source,
-    math: Node<'_, '_>,
+    math: Node<'_>,
     resolve: &dyn Fn(&str) -> Option<usize>,
 ) -> Result<Expr> {
     let mut kids = elements(math);
@@ -357,8 +354,8 @@ fn compile_checked(
     }
 }
 
-fn expr(src: &Source, node: Node<'_, '_>, resolve: &dyn Fn(&str) -> Option<usize>) -> Result<Expr> {
-    let tag = node.tag_name().name();
+fn expr(src: &Source, node: Node<'_>, resolve: &dyn Fn(&str) -> Option<usize>) -> Result<Expr> {
+    let tag = node.tag_name();
     match tag {
         "cn" => cn(src, node).map(Expr::Const),
         "ci" => {
@@ -386,7 +383,7 @@ fn expr(src: &Source, node: Node<'_, '_>, resolve: &dyn Fn(&str) -> Option<usize
     }
 }
 
-fn cn(src: &Source, node: Node<'_, '_>) -> Result<f64> {
+fn cn(src: &Source, node: Node<'_>) -> Result<f64> {
     let parts: Vec<String> = {
         // Split the text on <sep/> for e-notation and rational numbers.
         let mut parts = vec![String::new()];
@@ -395,7 +392,7 @@ fn cn(src: &Source, node: Node<'_, '_>) -> Result<f64> {
                 if let Some(last) = parts.last_mut() {
                     last.push_str(c.text().unwrap_or(""));
                 }
-            } else if c.is_element() && c.tag_name().name() == "sep" {
+            } else if c.is_element() && c.tag_name() == "sep" {
                 parts.push(String::new());
             }
         }
@@ -415,13 +412,13 @@ fn cn(src: &Source, node: Node<'_, '_>) -> Result<f64> {
 
 fn piecewise(
     src: &Source,
-    node: Node<'_, '_>,
+    node: Node<'_>,
     resolve: &dyn Fn(&str) -> Option<usize>,
 ) -> Result<Expr> {
     let mut pieces = Vec::new();
     let mut otherwise = None;
     for k in elements(node) {
-        match k.tag_name().name() {
+        match k.tag_name() {
             "piece" => {
                 let mut parts = elements(k);
                 let (Some(v), Some(c), None) = (parts.next(), parts.next(), parts.next()) else {
@@ -447,19 +444,15 @@ fn piecewise(
     Ok(Expr::Piecewise { pieces, otherwise })
 }
 
-fn op_name(node: Node<'_, '_>) -> String {
-    if node.tag_name().name() == "csymbol" {
+fn op_name(node: Node<'_>) -> String {
+    if node.tag_name() == "csymbol" {
         text_of(node)
     } else {
-        node.tag_name().name().to_string()
+        node.tag_name().to_string()
     }
 }
 
-fn apply(
-    src: &Source,
-    node: Node<'_, '_>,
-    resolve: &dyn Fn(&str) -> Option<usize>,
-) -> Result<Expr> {
+fn apply(src: &Source, node: Node<'_>, resolve: &dyn Fn(&str) -> Option<usize>) -> Result<Expr> {
     // The children are walked, not collected: an <apply> may have many.
     let mut kids = elements(node);
     let Some(op_node) = kids.next() else {
@@ -475,7 +468,7 @@ fn apply(
     let mut qualifier = None;
     let mut args = Vec::with_capacity(n_rest);
     for a in kids {
-        match a.tag_name().name() {
+        match a.tag_name() {
             "degree" | "logbase" => qualifier = Some(compile_checked(src, a, resolve)?),
             _ => args.push(expr(src, a, resolve)?),
         }
@@ -488,7 +481,7 @@ fn apply(
 #[inline(never)]
 fn build(
     src: &Source,
-    op_node: Node<'_, '_>,
+    op_node: Node<'_>,
     op: &str,
     args: Vec<Expr>,
     qualifier: Option<Expr>,
@@ -595,7 +588,7 @@ mod tests {
 
     fn compile_str(body: &str, vars: &[&str]) -> Result<Expr> {
         let text = format!("<math xmlns=\"http://www.w3.org/1998/Math/MathML\">{body}</math>");
-        let doc = roxmltree::Document::parse(&text).expect("xml");
+        let doc = super::super::parse_document(&text, "t.xml").expect("xml");
         let src = Source::new("t.xml", &text);
         let names: Vec<String> = vars.iter().map(|s| s.to_string()).collect();
         compile(&src, doc.root_element(), &|n| {

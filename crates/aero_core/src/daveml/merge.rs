@@ -64,13 +64,12 @@ pub fn merge_xml(base: &str, base_name: &str, add: &ModelSpec) -> Result<String>
     }
 
     // Same byte offsets as `base` (the document type declaration is blanked).
-    let xml = super::xml_text(base, base_name)?;
-    let doc = super::parse_document(&xml, base_name)?;
+    let doc = super::parse_document(base, base_name)?;
     let root = doc.root_element();
     let kids: Vec<_> = root.children().filter(|n| n.is_element()).collect();
     let last_end = |tags: &[&str]| {
         kids.iter()
-            .filter(|n| tags.contains(&n.tag_name().name()))
+            .filter(|n| tags.contains(&n.tag_name()))
             .map(|n| n.range().end)
             .max()
     };
@@ -93,7 +92,7 @@ pub fn merge_xml(base: &str, base_name: &str, add: &ModelSpec) -> Result<String>
     .unwrap_or(bps_at);
     let checks = kids
         .iter()
-        .find(|n| n.tag_name().name() == "checkData")
+        .find(|n| n.tag_name() == "checkData")
         .map(|n| n.range());
 
     // Breakpoint and table ids of the addition must not clash with the base's.

@@ -31,6 +31,7 @@ pub mod merge;
 pub mod model;
 pub mod parse;
 pub mod write;
+mod xml;
 
 #[cfg(test)]
 mod limits_tests;
@@ -44,36 +45,47 @@ pub use write::{mathml_of, to_xml, write_model, CalcSpec, ModelSpec};
 
 use std::borrow::Cow;
 
+pub(crate) use xml::{parse_document, Node, NodeId};
+
 use crate::error::AeroError;
 use crate::text::{one_line, shown};
 
 /// Most attributes one element may have (DAVE-ML elements have a handful; the
-/// XML parser checks them for duplicates pairwise).
+/// XML reader checks them for duplicates pairwise).
 pub const MAX_ATTRIBUTES: usize = 64;
 
 /// Most distinct namespace prefixes (`xmlns`, `xmlns:p`) a file may declare
-/// (DAVE-ML files use one to three; the XML parser copies those in scope into
-/// every element declaring one).
+/// (DAVE-ML files use one to three; the XML reader keeps a count of open
+/// declarations per prefix).
 pub const MAX_NAMESPACES: usize = 64;
 
-/// The text to hand to the XML parser, byte for byte as long as `text`
-/// (line breaks kept), so byte offsets and lines are those of `text`:
+/// The text to hand to the XML reader ([`xml`]), byte for byte as long as
+/// `text` (line breaks kept), so byte offsets and lines are those of `text`:
 /// - the document type declaration (`<!DOCTYPE ...>`), if any, blanked out
 ///   (the public models carry one naming the external DAVE-ML DTD, which is
 ///   never read);
-/// - `<` and `=` inside comments and processing instructions blanked: the
-///   reader never looks there, and the XML parser reserves some 70 bytes of
-///   memory for every `<` and `=` of the file before it starts.
+/// - `<` and `=` inside comments and processing instructions blanked (the
+///   reader never looks there; the DOM reader used before reserved memory
+///   for every `<` and `=`).
 ///
 /// Refused with an error naming the file and line: an internal subset that
 /// declares entities (`<!ENTITY ...>`). DAVE-ML needs none, and expanding them
 /// is how a file of a few hundred kilobytes becomes gigabytes of text
-/// ("billion laughs", quadratic blowup). Parsing the result with DTDs
-/// disallowed then also refuses any declaration this scan did not find. Also
+/// ("billion laughs", quadratic blowup). The XML reader then refuses any
+/// `<!DOCTYPE>` this scan did not find (one outside the prolog). Also
 /// refused: an element with more than [`MAX_ATTRIBUTES`] attributes, more
-/// than [`MAX_NAMESPACES`] namespace prefixes (the XML parser's time grows
-/// with their square).
+/// than [`MAX_NAMESPACES`] namespace prefixes.
+#[cfg(test)]
 pub(crate) fn xml_text<'a>(text: &'a str, file: &str) -> crate::Result<Cow<'a, str>> {
+    xml_text_counted(text, file).map(|(t, _)| t)
+}
+
+/// [`xml_text`], with the elements, attributes and text runs counted on the
+/// way (the XML reader sizes its arena from them).
+pub(crate) fn xml_text_counted<'a>(
+    text: &'a str,
+    file: &str,
+) -> crate::Result<(Cow<'a, str>, xml::Counts)> {
     let line = |pos: usize| {
         1 + text.as_bytes()[..pos.min(text.len())]
             .iter()
@@ -81,9 +93,9 @@ pub(crate) fn xml_text<'a>(text: &'a str, file: &str) -> crate::Result<Cow<'a, s
             .count()
     };
     let doctype = doctype_span(text, file)?;
-    let blank = markup_scan(text.as_bytes(), doctype, file, &line)?;
+    let (blank, counts) = markup_scan(text.as_bytes(), doctype, file, &line)?;
     if doctype.is_none() && blank.is_empty() {
-        return Ok(Cow::Borrowed(text));
+        return Ok((Cow::Borrowed(text), counts));
     }
     let mut out = text.as_bytes().to_vec();
     if let Some((start, end)) = doctype {
@@ -102,8 +114,21 @@ pub(crate) fn xml_text<'a>(text: &'a str, file: &str) -> crate::Result<Cow<'a, s
     }
     // Only ASCII bytes were replaced by ASCII: still UTF-8.
     String::from_utf8(out)
-        .map(Cow::Owned)
+        .map(|t| (Cow::Owned(t), counts))
         .map_err(|e| AeroError::parse(file, 1, format!("not UTF-8 text: {e}")))
+}
+
+/// The error of a tag `<tag>` with `n` attributes, more than [`MAX_ATTRIBUTES`].
+fn too_many_attributes(file: &str, line: usize, tag: &str, n: usize) -> AeroError {
+    AeroError::parse(
+        file,
+        line,
+        format!(
+            "<{}> has {n} attributes; at most {MAX_ATTRIBUTES} are read \
+             (DAVE-ML elements have a handful); remove the others",
+            shown(tag)
+        ),
+    )
 }
 
 /// Byte offset of the first `pat` in `b` at or after `from`.
@@ -115,15 +140,20 @@ fn find(b: &[u8], from: usize, pat: &[u8]) -> Option<usize> {
 
 /// Outside the document type declaration `doctype`: the spans of comments
 /// and processing instructions (not the XML declaration) holding a `<` or
-/// `=`, and the limits on attributes and namespace declarations. Stops
-/// quietly at anything unterminated: the XML parser names the problem.
+/// `=`, the limits on attributes and namespace declarations, and the counts
+/// of start tags, attributes and text runs. Stops quietly at anything
+/// unterminated: the XML reader names the problem.
 fn markup_scan(
     b: &[u8],
     doctype: Option<(usize, usize)>,
     file: &str,
     line: &dyn Fn(usize) -> usize,
-) -> crate::Result<Vec<(usize, usize)>> {
+) -> crate::Result<(Vec<(usize, usize)>, xml::Counts)> {
     let mut blank = Vec::new();
+    let mut counts = xml::Counts::default();
+    // End of the previous markup: characters between it and the next '<' are
+    // text; text and CDATA sections not separated by other markup are one run.
+    let (mut last, mut in_run) = (0, false);
     let mut prefixes: std::collections::HashSet<&[u8]> = std::collections::HashSet::new();
     let declaration_at = usize::from(b.starts_with(&[0xEF, 0xBB, 0xBF])) * 3;
     let mut i = 0;
@@ -131,6 +161,11 @@ fn markup_scan(
     while let Some(k) = b.get(i..).and_then(|r| r.iter().position(|&c| c == b'<')) {
         let s = i + k;
         let rest = &b[s..];
+        if s > last {
+            counts.texts += usize::from(!in_run);
+            in_run = true;
+        }
+        let cdata = rest.starts_with(b"<![CDATA[");
         if let Some((_, end)) = doctype.filter(|d| d.0 == s) {
             i = end;
         } else if rest.starts_with(b"<!--") {
@@ -145,6 +180,7 @@ fn markup_scan(
             let Some(e) = find(b, s + 9, b"]]>") else {
                 break;
             };
+            counts.texts += usize::from(!in_run);
             i = e + 3;
         } else if rest.starts_with(b"<?") {
             let Some(e) = find(b, s + 2, b"?>") else {
@@ -192,24 +228,20 @@ fn markup_scan(
                 j += 1;
             };
             let Some(end) = end else { break };
+            if rest.get(1) != Some(&b'/') {
+                counts.elements += 1;
+                counts.attributes += attributes;
+            }
             let tag = || {
                 let name: Vec<u8> = b[s + 1..end]
                     .iter()
                     .take_while(|c| !c.is_ascii_whitespace() && !matches!(c, b'/' | b'>'))
                     .copied()
                     .collect();
-                shown(&String::from_utf8_lossy(&name))
+                String::from_utf8_lossy(&name).into_owned()
             };
             if attributes > MAX_ATTRIBUTES {
-                return Err(AeroError::parse(
-                    file,
-                    line(s),
-                    format!(
-                        "<{}> has {attributes} attributes; at most {MAX_ATTRIBUTES} are read \
-                         (DAVE-ML elements have a handful); remove the others",
-                        tag()
-                    ),
-                ));
+                return Err(too_many_attributes(file, line(s), &tag(), attributes));
             }
             if prefixes.len() > MAX_NAMESPACES {
                 return Err(AeroError::parse(
@@ -218,14 +250,19 @@ fn markup_scan(
                     format!(
                         "<{}>: the file declares more than {MAX_NAMESPACES} XML namespace \
                          prefixes (DAVE-ML files use one to three); remove the others",
-                        tag()
+                        shown(&tag())
                     ),
                 ));
             }
             i = end + 1;
         }
+        last = i;
+        in_run = cdata;
     }
-    Ok(blank)
+    if b.len() > last && !in_run {
+        counts.texts += 1;
+    }
+    Ok((blank, counts))
 }
 
 /// The span of the document type declaration (`<!DOCTYPE ...>`), if any.
@@ -264,7 +301,7 @@ fn doctype_span(text: &str, file: &str) -> crate::Result<Option<(usize, usize)>>
         };
         match end {
             Some(e) => i = e,
-            // Unterminated: the XML parser names the problem.
+            // Unterminated: the XML reader names the problem.
             None => return Ok(None),
         }
     }
@@ -360,41 +397,23 @@ fn doctype_span(text: &str, file: &str) -> crate::Result<Option<(usize, usize)>>
     Ok(Some((start, j)))
 }
 
-/// Parse XML `text` (from [`xml_text`]) with document type declarations
-/// refused, naming `file` and the line of a syntax error.
-pub(crate) fn parse_document<'t>(
-    text: &'t str,
-    file: &str,
-) -> crate::Result<roxmltree::Document<'t>> {
-    let opts = roxmltree::ParsingOptions {
-        allow_dtd: false,
-        ..roxmltree::ParsingOptions::default()
-    };
-    roxmltree::Document::parse_with_options(text, opts).map_err(|e| {
-        let row = e.pos().row as usize;
-        match e {
-            roxmltree::Error::DtdDetected => AeroError::parse(
-                file,
-                row,
-                "a <!DOCTYPE> declaration where the XML prolog cannot hold one; put it before \
-                 the root element, after the XML declaration and comments",
-            ),
-            e => AeroError::parse(file, row, one_line(&format!("malformed XML: {e}"))),
-        }
-    })
-}
-
 /// Where a file's text lives: its name (for messages) and its line starts.
 #[derive(Debug, Clone)]
 pub(crate) struct Source {
     pub file: String,
-    line_starts: Vec<usize>,
+    /// Byte offsets of the line starts (texts are under 4 GiB: see
+    /// [`parse_document`]), in a vector of exactly their number.
+    line_starts: Vec<u32>,
 }
 
 impl Source {
     pub(crate) fn new(file: &str, text: &str) -> Self {
-        let mut line_starts = vec![0];
-        line_starts.extend(text.match_indices('\n').map(|(i, _)| i + 1));
+        let mut line_starts = Vec::with_capacity(1 + text.matches('\n').count());
+        line_starts.push(0);
+        line_starts.extend(
+            text.match_indices('\n')
+                .map(|(i, _)| u32::try_from(i + 1).unwrap_or(u32::MAX)),
+        );
         Source {
             file: file.to_string(),
             line_starts,
@@ -403,16 +422,16 @@ impl Source {
 
     /// 1-based line of byte offset `pos`.
     pub(crate) fn line_of(&self, pos: usize) -> usize {
-        self.line_starts.partition_point(|&s| s <= pos)
+        self.line_starts.partition_point(|&s| s as usize <= pos)
     }
 
     /// 1-based line where `node` starts.
-    pub(crate) fn line(&self, node: roxmltree::Node<'_, '_>) -> usize {
+    pub(crate) fn line(&self, node: Node<'_>) -> usize {
         self.line_of(node.range().start)
     }
 
     /// A parse error at `node`, the message led by the element's tag and its id attribute.
-    pub(crate) fn err(&self, node: roxmltree::Node<'_, '_>, msg: impl AsRef<str>) -> AeroError {
+    pub(crate) fn err(&self, node: Node<'_>, msg: impl AsRef<str>) -> AeroError {
         AeroError::parse(
             self.file.clone(),
             self.line(node),
@@ -422,8 +441,8 @@ impl Source {
 }
 
 /// `<tag id="...">` for messages: the tag and its identifying attribute, if any.
-pub(crate) fn describe(node: roxmltree::Node<'_, '_>) -> String {
-    let tag = node.tag_name().name();
+pub(crate) fn describe(node: Node<'_>) -> String {
+    let tag = node.tag_name();
     for key in ["varID", "bpID", "gtID", "name"] {
         if let Some(v) = node.attribute(key) {
             return format!("<{} {key}=\"{}\">", shown(tag), shown(v));
@@ -434,10 +453,7 @@ pub(crate) fn describe(node: roxmltree::Node<'_, '_>) -> String {
 
 /// Parse a list of numbers separated by commas and/or white space, naming the
 /// element and line of a bad token.
-pub(crate) fn parse_numbers(
-    src: &Source,
-    node: roxmltree::Node<'_, '_>,
-) -> crate::Result<Vec<f64>> {
+pub(crate) fn parse_numbers(src: &Source, node: Node<'_>) -> crate::Result<Vec<f64>> {
     let mut out = Vec::new();
     for t in node.descendants().filter(|n| n.is_text()) {
         let text = t.text().unwrap_or("");
@@ -462,7 +478,7 @@ pub(crate) fn parse_numbers(
 }
 
 /// The concatenated text of a node (all text descendants, comments skipped), trimmed.
-pub(crate) fn text_of(node: roxmltree::Node<'_, '_>) -> String {
+pub(crate) fn text_of(node: Node<'_>) -> String {
     let s: String = node
         .descendants()
         .filter(|n| n.is_text())
@@ -472,18 +488,13 @@ pub(crate) fn text_of(node: roxmltree::Node<'_, '_>) -> String {
 }
 
 /// The element children of `node`.
-pub(crate) fn elements<'a, 'i>(
-    node: roxmltree::Node<'a, 'i>,
-) -> impl Iterator<Item = roxmltree::Node<'a, 'i>> {
+pub(crate) fn elements<'a>(node: Node<'a>) -> impl Iterator<Item = Node<'a>> {
     node.children().filter(|n| n.is_element())
 }
 
 /// The first element child named `tag`.
-pub(crate) fn child<'a, 'i>(
-    node: roxmltree::Node<'a, 'i>,
-    tag: &str,
-) -> Option<roxmltree::Node<'a, 'i>> {
-    elements(node).find(|n| n.tag_name().name() == tag)
+pub(crate) fn child<'a>(node: Node<'a>, tag: &str) -> Option<Node<'a>> {
+    elements(node).find(|n| n.tag_name() == tag)
 }
 
 #[cfg(test)]

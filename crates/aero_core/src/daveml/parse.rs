@@ -5,17 +5,15 @@
 use std::collections::HashMap;
 use std::sync::Arc;
 
-use roxmltree::Node;
-
 use super::check::parse_check_data;
 use super::mathml;
 use super::model::{DaveModel, Def, Locator, Variable};
-use super::{child, elements, parse_document, parse_numbers, text_of, xml_text, Source};
+use super::{child, elements, parse_document, parse_numbers, text_of, Node, NodeId, Source};
 use crate::error::{AeroError, Result};
 use crate::table::{Axis, Extrapolation, Table, MAX_DIMS};
 use crate::text::shown;
 
-fn opt_f64(src: &Source, node: Node<'_, '_>, attr: &str) -> Result<Option<f64>> {
+fn opt_f64(src: &Source, node: Node<'_>, attr: &str) -> Result<Option<f64>> {
     match node.attribute(attr) {
         None => Ok(None),
         Some(s) => s.trim().parse::<f64>().map(Some).map_err(|_| {
@@ -27,18 +25,17 @@ fn opt_f64(src: &Source, node: Node<'_, '_>, attr: &str) -> Result<Option<f64>> 
     }
 }
 
-fn req_attr<'a>(src: &Source, node: Node<'a, '_>, attr: &str) -> Result<&'a str> {
+fn req_attr<'a>(src: &Source, node: Node<'a>, attr: &str) -> Result<&'a str> {
     node.attribute(attr)
         .ok_or_else(|| src.err(node, format!("lacks the required attribute '{attr}'")))
 }
 
 /// Parse a whole DAVE-ML document.
 pub(crate) fn parse(text: &str, file: &str) -> Result<DaveModel> {
+    let doc = parse_document(text, file)?;
     let src = Source::new(file, text);
-    let xml = xml_text(text, file)?;
-    let doc = parse_document(&xml, file)?;
     let root = doc.root_element();
-    if root.tag_name().name() != "DAVEfunc" {
+    if root.tag_name() != "DAVEfunc" {
         return Err(src.err(
             root,
             "is not a DAVE-ML document; its root element must be <DAVEfunc>",
@@ -59,7 +56,7 @@ pub(crate) fn parse(text: &str, file: &str) -> Result<DaveModel> {
     let mut vars = Vec::new();
     let mut by_id: HashMap<String, usize> = HashMap::new();
     let mut calcs: Vec<(usize, Node, Node)> = Vec::new();
-    for v in elements(root).filter(|n| n.tag_name().name() == "variableDef") {
+    for v in elements(root).filter(|n| n.tag_name() == "variableDef") {
         let id = req_attr(&src, v, "varID")?.trim().to_string();
         if let Some(&prev) = by_id.get(&id) {
             let prev_line: usize = vars.get(prev).map_or(0, |p: &Variable| p.line);
@@ -112,7 +109,7 @@ pub(crate) fn parse(text: &str, file: &str) -> Result<DaveModel> {
     let mut bps: HashMap<String, Axis> = HashMap::new();
     for b in root
         .descendants()
-        .filter(|n| n.tag_name().name() == "breakpointDef")
+        .filter(|n| n.tag_name() == "breakpointDef")
     {
         let id = req_attr(&src, b, "bpID")?.trim().to_string();
         let vals_node = child(b, "bpVals").ok_or_else(|| src.err(b, "holds no <bpVals>"))?;
@@ -125,7 +122,7 @@ pub(crate) fn parse(text: &str, file: &str) -> Result<DaveModel> {
     let mut gts: HashMap<String, Node> = HashMap::new();
     for g in root
         .descendants()
-        .filter(|n| n.tag_name().name() == "griddedTableDef")
+        .filter(|n| n.tag_name() == "griddedTableDef")
     {
         if let Some(id) = g.attribute("gtID") {
             gts.insert(id.trim().to_string(), g);
@@ -134,8 +131,8 @@ pub(crate) fn parse(text: &str, file: &str) -> Result<DaveModel> {
 
     // Functions. The values of a gridded table are read once, however many
     // functions reference it (a griddedTableRef).
-    let mut data: HashMap<roxmltree::NodeId, Arc<Vec<f64>>> = HashMap::new();
-    for f in elements(root).filter(|n| n.tag_name().name() == "function") {
+    let mut data: HashMap<NodeId, Arc<Vec<f64>>> = HashMap::new();
+    for f in elements(root).filter(|n| n.tag_name() == "function") {
         let (dep, def) = function(&src, f, &resolve, &bps, &gts, &mut data)?;
         if defined_at[dep] != 0 {
             return Err(src.err(
@@ -238,7 +235,7 @@ fn limit(v: &Variable, x: f64) -> f64 {
 }
 
 /// `extrapolate` of an independent variable: (below, above).
-fn extrapolation(src: &Source, node: Node<'_, '_>) -> Result<(Extrapolation, Extrapolation)> {
+fn extrapolation(src: &Source, node: Node<'_>) -> Result<(Extrapolation, Extrapolation)> {
     use Extrapolation::{Hold, Linear};
     if let Some(i) = node.attribute("interpolate") {
         if i != "linear" {
@@ -274,11 +271,7 @@ struct IndepVar {
     above: Extrapolation,
 }
 
-fn var_ref(
-    src: &Source,
-    node: Node<'_, '_>,
-    resolve: &dyn Fn(&str) -> Option<usize>,
-) -> Result<usize> {
+fn var_ref(src: &Source, node: Node<'_>, resolve: &dyn Fn(&str) -> Option<usize>) -> Result<usize> {
     let id = req_attr(src, node, "varID")?;
     resolve(id).ok_or_else(|| {
         let id = shown(id);
@@ -291,18 +284,18 @@ fn var_ref(
 
 fn function(
     src: &Source,
-    f: Node<'_, '_>,
+    f: Node<'_>,
     resolve: &dyn Fn(&str) -> Option<usize>,
     bps: &HashMap<String, Axis>,
     gts: &HashMap<String, Node>,
-    data: &mut HashMap<roxmltree::NodeId, Arc<Vec<f64>>>,
+    data: &mut HashMap<NodeId, Arc<Vec<f64>>>,
 ) -> Result<(usize, Def)> {
     let fname = f.attribute("name").unwrap_or("");
     // Simple form: independentVarPts+ then dependentVarPts.
     if let Some(dep_pts) = child(f, "dependentVarPts") {
         let mut axes = Vec::new();
         let mut args = Vec::new();
-        for ip in elements(f).filter(|n| n.tag_name().name() == "independentVarPts") {
+        for ip in elements(f).filter(|n| n.tag_name() == "independentVarPts") {
             let var = var_ref(src, ip, resolve)?;
             let (below, above) = extrapolation(src, ip)?;
             let pts = parse_numbers(src, ip)?;
@@ -332,7 +325,7 @@ fn function(
     }
 
     let mut ivs = Vec::new();
-    for r in elements(f).filter(|n| n.tag_name().name() == "independentVarRef") {
+    for r in elements(f).filter(|n| n.tag_name() == "independentVarRef") {
         let var = var_ref(src, r, resolve)?;
         let (below, above) = extrapolation(src, r)?;
         let min = opt_f64(src, r, "min")?;
@@ -358,7 +351,7 @@ fn function(
             "is empty; give a griddedTableDef, griddedTable or griddedTableRef",
         )
     })?;
-    let table_node = match tnode.tag_name().name() {
+    let table_node = match tnode.tag_name() {
         "griddedTableDef" | "griddedTable" => tnode,
         "griddedTableRef" => {
             let id = req_attr(src, tnode, "gtID")?.trim();
@@ -384,7 +377,7 @@ fn function(
     let refs_node = child(table_node, "breakpointRefs")
         .ok_or_else(|| src.err(table_node, "has no <breakpointRefs>"))?;
     let refs: Vec<Node> = elements(refs_node)
-        .filter(|n| n.tag_name().name() == "bpRef")
+        .filter(|n| n.tag_name() == "bpRef")
         .collect();
     if refs.len() != ivs.len() {
         return Err(src.err(

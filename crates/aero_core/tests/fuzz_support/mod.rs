@@ -200,13 +200,6 @@ pub const FLOOR_RATIO: usize = 20;
 /// See [`FLOOR_RATIO`].
 pub const FLOOR_SLACK: usize = 64 << 10;
 
-/// What the DOM XML reader (roxmltree) of the DAVE-ML parser is held to
-/// instead: some 72 bytes per node and a reservation of as much per `<` and
-/// per `=` of the text make markup as dense as `<a/><a/>` or text full of
-/// `=` cost up to ~75 times the file. The public models take 8 to 16 times
-/// (`fuzz_parsers --classes` lists every class).
-pub const XML_DOM_RATIO: usize = 80;
-
 /// The heap a parse of `len` bytes may use.
 pub fn floor_bytes(len: usize) -> usize {
     FLOOR_RATIO * len + FLOOR_SLACK
