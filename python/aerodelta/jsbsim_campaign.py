@@ -845,11 +845,11 @@ def _coefficients(
     walpha: float,
     r_body: np.ndarray,
     *,
-    scale: float = 1.0,
+    withhold_scale: float = 1.0,
 ) -> tuple[dict[str, np.ndarray], list[str]]:
     """Truth columns of one maneuver: JSBSim's aero and propulsion coefficients about the CG,
-    each lateral term (nondimensional), the qualified model and the true Δ (``scale`` times
-    the withheld terms' change when frozen: see ``withhold_scale``)."""
+    each lateral term (nondimensional), the qualified model and the true Δ
+    (``withhold_scale`` times the withheld terms' change when frozen)."""
     qs = rec["aero/qbar-psf"] * rec["metrics/Sw-sqft"]
     qsb = qs * rec["metrics/bw-ft"]
     out: dict[str, np.ndarray] = {
@@ -892,7 +892,7 @@ def _coefficients(
         if t.name not in wnames:
             continue
         # full - qualified, both from the XML (bit-identical below the withhold alpha)
-        dv = scale * (full - np.broadcast_to(_eval(t.tree, env_frozen), val.shape))
+        dv = withhold_scale * (full - np.broadcast_to(_eval(t.tree, env_frozen), val.shape))
         if t.axis == "SIDE":
             # wind-axis side force -> body force; its moment about the CG through r x F
             a = rec["aero/alpha-deg"] * D2R
@@ -1162,7 +1162,9 @@ def generate_jsbsim_campaign(
 
         for p in plans:
             rec, meta = _fly(cfg, root, p, signs, props, decel_kts_per_s, turbulence)
-            tru, problems = _coefficients(rec, terms, withheld, walpha, r_body, scale=k_scale)
+            tru, problems = _coefficients(
+                rec, terms, withheld, walpha, r_body, withhold_scale=k_scale
+            )
             bad = sorted(set(problems) & {t.name for t in withheld})
             if bad:
                 raise DataError(
