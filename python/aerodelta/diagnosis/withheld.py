@@ -523,6 +523,9 @@ class JsbsimCaseResult:
     right_top: dict[str, str]  # coefficient -> the listed effect with the largest contribution
     found: dict[str, bool]  # single term: "top"; several: each listed effect
     false_alarms: list[str]  # "coef:effect" on coefficients no withheld part affects
+    #: the false alarms on coefficients no withheld part moves at all (each removes less than
+    #: a tenth of ``affect_share`` of the gap energy; the rest are where a part acts, below it)
+    false_alarms_untouched: list[str]
     misattributed: list[str]  # "coef:effect" where only an out-of-list part acts
     gap_shown: dict[str, bool]  # "coef:unlisted:<term>" -> a significant gap-map cell there
     onset_error_deg: dict[str, float] = field(default_factory=dict)
@@ -530,6 +533,7 @@ class JsbsimCaseResult:
     ambiguous: dict[str, list[str]] = field(default_factory=dict)
     rolloff_called: bool = False
     seconds: float = 0.0
+    shares: dict[str, dict[str, float]] = field(default_factory=dict)  # part -> coef -> share
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready."""
@@ -618,6 +622,10 @@ def score_jsbsim_case(
         for e in listed:
             found[e] = all(any(e in names for names in named[c].values()) for c in affected[e])
     touched = {c for cs in affected.values() for c in cs}
+    shares = {
+        e: {c: v / gap_e[c] for c, v in by.items() if gap_e[c] > 0} for e, by in energy.items()
+    }
+    moved = {c for by in shares.values() for c, v in by.items() if v >= 0.1 * affect_share}
     listed_at = {c: {e for e in listed if c in affected[e]} for c in COEFFICIENTS}
     det_kinds = {"aerodynamic", "measurement", "user"}
     false_alarms, misattributed = [], []
@@ -661,6 +669,8 @@ def score_jsbsim_case(
             shrink[c] = ours / orc
     return JsbsimCaseResult(
         dict(withheld), {}, verdicts, significant, affected, right_top, found, false_alarms,
+        [f for f in false_alarms if f.split(":")[0] not in moved],
         misattributed, gap_shown, onset_err, shrink, ambiguous,
         rolloff_called=bool(res["Cl"].get("rolloff", {}).get("detected", False)),
+        shares=shares,
     )  # fmt: skip
