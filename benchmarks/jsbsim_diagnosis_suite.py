@@ -18,7 +18,7 @@ Seed sets 1-3 are the DEVELOPMENT sets (used while building the suite); sets fro
 the REPORT sets, never run before the report. Run:
 
     python benchmarks/jsbsim_diagnosis_suite.py --aircraft f15 --first-seed 301 --seeds 3 \
-        [--size 10] [--only singles|multi|nulls] [--out FILE] [--list]
+        [--size 10] [--only singles|multi|nulls] [--match LABEL] [--per-flap] [--out FILE] [--list]
 
 Prints the table in the shape of ``docs/diagnosis.md`` (issue 17's floors) and the confusion of
 singles; writes every case to JSON.
@@ -39,7 +39,7 @@ import numpy as np
 import polars as pl
 from tqdm import tqdm
 
-from aerodelta.diagnosis import diagnose
+from aerodelta.diagnosis import DiagnoseConfig, diagnose
 from aerodelta.diagnosis.withheld import (
     JsbsimCaseResult,
     jsbsim_term_effects,
@@ -122,8 +122,14 @@ def skew_rates(campaign: Path, tau_s: float) -> None:
         df.write_parquet(f, compression="zstd", statistics=False)
 
 
-def run_case(aircraft: str, case: Case, size: int, workdir: str | None = None) -> JsbsimCaseResult:
-    """Fly, ingest, diagnose and score one case."""
+def run_case(
+    aircraft: str,
+    case: Case,
+    size: int,
+    workdir: str | None = None,
+    config: DiagnoseConfig | None = None,
+) -> JsbsimCaseResult:
+    """Fly, ingest, diagnose (default settings, or ``config``) and score one case."""
     lat = lateral_terms(aircraft)
     effects = jsbsim_term_effects(lat)
     axes = {t["name"]: t["axis"] for t in lat}
@@ -144,12 +150,13 @@ def run_case(aircraft: str, case: Case, size: int, workdir: str | None = None) -
         if case.skew_s:
             skew_rates(camp, case.skew_s)
         data = ingest(camp, compat=False, progress=False).data
-        diag = diagnose(data)
+        diag = diagnose(data, config=config)
         out = score_jsbsim_case(diag, camp, case.terms, effects, axes)
     out.seconds = time.perf_counter() - t0
     out.settings = {
         "aircraft": aircraft, "part": case.part, "label": case.label, "seed": case.seed,
         "size": size, "turbulence": case.turbulence, "skew_s": case.skew_s, "noise": 1.0,
+        "per_flap": bool(config and config.per_flap),
     }  # fmt: skip
     return out
 
@@ -277,6 +284,9 @@ def main() -> int:
     ap.add_argument("--match", default=None, help="only cases whose label contains this")
     ap.add_argument("--list", action="store_true", help="print the cases and stop")
     ap.add_argument(
+        "--per-flap", action="store_true", help="diagnose with one alpha curve per flap"
+    )
+    ap.add_argument(
         "--out",
         default=None,
         help="JSON of every case (default jsbsim_suite_<aircraft>_<sets>.json)",
@@ -309,7 +319,8 @@ def main() -> int:
         return 0
     results = []
     for c in tqdm(todo, desc=f"jsbsim suite {args.aircraft}", file=sys.stderr):
-        results.append(run_case(args.aircraft, c, args.size))
+        cfg = DiagnoseConfig(per_flap=True) if args.per_flap else None
+        results.append(run_case(args.aircraft, c, args.size, config=cfg))
     s = summarize(results)
     print_table(s, args.aircraft, f"{sets} ({kind})")
     out = args.out or f"jsbsim_suite_{args.aircraft}_{sets}.json"
