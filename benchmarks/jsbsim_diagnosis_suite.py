@@ -42,6 +42,7 @@ from tqdm import tqdm
 from aerodelta.diagnosis import DiagnoseConfig, diagnose
 from aerodelta.diagnosis.withheld import (
     JsbsimCaseResult,
+    jsbsim_false_alarms,
     jsbsim_term_effects,
     score_jsbsim_case,
 )
@@ -270,6 +271,22 @@ def print_table(s: dict[str, Any], aircraft: str, sets: str) -> None:
     print(f"run time per case: median {med:.1f} s, total {tot:.1f} min")
 
 
+def rescore(path: str) -> list[JsbsimCaseResult]:
+    """The cases of a JSON written by this script, their false alarms recomputed from the
+    saved verdicts, ambiguities and gap-energy shares (``jsbsim_false_alarms``)."""
+    out = []
+    for d in json.loads(Path(path).read_text())["cases"]:
+        d.setdefault("shares", {})
+        d.setdefault("false_alarms_untouched", [])
+        r = JsbsimCaseResult(**d)
+        det = {c: [e for e in v if e != "stochastic_rolloff"] for c, v in r.significant.items()}
+        r.false_alarms, r.false_alarms_untouched, r.misattributed = jsbsim_false_alarms(
+            det, r.ambiguous, r.shares
+        )
+        out.append(r)
+    return out
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
@@ -287,11 +304,23 @@ def main() -> int:
         "--per-flap", action="store_true", help="diagnose with one alpha curve per flap"
     )
     ap.add_argument(
+        "--rescore",
+        default=None,
+        help="print the table of a saved JSON (false alarms recomputed) instead of running",
+    )
+    ap.add_argument(
         "--out",
         default=None,
         help="JSON of every case (default jsbsim_suite_<aircraft>_<sets>.json)",
     )
     args = ap.parse_args()
+    if args.rescore:
+        res = rescore(args.rescore)
+        seeds = sorted({r.settings["seed"] // 1000 for r in res})
+        sets = f"{seeds[0]}-{seeds[-1]}" if len(seeds) > 1 else f"{seeds[0]}"
+        kind = "REPORT" if seeds[0] >= REPORT_FROM else "DEVELOPMENT"
+        print_table(summarize(res), args.aircraft, f"{sets} ({kind}), rescored {args.rescore}")
+        return 0
     last = args.first_seed + args.seeds - 1
     if args.first_seed < REPORT_FROM <= last:
         print(

@@ -15,7 +15,11 @@ import pytest
 
 pytest.importorskip("jsbsim", reason="needs the jsbsim package: pip install 'aerodelta[jsbsim]'")
 
-from aerodelta.diagnosis.withheld import jsbsim_components, jsbsim_term_effects
+from aerodelta.diagnosis.withheld import (
+    jsbsim_components,
+    jsbsim_false_alarms,
+    jsbsim_term_effects,
+)
 from aerodelta.exceptions import InvalidInputError
 from aerodelta.jsbsim_campaign import generate_jsbsim_campaign, lateral_terms
 
@@ -120,3 +124,25 @@ def test_one_f15_case_end_to_end(tmp_path: Path) -> None:
     assert r.shrink_ratio["Cn"] > 0.8
     s = suite.summarize([r])
     assert s["singles_top"] == {"design": "1/1"}
+
+
+def test_false_alarm_rule_follows_the_virtual_suite() -> None:
+    # a withheld part found below the 3 % share is not a false alarm; another effect on a
+    # coefficient the part barely touches is (and "untouched" only where nothing moves it);
+    # an effect where only an out-of-list part acts is a misattribution
+    shares = {
+        "sideforce_beta": {"CY": 0.016, "Cl": 0.001},
+        "unlisted:Clb": {"Cn": 0.2},
+    }
+    sig = {
+        "CY": ["sideforce_beta", "rudder_effectiveness"],
+        "Cl": ["roll_damping"],
+        "Cn": ["directional_stability"],
+    }
+    fa, untouched, mis = jsbsim_false_alarms(sig, {}, shares)
+    assert fa == ["CY:rudder_effectiveness", "Cl:roll_damping"]
+    assert untouched == ["Cl:roll_damping"]
+    assert mis == ["Cn:directional_stability"]
+    # a rival reported ambiguous with a withheld part is not a confident wrong answer
+    fa, _, _ = jsbsim_false_alarms(sig, {"CY:rudder_effectiveness": ["sideforce_beta"]}, shares)
+    assert fa == ["Cl:roll_damping"]

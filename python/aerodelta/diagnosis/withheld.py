@@ -509,6 +509,60 @@ def _vocab_regs(coefficient: str) -> list[tuple[str, str]]:
     return [(regs[0], n) for n, regs in AERODYNAMIC[coefficient] if len(regs) == 1]
 
 
+def jsbsim_false_alarms(
+    significant: Mapping[str, list[str]],
+    ambiguous: Mapping[str, list[str]],
+    shares: Mapping[str, Mapping[str, float]],
+    *,
+    affect_share: float = 0.03,
+) -> tuple[list[str], list[str], list[str]]:
+    """False alarms and misattributions of a JSBSim case (the rule of :func:`score_case`).
+
+    Parameters
+    ----------
+    significant
+        Coefficient -> the significant deterministic effects (stochastic roll-off left out).
+    ambiguous
+        ``"coef:effect"`` -> rivals reported ambiguous with it.
+    shares
+        Part (vocabulary effect or ``unlisted:<term>``) -> coefficient -> share of the gap
+        energy its true contribution removes.
+    affect_share
+        Share from which a part affects a coefficient.
+
+    Returns
+    -------
+    tuple of lists of ``"coef:effect"``
+        *False alarms*: an effect that is no listed part of the case (none present, i.e.
+        removing at least a tenth of ``affect_share`` of some coefficient's gap energy, nor
+        ambiguous with one) on a coefficient no part affects; the same on coefficients no part
+        moves at all (every share below a tenth of ``affect_share``); *misattributed*: such an
+        effect on a coefficient that only out-of-list parts affect.
+    """
+    present = {
+        e for e, by in shares.items()
+        if not e.startswith("unlisted:") and any(v >= 0.1 * affect_share for v in by.values())
+    }  # fmt: skip
+    touched = {c for by in shares.values() for c, v in by.items() if v >= affect_share}
+    moved = {c for by in shares.values() for c, v in by.items() if v >= 0.1 * affect_share}
+    listed_at = {
+        c for e, by in shares.items() if not e.startswith("unlisted:")
+        for c, v in by.items() if v >= affect_share
+    }  # fmt: skip
+    false_alarms, untouched, misattributed = [], [], []
+    for c, effects in significant.items():
+        for e in effects:
+            if {e, *ambiguous.get(f"{c}:{e}", [])} & present:
+                continue
+            if c not in touched:
+                false_alarms.append(f"{c}:{e}")
+                if c not in moved:
+                    untouched.append(f"{c}:{e}")
+            elif c not in listed_at:
+                misattributed.append(f"{c}:{e}")
+    return false_alarms, untouched, misattributed
+
+
 @dataclass
 class JsbsimCaseResult:
     """The outcome of one withheld-term case on a JSBSim aircraft (the rules of
@@ -522,10 +576,8 @@ class JsbsimCaseResult:
     affected: dict[str, list[str]]  # effect (or unlisted:<term>) -> coefficients it affects
     right_top: dict[str, str]  # coefficient -> the listed effect with the largest contribution
     found: dict[str, bool]  # single term: "top"; several: each listed effect
-    false_alarms: list[str]  # "coef:effect" on coefficients no withheld part affects
-    #: the false alarms on coefficients no withheld part moves at all (each removes less than
-    #: a tenth of ``affect_share`` of the gap energy; the rest are where a part acts, below it)
-    false_alarms_untouched: list[str]
+    false_alarms: list[str]  # "coef:effect" (see :func:`jsbsim_false_alarms`)
+    false_alarms_untouched: list[str]  # those on coefficients no withheld part moves
     misattributed: list[str]  # "coef:effect" where only an out-of-list part acts
     gap_shown: dict[str, bool]  # "coef:unlisted:<term>" -> a significant gap-map cell there
     onset_error_deg: dict[str, float] = field(default_factory=dict)
@@ -625,18 +677,18 @@ def score_jsbsim_case(
     shares = {
         e: {c: v / gap_e[c] for c, v in by.items() if gap_e[c] > 0} for e, by in energy.items()
     }
-    moved = {c for by in shares.values() for c, v in by.items() if v >= 0.1 * affect_share}
-    listed_at = {c: {e for e in listed if c in affected[e]} for c in COEFFICIENTS}
     det_kinds = {"aerodynamic", "measurement", "user"}
-    false_alarms, misattributed = [], []
-    for c in COEFFICIENTS:
-        for x in res[c]["effects"]:
-            if not x["significant"] or x.get("kind") not in det_kinds:
-                continue
-            if c not in touched:
-                false_alarms.append(f"{c}:{x['effect']}")
-            elif not listed_at[c] and not ({x["effect"], *x["ambiguous_with"]} & set(listed)):
-                misattributed.append(f"{c}:{x['effect']}")
+    det = {
+        c: [
+            e["effect"]
+            for e in res[c]["effects"]
+            if e["significant"] and e.get("kind") in det_kinds
+        ]
+        for c in COEFFICIENTS
+    }
+    false_alarms, false_untouched, misattributed = jsbsim_false_alarms(
+        det, ambiguous, shares, affect_share=affect_share
+    )
     alpha = j["alpha_deg"].to_numpy()
     gap_shown = {}
     for e in unlisted:
@@ -669,8 +721,7 @@ def score_jsbsim_case(
             shrink[c] = ours / orc
     return JsbsimCaseResult(
         dict(withheld), {}, verdicts, significant, affected, right_top, found, false_alarms,
-        [f for f in false_alarms if f.split(":")[0] not in moved],
-        misattributed, gap_shown, onset_err, shrink, ambiguous,
+        false_untouched, misattributed, gap_shown, onset_err, shrink, ambiguous,
         rolloff_called=bool(res["Cl"].get("rolloff", {}).get("detected", False)),
         shares=shares,
     )  # fmt: skip
