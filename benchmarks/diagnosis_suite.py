@@ -3,6 +3,9 @@ the simulator lacks, diagnosed and scored against the truth (see
 ``aerodelta.diagnosis.withheld``). Prints the confusion matrix of singles and the rates the
 issue's floors are about; writes every case to JSON.
 
+The same suite on JSBSim aircraft (issue 17, item 5) is ``benchmarks/jsbsim_diagnosis_suite.py
+--aircraft f15|DHC6``: its cases are terms of the aircraft's XML, scored by the same rules.
+
     python benchmarks/diagnosis_suite.py [--quick] [--size quick|default|N] [--seeds 1]
         [--first-seed 1]
         [--design-singles] [--only singles|multi|unlisted|nulls] [--magnitudes 0.5,0.25]

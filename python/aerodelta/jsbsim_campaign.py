@@ -17,7 +17,9 @@ The *qualified model* is JSBSim's own lateral aerodynamics with the withheld ter
 dependence frozen at ``withhold_alpha_deg`` above it: each withheld term is re-evaluated from the
 aircraft's XML with alpha replaced by ``min(alpha, withhold_alpha)``. The true Δ = full −
 qualified is therefore known exactly per sample and per term. The XML evaluation is checked
-against JSBSim's own ``aero/coefficient/*`` properties on every sample.
+against JSBSim's own ``aero/coefficient/*`` properties on every sample. ``withhold_scale=k``
+withholds a fraction of that change: qualified = full − k·(full − frozen), so the true Δ is
+k·(full − frozen) (k = 0.5, 0.25: an effect at half and a quarter of its size).
 
 Every random draw derives from the campaign seed: the same seed gives byte-identical files.
 """
@@ -183,6 +185,8 @@ class JsbsimCampaignInfo:
         Withheld term names.
     withhold_alpha_deg
         Alpha above which the withheld terms are frozen in the qualified model.
+    withhold_scale
+        Fraction of the frozen terms' change withheld (``generate_jsbsim_campaign``).
     """
 
     path: Path
@@ -193,6 +197,7 @@ class JsbsimCampaignInfo:
     withhold_alpha_deg: float
     manifest: pl.DataFrame
     effects: dict[str, float] = field(default_factory=dict)
+    withhold_scale: float = 1.0
 
 
 # --------------------------------------------------------------------------------------------
@@ -473,8 +478,10 @@ def _term_derivatives(  # noqa: PLR0917
     alpha_deg: np.ndarray,
     flap_deg: float,
     withhold_alpha_deg: float,
+    withhold_scale: float = 1.0,
 ) -> dict[str, dict[str, list[float]]]:
-    """Per fit regressor: the term's derivative (full and qualified) vs alpha, fit units."""
+    """Per fit regressor: the term's derivative (full and qualified) vs alpha, fit units; the
+    qualified one is ``full - withhold_scale * (full - frozen)``."""
     assert term.tree is not None
     regs = _regressor_env(cfg, signs)
     out: dict[str, dict[str, list[float]]] = {}
@@ -502,12 +509,13 @@ def _term_derivatives(  # noqa: PLR0917
 
                 vals.append(np.broadcast_to(_eval(term.tree, env), a.shape))
             curves.append((vals[0] - vals[1]) / (2 * h))
-        full, qual = curves
+        full, frozen_ = curves
+        delta = withhold_scale * (full - frozen_)
         if np.max(np.abs(full)) > 1e-12:
             out[reg] = {
                 "full": full.tolist(),
-                "qualified": qual.tolist(),
-                "delta": (full - qual).tolist(),
+                "qualified": (full - delta).tolist(),
+                "delta": delta.tolist(),
             }
     return out
 
@@ -836,9 +844,12 @@ def _coefficients(
     withheld: Sequence[Term],
     walpha: float,
     r_body: np.ndarray,
+    *,
+    withhold_scale: float = 1.0,
 ) -> tuple[dict[str, np.ndarray], list[str]]:
     """Truth columns of one maneuver: JSBSim's aero and propulsion coefficients about the CG,
-    each lateral term (nondimensional), the qualified model and the true Δ."""
+    each lateral term (nondimensional), the qualified model and the true Δ
+    (``withhold_scale`` times the withheld terms' change when frozen)."""
     qs = rec["aero/qbar-psf"] * rec["metrics/Sw-sqft"]
     qsb = qs * rec["metrics/bw-ft"]
     out: dict[str, np.ndarray] = {
@@ -881,7 +892,7 @@ def _coefficients(
         if t.name not in wnames:
             continue
         # full - qualified, both from the XML (bit-identical below the withhold alpha)
-        dv = full - np.broadcast_to(_eval(t.tree, env_frozen), val.shape)
+        dv = withhold_scale * (full - np.broadcast_to(_eval(t.tree, env_frozen), val.shape))
         if t.axis == "SIDE":
             # wind-axis side force -> body force; its moment about the CG through r x F
             a = rec["aero/alpha-deg"] * D2R
@@ -1031,6 +1042,7 @@ def generate_jsbsim_campaign(
     size: str | int = "default",
     withhold: str | Sequence[str] | None = "default",
     withhold_alpha_deg: float | None = None,
+    withhold_scale: float = 1.0,
     noise: float = 1.0,
     turbulence: float = 0.0,
     decel_kts_per_s: float = 1.0,
@@ -1058,6 +1070,10 @@ def generate_jsbsim_campaign(
     withhold_alpha_deg
         Alpha above which the withheld terms are frozen (default: the aircraft's, 15 deg for
         the F-15).
+    withhold_scale
+        Fraction ``k`` of the withheld terms' change that the qualified model lacks:
+        qualified = full − k·(full − frozen), true Δ = k·(full − frozen); 1 (default) withholds
+        the whole change, 0.5 and 0.25 half and a quarter of it. Finite and >= 0.
     noise
         Sensor noise scale (0 = exact sensors).
     turbulence
@@ -1093,6 +1109,12 @@ def generate_jsbsim_campaign(
     walpha = cfg.withhold_alpha_deg if withhold_alpha_deg is None else float(withhold_alpha_deg)
     if not math.isfinite(walpha):
         raise InvalidInputError("withhold_alpha_deg must be finite")
+    k_scale = float(withhold_scale)
+    if not math.isfinite(k_scale) or k_scale < 0:
+        raise InvalidInputError(
+            f"withhold_scale {withhold_scale!r}: give a finite fraction >= 0 (1 = the whole "
+            "withheld change, 0.5 = half of it)"
+        )
     reps = SIZES.get(size, 0) if isinstance(size, str) else int(size)
     if reps <= 0:
         raise InvalidInputError(f"size '{size}': use 'default', 'quick' or a positive integer")
@@ -1140,7 +1162,9 @@ def generate_jsbsim_campaign(
 
         for p in plans:
             rec, meta = _fly(cfg, root, p, signs, props, decel_kts_per_s, turbulence)
-            tru, problems = _coefficients(rec, terms, withheld, walpha, r_body)
+            tru, problems = _coefficients(
+                rec, terms, withheld, walpha, r_body, withhold_scale=k_scale
+            )
             bad = sorted(set(problems) & {t.name for t in withheld})
             if bad:
                 raise DataError(
@@ -1211,7 +1235,7 @@ def generate_jsbsim_campaign(
                 tmp / "truth" / "true_delta.parquet",
             )
         info = _truth_json(
-            cfg, withheld, walpha, signs, seed, noise, turbulence, sorted(unevaluated)
+            cfg, withheld, walpha, signs, seed, noise, turbulence, sorted(unevaluated), k_scale
         )
         (tmp / "truth" / "truth.json").write_text(json.dumps(info, indent=1, sort_keys=True))
     except BaseException:
@@ -1226,6 +1250,7 @@ def generate_jsbsim_campaign(
         withheld=tuple(t.name for t in withheld),
         withhold_alpha_deg=walpha,
         manifest=manifest,
+        withhold_scale=k_scale,
     )
 
 
@@ -1247,12 +1272,14 @@ def _truth_json(  # noqa: PLR0917
     noise: float,
     turbulence: float,
     unevaluated: Sequence[str],
+    withhold_scale: float = 1.0,
 ) -> dict[str, Any]:
     grid = np.round(np.arange(-5.0, 60.0 + 1e-9, 0.5), 6)
     wt = []
     for t in withheld:
         per_flap = {
-            f"{f:g}": _term_derivatives(t, cfg, signs, grid, f, walpha) for f in cfg.flaps_deg
+            f"{f:g}": _term_derivatives(t, cfg, signs, grid, f, walpha, withhold_scale)
+            for f in cfg.flaps_deg
         }
         wt.append(
             {
@@ -1274,6 +1301,7 @@ def _truth_json(  # noqa: PLR0917
         "noise_scale": float(noise),
         "turbulence": float(turbulence),
         "withhold_alpha_deg": walpha,
+        "withhold_scale": float(withhold_scale),
         "alpha_grid_deg": grid.tolist(),
         "withheld": wt,
         "control_signs": dict(signs),
@@ -1289,9 +1317,9 @@ def _truth_json(  # noqa: PLR0917
             "Cl_true, Cn_true, CY_true: JSBSim's aero moments/force about the CG (body axes) "
             "over qbar S b (qbar S); term_* are each aero/coefficient/* value nondimensional "
             "(moments about the aero reference point, SIDE in wind axes).",
-            "dC*_true = full - qualified: the withheld terms' change when their alpha "
-            "dependence is frozen at withhold_alpha_deg above it; C*_sim = C*_true + C*_prop_true "
-            "- dC*_true (the simulator's total, as measured).",
+            "dC*_true = full - qualified: withhold_scale times the withheld terms' change "
+            "when their alpha dependence is frozen at withhold_alpha_deg above it; "
+            "C*_sim = C*_true + C*_prop_true - dC*_true (the simulator's total, as measured).",
             "derivatives: d(term)/d(regressor) at regressor 0 vs alpha_grid_deg, full, "
             "qualified and delta; tables nonlinear in beta give the slope at beta = 0.",
             "C*_prop_true: propulsion moments (not aero); the inertial measurement includes them.",
