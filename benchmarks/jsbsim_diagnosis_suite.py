@@ -152,7 +152,7 @@ def run_case(
             skew_rates(camp, case.skew_s)
         data = ingest(camp, compat=False, progress=False).data
         diag = diagnose(data, config=config)
-        out = score_jsbsim_case(diag, camp, case.terms, effects, axes)
+        out = score_jsbsim_case(diag, camp, case.terms, effects, axes, timing_lag=case.skew_s > 0.0)
     out.seconds = time.perf_counter() - t0
     out.settings = {
         "aircraft": aircraft, "part": case.part, "label": case.label, "seed": case.seed,
@@ -189,9 +189,12 @@ def summarize(results: list[JsbsimCaseResult]) -> dict[str, Any]:
     multi = [r for r in results if part[id(r)] == "multi"]
     nulls = [r for r in results if part[id(r)] == "nulls"]
     null_rows: dict[str, list[bool]] = {}
+    skew_named: list[bool] = []
     for r in nulls:
         k = f"skew {r.settings['skew_s'] * 1e3:g} ms" if r.settings["skew_s"] else "no skew"
         null_rows.setdefault(k, []).append(bool(r.false_alarms))
+        if r.settings["skew_s"]:
+            skew_named.append(any("time_skew" in v for v in r.significant.values()))
     non_null = singles + multi
     onset = [v for r in non_null for v in r.onset_error_deg.values()]
     shrink = [v for r in singles for v in r.shrink_ratio.values()]
@@ -206,6 +209,7 @@ def summarize(results: list[JsbsimCaseResult]) -> dict[str, Any]:
         "multi_found": _rate([f for r in multi for f in r.found.values()]),
         "null_false_alarms": {k: _rate(v) for k, v in null_rows.items()},
         "null_false_alarms_all": _rate([bool(r.false_alarms) for r in nulls]),
+        "skew_nulls_time_skew_named": _rate(skew_named),
         "spurious_untouched": _rate([bool(r.false_alarms_untouched) for r in non_null]),
         "spurious_below_share": _rate([bool(r.false_alarms) for r in non_null]),
         "unlisted_misattributed": _rate([bool(r.misattributed) for r in non_null if r.gap_shown]),
@@ -239,6 +243,8 @@ def print_table(s: dict[str, Any], aircraft: str, sets: str) -> None:
     print(f"| each effect of pairs/triples among the significant | {s['multi_found']} | ≥ 95 % |")
     for k, v in s["null_false_alarms"].items():
         print(f"| nulls with a false alarm, {k} | {v} | ≤ 5 % |")
+    if s.get("skew_nulls_time_skew_named"):
+        row("nulls with late rates: time skew named", s["skew_nulls_time_skew_named"], "")
     row(
         "non-null cases with a spurious effect on a coefficient no withheld part moves",
         s["spurious_untouched"],
@@ -281,7 +287,7 @@ def rescore(path: str) -> list[JsbsimCaseResult]:
         r = JsbsimCaseResult(**d)
         det = {c: [e for e in v if e != "stochastic_rolloff"] for c, v in r.significant.items()}
         r.false_alarms, r.false_alarms_untouched, r.misattributed = jsbsim_false_alarms(
-            det, r.ambiguous, r.shares
+            det, r.ambiguous, r.shares, timing_lag=r.settings.get("skew_s", 0.0) > 0.0
         )
         out.append(r)
     return out

@@ -146,3 +146,14 @@ def test_false_alarm_rule_follows_the_virtual_suite() -> None:
     # a rival reported ambiguous with a withheld part is not a confident wrong answer
     fa, _, _ = jsbsim_false_alarms(sig, {"CY:rudder_effectiveness": ["sideforce_beta"]}, shares)
     assert fa == ["Cl:roll_damping"]
+
+
+def test_time_skew_named_on_a_null_with_late_rates_is_not_a_false_alarm() -> None:
+    """A null whose recorded rates are late holds a real timing error: naming time_skew is the
+    right answer there, and a false alarm where the rates are not late; anything else named
+    stays a false alarm either way."""
+    sig = {"Cl": ["time_skew"], "Cn": ["time_skew", "sideslip_rate"], "CY": []}
+    fa, _, _ = jsbsim_false_alarms(sig, {}, {})
+    assert fa == ["Cl:time_skew", "Cn:time_skew", "Cn:sideslip_rate"]
+    fa, _, _ = jsbsim_false_alarms(sig, {}, {}, timing_lag=True)
+    assert fa == ["Cn:sideslip_rate"]
