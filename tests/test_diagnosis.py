@@ -13,6 +13,7 @@ import pytest
 from scipy import stats
 
 import aerodelta
+from _diagnosis_support import dense_design, toy_rows
 from aerodelta.campaign import generate_campaign
 from aerodelta.cli import main
 from aerodelta.diagnosis import band, cv, select, write_outputs
@@ -26,32 +27,9 @@ from aerodelta.fit import model_frame, qualified_coefficients
 from aerodelta.ingest import ingest
 
 
-def _dense(y, man, flap, alpha, aero, glob, grid, n_flaps):  # noqa: PLR0917
-    """The full design matrix written out row by row (the reference the sparse reduction
-    must reproduce)."""
-    k_n, r_n, g_n = grid.n, aero.shape[1], glob.shape[1]
-    j, w1 = grid.locate(alpha)
-    x = np.zeros((y.size, n_flaps * k_n * r_n + g_n))
-    for i in range(y.size):
-        for r in range(r_n):
-            x[i, flap[i] * k_n * r_n + j[i] * r_n + r] += (1 - w1[i]) * aero[i, r]
-            x[i, flap[i] * k_n * r_n + (j[i] + 1) * r_n + r] += w1[i] * aero[i, r]
-        x[i, n_flaps * k_n * r_n :] = glob[i]
-    return x
-
-
 @pytest.fixture(scope="module")
 def toy():
-    rng = np.random.default_rng(3)
-    n_man, per = 12, 60
-    man = np.repeat(np.arange(n_man), per)
-    flap = (man % 2).astype(np.int64)
-    alpha = rng.uniform(0, 10, man.size)
-    aero = rng.normal(size=(man.size, 2))
-    glob = rng.normal(size=(man.size, 1))
-    y = np.sin(alpha / 3) * aero[:, 0] + 0.3 * glob[:, 0] + 0.05 * rng.normal(size=man.size)
-    grid = cv.HatGrid.covering(alpha, 2.5)
-    return y, man, flap, alpha, aero, glob, grid
+    return toy_rows(3, 12, 60)
 
 
 def test_cross_validation_matches_brute_force_refits(toy):
@@ -62,7 +40,7 @@ def test_cross_validation_matches_brute_force_refits(toy):
     cols = cv.local_columns(design, ["a", "b"], ["g"])
     sse, _ = cv.heldout_sse(design, st, cols)
     # reference: penalised least squares on the dense design, refitted without each fold
-    x = _dense(y, man, flap, alpha, aero, glob, grid, 2)
+    x = dense_design(y, man, flap, alpha, aero, glob, grid, 2)
     pen = np.zeros((x.shape[1], x.shape[1]))
     p_local = cv.penalty(design)
     kr = grid.n * 2
@@ -197,7 +175,7 @@ def test_profiling_out_per_maneuver_nuisance_matches_ols_with_per_maneuver_colum
     cols = cv.local_columns(prof, ["a", "b"], ["g"])
     th = cv.solve(prof, [g + p for g, p in zip(grams, pen0, strict=True)], xtys, cols)
     # reference: dense design, nuisance columns copied per maneuver
-    x = _dense(y2, man, flap, alpha, aero, glob, grid, 2)
+    x = dense_design(y2, man, flap, alpha, aero, glob, grid, 2)
     blocks = np.zeros((y.size, 24))
     for m in range(12):
         rows = man == m

@@ -7,37 +7,16 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from _diagnosis_support import dense_design, toy_rows
 from aerodelta.diagnosis import cv, select
 from aerodelta.diagnosis.nested import effect_outer, outer_evaluation, outer_summary
 from aerodelta.diagnosis.select import SelectionConfig
 from aerodelta.diagnosis.vocabulary import Candidate
 
 
-def _dense(y, man, flap, alpha, aero, glob, grid, n_flaps):  # noqa: PLR0917
-    """The full design matrix written out row by row (hat basis in alpha per flap)."""
-    k_n, r_n, g_n = grid.n, aero.shape[1], glob.shape[1]
-    j, w1 = grid.locate(alpha)
-    x = np.zeros((y.size, n_flaps * k_n * r_n + g_n))
-    rows = np.arange(y.size)
-    for r in range(r_n):
-        np.add.at(x, (rows, flap * k_n * r_n + j * r_n + r), (1 - w1) * aero[:, r])
-        np.add.at(x, (rows, flap * k_n * r_n + (j + 1) * r_n + r), w1 * aero[:, r])
-    x[:, n_flaps * k_n * r_n :] = glob
-    return x
-
-
 @pytest.fixture(scope="module")
 def toy():
-    rng = np.random.default_rng(5)
-    n_man, per = 15, 50
-    man = np.repeat(np.arange(n_man), per)
-    flap = (man % 2).astype(np.int64)
-    alpha = rng.uniform(0, 10, man.size)
-    aero = rng.normal(size=(man.size, 2))
-    glob = rng.normal(size=(man.size, 1))
-    y = np.sin(alpha / 3) * aero[:, 0] + 0.3 * glob[:, 0] + 0.05 * rng.normal(size=man.size)
-    grid = cv.HatGrid.covering(alpha, 2.5)
-    return y, man, flap, alpha, aero, glob, grid
+    return toy_rows(5, 15, 50)
 
 
 def test_outer_errors_are_those_of_refits_without_the_fold(toy):
@@ -48,7 +27,7 @@ def test_outer_errors_are_those_of_refits_without_the_fold(toy):
     y, man, flap, alpha, aero, glob, grid = toy
     design = cv.build_design(y, man, flap, alpha, aero, glob, ["a", "b"], ["g"], grid, 15, 2)
     folds = np.arange(15) % 5
-    x = _dense(y, man, flap, alpha, aero, glob, grid, 2)
+    x = dense_design(y, man, flap, alpha, aero, glob, grid, 2)
     kr = grid.n * 2
     for o in range(5):
         inner_idx = np.flatnonzero(folds != o)
@@ -101,7 +80,7 @@ def test_subset_of_a_profiled_design_scores_each_maneuver_on_its_own_nuisance(to
     cols = cv.local_columns(sub, ["a", "b"], ["g"])
     th = cv.solve(sub, st.total_gram, st.total_xty, cols)
     got = cv.model_sse(prof, outer, th, cols)
-    x = _dense(y2, man, flap, alpha, aero, glob, grid, 2)
+    x = dense_design(y2, man, flap, alpha, aero, glob, grid, 2)
     kr = grid.n * 2
     for i, m in enumerate(outer):
         rows = man == m

@@ -59,13 +59,18 @@ def lowpass(x: np.ndarray, dt: float, cutoff_hz: float) -> np.ndarray:
     return np.fft.irfft(np.fft.rfft(buf) * w, p)[n - 1 : 2 * n - 1] + line
 
 
-def band_cutoffs(frame: pl.DataFrame) -> dict[str, np.ndarray]:
-    """Per coefficient, the smoother's cut-off (Hz) per maneuver in order of appearance
-    (``NaN`` where the channel is absent or the maneuver too short)."""
+def _runs(frame: pl.DataFrame) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """First and past-the-last row of each maneuver (rows contiguous), and the time column."""
     ids = frame["maneuver_id"].to_numpy()
     starts = np.flatnonzero(np.r_[True, ids[1:] != ids[:-1]])
     ends = np.r_[starts[1:], ids.size]
-    t = frame["t"].cast(pl.Float64).to_numpy()
+    return starts, ends, frame["t"].cast(pl.Float64).to_numpy()
+
+
+def band_cutoffs(frame: pl.DataFrame) -> dict[str, np.ndarray]:
+    """Per coefficient, the smoother's cut-off (Hz) per maneuver in order of appearance
+    (``NaN`` where the channel is absent or the maneuver too short)."""
+    starts, ends, t = _runs(frame)
     out: dict[str, np.ndarray] = {}
     for coef, ch in BAND_CHANNEL.items():
         fc = np.full(starts.size, np.nan)
@@ -84,10 +89,7 @@ def band_match(
 ) -> dict[str, np.ndarray]:
     """Each coefficient's ``outputs`` (one value per row of ``frame``, whose maneuvers are
     contiguous) low-passed per maneuver at ``cutoffs`` (:func:`band_cutoffs`)."""
-    ids = frame["maneuver_id"].to_numpy()
-    starts = np.flatnonzero(np.r_[True, ids[1:] != ids[:-1]])
-    ends = np.r_[starts[1:], ids.size]
-    t = frame["t"].cast(pl.Float64).to_numpy()
+    starts, ends, t = _runs(frame)
     out: dict[str, np.ndarray] = {}
     for coef, v in outputs.items():
         y = np.asarray(v, dtype=float).copy()

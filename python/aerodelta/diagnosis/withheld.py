@@ -118,6 +118,24 @@ def measurement_shares(data: pl.DataFrame, twin: pl.DataFrame) -> dict[str, floa
     return out
 
 
+def _named(
+    res: Mapping[str, Any],
+) -> tuple[dict[str, str], dict[str, list[str]], dict[str, list[str]]]:
+    """A diagnosis's verdict, significant effects and ambiguous rivals (``"coef:effect"`` ->
+    rivals) per coefficient."""
+    verdicts = {c: res[c]["verdict"] for c in COEFFICIENTS}
+    significant = {
+        c: [e["effect"] for e in res[c]["effects"] if e["significant"]] for c in COEFFICIENTS
+    }
+    ambiguous = {
+        f"{c}:{e['effect']}": e["ambiguous_with"]
+        for c in COEFFICIENTS
+        for e in res[c]["effects"]
+        if e["significant"] and e["ambiguous_with"]
+    }
+    return verdicts, significant, ambiguous
+
+
 def score_case(
     diag: Diagnosis,
     truth_dir: Path,
@@ -144,16 +162,7 @@ def score_case(
     )
     j = preds.join(truth, on=["maneuver_id", "t"], how="inner")
     res = diag.result["coefficients"]
-    verdicts = {c: res[c]["verdict"] for c in COEFFICIENTS}
-    significant = {
-        c: [e["effect"] for e in res[c]["effects"] if e["significant"]] for c in COEFFICIENTS
-    }
-    ambiguous = {
-        f"{c}:{e['effect']}": e["ambiguous_with"]
-        for c in COEFFICIENTS
-        for e in res[c]["effects"]
-        if e["significant"] and e["ambiguous_with"]
-    }
+    verdicts, significant, ambiguous = _named(res)
     affected: dict[str, list[str]] = {}
     oracle: dict[str, np.ndarray] = {c: np.zeros(j.height) for c in COEFFICIENTS}
     onset_err: dict[str, float] = {}
@@ -642,16 +651,7 @@ def score_jsbsim_case(
         *[f"{c}_{k}" for c in COEFFICIENTS for k in ("gap", "explained", "timing")],
     ).join(truth, on=["maneuver_id", "t"], how="inner")
     comps = jsbsim_components(j, withheld, term_effects, term_axes) if withheld else {}
-    verdicts = {c: res[c]["verdict"] for c in COEFFICIENTS}
-    significant = {
-        c: [e["effect"] for e in res[c]["effects"] if e["significant"]] for c in COEFFICIENTS
-    }
-    ambiguous = {
-        f"{c}:{e['effect']}": e["ambiguous_with"]
-        for c in COEFFICIENTS
-        for e in res[c]["effects"]
-        if e["significant"] and e["ambiguous_with"]
-    }
+    verdicts, significant, ambiguous = _named(res)
     named = {
         c: {
             e["effect"]: {e["effect"], *e["ambiguous_with"]}
