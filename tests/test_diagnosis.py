@@ -352,6 +352,17 @@ def test_band_match_lowpass_passes_the_band_and_removes_what_is_above_without_de
     np.testing.assert_allclose(band.lowpass(ramp, dt, fc), ramp, atol=1e-12)
 
 
+def test_band_match_without_the_channel_says_so(campaigns):
+    """Records without the raw lateral accelerometer: C_Y cannot take the measured band, and
+    the report says the comparison is at full band instead of quietly doing it."""
+    _, data = campaigns["null"]
+    d = aerodelta.diagnose(data.drop("ay_mps2"), config=DiagnoseConfig(nested=False))
+    notes = d.result["data"]["notes"]
+    assert any(n.startswith("CY: the simulator's output is compared at full band") for n in notes)
+    assert not any(n.startswith(("Cl:", "Cn:")) for n in notes)
+    assert "note: CY: the simulator's output is compared at full band" in d.summary()
+
+
 def test_gap_without_band_match_is_the_raw_difference(campaigns):
     _, data = campaigns["dihedral"]
     frame = model_frame(data).sort(["maneuver_id", "t"])

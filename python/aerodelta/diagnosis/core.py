@@ -19,7 +19,7 @@ from threadpoolctl import threadpool_limits
 from tqdm import tqdm
 
 from aerodelta._core import __version__
-from aerodelta.diagnosis.band import band_cutoffs, band_match
+from aerodelta.diagnosis.band import BAND_CHANNEL, band_cutoffs, band_match
 from aerodelta.diagnosis.cv import (
     Design,
     FoldStats,
@@ -430,6 +430,12 @@ def _diagnose(  # noqa: PLR0917 - the arguments of diagnose(), passed through
         # the simulator's output (and what is computed from it) in the band of the measured
         # coefficients, which come from smoothed rates and accelerations (band.py)
         cutoffs = band_cutoffs(frame)
+        for c, fc in cutoffs.items():
+            if not np.isfinite(fc).any():
+                notes.append(
+                    f"{c}: the simulator's output is compared at full band (no '{BAND_CHANNEL[c]}' "
+                    "channel to take the measured coefficient's band from)"
+                )
         sim_c = band_match(frame, sim_c, cutoffs)
         for name in SIM_REGRESSORS:
             if name in meas_cols:

@@ -35,6 +35,8 @@ def summary_text(result: dict[str, Any]) -> str:
         f"flaps {result['data']['flaps_deg']}; {result['data']['folds']}-fold cross-validation "
         "by maneuver",
     ]
+    for note in result["data"].get("notes", []):
+        lines.append(f"note: {note}")
     if result.get("not_testable"):
         lines.append("not testable without a loadable model: " + ", ".join(result["not_testable"]))
     for c in COEFFICIENTS:
