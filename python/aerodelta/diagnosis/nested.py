@@ -22,7 +22,8 @@ What is reported per coefficient (``outer`` in ``diagnosis.json``):
   left-out maneuver, what adding the effect removed in its fold's selection order (the error
   before minus after; a timing term, always in the model, by leaving it out of the final
   model), zero where its fold did not choose it, as a share of the gap's squared error, with
-  its sign-flip p-value. The gains of a fold's effects add up to its effects' shrink.
+  its sign-flip p-value. The gains of a fold's effects other than timing terms add up to its
+  effects' shrink.
 
 The verdicts are not changed by these numbers (yet): they are reported beside the selection's
 own so that a frozen rule can be built on them and scored on seed sets it was not built on.
