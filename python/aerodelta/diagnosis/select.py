@@ -196,10 +196,8 @@ def score(  # noqa: PLR0917 - internal scoring step
     tests: bool = True,
 ) -> Step:
     """Held-out score of adding ``cand`` to ``base`` (with ``tests=False`` the randomization
-    tests are skipped: statistic 0, p-values 1)."""
+    tests are skipped: statistic 0, p-values 1; :func:`with_tests` adds them later)."""
     sse, thetas = heldout_sse(design, stats, _cols(design, [*base, cand]))
-    d = material_change(sse_before, sse)
-    t, p = improvement_test(d, cfg.n_perm, seed) if tests else (0.0, 1.0)
     params: dict[str, float] = {}
     material = True
     if cand.global_:
@@ -211,10 +209,23 @@ def score(  # noqa: PLR0917 - internal scoring step
         floor = max(PRACTICAL_FLOOR.get(r, 0.0) for r in cand.regressors)
         material = size >= floor
     gain = robust_gain(sse_before - sse)
-    p = min(1.0, p * n_tests)
+    st = Step(cand, sse, gain, 0.0, 1.0, thetas, 1.0, params, material)
+    return with_tests(st, sse_before, cfg, n_tests, seed) if tests else st
+
+
+def with_tests(
+    st: Step, sse_before: FloatArray, cfg: SelectionConfig, n_tests: int, seed: int
+) -> Step:
+    """``st`` (scored against ``sse_before``) with its randomization tests, Bonferroni-corrected
+    over ``n_tests`` candidates: the combined test, and the signed-rank test alone (the
+    broad-effect evidence) when the combined one passes."""
+    d = material_change(sse_before, st.sse)
+    st.statistic, p = improvement_test(d, cfg.n_perm, seed)
+    st.p_value = min(1.0, p * n_tests)
     # the broad-effect test matters only for an effect that passes the main test (_passes)
-    rank_p = min(1.0, signed_rank_p(d, cfg.n_perm, seed + 2) * n_tests) if p < cfg.alpha else 1.0
-    return Step(cand, sse, gain, t, p, thetas, rank_p, params, material)
+    if st.p_value < cfg.alpha:
+        st.rank_p = min(1.0, signed_rank_p(d, cfg.n_perm, seed + 2) * n_tests)
+    return st
 
 
 def _passes(st: Step, cfg: SelectionConfig, total0: float) -> bool:
@@ -296,10 +307,7 @@ def forward_select(
             break
         best = max(eligible, key=lambda s: s.gain)
         if not report:
-            name = best.candidate.name
-            best = scores[name] = score(
-                design, stats, current, best.candidate, sse_cur, cfg, n_tests, seeds[name]
-            )
+            with_tests(best, sse_cur, cfg, n_tests, seeds[best.candidate.name])
         if not (_passes(best, cfg, total0) and len(selected) < cfg.max_effects):
             break
         rivals = []
