@@ -78,8 +78,17 @@ prop_rpm = { source = "NP", unit = "rpm" }
 """
 
 
-def motion(t: np.ndarray, seed: int = 0) -> dict[str, np.ndarray]:
-    """Closed-form motion; returns canonical channels (SI, deg) and the truth."""
+def motion(
+    t: np.ndarray,
+    seed: int = 0,
+    loading: dict[str, object] | None = None,
+) -> dict[str, np.ndarray]:
+    """Closed-form motion; returns canonical channels (SI, deg) and the truth.
+
+    ``loading`` flies it with another mass (``m``, kg), inertia tensor (``I``: Ixx, Iyy, Izz,
+    Ixz, Ixy, Iyz about the CG, Etkin sign), CG (``cg``, m from the datum the sensor positions
+    are measured from) and reports the moments about ``ref`` (m from the datum): the full
+    Euler equations M = I ω̇ + ω × (I ω + h) about the CG, plus (cg − ref) × m a_cg."""
     rng = np.random.default_rng(seed)
     a = rng.uniform(0.7, 1.3, 12)
     w = rng.uniform(0.25, 0.9, 6)
@@ -127,12 +136,14 @@ def motion(t: np.ndarray, seed: int = 0) -> dict[str, np.ndarray]:
     az = wd - q * u + p * v - G0 * np.cos(th) * np.cos(phi)
     om = np.stack([p, q, r], axis=1)
     omd = np.stack([pd, qd, rd], axis=1)
+    cg = np.zeros(3) if loading is None else np.asarray(loading["cg"], dtype=float)
+    r_acc, r_alpha, r_beta = R_ACC - cg, R_ALPHA - cg, R_BETA - cg
     acc_s = (
-        np.stack([ax, ay, az], axis=1) + np.cross(omd, R_ACC) + np.cross(om, np.cross(om, R_ACC))
+        np.stack([ax, ay, az], axis=1) + np.cross(omd, r_acc) + np.cross(om, np.cross(om, r_acc))
     )
     vel = np.stack([u, v, ww], axis=1)
-    va = vel + np.cross(om, R_ALPHA)
-    vb = vel + np.cross(om, R_BETA)
+    va = vel + np.cross(om, r_alpha)
+    vb = vel + np.cross(om, r_beta)
     alpha_v = np.arctan2(va[:, 2], va[:, 0])
     beta_v = np.arcsin(vb[:, 1] / np.linalg.norm(vb, axis=1))
     tas = np.linalg.norm(vel, axis=1)
@@ -146,6 +157,18 @@ def motion(t: np.ndarray, seed: int = 0) -> dict[str, np.ndarray]:
     cn = (izz * rd - ixz * (pd - q * r) + (iyy - ixx) * p * q + hp * q) / (qs * AC["b"])
     cy = AC["m"] * ay / qs
     cm = (iyy * qd + (ixx - izz) * p * r + ixz * (p**2 - r**2) - hp * r) / (qs * AC["c"])
+    if loading is not None:
+        ixx, iyy, izz, ixz, ixy, iyz = np.asarray(loading["I"], dtype=float)
+        tensor = np.array([[ixx, -ixy, -ixz], [-ixy, iyy, -iyz], [-ixz, -iyz, izz]])
+        h = np.zeros_like(om)
+        h[:, 0] = -hp
+        force = float(loading["m"]) * np.stack([ax, ay, az], axis=1)  # type: ignore[arg-type]
+        arm = cg - np.asarray(loading["ref"], dtype=float)
+        mom = omd @ tensor.T + np.cross(om, om @ tensor.T + h) + np.cross(arm, force)
+        cl = mom[:, 0] / (qs * AC["b"])
+        cm = mom[:, 1] / (qs * AC["c"])
+        cn = mom[:, 2] / (qs * AC["b"])
+        cy = force[:, 1] / qs
     d = np.degrees
     return {
         "t": t,

@@ -190,6 +190,9 @@ def preprocess_batch(
     alpha_vane_m: list[float],
     beta_vane_m: list[float],
     smooth: bool = True,
+    cg_m: list[float] = ...,
+    moment_ref_m: list[float] = ...,
+    masses: npt.NDArray[np.float64] | None = None,
 ) -> tuple[list[npt.NDArray[np.float64]], npt.NDArray[np.float64], npt.NDArray[np.float64]]: ...
 def compat_check(
     t: npt.NDArray[np.float64],

@@ -4,15 +4,24 @@ Schema (see ``docs/data.md``)::
 
     name = "..."
     [geometry]   S_m2, b_m, cbar_m
-    [mass]       mass_kg, Ixx_kgm2, Iyy_kgm2, Izz_kgm2, Ixz_kgm2
+    [mass]       mass_kg, Ixx_kgm2, Iyy_kgm2, Izz_kgm2, Ixz_kgm2, Ixy_kgm2 = 0, Iyz_kgm2 = 0
+                 (about the CG, Etkin sign), cg_m = [0, 0, 0]
+    [reference]  moment_ref_m (default: cg_m)
     [propulsion] n_engines, prop_inertia_kgm2, prop_rotation = "same" | "opposite",
                  prop_rpm_channel = "prop_rpm" and/or prop_rpm_fixed = 1020.0
-    [sensors]    accel_m, alpha_vane_m, beta_vane_m  (x fwd, y right, z down from the CG, m)
+    [sensors]    accel_m, alpha_vane_m, beta_vane_m
+
+Positions (``cg_m``, ``moment_ref_m``, sensors) are body axes (x forward, y right wing,
+z down), metres, from one fixed aircraft datum; without ``cg_m`` the datum is the CG.
+The measured moment coefficients are about ``moment_ref_m`` (the simulator's moment
+reference centre: JSBSim's AERORP, DAVE-ML's MRC); per-maneuver loadings come from the
+manifest (:mod:`aerodelta.loading`).
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -24,13 +33,30 @@ from aerodelta.exceptions import DataError
 #: The tables of the aircraft file and their keys.
 _KEYS = {
     "geometry": ("S_m2", "b_m", "cbar_m"),
-    "mass": ("mass_kg", "Ixx_kgm2", "Iyy_kgm2", "Izz_kgm2", "Ixz_kgm2"),
+    "mass": (
+        "mass_kg", "Ixx_kgm2", "Iyy_kgm2", "Izz_kgm2", "Ixz_kgm2", "Ixy_kgm2", "Iyz_kgm2", "cg_m",
+    ),
+    "reference": ("moment_ref_m",),
     "propulsion": (
         "n_engines", "prop_inertia_kgm2", "prop_rotation", "prop_rpm_channel", "prop_rpm_fixed",
         "prop_efficiency",
     ),
     "sensors": ("accel_m", "alpha_vane_m", "beta_vane_m"),
 }  # fmt: skip
+
+
+def inertia_definite(tensor: Sequence[Any]) -> Any:
+    """Whether the inertia tensor ``(Ixx, Iyy, Izz, Ixz, Ixy, Iyz)`` (kg m², Etkin sign: -Ixy,
+    -Ixz, -Iyz off the diagonal) is positive definite, by Sylvester's leading minors;
+    elementwise when the six are numpy arrays."""
+    ixx, iyy, izz, ixz, ixy, iyz = tensor
+    m2 = ixx * iyy - ixy * ixy
+    det = (
+        ixx * (iyy * izz - iyz * iyz)
+        - ixy * (ixy * izz + iyz * ixz)
+        - ixz * (ixy * iyz + iyy * ixz)
+    )
+    return (ixx > 0.0) & (m2 > 0.0) & (det > 0.0)
 
 
 @dataclass(frozen=True)
@@ -60,10 +86,14 @@ class Aircraft:
     alpha_vane_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
     beta_vane_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
     prop_efficiency: float = 0.8
+    Ixy_kgm2: float = 0.0
+    Iyz_kgm2: float = 0.0
+    cg_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    moment_ref_m: tuple[float, float, float] | None = None
 
     @property
     def mass_geometry(self) -> list[float]:
-        """``[S, b, cbar, mass, Ixx, Iyy, Izz, Ixz]`` as the engine takes it."""
+        """``[S, b, cbar, mass, Ixx, Iyy, Izz, Ixz, Ixy, Iyz]`` as the engine takes it."""
         return [
             self.S_m2,
             self.b_m,
@@ -73,7 +103,14 @@ class Aircraft:
             self.Iyy_kgm2,
             self.Izz_kgm2,
             self.Ixz_kgm2,
+            self.Ixy_kgm2,
+            self.Iyz_kgm2,
         ]
+
+    @property
+    def reference_m(self) -> tuple[float, float, float]:
+        """The moment reference centre from the datum, m (``moment_ref_m``, else the CG)."""
+        return self.cg_m if self.moment_ref_m is None else self.moment_ref_m
 
     @property
     def prop_h_per_rpm(self) -> float:
@@ -132,8 +169,8 @@ class Aircraft:
                 problems.append(f"[{table_}] {key} = {v} must be positive")
             return float(v)
 
-        def vec(key: str) -> tuple[float, float, float]:
-            v = table("sensors").get(key, [0.0, 0.0, 0.0])
+        def vec(key: str, table_: str = "sensors") -> tuple[float, float, float]:
+            v = table(table_).get(key, [0.0, 0.0, 0.0])
             if (
                 not isinstance(v, list)
                 or len(v) != 3
@@ -142,7 +179,7 @@ class Aircraft:
                     for x in v
                 )
             ):
-                problems.append(f"[sensors] {key} = {v!r} must be a list of 3 finite numbers (m)")
+                problems.append(f"[{table_}] {key} = {v!r} must be a list of 3 finite numbers (m)")
                 return (0.0, 0.0, 0.0)
             return (float(v[0]), float(v[1]), float(v[2]))
 
@@ -196,10 +233,18 @@ class Aircraft:
             alpha_vane_m=vec("alpha_vane_m"),
             beta_vane_m=vec("beta_vane_m"),
             prop_efficiency=efficiency,
+            Ixy_kgm2=num("mass", "Ixy_kgm2", positive=False, default=0.0),
+            Iyz_kgm2=num("mass", "Iyz_kgm2", positive=False, default=0.0),
+            cg_m=vec("cg_m", "mass"),
+            moment_ref_m=(
+                vec("moment_ref_m", "reference") if "moment_ref_m" in table("reference") else None
+            ),
         )
-        if not problems and ac.Ixz_kgm2**2 >= ac.Ixx_kgm2 * ac.Izz_kgm2:
+        if not problems and not inertia_definite(ac.mass_geometry[4:]):
             problems.append(
-                "[mass] Ixz_kgm2² >= Ixx·Izz: the inertia tensor is not positive definite"
+                f"[mass] Ixz_kgm2 = {ac.Ixz_kgm2:g}, Ixy_kgm2 = {ac.Ixy_kgm2:g}, Iyz_kgm2 = "
+                f"{ac.Iyz_kgm2:g}: the inertia tensor is not positive definite (a product of "
+                "inertia too large for the moments of inertia; Etkin sign, kg m²)"
             )
         if problems:
             raise DataError(f"{source}: invalid aircraft reference: " + "; ".join(problems))

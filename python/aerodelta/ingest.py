@@ -25,6 +25,7 @@ from aerodelta.aircraft import Aircraft
 from aerodelta.channel_map import ChannelMap
 from aerodelta.channels import ALTERNATIVES, CHANNELS, REQUIRED
 from aerodelta.exceptions import DataError
+from aerodelta.loading import cg_warnings, manifest_loadings
 from aerodelta.plausibility import check_plausibility
 from aerodelta.preprocess import preprocess_frame
 from aerodelta.readers import RecordSource, find_records, read_manifest, scan_record
@@ -136,7 +137,9 @@ def ingest(  # noqa: PLR0917
     channel_map : ChannelMap, path or None
         How the user's columns map onto the canonical schema; None: already canonical.
     manifest : DataFrame, path or None
-        Maneuver metadata; default ``DIR/manifest.csv`` when present.
+        Maneuver metadata; default ``DIR/manifest.csv`` when present. Its loading columns
+        (``mass_kg``, ``Ixx_kgm2`` ... ``Iyz_kgm2``, ``cg_x_m``, ``cg_y_m``, ``cg_z_m``:
+        :mod:`aerodelta.loading`) give each maneuver its own mass properties.
     allow_interpolation : bool
         Fill short NaN dropouts (warned) instead of refusing them.
     compat : bool
@@ -179,6 +182,7 @@ def ingest(  # noqa: PLR0917
         man = read_manifest(man_name)
     else:
         man = None
+    loadings = manifest_loadings(man, ac, man_name)
     sources = find_records(list(data) if isinstance(data, (list, tuple)) else data, man, man_name)
     frames: list[pl.DataFrame] = []
     kept: list[tuple[str, int]] = []
@@ -244,6 +248,11 @@ def ingest(  # noqa: PLR0917
                 else:
                     frames.append(df)
                 kept.append((src.maneuver_id, df.height))
+    if loadings is not None:
+        by_id = {r.maneuver_id: r for r in reports}
+        for mid, msg in cg_warnings(loadings, ac):
+            if mid in by_id:
+                by_id[mid].add("warning", "manifest", "", msg)
     errors = [f for r in reports for f in r.errors]
     if errors:
         lines = summarise(errors)
@@ -260,7 +269,7 @@ def ingest(  # noqa: PLR0917
         same = all(f.schema == frames[0].schema for f in frames)
         allc = pl.concat(frames, how="vertical" if same else "diagonal_relaxed", rechunk=True)
         allc = allc.with_columns(ids.gather(rows))
-    out, smoothing = preprocess_frame(allc, ac, smooth=smooth)
+    out, smoothing = preprocess_frame(allc, ac, smooth=smooth, loadings=loadings)
     plaus_df = None
     if plausibility:
         files = {r.maneuver_id: Path(r.file).name for r in reports}
@@ -275,7 +284,7 @@ def ingest(  # noqa: PLR0917
         compat_df = _run_compat(out, reports)
         if apply_compat:
             allc = _apply_compat(allc, compat_df)
-            out, smoothing = preprocess_frame(allc, ac, smooth=smooth)
+            out, smoothing = preprocess_frame(allc, ac, smooth=smooth, loadings=loadings)
             compat_df = compat_df.with_columns(pl.lit(True).alias("applied"))
     out = _attach_manifest(out, man, reports, man_name)
     return IngestResult(out, reports, compat_df, smoothing, plaus_df)

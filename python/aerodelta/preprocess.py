@@ -28,6 +28,7 @@ import polars as pl
 
 from aerodelta import _core
 from aerodelta.aircraft import Aircraft
+from aerodelta.loading import loading_array
 
 R_AIR = 287.05287
 GAMMA = 1.4
@@ -54,10 +55,18 @@ def _prop_rpm(df: pl.DataFrame, ac: Aircraft) -> np.ndarray:
 
 
 def preprocess_frame(
-    df: pl.DataFrame, aircraft: Aircraft, smooth: bool = True
+    df: pl.DataFrame,
+    aircraft: Aircraft,
+    smooth: bool = True,
+    loadings: pl.DataFrame | None = None,
 ) -> tuple[pl.DataFrame, pl.DataFrame]:
     """Preprocess validated maneuvers stored back to back (a ``maneuver_id`` column separates
     them; each maneuver's rows contiguous and in time order).
+
+    ``loadings`` (from :func:`aerodelta.loading.manifest_loadings`) gives each maneuver its
+    own mass, inertia tensor and CG; without it every maneuver has the aircraft file's. The
+    moment coefficients are about the aircraft's moment reference centre
+    (:attr:`Aircraft.reference_m`).
 
     Returns
     -------
@@ -88,6 +97,9 @@ def preprocess_frame(
         list(aircraft.alpha_vane_m),
         list(aircraft.beta_vane_m),
         smooth,
+        cg_m=list(aircraft.cg_m),
+        moment_ref_m=list(aircraft.reference_m),
+        masses=loading_array(loadings, [str(v) for v in runs["value"].to_list()]),
     )
     out = df.with_columns(pl.Series(name, a) for name, a in zip(outputs, arrays, strict=False))
     qs = pl.col("qbar_pa") * aircraft.S_m2

@@ -3,7 +3,7 @@ use aero_core::preprocess::coefficients::MassGeometry;
 use aero_core::preprocess::smooth as core_smooth;
 use aero_core::preprocess::{compat, deriv, kinematics, maneuver, plausibility};
 use aero_core::AeroError;
-use numpy::{IntoPyArray, PyArray1, PyReadonlyArray1};
+use numpy::{IntoPyArray, PyArray1, PyReadonlyArray1, PyReadonlyArray2};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
@@ -148,23 +148,28 @@ fn preprocess_columns() -> (Vec<String>, Vec<String>, Vec<String>) {
 
 /// Preprocess concatenated maneuvers: `(output columns, cutoffs_hz (n_man*9), noise_std (n_man*9))`.
 ///
-/// `mass_geometry` = [S, b, cbar, mass, Ixx, Iyy, Izz, Ixz].
+/// `mass_geometry` = [S, b, cbar, mass, Ixx, Iyy, Izz, Ixz, Ixy, Iyz] of the nominal loading;
+/// positions from the aircraft datum (m); `masses` one row per maneuver
+/// [mass, Ixx, Iyy, Izz, Ixz, Ixy, Iyz, cg_x, cg_y, cg_z] or None (nominal loading).
 #[pyfunction]
 #[allow(clippy::too_many_arguments)]
-#[pyo3(signature = (columns, offsets, mass_geometry, prop_h_per_rpm, accel_m, alpha_vane_m, beta_vane_m, smooth=true))]
+#[pyo3(signature = (columns, offsets, mass_geometry, prop_h_per_rpm, accel_m, alpha_vane_m, beta_vane_m, smooth=true, cg_m=[0.0; 3], moment_ref_m=[0.0; 3], masses=None))]
 fn preprocess_batch<'py>(
     py: Python<'py>,
     columns: Vec<PyReadonlyArray1<'py, f64>>,
     offsets: Vec<usize>,
-    mass_geometry: [f64; 8],
+    mass_geometry: [f64; 10],
     prop_h_per_rpm: f64,
     accel_m: [f64; 3],
     alpha_vane_m: [f64; 3],
     beta_vane_m: [f64; 3],
     smooth: bool,
+    cg_m: [f64; 3],
+    moment_ref_m: [f64; 3],
+    masses: Option<PyReadonlyArray2<'py, f64>>,
 ) -> PyResult<(Vec<Arr<'py>>, Arr<'py>, Arr<'py>)> {
     let cols = slices(&columns)?;
-    let [s, b, cbar, mass, ixx, iyy, izz, ixz] = mass_geometry;
+    let [s, b, cbar, mass, ixx, iyy, izz, ixz, ixy, iyz] = mass_geometry;
     let ac = maneuver::AircraftParams {
         mg: MassGeometry {
             s,
@@ -175,15 +180,40 @@ fn preprocess_batch<'py>(
             iyy,
             izz,
             ixz,
+            ixy,
+            iyz,
+            cg_from_ref_m: [0.0; 3],
         },
         prop_h_per_rpm,
         accel_m,
         alpha_vane_m,
         beta_vane_m,
+        cg_m,
+        moment_ref_m,
+    };
+    let loads: Vec<maneuver::ManeuverMass> = match &masses {
+        None => Vec::new(),
+        Some(a) => {
+            let v = a.as_array();
+            if v.ncols() != 10 {
+                return Err(crate::error::to_py(AeroError::invalid(
+                    "argument 'masses'",
+                    format!("{} columns; 10 expected", v.ncols()),
+                )));
+            }
+            v.rows()
+                .into_iter()
+                .map(|r| maneuver::ManeuverMass {
+                    mass: r[0],
+                    inertia: [r[1], r[2], r[3], r[4], r[5], r[6]],
+                    cg_m: [r[7], r[8], r[9]],
+                })
+                .collect()
+        }
     };
     let opts = maneuver::PreprocessOptions { smooth };
     let out = detached(py, || {
-        maneuver::preprocess_concatenated(&cols, &offsets, &ac, &opts)
+        maneuver::preprocess_concatenated(&cols, &offsets, &ac, &loads, &opts)
     })?;
     let arrays = out
         .columns

@@ -9,7 +9,12 @@
 //!    $\dot\alpha, \dot\beta$ of the corrected angles;
 //! 5. $\bar q = \tfrac12\rho V^2$, $\hat p = pb/2V$, $\hat q = q\bar c/2V$, $\hat r = rb/2V$;
 //! 6. measured coefficients (thesis Eq. 3.2-3.4, [`super::coefficients`]), with the propeller
-//!    angular momentum $h_p = k_p\,N_{rpm}$, $k_p = n_{eff} I_p 2\pi/60$.
+//!    angular momentum $h_p = k_p\,N_{rpm}$, $k_p = n_{eff} I_p 2\pi/60$, and the moments
+//!    transferred from the maneuver's CG to the moment reference centre.
+//!
+//! Positions (sensors, CG, moment reference centre) are body axes from one fixed aircraft
+//! datum, so a maneuver flown with another loading ([`ManeuverMass`]) sees its sensors at
+//! their positions less its CG.
 
 use super::coefficients::{coefficients, MassGeometry};
 use super::deriv::central_diff;
@@ -80,16 +85,83 @@ pub const CM_COLUMN: &str = "Cm_meas";
 /// What the pipeline needs to know about the aircraft.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct AircraftParams {
-    /// Mass, inertias and reference geometry.
+    /// Mass, inertias and reference geometry of the nominal loading (its
+    /// `cg_from_ref_m` is ignored: the pipeline sets it from `cg_m` and `moment_ref_m`).
     pub mg: MassGeometry,
     /// $k_p$ such that $h_p = k_p N_{rpm}$ (kg m²/s per rpm, thesis sign; 0 without propellers).
     pub prop_h_per_rpm: f64,
-    /// Accelerometer position relative to the CG, body axes, m.
+    /// Accelerometer position from the datum, body axes, m.
     pub accel_m: [f64; 3],
-    /// Alpha vane position, m.
+    /// Alpha vane position from the datum, m.
     pub alpha_vane_m: [f64; 3],
-    /// Beta vane position, m.
+    /// Beta vane position from the datum, m.
     pub beta_vane_m: [f64; 3],
+    /// CG of the nominal loading from the datum, m (zero: the datum is the CG).
+    pub cg_m: [f64; 3],
+    /// Moment reference centre from the datum, m: the moment coefficients are about it.
+    pub moment_ref_m: [f64; 3],
+}
+
+/// One maneuver's loading: mass, inertia tensor about its CG and CG position.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ManeuverMass {
+    /// Mass, kg.
+    pub mass: f64,
+    /// `[Ixx, Iyy, Izz, Ixz, Ixy, Iyz]` about the CG, Etkin sign, kg m².
+    pub inertia: [f64; 6],
+    /// CG from the datum, body axes, m.
+    pub cg_m: [f64; 3],
+}
+
+impl ManeuverMass {
+    /// Refuses a non-finite or non-positive mass, a non-finite CG or an inertia tensor that is
+    /// not positive definite (leading principal minors of the Etkin tensor).
+    fn check(&self) -> Result<()> {
+        let [ixx, iyy, izz, ixz, ixy, iyz] = self.inertia;
+        let finite = self.mass.is_finite()
+            && self.inertia.iter().all(|v| v.is_finite())
+            && self.cg_m.iter().all(|v| v.is_finite());
+        let m2 = ixx * iyy - ixy * ixy;
+        let det = ixx * (iyy * izz - iyz * iyz)
+            - ixy * (ixy * izz + iyz * ixz)
+            - ixz * (ixy * iyz + iyy * ixz);
+        if !finite || self.mass <= 0.0 || ixx <= 0.0 || m2 <= 0.0 || det <= 0.0 {
+            return Err(AeroError::invalid(
+                "mass properties",
+                format!(
+                    "mass {} kg, inertia {:?} kg m2, CG {:?} m: need a positive mass, a \
+                     positive definite inertia tensor and a finite CG",
+                    self.mass, self.inertia, self.cg_m
+                ),
+            ));
+        }
+        Ok(())
+    }
+}
+
+impl AircraftParams {
+    /// The parameters of a maneuver flown with loading `mm`.
+    pub fn with_mass(&self, mm: &ManeuverMass) -> AircraftParams {
+        let [ixx, iyy, izz, ixz, ixy, iyz] = mm.inertia;
+        AircraftParams {
+            mg: MassGeometry {
+                mass: mm.mass,
+                ixx,
+                iyy,
+                izz,
+                ixz,
+                ixy,
+                iyz,
+                ..self.mg
+            },
+            cg_m: mm.cg_m,
+            ..*self
+        }
+    }
+}
+
+fn minus(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
 }
 
 /// Options of the pipeline.
@@ -202,7 +274,7 @@ pub fn preprocess_maneuver(
         [&s[5], &s[6], &s[7]],
         [&w[0], &w[1], &w[2]],
         [&wd[0], &wd[1], &wd[2]],
-        ac.accel_m,
+        minus(ac.accel_m, ac.cg_m),
     );
     let av: Vec<f64> = s[0].iter().map(|v| v * d2r).collect();
     let bv: Vec<f64> = s[1].iter().map(|v| v * d2r).collect();
@@ -212,14 +284,17 @@ pub fn preprocess_maneuver(
         &bv,
         tas,
         [&w[0], &w[1], &w[2]],
-        ac.alpha_vane_m,
-        ac.beta_vane_m,
+        minus(ac.alpha_vane_m, ac.cg_m),
+        minus(ac.beta_vane_m, ac.cg_m),
     );
     let alphadot = central_diff(&a_cg_rad, dt);
     let betadot = central_diff(&b_cg_rad, dt);
     let rho = cols[10];
     let qbar: Vec<f64> = rho.iter().zip(tas).map(|(r, v)| 0.5 * r * v * v).collect();
-    let mg = &ac.mg;
+    let mg = &MassGeometry {
+        cg_from_ref_m: minus(ac.cg_m, ac.moment_ref_m),
+        ..ac.mg
+    };
     let hat = |x: &[f64], len: f64| -> Vec<f64> {
         x.iter()
             .zip(tas)
@@ -288,15 +363,18 @@ pub struct BatchOutput {
 
 /// Preprocess many maneuvers stored back to back: `cols` as in [`preprocess_maneuver`] over
 /// the whole campaign, `offsets` the start row of each maneuver plus the total length
-/// (`offsets[0] == 0`, increasing). Maneuvers run in parallel with the `parallel` feature;
-/// results are identical either way.
+/// (`offsets[0] == 0`, increasing). `masses` holds each maneuver's loading (one per maneuver)
+/// or is empty (every maneuver flown with the nominal one of `ac`). Maneuvers run in parallel
+/// with the `parallel` feature; results are identical either way.
 ///
 /// # Errors
-/// The first failing maneuver's error, with its index as context.
+/// The first failing maneuver's error, with its index as context; `InvalidInput` when
+/// `masses` is neither empty nor one per maneuver, or a loading is not physical.
 pub fn preprocess_concatenated(
     cols: &[&[f64]],
     offsets: &[usize],
     ac: &AircraftParams,
+    masses: &[ManeuverMass],
     opts: &PreprocessOptions,
 ) -> Result<BatchOutput> {
     let total = cols.first().map_or(0, |c| c.len());
@@ -316,13 +394,26 @@ pub fn preprocess_concatenated(
             format!("{} columns; 12 expected", cols.len()),
         ));
     }
+    let nm = offsets.len() - 1;
+    if !masses.is_empty() && masses.len() != nm {
+        return Err(AeroError::invalid(
+            "argument 'masses'",
+            format!(
+                "{} loadings for {nm} maneuvers; give one per maneuver or none",
+                masses.len()
+            ),
+        ));
+    }
+    for (m, mm) in masses.iter().enumerate() {
+        mm.check().with_context(|| format!("maneuver #{m}"))?;
+    }
     let one = |m: usize| -> Result<ManeuverOutput> {
         let (a, b) = (offsets[m], offsets[m + 1]);
         let sub: Vec<&[f64]> = cols.iter().take(12).map(|c| &c[a..b]).collect();
-        preprocess_maneuver(&sub, ac, opts)
+        let acm = masses.get(m).map_or(*ac, |mm| ac.with_mass(mm));
+        preprocess_maneuver(&sub, &acm, opts)
             .with_context(|| format!("maneuver #{m} (rows {a}-{})", b - 1))
     };
-    let nm = offsets.len() - 1;
     #[cfg(feature = "parallel")]
     let outs: Vec<Result<ManeuverOutput>> = {
         use rayon::prelude::*;
@@ -356,20 +447,13 @@ mod tests {
     #[test]
     fn refuses_bad_offsets_and_non_uniform_time() {
         let ac = AircraftParams {
-            mg: MassGeometry {
-                s: 1.0,
-                b: 1.0,
-                cbar: 1.0,
-                mass: 1.0,
-                ixx: 1.0,
-                iyy: 1.0,
-                izz: 1.0,
-                ixz: 0.0,
-            },
+            mg: MassGeometry::principal(1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 0.0),
             prop_h_per_rpm: 0.0,
             accel_m: [0.0; 3],
             alpha_vane_m: [0.0; 3],
             beta_vane_m: [0.0; 3],
+            cg_m: [0.0; 3],
+            moment_ref_m: [0.0; 3],
         };
         let mut t: Vec<f64> = (0..20).map(|i| i as f64 * 0.1).collect();
         let one = [1.0; 20];
@@ -377,18 +461,192 @@ mod tests {
             .chain(std::iter::repeat_n(&one[..], 11))
             .collect();
         assert!(
-            preprocess_concatenated(&cols, &[0, 25], &ac, &PreprocessOptions::default()).is_err()
+            preprocess_concatenated(&cols, &[0, 25], &ac, &[], &PreprocessOptions::default())
+                .is_err()
         );
-        let ok = preprocess_concatenated(&cols, &[0, 10, 20], &ac, &PreprocessOptions::default())
-            .unwrap();
+        let ok =
+            preprocess_concatenated(&cols, &[0, 10, 20], &ac, &[], &PreprocessOptions::default())
+                .unwrap();
         assert_eq!(ok.columns[0].len(), 20);
         assert_eq!(ok.cutoffs_hz.len(), 18);
         t[5] += 0.05;
         let cols: Vec<&[f64]> = std::iter::once(&t[..])
             .chain(std::iter::repeat_n(&one[..], 11))
             .collect();
-        let e = preprocess_concatenated(&cols, &[0, 20], &ac, &PreprocessOptions::default())
+        let e = preprocess_concatenated(&cols, &[0, 20], &ac, &[], &PreprocessOptions::default())
             .unwrap_err();
         assert!(e.to_string().contains("rows 4-5"), "{e}");
+    }
+
+    /// A smooth synthetic maneuver: every input channel a different slow sine.
+    fn record(n: usize) -> Vec<Vec<f64>> {
+        let t: Vec<f64> = (0..n).map(|i| i as f64 * 0.02).collect();
+        let wave = |a: f64, f: f64, ph: f64, off: f64| -> Vec<f64> {
+            t.iter().map(|x| off + a * (f * x + ph).sin()).collect()
+        };
+        vec![
+            t.clone(),
+            wave(4.0, 1.1, 0.2, 10.0),
+            wave(3.0, 0.9, 1.0, 0.0),
+            wave(20.0, 1.7, 0.3, 0.0),
+            wave(8.0, 1.3, 2.0, 0.0),
+            wave(12.0, 0.8, 0.7, 0.0),
+            wave(1.0, 1.2, 0.1, 0.5),
+            wave(2.0, 1.5, 0.4, 0.0),
+            wave(3.0, 0.7, 0.9, -9.5),
+            wave(5.0, 0.3, 0.0, 80.0),
+            vec![1.1; n],
+            vec![1000.0; n],
+        ]
+    }
+
+    fn params() -> AircraftParams {
+        AircraftParams {
+            mg: MassGeometry::principal(61.0, 27.05, 2.3, 20000.0, 3.0e5, 4.5e5, 7.1e5, 1.5e4),
+            prop_h_per_rpm: 2.6,
+            accel_m: [0.5, 0.15, 0.3],
+            alpha_vane_m: [8.0, -1.4, 0.5],
+            beta_vane_m: [8.0, 0.0, -1.2],
+            cg_m: [0.2, -0.03, 0.1],
+            moment_ref_m: [-0.4, 0.0, 0.05],
+        }
+    }
+
+    #[test]
+    fn moving_the_datum_moves_nothing() {
+        let rec = record(300);
+        let cols: Vec<&[f64]> = rec.iter().map(|c| &c[..]).collect();
+        let ac = params();
+        let opts = PreprocessOptions::default();
+        let a = preprocess_maneuver(&cols, &ac, &opts).unwrap();
+        let sh = [3.7, -0.4, 1.1];
+        let add = |x: [f64; 3]| [x[0] + sh[0], x[1] + sh[1], x[2] + sh[2]];
+        let moved = AircraftParams {
+            accel_m: add(ac.accel_m),
+            alpha_vane_m: add(ac.alpha_vane_m),
+            beta_vane_m: add(ac.beta_vane_m),
+            cg_m: add(ac.cg_m),
+            moment_ref_m: add(ac.moment_ref_m),
+            ..ac
+        };
+        let b = preprocess_maneuver(&cols, &moved, &opts).unwrap();
+        for (k, (x, y)) in a.columns.iter().zip(&b.columns).enumerate() {
+            let scale = x.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+            let err = x
+                .iter()
+                .zip(y)
+                .fold(0.0f64, |m, (u, v)| m.max((u - v).abs()));
+            assert!(err <= 1e-12 * scale, "column {k}: {err} of {scale}");
+        }
+    }
+
+    #[test]
+    fn moments_about_the_reference_are_the_cg_ones_plus_d_cross_f() {
+        // closed form on the pipeline's own outputs: C_ref = C_cg + (d x C_F) / length
+        let rec = record(300);
+        let cols: Vec<&[f64]> = rec.iter().map(|c| &c[..]).collect();
+        let ac = params();
+        let opts = PreprocessOptions::default();
+        let at_cg = preprocess_maneuver(
+            &cols,
+            &AircraftParams {
+                moment_ref_m: ac.cg_m,
+                ..ac
+            },
+            &opts,
+        )
+        .unwrap();
+        let at_ref = preprocess_maneuver(&cols, &ac, &opts).unwrap();
+        let d = minus(ac.cg_m, ac.moment_ref_m);
+        let col = |o: &ManeuverOutput, name: &str| -> Vec<f64> {
+            let k = OUTPUT_COLUMNS
+                .iter()
+                .position(|c| *c == name)
+                .unwrap_or(OUTPUT_COLUMNS.len());
+            o.columns[k].clone()
+        };
+        let (cx, cy, cz) = (
+            col(&at_cg, "CX_meas"),
+            col(&at_cg, "CY_meas"),
+            col(&at_cg, "CZ_meas"),
+        );
+        let (b, cbar) = (ac.mg.b, ac.mg.cbar);
+        for i in 0..300 {
+            let want = [
+                col(&at_cg, "Cl_meas")[i] + (d[1] * cz[i] - d[2] * cy[i]) / b,
+                col(&at_cg, "Cn_meas")[i] + (d[0] * cy[i] - d[1] * cx[i]) / b,
+                col(&at_cg, CM_COLUMN)[i] + (d[2] * cx[i] - d[0] * cz[i]) / cbar,
+            ];
+            let got = [
+                col(&at_ref, "Cl_meas")[i],
+                col(&at_ref, "Cn_meas")[i],
+                col(&at_ref, CM_COLUMN)[i],
+            ];
+            for (g, w) in got.iter().zip(want) {
+                assert!(
+                    (g - w).abs() <= 1e-12 * w.abs().max(1e-3),
+                    "row {i}: {g} vs {w}"
+                );
+            }
+        }
+        // the forces do not move
+        assert_eq!(col(&at_cg, "CY_meas"), col(&at_ref, "CY_meas"));
+    }
+
+    #[test]
+    fn each_maneuver_is_processed_with_its_own_loading() {
+        let rec = record(200);
+        let both: Vec<Vec<f64>> = rec
+            .iter()
+            .enumerate()
+            .map(|(k, c)| {
+                let mut v = c.clone();
+                let tail: Vec<f64> = if k == 0 {
+                    c.iter().map(|t| t + 10.0).collect()
+                } else {
+                    c.iter().rev().copied().collect()
+                };
+                v.extend(tail);
+                v
+            })
+            .collect();
+        let cols: Vec<&[f64]> = both.iter().map(|c| &c[..]).collect();
+        let ac = params();
+        let opts = PreprocessOptions::default();
+        let loads = [
+            ManeuverMass {
+                mass: 18500.0,
+                inertia: [2.9e5, 4.6e5, 7.0e5, 1.4e4, 800.0, -1200.0],
+                cg_m: [0.35, 0.02, 0.12],
+            },
+            ManeuverMass {
+                mass: 21000.0,
+                inertia: [3.1e5, 4.4e5, 7.2e5, 1.6e4, 0.0, 0.0],
+                cg_m: [0.05, -0.05, 0.08],
+            },
+        ];
+        let out = preprocess_concatenated(&cols, &[0, 200, 400], &ac, &loads, &opts).unwrap();
+        for (m, mm) in loads.iter().enumerate() {
+            let sub: Vec<&[f64]> = cols.iter().map(|c| &c[200 * m..200 * (m + 1)]).collect();
+            let one = preprocess_maneuver(&sub, &ac.with_mass(mm), &opts).unwrap();
+            for (k, c) in one.columns.iter().enumerate() {
+                assert_eq!(
+                    &out.columns[k][200 * m..200 * (m + 1)],
+                    &c[..],
+                    "column {k}"
+                );
+            }
+        }
+        let nominal = preprocess_concatenated(&cols, &[0, 200, 400], &ac, &[], &opts).unwrap();
+        assert_ne!(nominal.columns[18], out.columns[18]);
+        // a tensor that is not positive definite, and a count that does not match
+        let mut bad = loads;
+        bad[1].inertia[3] = 6.0e5; // Ixz^2 > Ixx Izz
+        let e = preprocess_concatenated(&cols, &[0, 200, 400], &ac, &bad, &opts).unwrap_err();
+        assert!(e.to_string().contains("maneuver #1"), "{e}");
+        assert!(e.to_string().contains("positive definite"), "{e}");
+        let e =
+            preprocess_concatenated(&cols, &[0, 200, 400], &ac, &loads[..1], &opts).unwrap_err();
+        assert!(e.to_string().contains("one per maneuver"), "{e}");
     }
 }
