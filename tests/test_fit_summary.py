@@ -164,7 +164,10 @@ def test_no_python_reprs_and_short_lines(result: ad.FitResult, text: str) -> Non
             assert not re.search(r"[\[{]['\"]|\{\}|\[\]|np\.|\bnan\b|\bNone\b|\binf\b", line), line
             assert len(line) <= 100, line
     assert str(result).startswith("Δ-model identification")
-    assert "qualified model: not recorded" in str(result)
+    # the fit records the qualified model it resolved (provenance.qualified): the virtual
+    # campaign's records were marked as flown on the built-in aircraft
+    assert "qualified model: the built-in ADX-37 lateral model" in str(result)
+    assert result.model.to_spec()["provenance"]["qualified"] == "adx37"
     assert "the fit's notes" not in text
     for note in result.notes:  # every note is printed, under its coefficient and flap
         tail = note.split(": ", 1)[1]

@@ -10,6 +10,8 @@ Schema (see ``docs/data.md``)::
     [propulsion] n_engines, prop_inertia_kgm2, prop_rotation = "same" | "opposite",
                  prop_rpm_channel = "prop_rpm" and/or prop_rpm_fixed = 1020.0
     [sensors]    accel_m, alpha_vane_m, beta_vane_m
+    [simulator]  builtin = "adx37" (only the virtual flight test's campaigns: their
+                 qualified model is the built-in one)
 
 Positions (``cg_m``, ``moment_ref_m``, sensors) are body axes (x forward, y right wing,
 z down), metres, from one fixed aircraft datum; without ``cg_m`` the datum is the CG.
@@ -42,7 +44,14 @@ _KEYS = {
         "prop_efficiency",
     ),
     "sensors": ("accel_m", "alpha_vane_m", "beta_vane_m"),
+    "simulator": ("builtin",),
 }  # fmt: skip
+
+#: Built-in simulators an aircraft file may declare its data were flown on.
+BUILTINS = ("adx37",)
+#: Column ingest adds to data flown on a built-in simulator (the aircraft file's
+#: ``[simulator] builtin``): the only data the built-in qualified model is used for unnamed.
+BUILTIN_COLUMN = "builtin_simulator"
 
 
 def inertia_definite(tensor: Sequence[Any]) -> Any:
@@ -90,6 +99,7 @@ class Aircraft:
     Iyz_kgm2: float = 0.0
     cg_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
     moment_ref_m: tuple[float, float, float] | None = None
+    builtin: str | None = None
 
     @property
     def mass_geometry(self) -> list[float]:
@@ -211,6 +221,13 @@ class Aircraft:
         inertia = num("propulsion", "prop_inertia_kgm2", positive=False, default=0.0)
         if inertia < 0.0:
             problems.append(f"[propulsion] prop_inertia_kgm2 = {inertia} must be >= 0")
+        builtin = table("simulator").get("builtin")
+        if builtin is not None and builtin not in BUILTINS:
+            problems.append(
+                f"[simulator] builtin = {builtin!r} must be one of {', '.join(BUILTINS)} (only "
+                "for data flown on aerodelta's virtual aircraft; drop it for your own aircraft)"
+            )
+            builtin = None
         name = doc.get("name", "")
         if not isinstance(name, str):
             problems.append(f"name = {name!r} must be a string")
@@ -239,6 +256,7 @@ class Aircraft:
             moment_ref_m=(
                 vec("moment_ref_m", "reference") if "moment_ref_m" in table("reference") else None
             ),
+            builtin=builtin,
         )
         if not problems and not inertia_definite(ac.mass_geometry[4:]):
             problems.append(

@@ -36,6 +36,7 @@ from aerodelta._core import __version__
 from aerodelta._toml import read_toml
 from aerodelta.exceptions import DataError
 from aerodelta.model import SCHEMA, DeltaModel
+from aerodelta.qualified import describe, resolve
 
 COEFFICIENTS = ("Cl", "Cn", "CY")
 
@@ -550,7 +551,7 @@ def model_frame(data: pl.DataFrame) -> pl.DataFrame:
     return out
 
 
-def qualified_coefficients(data: pl.DataFrame, qualified: str = "auto") -> pl.DataFrame:
+def qualified_coefficients(data: pl.DataFrame, qualified: str | Path = "auto") -> pl.DataFrame:
     """The simulator's coefficients along the records: ``Cl_qual``, ``Cn_qual``, ``CY_qual``.
 
     Parameters
@@ -559,41 +560,13 @@ def qualified_coefficients(data: pl.DataFrame, qualified: str = "auto") -> pl.Da
         A :func:`model_frame` of ingested records.
     qualified
         ``"columns"``: the records' ``Cl_sim``, ``Cn_sim``, ``CY_sim`` (a black-box simulator);
-        ``"adx37"``: the built-in representative aircraft's qualified model evaluated at the
-        measured states; ``"auto"``: columns when present, else ``"adx37"``.
+        the path of a DAVE-ML file evaluated along the records; ``"adx37"``: the built-in
+        virtual aircraft's qualified model; ``"auto"``: the columns when present, else the
+        built-in model for data flown on the virtual aircraft, else refused
+        (:func:`aerodelta.qualified.resolve`).
     """
-    sim_cols = [f"{c}_sim" for c in COEFFICIENTS]
-    if qualified == "auto":
-        qualified = "columns" if all(c in data.columns for c in sim_cols) else "adx37"
-    if qualified == "columns":
-        missing = [c for c in sim_cols if c not in data.columns]
-        if missing:
-            raise DataError(
-                f"qualified='columns' but the records lack {missing}; add the simulator's "
-                "predictions or use qualified='adx37'"
-            )
-        return data.select([pl.col(f"{c}_sim").alias(f"{c}_qual") for c in COEFFICIENTS])
-    if qualified != "adx37":
-        raise DataError(f"qualified='{qualified}': use 'auto', 'columns' or 'adx37'")
-    names = [
-        "alpha_deg", "beta_deg", "phat", "qhat", "rhat", "alphadot_dps", "betadot_dps",
-        "da_deg", "de_deg", "dr_deg", "dsl_deg", "dsr_deg", "flap_deg", "ct_left", "ct_right",
-        "tas_mps",
-    ]  # fmt: skip
-    cols = {}
-    for n in names:
-        if n in data.columns:
-            cols[n] = np.ascontiguousarray(data[n].cast(pl.Float64).fill_null(0.0).to_numpy())
-        elif n in ("dsl_deg", "dsr_deg", "de_deg"):
-            cols[n] = np.zeros(data.height)
-    # row chunks side by side (the engine releases the GIL; row-wise, so chunking is exact)
-    n = data.height
-    step = max(50_000, -(-n // max(1, min(4, os.cpu_count() or 1))))
-    chunks = [{k: v[i : i + step] for k, v in cols.items()} for i in range(0, max(n, 1), step)]
-    with ThreadPoolExecutor(max_workers=len(chunks)) as ex:
-        parts = list(ex.map(_core.qualified_lateral_adx37, chunks))
-    cl, cn, cy = (np.concatenate([p[k] for p in parts]) for k in range(3))
-    return pl.DataFrame({"Cl_qual": cl, "Cn_qual": cn, "CY_qual": cy})
+    q = resolve(data, qualified).predict(data)
+    return pl.DataFrame({f"{c}_qual": q[c] for c in COEFFICIENTS})
 
 
 def stall_alpha(data: pl.DataFrame, bin_deg: float = 0.5, min_points: int = 50) -> float:
@@ -736,9 +709,9 @@ class FitResult:
             Alpha range per table section, deg (see :meth:`summary_table`); ``None`` for one
             section per bin.
         qualified
-            Where the qualified model came from (``"columns"`` or ``"adx37"``, as given to
-            :func:`fit` after ``"auto"`` was resolved); the result does not record it, so the
-            header says "not recorded" without it.
+            Overrides the qualified model the fit recorded in the model's provenance
+            (``"columns"``, ``"adx37"``, ``"daveml:NAME"``); models fitted before it was
+            recorded say "not recorded" without it.
         width
             Line length the long lines (lists, notes, reasons) are wrapped to.
 
@@ -1020,12 +993,6 @@ def _wrap(text: str, width: int, indent: str = "    ", first: str = "") -> list[
     ) or [first.rstrip()]  # fmt: skip
 
 
-_QUALIFIED = {
-    "columns": "the simulator's predictions in the records (Cl_sim, Cn_sim, CY_sim)",
-    "adx37": "the built-in ADX-37 lateral model (qualified='adx37')",
-}
-
-
 def _summary_text(
     r: FitResult, *, range_deg: float | None, qualified: str | None, width: int
 ) -> str:
@@ -1053,6 +1020,13 @@ def _summary_text(
     return "\n".join(lines)
 
 
+#: The qualified model in the summary's words (others: :func:`aerodelta.qualified.describe`).
+_QUALIFIED = {
+    "columns": "the simulator's predictions in the records (Cl_sim, Cn_sim, CY_sim)",
+    "adx37": "the built-in ADX-37 lateral model (qualified='adx37')",
+}
+
+
 def _header_lines(
     r: FitResult, *, range_deg: float | None, qualified: str | None, width: int
 ) -> list[str]:
@@ -1068,7 +1042,8 @@ def _header_lines(
     ]
     data = f"{prov['maneuvers']} maneuvers, {prov['rows']:,} rows; " if prov else ""
     lines.append(f"data: {data}flaps {', '.join(f'{f:g}' for f in flaps)} deg")
-    source = _QUALIFIED.get(qualified or "", qualified or "not recorded")
+    recorded = str(qualified or prov.get("qualified") or "")
+    source = _QUALIFIED.get(recorded, describe(recorded)) if recorded else "not recorded"
     lines.append(f"qualified model: {source}")
     sel = cfg.get("selection")
     if sel:
@@ -1488,7 +1463,7 @@ def _submit(
 def fit(
     data: pl.DataFrame,
     *,
-    qualified: str = "auto",
+    qualified: str | Path = "auto",
     config: FitConfig | None = None,
     progress: bool = False,
 ) -> FitResult:
@@ -1543,7 +1518,9 @@ def fit(
     missing = [c for c in needed if c not in df.columns]
     if missing:
         raise DataError(f"fit: the data lack {missing}; run aerodelta.ingest first")
-    df = pl.concat([df, qualified_coefficients(df, qualified)], how="horizontal")
+    qual = resolve(df, qualified)
+    q = qual.predict(df)
+    df = pl.concat([df, pl.DataFrame({f"{c}_qual": q[c] for c in COEFFICIENTS})], how="horizontal")
     flaps = sorted(float(f) for f in df["flap_deg"].unique().drop_nulls())
     if not flaps:
         raise DataError("fit: no row has a flap setting (flap_deg); check the manifest")
@@ -1713,7 +1690,7 @@ def fit(
 
     spec = _model_spec(
         cfg, flaps=flaps, tables=tables, regressors=regressors, stall=stall, data=data,
-        data_hash=data_hash.result(),
+        data_hash=data_hash.result(), qualified=qual.source,
     )  # fmt: skip
     return FitResult(
         model=DeltaModel.from_spec(spec, "fitted model"),
@@ -1740,7 +1717,7 @@ def _data_hash(data: pl.DataFrame) -> str:
             h.update(
                 np.ascontiguousarray(s.cast(pl.Float64).fill_null(np.nan).to_numpy()).tobytes()
             )
-        elif s.dtype in (pl.Utf8, pl.Categorical):  # fast path, the same bytes
+        elif s.dtype in (pl.Utf8, pl.Categorical) or isinstance(s.dtype, pl.Enum):  # fast path
             h.update(s.cast(pl.Utf8).fill_null("None").str.join("\x1f")[0].encode())
         else:
             h.update("\x1f".join(map(str, s.to_list())).encode())
@@ -1756,6 +1733,7 @@ def _model_spec(
     stall: dict[float, float],
     data: pl.DataFrame,
     data_hash: str,
+    qualified: str,
 ) -> dict[str, Any]:
     coefficients: dict[str, Any] = {}
     for coef, params in tables.items():
@@ -1799,6 +1777,7 @@ def _model_spec(
         "provenance": {
             "library": f"aerodelta {__version__}",
             "data_sha256": data_hash,
+            "qualified": qualified,
             "rows": data.height,
             "maneuvers": int(data["maneuver_id"].n_unique()),
             "stall_alpha_deg": {str(k): v for k, v in stall.items()},
@@ -1821,15 +1800,24 @@ def theil_inequality(measured: np.ndarray, predicted: np.ndarray) -> float:
 
 
 def validate_model(
-    model: DeltaModel, data: pl.DataFrame, *, qualified: str = "auto"
+    model: DeltaModel, data: pl.DataFrame, *, qualified: str | Path = "auto"
 ) -> pl.DataFrame:
     """Qualified vs extended model against measured coefficients, per coefficient.
 
     Returns a frame with RMS error and Theil inequality coefficient (TIC) of the qualified and of
     the extended model (``C_qual + w dC``), and their ratio, on the given records (use maneuvers
-    held out of the fit).
+    held out of the fit). ``qualified="auto"`` takes the qualified model the fit recorded
+    (a DAVE-ML one must be named again: the model records its file name, not its path).
     """
     df = model_frame(data)
+    recorded = str((model.to_spec().get("provenance") or {}).get("qualified", "auto"))
+    if str(qualified) == "auto" and recorded.startswith("daveml:"):
+        raise DataError(
+            f"the model was fitted against the DAVE-ML model {recorded.split(':', 1)[1]}; "
+            "pass its path as qualified="
+        )
+    if str(qualified) == "auto" and recorded in ("columns", "adx37"):
+        qualified = recorded
     df = pl.concat([df, qualified_coefficients(df, qualified)], how="horizontal")
     ev = model.evaluate(df)
     rows = []

@@ -21,7 +21,7 @@ from tqdm import tqdm
 
 from aerodelta import _core
 from aerodelta._fsutil import write_atomic
-from aerodelta.aircraft import Aircraft
+from aerodelta.aircraft import BUILTIN_COLUMN, BUILTINS, Aircraft
 from aerodelta.channel_map import ChannelMap
 from aerodelta.channels import ALTERNATIVES, CHANNELS, REQUIRED
 from aerodelta.exceptions import DataError
@@ -287,6 +287,8 @@ def ingest(  # noqa: PLR0917
             out, smoothing = preprocess_frame(allc, ac, smooth=smooth, loadings=loadings)
             compat_df = compat_df.with_columns(pl.lit(True).alias("applied"))
     out = _attach_manifest(out, man, reports, man_name)
+    if ac.builtin is not None:  # the virtual flight test's data: its simulator is known
+        out = out.with_columns(pl.lit(ac.builtin, dtype=pl.Enum(BUILTINS)).alias(BUILTIN_COLUMN))
     return IngestResult(out, reports, compat_df, smoothing, plaus_df)
 
 

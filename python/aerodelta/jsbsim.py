@@ -34,6 +34,7 @@ from aerodelta._exportutil import DERIVED_CHANNELS, Node, parse_regressor, write
 from aerodelta.exceptions import DataError
 from aerodelta.export import qualified_daveml_spec
 from aerodelta.model import DeltaModel
+from aerodelta.qualified import describe
 
 __all__ = ["DEFAULT_PROPERTIES", "export_jsbsim", "jsbsim_properties", "jsbsim_xml"]
 
@@ -354,12 +355,20 @@ def jsbsim_xml(
     Raises
     ------
     DataError
-        A channel without a property, or a coefficient other than ``CY``, ``Cl``, ``Cn``.
+        A channel without a property, a coefficient other than ``CY``, ``Cl``, ``Cn``, or
+        ``qualified`` for a Δ fitted against another simulator than the built-in ADX-37.
     """
     if side_axis not in ("SIDE", "Y"):
         raise DataError(f"side_axis '{side_axis}': use 'SIDE' or 'Y' (JSBSim axis names)")
     w = _Writer(model, properties or {})
     spec = w.spec
+    recorded = str((spec.get("provenance") or {}).get("qualified", "adx37"))
+    if qualified and recorded != "adx37":
+        raise DataError(
+            f"the Δ was fitted against {describe(recorded)}, not the built-in ADX-37: its "
+            "qualified model (--jsbsim-qualified) belongs to another aircraft; export the Δ "
+            "alone and add it to your aircraft's own lateral aerodynamics"
+        )
     qspec = qualified_daveml_spec() if qualified else None
     done: set[str] = set()
     alpha_p = w.channel(spec.get("alpha_channel", "alpha_deg"))

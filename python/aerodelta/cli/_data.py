@@ -128,6 +128,16 @@ def _data_path(args: argparse.Namespace) -> Path:
     return Path(value)
 
 
+def qualified_choice(value: str) -> str:
+    """``--model``: auto, columns, adx37 or a DAVE-ML file (its existence is checked with the
+    other inputs)."""
+    if value in ("auto", "columns", "adx37") or value.lower().endswith((".dml", ".xml")):
+        return value
+    raise argparse.ArgumentTypeError(
+        f"invalid choice: {value!r} (use auto, columns, adx37 or a DAVE-ML file, .dml)"
+    )
+
+
 def existing_file(value: str | None, option: str) -> Path | None:
     if value is None:
         return None

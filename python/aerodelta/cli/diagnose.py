@@ -53,7 +53,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--model",
         help="the simulator: DAVE-ML (.dml) or aerodelta model (.json); default: the records' "
-        "*_sim columns, else the built-in ADX-37 qualified model",
+        "*_sim columns, else the built-in ADX-37 qualified model for data flown on the virtual "
+        "aircraft, else refused",
     )
     parser.add_argument(
         "--effects",

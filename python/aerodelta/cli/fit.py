@@ -27,6 +27,7 @@ from aerodelta.cli._data import (
     existing_file,
     load_records,
     output_file,
+    qualified_choice,
     resolve_data,
 )
 from aerodelta.exceptions import DataError, InvalidInputError
@@ -41,8 +42,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--model",
         default="auto",
-        choices=["auto", "columns", "adx37"],
-        help="qualified model: the records' *_sim columns, or the built-in ADX-37 model",
+        type=qualified_choice,
+        metavar="auto|columns|adx37|FILE.dml",
+        help="qualified model (your simulator): the records' Cl_sim, Cn_sim, CY_sim columns, "
+        "a DAVE-ML file, or the built-in ADX-37 (only meaningful for the virtual campaign); "
+        "auto: the columns, else the built-in model for data flown on it, else refused",
     )
     parser.add_argument("--config", help="fit settings (TOML, see aerodelta.FitConfig)")
     parser.add_argument("--out", required=True, help="model file to write (.json)")
@@ -127,11 +131,16 @@ def run(args: argparse.Namespace) -> int:
         args.holdout_seed = 0 if args.holdout_seed is None else args.holdout_seed
         check_at_least(args.holdout_seed, "--holdout-seed", 0)
     config = existing_file(args.config, "--config")
+    dml = (
+        existing_file(args.model, "--model")
+        if args.model.lower().endswith((".dml", ".xml"))
+        else None
+    )
     src = resolve_data(args)
     outs = [out, out.with_suffix(".params.parquet")]
     if args.holdout is not None:
         outs += [out.with_suffix(".holdout.txt"), out.with_suffix(".validation.csv")]
-    check_outputs(src, "--out", files=outs, inputs=[config])
+    check_outputs(src, "--out", files=outs, inputs=[config, dml])
     cfg = FitConfig.from_toml(config) if config else FitConfig()
     progress = not args.no_progress
     data = load_records(src, progress=progress)
@@ -149,13 +158,10 @@ def run(args: argparse.Namespace) -> int:
         test = data.filter(pl.col("maneuver_id").cast(pl.Utf8).is_in(held))
         data = data.filter(~pl.col("maneuver_id").cast(pl.Utf8).is_in(held))
     result = fit(data, qualified=args.model, config=cfg, progress=progress)
-    qualified = args.model
-    if qualified == "auto":  # as aerodelta.fit.qualified_coefficients resolves it
-        sim = all(f"{c}_sim" in data.columns for c in ("Cl", "Cn", "CY"))
-        qualified = "columns" if sim else "adx37"
-    # the results report (FitResult.summary_text): header, identified share per coefficient
-    # with the reasons for the rest, per coefficient and flap the parameter tables, the notes
-    print(result.summary_text(None if args.verbose else args.range_deg, qualified=qualified))
+    # the results report (FitResult.summary_text): header (with the qualified model the fit
+    # recorded), identified share per coefficient with the reasons for the rest, per
+    # coefficient and flap the parameter tables, the notes
+    print(result.summary_text(None if args.verbose else args.range_deg))
     if result.params.is_empty() or not result.params["identifiable"].any():
         print(
             "aerodelta fit: error: no parameter is identified in any alpha bin, so no model is "

@@ -25,6 +25,7 @@ from aerodelta.cli._data import (
     load_records,
     maneuver_ids,
     output_file,
+    qualified_choice,
     resolve_data,
 )
 from aerodelta.exceptions import DataError
@@ -46,8 +47,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--qualified",
         default="auto",
-        choices=["auto", "columns", "adx37"],
-        help="source of the qualified coefficients (as aerodelta fit --model)",
+        type=qualified_choice,
+        metavar="auto|columns|adx37|FILE.dml",
+        help="the qualified model (as aerodelta fit --model); auto: the one the fit recorded "
+        "(a DAVE-ML file must be named again)",
     )
     parser.add_argument("--out", help="also write the table as CSV")
     parser.add_argument("--json", action="store_true", help="print the table as JSON")
@@ -92,9 +95,14 @@ def run(args: argparse.Namespace) -> int:
     out = output_file(args.out, example="validation.csv") if args.out else None
     model_file = existing_file(args.model, "--model")
     assert model_file is not None
+    dml = (
+        existing_file(args.qualified, "--qualified")
+        if args.qualified.lower().endswith((".dml", ".xml"))
+        else None
+    )
     ids = maneuver_ids(args.held_out)
     src = resolve_data(args)
-    check_outputs(src, "--out", files=[out] if out else [], inputs=[model_file])
+    check_outputs(src, "--out", files=[out] if out else [], inputs=[model_file, dml])
     model = load_model(model_file)
     data = load_records(src, progress=not args.no_progress)
     if ids:

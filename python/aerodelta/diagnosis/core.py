@@ -388,7 +388,8 @@ def diagnose(
         versions), the Δ-model regressors and ``Cl_meas``, ``Cn_meas``, ``CY_meas``.
     model
         The simulator: a DAVE-ML file, an aerodelta model file, or ``None`` for the records'
-        ``*_sim`` columns (else the built-in ADX-37 qualified model).
+        ``*_sim`` columns (else the built-in ADX-37 qualified model for data flown on the
+        virtual aircraft, else refused: :mod:`aerodelta.qualified`).
     vocabulary
         Candidate effects (default: DESIGN.md's vocabulary); add your own with
         :meth:`Vocabulary.with_user_effects`.

@@ -104,7 +104,9 @@ impl AircraftRef {
              [mass]\nmass_kg = {:?}\nIxx_kgm2 = {:?}\nIyy_kgm2 = {:?}\nIzz_kgm2 = {:?}\nIxz_kgm2 = {:?}\n\n\
              [propulsion]\nn_engines = {}\nprop_inertia_kgm2 = {:?}\nprop_rotation = \"same\"\n\
              prop_rpm_channel = \"prop_rpm\"\nprop_rpm_fixed = {:?}\n\n\
-             [sensors]\naccel_m = {}\nalpha_vane_m = {}\nbeta_vane_m = {}\n",
+             [sensors]\naccel_m = {}\nalpha_vane_m = {}\nbeta_vane_m = {}\n\n\
+             [simulator]\nbuiltin = \"adx37\"  # flown on the built-in virtual aircraft: \
+             its qualified model is the simulator\n",
             self.name,
             self.s_m2,
             self.b_m,
