@@ -29,7 +29,7 @@ Ixz_kgm2 = 1.5e4
 [propulsion]
 n_engines = 2
 prop_inertia_kgm2 = 25.0
-prop_rotation = "same"
+prop_rotation = "ccw"
 prop_rpm_channel = "prop_rpm"
 [sensors]
 accel_m = [0.5, 0.15, 0.3]

@@ -172,3 +172,39 @@ def test_aircraft_file_reference_and_full_tensor() -> None:
         Aircraft.from_dict({**base, "reference": {"moment_ref_m": [1.0, 0.0]}})
     with pytest.raises(DataError, match=r"\[reference\] has unknown key"):
         Aircraft.from_dict({**base, "reference": {"aerorp": [1.0, 0.0, 0.0]}})
+
+
+def test_propeller_sense_follows_the_right_hand_rule(campaign: Path) -> None:
+    """A rotor turning clockwise viewed from behind (looking forward) has its angular
+    momentum along +x by the right-hand rule, counter-clockwise along -x. The measured
+    (aerodynamic) moments differ between the two by omega x (h_cw - h_ccw), computed here
+    with numpy's cross product from those vectors alone."""
+    res = {}
+    for sense in ("cw", "ccw"):
+        text = (campaign / "aircraft.toml").read_text()
+        (campaign / "aircraft.toml").write_text(
+            text.replace('prop_rotation = "ccw"', f'prop_rotation = "{sense}"').replace(
+                'prop_rotation = "cw"', f'prop_rotation = "{sense}"'
+            )
+        )
+        res[sense] = aerodelta.ingest(campaign, smooth=False, compat=False, progress=False).data
+    ac = Aircraft.from_toml(campaign / "aircraft.toml")
+    d = res["cw"].filter(pl.col("maneuver_id") == "m1")
+    e = res["ccw"].filter(pl.col("maneuver_id") == "m1")
+    rpm = d["prop_rpm"].to_numpy()
+    h = ac.n_engines * ac.prop_inertia_kgm2 * rpm * 2.0 * np.pi / 60.0  # |h|, kg m²/s
+    dh = np.zeros((d.height, 3))
+    dh[:, 0] = 2.0 * h  # h_cw - h_ccw = (+h) - (-h) along x
+    om = np.radians(d.select("p_s_dps", "q_s_dps", "r_s_dps").to_numpy())
+    dm = np.cross(om, dh)
+    qs = d["qbar_pa"].to_numpy() * ac.S_m2
+    np.testing.assert_allclose(
+        (d["Cn_meas"] - e["Cn_meas"]).to_numpy(), dm[:, 2] / (qs * ac.b_m), rtol=1e-9, atol=1e-15
+    )
+    np.testing.assert_allclose(
+        (d["Cm_meas"] - e["Cm_meas"]).to_numpy(),
+        dm[:, 1] / (qs * ac.cbar_m),
+        rtol=1e-9,
+        atol=1e-15,
+    )
+    assert np.abs(dm[:, 2]).max() > 0  # the motion pitches: the test can fail

@@ -7,7 +7,7 @@ Schema (see ``docs/data.md``)::
     [mass]       mass_kg, Ixx_kgm2, Iyy_kgm2, Izz_kgm2, Ixz_kgm2, Ixy_kgm2 = 0, Iyz_kgm2 = 0
                  (about the CG, Etkin sign), cg_m = [0, 0, 0]
     [reference]  moment_ref_m (default: cg_m)
-    [propulsion] n_engines, prop_inertia_kgm2, prop_rotation = "same" | "opposite",
+    [propulsion] n_engines, prop_inertia_kgm2, prop_rotation = "cw" | "ccw" | "opposite",
                  prop_rpm_channel = "prop_rpm" and/or prop_rpm_fixed = 1020.0
     [sensors]    accel_m, alpha_vane_m, beta_vane_m
     [simulator]  builtin = "adx37" (only the virtual flight test's campaigns: their
@@ -72,9 +72,14 @@ def inertia_definite(tensor: Sequence[Any]) -> Any:
 class Aircraft:
     """Reference data of the aircraft (SI units).
 
-    ``prop_rotation = "same"`` means all propellers turn the same way (their angular momenta
-    add, thesis Eq. 3.3 with :math:`h_p = n I_p \\Omega_p`); ``"opposite"`` means they cancel in
-    pairs (:math:`h_p = (n \\bmod 2) I_p \\Omega_p`).
+    ``prop_rotation`` is the propellers' sense viewed from behind (looking forward):
+    ``"ccw"`` (counter-clockwise) or ``"cw"`` (clockwise, most engines of US and UK design),
+    every engine turning that way, their angular momenta adding (thesis Eq. 3.3 with
+    :math:`h_p = \\pm n I_p \\Omega_p`); ``"opposite"`` for counter-rotating pairs, whose
+    momenta cancel. The thesis's sign (:math:`+I_p\\Omega_p q` in :math:`C_n`) is a spin
+    angular momentum pointing aft: counter-clockwise from behind, so ``"cw"`` gives
+    :math:`h_p = -n I_p \\Omega_p` (a nose-up pitch rate then yaws the nose right, the
+    gyroscopic rule of a clockwise propeller). Needed only when ``prop_inertia_kgm2 > 0``.
     """
 
     name: str
@@ -88,7 +93,7 @@ class Aircraft:
     Ixz_kgm2: float
     n_engines: int = 2
     prop_inertia_kgm2: float = 0.0
-    prop_rotation: str = "same"
+    prop_rotation: str | None = None
     prop_rpm_channel: str | None = None
     prop_rpm_fixed: float | None = None
     accel_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
@@ -125,8 +130,8 @@ class Aircraft:
     @property
     def prop_h_per_rpm(self) -> float:
         """Propeller angular momentum per rpm, kg m²/s per rpm (thesis sign, Eq. 3.3)."""
-        n_eff = self.n_engines if self.prop_rotation == "same" else self.n_engines % 2
-        return n_eff * self.prop_inertia_kgm2 * 2.0 * math.pi / 60.0
+        sense = {"ccw": 1.0, "cw": -1.0}.get(self.prop_rotation or "", 0.0)
+        return sense * self.n_engines * self.prop_inertia_kgm2 * 2.0 * math.pi / 60.0
 
     @classmethod
     def from_toml(cls, path: str | Path) -> Aircraft:
@@ -194,9 +199,18 @@ class Aircraft:
             return (float(v[0]), float(v[1]), float(v[2]))
 
         prop = table("propulsion")
-        rot = prop.get("prop_rotation", "same")
-        if rot not in ("same", "opposite"):
-            problems.append(f"[propulsion] prop_rotation = {rot!r} must be 'same' or 'opposite'")
+        rot = prop.get("prop_rotation")
+        if rot == "same":
+            problems.append(
+                "[propulsion] prop_rotation = 'same' does not say which way: give 'cw' or "
+                "'ccw' (viewed from behind, looking forward; 'same' used to mean 'ccw', the "
+                "thesis's sign) or 'opposite' (counter-rotating pairs)"
+            )
+        elif rot is not None and rot not in ("cw", "ccw", "opposite"):
+            problems.append(
+                f"[propulsion] prop_rotation = {rot!r} must be 'cw' or 'ccw' (viewed from "
+                "behind, looking forward) or 'opposite' (counter-rotating pairs)"
+            )
         n_eng = prop.get("n_engines", 2)
         if isinstance(n_eng, bool) or not isinstance(n_eng, int) or n_eng < 0:
             problems.append(f"[propulsion] n_engines = {n_eng!r} must be a whole number >= 0")
@@ -221,6 +235,17 @@ class Aircraft:
         inertia = num("propulsion", "prop_inertia_kgm2", positive=False, default=0.0)
         if inertia < 0.0:
             problems.append(f"[propulsion] prop_inertia_kgm2 = {inertia} must be >= 0")
+        if inertia > 0.0 and rot is None:
+            problems.append(
+                "[propulsion] prop_rotation is missing: with prop_inertia_kgm2 > 0 the "
+                "gyroscopic moment's sign needs it ('cw' or 'ccw' viewed from behind, or "
+                "'opposite')"
+            )
+        if inertia > 0.0 and rot == "opposite" and isinstance(n_eng, int) and n_eng % 2:
+            problems.append(
+                f"[propulsion] prop_rotation = 'opposite' with {n_eng} engines: an odd engine "
+                "has no partner to cancel; give 'cw' or 'ccw'"
+            )
         builtin = table("simulator").get("builtin")
         if builtin is not None and builtin not in BUILTINS:
             problems.append(
@@ -243,7 +268,7 @@ class Aircraft:
             Ixz_kgm2=num("mass", "Ixz_kgm2", positive=False),
             n_engines=int(n_eng),
             prop_inertia_kgm2=inertia,
-            prop_rotation=str(rot),
+            prop_rotation=None if rot is None else str(rot),
             prop_rpm_channel=rpm_channel,
             prop_rpm_fixed=rpm_fixed,
             accel_m=vec("accel_m"),

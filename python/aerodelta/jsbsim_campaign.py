@@ -988,7 +988,7 @@ def _aircraft_toml(cfg: JsbsimAircraft, fdm: Any, n_engines: int) -> str:
             "[propulsion]",
             f"n_engines = {n_engines}",
             "prop_inertia_kgm2 = 0.0  # JSBSim's propulsion moments are truth, not modelled",
-            'prop_rotation = "same"',
+            'prop_rotation = "ccw"  # inert: prop_inertia_kgm2 = 0',
             "[sensors]  # JSBSim's alpha, beta and specific force are at the CG",
             "accel_m = [0.0, 0.0, 0.0]",
             "alpha_vane_m = [0.0, 0.0, 0.0]",

@@ -102,7 +102,7 @@ impl AircraftRef {
             "# Representative aircraft of the aerodelta virtual flight test (see docs/aircraft.md).\n\
              name = \"{}\"\n\n[geometry]\nS_m2 = {:?}\nb_m = {:?}\ncbar_m = {:?}\n\n\
              [mass]\nmass_kg = {:?}\nIxx_kgm2 = {:?}\nIyy_kgm2 = {:?}\nIzz_kgm2 = {:?}\nIxz_kgm2 = {:?}\n\n\
-             [propulsion]\nn_engines = {}\nprop_inertia_kgm2 = {:?}\nprop_rotation = \"same\"\n\
+             [propulsion]\nn_engines = {}\nprop_inertia_kgm2 = {:?}\nprop_rotation = \"ccw\"\n\
              prop_rpm_channel = \"prop_rpm\"\nprop_rpm_fixed = {:?}\n\n\
              [sensors]\naccel_m = {}\nalpha_vane_m = {}\nbeta_vane_m = {}\n\n\
              [simulator]\nbuiltin = \"adx37\"  # flown on the built-in virtual aircraft: \
