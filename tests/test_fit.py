@@ -11,7 +11,7 @@ import pytest
 
 import aerodelta as ad
 from aerodelta.exceptions import DataError
-from aerodelta.fit import DEFAULT_STRUCTURES, model_frame
+from aerodelta.fit import DEFAULT_STRUCTURES, model_frame, stall_alpha
 
 
 @pytest.fixture(scope="module")
@@ -194,3 +194,26 @@ def test_a_setting_of_the_wrong_type_is_refused_in_one_line(
         p.write_text(f'{setting} = "{value}"\n')
         with pytest.raises(DataError, match=f"fit setting {setting}"):
             ad.FitConfig.from_toml(p)
+
+
+def test_stall_alpha_is_the_wings_not_the_thrusts() -> None:
+    """Closed form: an aerodynamic C_L peaking at 16 deg, a thrust coefficient 0.6 along body
+    x. The total body force's lift-wise component C_L + C_T sin(alpha) peaks ~1.2 deg later;
+    with the thrust channels the detection finds the wing's 16 deg."""
+    alpha = np.repeat(np.arange(8.0, 24.0, 0.01), 3)
+    a = np.radians(alpha)
+    cl = 1.5 - 0.004 * (alpha - 16.0) ** 2
+    cd = 0.05 + 0.002 * alpha**2 / 10
+    ct = 0.3
+    d = pl.DataFrame(
+        {
+            "alpha_deg": alpha,
+            "CZ_meas": -(cl * np.cos(a) + cd * np.sin(a)),
+            "CX_meas": cl * np.sin(a) - cd * np.cos(a) + 2 * ct,
+            "ct_left": np.full(alpha.size, ct),
+            "ct_right": np.full(alpha.size, ct),
+        }
+    )
+    assert abs(stall_alpha(d) - 16.0) <= 0.25
+    total = stall_alpha(d.drop("ct_left", "ct_right"))
+    assert total >= 17.0, total

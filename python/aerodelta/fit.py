@@ -570,12 +570,20 @@ def qualified_coefficients(data: pl.DataFrame, qualified: str | Path = "auto") -
 
 
 def stall_alpha(data: pl.DataFrame, bin_deg: float = 0.5, min_points: int = 50) -> float:
-    """Stall angle of attack, deg: the alpha bin of maximum mean lift coefficient.
+    """Stall angle of attack, deg: the alpha bin of maximum mean aerodynamic lift coefficient.
 
-    ``C_L = -C_Z cos(alpha) + C_X sin(alpha)`` from the measured body coefficients.
+    ``C_L = -C_Z cos(alpha) + (C_X - C_T) sin(alpha)`` from the measured body coefficients,
+    with the thrust coefficient ``C_T = ct_left + ct_right`` (thrust along body x) removed
+    where the records carry it: the measured C_X holds the thrust, whose ``C_T sin(alpha)``
+    grows with alpha and power and would move the maximum of the total C_L above the
+    aerodynamic one (the wing's stall) on powered stalls.
     """
     a = np.radians(data["alpha_deg"].to_numpy())
-    cl = -data["CZ_meas"].to_numpy() * np.cos(a) + data["CX_meas"].to_numpy() * np.sin(a)
+    cx = data["CX_meas"].to_numpy()
+    if all(c in data.columns for c in ("ct_left", "ct_right")):
+        ct = (data["ct_left"].cast(pl.Float64) + data["ct_right"].cast(pl.Float64)).to_numpy()
+        cx = cx - np.where(np.isfinite(ct), ct, 0.0)
+    cl = -data["CZ_meas"].to_numpy() * np.cos(a) + cx * np.sin(a)
     df = pl.DataFrame({"b": np.floor(data["alpha_deg"].to_numpy() / bin_deg), "cl": cl})
     g = (
         df.drop_nans()
