@@ -317,7 +317,9 @@ def test_jsbsim_body_axis_side_force_and_moments(fitted: Path, tmp_path: Path) -
 def test_jsbsim_with_the_qualified_model(model: DeltaModel, tmp_path: Path) -> None:
     """``qualified=True``: the ADX-37 qualified CY, Cl, Cn (2-D and 3-D tables, clamped
     sideslip and thrust coefficients) evaluated by JSBSim equal the engine's
-    (``aero_core::aircraft``), and the extended coefficient is qualified + w ΔC."""
+    (``aero_core::aircraft``) less the thrust's own yaw moment, the lever arm y/b times the
+    thrust difference, which JSBSim's propulsion applies (issue 19: it was counted twice),
+    and the extended coefficient is qualified + w ΔC."""
     fdm = _load_jsbsim(tmp_path, jsbsim_xml(model, _TEST_PROPS, qualified=True))
     n = 200
     s = random_states(n, seed=13)
@@ -326,6 +328,10 @@ def test_jsbsim_with_the_qualified_model(model: DeltaModel, tmp_path: Path) -> N
     s["beta_rad"] = np.radians(s["beta_deg"])
     cols = {k: np.ascontiguousarray(v) for k, v in s.items() if k != "beta_rad"}
     cl, cn, cy = _core.qualified_lateral_adx37({**cols, "alphadot_dps": np.zeros(n)})
+    # the lever arm of docs/aircraft.md: engines at y = ±4.1 m on the 25.91 m span
+    arm = 4.1 / 25.91
+    ct = np.clip(s["ct_left"], -0.1, 1.5) - np.clip(s["ct_right"], -0.1, 1.5)
+    cn = cn - arm * ct
     d = engine_delta(model, s)
     got: dict[str, list[float]] = {f"{c}/{k}": [] for c in model.coefficients
                                    for k in ("qualified", "extended")}  # fmt: skip

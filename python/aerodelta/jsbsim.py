@@ -40,6 +40,15 @@ __all__ = ["DEFAULT_PROPERTIES", "export_jsbsim", "jsbsim_properties", "jsbsim_x
 
 _R2D = repr(180.0 / math.pi)
 
+#: Tables of the built-in qualified model that are the thrust's own moment, not aerodynamics:
+#: ``Cn_CTdiff`` is the engines' lever arm ``y/b`` times the thrust difference. The qualified
+#: model holds the total coefficients the flight data measure (thrust included), but JSBSim's
+#: ``<propulsion>`` applies each engine's thrust at its location, so with ``qualified=True``
+#: these terms are left out of the ``<aerodynamics>`` (else an engine-out stall's thrust yaw
+#: is counted twice: about 0.05 in C_n). The slipstream terms (``Cl_CTdiff``, ``C*_CT``) are
+#: aerodynamic and stay.
+PROPULSIVE_TERMS = frozenset({"Cn_CTdiff"})
+
 #: Δ-model channel -> JSBSim property (or ``*``-separated product of properties and numbers).
 #: Angles in deg, rates non-dimensional (``p b/(2V)`` = ``p [rad/s] * aero/bi2vel``).
 #: Controls follow the project's convention (Etkin: positive aileron rolls left, positive
@@ -313,6 +322,8 @@ def _qualified_functions(w: _Writer, cname: str, qspec: dict[str, Any], done: se
 
     prods = []
     for term in out[cname]["terms"]:
+        if any(f in PROPULSIVE_TERMS for f in term["factors"]):
+            continue  # JSBSim's propulsion applies the thrust at the engines
         facs = [f"<property>{prop(f)}</property>" for f in term["factors"]]
         if term.get("coef", 1.0) != 1.0 or not facs:
             facs.insert(0, f"<value>{_num(term.get('coef', 1.0))}</value>")
@@ -350,7 +361,8 @@ def jsbsim_xml(
         Also write the built-in ADX-37 qualified model's CY, Cl, Cn
         (``aero/aerodelta/<C>/qualified``, ``.../extended`` = qualified + w ΔC) and put the
         extended coefficients on the axes: the file is then the aircraft's whole
-        lateral-directional aerodynamics.
+        lateral-directional aerodynamics, without the thrust's own moment
+        (:data:`PROPULSIVE_TERMS`), which JSBSim's propulsion applies.
 
     Raises
     ------
