@@ -272,8 +272,25 @@ def test_cli_export_of_a_fitted_model(fitted: Path, tmp_path: Path, capsys) -> N
     dml, xml = tmp_path / "ext.dml", tmp_path / "ext.xml"
     args = ["export", "--model", str(fitted), "--daveml", str(dml), "--jsbsim", str(xml)]
     assert main([*args, "--property", "da_deg=-1*fcs/left-aileron-pos-deg"]) == 0
-    text = capsys.readouterr().out
+    captured = capsys.readouterr()
+    text = captured.out
     assert "Cl_ext" in text and "da_deg" in text and "fcs/left-aileron-pos-deg" in text
+    # the channels left on declared properties are named, the mapped one is not
+    used = set(ad.DeltaModel.load(fitted).input_columns) & set(DEFAULT_PROPERTIES)
+    declared = {
+        DEFAULT_PROPERTIES[c] for c in used if DEFAULT_PROPERTIES[c].startswith("aerodelta/")
+    }
+    warned = captured.err
+    assert "warning" in warned and "fcs/left-aileron-pos-deg" not in warned
+    assert len(declared - {"aerodelta/da-deg"}) >= 1
+    for p in sorted(declared - {"aerodelta/da-deg"}):
+        assert p in warned, (p, warned)
+    assert "aerodelta/da-deg" not in warned
+    # every channel on a property of the aircraft's own: nothing left to warn about
+    inputs = sorted(ad.DeltaModel.load(fitted).input_columns)
+    mapped = [f"--property={c}=fcs/x-{i}" for i, c in enumerate(inputs)]
+    assert main([*args, *mapped]) == 0
+    assert "warning" not in capsys.readouterr().err
     assert main(["check-daveml", str(dml)]) == 0
     assert '<axis name="ROLL">' in xml.read_text()
     assert main([*args, "--jsbsim-qualified", "--side-axis", "Y"]) == 0

@@ -10,6 +10,7 @@ the built-in qualified CY, Cl, Cn too); see docs/export.md for the properties it
 from __future__ import annotations
 
 import argparse
+import re
 import sys
 from contextlib import ExitStack
 
@@ -165,6 +166,19 @@ def run(args: argparse.Namespace) -> int:
             )
     if args.jsbsim:
         print(f"wrote {args.jsbsim}: channels read from JSBSim properties:")
-        for ch, prop in jsbsim_properties(model, props).items():
+        mapped = jsbsim_properties(model, props)
+        for ch, prop in mapped.items():
             print(f"  {ch:<14} {prop}")
+        # properties the file declares (value 0): nothing in JSBSim sets them by itself
+        undriven = sorted(
+            {p for p in re.findall(r"(?<![\w/])aerodelta/[\w.-]+", " ".join(mapped.values()))}
+        )
+        if undriven:
+            print(
+                f"aerodelta export: warning: the file declares {', '.join(undriven)} (value "
+                "0): your aircraft must set them (e.g. from a <system> with its sign "
+                "convention), or map the channels to its own properties with --property "
+                "CHANNEL=PROPERTY; left at 0, every Δ term reading them is zero",
+                file=sys.stderr,
+            )
     return 0
