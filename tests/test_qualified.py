@@ -110,3 +110,23 @@ def test_aircraft_file_builtin_is_checked() -> None:
     assert Aircraft.from_dict({**base, "simulator": {"builtin": "adx37"}}).builtin == "adx37"
     with pytest.raises(DataError, match=r"\[simulator\] builtin = 'f16'"):
         Aircraft.from_dict({**base, "simulator": {"builtin": "f16"}})
+
+
+def test_report_does_not_replay_another_aircraft(data: pl.DataFrame) -> None:
+    """The 6-DOF replay flies the built-in ADX-37: on records of another simulator the
+    section says why it is not run instead of flying the wrong aircraft (issue 19 item 5)."""
+    from aerodelta.plots import FigureSink  # noqa: PLC0415
+    from aerodelta.report import replay  # noqa: PLC0415
+    from aerodelta.report.context import build_context  # noqa: PLC0415
+
+    boxed = data.drop(BUILTIN_COLUMN)
+    sims = qualified_coefficients(model_frame(boxed), "adx37")
+    boxed = boxed.with_columns(sims[f"{c}_qual"].alias(f"{c}_sim") for c in ("Cl", "Cn", "CY"))
+    model = ad.fit(boxed, config=CFG).model
+    sec = replay.section(build_context(model, boxed), FigureSink(None))
+    text = " ".join(str(b) for b in sec.body)
+    assert "Replay not run" in text and "Cl_sim" in text
+    # on the virtual aircraft's own records it flies (and says nothing of the kind)
+    own = ad.fit(data, config=CFG).model
+    sec = replay.section(build_context(own, data), FigureSink(None), count=1)
+    assert "Replay not run" not in " ".join(str(b) for b in sec.body)

@@ -20,6 +20,7 @@ from aerodelta.cli._data import (
     load_records,
     maneuver_ids,
     output_folder,
+    qualified_choice,
     resolve_data,
 )
 from aerodelta.exceptions import DataError
@@ -42,8 +43,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--qualified",
         default="auto",
-        choices=["auto", "columns", "adx37"],
-        help="source of the qualified coefficients (as aerodelta fit --model)",
+        type=qualified_choice,
+        metavar="auto|columns|adx37|FILE.dml",
+        help="the qualified model (as aerodelta fit --model); auto: the one the fit recorded",
     )
     parser.add_argument("--replays", type=int, default=3, help="maneuvers replayed in 6-DOF")
     parser.add_argument(
@@ -79,12 +81,17 @@ def run(args: argparse.Namespace) -> int:
     check_at_least(args.replays, "--replays", 0)
     model_file = existing_file(args.model, "--model")
     diagnosis_file = existing_file(args.diagnosis, "--diagnosis")
+    dml = (
+        existing_file(args.qualified, "--qualified")
+        if args.qualified.lower().endswith((".dml", ".xml"))
+        else None
+    )
     assert model_file is not None
     out = output_folder(args.out)
     held = maneuver_ids(args.held_out)
     progress = not args.no_progress
     src = resolve_data(args)
-    check_outputs(src, "--out", folder=out, inputs=[model_file, diagnosis_file])
+    check_outputs(src, "--out", folder=out, inputs=[model_file, diagnosis_file, dml])
     # every input file read before the output folder is made: a bad one leaves nothing behind
     model = load_model(model_file)
     params = load_params(model_file)

@@ -13,6 +13,7 @@ import polars as pl
 from aerodelta.exceptions import DataError
 from aerodelta.fit import COEFFICIENTS, model_frame, qualified_coefficients
 from aerodelta.model import DeltaModel, check_params
+from aerodelta.qualified import resolve
 
 
 @dataclass
@@ -33,7 +34,7 @@ class ReportContext:
     held_out
         Maneuvers not used in the fit.
     qualified
-        Source of the qualified coefficients: ``"columns"`` or ``"adx37"``.
+        Source of the qualified coefficients: ``"columns"``, ``"adx37"`` or a DAVE-ML path.
     diagnosis
         The parsed ``diagnosis.json`` (schema ``aerodelta.diagnosis/1``), or ``None``.
     """
@@ -53,11 +54,24 @@ class ReportContext:
         return sorted(float(f) for f in self.data["flap_deg"].unique().drop_nulls())
 
 
-def resolve_qualified(data: pl.DataFrame, qualified: str) -> str:
-    """``"auto"`` → ``"columns"`` when the records carry ``*_sim`` columns, else ``"adx37"``."""
+def resolve_qualified(data: pl.DataFrame, qualified: str, model: DeltaModel | None = None) -> str:
+    """The qualified model to compare with: ``qualified`` when named; for ``"auto"`` the one
+    the fit recorded (``provenance.qualified``; a DAVE-ML file must be named again), else
+    :func:`aerodelta.qualified.resolve`'s choice (refused for data neither carrying ``*_sim``
+    columns nor flown on the virtual aircraft)."""
     if qualified != "auto":
         return qualified
-    return "columns" if all(f"{c}_sim" in data.columns for c in COEFFICIENTS) else "adx37"
+    recorded = str(
+        ((model.to_spec() if model else {}).get("provenance") or {}).get("qualified", "")
+    )
+    if recorded.startswith("daveml:"):
+        raise DataError(
+            f"report: the model was fitted against the DAVE-ML model {recorded.split(':', 1)[1]}; "
+            "name it again (--qualified FILE.dml)"
+        )
+    if recorded in ("columns", "adx37"):
+        return recorded
+    return resolve(data, "auto").source
 
 
 def build_context(
@@ -79,7 +93,7 @@ def build_context(
     if missing:
         raise DataError(f"report: the data lack {missing}; pass the output of aerodelta ingest")
     df = model_frame(data)
-    mode = resolve_qualified(df, qualified)
+    mode = resolve_qualified(df, qualified, model)
     q = qualified_coefficients(df, mode)
     ev = model.evaluate(df)
     coefs = [c for c in COEFFICIENTS if c in model.coefficients and f"{c}_meas" in df.columns]

@@ -14,6 +14,7 @@ from aerodelta.campaign import replay
 from aerodelta.exceptions import AerodeltaError
 from aerodelta.model import DeltaModel
 from aerodelta.plots import COLORS, FigureSink, figures
+from aerodelta.qualified import describe, flown_on_builtin
 from aerodelta.report.context import ReportContext
 from aerodelta.report.html import Section, p, table
 
@@ -196,6 +197,18 @@ def section(
             "FAR 25.203)."
         )
     )
+    if ctx.qualified != "adx37" or not flown_on_builtin(ctx.data):
+        sec.body.append(
+            p(
+                "Replay not run: aerodelta's 6-DOF simulator flies the built-in ADX-37, and "
+                "these records were not flown on it (qualified model: "
+                f"{describe(ctx.qualified)}). Replaying them needs your aircraft's own 6-DOF "
+                "model with the Δ added (e.g. JSBSim with the exported increments, "
+                "docs/export.md); flying another aircraft from your initial states would "
+                "prove nothing."
+            )
+        )
+        return sec
     need = {"tas_mps", "p_dps", "q_dps", "r_dps", "phi_deg", "theta_deg", "de_deg"}
     if not need <= set(ctx.data.columns):
         sec.body.append(
