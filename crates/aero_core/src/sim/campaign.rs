@@ -997,7 +997,7 @@ mod tests {
         });
         let e = run_campaign(&s).unwrap_err().to_string();
         assert!(
-            e.contains("cg_range_m x = 0.5") && e.contains("0.21"),
+            e.contains("cg_range_m x = 0.5") && e.contains("0.39"),
             "{e}"
         );
         let e = CampaignSpec::from_json(r#"{"mass_properties": {"cg_range": [0.1, 0, 0]}}"#)
