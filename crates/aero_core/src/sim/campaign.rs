@@ -918,15 +918,24 @@ mod tests {
     fn thread_count_does_not_change_results() {
         let mut s = quick(8);
         s.only = vec![0, 3, 9, 14];
-        let many = run_campaign(&s).unwrap();
-        let one = rayon::ThreadPoolBuilder::new()
-            .num_threads(1)
-            .build()
-            .unwrap()
-            .install(|| run_campaign(&s).unwrap());
-        for (a, b) in many.iter().zip(&one) {
-            assert_eq!(a.record, b.record);
-            assert_eq!(a.truth, b.truth);
+        let mut varied = s.clone();
+        varied.mass_properties = Some(MassVariation {
+            cg_range_m: [0.21, 0.05, 0.1],
+            mass_range: 0.1,
+            inertia_range: 0.1,
+        });
+        for s in [s, varied] {
+            let many = run_campaign(&s).unwrap();
+            let one = rayon::ThreadPoolBuilder::new()
+                .num_threads(1)
+                .build()
+                .unwrap()
+                .install(|| run_campaign(&s).unwrap());
+            for (a, b) in many.iter().zip(&one) {
+                assert_eq!(a.record, b.record);
+                assert_eq!(a.truth, b.truth);
+                assert_eq!(a.mass_properties, b.mass_properties);
+            }
         }
     }
 

@@ -12,9 +12,10 @@
 //! the aerodynamic + propulsive force (gravity acts at the CG).
 //!
 //! Static stability: the ADX-37's C_mα = −0.75/rad with C_Lα = 5.2/rad puts the
-//! neutral point 0.75/5.2 = 14.4 % c̄ (0.30 m) aft of the datum (the trim
-//! elevator's gradient dδe/dC_L, −5.5°/unit C_L at the datum, falls to −0.3° with
-//! the CG 0.303 m aft). A CG `d_x` forward (positive) adds `d_x/c̄ · C_N` of
+//! neutral point 0.75/5.2 = 14.4 % c̄ (0.30 m) aft of the datum. Measured on the
+//! trim (flaps 0, 75 → 85 m/s level, 3000 m), the elevator's gradient dδe/dC_L is
+//! −4.7° per unit C_L at the datum, −1.9° 0.195 m aft and crosses zero 0.32 m aft
+//! (the power-on neutral point). A CG `d_x` forward (positive) adds `d_x/c̄ · C_N` of
 //! nose-down moment, aft removes it; [`MAX_CG_X_RANGE_M`] keeps the aft-most draw
 //! 5 % c̄ ahead of the neutral point.
 
@@ -27,9 +28,9 @@ use crate::sim::rng::Stream;
 /// Largest total CG range along x, m: draws within ±0.195 m = ±9.3 % c̄ of the
 /// datum, so the aft-most CG keeps a static margin of 14.4 − 9.3 ≈ 5 % c̄ (the
 /// "10 % c̄ CG shift", 0.21 m, is well inside). The pilot model flies the quick
-/// campaign to the stall and back with the CG fixed anywhere from 0.5 m aft to
-/// 0.3 m forward; 0.35 m forward runs out of nose-up elevator in accelerated
-/// stalls (`docs/aircraft.md`): the limit is the static margin, not the pilot.
+/// campaign to the stall and back with the CG fixed anywhere from 0.3 m aft to
+/// 0.3 m forward; 0.35 m forward, 2 of 40 accelerated stalls stay below n = 1.3
+/// (`docs/aircraft.md`): the limit is the static margin, not the pilot.
 pub const MAX_CG_X_RANGE_M: f64 = 0.39;
 /// Largest total CG range along y, m (±0.05 m: a lateral CG offset rolls the
 /// aircraft by `d_y · L`, C_l = d_y C_L / b ≈ ±0.004 at C_L,max, beyond the
