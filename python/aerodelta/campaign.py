@@ -383,8 +383,8 @@ def generate_campaign(
         Per-maneuver CG variation: total range per body axis (x forward, y right, z down), m;
         each maneuver's CG is uniform within +-range/2 of the datum (the nominal CG of
         ``aircraft.toml``, the moment reference centre of the truth model). A "10 % c-bar CG
-        shift" is ``(0.21, 0.05, 0.10)``; x is limited to 0.21 m, y to 0.1 m, z to 0.5 m
-        (``docs/aircraft.md``).
+        shift" is ``(0.21, 0.05, 0.10)``. At most 0.39 m in x (the aft-most CG keeps 5 % c-bar
+        of the 14.4 % c-bar static margin), 0.1 m in y, 0.5 m in z (``docs/aircraft.md``).
     mass_range
         Per-maneuver mass variation, total relative range: mass = 15 000 kg * (1 + U(-r/2, r/2));
         0.1 = +-5 %; below 2.
