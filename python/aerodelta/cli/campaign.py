@@ -74,12 +74,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--mass-range",
         type=float,
         default=None,
+        metavar="F",
         help="builtin: per-maneuver mass variation, total relative range (0.1 = +-5 %%)",
     )
     parser.add_argument(
         "--inertia-range",
         type=float,
         default=None,
+        metavar="F",
         help="builtin: per-maneuver variation of each inertia, total relative range (0.1 = +-5 %%)",
     )
     parser.add_argument("--overwrite", action="store_true", help="replace an existing folder")
