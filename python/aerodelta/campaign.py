@@ -11,7 +11,10 @@ contract layout read by ``aerodelta ingest``::
     DIR/truth/<id>.parquet    truth only: Cl/Cn/CY true and qualified, per-effect dC*_<effect>
     DIR/truth/campaign.json   effects, magnitudes, shapes, seeds, roll-off draws
 
-The same seed gives byte-identical files. See ``docs/aircraft.md``. A maneuver in which the
+The same seed gives byte-identical files. See ``docs/aircraft.md``. With ``cg_range_m``,
+``mass_range`` or ``inertia_range`` each maneuver is flown with its own mass, CG (body axes, m,
+from the aircraft's datum, the nominal CG and the truth model's moment reference centre) and
+inertia, written to the manifest (:data:`MASS_COLUMNS`). A maneuver in which the
 truth aircraft departs (a spin entry the pilot model cannot hold, possible with several
 destabilising effects at once) is terminated one second before a channel leaves its physical
 range, as a flight test would be; the manifest's ``departed_at_s`` says when.
@@ -21,6 +24,7 @@ from __future__ import annotations
 
 import functools
 import json
+import math
 import os
 import shutil
 from collections.abc import Mapping, Sequence
@@ -53,6 +57,20 @@ DEFAULT_EFFECTS: tuple[str, ...] = (
 
 #: Repetitions of each (flap, kind, pusher) cell: 5 flaps x 4 kinds x 2 x reps maneuvers.
 SIZES: dict[str, int] = {"default": 5, "quick": 1}
+
+#: Manifest columns of a campaign with per-maneuver mass properties: mass (kg), CG from the
+#: datum (body axes x forward, y right, z down; m) and the inertia about that CG (kg m^2;
+#: Etkin's sign, the tensor holds -Ixz off the diagonal; Ixy = Iyz = 0).
+MASS_COLUMNS: tuple[str, ...] = (
+    "mass_kg",
+    "cg_x_m",
+    "cg_y_m",
+    "cg_z_m",
+    "Ixx_kgm2",
+    "Iyy_kgm2",
+    "Izz_kgm2",
+    "Ixz_kgm2",
+)
 
 
 @dataclass(frozen=True)
@@ -155,6 +173,53 @@ def parse_effects(
     return out
 
 
+def mass_variation(
+    cg_range_m: Sequence[float] | None = None,
+    mass_range: float | None = None,
+    inertia_range: float | None = None,
+) -> dict[str, Any] | None:
+    """The spec's ``mass_properties`` entry, or ``None`` when no range is given (nominal).
+
+    Parameters
+    ----------
+    cg_range_m
+        Total CG range per body axis (x forward, y right, z down), m: each maneuver's CG is
+        uniform within +-range/2 of the datum (the nominal CG of ``aircraft.toml``).
+    mass_range
+        Total relative mass range, -: mass = nominal * (1 + U(-range/2, +range/2)).
+    inertia_range
+        Total relative range of each of Ixx, Iyy, Izz, Ixz (drawn independently), -.
+
+    Raises
+    ------
+    InvalidInputError
+        For a CG range that is not three numbers (the engine refuses the values, see
+        ``docs/aircraft.md``).
+    """
+    if cg_range_m is None and mass_range is None and inertia_range is None:
+        return None
+    cg = [0.0, 0.0, 0.0] if cg_range_m is None else [float(v) for v in cg_range_m]
+    if len(cg) != 3:
+        raise InvalidInputError(
+            f"cg_range_m {tuple(cg)}: give three total ranges (x, y, z) in m, "
+            "e.g. (0.21, 0.05, 0.1)"
+        )
+    out = {
+        "cg_range_m": cg,
+        "mass_range": 0.0 if mass_range is None else float(mass_range),
+        "inertia_range": 0.0 if inertia_range is None else float(inertia_range),
+    }
+    named = [(f"cg_range_m {a}", v) for a, v in zip("xyz", cg, strict=True)]
+    for name, v in [
+        *named,
+        ("mass_range", out["mass_range"]),
+        ("inertia_range", out["inertia_range"]),
+    ]:
+        if not math.isfinite(v):
+            raise InvalidInputError(f"{name} = {v}: give a finite total range >= 0")
+    return out
+
+
 def _spec(
     effects: dict[str, float],
     *,
@@ -166,6 +231,7 @@ def _spec(
     excitation: float,
     only: Sequence[int] = (),
     record_hz: float = 50.0,
+    mass: dict[str, Any] | None = None,
 ) -> dict[str, Any]:
     reps = SIZES.get(size, 0) if isinstance(size, str) else int(size)
     if reps <= 0:
@@ -186,6 +252,9 @@ def _spec(
         only=list(only),
         record_hz=float(record_hz),
     )
+    if mass is not None:
+        spec["mass_properties"] = mass
+        _core.sim_plan(json.dumps(spec))  # refuses meaningless ranges before flying
     return spec
 
 
@@ -200,6 +269,9 @@ def simulate_campaign(
     excitation: float = 1.0,
     only: Sequence[int] = (),
     record_hz: float = 50.0,
+    cg_range_m: Sequence[float] | None = None,
+    mass_range: float | None = None,
+    inertia_range: float | None = None,
 ) -> list[dict[str, Any]]:
     """Fly a campaign in memory (no files).
 
@@ -207,6 +279,9 @@ def simulate_campaign(
     ----------
     effects, seed, size, noise, turbulence, rolloff, excitation
         As :func:`generate_campaign`.
+    cg_range_m, mass_range, inertia_range
+        As :func:`generate_campaign`; the maneuver's ``meta["mass_properties"]`` then holds
+        ``mass_kg``, ``cg_m`` (x, y, z from the datum), ``ixx``, ``iyy``, ``izz``, ``ixz``.
     only
         Maneuver indices to fly (empty: all).
     record_hz
@@ -228,6 +303,7 @@ def simulate_campaign(
         excitation=excitation,
         only=only,
         record_hz=record_hz,
+        mass=mass_variation(cg_range_m, mass_range, inertia_range),
     )
     out = []
     for m in _core.sim_run_campaign(json.dumps(spec)):
@@ -275,6 +351,9 @@ def generate_campaign(
     turbulence: float = 0.5,
     rolloff: bool = True,
     excitation: float = 1.0,
+    cg_range_m: Sequence[float] | None = None,
+    mass_range: float | None = None,
+    inertia_range: float | None = None,
     overwrite: bool = False,
     progress: bool = False,
 ) -> CampaignInfo:
@@ -300,6 +379,20 @@ def generate_campaign(
         Include the stochastic roll-off (thesis Table 3.2).
     excitation
         Pilot excitation scale (doublets, stick noise); 0 = none.
+    cg_range_m
+        Per-maneuver CG variation: total range per body axis (x forward, y right, z down), m;
+        each maneuver's CG is uniform within +-range/2 of the datum (the nominal CG of
+        ``aircraft.toml``, the moment reference centre of the truth model). A "10 % c-bar CG
+        shift" is ``(0.21, 0.05, 0.10)``. At most 0.39 m in x (the aft-most CG keeps 5 % c-bar
+        of the 14.4 % c-bar static margin), 0.1 m in y, 0.5 m in z (``docs/aircraft.md``).
+    mass_range
+        Per-maneuver mass variation, total relative range: mass = 15 000 kg * (1 + U(-r/2, r/2));
+        0.1 = +-5 %; below 2.
+    inertia_range
+        Per-maneuver inertia variation, total relative range of each of Ixx, Iyy, Izz, Ixz
+        (independent draws); below 2. Giving any of the three writes the manifest's
+        :data:`MASS_COLUMNS` (the others default to 0); giving none flies the nominal aircraft
+        and the files are those of a campaign without the option.
     overwrite
         Replace an existing folder.
     progress
@@ -313,6 +406,8 @@ def generate_campaign(
     ------
     DataError
         If ``out_dir`` exists and ``overwrite`` is false.
+    InvalidInputError
+        For a meaningless mass, CG or inertia range (negative, beyond the limits).
     """
     out = Path(out_dir)
     if out.exists() and not overwrite:
@@ -326,6 +421,7 @@ def generate_campaign(
         turbulence=turbulence,
         rolloff=rolloff,
         excitation=excitation,
+        mass=mass_variation(cg_range_m, mass_range, inertia_range),
     )
     plan = json.loads(_core.sim_plan(json.dumps(spec)))
     out.parent.mkdir(parents=True, exist_ok=True)
@@ -375,6 +471,8 @@ def generate_campaign(
                         "effects": ";".join(f"{k}={v:g}" for k, v in sorted(eff.items())),
                     }
                 )
+                if "mass_properties" in meta:
+                    rows[-1].update(_mass_columns(meta["mass_properties"]))
                 draws[mid] = meta["rolloff_draws"]
                 seeds[mid] = int(p["seed"])
             if bar is not None:
@@ -416,6 +514,13 @@ def generate_campaign(
         effects=spec_effects(spec),
         manifest=manifest,
     )
+
+
+def _mass_columns(mp: Mapping[str, Any]) -> dict[str, float]:
+    """A maneuver's mass properties (engine meta) as the manifest's :data:`MASS_COLUMNS`."""
+    cg = mp["cg_m"]
+    values = (mp["mass_kg"], cg[0], cg[1], cg[2], mp["ixx"], mp["iyy"], mp["izz"], mp["ixz"])
+    return {k: float(v) for k, v in zip(MASS_COLUMNS, values, strict=True)}
 
 
 def spec_effects(spec: Mapping[str, Any]) -> dict[str, float]:

@@ -63,6 +63,27 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--excitation", type=float, default=1.0, help="pilot doublets/stick-noise scale"
     )
+    parser.add_argument(
+        "--cg-range",
+        metavar="X,Y,Z",
+        help="builtin: per-maneuver CG variation, total range per body axis in m from the datum "
+        "(x forward, y right, z down; uniform within +-range/2), e.g. 0.21,0.05,0.10 (10 %% of "
+        "c-bar in x); writes mass and inertia columns to the manifest",
+    )
+    parser.add_argument(
+        "--mass-range",
+        type=float,
+        default=None,
+        metavar="F",
+        help="builtin: per-maneuver mass variation, total relative range (0.1 = +-5 %%)",
+    )
+    parser.add_argument(
+        "--inertia-range",
+        type=float,
+        default=None,
+        metavar="F",
+        help="builtin: per-maneuver variation of each inertia, total relative range (0.1 = +-5 %%)",
+    )
     parser.add_argument("--overwrite", action="store_true", help="replace an existing folder")
     parser.add_argument("--list-effects", action="store_true", help="list the effect vocabulary")
     parser.add_argument("--out", help="campaign folder to write")
@@ -98,6 +119,9 @@ def run(args: argparse.Namespace) -> int:
         else (0.5 if args.turbulence is None else args.turbulence),
         rolloff=not args.no_rolloff,
         excitation=args.excitation,
+        cg_range_m=_cg_range(args.cg_range),
+        mass_range=args.mass_range,
+        inertia_range=args.inertia_range,
         overwrite=args.overwrite,
         progress=not args.no_progress,
     )
@@ -126,11 +150,31 @@ def _check_options(args: argparse.Namespace) -> None:
         }
         needs = "--simulator jsbsim"
     else:
-        other = {"--effects": args.effects, "--no-rolloff": args.no_rolloff}
+        other = {
+            "--effects": args.effects,
+            "--no-rolloff": args.no_rolloff,
+            "--cg-range": args.cg_range,
+            "--mass-range": args.mass_range is not None,
+            "--inertia-range": args.inertia_range is not None,
+        }
         needs = "--simulator builtin"
     given = [o for o, v in other.items() if v]
     if given:
         raise InvalidInputError(f"{given[0]} applies to {needs} only; drop it or give {needs}")
+
+
+def _cg_range(text: str | None) -> tuple[float, float, float] | None:
+    """``--cg-range X,Y,Z`` (m) as three floats; ``None`` when not given."""
+    if text is None:
+        return None
+    parts = text.split(",")
+    try:
+        x, y, z = (float(p) for p in parts)
+    except ValueError:
+        raise InvalidInputError(
+            f"--cg-range {text}: give three total ranges in m, X,Y,Z (e.g. 0.21,0.05,0.10)"
+        ) from None
+    return (x, y, z)
 
 
 def _check_out(args: argparse.Namespace) -> None:

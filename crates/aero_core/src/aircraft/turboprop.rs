@@ -59,11 +59,11 @@ pub struct AircraftRef {
     pub thrust_line_above_cg_m: f64,
     /// Maximum shaft power per engine (sea level), W.
     pub max_power_w: f64,
-    /// Accelerometer position relative to the CG, body axes, m.
+    /// Accelerometer position relative to the datum (the nominal CG), body axes, m.
     pub accel_m: [f64; 3],
-    /// Alpha vane position relative to the CG, m.
+    /// Alpha vane position relative to the datum (the nominal CG), m.
     pub alpha_vane_m: [f64; 3],
-    /// Beta vane position relative to the CG, m.
+    /// Beta vane position relative to the datum (the nominal CG), m.
     pub beta_vane_m: [f64; 3],
     /// Flap settings, deg.
     pub flaps_deg: [f64; 5],

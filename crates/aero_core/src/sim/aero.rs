@@ -6,8 +6,10 @@
 //! z down; positive aileron rolls left, positive rudder yaws left, positive
 //! elevator pitches nose down. Angles and rates are in **radians** inside the
 //! engine. The coefficients are **total** (aerodynamic + propulsive) body-axis
-//! coefficients about the CG, because that is what flight test measures
-//! (thesis Eq. 3.2-3.4); a model includes its thrust terms through the
+//! coefficients about the moment reference centre, the aircraft's datum (its
+//! nominal CG), because that is what flight test measures (thesis Eq. 3.2-3.4,
+//! transferred from each maneuver's CG to the datum); the simulator moves the
+//! moments to the actual CG ([`crate::sim::mass`]). A model includes its thrust terms through the
 //! per-engine thrust coefficients `ct_left`, `ct_right` (Table 3.1 CT ranges).
 
 /// Control-surface positions acting on the airframe, rad.
@@ -82,7 +84,8 @@ impl AeroInput {
     }
 }
 
-/// Body-axis force and moment coefficients about the CG (total: aero + thrust).
+/// Body-axis force and moment coefficients about the moment reference centre
+/// (the datum; the nominal CG) (total: aero + thrust).
 ///
 /// Forces are divided by q̄S, rolling and yawing moments by q̄Sb, pitching
 /// moment by q̄Sc̄ (thesis Eq. 3.1).

@@ -4,7 +4,9 @@
 //! sensor model. Seed → per-maneuver seeds (SplitMix64) → independent ChaCha
 //! streams per component (pilot, gusts, roll-off, sensors), so a maneuver's
 //! result depends only on the campaign seed and its index: identical whatever
-//! the thread count (`parallel` feature, rayon).
+//! the thread count (`parallel` feature, rayon). With `mass_properties` each
+//! maneuver flies its own mass, CG and inertia ([`crate::sim::mass`]), drawn from
+//! a stream of its own: the other streams, and a campaign without it, are untouched.
 
 use nalgebra::Vector3;
 
@@ -22,6 +24,7 @@ use crate::sim::engine::{Engine, EngineSpec};
 use crate::sim::eom::ix;
 use crate::sim::extended::ExtendedAero;
 use crate::sim::maneuver::{trim, AirData, Simulator};
+use crate::sim::mass::{MassProperties, MassVariation};
 use crate::sim::pilot::{Command, Kind, Observation, Pilot, PilotParams, Pusher};
 use crate::sim::rng::{derive_seed, Stream};
 use crate::sim::sensors::{record, NoiseSpec, TrueSample, CHANNELS};
@@ -34,6 +37,7 @@ mod stream {
     pub const GUST: u64 = 3;
     pub const ROLLOFF: u64 = 4;
     pub const SENSORS: u64 = 5;
+    pub const MASS: u64 = 6;
 }
 
 /// What a campaign contains and how it is flown.
@@ -60,6 +64,12 @@ pub struct CampaignSpec {
     pub record_hz: f64,
     /// Only maneuvers with these indices (empty = all), for tests and benchmarks.
     pub only: Vec<usize>,
+    /// Per-maneuver variation of mass, CG (m, from the datum) and inertia; `None`
+    /// (the default, and absent from the JSON) flies every maneuver at the
+    /// nominal values of `aircraft.toml`. `Some` with zero ranges flies the
+    /// nominal values too but reports them per maneuver.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub mass_properties: Option<MassVariation>,
 }
 
 impl Default for CampaignSpec {
@@ -75,6 +85,7 @@ impl Default for CampaignSpec {
             sim_hz: 100.0,
             record_hz: 50.0,
             only: Vec::new(),
+            mass_properties: None,
         }
     }
 }
@@ -121,6 +132,9 @@ pub struct ManeuverResult {
     pub pusher_fired: bool,
     /// Maximum |bank|, deg.
     pub max_bank_deg: f64,
+    /// The mass properties flown, when the campaign varies them (absent otherwise).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub mass_properties: Option<MassProperties>,
 }
 
 impl CampaignSpec {
@@ -212,6 +226,8 @@ pub struct Flight {
     pub pusher: Option<Pusher>,
     /// Stall parameters of the flap setting.
     pub stall: FlapStall,
+    /// Mass properties of the maneuver.
+    pub mass: MassProperties,
     /// Weight, N.
     pub weight_n: f64,
     /// Surface positions at the end of the current step, rad.
@@ -239,9 +255,21 @@ pub struct StepState {
     pub thrust_n: [f64; 2],
 }
 
+/// The mass properties of maneuver `m`: drawn from its own stream when `spec`
+/// varies them, else `None` (the nominal aircraft).
+pub fn maneuver_mass(
+    spec: &CampaignSpec,
+    ac: &AircraftRef,
+    m: &ManeuverPlan,
+) -> Option<MassProperties> {
+    spec.mass_properties
+        .map(|v| v.draw(ac, m.seed, stream::MASS))
+}
+
 impl Flight {
     /// Trim the truth aircraft and set up the pilot, pusher, engines and gusts of
-    /// maneuver `m` (the setup stream's draws in a fixed order).
+    /// maneuver `m` (the setup stream's draws in a fixed order), with the mass
+    /// properties of [`maneuver_mass`].
     ///
     /// # Errors
     /// When the trim fails or the roll-off configuration is invalid.
@@ -252,6 +280,24 @@ impl Flight {
         rolloff_on: bool,
         m: &ManeuverPlan,
     ) -> Result<Flight> {
+        let mass = maneuver_mass(spec, &qual.aircraft, m)
+            .unwrap_or_else(|| MassProperties::nominal(&qual.aircraft));
+        Self::with_mass(spec, qual, effects, rolloff_on, m, &mass)
+    }
+
+    /// [`Flight::new`] with the mass properties `mass` (trim, pilot and rigid
+    /// body use its weight and inertia, the loads' moments are taken about its CG).
+    ///
+    /// # Errors
+    /// When the trim fails or the roll-off configuration is invalid.
+    pub fn with_mass(
+        spec: &CampaignSpec,
+        qual: &QualifiedModel,
+        effects: &[ActiveEffect],
+        rolloff_on: bool,
+        m: &ManeuverPlan,
+        mass: &MassProperties,
+    ) -> Result<Flight> {
         let ac = qual.aircraft.clone();
         let fi = FLAP_STALL
             .iter()
@@ -261,7 +307,7 @@ impl Flight {
         let mut setup = Stream::new(m.seed, stream::SETUP);
         let h0 = 3000.0 + setup.range(-300.0, 300.0);
         let air0 = isa(h0);
-        let w = ac.mass_kg * G0;
+        let w = mass.mass_kg * G0;
         let vs = (2.0 * w / (air0.density_kgm3 * ac.s_m2 * stall.cl_max)).sqrt();
         let v0 = match m.kind {
             Kind::Accelerated => 1.55,
@@ -290,7 +336,8 @@ impl Flight {
             None
         };
         let model = TruthAero::new(slice(qual, m.flap_deg)?, effects.to_vec(), rolloff);
-        let mut sim = Simulator::new(ac.clone(), m.flap_deg, nalgebra::SVector::zeros(), dt);
+        let mut sim =
+            Simulator::with_mass(ac.clone(), m.flap_deg, nalgebra::SVector::zeros(), dt, mass);
         let tr = trim(&sim, &model, v0, h0).context(format!("maneuver {}", m.index))?;
         let t_each = tr.thrust_n;
         sim.x = tr.x;
@@ -359,6 +406,7 @@ impl Flight {
             pilot,
             pusher,
             stall,
+            mass: *mass,
             weight_n: w,
             surfaces: tr.controls,
             surfaces_start: tr.controls,
@@ -471,8 +519,23 @@ pub fn run_maneuver(
     rolloff_on: bool,
     m: &ManeuverPlan,
 ) -> Result<ManeuverResult> {
+    let varied = maneuver_mass(spec, &qual.aircraft, m);
+    fly(spec, qual, effects, meas, rolloff_on, m, varied)
+}
+
+/// [`run_maneuver`] with the mass properties `varied` (`None`: nominal, not reported).
+fn fly(
+    spec: &CampaignSpec,
+    qual: &QualifiedModel,
+    effects: &[ActiveEffect],
+    meas: &MeasurementEffects,
+    rolloff_on: bool,
+    m: &ManeuverPlan,
+    varied: Option<MassProperties>,
+) -> Result<ManeuverResult> {
     let ac = qual.aircraft.clone();
-    let mut f = Flight::new(spec, qual, effects, rolloff_on, m)?;
+    let mass = varied.unwrap_or_else(|| MassProperties::nominal(&ac));
+    let mut f = Flight::with_mass(spec, qual, effects, rolloff_on, m, &mass)?;
     let decim = ((spec.sim_hz / spec.record_hz).round() as usize).max(1);
     let (stall, w, max_steps) = (f.stall, f.weight_n, f.max_steps);
     let mut samples: Vec<TrueSample> = Vec::with_capacity(max_steps / decim + 2);
@@ -510,7 +573,7 @@ pub fn run_maneuver(
                 omega: Vector3::new(x[ix::P], x[ix::Q], x[ix::R]),
                 omega_dot: Vector3::new(xd[ix::P], xd[ix::Q], xd[ix::R]),
                 euler: Vector3::new(x[ix::PHI], x[ix::THETA], x[ix::PSI]),
-                f_cg: loads.force / ac.mass_kg,
+                f_cg: loads.force / mass.mass_kg,
                 tas: ad.tas,
                 rho: ad.rho,
                 h: x[ix::H],
@@ -533,6 +596,7 @@ pub fn run_maneuver(
     let meas_cols = record(
         &samples,
         &ac,
+        &mass.cg_offset(),
         m.flap_deg,
         meas,
         &NoiseSpec::default(),
@@ -605,6 +669,7 @@ pub fn run_maneuver(
         load_factor_at_stall: n_at,
         pusher_fired: f.pusher_fired(),
         max_bank_deg: max_bank,
+        mass_properties: varied,
     })
 }
 
@@ -626,6 +691,9 @@ pub fn resolve_effects(
         }
     }
     spec.rolloff.validate()?;
+    if let Some(v) = &spec.mass_properties {
+        v.validate()?;
+    }
     Ok((aero, meas, rolloff_scale > 0.0, rolloff_scale))
 }
 
@@ -780,6 +848,7 @@ pub fn trim_adx37(flap_deg: f64, v: f64, h: f64) -> Result<([f64; 12], [f64; 5],
 mod tests {
     use super::*;
     use crate::aircraft::truth::EffectSpec;
+    use crate::sim::aero::AeroModel;
 
     fn quick(seed: u64) -> CampaignSpec {
         CampaignSpec {
@@ -798,7 +867,11 @@ mod tests {
     fn maneuvers_reach_the_stall_and_recover() {
         let r = run_campaign(&quick(3)).unwrap();
         assert_eq!(r.len(), 40);
-        for m in &r {
+        reach_the_stall_and_recover(&r);
+    }
+
+    fn reach_the_stall_and_recover(r: &[ManeuverResult]) {
+        for m in r {
             let stall = FLAP_STALL
                 .iter()
                 .find(|f| f.flap_deg == m.plan.flap_deg)
@@ -845,15 +918,24 @@ mod tests {
     fn thread_count_does_not_change_results() {
         let mut s = quick(8);
         s.only = vec![0, 3, 9, 14];
-        let many = run_campaign(&s).unwrap();
-        let one = rayon::ThreadPoolBuilder::new()
-            .num_threads(1)
-            .build()
-            .unwrap()
-            .install(|| run_campaign(&s).unwrap());
-        for (a, b) in many.iter().zip(&one) {
-            assert_eq!(a.record, b.record);
-            assert_eq!(a.truth, b.truth);
+        let mut varied = s.clone();
+        varied.mass_properties = Some(MassVariation {
+            cg_range_m: [0.21, 0.05, 0.1],
+            mass_range: 0.1,
+            inertia_range: 0.1,
+        });
+        for s in [s, varied] {
+            let many = run_campaign(&s).unwrap();
+            let one = rayon::ThreadPoolBuilder::new()
+                .num_threads(1)
+                .build()
+                .unwrap()
+                .install(|| run_campaign(&s).unwrap());
+            for (a, b) in many.iter().zip(&one) {
+                assert_eq!(a.record, b.record);
+                assert_eq!(a.truth, b.truth);
+                assert_eq!(a.mass_properties, b.mass_properties);
+            }
         }
     }
 
@@ -867,5 +949,151 @@ mod tests {
         s.seed = 6;
         let c = run_campaign(&s).unwrap();
         assert_ne!(a[1].record, c[1].record);
+    }
+
+    /// Fly the maneuvers of `spec` with the mass properties `mass` (reported).
+    fn fly_with(spec: &CampaignSpec, mass: &MassProperties) -> Vec<ManeuverResult> {
+        let (qual, _) = adx37_models().unwrap();
+        let (aero, meas, rolloff_on, _) = resolve_effects(spec).unwrap();
+        plan(spec)
+            .iter()
+            .map(|m| fly(spec, qual, &aero, &meas, rolloff_on, m, Some(*mass)).unwrap())
+            .collect()
+    }
+
+    #[test]
+    fn zero_ranges_fly_the_nominal_campaign_bit_for_bit() {
+        let mut off = quick(4);
+        off.only = vec![0, 7, 13, 26, 39];
+        let mut zero = off.clone();
+        zero.mass_properties = Some(MassVariation::default());
+        let (a, b) = (run_campaign(&off).unwrap(), run_campaign(&zero).unwrap());
+        let nominal = MassProperties::nominal(&adx37());
+        for (x, y) in a.iter().zip(&b) {
+            assert_eq!(x.record, y.record, "{}", x.id);
+            assert_eq!(x.truth, y.truth, "{}", x.id);
+            assert_eq!(x.mass_properties, None);
+            assert_eq!(y.mass_properties, Some(nominal));
+            assert!(!x.meta_json().contains("mass_properties"));
+            assert!(y
+                .meta_json()
+                .contains("\"mass_properties\":{\"mass_kg\":15000.0"));
+        }
+        // the default spec's JSON has no trace of the option (campaign.json unchanged)
+        assert!(!CampaignSpec::default().to_json().contains("mass"));
+        let parsed = CampaignSpec::from_json(&zero.to_json()).unwrap();
+        assert_eq!(parsed, zero);
+        // and a varied campaign differs, with the same maneuver seeds
+        let mut varied = off.clone();
+        varied.mass_properties = Some(MassVariation {
+            cg_range_m: [0.21, 0.05, 0.1],
+            mass_range: 0.1,
+            inertia_range: 0.1,
+        });
+        let c = run_campaign(&varied).unwrap();
+        for (x, z) in a.iter().zip(&c) {
+            assert_eq!(x.plan, z.plan);
+            assert_ne!(x.record, z.record, "{}", x.id);
+        }
+    }
+
+    #[test]
+    fn bad_mass_ranges_are_refused_before_flying() {
+        let mut s = quick(1);
+        s.mass_properties = Some(MassVariation {
+            cg_range_m: [0.5, 0.0, 0.0],
+            ..MassVariation::default()
+        });
+        let e = run_campaign(&s).unwrap_err().to_string();
+        assert!(
+            e.contains("cg_range_m x = 0.5") && e.contains("0.39"),
+            "{e}"
+        );
+        let e = CampaignSpec::from_json(r#"{"mass_properties": {"cg_range": [0.1, 0, 0]}}"#)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("cg_range"), "{e}");
+    }
+
+    #[test]
+    fn dynamics_about_the_cg_transfer_to_the_datums_coefficients() {
+        // on the simulator's exact state through a stall with the CG off the datum: the rigid
+        // body's I ω̇ + ω × (I ω + h_p) about the CG plus d × F is the truth model's moment
+        // about the datum (C_l q̄Sb, C_m q̄Sc̄, C_n q̄Sb), and F/m is what the EOM accelerate with
+        let mut s = quick(2);
+        s.only = vec![3];
+        let (qual, _) = adx37_models().unwrap();
+        let (aero, _, rolloff_on, _) = resolve_effects(&s).unwrap();
+        let m = plan(&s)[0];
+        let mass = MassProperties {
+            mass_kg: 15_600.0,
+            cg_m: [-0.1, 0.025, 0.05],
+            ixx: 1.5e5,
+            iyy: 2.8e5,
+            izz: 3.2e5,
+            ixz: 1.25e4,
+        };
+        let mut f = Flight::with_mass(&s, qual, &aero, rolloff_on, &m, &mass).unwrap();
+        let ac = adx37();
+        let d = mass.cg_offset();
+        let (mut checked, mut max_transfer, mut max_alpha) = (0, 0.0f64, 0.0f64);
+        while !f.done() {
+            let st = f.command();
+            if f.step_index % 50 == 0 {
+                let sim = &f.sim;
+                let (xd, loads) = sim.derivative(&f.model, &f.surfaces_start, st.thrust_n);
+                let (inp, ad) = sim.aero_input(&sim.x, &f.surfaces_start, st.thrust_n);
+                let co = f.model.coefficients(&inp);
+                let qs = ad.qbar * ac.s_m2;
+                let w = Vector3::new(sim.x[ix::P], sim.x[ix::Q], sim.x[ix::R]);
+                let wd = Vector3::new(xd[ix::P], xd[ix::Q], xd[ix::R]);
+                let i = sim.body.inertia;
+                let h = i * w + Vector3::new(-loads.prop_momentum, 0.0, 0.0);
+                let m_cg = i * wd + w.cross(&h);
+                let m_datum = m_cg + d.cross(&loads.force);
+                let want = Vector3::new(
+                    co.cl * qs * ac.b_m,
+                    co.cm * qs * ac.cbar_m,
+                    co.cn * qs * ac.b_m,
+                );
+                let f_body = Vector3::new(co.cx, co.cy, co.cz) * qs;
+                assert!(
+                    (m_datum - want).norm() < 1e-6 * want.norm().max(1e3),
+                    "{m_datum} vs {want}"
+                );
+                assert!((loads.force - f_body).norm() < 1e-9 * f_body.norm());
+                max_transfer = max_transfer.max(d.cross(&loads.force).norm());
+                max_alpha = max_alpha.max(inp.alpha.to_degrees());
+                checked += 1;
+            }
+            f.integrate(&st, m.index).unwrap();
+        }
+        assert!(
+            checked > 40 && max_alpha > f.stall.alpha_max_deg - 3.5,
+            "{checked} {max_alpha}"
+        );
+        // the transfer is not negligible: d_x W ≈ 0.1 m × 150 kN
+        assert!(max_transfer > 1.0e4, "{max_transfer}");
+    }
+
+    #[test]
+    fn cg_at_the_range_limits_still_trims_reaches_the_stall_and_recovers() {
+        // every maneuver of a quick campaign with the CG at the aft (lighter aircraft, lower
+        // stall speed) and forward (heavier) end of MAX_CG_X_RANGE_M, y and z off the datum
+        let ac = adx37();
+        let half = crate::sim::mass::MAX_CG_X_RANGE_M / 2.0;
+        for (dx, scale) in [(-half, 0.95), (half, 1.05)] {
+            let mass = MassProperties {
+                mass_kg: ac.mass_kg * scale,
+                cg_m: [dx, 0.025, 0.05],
+                ixx: ac.ixx * scale,
+                iyy: ac.iyy * scale,
+                izz: ac.izz * scale,
+                ixz: ac.ixz * scale,
+            };
+            let r = fly_with(&quick(3), &mass);
+            assert_eq!(r.len(), 40);
+            reach_the_stall_and_recover(&r);
+        }
     }
 }

@@ -10,14 +10,19 @@ use crate::error::{AeroError, Result};
 use crate::sim::aero::{AeroInput, AeroModel, Controls};
 use crate::sim::atmosphere::{isa, G0};
 use crate::sim::eom::{derivative, ix, rk4_step_from, rk4_step_stages, Loads, RigidBody, StateVec};
+use crate::sim::mass::{moment_about_cg, MassProperties};
 
 /// The 6-DOF aircraft: state, environment, and the coupling to an [`AeroModel`].
 #[derive(Debug, Clone)]
 pub struct Simulator {
     /// Reference values (geometry, mass, propellers).
     pub aircraft: AircraftRef,
-    /// Rigid body.
+    /// Rigid body: mass and inertia about the actual CG.
     pub body: RigidBody,
+    /// CG position from the aircraft's datum (the aerodynamic model's moment
+    /// reference centre), body axes, m: the model's moments are transferred to
+    /// the CG ([`moment_about_cg`]). Zero for the nominal aircraft.
+    pub cg_offset: Vector3<f64>,
     /// State (see [`crate::sim::eom`]).
     pub x: StateVec,
     /// Time, s.
@@ -68,18 +73,27 @@ pub struct AirData {
 }
 
 impl Simulator {
-    /// A simulator at state `x` with step `dt` (s).
+    /// A simulator at state `x` with step `dt` (s): the nominal mass properties
+    /// of `aircraft`, the CG at its datum.
     pub fn new(aircraft: AircraftRef, flap_deg: f64, x: StateVec, dt: f64) -> Self {
-        let body = RigidBody::new(
-            aircraft.mass_kg,
-            aircraft.ixx,
-            aircraft.iyy,
-            aircraft.izz,
-            aircraft.ixz,
-        );
+        let nominal = MassProperties::nominal(&aircraft);
+        Self::with_mass(aircraft, flap_deg, x, dt, &nominal)
+    }
+
+    /// A simulator flying `aircraft` with mass properties `mass` (mass, inertia
+    /// about the CG, CG position from the datum).
+    pub fn with_mass(
+        aircraft: AircraftRef,
+        flap_deg: f64,
+        x: StateVec,
+        dt: f64,
+        mass: &MassProperties,
+    ) -> Self {
+        let body = RigidBody::new(mass.mass_kg, mass.ixx, mass.iyy, mass.izz, mass.ixz);
         Simulator {
             aircraft,
             body,
+            cg_offset: mass.cg_offset(),
             x,
             t: 0.0,
             dt,
@@ -155,20 +169,29 @@ impl Simulator {
         self.loads_at(model, &inp, &ad)
     }
 
-    /// Loads from `model` at an already formed input and its air data.
+    /// Loads from `model` at an already formed input and its air data: the
+    /// model's moments are about the datum, the loads' about the CG.
     #[inline]
     fn loads_at<M: AeroModel + ?Sized>(&self, model: &M, inp: &AeroInput, ad: &AirData) -> Loads {
         let co = model.coefficients(inp);
         let ac = &self.aircraft;
         let qs = ad.qbar * ac.s_m2;
         let prop = if ac.n_engines >= 2 { 2.0 } else { 1.0 };
+        let force = Vector3::new(co.cx, co.cy, co.cz) * qs;
+        let m_datum = Vector3::new(
+            co.cl * qs * ac.b_m,
+            co.cm * qs * ac.cbar_m,
+            co.cn * qs * ac.b_m,
+        );
+        // the nominal aircraft skips the transfer: its loads stay bit for bit what they were
+        let moment = if self.cg_offset == Vector3::zeros() {
+            m_datum
+        } else {
+            moment_about_cg(&m_datum, &force, &self.cg_offset)
+        };
         Loads {
-            force: Vector3::new(co.cx, co.cy, co.cz) * qs,
-            moment: Vector3::new(
-                co.cl * qs * ac.b_m,
-                co.cm * qs * ac.cbar_m,
-                co.cn * qs * ac.b_m,
-            ),
+            force,
+            moment,
             prop_momentum: prop * ac.prop_inertia * ac.prop_rpm * std::f64::consts::PI / 30.0,
         }
     }
@@ -291,7 +314,7 @@ pub struct Trim {
 /// [`AeroError::NoConvergence`] when the Newton iteration fails (speed below stall).
 pub fn trim<M: AeroModel + ?Sized>(sim: &Simulator, model: &M, v: f64, h: f64) -> Result<Trim> {
     type V6 = nalgebra::SVector<f64, 6>;
-    let w = sim.aircraft.mass_kg * G0;
+    let w = sim.body.mass * G0;
     let build = |z: &V6| {
         let mut x = StateVec::zeros();
         let (a, b) = (z[0], z[1]);
@@ -417,6 +440,7 @@ mod tests {
     use crate::aircraft::qualified::{QualifiedAero, QualifiedModel};
     use crate::aircraft::turboprop::adx37;
     use crate::sim::aero::AeroCoeffs;
+    use crate::sim::mass::MassProperties;
     use nalgebra::{SMatrix, SVector};
 
     fn qualified(flap: f64) -> QualifiedAero {
@@ -565,5 +589,99 @@ mod tests {
         assert!(d[ix::PSI].abs() < 1e-5, "heading drift {}", d[ix::PSI]);
         assert!(d[ix::P].abs() < 1e-6 && d[ix::R].abs() < 1e-6);
         assert!(d[ix::V].abs() < 1e-3 && d[ix::PHI].abs() < 1e-5);
+    }
+
+    /// Constant total coefficients whatever the state.
+    #[derive(Debug)]
+    struct Constant(AeroCoeffs);
+    impl AeroModel for Constant {
+        fn coefficients(&self, _: &AeroInput) -> AeroCoeffs {
+            self.0
+        }
+    }
+
+    #[test]
+    fn loads_moments_are_taken_about_the_actual_cg() {
+        // M_cg = M_datum − d × F, written out per component, with F the aero + thrust force
+        let ac = adx37();
+        let co = AeroCoeffs {
+            cx: 0.05,
+            cy: -0.03,
+            cz: -1.6,
+            cl: 0.004,
+            cm: -0.02,
+            cn: 0.003,
+        };
+        let model = Constant(co);
+        let mut x = StateVec::zeros();
+        x[ix::U] = 60.0;
+        x[ix::W] = 8.0;
+        x[ix::H] = 3000.0;
+        let mass = MassProperties {
+            mass_kg: 14_500.0,
+            cg_m: [-0.1, 0.03, 0.05],
+            ixx: 1.6e5,
+            iyy: 2.6e5,
+            izz: 3.4e5,
+            ixz: 1.1e4,
+        };
+        let nominal = Simulator::new(ac.clone(), 0.0, x, 0.01);
+        let moved = Simulator::with_mass(ac.clone(), 0.0, x, 0.01, &mass);
+        let c = Controls::default();
+        let l0 = nominal.loads(&model, &x, &c, [5e3, 5e3]);
+        let l1 = moved.loads(&model, &x, &c, [5e3, 5e3]);
+        let qs = nominal.air(&x).qbar * ac.s_m2;
+        let f = [co.cx * qs, co.cy * qs, co.cz * qs];
+        let m = [
+            co.cl * qs * ac.b_m,
+            co.cm * qs * ac.cbar_m,
+            co.cn * qs * ac.b_m,
+        ];
+        let d = mass.cg_m;
+        let want = [
+            m[0] - (d[1] * f[2] - d[2] * f[1]),
+            m[1] - (d[2] * f[0] - d[0] * f[2]),
+            m[2] - (d[0] * f[1] - d[1] * f[0]),
+        ];
+        for k in 0..3 {
+            assert!((l0.moment[k] - m[k]).abs() < 1e-9 * m[k].abs().max(1.0));
+            assert!(
+                (l1.moment[k] - want[k]).abs() < 1e-9 * want[k].abs().max(1.0),
+                "{k}"
+            );
+            assert_eq!(l0.force[k], l1.force[k]);
+        }
+        // the aft CG under lift adds nose-up moment: d_x F_z = (−0.1)(−1.6 q̄S)
+        assert!(l1.moment.y - l0.moment.y > 0.15 * qs);
+        // and the rigid body is the maneuver's
+        assert_eq!(
+            moved.body,
+            RigidBody::new(14_500.0, 1.6e5, 2.6e5, 3.4e5, 1.1e4)
+        );
+    }
+
+    #[test]
+    fn trim_uses_the_maneuvers_weight_and_cg() {
+        // a heavier aircraft trims at a higher alpha, an aft CG with less nose-up elevator
+        let model = qualified(0.0);
+        let ac = adx37();
+        let mut heavy = MassProperties::nominal(&ac);
+        heavy.mass_kg *= 1.05;
+        let mut aft = MassProperties::nominal(&ac);
+        aft.cg_m[0] = -0.1;
+        let at = |m: &MassProperties| {
+            let sim = Simulator::with_mass(ac.clone(), 0.0, StateVec::zeros(), 0.01, m);
+            trim(&sim, &model, 85.0, 3000.0).unwrap()
+        };
+        let (t0, th, ta) = (at(&MassProperties::nominal(&ac)), at(&heavy), at(&aft));
+        let alpha = |t: &Trim| t.x[ix::W].atan2(t.x[ix::U]);
+        assert!(alpha(&th) > alpha(&t0) + 1e-3);
+        // positive elevator pitches nose down: the aft CG's nose-up moment is trimmed by more
+        assert!(
+            ta.controls.de > t0.controls.de + 1e-3,
+            "{} vs {}",
+            ta.controls.de,
+            t0.controls.de
+        );
     }
 }

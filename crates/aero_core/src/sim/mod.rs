@@ -2,6 +2,7 @@
 //! test built on it. One concept per module:
 //! - [`atmosphere`]: ISA to 20 km;
 //! - [`eom`]: rigid-body equations of motion, RK4;
+//! - [`mass`]: per-maneuver mass, CG and inertia, and the moment transfer from the datum to the CG;
 //! - [`aero`]: the [`aero::AeroModel`] trait any aerodynamic model implements;
 //! - [`extended`]: a base model plus a fitted Δ model in the loop (thesis Section 4.3);
 //! - [`engine`], [`actuator`]: turboprop and control-surface actuators;
@@ -20,6 +21,7 @@ pub mod engine;
 pub mod eom;
 pub mod extended;
 pub mod maneuver;
+pub mod mass;
 pub mod pilot;
 pub mod rng;
 pub mod sensors;

@@ -7,6 +7,8 @@
 //! Vane angles from the local air velocity V + ω × r_vane (no upwash
 //! calibration error): α_v = atan2(w_v, u_v), β_v = asin(v_v/|V_v|).
 //! Accelerometer: specific force f_cg + ω̇ × r + ω × (ω × r).
+//! The positions are those of `aircraft.toml`, from the datum (the nominal
+//! CG); with the CG at `d` from the datum a sensor sits at `r − d` from the CG.
 
 use nalgebra::Vector3;
 
@@ -129,11 +131,14 @@ fn shifted(t: &[f64], y: &[f64], shift: f64) -> Vec<f64> {
         .collect()
 }
 
-/// The recorded channels ([`CHANNELS`] order) of a maneuver.
+/// The recorded channels ([`CHANNELS`] order) of a maneuver flown with the
+/// CG at `cg_offset` (m, body axes) from the datum the sensor positions of `ac`
+/// are measured from (and the samples' `f_cg`, `v_air`, at that CG).
 #[allow(clippy::too_many_arguments)]
 pub fn record(
     samples: &[TrueSample],
     ac: &AircraftRef,
+    cg_offset: &Vector3<f64>,
     flap_deg: f64,
     meas: &MeasurementEffects,
     noise: &NoiseSpec,
@@ -146,9 +151,10 @@ pub fn record(
     let gb = Vector3::new(rng.normal(), rng.normal(), rng.normal()) * (noise.gyro_bias_dps * ns);
     let ab = Vector3::new(rng.normal(), rng.normal(), rng.normal()) * (noise.accel_bias_mps2 * ns);
     let v3 = |a: [f64; 3]| Vector3::new(a[0], a[1], a[2]);
-    let r_acc = v3(ac.accel_m) + v3(meas.accelerometer_offset_m);
-    let r_a = v3(ac.alpha_vane_m);
-    let r_b = v3(ac.beta_vane_m);
+    // positions from the actual CG (x − 0 = x: the nominal CG changes no bit)
+    let r_acc = v3(ac.accel_m) + v3(meas.accelerometer_offset_m) - cg_offset;
+    let r_a = v3(ac.alpha_vane_m) - cg_offset;
+    let r_b = v3(ac.beta_vane_m) - cg_offset;
     let n = samples.len();
     let mut cols: Vec<Vec<f64>> = (0..CHANNELS.len()).map(|_| Vec::with_capacity(n)).collect();
     // Noise-free values and noise of the channels a timing effect moves: the delay acts on
@@ -295,6 +301,7 @@ mod tests {
         let a = record(
             &samples,
             &ac0,
+            &Vector3::zeros(),
             0.0,
             &MeasurementEffects::none(),
             &noise,
@@ -302,7 +309,17 @@ mod tests {
             3,
             0,
         );
-        let b = record(&samples, &ac0, 0.0, &skew, &noise, 1.0, 3, 0);
+        let b = record(
+            &samples,
+            &ac0,
+            &Vector3::zeros(),
+            0.0,
+            &skew,
+            &noise,
+            1.0,
+            3,
+            0,
+        );
         let mut max_err: f64 = 0.0;
         let mut e_var = 0.0;
         for k in 1..499 {
@@ -343,6 +360,7 @@ mod tests {
         let cols = record(
             &[s],
             &ac,
+            &Vector3::zeros(),
             0.0,
             &MeasurementEffects::none(),
             &NoiseSpec::default(),
@@ -359,5 +377,61 @@ mod tests {
         let xv = ac.alpha_vane_m[0];
         let expect = (6.0 - 0.1 * xv).atan2(60.0).to_degrees();
         assert!((cols[1][0] - expect).abs() < 1e-12);
+    }
+
+    #[test]
+    fn sensors_sit_at_their_datum_positions_minus_the_cg_offset() {
+        // the CG 0.1 m aft, 0.03 m right, 0.05 m below the datum: each sensor is r − d from it
+        let ac = adx37();
+        let d = Vector3::new(-0.1, 0.03, 0.05);
+        let s = TrueSample {
+            t: 0.0,
+            v_air: Vector3::new(60.0, 1.0, 6.0),
+            omega: Vector3::new(0.0, 0.1, 0.0),
+            omega_dot: Vector3::new(0.5, 0.0, 0.0),
+            euler: Vector3::zeros(),
+            f_cg: Vector3::new(0.0, 0.0, -9.8),
+            tas: 60.3,
+            rho: 1.0,
+            h: 3000.0,
+            controls: Controls::default(),
+            ct: [0.1, 0.1],
+        };
+        let rec = |off: &Vector3<f64>| {
+            record(
+                &[s],
+                &ac,
+                off,
+                0.0,
+                &MeasurementEffects::none(),
+                &NoiseSpec::default(),
+                0.0,
+                0,
+                0,
+            )
+        };
+        let cols = rec(&d);
+        let r = [
+            ac.accel_m[0] - d.x,
+            ac.accel_m[1] - d.y,
+            ac.accel_m[2] - d.z,
+        ];
+        assert!((cols[9][0] - (-0.01 * r[0])).abs() < 1e-12);
+        assert!((cols[10][0] - (-0.5 * r[2])).abs() < 1e-12);
+        assert!((cols[11][0] - (-9.8 + 0.5 * r[1] - 0.01 * r[2])).abs() < 1e-12);
+        // ω × r with ω = (0, q, 0) is (q z, 0, −q x): the alpha vane at x = 9.5 + 0.1,
+        // z = −0.05 from the CG sees u = 60 + q z, w = 6 − q x
+        let (xa, za) = (ac.alpha_vane_m[0] - d.x, ac.alpha_vane_m[2] - d.z);
+        let expect = (6.0 - 0.1 * xa).atan2(60.0 + 0.1 * za).to_degrees();
+        assert!((cols[1][0] - expect).abs() < 1e-12);
+        // the beta vane: v is unchanged, u = 60 + q z, w = 6 − q x
+        let (xb, zb) = (ac.beta_vane_m[0] - d.x, ac.beta_vane_m[2] - d.z);
+        let vb = Vector3::new(60.0 + 0.1 * zb, 1.0, 6.0 - 0.1 * xb);
+        let expect = (vb.y / vb.norm()).asin().to_degrees();
+        assert!((cols[2][0] - expect).abs() < 1e-12);
+        // and the offset matters: the nominal CG records other values
+        let nominal = rec(&Vector3::zeros());
+        assert!((nominal[1][0] - cols[1][0]).abs() > 1e-3);
+        assert!((nominal[11][0] - cols[11][0]).abs() > 1e-3);
     }
 }
