@@ -203,6 +203,7 @@ def compat_check(
     beta: npt.NDArray[np.float64],
     euler: list[npt.NDArray[np.float64]],
     max_iter: int = 20,
+    scale_factors: bool = False,
 ) -> dict[str, object]: ...
 def plausibility_check(
     offsets: list[int],

@@ -9,7 +9,7 @@ Schema (see ``docs/data.md``)::
     [reference]  moment_ref_m (default: cg_m)
     [propulsion] n_engines, prop_inertia_kgm2, prop_rotation = "cw" | "ccw" | "opposite",
                  prop_rpm_channel = "prop_rpm" and/or prop_rpm_fixed = 1020.0
-    [sensors]    accel_m, alpha_vane_m, beta_vane_m
+    [sensors]    accel_m, alpha_vane_m, beta_vane_m, beta_vane_type = "sideslip" | "flank"
     [simulator]  builtin = "adx37" (only the virtual flight test's campaigns: their
                  qualified model is the built-in one)
 
@@ -43,7 +43,7 @@ _KEYS = {
         "n_engines", "prop_inertia_kgm2", "prop_rotation", "prop_rpm_channel", "prop_rpm_fixed",
         "prop_efficiency",
     ),
-    "sensors": ("accel_m", "alpha_vane_m", "beta_vane_m"),
+    "sensors": ("accel_m", "alpha_vane_m", "beta_vane_m", "beta_vane_type"),
     "simulator": ("builtin",),
 }  # fmt: skip
 
@@ -105,6 +105,7 @@ class Aircraft:
     cg_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
     moment_ref_m: tuple[float, float, float] | None = None
     builtin: str | None = None
+    beta_vane_type: str = "sideslip"
 
     @property
     def mass_geometry(self) -> list[float]:
@@ -246,6 +247,13 @@ class Aircraft:
                 f"[propulsion] prop_rotation = 'opposite' with {n_eng} engines: an odd engine "
                 "has no partner to cancel; give 'cw' or 'ccw'"
             )
+        vane_type = table("sensors").get("beta_vane_type", "sideslip")
+        if vane_type not in ("sideslip", "flank"):
+            problems.append(
+                f"[sensors] beta_vane_type = {vane_type!r} must be 'sideslip' (the vane reads "
+                "asin(v/V)) or 'flank' (a boom yaw vane reads atan(v/u))"
+            )
+            vane_type = "sideslip"
         builtin = table("simulator").get("builtin")
         if builtin is not None and builtin not in BUILTINS:
             problems.append(
@@ -282,6 +290,7 @@ class Aircraft:
                 vec("moment_ref_m", "reference") if "moment_ref_m" in table("reference") else None
             ),
             builtin=builtin,
+            beta_vane_type=str(vane_type),
         )
         if not problems and not inertia_definite(ac.mass_geometry[4:]):
             problems.append(

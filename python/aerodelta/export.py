@@ -328,9 +328,7 @@ def _flown(model: DeltaModel, inputs: Mapping[str, float]) -> bool:
     flight test's envelope): a published check case stays there."""
     spec = model.to_spec()
     flaps = [float(f) for f in spec["flaps_deg"]]
-    alpha_max = max(
-        max(t["alpha_deg"]) for c in spec["coefficients"].values() for t in c["terms"]
-    )
+    alpha_max = max(max(t["alpha_deg"]) for c in spec["coefficients"].values() for t in c["terms"])
     flap = float(inputs.get(spec.get("flap_channel", "flap_deg"), np.nan))
     alpha = float(inputs.get(spec.get("alpha_channel", "alpha_deg"), np.nan))
     return bool(min(flaps) <= flap <= max(flaps) and alpha <= alpha_max)

@@ -25,7 +25,7 @@ from aerodelta.aircraft import BUILTIN_COLUMN, BUILTINS, Aircraft
 from aerodelta.channel_map import ChannelMap
 from aerodelta.channels import ALTERNATIVES, CHANNELS, REQUIRED
 from aerodelta.exceptions import DataError
-from aerodelta.loading import cg_warnings, manifest_loadings
+from aerodelta.loading import cg_warnings, loading_array, manifest_loadings
 from aerodelta.plausibility import check_plausibility
 from aerodelta.preprocess import preprocess_frame
 from aerodelta.readers import RecordSource, find_records, read_manifest, scan_record
@@ -50,6 +50,8 @@ COMPAT_THRESHOLDS = {
     "b_alpha_rad": 0.3 * np.pi / 180,
     "b_beta_rad": 0.3 * np.pi / 180,
     "lambda_v": 0.02,
+    "k_alpha": 0.02,
+    "k_beta": 0.02,
 }
 
 
@@ -124,6 +126,7 @@ def ingest(  # noqa: PLR0917
     smooth: bool = True,
     progress: bool = True,
     plausibility: bool = True,
+    vane_scale: bool = False,
 ) -> IngestResult:
     """Read, map, validate and preprocess flight test records.
 
@@ -147,6 +150,12 @@ def ingest(  # noqa: PLR0917
     apply_compat : bool
         Remove the estimated biases and airspeed scale factor from the channels and preprocess
         again (needs ``compat``).
+    vane_scale : bool
+        Also estimate the alpha and beta vanes' scale factors (upwash, sidewash:
+        ``alpha_measured = (1 + k_alpha) alpha + b_alpha``) in the compatibility check (needs
+        ``compat``). They separate from the biases only where the angle varies within a
+        maneuver, and gusts scatter their per-maneuver estimates: the campaign median is
+        reported (a sensor's scale is the same in every maneuver).
     smooth : bool
         Smooth before differentiating (recommended; off only for exact synthetic data).
     progress : bool
@@ -280,8 +289,10 @@ def ingest(  # noqa: PLR0917
                 "plausibility check):\n  " + "\n  ".join(bad)
             )
     compat_df = None
+    if vane_scale and not (compat or apply_compat):
+        raise DataError("vane_scale=True needs the compatibility check: drop compat=False")
     if compat or apply_compat:
-        compat_df = _run_compat(out, reports)
+        compat_df = _run_compat(out, reports, ac, loadings, vane_scale)
         if apply_compat:
             allc = _apply_compat(allc, compat_df)
             out, smoothing = preprocess_frame(allc, ac, smooth=smooth, loadings=loadings)
@@ -352,7 +363,12 @@ def _fast_validate(
     return big.with_columns(ids.gather(np.repeat(np.arange(len(raws)), lengths)))
 
 
-def _compat_one(g: pl.DataFrame) -> dict[str, object]:
+def _compat_one(
+    g: pl.DataFrame, vanes: tuple[list[float], list[float], bool], scale_factors: bool = False
+) -> dict[str, object]:
+    """One maneuver's check: the vane readings (``alpha_deg``, ``beta_deg``) against the
+    reconstructed flow at the vanes, ``vanes`` = (alpha vane, beta vane from this maneuver's
+    CG, m; whether the beta vane reads the flank angle)."""
     d2r = np.pi / 180.0
     step = -(-g.height // COMPAT_MAX_SAMPLES)
 
@@ -364,12 +380,20 @@ def _compat_one(g: pl.DataFrame) -> dict[str, object]:
         [a("ax_cg_mps2"), a("ay_cg_mps2"), a("az_cg_mps2")],
         [a("p_s_dps", d2r), a("q_s_dps", d2r), a("r_s_dps", d2r)],
         a("tas_s_mps"),
-        a("alpha_cg_deg", d2r),
-        a("beta_cg_deg", d2r),
+        a("alpha_deg", d2r),
+        a("beta_deg", d2r),
         [a("phi_deg", d2r), a("theta_deg", d2r), a("psi_deg", d2r)],
         max_iter=COMPAT_MAX_ITER,
+        scale_factors=scale_factors,
+        r_alpha=vanes[0],
+        r_beta=vanes[1],
+        flank=vanes[2],
     )
 
+
+#: The vane scale factors (estimated with ``vane_scale=True``): judged on the campaign median
+#: only, a sensor's scale being the same in every maneuver.
+SCALE_FACTORS = ("k_alpha", "k_beta")
 
 #: A maneuver's estimate is reported on its own when it departs from the campaign median by
 #: more than this many robust standard deviations of the spread between maneuvers (and the
@@ -391,7 +415,7 @@ _COMPAT_UNITS = {
 
 def _compat_show(name: str, v: float) -> str:
     """An estimate in the units the report speaks: deg, deg/s, m/s², % for the scale."""
-    if name == "lambda_v":
+    if name in ("lambda_v", "k_alpha", "k_beta"):
         return f"{100.0 * v:.3g} %"
     unit, k = _COMPAT_UNITS[name.rsplit("_", 1)[1]]
     return f"{k * v:.3g} {unit}"
@@ -402,10 +426,18 @@ def _compat_word(name: str) -> str:
         "b_alpha_rad": "alpha vane bias",
         "b_beta_rad": "beta vane bias",
         "lambda_v": "airspeed scale error",
+        "k_alpha": "alpha vane scale error (upwash)",
+        "k_beta": "beta vane scale error (sidewash)",
     }.get(name, f"{name.split('_')[1]} bias")
 
 
-def _run_compat(out: pl.DataFrame, reports: list[ValidationReport]) -> pl.DataFrame:
+def _run_compat(
+    out: pl.DataFrame,
+    reports: list[ValidationReport],
+    ac: Aircraft,
+    loadings: pl.DataFrame | None = None,
+    scale_factors: bool = False,
+) -> pl.DataFrame:
     """Run the check per maneuver and report what the campaign supports.
 
     A sensor bias or airspeed scale error belongs to the sensor, so it shows in every maneuver
@@ -423,8 +455,22 @@ def _run_compat(out: pl.DataFrame, reports: list[ValidationReport]) -> pl.DataFr
     maneuver against the Cramér-Rao bounds.
     """
     groups = out.partition_by("maneuver_id", maintain_order=True)
+    ids = [str(g["maneuver_id"][0]) for g in groups]
+    cgs = loading_array(loadings, ids)
+    flank = ac.beta_vane_type == "flank"
+
+    def vanes(i: int) -> tuple[list[float], list[float], bool]:
+        cg = np.asarray(ac.cg_m) if cgs is None else cgs[i, 7:10]
+        return (
+            list(np.asarray(ac.alpha_vane_m) - cg),
+            list(np.asarray(ac.beta_vane_m) - cg),
+            flank,
+        )
+
     with ThreadPoolExecutor(max_workers=os.cpu_count() or 1) as ex:
-        results = list(ex.map(_compat_one, groups))
+        results = list(
+            ex.map(lambda i: _compat_one(groups[i], vanes(i), scale_factors), range(len(groups)))
+        )
     by_id = {r.maneuver_id: r for r in reports}
     mids = [str(g["maneuver_id"][0]) for g in groups]
     nm = len(mids)
@@ -521,6 +567,8 @@ def _run_compat(out: pl.DataFrame, reports: list[ValidationReport]) -> pl.DataFr
                         f"{len(est)} maneuvers, ± {_compat_show(name, se_med)}; flight path "
                         f"reconstruction, thesis Section 2.4) in every maneuver alike: {fix}",
                     )
+        if name in SCALE_FACTORS:  # a property of the sensor: the median says it all
+            continue
         lim = max(thr, COMPAT_OUTLIER_SPREADS * spread)
         for mid, e, s in zip(ids, est, se, strict=True):
             if abs(e - med) > lim and abs(e - med) > 4 * s and mid in by_id:
@@ -537,6 +585,7 @@ def _run_compat(out: pl.DataFrame, reports: list[ValidationReport]) -> pl.DataFr
 
 def _apply_compat(df: pl.DataFrame, compat: pl.DataFrame) -> pl.DataFrame:
     wide = compat.pivot(on="parameter", index="maneuver_id", values="estimate")
+    wide = wide.with_columns(pl.lit(0.0).alias(k) for k in SCALE_FACTORS if k not in wide.columns)
     r2d = 180.0 / np.pi
     j = df.join(wide, on="maneuver_id", how="left", maintain_order="left")
     fixes = [
@@ -546,8 +595,14 @@ def _apply_compat(df: pl.DataFrame, compat: pl.DataFrame) -> pl.DataFrame:
         (pl.col("p_dps") - r2d * pl.col("b_p_rps")).alias("p_dps"),
         (pl.col("q_dps") - r2d * pl.col("b_q_rps")).alias("q_dps"),
         (pl.col("r_dps") - r2d * pl.col("b_r_rps")).alias("r_dps"),
-        (pl.col("alpha_deg") - r2d * pl.col("b_alpha_rad")).alias("alpha_deg"),
-        (pl.col("beta_deg") - r2d * pl.col("b_beta_rad")).alias("beta_deg"),
+        # the estimates are of the vane readings themselves (the check models each vane's
+        # local flow), so they correct the readings before the CG transfer
+        ((pl.col("alpha_deg") - r2d * pl.col("b_alpha_rad")) / (1.0 + pl.col("k_alpha"))).alias(
+            "alpha_deg"
+        ),
+        ((pl.col("beta_deg") - r2d * pl.col("b_beta_rad")) / (1.0 + pl.col("k_beta"))).alias(
+            "beta_deg"
+        ),
         (pl.col("tas_mps") / (1.0 + pl.col("lambda_v"))).alias("tas_mps"),
     ]
     return j.with_columns(fixes).select(df.columns)

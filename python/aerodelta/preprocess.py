@@ -100,6 +100,7 @@ def preprocess_frame(
         cg_m=list(aircraft.cg_m),
         moment_ref_m=list(aircraft.reference_m),
         masses=loading_array(loadings, [str(v) for v in runs["value"].to_list()]),
+        beta_flank=aircraft.beta_vane_type == "flank",
     )
     out = df.with_columns(pl.Series(name, a) for name, a in zip(outputs, arrays, strict=False))
     qs = pl.col("qbar_pa") * aircraft.S_m2

@@ -96,8 +96,11 @@ fn accel_to_cg<'py>(
     Ok((x.into_pyarray(py), y.into_pyarray(py), z.into_pyarray(py)))
 }
 
-/// Vane angles (rad) to CG angle of attack and sideslip (rad).
+/// Vane angles (rad) to CG angle of attack and sideslip (rad); `flank`: the beta vane reads
+/// the flank angle.
 #[pyfunction]
+#[pyo3(signature = (alpha_vane, beta_vane, tas, rates, alpha_vane_m, beta_vane_m, flank=false))]
+#[allow(clippy::too_many_arguments)]
 fn vanes_to_cg<'py>(
     py: Python<'py>,
     alpha_vane: PyReadonlyArray1<'py, f64>,
@@ -106,6 +109,7 @@ fn vanes_to_cg<'py>(
     rates: Vec<PyReadonlyArray1<'py, f64>>,
     alpha_vane_m: [f64; 3],
     beta_vane_m: [f64; 3],
+    flank: bool,
 ) -> PyResult<(Arr<'py>, Arr<'py>)> {
     let (a, b, v) = (
         alpha_vane.as_slice()?,
@@ -128,6 +132,7 @@ fn vanes_to_cg<'py>(
             [w[0], w[1], w[2]],
             alpha_vane_m,
             beta_vane_m,
+            flank,
         ))
     })?;
     Ok((x.into_pyarray(py), y.into_pyarray(py)))
@@ -153,7 +158,7 @@ fn preprocess_columns() -> (Vec<String>, Vec<String>, Vec<String>) {
 /// [mass, Ixx, Iyy, Izz, Ixz, Ixy, Iyz, cg_x, cg_y, cg_z] or None (nominal loading).
 #[pyfunction]
 #[allow(clippy::too_many_arguments)]
-#[pyo3(signature = (columns, offsets, mass_geometry, prop_h_per_rpm, accel_m, alpha_vane_m, beta_vane_m, smooth=true, cg_m=[0.0; 3], moment_ref_m=[0.0; 3], masses=None))]
+#[pyo3(signature = (columns, offsets, mass_geometry, prop_h_per_rpm, accel_m, alpha_vane_m, beta_vane_m, smooth=true, cg_m=[0.0; 3], moment_ref_m=[0.0; 3], masses=None, beta_flank=false))]
 fn preprocess_batch<'py>(
     py: Python<'py>,
     columns: Vec<PyReadonlyArray1<'py, f64>>,
@@ -167,6 +172,7 @@ fn preprocess_batch<'py>(
     cg_m: [f64; 3],
     moment_ref_m: [f64; 3],
     masses: Option<PyReadonlyArray2<'py, f64>>,
+    beta_flank: bool,
 ) -> PyResult<(Vec<Arr<'py>>, Arr<'py>, Arr<'py>)> {
     let cols = slices(&columns)?;
     let [s, b, cbar, mass, ixx, iyy, izz, ixz, ixy, iyz] = mass_geometry;
@@ -190,6 +196,7 @@ fn preprocess_batch<'py>(
         beta_vane_m,
         cg_m,
         moment_ref_m,
+        beta_flank,
     };
     let loads: Vec<maneuver::ManeuverMass> = match &masses {
         None => Vec::new(),
@@ -228,9 +235,10 @@ fn preprocess_batch<'py>(
 }
 
 /// Data compatibility check of one maneuver (SI, rad, at the CG). Returns a dict with
-/// `names`, `params`, `std_err`, `outputs`, `rms_before`, `rms_after`, `iterations`, `converged`.
+/// `names`, `params`, `std_err` (the estimated parameters only: the vane scale factors with
+/// `scale_factors`), `outputs`, `rms_before`, `rms_after`, `iterations`, `converged`.
 #[pyfunction]
-#[pyo3(signature = (t, accel, rates, tas, alpha, beta, euler, max_iter=20))]
+#[pyo3(signature = (t, accel, rates, tas, alpha, beta, euler, max_iter=20, scale_factors=false, r_alpha=[0.0; 3], r_beta=[0.0; 3], flank=false))]
 #[allow(clippy::too_many_arguments)]
 fn compat_check<'py>(
     py: Python<'py>,
@@ -242,6 +250,10 @@ fn compat_check<'py>(
     beta: PyReadonlyArray1<'py, f64>,
     euler: Vec<PyReadonlyArray1<'py, f64>>,
     max_iter: usize,
+    scale_factors: bool,
+    r_alpha: [f64; 3],
+    r_beta: [f64; 3],
+    flank: bool,
 ) -> PyResult<Bound<'py, PyDict>> {
     let (a, w, e) = (slices(&accel)?, slices(&rates)?, slices(&euler)?);
     if a.len() != 3 || w.len() != 3 || e.len() != 3 {
@@ -258,12 +270,30 @@ fn compat_check<'py>(
         alpha: alpha.as_slice()?,
         beta: beta.as_slice()?,
         euler: [e[0], e[1], e[2]],
+        vanes: compat::Vanes {
+            r_alpha,
+            r_beta,
+            flank,
+        },
     };
-    let r = detached(py, || compat::check(&inp, max_iter))?;
+    let r = detached(py, || compat::check(&inp, max_iter, scale_factors))?;
+    let keep = |v: &[f64]| -> Vec<f64> {
+        v.iter()
+            .zip(&r.estimated)
+            .filter(|(_, e)| **e)
+            .map(|(x, _)| *x)
+            .collect()
+    };
+    let names: Vec<&str> = compat::PARAM_NAMES
+        .iter()
+        .zip(&r.estimated)
+        .filter(|(_, e)| **e)
+        .map(|(n, _)| *n)
+        .collect();
     let d = PyDict::new(py);
-    d.set_item("names", compat::PARAM_NAMES.to_vec())?;
-    d.set_item("params", r.params)?;
-    d.set_item("std_err", r.std_err)?;
+    d.set_item("names", names)?;
+    d.set_item("params", keep(&r.params))?;
+    d.set_item("std_err", keep(&r.std_err))?;
     d.set_item("outputs", compat::OUTPUT_NAMES.to_vec())?;
     d.set_item("rms_before", r.rms_before)?;
     d.set_item("rms_after", r.rms_after)?;

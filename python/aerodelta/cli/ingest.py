@@ -35,6 +35,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--no-compat", action="store_true", help="skip the compatibility check")
     parser.add_argument(
+        "--vane-scale",
+        action="store_true",
+        help="also estimate the alpha and beta vanes' scale factors (upwash, sidewash) in the "
+        "compatibility check; needs alpha and sideslip sweeps within the maneuvers",
+    )
+    parser.add_argument(
         "--apply-compat", action="store_true", help="remove estimated biases and scale factors"
     )
     parser.add_argument("--format", choices=("table", "json"), default="table")
@@ -47,6 +53,8 @@ def run(args: argparse.Namespace) -> int:
     """Run ``aerodelta ingest``; returns the exit status."""
     if args.apply_compat and args.no_compat:
         raise InvalidInputError("--apply-compat needs the compatibility check: drop --no-compat")
+    if args.vane_scale and args.no_compat:
+        raise InvalidInputError("--vane-scale needs the compatibility check: drop --no-compat")
     out = output_folder(args.out)
     src = resolve_data(args)
     if src.kind == "ingested":
@@ -66,6 +74,7 @@ def run(args: argparse.Namespace) -> int:
         allow_interpolation=args.allow_interpolation,
         compat=not args.no_compat,
         apply_compat=args.apply_compat,
+        vane_scale=args.vane_scale,
     )
     with created(out):
         paths = res.write(out)

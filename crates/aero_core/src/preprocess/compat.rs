@@ -14,9 +14,12 @@
 //!
 //! Error model (all biases are *measured minus true*, so corrected = measured - bias):
 //! $a_{x,E} = a_x + b_{a_x}$ (Eq. 2.25), likewise $a_y, a_z, p, q, r$;
-//! $\alpha_E = \alpha + b_\alpha$, $\beta_E = \beta + b_\beta$,
+//! $\alpha_E = (1+k_\alpha)\alpha + b_\alpha$, $\beta_E = (1+k_\beta)\beta + b_\beta$ (the
+//! vanes' scale factors: upwash and sidewash at the vane, Eq. 2.24's form for the angles),
 //! $V_E = (1+\lambda_V)V$ (Eq. 2.24 with $b_V = 0$: a speed bias and a scale factor are
-//! not separable over a stall's speed range). Unknowns: these 9 plus the 6 initial states.
+//! not separable over a stall's speed range). Unknowns: these 11 plus the 6 initial states.
+//! A scale factor and its bias separate only where the angle varies (a stall's alpha sweep;
+//! sideslip maneuvers for beta); the Cramér-Rao bounds say how well.
 //! They are estimated by output error (thesis Section 2.3.2): Gauss-Newton (modified
 //! Newton-Raphson, Eq. 2.21) with finite-difference output sensitivities, the output noise
 //! covariance re-estimated each iteration from the residuals, Levenberg damping when a step
@@ -32,7 +35,7 @@ use crate::error::{AeroError, Result};
 pub const G0: f64 = 9.80665;
 
 /// Names of the estimated parameters, in order.
-pub const PARAM_NAMES: [&str; 15] = [
+pub const PARAM_NAMES: [&str; 17] = [
     "b_ax_mps2",
     "b_ay_mps2",
     "b_az_mps2",
@@ -42,6 +45,8 @@ pub const PARAM_NAMES: [&str; 15] = [
     "b_alpha_rad",
     "b_beta_rad",
     "lambda_v",
+    "k_alpha",
+    "k_beta",
     "u0_mps",
     "v0_mps",
     "w0_mps",
@@ -57,6 +62,27 @@ pub const STEP_TOL: f64 = 0.1;
 /// Names of the compared outputs, in order.
 pub const OUTPUT_NAMES: [&str; 6] = ["tas", "alpha", "beta", "phi", "theta", "psi"];
 
+/// Where the air-data vanes sit and what the sideslip vane reads.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Vanes {
+    /// Alpha vane position from the CG, body axes, m.
+    pub r_alpha: [f64; 3],
+    /// Beta vane position from the CG, body axes, m.
+    pub r_beta: [f64; 3],
+    /// The beta vane reads the flank angle $\operatorname{atan2}(v, u)$ (a boom-mounted yaw
+    /// vane) instead of the sideslip $\arcsin(v/V)$.
+    pub flank: bool,
+}
+
+impl Vanes {
+    /// Angles already at the CG (sideslip): the output equations of Eq. 2.23 as they stand.
+    pub const AT_CG: Vanes = Vanes {
+        r_alpha: [0.0; 3],
+        r_beta: [0.0; 3],
+        flank: false,
+    };
+}
+
 /// Measured channels of one maneuver (SI, radians, at the CG).
 #[derive(Debug, Clone, Copy)]
 pub struct CompatInput<'a> {
@@ -68,10 +94,14 @@ pub struct CompatInput<'a> {
     pub rates: [&'a [f64]; 3],
     /// True airspeed, m/s.
     pub tas: &'a [f64],
-    /// Angle of attack and sideslip at the CG, rad.
+    /// Angle of attack as the vane reads it (at the CG for [`Vanes::AT_CG`]), rad.
     pub alpha: &'a [f64],
-    /// Sideslip at the CG, rad.
+    /// Sideslip (or flank angle) as the vane reads it, rad.
     pub beta: &'a [f64],
+    /// The vanes: the outputs are the angles they read, $\mathbf V + \boldsymbol\omega\times
+    /// \mathbf r$ at each vane (SIDPAC `compat`'s vane position terms), so a scale factor or
+    /// bias applies to the reading itself.
+    pub vanes: Vanes,
     /// Euler angles phi, theta, psi, rad.
     pub euler: [&'a [f64]; 3],
 }
@@ -79,10 +109,12 @@ pub struct CompatInput<'a> {
 /// Result of the compatibility check.
 #[derive(Debug, Clone)]
 pub struct CompatResult {
-    /// Estimates in the order of [`PARAM_NAMES`].
+    /// Estimates in the order of [`PARAM_NAMES`] (a parameter not estimated holds 0).
     pub params: Vec<f64>,
-    /// Cramér-Rao standard errors, same order.
+    /// Cramér-Rao standard errors, same order (NaN for a parameter not estimated).
     pub std_err: Vec<f64>,
+    /// Whether each parameter was estimated (the scale factors only on request).
+    pub estimated: Vec<bool>,
     /// RMS of each output residual before estimation (all parameters zero, initial states
     /// from the first measured samples), order of [`OUTPUT_NAMES`] (m/s, rad).
     pub rms_before: Vec<f64>,
@@ -132,13 +164,32 @@ fn simulate(inp: &CompatInput<'_>, th: &[f64]) -> [Vec<f64>; 6] {
     for o in out.iter_mut() {
         o.reserve_exact(n);
     }
-    let mut x: State = [th[9], th[10], th[11], th[12], th[13], th[14]];
+    let mut x: State = [th[11], th[12], th[13], th[14], th[15], th[16]];
+    let vn = inp.vanes;
+    let cross = |a: [f64; 3], b: [f64; 3]| {
+        [
+            a[1] * b[2] - a[2] * b[1],
+            a[2] * b[0] - a[0] * b[2],
+            a[0] * b[1] - a[1] * b[0],
+        ]
+    };
     for i in 0..n {
         let [u, v, w, phi, theta, psi] = x;
         let vt = (u * u + v * v + w * w).sqrt();
+        let (_, om) = inputs(i);
+        let ca = cross(om, vn.r_alpha);
+        let cb = cross(om, vn.r_beta);
+        let (ub, vb, wb) = (u + cb[0], v + cb[1], w + cb[2]);
+        let beta_vane = if vn.flank {
+            vb.atan2(ub)
+        } else {
+            (vb / (ub * ub + vb * vb + wb * wb).sqrt())
+                .clamp(-1.0, 1.0)
+                .asin()
+        };
         out[0].push((1.0 + th[8]) * vt);
-        out[1].push(w.atan2(u) + th[6]);
-        out[2].push((v / vt).clamp(-1.0, 1.0).asin() + th[7]);
+        out[1].push((1.0 + th[9]) * (w + ca[2]).atan2(u + ca[0]) + th[6]);
+        out[2].push((1.0 + th[10]) * beta_vane + th[7]);
         out[3].push(phi);
         out[4].push(theta);
         out[5].push(psi);
@@ -191,28 +242,35 @@ fn rms(v: &[f64]) -> f64 {
 
 /// Output sensitivities dy/dθ: forward differences through the simulation for the input
 /// biases and initial states; exact for the output-only parameters, which enter linearly
-/// ($\alpha_E = \alpha + b_\alpha$, $\beta_E = \beta + b_\beta$, $V_E = (1+\lambda_V)V$,
-/// thesis Eq. 2.24), saving three of the fifteen simulations.
+/// ($\alpha_E = (1+k_\alpha)\alpha + b_\alpha$, $\beta_E = (1+k_\beta)\beta + b_\beta$,
+/// $V_E = (1+\lambda_V)V$, thesis Eq. 2.24), saving five of the seventeen simulations.
 fn sensitivities(
     inp: &CompatInput<'_>,
     th: &[f64],
     sim: &[Vec<f64>; 6],
-    steps: &[f64; 15],
+    steps: &[f64; 17],
+    free: &[usize],
 ) -> Vec<[Vec<f64>; 6]> {
     let n = inp.t.len();
-    (0..th.len())
-        .map(|j| {
-            if (6..=8).contains(&j) {
+    free.iter()
+        .map(|&j| {
+            if (6..=10).contains(&j) {
                 let mut d: [Vec<f64>; 6] = std::array::from_fn(|_| vec![0.0; n]);
+                // the simulated angle before its error: (y - b) / (1 + k)
+                let angle = |k: usize, b: f64, s: f64| -> Vec<f64> {
+                    sim[k].iter().map(|y| (y - b) / (1.0 + s)).collect()
+                };
                 match j {
                     6 => d[1].fill(1.0),
                     7 => d[2].fill(1.0),
-                    _ => {
+                    8 => {
                         let s = 1.0 / (1.0 + th[8]);
                         for (o, v) in d[0].iter_mut().zip(&sim[0]) {
                             *o = v * s;
                         }
                     }
+                    9 => d[1] = angle(1, th[6], th[9]),
+                    _ => d[2] = angle(2, th[7], th[10]),
                 }
                 return d;
             }
@@ -230,13 +288,18 @@ fn sensitivities(
         .collect()
 }
 
-/// Run the compatibility check on one maneuver.
+/// Indices of the vane scale factors in [`PARAM_NAMES`].
+pub const SCALE_FACTORS: [usize; 2] = [9, 10];
+
+/// Run the compatibility check on one maneuver; the vane scale factors $k_\alpha$, $k_\beta$
+/// are estimated only with `scale_factors` (they need the angle to vary within the maneuver,
+/// and otherwise stay 0).
 ///
 /// # Errors
 /// `TooLittleData` for fewer than 20 samples; `InvalidInput` for unequal lengths, a
 /// non-positive first airspeed or non-finite samples; `NoConvergence` is never returned (the
 /// result says whether it converged).
-pub fn check(inp: &CompatInput<'_>, max_iter: usize) -> Result<CompatResult> {
+pub fn check(inp: &CompatInput<'_>, max_iter: usize, scale_factors: bool) -> Result<CompatResult> {
     let n = inp.t.len();
     let place = "data compatibility check";
     if n < 20 {
@@ -284,14 +347,17 @@ pub fn check(inp: &CompatInput<'_>, max_iter: usize) -> Result<CompatResult> {
         inp.euler[2],
     ];
     let (v0, a0, b0) = (inp.tas[0], inp.alpha[0], inp.beta[0]);
-    let mut th = vec![0.0; 15];
-    th[9] = v0 * a0.cos() * b0.cos();
-    th[10] = v0 * b0.sin();
-    th[11] = v0 * a0.sin() * b0.cos();
-    th[12] = inp.euler[0][0];
-    th[13] = inp.euler[1][0];
-    th[14] = inp.euler[2][0];
-    let np = th.len();
+    let mut th = vec![0.0; PARAM_NAMES.len()];
+    th[11] = v0 * a0.cos() * b0.cos();
+    th[12] = v0 * b0.sin();
+    th[13] = v0 * a0.sin() * b0.cos();
+    th[14] = inp.euler[0][0];
+    th[15] = inp.euler[1][0];
+    th[16] = inp.euler[2][0];
+    let free: Vec<usize> = (0..th.len())
+        .filter(|j| scale_factors || !SCALE_FACTORS.contains(j))
+        .collect();
+    let np = free.len();
     let no = 6;
     // initial output noise scales: 0.5 m/s, 0.2 deg
     let mut sig = [0.5, 3.5e-3, 3.5e-3, 3.5e-3, 3.5e-3, 3.5e-3];
@@ -304,7 +370,8 @@ pub fn check(inp: &CompatInput<'_>, max_iter: usize) -> Result<CompatResult> {
             .sum::<f64>()
     };
     let steps = [
-        1e-4, 1e-4, 1e-4, 1e-6, 1e-6, 1e-6, 1e-6, 1e-6, 1e-6, 1e-3, 1e-3, 1e-3, 1e-6, 1e-6, 1e-6,
+        1e-4, 1e-4, 1e-4, 1e-6, 1e-6, 1e-6, 1e-6, 1e-6, 1e-6, 1e-6, 1e-6, 1e-3, 1e-3, 1e-3, 1e-6,
+        1e-6, 1e-6,
     ];
     let mut info = DMatrix::<f64>::zeros(np, np);
     let mut converged = false;
@@ -313,7 +380,7 @@ pub fn check(inp: &CompatInput<'_>, max_iter: usize) -> Result<CompatResult> {
     for it in 0..max_iter {
         iterations = it + 1;
         // sensitivities dy/dth by forward differences
-        let sens = sensitivities(inp, &th, &sim, &steps);
+        let sens = sensitivities(inp, &th, &sim, &steps, &free);
         info.fill(0.0);
         let mut grad = DVector::<f64>::zeros(np);
         for k in 0..no {
@@ -341,7 +408,10 @@ pub fn check(inp: &CompatInput<'_>, max_iter: usize) -> Result<CompatResult> {
                 lm = (lm * 10.0).max(1e-6);
                 continue;
             };
-            let cand: Vec<f64> = th.iter().zip(step.iter()).map(|(a, s)| a + s).collect();
+            let mut cand = th.clone();
+            for (d, &j) in free.iter().enumerate() {
+                cand[j] += step[d];
+            }
             let sim_c = simulate(inp, &cand);
             let res_c = residuals(&meas, &sim_c);
             let jc = cost(&res_c, &sig);
@@ -382,7 +452,7 @@ pub fn check(inp: &CompatInput<'_>, max_iter: usize) -> Result<CompatResult> {
     // Cramér-Rao bounds at the final weights
     let mut m = DMatrix::<f64>::zeros(np, np);
     {
-        let sens = sensitivities(inp, &th, &sim, &steps);
+        let sens = sensitivities(inp, &th, &sim, &steps, &free);
         for k in 0..no {
             let wk = 1.0 / (sig[k] * sig[k]);
             for a in 0..np {
@@ -399,14 +469,25 @@ pub fn check(inp: &CompatInput<'_>, max_iter: usize) -> Result<CompatResult> {
             }
         }
     }
-    let std_err = match m.clone().try_inverse() {
-        Some(inv) => (0..np).map(|d| inv[(d, d)].abs().sqrt()).collect(),
-        None => vec![f64::INFINITY; np],
-    };
+    let mut std_err = vec![f64::NAN; th.len()];
+    match m.clone().try_inverse() {
+        Some(inv) => {
+            for (d, &j) in free.iter().enumerate() {
+                std_err[j] = inv[(d, d)].abs().sqrt();
+            }
+        }
+        None => {
+            for &j in &free {
+                std_err[j] = f64::INFINITY;
+            }
+        }
+    }
+    let estimated = (0..th.len()).map(|j| free.contains(&j)).collect();
     let rms_after = res.iter().map(|r| rms(r)).collect();
     Ok(CompatResult {
         params: th,
         std_err,
+        estimated,
         rms_before,
         rms_after,
         iterations,
@@ -456,12 +537,13 @@ mod tests {
             alpha: &t,
             beta: &t,
             euler: [&t, &t, &t],
+            vanes: Vanes::AT_CG,
         };
-        let mut th = vec![0.0; 15];
-        th[9] = 70.0;
-        th[11] = 4.0;
-        th[13] = 0.05;
-        th[14] = 1.0;
+        let mut th = vec![0.0; PARAM_NAMES.len()];
+        th[11] = 70.0;
+        th[13] = 4.0;
+        th[15] = 0.05;
+        th[16] = 1.0;
         let y = simulate(&truth_inp, &th);
         let (b_alpha, b_ax) = (1.0_f64.to_radians(), 0.2);
         let alpha_m: Vec<f64> = y[1].iter().map(|v| v + b_alpha).collect();
@@ -474,8 +556,9 @@ mod tests {
             alpha: &alpha_m,
             beta: &y[2],
             euler: [&y[3], &y[4], &y[5]],
+            vanes: Vanes::AT_CG,
         };
-        let res = check(&inp, 30).unwrap();
+        let res = check(&inp, 30, false).unwrap();
         assert!(
             (res.params[6] - b_alpha).abs() < 1e-5,
             "b_alpha {}",
@@ -487,5 +570,165 @@ mod tests {
             res.params[0]
         );
         assert!(res.rms_after[1] < 1e-5 && res.rms_before[1] > 1e-2);
+    }
+
+    /// Vane scale factors (upwash 1.06, sidewash 0.92) and biases on an alpha sweep with
+    /// sideslip, exact data: all four come back, and without the scale terms the biases
+    /// could not absorb them (the residual is the check's evidence).
+    #[test]
+    fn recovers_vane_scale_factors_and_biases() {
+        let n = 3001;
+        let dt = 0.02;
+        let t: Vec<f64> = (0..n).map(|i| i as f64 * dt).collect();
+        let p: Vec<f64> = t.iter().map(|&s| 0.1 * (0.5 * s).sin()).collect();
+        let q: Vec<f64> = t.iter().map(|&s| 0.05 * (0.7 * s).sin()).collect();
+        let r: Vec<f64> = t.iter().map(|&s| 0.04 * (0.3 * s).cos()).collect();
+        let ax: Vec<f64> = t.iter().map(|&s| 1.0 + 0.5 * (0.2 * s).sin()).collect();
+        let ay: Vec<f64> = t.iter().map(|&s| 0.8 * (0.4 * s).sin()).collect();
+        let az: Vec<f64> = t.iter().map(|&s| -9.8 - 2.0 * (0.25 * s).sin()).collect();
+        let truth_inp = CompatInput {
+            t: &t,
+            accel: [&ax, &ay, &az],
+            rates: [&p, &q, &r],
+            tas: &t,
+            alpha: &t,
+            beta: &t,
+            euler: [&t, &t, &t],
+            vanes: Vanes::AT_CG,
+        };
+        let mut th = vec![0.0; PARAM_NAMES.len()];
+        th[11] = 70.0;
+        th[13] = 4.0;
+        th[15] = 0.05;
+        th[16] = 1.0;
+        let y = simulate(&truth_inp, &th);
+        let spread = |v: &[f64]| {
+            let (lo, hi) = v
+                .iter()
+                .fold((f64::MAX, f64::MIN), |(a, b), x| (a.min(*x), b.max(*x)));
+            hi - lo
+        };
+        assert!(
+            spread(&y[1]) > 0.1 && spread(&y[2]) > 0.05,
+            "the angles must vary"
+        );
+        let (k_a, k_b, b_a, b_b) = (0.06, -0.08, 0.5_f64.to_radians(), -0.3_f64.to_radians());
+        let alpha_m: Vec<f64> = y[1].iter().map(|v| (1.0 + k_a) * v + b_a).collect();
+        let beta_m: Vec<f64> = y[2].iter().map(|v| (1.0 + k_b) * v + b_b).collect();
+        let inp = CompatInput {
+            t: &t,
+            accel: [&ax, &ay, &az],
+            rates: [&p, &q, &r],
+            tas: &y[0],
+            alpha: &alpha_m,
+            beta: &beta_m,
+            euler: [&y[3], &y[4], &y[5]],
+            vanes: Vanes::AT_CG,
+        };
+        let res = check(&inp, 40, true).unwrap();
+        let got = |name: &str| res.params[PARAM_NAMES.iter().position(|n| *n == name).unwrap()];
+        assert!(
+            (got("k_alpha") - k_a).abs() < 1e-5,
+            "k_alpha {}",
+            got("k_alpha")
+        );
+        assert!(
+            (got("k_beta") - k_b).abs() < 1e-5,
+            "k_beta {}",
+            got("k_beta")
+        );
+        assert!(
+            (got("b_alpha_rad") - b_a).abs() < 1e-6,
+            "b_alpha {}",
+            got("b_alpha_rad")
+        );
+        assert!(
+            (got("b_beta_rad") - b_b).abs() < 1e-6,
+            "b_beta {}",
+            got("b_beta_rad")
+        );
+        assert!(res.rms_after[1] < 1e-6 && res.rms_after[2] < 1e-6);
+        assert!(res.std_err.iter().all(|s| s.is_finite()));
+    }
+
+    /// Vanes on a nose boom 8 m ahead (the rates' ω × r terms are several tenths of a degree)
+    /// and a flank-angle yaw vane: scale factors and biases of the readings come back.
+    #[test]
+    fn recovers_scale_factors_of_boom_vanes_and_a_flank_vane() {
+        let n = 3001;
+        let dt = 0.02;
+        let t: Vec<f64> = (0..n).map(|i| i as f64 * dt).collect();
+        let p: Vec<f64> = t.iter().map(|&s| 0.1 * (0.5 * s).sin()).collect();
+        let q: Vec<f64> = t.iter().map(|&s| 0.05 * (0.7 * s).sin()).collect();
+        let r: Vec<f64> = t.iter().map(|&s| 0.04 * (0.3 * s).cos()).collect();
+        let ax: Vec<f64> = t.iter().map(|&s| 1.0 + 0.5 * (0.2 * s).sin()).collect();
+        let ay: Vec<f64> = t.iter().map(|&s| 0.8 * (0.4 * s).sin()).collect();
+        let az: Vec<f64> = t.iter().map(|&s| -9.8 - 2.0 * (0.25 * s).sin()).collect();
+        let vanes = Vanes {
+            r_alpha: [8.0, -0.4, 0.5],
+            r_beta: [8.2, 0.0, -0.6],
+            flank: true,
+        };
+        let truth_inp = CompatInput {
+            t: &t,
+            accel: [&ax, &ay, &az],
+            rates: [&p, &q, &r],
+            tas: &t,
+            alpha: &t,
+            beta: &t,
+            euler: [&t, &t, &t],
+            vanes,
+        };
+        let mut th = vec![0.0; PARAM_NAMES.len()];
+        th[11] = 70.0;
+        th[13] = 4.0;
+        th[15] = 0.05;
+        th[16] = 1.0;
+        let y = simulate(&truth_inp, &th);
+        let at_cg = simulate(
+            &CompatInput {
+                vanes: Vanes::AT_CG,
+                ..truth_inp
+            },
+            &th,
+        );
+        let most = |a: &[f64], b: &[f64]| {
+            a.iter()
+                .zip(b)
+                .fold(0.0f64, |m, (x, z)| m.max((x - z).abs()))
+        };
+        assert!(most(&y[1], &at_cg[1]) > 0.003 && most(&y[2], &at_cg[2]) > 0.003);
+        let (k_a, k_b, b_a, b_b) = (0.07, 0.05, 0.4_f64.to_radians(), 0.6_f64.to_radians());
+        let alpha_m: Vec<f64> = y[1].iter().map(|v| (1.0 + k_a) * v + b_a).collect();
+        let beta_m: Vec<f64> = y[2].iter().map(|v| (1.0 + k_b) * v + b_b).collect();
+        let inp = CompatInput {
+            tas: &y[0],
+            alpha: &alpha_m,
+            beta: &beta_m,
+            euler: [&y[3], &y[4], &y[5]],
+            ..truth_inp
+        };
+        let res = check(&inp, 40, true).unwrap();
+        let got = |name: &str| res.params[PARAM_NAMES.iter().position(|n| *n == name).unwrap()];
+        assert!(
+            (got("k_alpha") - k_a).abs() < 1e-5,
+            "k_alpha {}",
+            got("k_alpha")
+        );
+        assert!(
+            (got("k_beta") - k_b).abs() < 1e-5,
+            "k_beta {}",
+            got("k_beta")
+        );
+        assert!(
+            (got("b_alpha_rad") - b_a).abs() < 1e-6,
+            "b_alpha {}",
+            got("b_alpha_rad")
+        );
+        assert!(
+            (got("b_beta_rad") - b_b).abs() < 1e-6,
+            "b_beta {}",
+            got("b_beta_rad")
+        );
     }
 }

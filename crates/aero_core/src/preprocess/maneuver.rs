@@ -100,6 +100,8 @@ pub struct AircraftParams {
     pub cg_m: [f64; 3],
     /// Moment reference centre from the datum, m: the moment coefficients are about it.
     pub moment_ref_m: [f64; 3],
+    /// The beta vane reads the flank angle (a boom yaw vane), not the sideslip.
+    pub beta_flank: bool,
 }
 
 /// One maneuver's loading: mass, inertia tensor about its CG and CG position.
@@ -286,6 +288,7 @@ pub fn preprocess_maneuver(
         [&w[0], &w[1], &w[2]],
         minus(ac.alpha_vane_m, ac.cg_m),
         minus(ac.beta_vane_m, ac.cg_m),
+        ac.beta_flank,
     );
     let alphadot = central_diff(&a_cg_rad, dt);
     let betadot = central_diff(&b_cg_rad, dt);
@@ -454,6 +457,7 @@ mod tests {
             beta_vane_m: [0.0; 3],
             cg_m: [0.0; 3],
             moment_ref_m: [0.0; 3],
+            beta_flank: false,
         };
         let mut t: Vec<f64> = (0..20).map(|i| i as f64 * 0.1).collect();
         let one = [1.0; 20];
@@ -509,6 +513,7 @@ mod tests {
             beta_vane_m: [8.0, 0.0, -1.2],
             cg_m: [0.2, -0.03, 0.1],
             moment_ref_m: [-0.4, 0.0, 0.05],
+            beta_flank: false,
         }
     }
 
