@@ -232,6 +232,7 @@ def _spec(
     only: Sequence[int] = (),
     record_hz: float = 50.0,
     mass: dict[str, Any] | None = None,
+    vanes: dict[str, Any] | None = None,
 ) -> dict[str, Any]:
     reps = SIZES.get(size, 0) if isinstance(size, str) else int(size)
     if reps <= 0:
@@ -255,7 +256,24 @@ def _spec(
     if mass is not None:
         spec["mass_properties"] = mass
         _core.sim_plan(json.dumps(spec))  # refuses meaningless ranges before flying
+    if vanes is not None:
+        spec["vanes"] = vanes
+        _core.sim_plan(json.dumps(spec))  # refuses meaningless scale errors before flying
     return spec
+
+
+def vane_calibration(vane_scale: Sequence[float] | None, flank_vane: bool) -> dict[str, Any] | None:
+    """The spec's ``vanes`` entry (scale errors of the alpha and beta vanes, flank-angle beta
+    vane), or ``None`` for ideal vanes."""
+    if vane_scale is None and not flank_vane:
+        return None
+    ks = [0.0, 0.0] if vane_scale is None else [float(v) for v in vane_scale]
+    if len(ks) != 2 or not all(np.isfinite(ks)):
+        raise InvalidInputError(
+            f"vane_scale {tuple(ks)}: give the alpha and beta vanes' scale errors (k_alpha, "
+            "k_beta), e.g. (0.05, -0.05) for 5 % upwash and -5 % sidewash"
+        )
+    return {"alpha_scale": ks[0], "beta_scale": ks[1], "beta_flank": bool(flank_vane)}
 
 
 def simulate_campaign(
@@ -272,12 +290,16 @@ def simulate_campaign(
     cg_range_m: Sequence[float] | None = None,
     mass_range: float | None = None,
     inertia_range: float | None = None,
+    vane_scale: Sequence[float] | None = None,
+    flank_vane: bool = False,
 ) -> list[dict[str, Any]]:
     """Fly a campaign in memory (no files).
 
     Parameters
     ----------
     effects, seed, size, noise, turbulence, rolloff, excitation
+        As :func:`generate_campaign`.
+    vane_scale, flank_vane
         As :func:`generate_campaign`.
     cg_range_m, mass_range, inertia_range
         As :func:`generate_campaign`; the maneuver's ``meta["mass_properties"]`` then holds
@@ -304,6 +326,7 @@ def simulate_campaign(
         only=only,
         record_hz=record_hz,
         mass=mass_variation(cg_range_m, mass_range, inertia_range),
+        vanes=vane_calibration(vane_scale, flank_vane),
     )
     out = []
     for m in _core.sim_run_campaign(json.dumps(spec)):
@@ -354,6 +377,8 @@ def generate_campaign(
     cg_range_m: Sequence[float] | None = None,
     mass_range: float | None = None,
     inertia_range: float | None = None,
+    vane_scale: Sequence[float] | None = None,
+    flank_vane: bool = False,
     overwrite: bool = False,
     progress: bool = False,
 ) -> CampaignInfo:
@@ -393,6 +418,14 @@ def generate_campaign(
         (independent draws); below 2. Giving any of the three writes the manifest's
         :data:`MASS_COLUMNS` (the others default to 0); giving none flies the nominal aircraft
         and the files are those of a campaign without the option.
+    vane_scale
+        Calibration scale errors of the alpha and beta vanes ``(k_alpha, k_beta)``: each reads
+        ``(1 + k)`` times the flow angle at it (upwash, sidewash), before its bias (the
+        ``alpha_vane_bias``/``beta_vane_bias`` effects); ``None``: ideal vanes. The
+        compatibility check estimates them (``aerodelta.ingest(..., vane_scale=True)``).
+    flank_vane
+        The beta vane is a boom yaw vane reading the flank angle ``atan(v/u)``; the campaign's
+        ``aircraft.toml`` then says ``beta_vane_type = "flank"``.
     overwrite
         Replace an existing folder.
     progress
@@ -422,6 +455,7 @@ def generate_campaign(
         rolloff=rolloff,
         excitation=excitation,
         mass=mass_variation(cg_range_m, mass_range, inertia_range),
+        vanes=vane_calibration(vane_scale, flank_vane),
     )
     plan = json.loads(_core.sim_plan(json.dumps(spec)))
     out.parent.mkdir(parents=True, exist_ok=True)
@@ -479,7 +513,10 @@ def generate_campaign(
                 bar.update(len(idx))
         manifest = pl.DataFrame(rows, infer_schema_length=None)
         manifest.write_csv(tmp / "manifest.csv")
-        (tmp / "aircraft.toml").write_text(_core.sim_aircraft_toml())
+        toml = _core.sim_aircraft_toml()
+        if flank_vane:  # the sensors table holds the vane type; [simulator] follows it
+            toml = toml.replace("\n\n[simulator]", '\nbeta_vane_type = "flank"\n\n[simulator]', 1)
+        (tmp / "aircraft.toml").write_text(toml)
         lib = {e["name"]: e for e in effect_library()}
         spec["only"] = []
         info = {

@@ -583,7 +583,23 @@ def _run_compat(
     return table
 
 
+#: Parameters that belong to the air-data sensors, the same in every maneuver: in a campaign
+#: (:data:`COMPAT_MIN_CAMPAIGN` maneuvers or more) ``apply_compat`` removes their campaign
+#: median, not each maneuver's own estimate, which gusts scatter (±0.6-0.7 deg for the vane
+#: biases at 0.5 m/s turbulence) with no sensor error behind it. The inertial sensors' biases
+#: may differ from record to record and are removed per maneuver.
+SENSOR_PARAMETERS = ("b_alpha_rad", "b_beta_rad", "lambda_v", *SCALE_FACTORS)
+
+
 def _apply_compat(df: pl.DataFrame, compat: pl.DataFrame) -> pl.DataFrame:
+    if compat["maneuver_id"].n_unique() >= COMPAT_MIN_CAMPAIGN:
+        med = compat.group_by("parameter").agg(pl.col("estimate").median().alias("median"))
+        compat = compat.join(med, on="parameter").with_columns(
+            pl.when(pl.col("parameter").is_in(SENSOR_PARAMETERS))
+            .then(pl.col("median"))
+            .otherwise(pl.col("estimate"))
+            .alias("estimate")
+        )
     wide = compat.pivot(on="parameter", index="maneuver_id", values="estimate")
     wide = wide.with_columns(pl.lit(0.0).alias(k) for k in SCALE_FACTORS if k not in wide.columns)
     r2d = 180.0 / np.pi

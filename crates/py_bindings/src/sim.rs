@@ -46,13 +46,12 @@ fn sim_run_campaign<'py>(py: Python<'py>, spec_json: &str) -> PyResult<Vec<Bound
     Ok(out)
 }
 
-/// The maneuver plan of a campaign spec, as JSON (its mass variation checked first).
+/// The maneuver plan of a campaign spec, as JSON (its effects, roll-off, mass variation and
+/// vane calibration checked first).
 #[pyfunction]
 fn sim_plan(spec_json: &str) -> PyResult<String> {
     let spec = CampaignSpec::from_json(spec_json).map_err(to_py)?;
-    if let Some(v) = &spec.mass_properties {
-        v.validate().map_err(to_py)?;
-    }
+    aero_core::sim::campaign::resolve_effects(&spec).map_err(to_py)?;
     serde_json::to_string(&plan(&spec))
         .map_err(|e| to_py(AeroError::invalid("plan", e.to_string())))
 }

@@ -464,6 +464,24 @@ pub struct MeasurementEffects {
     pub control_lag_s: f64,
     /// Air data (alpha, beta, tas) recorded this late relative to the inertial channels, s; design 0.04 s.
     pub time_skew_s: f64,
+    /// Vane calibration errors (not diagnosis effects: the compatibility check estimates
+    /// them); default none.
+    #[serde(default)]
+    pub vanes: VaneCalibration,
+}
+
+/// Calibration errors of the air-data vanes: a scale factor on each reading (upwash at the
+/// alpha vane, sidewash at the beta vane: reading = (1 + k) · angle + bias) and a beta vane
+/// that reads the flank angle atan2(v, u) of its local flow instead of the sideslip.
+#[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize, serde::Deserialize)]
+#[serde(default)]
+pub struct VaneCalibration {
+    /// Alpha vane scale error k_alpha (0.05: the vane reads 5 % more than the flow angle).
+    pub alpha_scale: f64,
+    /// Beta vane scale error k_beta.
+    pub beta_scale: f64,
+    /// The beta vane reads the flank angle.
+    pub beta_flank: bool,
 }
 
 impl MeasurementEffects {
@@ -475,6 +493,11 @@ impl MeasurementEffects {
             accelerometer_offset_m: [0.0; 3],
             control_lag_s: 0.0,
             time_skew_s: 0.0,
+            vanes: VaneCalibration {
+                alpha_scale: 0.0,
+                beta_scale: 0.0,
+                beta_flank: false,
+            },
         }
     }
 

@@ -70,6 +70,10 @@ pub struct CampaignSpec {
     /// nominal values too but reports them per maneuver.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub mass_properties: Option<MassVariation>,
+    /// Calibration errors of the vanes (scale factors, flank-angle beta vane); `None` (the
+    /// default, absent from the JSON): ideal vanes.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub vanes: Option<crate::aircraft::effects::VaneCalibration>,
 }
 
 impl Default for CampaignSpec {
@@ -86,6 +90,7 @@ impl Default for CampaignSpec {
             record_hz: 50.0,
             only: Vec::new(),
             mass_properties: None,
+            vanes: None,
         }
     }
 }
@@ -693,6 +698,17 @@ pub fn resolve_effects(
     spec.rolloff.validate()?;
     if let Some(v) = &spec.mass_properties {
         v.validate()?;
+    }
+    if let Some(c) = spec.vanes {
+        for (name, k) in [("alpha_scale", c.alpha_scale), ("beta_scale", c.beta_scale)] {
+            if !k.is_finite() || k.abs() >= 0.5 {
+                return Err(AeroError::invalid(
+                    format!("vanes.{name}"),
+                    format!("{k}: a vane scale error is a fraction below 0.5 in size (e.g. 0.05)"),
+                ));
+            }
+        }
+        meas.vanes = c;
     }
     Ok((aero, meas, rolloff_scale > 0.0, rolloff_scale))
 }

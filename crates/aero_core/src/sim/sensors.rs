@@ -4,8 +4,9 @@
 //! biases and the measurement effects of the vocabulary (vane biases, an
 //! undeclared accelerometer offset, control lag, time skew) are applied here.
 //!
-//! Vane angles from the local air velocity V + ω × r_vane (no upwash
-//! calibration error): α_v = atan2(w_v, u_v), β_v = asin(v_v/|V_v|).
+//! Vane angles from the local air velocity V + ω × r_vane: α_v = atan2(w_v, u_v),
+//! β_v = asin(v_v/|V_v|) (or the flank angle atan2(v_v, u_v) for a boom yaw vane), each times
+//! 1 + its calibration scale error (upwash, sidewash; none by default) plus its bias.
 //! Accelerometer: specific force f_cg + ω̇ × r + ω × (ω × r).
 //! The positions are those of `aircraft.toml`, from the datum (the nominal
 //! CG); with the CG at `d` from the datum a sensor sits at `r − d` from the CG.
@@ -174,9 +175,15 @@ pub fn record(
         let mut nz = |sd: f64| sd * ns * rng.normal();
         let va = s.v_air + s.omega.cross(&r_a);
         let vb = s.v_air + s.omega.cross(&r_b);
-        let alpha_v = va.z.atan2(va.x).to_degrees() + meas.alpha_vane_bias_deg;
-        let beta_v =
-            (vb.y / vb.norm()).clamp(-1.0, 1.0).asin().to_degrees() + meas.beta_vane_bias_deg;
+        let cal = &meas.vanes;
+        let alpha_v =
+            (1.0 + cal.alpha_scale) * va.z.atan2(va.x).to_degrees() + meas.alpha_vane_bias_deg;
+        let beta_flow = if cal.beta_flank {
+            vb.y.atan2(vb.x)
+        } else {
+            (vb.y / vb.norm()).clamp(-1.0, 1.0).asin()
+        };
+        let beta_v = (1.0 + cal.beta_scale) * beta_flow.to_degrees() + meas.beta_vane_bias_deg;
         let acc = s.f_cg + s.omega_dot.cross(&r_acc) + s.omega.cross(&s.omega.cross(&r_acc)) + ab;
         let rates = s.omega.map(f64::to_degrees) + gb;
         let c = &s.controls;
@@ -433,5 +440,57 @@ mod tests {
         let nominal = rec(&Vector3::zeros());
         assert!((nominal[1][0] - cols[1][0]).abs() > 1e-3);
         assert!((nominal[11][0] - cols[11][0]).abs() > 1e-3);
+    }
+
+    /// Upwash and sidewash scale errors multiply the angle each vane sees, and a flank vane
+    /// reads atan2(v, u) of its local flow (computed here from the local velocity).
+    #[test]
+    fn vane_calibration_errors() {
+        use crate::aircraft::effects::VaneCalibration;
+        let ac = adx37();
+        let s = TrueSample {
+            t: 0.0,
+            v_air: Vector3::new(55.0, 9.0, 16.0),
+            omega: Vector3::new(0.05, 0.1, -0.08),
+            omega_dot: Vector3::zeros(),
+            euler: Vector3::zeros(),
+            f_cg: Vector3::new(0.0, 0.0, -9.8),
+            tas: 58.0,
+            rho: 1.0,
+            h: 3000.0,
+            controls: Controls::default(),
+            ct: [0.1, 0.1],
+        };
+        let rec = |meas: &MeasurementEffects| {
+            record(
+                &[s],
+                &ac,
+                &Vector3::zeros(),
+                0.0,
+                meas,
+                &NoiseSpec::default(),
+                0.0,
+                0,
+                0,
+            )
+        };
+        let ideal = rec(&MeasurementEffects::none());
+        let mut m = MeasurementEffects::none();
+        m.alpha_vane_bias_deg = 0.7;
+        m.vanes = VaneCalibration {
+            alpha_scale: 0.06,
+            beta_scale: -0.08,
+            beta_flank: true,
+        };
+        let cal = rec(&m);
+        assert!((cal[1][0] - (1.06 * ideal[1][0] + 0.7)).abs() < 1e-12);
+        let rb = Vector3::from(ac.beta_vane_m);
+        let vb = s.v_air + s.omega.cross(&rb);
+        let flank = vb.y.atan2(vb.x).to_degrees();
+        assert!((cal[2][0] - 0.92 * flank).abs() < 1e-12);
+        assert!(
+            (flank - ideal[2][0]).abs() > 0.1,
+            "flank and sideslip differ at 16 deg alpha"
+        );
     }
 }
