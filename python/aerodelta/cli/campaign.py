@@ -84,6 +84,17 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         metavar="F",
         help="builtin: per-maneuver variation of each inertia, total relative range (0.1 = +-5 %%)",
     )
+    parser.add_argument(
+        "--vane-scale",
+        metavar="KA,KB",
+        help="builtin: scale errors of the alpha and beta vanes (upwash, sidewash), e.g. "
+        "0.05,-0.05: each reads (1 + k) times the flow angle at it",
+    )
+    parser.add_argument(
+        "--flank-vane",
+        action="store_true",
+        help="builtin: the beta vane is a boom yaw vane reading the flank angle atan(v/u)",
+    )
     parser.add_argument("--overwrite", action="store_true", help="replace an existing folder")
     parser.add_argument("--list-effects", action="store_true", help="list the effect vocabulary")
     parser.add_argument("--out", help="campaign folder to write")
@@ -122,6 +133,8 @@ def run(args: argparse.Namespace) -> int:
         cg_range_m=_cg_range(args.cg_range),
         mass_range=args.mass_range,
         inertia_range=args.inertia_range,
+        vane_scale=_pair(args.vane_scale),
+        flank_vane=args.flank_vane,
         overwrite=args.overwrite,
         progress=not args.no_progress,
     )
@@ -156,6 +169,8 @@ def _check_options(args: argparse.Namespace) -> None:
             "--cg-range": args.cg_range,
             "--mass-range": args.mass_range is not None,
             "--inertia-range": args.inertia_range is not None,
+            "--vane-scale": args.vane_scale,
+            "--flank-vane": args.flank_vane,
         }
         needs = "--simulator builtin"
     given = [o for o, v in other.items() if v]
@@ -175,6 +190,19 @@ def _cg_range(text: str | None) -> tuple[float, float, float] | None:
             f"--cg-range {text}: give three total ranges in m, X,Y,Z (e.g. 0.21,0.05,0.10)"
         ) from None
     return (x, y, z)
+
+
+def _pair(text: str | None) -> tuple[float, float] | None:
+    """``--vane-scale KA,KB`` as two floats; ``None`` when not given."""
+    if text is None:
+        return None
+    try:
+        ka, kb = (float(p) for p in text.split(","))
+    except ValueError:
+        raise InvalidInputError(
+            f"--vane-scale {text}: give the two vanes' scale errors, KA,KB (e.g. 0.05,-0.05)"
+        ) from None
+    return (ka, kb)
 
 
 def _check_out(args: argparse.Namespace) -> None:
