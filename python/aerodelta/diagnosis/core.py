@@ -31,7 +31,7 @@ from aerodelta.diagnosis.cv import (
     row_prediction,
     solve,
 )
-from aerodelta.diagnosis.data import load_inputs, maneuver_codes
+from aerodelta.diagnosis.data import in_order, load_records, maneuver_codes, sorted_columns
 from aerodelta.diagnosis.nested import effect_outer, outer_evaluation, outer_summary
 from aerodelta.diagnosis.regressors import (
     delayed_controls,
@@ -47,7 +47,7 @@ from aerodelta.diagnosis.select import (
     forward_select,
 )
 from aerodelta.diagnosis.simulator import load_simulator
-from aerodelta.diagnosis.stochastic import event_columns, rolloff_finding
+from aerodelta.diagnosis.stochastic import DETECTOR_CHANNELS, event_columns, rolloff_finding
 from aerodelta.diagnosis.vocabulary import (
     COEFFICIENTS,
     NEEDS_MODEL,
@@ -71,6 +71,25 @@ SCHEMA = "aerodelta.diagnosis/1"
 
 #: Measurement regressors computed from the simulator's output (band-matched with it).
 SIM_REGRESSORS = ("m_alpha_bias", "m_beta_bias", "m_control_lag", "m_time_skew")
+
+#: The columns of the records the diagnosis reads itself (beyond the simulator and the
+#: regressors): the maneuver, time, alpha, flap and kind, the measured coefficients (C_X and
+#: C_Z for the stall alpha) and the roll-off detector's channels.
+FRAME_COLUMNS = (
+    "maneuver_id", "t", "alpha_deg", "flap_deg", "kind", "Cl_meas", "Cn_meas", "CY_meas",
+    "CX_meas", "CZ_meas", *DETECTOR_CHANNELS,
+)  # fmt: skip
+
+
+def _put_in_order(columns: dict[str, dict[str, np.ndarray]], order: np.ndarray) -> None:
+    """Every array of ``columns`` (per regressor, per coefficient) replaced by its rows in
+    ``order``, one at a time (an array shared by several entries is gathered once)."""
+    done: dict[int, np.ndarray] = {}
+    for per_coef in columns.values():
+        for c, v in per_coef.items():
+            if id(v) not in done:
+                done[id(v)] = v[order]
+            per_coef[c] = done[id(v)]
 
 
 @dataclass(frozen=True)
@@ -421,25 +440,34 @@ def _diagnose(  # noqa: PLR0917 - the arguments of diagnose(), passed through
 ) -> Diagnosis:
     cfg = config or DiagnoseConfig()
     vocab = vocabulary or default_vocabulary(cfg.measurement)
-    frame, ac, notes = load_inputs(data, aircraft, progress=progress)
-    sim = load_simulator(model, frame, ac.cbar_m)
-    sim_c = sim.predict(frame)
-    meas_cols = measurement_columns(frame, sim, ac)
+    # ``records``: every column, in the records' own row order where that spares a sorted
+    # copy of them (``order`` then sorts their rows, data.load_records); what is computed from
+    # them row by row or maneuver by maneuver (the simulator, the regressors, the band) is
+    # computed there and put in (maneuver_id, t) order, the order of ``frame``: the columns
+    # read below, sorted, and all that follows sees exactly what a sorted copy would give
+    records, order, ac, notes = load_records(data, aircraft, progress=progress)
+    frame = sorted_columns(records, order, FRAME_COLUMNS)
+    sim = load_simulator(model, records, ac.cbar_m)
+    sim_c = sim.predict(records)
+    meas_cols = measurement_columns(records, sim, ac)
     cutoffs: dict[str, np.ndarray] = {}
     if cfg.band_match:
         # the simulator's output (and what is computed from it) in the band of the measured
         # coefficients, which come from smoothed rates and accelerations (band.py)
-        cutoffs = band_cutoffs(frame)
+        cutoffs = band_cutoffs(records)
         for c, fc in cutoffs.items():
             if not np.isfinite(fc).any():
                 notes.append(
                     f"{c}: the simulator's output is compared at full band (no '{BAND_CHANNEL[c]}' "
                     "channel to take the measured coefficient's band from)"
                 )
-        sim_c = band_match(frame, sim_c, cutoffs)
+        sim_c = band_match(records, sim_c, cutoffs)
         for name in SIM_REGRESSORS:
             if name in meas_cols:
-                meas_cols[name] = band_match(frame, meas_cols[name], cutoffs)
+                meas_cols[name] = band_match(records, meas_cols[name], cutoffs)
+    if order is not None:
+        sim_c = {c: v[order] for c, v in sim_c.items()}
+        _put_in_order(meas_cols, order)
     man = (
         frame.group_by("maneuver_id", maintain_order=True)
         .agg(pl.col("flap_deg").first(), pl.col("kind").first())
@@ -484,8 +512,9 @@ def _diagnose(  # noqa: PLR0917 - the arguments of diagnose(), passed through
         aero_names = sorted({r for c in cands if not c.global_ for r in c.regressors})
         glob_names = sorted({r for c in cands if c.global_ for r in c.regressors})
         aero_x, glob_x = design_columns(
-            frame, coef, aero_names=aero_names, glob_names=glob_names, vocab=vocab, meas=meas_cols
-        )
+            records, coef, aero_names=aero_names, glob_names=glob_names, vocab=vocab,
+            meas=meas_cols, order=order,
+        )  # fmt: skip
         # a global regressor that cannot move the coefficient by 1e-7 at its practical floor
         # is untestable for this coefficient (e.g. dC_Y/dalpha of a lateral model is ~0)
         for gi, g in enumerate(glob_names):
@@ -515,10 +544,10 @@ def _diagnose(  # noqa: PLR0917 - the arguments of diagnose(), passed through
                 # roll-off spikes in campaigns that had none
                 g = design.global_names.index("m_control_lag")
                 tau = float(th[0][design.grid.n * len(design.aero_names) + g])
-                late = sim.predict(delayed_controls(frame, tau))
+                late = sim.predict(delayed_controls(records, tau))
                 if cfg.band_match:
-                    late = band_match(frame, {"Cl": late["Cl"]}, cutoffs)
-                exact = late["Cl"] - sim_c["Cl"]
+                    late = band_match(records, {"Cl": late["Cl"]}, cutoffs)
+                exact = in_order(late["Cl"], order) - sim_c["Cl"]
                 resid = resid + tau * glob_x[:, g] - exact
             ro = rolloff_finding(frame, resid)
             if ro["detected"]:

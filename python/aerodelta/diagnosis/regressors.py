@@ -125,16 +125,20 @@ def design_columns(
     glob_names: list[str],
     vocab: Vocabulary,
     meas: dict[str, dict[str, np.ndarray]],
+    order: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """The aerodynamic (``n x R``) and global (``n x Gn``) regressor matrices of ``coef``."""
+    """The aerodynamic (``n x R``) and global (``n x Gn``) regressor matrices of ``coef``.
+
+    ``order`` (a permutation of ``frame``'s rows, or ``None``) puts the aerodynamic regressors'
+    rows in that order as they are filled in; ``meas`` must be in the same order already."""
     exprs = {**AERO_REGRESSORS, **vocab.user_regressors}
     # filled column by column into one row-major array (no intermediate copies)
     aero_x = np.empty((frame.height, len(aero_names)))
     for i, a in enumerate(aero_names):
         # with_columns broadcasts a literal (the constant regressor) to the frame's height
-        aero_x[:, i] = frame.with_columns(exprs[a].cast(pl.Float64).alias("__reg"))[
-            "__reg"
-        ].to_numpy()
+        col = frame.with_columns(exprs[a].cast(pl.Float64).alias("__reg"))["__reg"].to_numpy()
+        aero_x[:, i] = col if order is None else col[order]
+        del col
     aero_x[~np.isfinite(aero_x)] = 0.0
     glob_x = np.empty((frame.height, len(glob_names)))
     for i, g in enumerate(glob_names):
