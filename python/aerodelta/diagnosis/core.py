@@ -72,13 +72,24 @@ SCHEMA = "aerodelta.diagnosis/1"
 #: Measurement regressors computed from the simulator's output (band-matched with it).
 SIM_REGRESSORS = ("m_alpha_bias", "m_beta_bias", "m_control_lag", "m_time_skew")
 
-#: The columns of the records the diagnosis reads itself (beyond the simulator and the
-#: regressors): the maneuver, time, alpha, flap and kind, the measured coefficients (C_X and
-#: C_Z for the stall alpha) and the roll-off detector's channels.
-FRAME_COLUMNS = (
-    "maneuver_id", "t", "alpha_deg", "flap_deg", "kind", "Cl_meas", "Cn_meas", "CY_meas",
-    "CX_meas", "CZ_meas", *DETECTOR_CHANNELS,
-)  # fmt: skip
+#: The columns of the records the diagnosis holds sorted throughout (others are sorted when
+#: they are read: the measured coefficients, the stall alpha's and the roll-off detector's).
+FRAME_COLUMNS = ("maneuver_id", "t", "alpha_deg", "flap_deg", "kind")
+
+#: The columns :func:`aerodelta.diagnosis.where.stall_alphas` reads.
+STALL_COLUMNS = ("flap_deg", "alpha_deg", "CX_meas", "CZ_meas")
+
+
+def _with_columns(
+    frame: pl.DataFrame, records: pl.DataFrame, order: np.ndarray | None, columns: Sequence[str]
+) -> pl.DataFrame:
+    """``frame`` (the sorted :data:`FRAME_COLUMNS`) with the other ``columns`` of ``records``
+    that it has, their rows put in ``order`` (``records`` itself when ``order`` is ``None``: it
+    is sorted and has them all)."""
+    if order is None:
+        return records
+    extra = [c for c in columns if c in records.columns and c not in frame.columns]
+    return frame.with_columns([records[c].gather(order) for c in extra])
 
 
 def _put_in_order(columns: dict[str, dict[str, np.ndarray]], order: np.ndarray) -> None:
@@ -483,7 +494,7 @@ def _diagnose(  # noqa: PLR0917 - the arguments of diagnose(), passed through
     fidx = np.searchsorted(np.array(flaps), frame["flap_deg"].to_numpy())
     folds_m = _fold_ids(man, cfg.folds, cfg.seed)
     alpha = frame["alpha_deg"].to_numpy()
-    stall = stall_alphas(frame)
+    stall = stall_alphas(_with_columns(frame, records, order, STALL_COLUMNS))
     # polars string columns built from codes (a conversion of 400,000 numpy strings took 0.1 s)
     phase = pl.Series("phase", PHASES).gather(phase_codes(frame, stall))
     rcode = region_codes(alpha, frame["flap_deg"].to_numpy(), stall)
@@ -520,7 +531,10 @@ def _diagnose(  # noqa: PLR0917 - the arguments of diagnose(), passed through
         for gi, g in enumerate(glob_names):
             if _rms(glob_x[:, gi]) * PRACTICAL_FLOOR.get(g, 1.0) < 1e-7:
                 glob_x[:, gi] = 0.0
-        meas = frame[f"{coef}_meas"].to_numpy()
+        # this coefficient's measurement regressors are in glob_x now
+        for per_coef in meas_cols.values():
+            per_coef.pop(coef, None)
+        meas = in_order(records[f"{coef}_meas"].to_numpy(), order)
         y = meas - sim_c[coef]
         design = build_design(
             y, mcode, dflap, alpha, aero_x, glob_x, aero_names, glob_names, grid, man.height,
@@ -549,7 +563,7 @@ def _diagnose(  # noqa: PLR0917 - the arguments of diagnose(), passed through
                     late = band_match(records, {"Cl": late["Cl"]}, cutoffs)
                 exact = in_order(late["Cl"], order) - sim_c["Cl"]
                 resid = resid + tau * glob_x[:, g] - exact
-            ro = rolloff_finding(frame, resid)
+            ro = rolloff_finding(_with_columns(frame, records, order, DETECTOR_CHANNELS), resid)
             if ro["detected"]:
                 # each event's moment, with its own random amplitude, profiled out of its
                 # maneuver (Frisch-Waugh); the deterministic effects are then selected again
@@ -571,6 +585,8 @@ def _diagnose(  # noqa: PLR0917 - the arguments of diagnose(), passed through
             "aero": aero_x, "glob": glob_x,
         }  # fmt: skip
         effects, steps_ = _effect_rows(sel, design, stats, rows)
+        # the rows' regressors are not read again (the outer folds need only the statistics)
+        del aero_x, glob_x, rows
         outer = None
         if cfg.nested:
             ev = outer_evaluation(design, folds_m, cands, cfg.selection)
@@ -610,7 +626,8 @@ def _diagnose(  # noqa: PLR0917 - the arguments of diagnose(), passed through
         if outer is not None:
             coefs[coef]["outer"] = outer
         # this coefficient's rows and statistics go before the next one's are built
-        del aero_x, glob_x, design, stats, sel, rows, steps_
+        del design, stats, sel, steps_
+        sim_c.pop(coef)
     coefs["Cl"]["rolloff"] = {k: v for k, v in ro.items() if k != "centres"}
     coefs["Cl"]["rolloff"]["events_profiled_out"] = len(ro["centres"]) if ro["detected"] else 0
     if ro["detected"]:

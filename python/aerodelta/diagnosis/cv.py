@@ -27,7 +27,7 @@ from __future__ import annotations
 import functools
 import itertools
 from collections.abc import Iterator, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 import numpy.typing as npt
@@ -84,6 +84,9 @@ class Design:
     - ``lowrank`` (``n_local x r``, or ``None``) and ``lowrank_of`` (``r``): the columns of
       every maneuver's ``F_m`` side by side and the maneuver of each, ``G_m = blocks - F_m F_m'``
       (the per-maneuver nuisance profiled out, :func:`profile_out`).
+    - ``block_rows`` (or ``None``): the row of each maneuver in ``diag``, ``off``, ``cross``
+      and ``glob``; a :meth:`subset` shares those four with the design it is taken from (they
+      are most of its memory) and reads its maneuvers' rows through it.
 
     :meth:`dense_gram` (and the ``gram`` view) writes one out in full.
     """
@@ -102,6 +105,11 @@ class Design:
     n_rows: IntArray
     lowrank: FloatArray | None = None  # (n_local, r): F_m of every maneuver, side by side
     lowrank_of: IntArray | None = None  # (r,): the maneuver of each column, ascending
+    block_rows: IntArray | None = None  # (M,): each maneuver's row in diag/off/cross/glob
+
+    def block_index(self, maneuvers: IntArray) -> IntArray:
+        """The rows of ``maneuvers`` (indices of this design's) in the block arrays."""
+        return maneuvers if self.block_rows is None else self.block_rows[maneuvers]
 
     @property
     def n_local(self) -> int:
@@ -115,11 +123,20 @@ class Design:
 
     @property
     def nbytes(self) -> int:
-        """Bytes held by the per-maneuver statistics."""
-        arrays = [self.diag, self.off, self.cross, self.glob, self.xty, self.yty, self.n_rows]
+        """Bytes of the per-maneuver statistics (of a :meth:`subset`, its maneuvers' blocks
+        count, which the design it was taken from holds)."""
+        arrays = [self.xty, self.yty, self.n_rows]
         if self.lowrank is not None and self.lowrank_of is not None:
             arrays += [self.lowrank, self.lowrank_of]
-        return int(sum(a.nbytes for a in arrays))
+        blocks = [self.diag, self.off, self.cross, self.glob]
+        if self.block_rows is None:
+            arrays += blocks
+        else:
+            arrays.append(self.block_rows)
+        own = sum(a.nbytes for a in arrays)
+        if self.block_rows is not None:
+            own += self.n_maneuvers * sum(a[:1].nbytes for a in blocks)
+        return int(own)
 
     def gram_sum(self, maneuvers: IntArray) -> FloatArray:
         """``sum_m G_m`` over ``maneuvers`` (indices), dense on the local layout."""
@@ -130,9 +147,10 @@ class Design:
         out = np.zeros((p, p))
         if idx.size == 0:
             return out
-        d = self.diag[idx].sum(axis=0)
-        o = self.off[idx].sum(axis=0)
-        c = self.cross[idx].sum(axis=0)
+        rows = self.block_index(idx)
+        d = self.diag[rows].sum(axis=0)
+        o = self.off[rows].sum(axis=0)
+        c = self.cross[rows].sum(axis=0)
         a4 = np.zeros((k_n, r_n, k_n, r_n))
         kk = np.arange(k_n)
         a4[kk, :, kk, :] = d.transpose(2, 0, 1)
@@ -142,7 +160,7 @@ class Design:
         cc = c.transpose(2, 0, 1).reshape(kr, g_n)
         out[:kr, kr:] = cc
         out[kr:, :kr] = cc.T
-        out[kr:, kr:] = self.glob[idx].sum(axis=0)
+        out[kr:, kr:] = self.glob[rows].sum(axis=0)
         if self.lowrank is not None and self.lowrank_of is not None:
             f = self.lowrank[:, np.isin(self.lowrank_of, idx)]
             out -= f @ f.T
@@ -156,17 +174,22 @@ class Design:
         """``diag(G_m)`` per maneuver, ``(M, n_local)``."""
         r_n, g_n = len(self.aero_names), len(self.global_names)
         ar, ag = np.arange(r_n), np.arange(g_n)
-        aero = self.diag[:, ar, ar, :]  # (M, R, K)
-        out = np.concatenate(
-            [aero.transpose(0, 2, 1).reshape(self.n_maneuvers, -1), self.glob[:, ag, ag]], axis=1
-        )
+        if self.block_rows is None:
+            aero = self.diag[:, ar, ar, :]  # (M, R, K)
+            glob = self.glob[:, ag, ag]
+        else:
+            br = self.block_rows[:, None]
+            aero = self.diag[br, ar, ar]  # (M, R, K): the same values, the same layout
+            glob = self.glob[br, ag, ag]
+        out = np.concatenate([aero.transpose(0, 2, 1).reshape(self.n_maneuvers, -1), glob], axis=1)
         if self.lowrank is not None and self.lowrank_of is not None:
             np.subtract.at(out, self.lowrank_of, (self.lowrank * self.lowrank).T)
         return out
 
     def subset(self, maneuvers: IntArray) -> Design:
         """The statistics of ``maneuvers`` only (ascending indices), renumbered ``0..``: the
-        design an outer fold's selection sees (:mod:`aerodelta.diagnosis.nested`)."""
+        design an outer fold's selection sees (:mod:`aerodelta.diagnosis.nested`). It shares
+        the Gram blocks with this design (``block_rows``: no copy of them)."""
         idx = np.asarray(maneuvers, dtype=np.int64)
         if idx.size > 1 and np.any(np.diff(idx) <= 0):
             raise ValueError("Design.subset: maneuver indices must be ascending and distinct")
@@ -182,16 +205,28 @@ class Design:
             list(self.aero_names),
             list(self.global_names),
             self.man_flap[idx],
-            self.diag[idx],
-            self.off[idx],
-            self.cross[idx],
-            self.glob[idx],
+            self.diag,
+            self.off,
+            self.cross,
+            self.glob,
             self.xty[idx],
             self.yty[idx],
             self.n_rows[idx],
             lowrank,
             lowrank_of,
+            self.block_index(idx),
         )
+
+    def owning(self) -> Design:
+        """This design with its own copy of its maneuvers' Gram blocks (itself if it has
+        them)."""
+        if self.block_rows is None:
+            return self
+        br = self.block_rows
+        return replace(
+            self, diag=self.diag[br], off=self.off[br], cross=self.cross[br],
+            glob=self.glob[br], block_rows=None,
+        )  # fmt: skip
 
     @property
     def gram(self) -> Sequence[FloatArray]:
@@ -396,6 +431,7 @@ def profile_out(design: Design, n_nuisance: int) -> Design:
         return design
     if design.lowrank is not None:
         raise ValueError("profile_out: this design's nuisance columns were profiled out already")
+    design = design.owning()
     k_n, r_n = design.grid.n, len(design.aero_names)
     kr = k_n * r_n
     g_keep = len(design.global_names) - n_nuisance
@@ -596,19 +632,20 @@ def _quadratic_forms(
     gidx = g_cols - kr
     idx = np.concatenate(cols)
     n = ms.size
+    bm = design.block_index(ms)  # the blocks' rows (a subset shares them)
     out = -2.0 * (design.xty[np.ix_(ms, idx)] @ theta[idx])
     a = theta[:kr].reshape(k_n, r_n)[:, ridx].T  # (r, K)
     g = theta[g_cols]
     if ridx.size:
         wd = a[:, None, :] * a[None, :, :]
-        out += design.diag[np.ix_(ms, ridx, ridx)].reshape(n, -1) @ wd.ravel()
+        out += design.diag[np.ix_(bm, ridx, ridx)].reshape(n, -1) @ wd.ravel()
         wo = a[:, None, :-1] * a[None, :, 1:]
-        out += 2.0 * (design.off[np.ix_(ms, ridx, ridx)].reshape(n, -1) @ wo.ravel())
+        out += 2.0 * (design.off[np.ix_(bm, ridx, ridx)].reshape(n, -1) @ wo.ravel())
         if gidx.size:
             wc = a[:, None, :] * g[None, :, None]
-            out += 2.0 * (design.cross[np.ix_(ms, ridx, gidx)].reshape(n, -1) @ wc.ravel())
+            out += 2.0 * (design.cross[np.ix_(bm, ridx, gidx)].reshape(n, -1) @ wc.ravel())
     if gidx.size:
-        out += design.glob[np.ix_(ms, gidx, gidx)].reshape(n, -1) @ np.outer(g, g).ravel()
+        out += design.glob[np.ix_(bm, gidx, gidx)].reshape(n, -1) @ np.outer(g, g).ravel()
     if design.lowrank is not None and design.lowrank_of is not None:
         own = np.isin(design.lowrank_of, ms)
         if own.any():
@@ -670,21 +707,25 @@ def fold_prediction(  # noqa: PLR0917 - rows' columns, positional by design
     glob: FloatArray,
 ) -> FloatArray:
     """:func:`row_prediction` of each row with its fold's parameters (``thetas[fold][flap]``),
-    in one pass over the rows."""
+    :data:`PREDICT_ROWS` rows at a time."""
     k_n, r_n = design.grid.n, len(design.aero_names)
     kr = k_n * r_n
-    j, w1 = design.grid.locate(alpha_deg)
     th = np.stack([np.stack([t[:kr].reshape(k_n, r_n) for t in tq]) for tq in thetas])
     used = np.flatnonzero(np.any(th != 0.0, axis=(0, 1, 2)))
+    tu = th[..., used]
     out = np.zeros(alpha_deg.size)
-    if used.size:
-        tu = th[..., used]
-        coef = tu[fold, flap, j] * (1.0 - w1)[:, None] + tu[fold, flap, j + 1] * w1[:, None]
-        out = np.einsum("nr,nr->n", coef, aero[:, used])
-    if glob.shape[1]:
-        for q, tq in enumerate(thetas):
-            m = fold == q
-            out[m] += glob[m] @ tq[0][kr:]
+    for sl in _row_chunks(alpha_deg.size):
+        fo, fl = fold[sl], flap[sl]
+        o = out[sl]
+        if used.size:
+            j, w1 = design.grid.locate(alpha_deg[sl])
+            coef = tu[fo, fl, j] * (1.0 - w1)[:, None] + tu[fo, fl, j + 1] * w1[:, None]
+            o[:] = np.einsum("nr,nr->n", coef, aero[sl][:, used])
+        if glob.shape[1]:
+            g = glob[sl]
+            for q, tq in enumerate(thetas):
+                m = fo == q
+                o[m] += g[m] @ tq[0][kr:]
     return out
 
 
@@ -696,20 +737,34 @@ def row_prediction(  # noqa: PLR0917 - rows' columns, positional by design
     aero: FloatArray,
     glob: FloatArray,
 ) -> FloatArray:
-    """The model ``sum theta * column`` at each row (``thetas``: per-flap local vectors)."""
+    """The model ``sum theta * column`` at each row (``thetas``: per-flap local vectors),
+    :data:`PREDICT_ROWS` rows at a time."""
     k_n, r_n = design.grid.n, len(design.aero_names)
-    j, w1 = design.grid.locate(alpha_deg)
     th = np.stack([t[: k_n * r_n].reshape(k_n, r_n) for t in thetas])
     # only the regressors the model uses (the others' parameters are all zero)
     used = np.flatnonzero(np.any(th != 0.0, axis=(0, 1)))
+    tu = th[:, :, used]
     out = np.zeros(alpha_deg.size)
-    if used.size:
-        tu = th[:, :, used]
-        coef = tu[flap, j] * (1.0 - w1)[:, None] + tu[flap, j + 1] * w1[:, None]
-        out = np.einsum("nr,nr->n", coef, aero[:, used])
-    if glob.shape[1]:
-        out = out + glob @ thetas[0][k_n * r_n :]
+    for sl in _row_chunks(alpha_deg.size):
+        o = out[sl]
+        if used.size:
+            fl = flap[sl]
+            j, w1 = design.grid.locate(alpha_deg[sl])
+            coef = tu[fl, j] * (1.0 - w1)[:, None] + tu[fl, j + 1] * w1[:, None]
+            o[:] = np.einsum("nr,nr->n", coef, aero[sl][:, used])
+        if glob.shape[1]:
+            o[:] = o + glob[sl] @ thetas[0][k_n * r_n :]
     return out
+
+
+#: Rows predicted at once by :func:`fold_prediction` and :func:`row_prediction` (bounds their
+#: temporaries, a few arrays of this many rows by the model's regressors).
+PREDICT_ROWS = 1 << 17
+
+
+def _row_chunks(n: int) -> Iterator[slice]:
+    """Consecutive slices of at most :data:`PREDICT_ROWS` of ``n`` rows."""
+    return (slice(lo, min(lo + PREDICT_ROWS, n)) for lo in range(0, n, PREDICT_ROWS))
 
 
 def _abs_ranks(d: FloatArray) -> FloatArray:
