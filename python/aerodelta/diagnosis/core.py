@@ -26,10 +26,11 @@ from aerodelta.diagnosis.cv import (
     HatGrid,
     build_design,
     fold_prediction,
+    fold_solves,
     fold_stats,
     profile_out,
     row_prediction,
-    solve,
+    total_solve,
 )
 from aerodelta.diagnosis.data import in_order, load_records, maneuver_codes, sorted_columns
 from aerodelta.diagnosis.nested import effect_outer, outer_evaluation, outer_summary
@@ -251,11 +252,7 @@ def _cv_prediction(
     design: Design, stats: FoldStats, rows: dict[str, np.ndarray], model: Sequence[Candidate]
 ) -> np.ndarray:
     """Held-out prediction per row of a model (each row predicted by its fold's complement)."""
-    cols = columns_for(design, model)
-    thetas = [
-        solve(design, stats.train_gram[q], stats.train_xty[q], cols)
-        for q in range(len(stats.train_gram))
-    ]
+    thetas = fold_solves(design, stats, columns_for(design, model))
     return fold_prediction(
         design, thetas, rows["fold"], rows["flap"], rows["alpha"], rows["aero"], rows["glob"]
     )
@@ -278,7 +275,7 @@ def _effect_rows(
         steps.append(("timing_alignment", _cv_prediction(design, stats, rows, base)))
     chosen: list[Candidate] = []
     full_model = base + [s.candidate for s in sel.selected if s.candidate not in base]
-    theta_full = solve(design, stats.total_gram, stats.total_xty, columns_for(design, full_model))
+    theta_full = total_solve(design, stats, columns_for(design, full_model))
     y = rows["y"]
     for s in sel.selected:
         held_gain = None
@@ -548,7 +545,7 @@ def _diagnose(  # noqa: PLR0917 - the arguments of diagnose(), passed through
             ]
             fitted = np.zeros_like(y)
             if model:
-                th = solve(design, stats.total_gram, stats.total_xty, columns_for(design, model))
+                th = total_solve(design, stats, columns_for(design, model))
                 fitted = row_prediction(design, th, dflap, alpha, aero_x, glob_x)
             resid = y - fitted
             if sim.differentiable and any(s.candidate.name == "control_lag" for s in sel.selected):

@@ -28,6 +28,7 @@ import functools
 import itertools
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field, replace
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -514,7 +515,13 @@ def penalty(design: Design) -> list[FloatArray]:
 @dataclass
 class FoldStats:
     """Per fold and flap, the normal equations on the flap's local layout (training = total
-    minus the fold's), with the penalty added to the training ones."""
+    minus the fold's), with the penalty added to the training ones.
+
+    ``memo`` keeps the solves already made on these statistics, by model columns
+    (:func:`fold_solves`, :func:`total_solve`, :func:`heldout_sse`): the selection meets the
+    same model several times (a timing term scored by leaving it out of the model of the last
+    step, the held-out predictions of the chosen models, the outer folds' scoring), and a
+    solve repeated on the same numbers gives the same numbers."""
 
     folds: IntArray  # fold per maneuver
     train_gram: list[list[FloatArray]]  # [fold][flap]
@@ -522,6 +529,51 @@ class FoldStats:
     total_gram: list[FloatArray]  # [flap], penalised
     total_xty: list[FloatArray]
     members: list[list[IntArray]] = field(default_factory=list)  # [fold][flap]: maneuvers
+    memo: dict[tuple[str, bytes, bytes], tuple[Design, object]] = field(
+        default_factory=dict, repr=False, compare=False
+    )
+
+
+def _memoised(
+    design: Design, stats: FoldStats, what: str, cols: tuple[IntArray, IntArray], make: Any
+) -> Any:
+    """``make()`` for ``what`` on ``cols`` of ``design``, computed once per ``stats``."""
+    key = (
+        what,
+        np.asarray(cols[0], dtype=np.int64).tobytes(),
+        np.asarray(cols[1], dtype=np.int64).tobytes(),
+    )
+    hit = stats.memo.get(key)
+    if hit is not None and hit[0] is design:
+        return hit[1]
+    value = make()
+    stats.memo[key] = (design, value)
+    return value
+
+
+def fold_solves(
+    design: Design, stats: FoldStats, cols: tuple[IntArray, IntArray]
+) -> list[list[FloatArray]]:
+    """Per fold, the per-flap parameters of the model on ``cols`` fitted on the fold's
+    complement (:func:`solve` on the training statistics; shared, do not modify)."""
+    return _memoised(
+        design, stats, "folds", cols,
+        lambda: [
+            solve(design, stats.train_gram[q], stats.train_xty[q], cols)
+            for q in range(len(stats.train_gram))
+        ],
+    )  # fmt: skip
+
+
+def total_solve(
+    design: Design, stats: FoldStats, cols: tuple[IntArray, IntArray]
+) -> list[FloatArray]:
+    """The per-flap parameters of the model on ``cols`` fitted on all the maneuvers
+    (:func:`solve` on the penalised totals; shared, do not modify)."""
+    return _memoised(
+        design, stats, "total", cols,
+        lambda: solve(design, stats.total_gram, stats.total_xty, cols),
+    )  # fmt: skip
 
 
 def fold_stats(design: Design, folds: IntArray) -> FoldStats:
@@ -680,20 +732,25 @@ def heldout_sse(
     design: Design, stats: FoldStats, cols: tuple[IntArray, IntArray]
 ) -> tuple[FloatArray, list[list[FloatArray]]]:
     """Held-out squared error per maneuver of the model on ``cols`` (each maneuver predicted by
-    the fit on the other folds), and each fold's per-flap parameters."""
+    the fit on the other folds), and each fold's per-flap parameters (shared, do not modify)."""
+    sse, thetas = _memoised(design, stats, "heldout", cols, lambda: _heldout(design, stats, cols))
+    return sse.copy(), list(thetas)
+
+
+def _heldout(
+    design: Design, stats: FoldStats, cols: tuple[IntArray, IntArray]
+) -> tuple[FloatArray, list[list[FloatArray]]]:
     n_q = len(stats.train_gram)
-    thetas = []
     sse = design.yty.copy()
     members = stats.members or [
         [np.flatnonzero((stats.folds == q) & (design.man_flap == f)) for f in range(design.n_flaps)]
         for q in range(n_q)
     ]
+    thetas = fold_solves(design, stats, cols)
     for q in range(n_q):
-        th = solve(design, stats.train_gram[q], stats.train_xty[q], cols)
-        thetas.append(th)
         for f, ms in enumerate(members[q]):
             if ms.size:
-                sse[ms] = design.yty[ms] + _quadratic_forms(design, ms, th[f], cols)
+                sse[ms] = design.yty[ms] + _quadratic_forms(design, ms, thetas[q][f], cols)
     return sse, thetas
 
 
