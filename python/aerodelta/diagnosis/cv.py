@@ -639,11 +639,14 @@ def solve(
     parts = []
     for f in range(n_f):
         gm, xv = grams[f], xtys[f]
-        a = gm[np.ix_(a_cols, a_cols)]
+        # rows, then columns: the same block as gm[np.ix_(a_cols, a_cols)], a third of the time
+        a = gm[a_cols][:, a_cols]
         d = np.diag(a)
         live = d > 1e-12 * max(float(d.max()) if d.size else 0.0, 1e-300)
-        ac = a_cols[live]
-        a = a[np.ix_(live, live)]
+        ac = a_cols
+        if not live.all():
+            ac = a_cols[live]
+            a = a[live][:, live]
         c = gm[np.ix_(ac, g_cols)]
         s_mat += gm[np.ix_(g_cols, g_cols)]
         s_rhs += xv[g_cols]
