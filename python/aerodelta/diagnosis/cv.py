@@ -647,8 +647,8 @@ def solve(
         if not live.all():
             ac = a_cols[live]
             a = a[live][:, live]
-        c = gm[np.ix_(ac, g_cols)]
-        s_mat += gm[np.ix_(g_cols, g_cols)]
+        c = gm[_ix(ac, g_cols)]
+        s_mat += gm[_ix(g_cols, g_cols)]
         s_rhs += xv[g_cols]
         if ac.size:
             rhs = np.column_stack([xv[ac], c])
@@ -675,6 +675,13 @@ def solve(
     return thetas
 
 
+def _ix(*index: IntArray) -> tuple[IntArray, ...]:
+    """``np.ix_`` of integer index arrays without its argument checks (called thousands of
+    times on small blocks): each array shaped to broadcast along its own axis."""
+    k = len(index)
+    return tuple(a.reshape((1,) * i + (-1,) + (1,) * (k - 1 - i)) for i, a in enumerate(index))
+
+
 def _quadratic_forms(
     design: Design, ms: IntArray, theta: FloatArray, cols: tuple[IntArray, IntArray]
 ) -> FloatArray:
@@ -688,19 +695,19 @@ def _quadratic_forms(
     idx = np.concatenate(cols)
     n = ms.size
     bm = design.block_index(ms)  # the blocks' rows (a subset shares them)
-    out = -2.0 * (design.xty[np.ix_(ms, idx)] @ theta[idx])
+    out = -2.0 * (design.xty[_ix(ms, idx)] @ theta[idx])
     a = theta[:kr].reshape(k_n, r_n)[:, ridx].T  # (r, K)
     g = theta[g_cols]
     if ridx.size:
         wd = a[:, None, :] * a[None, :, :]
-        out += design.diag[np.ix_(bm, ridx, ridx)].reshape(n, -1) @ wd.ravel()
+        out += design.diag[_ix(bm, ridx, ridx)].reshape(n, -1) @ wd.ravel()
         wo = a[:, None, :-1] * a[None, :, 1:]
-        out += 2.0 * (design.off[np.ix_(bm, ridx, ridx)].reshape(n, -1) @ wo.ravel())
+        out += 2.0 * (design.off[_ix(bm, ridx, ridx)].reshape(n, -1) @ wo.ravel())
         if gidx.size:
             wc = a[:, None, :] * g[None, :, None]
-            out += 2.0 * (design.cross[np.ix_(bm, ridx, gidx)].reshape(n, -1) @ wc.ravel())
+            out += 2.0 * (design.cross[_ix(bm, ridx, gidx)].reshape(n, -1) @ wc.ravel())
     if gidx.size:
-        out += design.glob[np.ix_(bm, gidx, gidx)].reshape(n, -1) @ np.outer(g, g).ravel()
+        out += design.glob[_ix(bm, gidx, gidx)].reshape(n, -1) @ np.outer(g, g).ravel()
     if design.lowrank is not None and design.lowrank_of is not None:
         own = np.isin(design.lowrank_of, ms)
         if own.any():
