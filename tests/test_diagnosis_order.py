@@ -52,6 +52,35 @@ def test_records_in_flight_order_give_the_sorted_records_diagnosis(quick: pl.Dat
     assert b.predictions.equals(a.predictions)
 
 
+def test_a_user_regressor_reading_neighbouring_rows_sees_the_sorted_rows(
+    quick: pl.DataFrame,
+) -> None:
+    """A user's regressor that reads the previous row without ``.over`` crosses from one
+    maneuver into the one before it: in the records' own order that is another maneuver than
+    in sorted order, so it is evaluated on its columns sorted; the diagnosis is the sorted
+    records' one, and so are the regressor's columns."""
+    from aerodelta.diagnosis.regressors import design_columns  # noqa: PLC0415
+    from aerodelta.diagnosis.vocabulary import default_vocabulary  # noqa: PLC0415
+
+    lagged = pl.col("rhat").shift(1).fill_null(0.0)
+    vocab = default_vocabulary().with_user_effects({"lagged_yaw": {"Cn": [lagged, "beta_deg"]}})
+    shuffled = _maneuvers_permuted(quick, 9)
+    a = diagnose(quick, vocabulary=vocab)
+    b = diagnose(shuffled, vocabulary=vocab)
+    assert json.dumps(b.result) == json.dumps(a.result)
+    names = ["user:lagged_yaw:Cn:0", "user:lagged_yaw:Cn:1", "beta"]
+    ref, _, _ = load_inputs(quick, None)
+    want, _ = design_columns(ref, "Cn", aero_names=names, glob_names=[], vocab=vocab, meas={})
+    records, order, _, _ = load_records(shuffled, None)
+    got, _ = design_columns(
+        records, "Cn", aero_names=names, glob_names=[], vocab=vocab, meas={}, order=order
+    )
+    np.testing.assert_array_equal(got, want)
+    # in the records' own order the lagged column differs at the maneuvers' first rows
+    direct = records.select(lagged.alias("x"))["x"].to_numpy()[order]
+    assert not np.array_equal(direct, want[:, 0])
+
+
 def test_records_out_of_time_order_are_sorted(quick: pl.DataFrame) -> None:
     """A maneuver split in two runs, or two rows of one out of time order: the records are
     sorted as before (``order`` is ``None``), into the frame the sorted records give."""

@@ -117,6 +117,17 @@ def measurement_columns(
     return out
 
 
+def _sorted_for(frame: pl.DataFrame, expr: pl.Expr) -> pl.DataFrame:
+    """The columns of ``frame`` that ``expr`` reads (with ``maneuver_id`` and ``t``; all of them
+    if polars cannot tell), sorted by maneuver and time."""
+    try:
+        roots = expr.meta.root_names()
+    except pl.exceptions.PolarsError:  # an expression polars cannot introspect: every column
+        roots = frame.columns
+    keep = [c for c in dict.fromkeys(["maneuver_id", "t", *roots]) if c in frame.columns]
+    return frame.select(keep).sort(["maneuver_id", "t"])
+
+
 def design_columns(
     frame: pl.DataFrame,
     coef: str,
@@ -135,8 +146,15 @@ def design_columns(
     # filled column by column into one row-major array (no intermediate copies)
     aero_x = np.empty((frame.height, len(aero_names)))
     for i, a in enumerate(aero_names):
+        expr = exprs[a].cast(pl.Float64).alias("__reg")
+        if order is not None and a not in AERO_REGRESSORS:
+            # a user's expression may read neighbouring rows (a shift, a rolling mean, across
+            # maneuvers unless it says .over): evaluated on its columns sorted, the rows a
+            # sorted copy of the records gave it
+            aero_x[:, i] = _sorted_for(frame, exprs[a]).with_columns(expr)["__reg"].to_numpy()
+            continue
         # with_columns broadcasts a literal (the constant regressor) to the frame's height
-        col = frame.with_columns(exprs[a].cast(pl.Float64).alias("__reg"))["__reg"].to_numpy()
+        col = frame.with_columns(expr)["__reg"].to_numpy()
         aero_x[:, i] = col if order is None else col[order]
         del col
     aero_x[~np.isfinite(aero_x)] = 0.0
