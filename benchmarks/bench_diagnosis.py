@@ -10,13 +10,18 @@ scaled to the number of candidate fits the aerodelta run made (printed), since t
 would take many minutes.
 
 Memory is the process's peak resident set during ``diagnose`` above its resident set just
-before (the peak is reset first where Linux allows, ``/proc/self/clear_refs``), and the peak
-of the arrays numpy allocates (tracemalloc, in a second run: it slows numpy down).
+before (the peak is reset first where Linux allows, ``/proc/self/clear_refs``), the peak
+itself (the records, held by the caller, included), and the peak of the arrays numpy
+allocates (tracemalloc, in a second run: it slows numpy down; ``--no-traced`` skips it).
+Time is wall and CPU seconds of the process (on a shared machine the CPU seconds are the
+steadier measure; the selection runs single-threaded, the simulator's evaluation in threads).
 
     python benchmarks/bench_diagnosis.py [--size default|N] [--scaling 2,5,10] [--no-peer]
+        [--no-traced]
 
 ``--scaling`` takes repetitions per (flap, kind, pusher) cell of the virtual campaign (40
-maneuvers each).
+maneuvers each): ``--scaling 50`` is issue 17's 2,000-maneuver floor. The campaigns come out
+of the ingest in flight order (``m1000_...`` after ``m999_...``), as a user's records would.
 """
 
 from __future__ import annotations
@@ -104,9 +109,10 @@ def _reset_peak() -> bool:
     return True
 
 
-def measure(data: pl.DataFrame) -> dict[str, float]:
-    """Wall and CPU time of ``diagnose(data)``, the peak resident set it adds, MB, and (second
-    run) the peak of numpy's allocations, MB."""
+def measure(data: pl.DataFrame, traced: bool = True) -> dict[str, float]:
+    """Wall and CPU time of ``diagnose(data)``, the peak resident set it adds and the peak
+    itself, MB, and (second run, unless ``traced`` is false: NaN) the peak of numpy's
+    allocations, MB."""
     before = _status_mb("VmRSS")
     reset = _reset_peak()
     max_before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
@@ -118,11 +124,13 @@ def measure(data: pl.DataFrame) -> dict[str, float]:
         # no reset: the lifetime peaks after and before (understates if ingest peaked higher)
         peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
         before = max_before
-    tracemalloc.start()
-    diagnose(data)
-    traced = tracemalloc.get_traced_memory()[1] / 1e6
-    tracemalloc.stop()
-    return {"wall": wall, "cpu": cpu, "rss_added": peak - before, "traced": traced}
+    out = {"wall": wall, "cpu": cpu, "rss_added": peak - before, "peak": peak, "traced": np.nan}
+    if traced:
+        tracemalloc.start()
+        diagnose(data)
+        out["traced"] = tracemalloc.get_traced_memory()[1] / 1e6
+        tracemalloc.stop()
+    return out
 
 
 def _campaign(size: str | int, tmp: str) -> pl.DataFrame:
@@ -136,6 +144,9 @@ def main() -> int:
     ap.add_argument("--size", default="default")
     ap.add_argument("--scaling", default="2,5,10", help="repetitions per cell ('' for none)")
     ap.add_argument("--no-peer", action="store_true", help="skip the statsmodels comparison")
+    ap.add_argument(
+        "--no-traced", action="store_true", help="skip the tracemalloc run of each campaign size"
+    )
     args = ap.parse_args()
     size = int(args.size) if args.size.isdigit() else args.size
     with tempfile.TemporaryDirectory() as tmp:
@@ -150,15 +161,16 @@ def main() -> int:
         return sel
 
     core.forward_select = counting
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     d = diagnose(data)
-    ours = time.perf_counter() - t0
+    ours, ours_cpu = time.perf_counter() - t0, time.process_time() - c0
     core.forward_select = orig
     man = sorted(set(data["maneuver_id"].to_list()))
     print(f"campaign: {len(man)} maneuvers, {data.height} rows")
     print(
         f"aerodelta diagnose (everything, incl. the gap map and roll-off): {ours:.1f} s "
-        f"(issue 17 floor: <= 5 s for 200 maneuvers), about {n_fits['n']} candidate fits"
+        f"({ours_cpu:.1f} s of CPU; issue 17 floor: <= 5 s for 200 maneuvers), about "
+        f"{n_fits['n']} candidate fits"
     )
     if not args.no_peer:
         fold_of = {m: i % 5 for i, m in enumerate(man)}
@@ -182,17 +194,17 @@ def main() -> int:
         )
         print(
             f"{'maneuvers':>9} {'rows':>9} {'wall s':>7} {'cpu s':>6} {'ms/man':>7} "
-            f"{'RSS+ MB':>8} {'MB/man':>7} {'numpy MB':>9} {'kB/man':>7}"
+            f"{'RSS+ MB':>8} {'MB/man':>7} {'peak MB':>8} {'numpy MB':>9} {'kB/man':>7}"
         )
     for r in reps:
         with tempfile.TemporaryDirectory() as tmp:
             data = _campaign(r, tmp)
         n_man = int(data["maneuver_id"].n_unique())
-        m = measure(data)
+        m = measure(data, traced=not args.no_traced)
         print(
             f"{n_man:>9} {data.height:>9} {m['wall']:>7.1f} {m['cpu']:>6.1f} "
             f"{1000 * m['wall'] / n_man:>7.1f} {m['rss_added']:>8.0f} "
-            f"{m['rss_added'] / n_man:>7.2f} {m['traced']:>9.0f} "
+            f"{m['rss_added'] / n_man:>7.2f} {m['peak']:>8.0f} {m['traced']:>9.0f} "
             f"{1000 * m['traced'] / n_man:>7.0f}"
         )
         del data

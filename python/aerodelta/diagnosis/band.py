@@ -88,16 +88,44 @@ def band_match(
     frame: pl.DataFrame, outputs: Mapping[str, np.ndarray], cutoffs: Mapping[str, np.ndarray]
 ) -> dict[str, np.ndarray]:
     """Each coefficient's ``outputs`` (one value per row of ``frame``, whose maneuvers are
-    contiguous) low-passed per maneuver at ``cutoffs`` (:func:`band_cutoffs`)."""
+    contiguous) low-passed per maneuver at ``cutoffs`` (:func:`band_cutoffs`); the
+    coefficients of one maneuver are filtered together (:func:`_lowpass_rows`)."""
     starts, ends, t = _runs(frame)
-    out: dict[str, np.ndarray] = {}
-    for coef, v in outputs.items():
-        y = np.asarray(v, dtype=float).copy()
-        fc = cutoffs.get(coef)
-        if fc is not None:
-            for k, (s, e) in enumerate(zip(starts, ends, strict=True)):
-                if np.isfinite(fc[k]) and e - s >= 8:
-                    dt = float(np.median(np.diff(t[s:e])))
-                    y[s:e] = lowpass(y[s:e], dt, float(fc[k]))
-        out[coef] = y
+    out: dict[str, np.ndarray] = {c: np.asarray(v, dtype=float).copy() for c, v in outputs.items()}
+    for k, (s, e) in enumerate(zip(starts, ends, strict=True)):
+        if e - s < 8:
+            continue
+        todo = [c for c in out if (fc := cutoffs.get(c)) is not None and np.isfinite(fc[k])]
+        if not todo:
+            continue
+        dt = float(np.median(np.diff(t[s:e])))
+        fcs = np.array([float(cutoffs[c][k]) for c in todo])
+        if not dt > 0.0:
+            continue
+        ok = fcs > 0.0  # lowpass() leaves a non-positive cut-off's values as they are
+        rows = [c for c, keep in zip(todo, ok, strict=True) if keep]
+        if rows:
+            filtered = _lowpass_rows(np.stack([out[c][s:e] for c in rows]), dt, fcs[ok])
+            for c, f in zip(rows, filtered, strict=True):
+                out[c][s:e] = f
     return out
+
+
+def _lowpass_rows(x: np.ndarray, dt: float, cutoffs_hz: np.ndarray) -> np.ndarray:
+    """:func:`lowpass` of each row of ``x`` (one maneuver's samples, at least 8) at its own
+    cut-off (all positive, as ``dt``), the rows' transforms taken together: the same
+    operations row by row, the same numbers as :func:`lowpass` of each row."""
+    n = x.shape[1]
+    line = x[:, :1] + (x[:, -1:] - x[:, :1]) * np.arange(n) / (n - 1)
+    d = x - line
+    ext = np.concatenate([-d[:, :0:-1], d, -d[:, -2::-1]], axis=1)
+    p = 1 << int(np.ceil(np.log2(ext.shape[1])))
+    buf = np.zeros((x.shape[0], p))
+    buf[:, : ext.shape[1]] = ext
+    f = np.fft.rfftfreq(p, dt)
+    w = np.empty((x.shape[0], f.size))
+    for i, fc in enumerate(cutoffs_hz):
+        lo, hi = RAMP[0] * float(fc), RAMP[1] * float(fc)
+        w[i] = np.clip((hi - f) / (hi - lo), 0.0, 1.0)
+    spec = np.fft.rfft(buf, axis=1) * w
+    return np.fft.irfft(spec, p, axis=1)[:, n - 1 : 2 * n - 1] + line

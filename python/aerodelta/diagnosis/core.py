@@ -26,12 +26,13 @@ from aerodelta.diagnosis.cv import (
     HatGrid,
     build_design,
     fold_prediction,
+    fold_solves,
     fold_stats,
     profile_out,
     row_prediction,
-    solve,
+    total_solve,
 )
-from aerodelta.diagnosis.data import load_inputs, maneuver_codes
+from aerodelta.diagnosis.data import in_order, load_records, maneuver_codes, sorted_columns
 from aerodelta.diagnosis.nested import effect_outer, outer_evaluation, outer_summary
 from aerodelta.diagnosis.regressors import (
     delayed_controls,
@@ -47,7 +48,7 @@ from aerodelta.diagnosis.select import (
     forward_select,
 )
 from aerodelta.diagnosis.simulator import load_simulator
-from aerodelta.diagnosis.stochastic import event_columns, rolloff_finding
+from aerodelta.diagnosis.stochastic import DETECTOR_CHANNELS, event_columns, rolloff_finding
 from aerodelta.diagnosis.vocabulary import (
     COEFFICIENTS,
     NEEDS_MODEL,
@@ -71,6 +72,36 @@ SCHEMA = "aerodelta.diagnosis/1"
 
 #: Measurement regressors computed from the simulator's output (band-matched with it).
 SIM_REGRESSORS = ("m_alpha_bias", "m_beta_bias", "m_control_lag", "m_time_skew")
+
+#: The columns of the records the diagnosis holds sorted throughout (others are sorted when
+#: they are read: the measured coefficients, the stall alpha's and the roll-off detector's).
+FRAME_COLUMNS = ("maneuver_id", "t", "alpha_deg", "flap_deg", "kind")
+
+#: The columns :func:`aerodelta.diagnosis.where.stall_alphas` reads.
+STALL_COLUMNS = ("flap_deg", "alpha_deg", "CX_meas", "CZ_meas")
+
+
+def _with_columns(
+    frame: pl.DataFrame, records: pl.DataFrame, order: np.ndarray | None, columns: Sequence[str]
+) -> pl.DataFrame:
+    """``frame`` (the sorted :data:`FRAME_COLUMNS`) with the other ``columns`` of ``records``
+    that it has, their rows put in ``order`` (``records`` itself when ``order`` is ``None``: it
+    is sorted and has them all)."""
+    if order is None:
+        return records
+    extra = [c for c in columns if c in records.columns and c not in frame.columns]
+    return frame.with_columns([records[c].gather(order) for c in extra])
+
+
+def _put_in_order(columns: dict[str, dict[str, np.ndarray]], order: np.ndarray) -> None:
+    """Every array of ``columns`` (per regressor, per coefficient) replaced by its rows in
+    ``order``, one at a time (an array shared by several entries is gathered once)."""
+    done: dict[int, np.ndarray] = {}
+    for per_coef in columns.values():
+        for c, v in per_coef.items():
+            if id(v) not in done:
+                done[id(v)] = v[order]
+            per_coef[c] = done[id(v)]
 
 
 @dataclass(frozen=True)
@@ -221,11 +252,7 @@ def _cv_prediction(
     design: Design, stats: FoldStats, rows: dict[str, np.ndarray], model: Sequence[Candidate]
 ) -> np.ndarray:
     """Held-out prediction per row of a model (each row predicted by its fold's complement)."""
-    cols = columns_for(design, model)
-    thetas = [
-        solve(design, stats.train_gram[q], stats.train_xty[q], cols)
-        for q in range(len(stats.train_gram))
-    ]
+    thetas = fold_solves(design, stats, columns_for(design, model))
     return fold_prediction(
         design, thetas, rows["fold"], rows["flap"], rows["alpha"], rows["aero"], rows["glob"]
     )
@@ -248,7 +275,7 @@ def _effect_rows(
         steps.append(("timing_alignment", _cv_prediction(design, stats, rows, base)))
     chosen: list[Candidate] = []
     full_model = base + [s.candidate for s in sel.selected if s.candidate not in base]
-    theta_full = solve(design, stats.total_gram, stats.total_xty, columns_for(design, full_model))
+    theta_full = total_solve(design, stats, columns_for(design, full_model))
     y = rows["y"]
     for s in sel.selected:
         held_gain = None
@@ -422,25 +449,34 @@ def _diagnose(  # noqa: PLR0917 - the arguments of diagnose(), passed through
 ) -> Diagnosis:
     cfg = config or DiagnoseConfig()
     vocab = vocabulary or default_vocabulary(cfg.measurement)
-    frame, ac, notes = load_inputs(data, aircraft, progress=progress)
-    sim = load_simulator(model, frame, ac.cbar_m)
-    sim_c = sim.predict(frame)
-    meas_cols = measurement_columns(frame, sim, ac)
+    # ``records``: every column, in the records' own row order where that spares a sorted
+    # copy of them (``order`` then sorts their rows, data.load_records); what is computed from
+    # them row by row or maneuver by maneuver (the simulator, the regressors, the band) is
+    # computed there and put in (maneuver_id, t) order, the order of ``frame``: the columns
+    # read below, sorted, and all that follows sees exactly what a sorted copy would give
+    records, order, ac, notes = load_records(data, aircraft, progress=progress)
+    frame = sorted_columns(records, order, FRAME_COLUMNS)
+    sim = load_simulator(model, records, ac.cbar_m)
+    sim_c = sim.predict(records)
+    meas_cols = measurement_columns(records, sim, ac)
     cutoffs: dict[str, np.ndarray] = {}
     if cfg.band_match:
         # the simulator's output (and what is computed from it) in the band of the measured
         # coefficients, which come from smoothed rates and accelerations (band.py)
-        cutoffs = band_cutoffs(frame)
+        cutoffs = band_cutoffs(records)
         for c, fc in cutoffs.items():
             if not np.isfinite(fc).any():
                 notes.append(
                     f"{c}: the simulator's output is compared at full band (no '{BAND_CHANNEL[c]}' "
                     "channel to take the measured coefficient's band from)"
                 )
-        sim_c = band_match(frame, sim_c, cutoffs)
+        sim_c = band_match(records, sim_c, cutoffs)
         for name in SIM_REGRESSORS:
             if name in meas_cols:
-                meas_cols[name] = band_match(frame, meas_cols[name], cutoffs)
+                meas_cols[name] = band_match(records, meas_cols[name], cutoffs)
+    if order is not None:
+        sim_c = {c: v[order] for c, v in sim_c.items()}
+        _put_in_order(meas_cols, order)
     man = (
         frame.group_by("maneuver_id", maintain_order=True)
         .agg(pl.col("flap_deg").first(), pl.col("kind").first())
@@ -456,7 +492,7 @@ def _diagnose(  # noqa: PLR0917 - the arguments of diagnose(), passed through
     fidx = np.searchsorted(np.array(flaps), frame["flap_deg"].to_numpy())
     folds_m = _fold_ids(man, cfg.folds, cfg.seed)
     alpha = frame["alpha_deg"].to_numpy()
-    stall = stall_alphas(frame)
+    stall = stall_alphas(_with_columns(frame, records, order, STALL_COLUMNS))
     # polars string columns built from codes (a conversion of 400,000 numpy strings took 0.1 s)
     phase = pl.Series("phase", PHASES).gather(phase_codes(frame, stall))
     rcode = region_codes(alpha, frame["flap_deg"].to_numpy(), stall)
@@ -485,14 +521,18 @@ def _diagnose(  # noqa: PLR0917 - the arguments of diagnose(), passed through
         aero_names = sorted({r for c in cands if not c.global_ for r in c.regressors})
         glob_names = sorted({r for c in cands if c.global_ for r in c.regressors})
         aero_x, glob_x = design_columns(
-            frame, coef, aero_names=aero_names, glob_names=glob_names, vocab=vocab, meas=meas_cols
-        )
+            records, coef, aero_names=aero_names, glob_names=glob_names, vocab=vocab,
+            meas=meas_cols, order=order,
+        )  # fmt: skip
         # a global regressor that cannot move the coefficient by 1e-7 at its practical floor
         # is untestable for this coefficient (e.g. dC_Y/dalpha of a lateral model is ~0)
         for gi, g in enumerate(glob_names):
             if _rms(glob_x[:, gi]) * PRACTICAL_FLOOR.get(g, 1.0) < 1e-7:
                 glob_x[:, gi] = 0.0
-        meas = frame[f"{coef}_meas"].to_numpy()
+        # this coefficient's measurement regressors are in glob_x now
+        for per_coef in meas_cols.values():
+            per_coef.pop(coef, None)
+        meas = in_order(records[f"{coef}_meas"].to_numpy(), order)
         y = meas - sim_c[coef]
         design = build_design(
             y, mcode, dflap, alpha, aero_x, glob_x, aero_names, glob_names, grid, man.height,
@@ -506,7 +546,7 @@ def _diagnose(  # noqa: PLR0917 - the arguments of diagnose(), passed through
             ]
             fitted = np.zeros_like(y)
             if model:
-                th = solve(design, stats.total_gram, stats.total_xty, columns_for(design, model))
+                th = total_solve(design, stats, columns_for(design, model))
                 fitted = row_prediction(design, th, dflap, alpha, aero_x, glob_x)
             resid = y - fitted
             if sim.differentiable and any(s.candidate.name == "control_lag" for s in sel.selected):
@@ -516,12 +556,12 @@ def _diagnose(  # noqa: PLR0917 - the arguments of diagnose(), passed through
                 # roll-off spikes in campaigns that had none
                 g = design.global_names.index("m_control_lag")
                 tau = float(th[0][design.grid.n * len(design.aero_names) + g])
-                late = sim.predict(delayed_controls(frame, tau))
+                late = sim.predict(delayed_controls(records, tau))
                 if cfg.band_match:
-                    late = band_match(frame, {"Cl": late["Cl"]}, cutoffs)
-                exact = late["Cl"] - sim_c["Cl"]
+                    late = band_match(records, {"Cl": late["Cl"]}, cutoffs)
+                exact = in_order(late["Cl"], order) - sim_c["Cl"]
                 resid = resid + tau * glob_x[:, g] - exact
-            ro = rolloff_finding(frame, resid)
+            ro = rolloff_finding(_with_columns(frame, records, order, DETECTOR_CHANNELS), resid)
             if ro["detected"]:
                 # each event's moment, with its own random amplitude, profiled out of its
                 # maneuver (Frisch-Waugh); the deterministic effects are then selected again
@@ -543,6 +583,8 @@ def _diagnose(  # noqa: PLR0917 - the arguments of diagnose(), passed through
             "aero": aero_x, "glob": glob_x,
         }  # fmt: skip
         effects, steps_ = _effect_rows(sel, design, stats, rows)
+        # the rows' regressors are not read again (the outer folds need only the statistics)
+        del aero_x, glob_x, rows
         outer = None
         if cfg.nested:
             ev = outer_evaluation(design, folds_m, cands, cfg.selection)
@@ -582,7 +624,8 @@ def _diagnose(  # noqa: PLR0917 - the arguments of diagnose(), passed through
         if outer is not None:
             coefs[coef]["outer"] = outer
         # this coefficient's rows and statistics go before the next one's are built
-        del aero_x, glob_x, design, stats, sel, rows, steps_
+        del design, stats, sel, steps_
+        sim_c.pop(coef)
     coefs["Cl"]["rolloff"] = {k: v for k, v in ro.items() if k != "centres"}
     coefs["Cl"]["rolloff"]["events_profiled_out"] = len(ro["centres"]) if ro["detected"] else 0
     if ro["detected"]:

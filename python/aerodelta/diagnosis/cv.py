@@ -27,7 +27,8 @@ from __future__ import annotations
 import functools
 import itertools
 from collections.abc import Iterator, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -84,6 +85,9 @@ class Design:
     - ``lowrank`` (``n_local x r``, or ``None``) and ``lowrank_of`` (``r``): the columns of
       every maneuver's ``F_m`` side by side and the maneuver of each, ``G_m = blocks - F_m F_m'``
       (the per-maneuver nuisance profiled out, :func:`profile_out`).
+    - ``block_rows`` (or ``None``): the row of each maneuver in ``diag``, ``off``, ``cross``
+      and ``glob``; a :meth:`subset` shares those four with the design it is taken from (they
+      are most of its memory) and reads its maneuvers' rows through it.
 
     :meth:`dense_gram` (and the ``gram`` view) writes one out in full.
     """
@@ -102,6 +106,11 @@ class Design:
     n_rows: IntArray
     lowrank: FloatArray | None = None  # (n_local, r): F_m of every maneuver, side by side
     lowrank_of: IntArray | None = None  # (r,): the maneuver of each column, ascending
+    block_rows: IntArray | None = None  # (M,): each maneuver's row in diag/off/cross/glob
+
+    def block_index(self, maneuvers: IntArray) -> IntArray:
+        """The rows of ``maneuvers`` (indices of this design's) in the block arrays."""
+        return maneuvers if self.block_rows is None else self.block_rows[maneuvers]
 
     @property
     def n_local(self) -> int:
@@ -115,11 +124,20 @@ class Design:
 
     @property
     def nbytes(self) -> int:
-        """Bytes held by the per-maneuver statistics."""
-        arrays = [self.diag, self.off, self.cross, self.glob, self.xty, self.yty, self.n_rows]
+        """Bytes of the per-maneuver statistics (of a :meth:`subset`, its maneuvers' blocks
+        count, which the design it was taken from holds)."""
+        arrays = [self.xty, self.yty, self.n_rows]
         if self.lowrank is not None and self.lowrank_of is not None:
             arrays += [self.lowrank, self.lowrank_of]
-        return int(sum(a.nbytes for a in arrays))
+        blocks = [self.diag, self.off, self.cross, self.glob]
+        if self.block_rows is None:
+            arrays += blocks
+        else:
+            arrays.append(self.block_rows)
+        own = sum(a.nbytes for a in arrays)
+        if self.block_rows is not None:
+            own += self.n_maneuvers * sum(a[:1].nbytes for a in blocks)
+        return int(own)
 
     def gram_sum(self, maneuvers: IntArray) -> FloatArray:
         """``sum_m G_m`` over ``maneuvers`` (indices), dense on the local layout."""
@@ -130,9 +148,10 @@ class Design:
         out = np.zeros((p, p))
         if idx.size == 0:
             return out
-        d = self.diag[idx].sum(axis=0)
-        o = self.off[idx].sum(axis=0)
-        c = self.cross[idx].sum(axis=0)
+        rows = self.block_index(idx)
+        d = self.diag[rows].sum(axis=0)
+        o = self.off[rows].sum(axis=0)
+        c = self.cross[rows].sum(axis=0)
         a4 = np.zeros((k_n, r_n, k_n, r_n))
         kk = np.arange(k_n)
         a4[kk, :, kk, :] = d.transpose(2, 0, 1)
@@ -142,7 +161,7 @@ class Design:
         cc = c.transpose(2, 0, 1).reshape(kr, g_n)
         out[:kr, kr:] = cc
         out[kr:, :kr] = cc.T
-        out[kr:, kr:] = self.glob[idx].sum(axis=0)
+        out[kr:, kr:] = self.glob[rows].sum(axis=0)
         if self.lowrank is not None and self.lowrank_of is not None:
             f = self.lowrank[:, np.isin(self.lowrank_of, idx)]
             out -= f @ f.T
@@ -156,17 +175,22 @@ class Design:
         """``diag(G_m)`` per maneuver, ``(M, n_local)``."""
         r_n, g_n = len(self.aero_names), len(self.global_names)
         ar, ag = np.arange(r_n), np.arange(g_n)
-        aero = self.diag[:, ar, ar, :]  # (M, R, K)
-        out = np.concatenate(
-            [aero.transpose(0, 2, 1).reshape(self.n_maneuvers, -1), self.glob[:, ag, ag]], axis=1
-        )
+        if self.block_rows is None:
+            aero = self.diag[:, ar, ar, :]  # (M, R, K)
+            glob = self.glob[:, ag, ag]
+        else:
+            br = self.block_rows[:, None]
+            aero = self.diag[br, ar, ar]  # (M, R, K): the same values, the same layout
+            glob = self.glob[br, ag, ag]
+        out = np.concatenate([aero.transpose(0, 2, 1).reshape(self.n_maneuvers, -1), glob], axis=1)
         if self.lowrank is not None and self.lowrank_of is not None:
             np.subtract.at(out, self.lowrank_of, (self.lowrank * self.lowrank).T)
         return out
 
     def subset(self, maneuvers: IntArray) -> Design:
         """The statistics of ``maneuvers`` only (ascending indices), renumbered ``0..``: the
-        design an outer fold's selection sees (:mod:`aerodelta.diagnosis.nested`)."""
+        design an outer fold's selection sees (:mod:`aerodelta.diagnosis.nested`). It shares
+        the Gram blocks with this design (``block_rows``: no copy of them)."""
         idx = np.asarray(maneuvers, dtype=np.int64)
         if idx.size > 1 and np.any(np.diff(idx) <= 0):
             raise ValueError("Design.subset: maneuver indices must be ascending and distinct")
@@ -182,16 +206,28 @@ class Design:
             list(self.aero_names),
             list(self.global_names),
             self.man_flap[idx],
-            self.diag[idx],
-            self.off[idx],
-            self.cross[idx],
-            self.glob[idx],
+            self.diag,
+            self.off,
+            self.cross,
+            self.glob,
             self.xty[idx],
             self.yty[idx],
             self.n_rows[idx],
             lowrank,
             lowrank_of,
+            self.block_index(idx),
         )
+
+    def owning(self) -> Design:
+        """This design with its own copy of its maneuvers' Gram blocks (itself if it has
+        them)."""
+        if self.block_rows is None:
+            return self
+        br = self.block_rows
+        return replace(
+            self, diag=self.diag[br], off=self.off[br], cross=self.cross[br],
+            glob=self.glob[br], block_rows=None,
+        )  # fmt: skip
 
     @property
     def gram(self) -> Sequence[FloatArray]:
@@ -396,6 +432,7 @@ def profile_out(design: Design, n_nuisance: int) -> Design:
         return design
     if design.lowrank is not None:
         raise ValueError("profile_out: this design's nuisance columns were profiled out already")
+    design = design.owning()
     k_n, r_n = design.grid.n, len(design.aero_names)
     kr = k_n * r_n
     g_keep = len(design.global_names) - n_nuisance
@@ -478,7 +515,13 @@ def penalty(design: Design) -> list[FloatArray]:
 @dataclass
 class FoldStats:
     """Per fold and flap, the normal equations on the flap's local layout (training = total
-    minus the fold's), with the penalty added to the training ones."""
+    minus the fold's), with the penalty added to the training ones.
+
+    ``memo`` keeps the solves already made on these statistics, by model columns
+    (:func:`fold_solves`, :func:`total_solve`, :func:`heldout_sse`): the selection meets the
+    same model several times (a timing term scored by leaving it out of the model of the last
+    step, the held-out predictions of the chosen models, the outer folds' scoring), and a
+    solve repeated on the same numbers gives the same numbers."""
 
     folds: IntArray  # fold per maneuver
     train_gram: list[list[FloatArray]]  # [fold][flap]
@@ -486,6 +529,51 @@ class FoldStats:
     total_gram: list[FloatArray]  # [flap], penalised
     total_xty: list[FloatArray]
     members: list[list[IntArray]] = field(default_factory=list)  # [fold][flap]: maneuvers
+    memo: dict[tuple[str, bytes, bytes], tuple[Design, object]] = field(
+        default_factory=dict, repr=False, compare=False
+    )
+
+
+def _memoised(
+    design: Design, stats: FoldStats, what: str, cols: tuple[IntArray, IntArray], make: Any
+) -> Any:
+    """``make()`` for ``what`` on ``cols`` of ``design``, computed once per ``stats``."""
+    key = (
+        what,
+        np.asarray(cols[0], dtype=np.int64).tobytes(),
+        np.asarray(cols[1], dtype=np.int64).tobytes(),
+    )
+    hit = stats.memo.get(key)
+    if hit is not None and hit[0] is design:
+        return hit[1]
+    value = make()
+    stats.memo[key] = (design, value)
+    return value
+
+
+def fold_solves(
+    design: Design, stats: FoldStats, cols: tuple[IntArray, IntArray]
+) -> list[list[FloatArray]]:
+    """Per fold, the per-flap parameters of the model on ``cols`` fitted on the fold's
+    complement (:func:`solve` on the training statistics; shared, do not modify)."""
+    return _memoised(
+        design, stats, "folds", cols,
+        lambda: [
+            solve(design, stats.train_gram[q], stats.train_xty[q], cols)
+            for q in range(len(stats.train_gram))
+        ],
+    )  # fmt: skip
+
+
+def total_solve(
+    design: Design, stats: FoldStats, cols: tuple[IntArray, IntArray]
+) -> list[FloatArray]:
+    """The per-flap parameters of the model on ``cols`` fitted on all the maneuvers
+    (:func:`solve` on the penalised totals; shared, do not modify)."""
+    return _memoised(
+        design, stats, "total", cols,
+        lambda: solve(design, stats.total_gram, stats.total_xty, cols),
+    )  # fmt: skip
 
 
 def fold_stats(design: Design, folds: IntArray) -> FoldStats:
@@ -551,13 +639,16 @@ def solve(
     parts = []
     for f in range(n_f):
         gm, xv = grams[f], xtys[f]
-        a = gm[np.ix_(a_cols, a_cols)]
+        # rows, then columns: the same block as gm[np.ix_(a_cols, a_cols)], a third of the time
+        a = gm[a_cols][:, a_cols]
         d = np.diag(a)
         live = d > 1e-12 * max(float(d.max()) if d.size else 0.0, 1e-300)
-        ac = a_cols[live]
-        a = a[np.ix_(live, live)]
-        c = gm[np.ix_(ac, g_cols)]
-        s_mat += gm[np.ix_(g_cols, g_cols)]
+        ac = a_cols
+        if not live.all():
+            ac = a_cols[live]
+            a = a[live][:, live]
+        c = gm[_ix(ac, g_cols)]
+        s_mat += gm[_ix(g_cols, g_cols)]
         s_rhs += xv[g_cols]
         if ac.size:
             rhs = np.column_stack([xv[ac], c])
@@ -584,6 +675,13 @@ def solve(
     return thetas
 
 
+def _ix(*index: IntArray) -> tuple[IntArray, ...]:
+    """``np.ix_`` of integer index arrays without its argument checks (called thousands of
+    times on small blocks): each array shaped to broadcast along its own axis."""
+    k = len(index)
+    return tuple(a.reshape((1,) * i + (-1,) + (1,) * (k - 1 - i)) for i, a in enumerate(index))
+
+
 def _quadratic_forms(
     design: Design, ms: IntArray, theta: FloatArray, cols: tuple[IntArray, IntArray]
 ) -> FloatArray:
@@ -596,19 +694,20 @@ def _quadratic_forms(
     gidx = g_cols - kr
     idx = np.concatenate(cols)
     n = ms.size
-    out = -2.0 * (design.xty[np.ix_(ms, idx)] @ theta[idx])
+    bm = design.block_index(ms)  # the blocks' rows (a subset shares them)
+    out = -2.0 * (design.xty[_ix(ms, idx)] @ theta[idx])
     a = theta[:kr].reshape(k_n, r_n)[:, ridx].T  # (r, K)
     g = theta[g_cols]
     if ridx.size:
         wd = a[:, None, :] * a[None, :, :]
-        out += design.diag[np.ix_(ms, ridx, ridx)].reshape(n, -1) @ wd.ravel()
+        out += design.diag[_ix(bm, ridx, ridx)].reshape(n, -1) @ wd.ravel()
         wo = a[:, None, :-1] * a[None, :, 1:]
-        out += 2.0 * (design.off[np.ix_(ms, ridx, ridx)].reshape(n, -1) @ wo.ravel())
+        out += 2.0 * (design.off[_ix(bm, ridx, ridx)].reshape(n, -1) @ wo.ravel())
         if gidx.size:
             wc = a[:, None, :] * g[None, :, None]
-            out += 2.0 * (design.cross[np.ix_(ms, ridx, gidx)].reshape(n, -1) @ wc.ravel())
+            out += 2.0 * (design.cross[_ix(bm, ridx, gidx)].reshape(n, -1) @ wc.ravel())
     if gidx.size:
-        out += design.glob[np.ix_(ms, gidx, gidx)].reshape(n, -1) @ np.outer(g, g).ravel()
+        out += design.glob[_ix(bm, gidx, gidx)].reshape(n, -1) @ np.outer(g, g).ravel()
     if design.lowrank is not None and design.lowrank_of is not None:
         own = np.isin(design.lowrank_of, ms)
         if own.any():
@@ -643,20 +742,25 @@ def heldout_sse(
     design: Design, stats: FoldStats, cols: tuple[IntArray, IntArray]
 ) -> tuple[FloatArray, list[list[FloatArray]]]:
     """Held-out squared error per maneuver of the model on ``cols`` (each maneuver predicted by
-    the fit on the other folds), and each fold's per-flap parameters."""
+    the fit on the other folds), and each fold's per-flap parameters (shared, do not modify)."""
+    sse, thetas = _memoised(design, stats, "heldout", cols, lambda: _heldout(design, stats, cols))
+    return sse.copy(), list(thetas)
+
+
+def _heldout(
+    design: Design, stats: FoldStats, cols: tuple[IntArray, IntArray]
+) -> tuple[FloatArray, list[list[FloatArray]]]:
     n_q = len(stats.train_gram)
-    thetas = []
     sse = design.yty.copy()
     members = stats.members or [
         [np.flatnonzero((stats.folds == q) & (design.man_flap == f)) for f in range(design.n_flaps)]
         for q in range(n_q)
     ]
+    thetas = fold_solves(design, stats, cols)
     for q in range(n_q):
-        th = solve(design, stats.train_gram[q], stats.train_xty[q], cols)
-        thetas.append(th)
         for f, ms in enumerate(members[q]):
             if ms.size:
-                sse[ms] = design.yty[ms] + _quadratic_forms(design, ms, th[f], cols)
+                sse[ms] = design.yty[ms] + _quadratic_forms(design, ms, thetas[q][f], cols)
     return sse, thetas
 
 
@@ -670,21 +774,25 @@ def fold_prediction(  # noqa: PLR0917 - rows' columns, positional by design
     glob: FloatArray,
 ) -> FloatArray:
     """:func:`row_prediction` of each row with its fold's parameters (``thetas[fold][flap]``),
-    in one pass over the rows."""
+    :data:`PREDICT_ROWS` rows at a time."""
     k_n, r_n = design.grid.n, len(design.aero_names)
     kr = k_n * r_n
-    j, w1 = design.grid.locate(alpha_deg)
     th = np.stack([np.stack([t[:kr].reshape(k_n, r_n) for t in tq]) for tq in thetas])
     used = np.flatnonzero(np.any(th != 0.0, axis=(0, 1, 2)))
+    tu = th[..., used]
     out = np.zeros(alpha_deg.size)
-    if used.size:
-        tu = th[..., used]
-        coef = tu[fold, flap, j] * (1.0 - w1)[:, None] + tu[fold, flap, j + 1] * w1[:, None]
-        out = np.einsum("nr,nr->n", coef, aero[:, used])
-    if glob.shape[1]:
-        for q, tq in enumerate(thetas):
-            m = fold == q
-            out[m] += glob[m] @ tq[0][kr:]
+    for sl in _row_chunks(alpha_deg.size):
+        fo, fl = fold[sl], flap[sl]
+        o = out[sl]
+        if used.size:
+            j, w1 = design.grid.locate(alpha_deg[sl])
+            coef = tu[fo, fl, j] * (1.0 - w1)[:, None] + tu[fo, fl, j + 1] * w1[:, None]
+            o[:] = np.einsum("nr,nr->n", coef, aero[sl][:, used])
+        if glob.shape[1]:
+            g = glob[sl]
+            for q, tq in enumerate(thetas):
+                m = fo == q
+                o[m] += g[m] @ tq[0][kr:]
     return out
 
 
@@ -696,20 +804,34 @@ def row_prediction(  # noqa: PLR0917 - rows' columns, positional by design
     aero: FloatArray,
     glob: FloatArray,
 ) -> FloatArray:
-    """The model ``sum theta * column`` at each row (``thetas``: per-flap local vectors)."""
+    """The model ``sum theta * column`` at each row (``thetas``: per-flap local vectors),
+    :data:`PREDICT_ROWS` rows at a time."""
     k_n, r_n = design.grid.n, len(design.aero_names)
-    j, w1 = design.grid.locate(alpha_deg)
     th = np.stack([t[: k_n * r_n].reshape(k_n, r_n) for t in thetas])
     # only the regressors the model uses (the others' parameters are all zero)
     used = np.flatnonzero(np.any(th != 0.0, axis=(0, 1)))
+    tu = th[:, :, used]
     out = np.zeros(alpha_deg.size)
-    if used.size:
-        tu = th[:, :, used]
-        coef = tu[flap, j] * (1.0 - w1)[:, None] + tu[flap, j + 1] * w1[:, None]
-        out = np.einsum("nr,nr->n", coef, aero[:, used])
-    if glob.shape[1]:
-        out = out + glob @ thetas[0][k_n * r_n :]
+    for sl in _row_chunks(alpha_deg.size):
+        o = out[sl]
+        if used.size:
+            fl = flap[sl]
+            j, w1 = design.grid.locate(alpha_deg[sl])
+            coef = tu[fl, j] * (1.0 - w1)[:, None] + tu[fl, j + 1] * w1[:, None]
+            o[:] = np.einsum("nr,nr->n", coef, aero[sl][:, used])
+        if glob.shape[1]:
+            o[:] = o + glob[sl] @ thetas[0][k_n * r_n :]
     return out
+
+
+#: Rows predicted at once by :func:`fold_prediction` and :func:`row_prediction` (bounds their
+#: temporaries, a few arrays of this many rows by the model's regressors).
+PREDICT_ROWS = 1 << 17
+
+
+def _row_chunks(n: int) -> Iterator[slice]:
+    """Consecutive slices of at most :data:`PREDICT_ROWS` of ``n`` rows."""
+    return (slice(lo, min(lo + PREDICT_ROWS, n)) for lo in range(0, n, PREDICT_ROWS))
 
 
 def _abs_ranks(d: FloatArray) -> FloatArray:

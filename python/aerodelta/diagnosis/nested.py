@@ -42,11 +42,12 @@ import numpy as np
 from aerodelta.diagnosis.cv import (
     Design,
     FloatArray,
+    FoldStats,
     IntArray,
     fold_stats,
     improvement_test,
     model_sse,
-    solve,
+    total_solve,
 )
 from aerodelta.diagnosis.select import (
     SelectionConfig,
@@ -93,16 +94,17 @@ class OuterEvaluation:
 
 def _fit_and_score(
     inner: Design,
-    stats_total: tuple[Sequence[FloatArray], Sequence[FloatArray]],
+    stats: FoldStats,
     design: Design,
     outer: IntArray,
     model: Sequence[Candidate],
 ) -> FloatArray:
-    """Error on the ``outer`` maneuvers of ``model`` fitted on all of ``inner``."""
+    """Error on the ``outer`` maneuvers of ``model`` fitted on all of ``inner`` (``stats``:
+    the inner design's)."""
     if not model:
         return design.yty[outer].astype(float)
     cols = columns_for(inner, model)
-    th = solve(inner, stats_total[0], stats_total[1], cols)
+    th = total_solve(inner, stats, cols)
     return model_sse(design, outer, th, cols)
 
 
@@ -150,7 +152,7 @@ def outer_evaluation(
             replace(cfg, seed=cfg.seed + _FOLD_SEED * (o + 1)),
             report=False,
         )
-        total = (stats.total_gram, stats.total_xty)
+        total = stats
         nuis = list(sel.nuisance)
         effects = [s.candidate for s in sel.selected if s.candidate not in nuis]
         model = nuis + effects

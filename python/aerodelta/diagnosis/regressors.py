@@ -117,6 +117,17 @@ def measurement_columns(
     return out
 
 
+def _sorted_for(frame: pl.DataFrame, expr: pl.Expr) -> pl.DataFrame:
+    """The columns of ``frame`` that ``expr`` reads (with ``maneuver_id`` and ``t``; all of them
+    if polars cannot tell), sorted by maneuver and time."""
+    try:
+        roots = expr.meta.root_names()
+    except pl.exceptions.PolarsError:  # an expression polars cannot introspect: every column
+        roots = frame.columns
+    keep = [c for c in dict.fromkeys(["maneuver_id", "t", *roots]) if c in frame.columns]
+    return frame.select(keep).sort(["maneuver_id", "t"])
+
+
 def design_columns(
     frame: pl.DataFrame,
     coef: str,
@@ -125,16 +136,27 @@ def design_columns(
     glob_names: list[str],
     vocab: Vocabulary,
     meas: dict[str, dict[str, np.ndarray]],
+    order: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """The aerodynamic (``n x R``) and global (``n x Gn``) regressor matrices of ``coef``."""
+    """The aerodynamic (``n x R``) and global (``n x Gn``) regressor matrices of ``coef``.
+
+    ``order`` (a permutation of ``frame``'s rows, or ``None``) puts the aerodynamic regressors'
+    rows in that order as they are filled in; ``meas`` must be in the same order already."""
     exprs = {**AERO_REGRESSORS, **vocab.user_regressors}
     # filled column by column into one row-major array (no intermediate copies)
     aero_x = np.empty((frame.height, len(aero_names)))
     for i, a in enumerate(aero_names):
+        expr = exprs[a].cast(pl.Float64).alias("__reg")
+        if order is not None and a not in AERO_REGRESSORS:
+            # a user's expression may read neighbouring rows (a shift, a rolling mean, across
+            # maneuvers unless it says .over): evaluated on its columns sorted, the rows a
+            # sorted copy of the records gave it
+            aero_x[:, i] = _sorted_for(frame, exprs[a]).with_columns(expr)["__reg"].to_numpy()
+            continue
         # with_columns broadcasts a literal (the constant regressor) to the frame's height
-        aero_x[:, i] = frame.with_columns(exprs[a].cast(pl.Float64).alias("__reg"))[
-            "__reg"
-        ].to_numpy()
+        col = frame.with_columns(expr)["__reg"].to_numpy()
+        aero_x[:, i] = col if order is None else col[order]
+        del col
     aero_x[~np.isfinite(aero_x)] = 0.0
     glob_x = np.empty((frame.height, len(glob_names)))
     for i, g in enumerate(glob_names):

@@ -38,7 +38,7 @@ from aerodelta.diagnosis.cv import (
     local_columns,
     sign_flip_pvalue,
     signed_rank_p,
-    solve,
+    total_solve,
 )
 from aerodelta.diagnosis.vocabulary import Candidate
 
@@ -202,7 +202,7 @@ def score(  # noqa: PLR0917 - internal scoring step
     material = True
     if cand.global_:
         cols = _cols(design, [*base, cand])
-        th = solve(design, stats.total_gram, stats.total_xty, cols)[0]
+        th = total_solve(design, stats, cols)[0]
         k0 = design.grid.n * len(design.aero_names)
         params = {r: float(th[k0 + design.global_names.index(r)]) for r in cand.regressors}
         size = float(np.sqrt(sum(v * v for v in params.values())))
