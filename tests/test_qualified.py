@@ -49,8 +49,13 @@ def test_unmarked_data_without_columns_are_refused(data: pl.DataFrame, tmp_path:
     with pytest.raises(DataError) as e:
         ad.fit(user, config=CFG)
     assert str(e.value) == NO_SIMULATOR
+    # the diagnosis needs the aircraft that flew them, then the simulator: both named
+    with pytest.raises(DataError, match="no aircraft reference"):
+        ad.diagnose(user)
+    own = tmp_path / "aircraft.toml"
+    own.write_text(ad.campaign.aircraft_toml().split("[simulator]")[0])
     with pytest.raises(DataError, match="no qualified model"):
-        ad.diagnose(user, aircraft=None)
+        ad.diagnose(user, aircraft=own)
     # the CLI: one line, exit 1, nothing written
     user.write_parquet(tmp_path / "user.parquet")
     out = tmp_path / "out" / "model.json"

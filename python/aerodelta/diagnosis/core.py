@@ -78,7 +78,7 @@ SIM_REGRESSORS = ("m_alpha_bias", "m_beta_bias", "m_control_lag", "m_time_skew")
 FRAME_COLUMNS = ("maneuver_id", "t", "alpha_deg", "flap_deg", "kind")
 
 #: The columns :func:`aerodelta.diagnosis.where.stall_alphas` reads.
-STALL_COLUMNS = ("flap_deg", "alpha_deg", "CX_meas", "CZ_meas")
+STALL_COLUMNS = ("flap_deg", "alpha_deg", "CX_meas", "CZ_meas", "ct_left", "ct_right")
 
 
 def _with_columns(

@@ -16,6 +16,7 @@ from aerodelta.campaign import aircraft_toml
 from aerodelta.exceptions import DataError
 from aerodelta.fit import model_frame
 from aerodelta.ingest import ingest
+from aerodelta.qualified import flown_on_builtin
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -47,11 +48,19 @@ def read_parquet_guarded(path: Path) -> pl.DataFrame:
     return pl.read_parquet(_guard(path))
 
 
-def _aircraft(aircraft: str | Path | None, folder: Path | None) -> tuple[Aircraft, str]:
+def _aircraft(
+    aircraft: str | Path | None, folder: Path | None, builtin: bool = True
+) -> tuple[Aircraft, str]:
     if aircraft is not None:
         return Aircraft.from_toml(_guard(Path(aircraft))), f"aircraft from {aircraft}"
     if folder is not None and (folder / "aircraft.toml").is_file():
         return Aircraft.from_toml(folder / "aircraft.toml"), f"aircraft from {folder}/aircraft.toml"
+    if not builtin:
+        raise DataError(
+            "no aircraft reference for these records: give it (CLI --aircraft FILE, "
+            "aircraft=...); the diagnosis needs the mass, wing area and chord of the aircraft "
+            "that flew them, and the built-in ADX-37's belong to another aircraft"
+        )
     doc = tomllib.loads(aircraft_toml())
     return Aircraft.from_dict(doc, "built-in ADX-37"), "aircraft: built-in ADX-37 reference"
 
@@ -104,7 +113,7 @@ def load_records(
                 f"{folder}: neither an ingest output (data.parquet) nor a campaign "
                 "(manifest.csv); run `aerodelta ingest` first or point at the campaign"
             )
-    ac, note = _aircraft(aircraft, folder)
+    ac, note = _aircraft(aircraft, folder, flown_on_builtin(df))
     notes.append(note)
     frame = model_frame(df)
     if "kind" not in frame.columns:
