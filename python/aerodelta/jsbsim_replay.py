@@ -189,7 +189,8 @@ def replay_properties(setup: CampaignSetup) -> dict[str, str]:
     """Δ-model channel -> JSBSim property of the campaign's aircraft, for
     :func:`aerodelta.jsbsim.export_jsbsim`: the surfaces as the campaign records them
     (``da_deg = signs["da"] * left-aileron-pos-rad * 180/π``, Etkin), the thrust coefficients
-    as functions this module adds (engine thrust by side over q̄S, as the records' ``ct_*``)."""
+    as functions this module adds (engine thrust by side over q̄S, as the records' ``ct_*``),
+    the roll spoilers 0 (the campaign's aircraft have none)."""
     r2d = repr(180.0 / math.pi)
     cfg, s = setup.cfg, setup.signs
     return {
@@ -197,6 +198,9 @@ def replay_properties(setup: CampaignSetup) -> dict[str, str]:
         "de_deg": f"{s['de']!r} * {cfg.elevator_rad} * {r2d}",
         "dr_deg": f"{s['dr']!r} * {cfg.rudder_rad} * {r2d}",
         "flap_deg": cfg.flap_deg_prop if cfg.flap_norm_per_deg else "fcs/flap-pos-deg",
+        # no roll spoilers: the records carry none and the ingestion sets ds_deg = 0
+        "dsl_deg": "0",
+        "dsr_deg": "0",
         **_CT,
     }
 
@@ -670,3 +674,226 @@ def _frame(  # noqa: PLR0917
     for p in extra:
         out[p] = a[p]
     return pl.DataFrame(out)
+
+
+def aero_at_states(
+    setup: CampaignSetup,
+    aircraft_root: str | os.PathLike[str],
+    record: pl.DataFrame,
+    rows: Sequence[int],
+    *,
+    extra: Sequence[str] = (),
+) -> pl.DataFrame:
+    """A replay aircraft's aerodynamics at recorded states (no integration).
+
+    For each row of ``record``: JSBSim's initial conditions are set to the recorded altitude,
+    true airspeed, alpha, beta, Euler angles and body rates, the surfaces to the recorded
+    ``da_deg``/``de_deg``/``dr_deg`` (replay channel active), the flaps to ``flap_deg``, and
+    ``run_ic`` evaluates every model once with the integration suspended.
+
+    Returns
+    -------
+    polars.DataFrame
+        ``row``, ``alpha_deg``, ``beta_deg`` (as JSBSim computed them back), ``Cl_aero``,
+        ``Cn_aero`` (aero moments about the CG / q̄Sb), ``CY_aero`` (body side force / q̄S)
+        and each property of ``extra``.
+    """
+    cfg = setup.cfg
+    fdm = _new_fdm(Path(aircraft_root), cfg.model)
+    fdm["propulsion/set-running"] = -1
+    fdm["gear/gear-cmd-norm"] = 0.0
+    fdm[_ACTIVE] = 1.0
+    out: dict[str, list[float]] = {
+        k: [] for k in ("row", "alpha_deg", "beta_deg", "Cl_aero", "Cn_aero", "CY_aero", *extra)
+    }
+    for i in rows:
+        r = record.row(int(i), named=True)
+        fdm["ic/h-sl-ft"] = r["h_m"] / jc.FT
+        fdm["ic/vt-fps"] = r["tas_mps"] / jc.FT
+        fdm["ic/alpha-deg"] = r["alpha_deg"]
+        fdm["ic/beta-deg"] = r["beta_deg"]
+        fdm["ic/phi-deg"] = r["phi_deg"]
+        fdm["ic/theta-deg"] = r["theta_deg"]
+        fdm["ic/psi-true-deg"] = r["psi_deg"]
+        for a in "pqr":
+            fdm[f"ic/{a}-rad_sec"] = r[f"{a}_dps"] * jc.D2R
+        if cfg.flap_norm_per_deg:
+            fdm["fcs/flap-cmd-norm"] = r["flap_deg"] * cfg.flap_norm_per_deg
+        for k in ("da", "de", "dr"):
+            fdm[_SURF[k]] = r[f"{k}_deg"] / setup.signs[k] * jc.D2R
+        fdm.run_ic()
+        qs = fdm["aero/qbar-psf"] * fdm["metrics/Sw-sqft"]
+        out["row"].append(int(i))
+        out["alpha_deg"].append(fdm["aero/alpha-deg"])
+        out["beta_deg"].append(fdm["aero/beta-deg"])
+        out["Cl_aero"].append(fdm["moments/l-aero-lbsft"] / (qs * fdm["metrics/bw-ft"]))
+        out["Cn_aero"].append(fdm["moments/n-aero-lbsft"] / (qs * fdm["metrics/bw-ft"]))
+        out["CY_aero"].append(fdm["forces/fby-aero-lbs"] / qs)
+        for p in extra:
+            out[p].append(fdm[p])
+    return pl.DataFrame(out)
+
+
+# --------------------------------------------------------------------------------------------
+# Scoring
+
+
+def score_window(record: pl.DataFrame, withhold_alpha_deg: float) -> float:
+    """End (s, record clock) of the scored window: the first sample after the record's largest
+    alpha at which the recorded alpha is back at or below the withhold alpha, i.e. where the Δ
+    stops acting (the recovery); the record's end when it never is. The window starts at the
+    record's start: below the withhold alpha the qualified and extended aircraft are the full
+    one, so the early part scores the replay itself."""
+    a = record["alpha_deg"].to_numpy()
+    t = record["t"].to_numpy()
+    k = int(np.argmax(a))
+    back = np.nonzero(a[k:] <= withhold_alpha_deg)[0]
+    return float(t[k + back[0]]) if back.size else float(t[-1])
+
+
+def _model_frame(setup: CampaignSetup, rep: pl.DataFrame) -> pl.DataFrame:
+    """The Δ model's input channels from a replay (as the campaign's records name them)."""
+    qs = rep["qbar_psf"] * rep["S_sqft"]
+    return rep.with_columns(
+        (rep["thrust_left_lbs"] / qs).alias("ct_left"),
+        (rep["thrust_right_lbs"] / qs).alias("ct_right"),
+    )
+
+
+def replay_campaign(
+    campaign_dir: str | os.PathLike[str],
+    model: str | os.PathLike[str] | DeltaModel,
+    *,
+    maneuvers: Sequence[str] | None = None,
+    variants: Sequence[str] = VARIANTS,
+    root_dir: str | os.PathLike[str] | None = None,
+    keep_replays: bool = False,
+    progress: bool = False,
+) -> pl.DataFrame:
+    """Fly held-out maneuvers of a JSBSim campaign on the full, qualified and extended aircraft
+    and score each replay against the record (Theil inequality coefficient, TIC).
+
+    Parameters
+    ----------
+    campaign_dir
+        A folder written by :func:`aerodelta.jsbsim_campaign.generate_jsbsim_campaign`.
+    model
+        The Δ model fitted on the campaign (``aerodelta.fit(..., qualified="columns")``), or
+        its file.
+    maneuvers
+        Maneuver ids to replay (those held out of the fit); default every maneuver.
+    variants
+        Aircraft to fly, of :data:`VARIANTS`.
+    root_dir
+        The JSBSim root the campaign flew (default: the ``jsbsim`` package's).
+    keep_replays
+        Also return the replayed time histories (``(scores, replays)``).
+    progress
+        One line per maneuver on stderr.
+
+    Returns
+    -------
+    polars.DataFrame
+        One row per maneuver (``maneuver_id``, and ``"pooled"``: all maneuvers' windows
+        concatenated), ``window`` (``"delta"``: from the start to :func:`score_window`, the
+        scored window; ``"record"``: the whole record, for information) and ``channel`` of
+        :data:`CHANNELS`: ``tic_<variant>`` (0 perfect, 1 useless), ``ratio`` =
+        ``tic_extended / tic_qualified``, ``t_end_s``, ``n_samples``. With ``keep_replays``,
+        also the replays (``maneuver_id``, ``variant`` and :func:`replay_maneuver`'s columns).
+
+    The throttle schedule (:func:`replay_maneuver`) is fitted once per maneuver on the
+    qualified aircraft (what a user has) and flown by every variant.
+    """
+    bad = [v for v in variants if v not in VARIANTS]
+    if bad or not variants:
+        raise InvalidInputError(f"variants {bad or '[]'}: use some of {', '.join(VARIANTS)}")
+    setup = load_setup(campaign_dir, root_dir)
+    dm = model if isinstance(model, DeltaModel) else _load_model(model)
+    ids = setup.manifest["maneuver_id"].to_list()
+    chosen = list(ids) if maneuvers is None else list(maneuvers)
+    unknown = [m for m in chosen if m not in ids]
+    if unknown:
+        raise InvalidInputError(
+            f"maneuvers {', '.join(unknown)} are not in {setup.path / 'manifest.csv'}"
+        )
+    seeds = dict(zip(ids, setup.manifest["seed"].to_list(), strict=True))
+    rows: list[dict[str, Any]] = []
+    pooled: dict[tuple[str, str, str], list[np.ndarray]] = {}
+    replays: list[pl.DataFrame] = []
+    with tempfile.TemporaryDirectory(prefix="aerodelta-replay-") as tmp:
+        roots = {
+            v: write_replay_aircraft(
+                setup, Path(tmp) / v, variant=v, model=dm if v == "extended" else None
+            )
+            for v in dict.fromkeys([*variants, "qualified"])
+        }
+        for mid in chosen:
+            rec = _read_record(setup, mid)
+            seed = int(seeds[mid])
+            sched = _Flight(setup, roots["qualified"], rec, seed).throttle_schedule()
+            t_end = score_window(rec, setup.withhold_alpha_deg)
+            reps = {
+                v: replay_maneuver(setup, roots[v], rec, seed=seed, throttle=sched)
+                for v in variants
+            }
+            if keep_replays:
+                replays += [
+                    r.with_columns(pl.lit(mid).alias("maneuver_id"), pl.lit(v).alias("variant"))
+                    for v, r in reps.items()
+                ]
+            for window, end in (("delta", t_end), ("record", math.inf)):
+                m = rec["t"].to_numpy() <= end
+                for ch in CHANNELS:
+                    y = rec[ch].to_numpy()[m]
+                    row: dict[str, Any] = {"maneuver_id": mid, "window": window, "channel": ch}
+                    pooled.setdefault((window, ch, "_y"), []).append(y)
+                    for v, r in reps.items():
+                        yh = r[ch].to_numpy()[m]
+                        row[f"tic_{v}"] = theil_inequality(y, yh)
+                        pooled.setdefault((window, ch, v), []).append(yh)
+                    row["t_end_s"] = float(min(end, rec["t"][-1]))
+                    row["n_samples"] = int(m.sum())
+                    rows.append(row)
+            if progress:
+                print(
+                    f"[replay] {mid}: window to {t_end:.1f} s, throttle x{sched[0]:.3f}, full "
+                    f"from {sched[1]:.2f} s",
+                    file=sys.stderr,
+                )
+    for window in ("delta", "record"):
+        for ch in CHANNELS:
+            y = np.concatenate(pooled[(window, ch, "_y")])
+            row = {"maneuver_id": "pooled", "window": window, "channel": ch}
+            for v in variants:
+                row[f"tic_{v}"] = theil_inequality(y, np.concatenate(pooled[(window, ch, v)]))
+            row["t_end_s"] = math.nan
+            row["n_samples"] = int(y.size)
+            rows.append(row)
+    out = pl.DataFrame(rows)
+    if "extended" in variants and "qualified" in variants:
+        out = out.with_columns((pl.col("tic_extended") / pl.col("tic_qualified")).alias("ratio"))
+    if keep_replays:
+        return out, pl.concat(replays, how="diagonal_relaxed")  # type: ignore[return-value]
+    return out
+
+
+def _load_model(path: str | os.PathLike[str]) -> DeltaModel:
+    p = Path(path)
+    if not p.is_file():
+        raise InvalidInputError(f"{p}: no such Δ model file; give the file aerodelta fit wrote")
+    return DeltaModel.load(p)
+
+
+def _read_record(setup: CampaignSetup, mid: str) -> pl.DataFrame:
+    row = setup.manifest.filter(pl.col("maneuver_id") == mid)
+    p = setup.path / str(row["file"][0])
+    try:
+        rec = pl.read_parquet(p)
+    except (OSError, pl.exceptions.PolarsError) as e:
+        raise DataError(f"{p}: cannot read the record of maneuver {mid}: {e}") from None
+    need = {"t", "alpha_deg", "tas_mps", "h_m", "rho_kgm3", "flap_deg", "psi_deg", "ct_left",
+            "ct_right", "da_deg", "de_deg", "dr_deg", *CHANNELS}  # fmt: skip
+    missing = sorted(need - set(rec.columns))
+    if missing:
+        raise DataError(f"{p}: channels {', '.join(missing)} missing; the replay needs them")
+    return rec
