@@ -50,11 +50,16 @@ def _record(camp: Path, mid: str, kind: str = "records") -> pl.DataFrame:
 
 def test_qualified_aircraft_equals_campaign_sim(campaign: Path, tmp_path: Path) -> None:
     """The qualified JSBSim aircraft's aero at recorded states equals the campaign's qualified
-    model C*_sim less its propulsion part (C*_sim = C*_true + C*_prop_true − dC*_true);
-    the full aircraft equals C*_true there, so the check sees the withheld terms."""
+    model C*_sim less its propulsion part (C*_sim = C*_true + C*_prop_true − dC*_true), and
+    qualified − full equals −dC*_true to round-off (the same state in both aircraft: what the
+    state setting cannot reproduce cancels). Absolute bounds: F-15 1e-12 (measured 1e-15);
+    DHC-6 1e-5 (measured 2e-6 in CY, 1e-8 in Cl): its drag and lift, which enter the body-axis
+    side force through sideslip (wind axes) and the roll moment through the CG's 1 cm lateral
+    offset, differ slightly at a state set by initial conditions (engines, rates of change)."""
     setup = load_setup(campaign)
     qual = write_replay_aircraft(setup, tmp_path / "q", variant="qualified")
     full = write_replay_aircraft(setup, tmp_path / "f", variant="full")
+    bound = 1e-12 if setup.cfg.model == "f15" else 1e-5
     checked_above = 0
     for mid in setup.manifest["maneuver_id"]:
         rec, tru = _record(campaign, mid), _record(campaign, mid, "truth")
@@ -65,8 +70,10 @@ def test_qualified_aircraft_equals_campaign_sim(campaign: Path, tmp_path: Path) 
         assert np.max(np.abs(q["alpha_deg"].to_numpy() - t["alpha_deg"].to_numpy())) < 1e-9
         for c in ("Cl", "Cn", "CY"):
             sim = (t[f"{c}_sim"] - t[f"{c}_prop_true"]).to_numpy()
-            assert np.max(np.abs(q[f"{c}_aero"].to_numpy() - sim)) < 1e-12, (mid, c)
-            assert np.max(np.abs(f[f"{c}_aero"].to_numpy() - t[f"{c}_true"].to_numpy())) < 1e-12
+            assert np.max(np.abs(q[f"{c}_aero"].to_numpy() - sim)) < bound, (mid, c)
+            assert np.max(np.abs(f[f"{c}_aero"].to_numpy() - t[f"{c}_true"].to_numpy())) < bound
+            dq = (q[f"{c}_aero"] - f[f"{c}_aero"]).to_numpy()
+            assert np.max(np.abs(dq + t[f"d{c}_true"].to_numpy())) < 1e-13, (mid, c)
         above = t["alpha_deg"].to_numpy() > setup.withhold_alpha_deg
         d = np.abs(f["Cl_aero"].to_numpy() - q["Cl_aero"].to_numpy()) + np.abs(
             f["Cn_aero"].to_numpy() - q["Cn_aero"].to_numpy()
@@ -91,9 +98,11 @@ def test_full_aircraft_replay_reproduces_the_record(campaign: Path, tmp_path: Pa
         rep = replay_maneuver(setup, root, rec, seed=int(seed))
         assert rep.height == rec.height
         assert np.allclose(rep["t"], rec["t"], atol=1e-9)
-        # the surfaces at the record's samples are the recorded ones
-        for k in ("da_deg", "dr_deg"):
-            assert np.max(np.abs(rep[k].to_numpy() - rec[k].to_numpy())) < 1e-6, (mid, k)
+        # the surfaces at the record's samples are the recorded ones (the first sample is the
+        # replay's own trim, within the trim's tolerance of the campaign's: 5e-3 deg)
+        for k in ("da_deg", "de_deg", "dr_deg"):
+            e = np.abs(rep[k].to_numpy() - rec[k].to_numpy())
+            assert np.max(e[1:]) < 1e-6 and e[0] < 0.02, (mid, k)
         for ch in CHANNELS:
             tic = theil_inequality(rec[ch].to_numpy(), rep[ch].to_numpy())
             assert tic < bound, (mid, ch, tic)
@@ -124,9 +133,11 @@ def _synthetic_model(flaps: list[float]) -> DeltaModel:
 def test_extended_increments_equal_engine(campaign: Path, tmp_path: Path) -> None:
     """The Δ the extended aircraft adds (aero/aerodelta/<C>/delta-blended) at the replayed
     states equals DeltaModel.evaluate on channels computed here: the record's surfaces, C_T from
-    the replayed thrust / q̄S; p b/2V and r b/2V are JSBSim's air-relative rates times
-    aero/bi2vel (the export's mapping, docs/export.md), checked against the body rates times
-    b/2V (they differ by JSBSim's frame bookkeeping, 1e-3 of their range). The
+    the replayed thrust / q̄S; p b/2V and r b/2V are the values the export's channel
+    functions read (aero/aerodelta/in/phat = p-aero x bi2vel, docs/export.md), checked against
+    the replayed body rates times b/2V (within 1e-3 of their range: JSBSim's air-relative rate
+    as the aerodynamics read it during the frame differs from the one read after it by up to
+    4e-4 relative). The
     first sample is the replay's own trim (its surfaces within the trim's tolerance of the
     record's), so the comparison starts at the second, where the recorded surfaces drive."""
     setup = load_setup(campaign)
@@ -136,6 +147,7 @@ def test_extended_increments_equal_engine(campaign: Path, tmp_path: Path) -> Non
     mid = setup.manifest["maneuver_id"][-1]
     rec = _record(campaign, mid)
     props = [f"aero/aerodelta/{c}/delta-blended" for c in ("CY", "Cl", "Cn")]
+    props += ["aero/aerodelta/in/phat", "aero/aerodelta/in/rhat"]
     rep = replay_maneuver(setup, root, rec, throttle=(1.0, math.inf), extra=props)
     b = rep["b_ft"].to_numpy() * 0.3048
     v = rep["tas_mps"].to_numpy()
@@ -146,8 +158,8 @@ def test_extended_increments_equal_engine(campaign: Path, tmp_path: Path) -> Non
             "alpha_deg": rep["alpha_deg"],
             "beta_deg": rep["beta_deg"],
             "flap_deg": rec["flap_deg"],
-            "phat": rep["phat"],
-            "rhat": rep["rhat"],
+            "phat": rep["aero/aerodelta/in/phat"],
+            "rhat": rep["aero/aerodelta/in/rhat"],
             "da_deg": rec["da_deg"],
             "de_deg": rec["de_deg"],
             "dr_deg": rec["dr_deg"],
@@ -159,7 +171,7 @@ def test_extended_increments_equal_engine(campaign: Path, tmp_path: Path) -> Non
     )
     for c in ("p", "r"):
         body = np.radians(rep[f"{c}_dps"].to_numpy()) * b / (2 * v)
-        hat = rep[f"{c}hat"].to_numpy()
+        hat = rep[f"aero/aerodelta/in/{c}hat"].to_numpy()
         assert np.max(np.abs(hat - body)) < 1e-3 * np.ptp(body), c
     ev = model.evaluate(frame)
     for k in ("da_deg", "de_deg", "dr_deg"):
@@ -170,7 +182,7 @@ def test_extended_increments_equal_engine(campaign: Path, tmp_path: Path) -> Non
         eng = ev[f"d{c}_blended"].to_numpy()[1:]
         scale = float(np.max(np.abs(eng)))
         assert scale > 1e-4  # the Δ acts in this maneuver
-        assert np.max(np.abs(jsb - eng)) <= 1e-7 * scale, c
+        assert np.max(np.abs(jsb - eng)) <= 1e-9 * scale, c
         live += int(np.sum(np.abs(eng) > 0))
     assert live > 100
     # the Δ reaches the dynamics: the extended replay leaves the full one past alpha_l

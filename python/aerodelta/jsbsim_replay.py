@@ -700,8 +700,7 @@ def aero_at_states(
     """
     cfg = setup.cfg
     fdm = _new_fdm(Path(aircraft_root), cfg.model)
-    fdm["propulsion/set-running"] = -1
-    fdm["gear/gear-cmd-norm"] = 0.0
+    _trim(fdm, setup, record, 0)
     fdm[_ACTIVE] = 1.0
     out: dict[str, list[float]] = {
         k: [] for k in ("row", "alpha_deg", "beta_deg", "Cl_aero", "Cn_aero", "CY_aero", *extra)
@@ -717,11 +716,14 @@ def aero_at_states(
         fdm["ic/psi-true-deg"] = r["psi_deg"]
         for a in "pqr":
             fdm[f"ic/{a}-rad_sec"] = r[f"{a}_dps"] * jc.D2R
-        if cfg.flap_norm_per_deg:
-            fdm["fcs/flap-cmd-norm"] = r["flap_deg"] * cfg.flap_norm_per_deg
         for k in ("da", "de", "dr"):
             fdm[_SURF[k]] = r[f"{k}_deg"] / setup.signs[k] * jc.D2R
         fdm.run_ic()
+        if cfg.flap_norm_per_deg and abs(fdm[cfg.flap_deg_prop] - r["flap_deg"]) > 1e-6:
+            raise DataError(
+                f"row {i}: flap {r['flap_deg']:g} deg differs from the record's first sample; "
+                "evaluate one flap setting per call"
+            )
         qs = fdm["aero/qbar-psf"] * fdm["metrics/Sw-sqft"]
         out["row"].append(int(i))
         out["alpha_deg"].append(fdm["aero/alpha-deg"])
