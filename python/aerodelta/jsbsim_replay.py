@@ -564,27 +564,32 @@ class _Flight:
 
     def throttle_schedule(self) -> tuple[float, float]:
         """The campaign pilot's throttle, fitted to the recorded thrust: one setting (a factor
-        on the trim throttle, over the first 2 s) then full throttle from the recovery (the
-        time minimising the thrust error around the first sustained excess of the recorded
-        thrust over the held setting's, 5 % of the largest recorded thrust)."""
-        fit_s = 2.0
-        nf = int(round(fit_s / jc.DT))
+        on the trim throttle) then full throttle from the recovery. The factor is fitted over
+        the first 2 s, the recovery located at the first sustained excess of the recorded
+        thrust over the held setting's (5 % of the largest recorded thrust, 5 samples), the
+        factor refitted over the whole held part (from the start to 3 s before that excess:
+        the sensor noise averages out over it) and the recovery time fitted over the 3 s
+        before and 2 s after it (golden sections, least squares on the thrust)."""
         hi_f = 1.0 / max(float(np.max(self.thr0)), 1e-3)
 
-        def err_f(f: float) -> float:
-            return self.thrust_error(self.fly(f, math.inf, nf)["_thrust"], 0.0, fit_s)
+        def err_f(f: float, span: float) -> float:
+            nf = round(span / jc.DT)
+            return self.thrust_error(self.fly(f, math.inf, nf)["_thrust"], 0.0, span)
 
-        factor = _golden(err_f, 0.0, hi_f, 1e-4)
+        factor = _golden(lambda f: err_f(f, 2.0), 0.0, hi_f, 1e-3)
         held = self.fly(factor, math.inf)["_thrust"]
         m = held.shape[1]
         excess = (self.rec_thrust[:, :m] - held).sum(axis=0) / np.max(self.rec_thrust.sum(axis=0))
-        over = excess > 0.05
-        run = np.convolve(over.astype(float), np.ones(5), mode="valid") >= 5
-        if not run.any():
+        run = np.convolve((excess > 0.05).astype(float), np.ones(5), mode="valid") >= 5
+        t_exc = float(self.t[int(np.argmax(run))]) if run.any() else math.inf
+        span = max(2.0, min(t_exc, float(self.t[-1])) - 3.0)
+        if span > 2.0:
+            w = 0.05 * hi_f
+            factor = _golden(lambda f: err_f(f, span), max(factor - w, 0.0), factor + w, 1e-5)
+        if not math.isfinite(t_exc):
             return factor, math.inf
-        t_exc = float(self.t[int(np.argmax(run))])
         lo, hi = max(t_exc - 3.0, 0.0), t_exc
-        n_to = int(round((min(t_exc + 2.0, self.t[-1]) - self.t[0]) / jc.DT))
+        n_to = round((min(t_exc + 2.0, float(self.t[-1])) - self.t[0]) / jc.DT)
 
         def err_t(tf: float) -> float:
             return self.thrust_error(self.fly(factor, tf, n_to)["_thrust"], lo, t_exc + 2.0)
