@@ -59,7 +59,7 @@ def summarize(rows: pl.DataFrame) -> str:
     """The pooled and per-maneuver tables of the scored window."""
     cols = ["aircraft", "seed", "channel", "tic_full", "tic_qualified", "tic_extended", "ratio"]
     out = []
-    for window in ("delta", "record"):
+    for window in ("predictable", "delta", "record"):
         w = rows.filter(pl.col("window") == window)
         pooled = w.filter(pl.col("maneuver_id") == "pooled").select(cols).sort(cols[:3])
         out.append(f"== window '{window}', pooled over the held-out maneuvers of each campaign")
@@ -100,8 +100,17 @@ def main() -> None:
         print("== per maneuver, window 'delta'")
         print(
             df.filter((pl.col("window") == "delta") & (pl.col("maneuver_id") != "pooled"))
-            .select("aircraft", "seed", "maneuver_id", "channel", "t_end_s", "tic_full",
-                    "tic_qualified", "tic_extended", "ratio")  # fmt: skip
+            .select(
+                "aircraft",
+                "seed",
+                "maneuver_id",
+                "channel",
+                "t_end_s",
+                "tic_full",
+                "tic_qualified",
+                "tic_extended",
+                "ratio",
+            )
             .sort("aircraft", "seed", "maneuver_id", "channel")
         )
 

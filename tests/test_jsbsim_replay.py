@@ -14,12 +14,12 @@ import numpy as np
 import polars as pl
 import pytest
 
-pytest.importorskip("jsbsim")
+pytest.importorskip("jsbsim", reason="needs the jsbsim package: pip install 'aerodelta[jsbsim]'")
 
-from aerodelta.exceptions import AerodeltaError  # noqa: E402
-from aerodelta.fit import theil_inequality  # noqa: E402
-from aerodelta.jsbsim_campaign import generate_jsbsim_campaign  # noqa: E402
-from aerodelta.jsbsim_replay import (  # noqa: E402
+from aerodelta.exceptions import AerodeltaError
+from aerodelta.fit import theil_inequality
+from aerodelta.jsbsim_campaign import generate_jsbsim_campaign
+from aerodelta.jsbsim_replay import (
     CHANNELS,
     aero_at_states,
     load_setup,
@@ -28,7 +28,7 @@ from aerodelta.jsbsim_replay import (  # noqa: E402
     score_window,
     write_replay_aircraft,
 )
-from aerodelta.model import DeltaModel  # noqa: E402
+from aerodelta.model import DeltaModel
 
 #: Maneuvers flown per aircraft: the F-15's three (straight, turning, sideslip); the DHC-6 at
 #: flaps 0 (straight) and 20 (turning).
@@ -219,7 +219,7 @@ def test_bad_input_is_one_line(tmp_path: Path, campaign: Path) -> None:
     setup = load_setup(campaign)
     with pytest.raises(AerodeltaError, match="variant 'half'"):
         write_replay_aircraft(setup, tmp_path / "r", variant="half")
-    with pytest.raises(AerodeltaError, match="not in .*manifest.csv"):
+    with pytest.raises(AerodeltaError, match=r"not in .*manifest\.csv"):
         replay_campaign(campaign, _synthetic_model([0.0]), maneuvers=["nope"])
     with pytest.raises(AerodeltaError, match="no such Δ model file"):
         replay_campaign(campaign, tmp_path / "missing.json")

@@ -50,9 +50,12 @@ from aerodelta.model import DeltaModel
 
 __all__ = [
     "CHANNELS",
+    "DIVERGED",
     "VARIANTS",
     "CampaignSetup",
+    "aero_at_states",
     "load_setup",
+    "predictable_until",
     "replay_campaign",
     "replay_maneuver",
     "replay_properties",
@@ -494,7 +497,7 @@ class _Flight:
         self.thr0 = np.array([fdm[f"fcs/throttle-cmd-norm[{i}]"] for i in range(self.n_eng)])
         xml = setup.jsbsim_root / "aircraft" / cfg.model / f"{cfg.model}.xml"
         self.sides = jc._engine_sides(xml, self.n_eng)
-        n = int(round((t[-1] - t[0]) / jc.DT))
+        n = round((t[-1] - t[0]) / jc.DT)
         ts = t[0] + jc.DT * np.arange(1, n + 1)
         surf = {
             k: np.interp(ts, t, record[f"{k}_deg"].to_numpy()) / setup.signs[k] * jc.D2R
@@ -758,13 +761,27 @@ def score_window(record: pl.DataFrame, withhold_alpha_deg: float) -> float:
     return float(t[k + back[0]]) if back.size else float(t[-1])
 
 
-def _model_frame(setup: CampaignSetup, rep: pl.DataFrame) -> pl.DataFrame:
-    """The Δ model's input channels from a replay (as the campaign's records name them)."""
-    qs = rep["qbar_psf"] * rep["S_sqft"]
-    return rep.with_columns(
-        (rep["thrust_left_lbs"] / qs).alias("ct_left"),
-        (rep["thrust_right_lbs"] / qs).alias("ct_right"),
-    )
+#: The full aircraft's replay error, as a fraction of a channel's recorded range, that ends
+#: the ``"predictable"`` window (:func:`predictable_until`).
+DIVERGED = 0.1
+
+
+def predictable_until(record: pl.DataFrame, full: pl.DataFrame, t_end: float) -> float:
+    """Time (s) the full aircraft's replay (the truth flown with the recorded inputs) stops
+    reproducing the record: the first sample where its error on any of p, r, φ, β exceeds
+    :data:`DIVERGED` times that channel's recorded range up to ``t_end``; ``inf`` if never.
+    Past it the open-loop motion (a stall's chaotic part) no longer follows the inputs, and
+    no aerodynamic model can be scored against the record there."""
+    t = record["t"].to_numpy()
+    n = min(len(t), full.height)
+    m = t[:n] <= t_end
+    bad = np.zeros(n, dtype=bool)
+    for ch in CHANNELS:
+        y = record[ch].to_numpy()[:n]
+        rng = float(np.ptp(y[m])) if m.any() else 0.0
+        bad |= np.abs(full[ch].to_numpy()[:n] - y) > DIVERGED * max(rng, 1e-12)
+    k = np.nonzero(bad)[0]
+    return float(t[k[0]]) if k.size else math.inf
 
 
 def replay_campaign(
@@ -802,8 +819,10 @@ def replay_campaign(
     -------
     polars.DataFrame
         One row per maneuver (``maneuver_id``, and ``"pooled"``: all maneuvers' windows
-        concatenated), ``window`` (``"delta"``: from the start to :func:`score_window`, the
-        scored window; ``"record"``: the whole record, for information) and ``channel`` of
+        concatenated), ``window`` (``"delta"``: from the start to :func:`score_window`;
+        ``"predictable"``: that window ended where the full aircraft's own replay leaves the
+        record, :func:`predictable_until`, when ``"full"`` is flown; ``"record"``: the whole
+        record) and ``channel`` of
         :data:`CHANNELS`: ``tic_<variant>`` (0 perfect, 1 useless), ``ratio`` =
         ``tic_extended / tic_qualified``, ``t_end_s``, ``n_samples``. With ``keep_replays``,
         also the replays (``maneuver_id``, ``variant`` and :func:`replay_maneuver`'s columns).
@@ -848,7 +867,10 @@ def replay_campaign(
                     r.with_columns(pl.lit(mid).alias("maneuver_id"), pl.lit(v).alias("variant"))
                     for v, r in reps.items()
                 ]
-            for window, end in (("delta", t_end), ("record", math.inf)):
+            windows = {"delta": t_end, "record": math.inf}
+            if "full" in reps:
+                windows["predictable"] = min(t_end, predictable_until(rec, reps["full"], t_end))
+            for window, end in windows.items():
                 m = rec["t"].to_numpy() <= end
                 for ch in CHANNELS:
                     y = rec[ch].to_numpy()[m]
@@ -863,11 +885,11 @@ def replay_campaign(
                     rows.append(row)
             if progress:
                 print(
-                    f"[replay] {mid}: window to {t_end:.1f} s, throttle x{sched[0]:.3f}, full "
-                    f"from {sched[1]:.2f} s",
+                    f"[replay] {mid}: windows to {', '.join(f'{v:.1f}' for v in windows.values())}"
+                    f" s, throttle x{sched[0]:.3f}, full from {sched[1]:.2f} s",
                     file=sys.stderr,
                 )
-    for window in ("delta", "record"):
+    for window in sorted({k[0] for k in pooled}):
         for ch in CHANNELS:
             y = np.concatenate(pooled[(window, ch, "_y")])
             row = {"maneuver_id": "pooled", "window": window, "channel": ch}
