@@ -111,16 +111,19 @@ def test_full_aircraft_replay_reproduces_the_record(campaign: Path, tmp_path: Pa
 
 def _synthetic_model(flaps: list[float]) -> DeltaModel:
     """Seeded Δ tables on every channel the replay maps (surfaces with their signs, thrust,
-    spoilers, rates, sideslip), blended in from 8 to 12 deg."""
+    spoilers, rates, sideslip, their rates of change: small, as JSBSim's alpha and beta rates
+    lag a frame and a large gain on them oscillates), blended in from 8 to 12 deg."""
     rng = np.random.default_rng(3)
     regs = ["1", "beta_deg", "phat", "rhat", "deadband(da_deg, 2)", "dr_deg", "de_deg",
-            "ct_left + ct_right", "ct_diff", "ds_deg", "ct_left"]  # fmt: skip
+            "ct_left + ct_right", "ct_diff", "ds_deg", "ct_left", "betadot_dps",
+            "alphadot_dps * beta_deg"]  # fmt: skip
     alpha = [-5.0, 5.0, 10.0, 15.0, 20.0, 30.0]
     coefs = {}
     for c in ("CY", "Cl", "Cn"):
         terms = [
             {"name": f"d{c}_{i}", "regressor": r, "alpha_deg": alpha,
-             "values": (1e-3 * rng.normal(size=(len(flaps), len(alpha)))).tolist()}
+             "values": ((1e-5 if "dot" in r else 1e-3)
+                        * rng.normal(size=(len(flaps), len(alpha)))).tolist()}
             for i, r in enumerate(regs)
         ]  # fmt: skip
         coefs[c] = {"terms": terms, "alpha_l_deg": [8.0] * len(flaps),
@@ -148,6 +151,7 @@ def test_extended_increments_equal_engine(campaign: Path, tmp_path: Path) -> Non
     rec = _record(campaign, mid)
     props = [f"aero/aerodelta/{c}/delta-blended" for c in ("CY", "Cl", "Cn")]
     props += ["aero/aerodelta/in/phat", "aero/aerodelta/in/rhat"]
+    props += ["aero/alphadot-deg_sec", "aero/betadot-deg_sec"]
     rep = replay_maneuver(setup, root, rec, throttle=(1.0, math.inf), extra=props)
     b = rep["b_ft"].to_numpy() * 0.3048
     v = rep["tas_mps"].to_numpy()
@@ -167,8 +171,13 @@ def test_extended_increments_equal_engine(campaign: Path, tmp_path: Path) -> Non
             "ct_right": ctr,
             "ct_diff": ctl - ctr,
             "ds_deg": np.zeros(rec.height),
+            "alphadot_dps": rep["aero/alphadot-deg_sec"],
+            "betadot_dps": rep["aero/betadot-deg_sec"],
         }
     )
+    # JSBSim's sideslip rate is the derivative of the replayed sideslip (sign and units)
+    bdot = np.gradient(rep["beta_deg"].to_numpy(), rep["t"].to_numpy())
+    assert np.corrcoef(bdot, rep["aero/betadot-deg_sec"].to_numpy())[0, 1] > 0.95
     for c in ("p", "r"):
         body = np.radians(rep[f"{c}_dps"].to_numpy()) * b / (2 * v)
         hat = rep[f"aero/aerodelta/in/{c}hat"].to_numpy()
