@@ -86,7 +86,7 @@ def test_qualified_aircraft_equals_campaign_sim(campaign: Path, tmp_path: Path) 
 def test_full_aircraft_replay_reproduces_the_record(campaign: Path, tmp_path: Path) -> None:
     """The full aircraft flown open loop with the recorded surfaces and the fitted throttle
     schedule reproduces the noise-free record. Measured (seed 1): F-15 TIC <= 0.01 on p, r, φ,
-    β, DHC-6 <= 0.056 over nine maneuvers; the remainder is the 200 Hz surface motion between
+    β, DHC-6 <= 0.06 over nine maneuvers; the remainder is the 200 Hz surface motion between
     the 50 Hz samples (interpolated linearly) and, on the DHC-6, the propeller moments' sense
     of the fitted throttle schedule. Bounds: 0.02 (F-15) and 0.05 (DHC-6, two maneuvers,
     measured 0.002-0.02)."""
