@@ -15,8 +15,9 @@ terms re-evaluated with alpha replaced by ``min(alpha, withhold_alpha)``. This m
 3. replays recorded maneuvers open loop (:func:`replay_maneuver`): JSBSim is trimmed at the
    record's initial airspeed and altitude as the campaign trims, then the recorded surface
    positions drive the surfaces (an FCS channel appended to every replay aircraft overrides the
-   surface positions while ``aerodelta/replay/active`` is 1) and a PI loop on each throttle
-   tracks the recorded thrust (``ct_left``, ``ct_right`` times the record's q̄S);
+   surface positions while ``aerodelta/replay/active`` is 1); the campaign records no throttle,
+   so the campaign pilot's schedule (one setting, then full throttle at the recovery) is fitted
+   to the recorded thrust (``ct_left``, ``ct_right`` times the record's q̄S);
 4. scores the replays against the records (:func:`replay_campaign`): Theil inequality
    coefficient (``aerodelta.fit.theil_inequality``) on p, r, φ and β per maneuver and pooled.
 
@@ -481,7 +482,6 @@ class _Inputs:
 
     times: np.ndarray  # s, frame times (record clock)
     surf: dict[str, np.ndarray]  # da, de, dr: JSBSim surface positions (rad)
-    thrust: np.ndarray  # recorded thrust per engine (lbf), (n_engines, n_frames)
 
 
 class _Flight:
@@ -515,7 +515,7 @@ class _Flight:
         share_r = (1 - wl) / max(float((1 - wl).sum()), 1e-12)
         tl, tr = record["ct_left"].to_numpy() * qs, record["ct_right"].to_numpy() * qs
         self.rec_thrust = share_l[:, None] * tl[None, :] + share_r[:, None] * tr[None, :]
-        self.inputs = _Inputs(ts, surf, self.rec_thrust)
+        self.inputs = _Inputs(ts, surf)
 
     def start(self) -> Any:
         fdm = _new_fdm(self.root, self.setup.cfg.model)
@@ -793,7 +793,7 @@ def replay_campaign(
     root_dir: str | os.PathLike[str] | None = None,
     keep_replays: bool = False,
     progress: bool = False,
-) -> pl.DataFrame:
+) -> pl.DataFrame | tuple[pl.DataFrame, pl.DataFrame]:
     """Fly held-out maneuvers of a JSBSim campaign on the full, qualified and extended aircraft
     and score each replay against the record (Theil inequality coefficient, TIC).
 
@@ -902,7 +902,7 @@ def replay_campaign(
     if "extended" in variants and "qualified" in variants:
         out = out.with_columns((pl.col("tic_extended") / pl.col("tic_qualified")).alias("ratio"))
     if keep_replays:
-        return out, pl.concat(replays, how="diagonal_relaxed")  # type: ignore[return-value]
+        return out, pl.concat(replays, how="diagonal_relaxed")
     return out
 
 
