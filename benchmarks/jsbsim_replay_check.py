@@ -3,7 +3,8 @@
 For each aircraft and seed: fly a JSBSim campaign (``generate_jsbsim_campaign``, the aircraft's
 default withheld terms and withhold alpha, sensor noise scale 1, calm air), ingest it, hold
 out every fifth maneuver (as ``benchmarks/jsbsim_identification_check.py``), fit the rest
-(``aerodelta.fit(..., qualified="columns")``, default configuration, the campaign's seed),
+(``aerodelta.fit(..., qualified="columns")``, default configuration with the campaign's seed, or
+the thesis structures without selection with ``--thesis``),
 then replay every held-out maneuver open loop with its recorded surfaces and the throttle
 schedule fitted to its recorded thrust on the full aircraft (the truth), the qualified aircraft
 (withheld terms frozen, the campaign's ``C*_sim``) and the extended aircraft (qualified + the Δ
@@ -16,7 +17,7 @@ alpha), pooled over the held-out maneuvers of a campaign, and per maneuver. The 
 ``tic_extended / tic_qualified <= 0.5`` on every channel, on two aircraft.
 
 Run: ``python benchmarks/jsbsim_replay_check.py --aircraft f15 DHC6 --seeds 11 12 13
-[--size 6] [--out rows.parquet]``. About 20-60 s per campaign on 2 shared cores.
+[--size 6] [--thesis] [--out rows.parquet]``. About 20-60 s per campaign on 2 shared cores.
 """
 
 from __future__ import annotations
@@ -34,7 +35,7 @@ from aerodelta.jsbsim_campaign import generate_jsbsim_campaign
 from aerodelta.jsbsim_replay import replay_campaign
 
 
-def one(aircraft: str, seed: int, size: int, tmp: Path) -> pl.DataFrame:
+def one(aircraft: str, seed: int, size: int, tmp: Path, thesis: bool = False) -> pl.DataFrame:
     """Fly, fit and replay one campaign; the score rows tagged with aircraft and seed."""
     camp = tmp / f"{aircraft}_{seed}"
     t0 = time.perf_counter()
@@ -43,7 +44,8 @@ def one(aircraft: str, seed: int, size: int, tmp: Path) -> pl.DataFrame:
     ids = data["maneuver_id"].unique().sort().to_list()
     held = ids[::5]
     train = data.filter(~pl.col("maneuver_id").is_in(held))
-    fit = ad.fit(train, qualified="columns", config=FitConfig(seed=seed))
+    config = FitConfig(seed=seed, selection=None) if thesis else FitConfig(seed=seed)
+    fit = ad.fit(train, qualified="columns", config=config)
     t1 = time.perf_counter()
     scores = replay_campaign(camp, fit.model, maneuvers=held, progress=True)
     t2 = time.perf_counter()
@@ -86,12 +88,15 @@ def main() -> None:
     ap.add_argument("--seeds", nargs="+", type=int, default=[11, 12, 13])
     ap.add_argument("--size", type=int, default=6)
     ap.add_argument("--out", type=Path)
+    ap.add_argument(
+        "--thesis", action="store_true", help="fit the thesis structures (selection=None)"
+    )
     args = ap.parse_args()
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         for aircraft in args.aircraft:
             for seed in args.seeds:
-                rows.append(one(aircraft, seed, args.size, Path(tmp)))
+                rows.append(one(aircraft, seed, args.size, Path(tmp), args.thesis))
     df = pl.concat(rows, how="diagonal_relaxed")
     if args.out:
         df.write_parquet(args.out)

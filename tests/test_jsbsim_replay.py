@@ -232,3 +232,27 @@ def test_bad_input_is_one_line(tmp_path: Path, campaign: Path) -> None:
         replay_campaign(campaign, _synthetic_model([0.0]), maneuvers=["nope"])
     with pytest.raises(AerodeltaError, match="no such Δ model file"):
         replay_campaign(campaign, tmp_path / "missing.json")
+
+
+def test_cli(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """``aerodelta jsbsim-replay`` prints both windows and writes replay_campaign's table;
+    refused input is one error line."""
+    from aerodelta.cli import main  # noqa: PLC0415
+
+    campaign = tmp_path / "camp"
+    generate_jsbsim_campaign(campaign, aircraft="DHC6", seed=1, size="quick", noise=0.0, only=(4,))
+    _synthetic_model([0.0, 20.0, 40.0]).save(tmp_path / "model.json")
+    mid = "DHC6_004"
+    out = tmp_path / "scores.csv"
+    argv = ["jsbsim-replay", "--campaign", str(campaign), "--model", str(tmp_path / "model.json")]
+    assert main([*argv, "--held-out", mid, "--out", str(out), "--no-progress"]) == 0
+    text = capsys.readouterr().out
+    assert "window 'predictable'" in text and "window 'delta'" in text and mid in text
+    table = pl.read_csv(out)
+    assert set(table["window"]) == {"predictable", "delta", "record"}
+    assert table.filter(pl.col("maneuver_id") == mid).height == 3 * len(CHANNELS)
+    assert main(["jsbsim-replay", "--campaign", str(tmp_path / "nope"), "--model", "m.json"]) == 1
+    err = [x for x in capsys.readouterr().err.splitlines() if x.strip()]
+    assert err == [
+        f"aerodelta jsbsim-replay: error: --campaign {tmp_path / 'nope'}: folder not found"
+    ]
