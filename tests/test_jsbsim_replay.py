@@ -194,7 +194,33 @@ def test_extended_increments_equal_engine(campaign: Path, tmp_path: Path) -> Non
         assert np.max(np.abs(jsb - eng)) <= 1e-9 * scale, c
         live += int(np.sum(np.abs(eng) > 0))
     assert live > 100
-    # the Δ reaches the dynamics: the extended replay leaves the full one past alpha_l
+    # the Δ reaches the moments: at recorded states extended − qualified = w ΔC, plus the Δ side
+    # force's moment about the CG (JSBSim applies it at AERORP, on its wind-axis SIDE axis)
+    qual = write_replay_aircraft(setup, tmp_path / "q", variant="qualified")
+    rows = np.nonzero(rec["alpha_deg"].to_numpy() > 12.0)[0][::25]
+    geo = [f"metrics/aero-rp-{a}-in" for a in "xyz"] + [f"inertia/cg-{a}-in" for a in "xyz"]
+    geo += ["metrics/bw-ft"]
+    ext_s = aero_at_states(setup, root, rec, rows, extra=[*props[:3], *geo])
+    qual_s = aero_at_states(setup, qual, rec, rows)
+    r = np.array(
+        [
+            (ext_s[f"metrics/aero-rp-{a}-in"] - ext_s[f"inertia/cg-{a}-in"]).to_numpy() * sg / 12
+            for a, sg in zip("xyz", (-1.0, 1.0, -1.0), strict=True)
+        ]
+    )  # CG -> AERORP, body axes, ft
+    al, be = np.radians(ext_s["alpha_deg"].to_numpy()), np.radians(ext_s["beta_deg"].to_numpy())
+    wdy = ext_s["aero/aerodelta/CY/delta-blended"].to_numpy()
+    fx, fy, fz = -np.cos(al) * np.sin(be) * wdy, np.cos(be) * wdy, -np.sin(al) * np.sin(be) * wdy
+    bw = ext_s["metrics/bw-ft"].to_numpy()
+    expect = {
+        "Cl": ext_s["aero/aerodelta/Cl/delta-blended"].to_numpy() + (r[1] * fz - r[2] * fy) / bw,
+        "Cn": ext_s["aero/aerodelta/Cn/delta-blended"].to_numpy() + (r[0] * fy - r[1] * fx) / bw,
+        "CY": fy,
+    }
+    for c in ("Cl", "Cn", "CY"):
+        d = (ext_s[f"{c}_aero"] - qual_s[f"{c}_aero"]).to_numpy()
+        assert np.max(np.abs(d - expect[c])) <= 1e-9 * np.max(np.abs(expect[c])), c
+    # and the dynamics: the extended replay leaves the full one past alpha_l
     full = write_replay_aircraft(setup, tmp_path / "f", variant="full")
     rf = replay_maneuver(setup, full, rec, throttle=(1.0, math.inf))
     assert theil_inequality(rf["p_dps"].to_numpy(), rep["p_dps"].to_numpy()) > 1e-3
