@@ -36,6 +36,7 @@ _register("rolloff", "rolloff")
 _register("report", "report")
 _register("validate", "validate")
 _register("map-template", "map_template")
+_register("jsbsim-replay", "jsbsim_replay")
 
 
 def cli_wording(message: str, command: str) -> str:
