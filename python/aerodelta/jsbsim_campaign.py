@@ -607,8 +607,31 @@ def _new_fdm(cfg: JsbsimAircraft, root: Path) -> Any:
     return fdm
 
 
-def _trim(fdm: Any, cfg: JsbsimAircraft, flap_deg: float, kts: float, seed: int) -> None:
+def quiet_trim(fdm: Any, failure: str) -> None:
+    """JSBSim's ``do_simple_trim`` with its diagnostics (printed on C stdout) kept out of ours.
+
+    Raises
+    ------
+    NoConvergenceError
+        With ``failure`` as the message, when JSBSim cannot trim.
+    """
     jsbsim = _jsbsim()
+    fd = os.dup(1)
+    try:
+        sys.stdout.flush()
+        with open(os.devnull, "w") as null:
+            os.dup2(null.fileno(), 1)
+            try:
+                fdm["simulation/do_simple_trim"] = 1
+            finally:
+                os.dup2(fd, 1)
+    except jsbsim.TrimFailureError:
+        raise NoConvergenceError(failure) from None
+    finally:
+        os.close(fd)
+
+
+def _trim(fdm: Any, cfg: JsbsimAircraft, flap_deg: float, kts: float, seed: int) -> None:
     fdm["ic/h-sl-ft"] = cfg.h_ft
     fdm["ic/vc-kts"] = kts
     fdm["ic/gamma-deg"] = 0.0
@@ -619,22 +642,11 @@ def _trim(fdm: Any, cfg: JsbsimAircraft, flap_deg: float, kts: float, seed: int)
     fdm["gear/gear-cmd-norm"] = 0.0
     fdm["propulsion/set-running"] = -1
     fdm.run_ic()
-    fd = os.dup(1)
-    try:  # JSBSim prints trim diagnostics on C stdout: keep them out of ours
-        sys.stdout.flush()
-        with open(os.devnull, "w") as null:
-            os.dup2(null.fileno(), 1)
-            try:
-                fdm["simulation/do_simple_trim"] = 1
-            finally:
-                os.dup2(fd, 1)
-    except jsbsim.TrimFailureError:
-        raise NoConvergenceError(
-            f"JSBSim trim failed for {cfg.model} at {kts:g} kt, {cfg.h_ft:g} ft, flap "
-            f"{flap_deg:g} deg; choose another entry speed/altitude (JsbsimAircraft)"
-        ) from None
-    finally:
-        os.close(fd)
+    quiet_trim(
+        fdm,
+        f"JSBSim trim failed for {cfg.model} at {kts:g} kt, {cfg.h_ft:g} ft, flap "
+        f"{flap_deg:g} deg; choose another entry speed/altitude (JsbsimAircraft)",
+    )
     fdm["propulsion/fuel_freeze"] = 1
 
 

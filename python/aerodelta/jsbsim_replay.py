@@ -44,7 +44,7 @@ import numpy as np
 import polars as pl
 
 from aerodelta import jsbsim_campaign as jc
-from aerodelta.exceptions import DataError, InvalidInputError, NoConvergenceError
+from aerodelta.exceptions import DataError, InvalidInputError
 from aerodelta.fit import theil_inequality
 from aerodelta.jsbsim import export_jsbsim
 from aerodelta.model import DeltaModel
@@ -425,7 +425,6 @@ def _initial(col: np.ndarray, t: np.ndarray, span_s: float = 0.5) -> float:
 
 def _trim(fdm: Any, setup: CampaignSetup, rec: pl.DataFrame, seed: int) -> None:
     """Trim as the campaign does, at the record's initial true airspeed and altitude."""
-    jsbsim = jc._jsbsim()
     cfg = setup.cfg
     t = rec["t"].to_numpy()
     flap = float(rec["flap_deg"][0])
@@ -439,22 +438,11 @@ def _trim(fdm: Any, setup: CampaignSetup, rec: pl.DataFrame, seed: int) -> None:
     fdm["gear/gear-cmd-norm"] = 0.0
     fdm["propulsion/set-running"] = -1
     fdm.run_ic()
-    fd = os.dup(1)
-    try:  # JSBSim prints trim diagnostics on C stdout
-        sys.stdout.flush()
-        with open(os.devnull, "w") as null:
-            os.dup2(null.fileno(), 1)
-            try:
-                fdm["simulation/do_simple_trim"] = 1
-            finally:
-                os.dup2(fd, 1)
-    except jsbsim.TrimFailureError:
-        raise NoConvergenceError(
-            f"JSBSim trim failed for {cfg.model} at the record's initial state "
-            f"({float(rec['tas_mps'][0]):.1f} m/s, {float(rec['h_m'][0]):.0f} m)"
-        ) from None
-    finally:
-        os.close(fd)
+    jc.quiet_trim(
+        fdm,
+        f"JSBSim trim failed for {cfg.model} at the record's initial state "
+        f"({float(rec['tas_mps'][0]):.1f} m/s, {float(rec['h_m'][0]):.0f} m)",
+    )
     fdm["propulsion/fuel_freeze"] = 1
 
 

@@ -515,20 +515,27 @@ pub fn reconstruct(inp: &CompatInput<'_>, params: &[f64]) -> Result<[Vec<f64>; 6
 mod tests {
     use super::*;
 
+    /// Smooth rates (rad/s) and specific forces (m/s²) over 60 s at 50 Hz, the side force's
+    /// amplitude `ay_amp`: inputs whose consistent outputs `simulate()` itself gives.
+    fn motion(ay_amp: f64) -> [Vec<f64>; 7] {
+        let t: Vec<f64> = (0..3001).map(|i| i as f64 * 0.02).collect();
+        let f = |g: &dyn Fn(f64) -> f64| -> Vec<f64> { t.iter().map(|&s| g(s)).collect() };
+        [
+            f(&|s| s),
+            f(&|s| 0.1 * (0.5 * s).sin()),
+            f(&|s| 0.05 * (0.7 * s).sin()),
+            f(&|s| 0.04 * (0.3 * s).cos()),
+            f(&|s| 1.0 + 0.5 * (0.2 * s).sin()),
+            f(&|s| ay_amp * (0.4 * s).sin()),
+            f(&|s| -9.8 - 2.0 * (0.25 * s).sin()),
+        ]
+    }
+
     /// Closed-form motion: build consistent inputs by integrating a known truth finely,
     /// then inject biases and check they come back.
     #[test]
     fn recovers_alpha_and_ax_biases() {
-        let n = 3001;
-        let dt = 0.02;
-        let t: Vec<f64> = (0..n).map(|i| i as f64 * dt).collect();
-        // truth: rates and specific forces as smooth functions; outputs from simulate() itself
-        let p: Vec<f64> = t.iter().map(|&s| 0.1 * (0.5 * s).sin()).collect();
-        let q: Vec<f64> = t.iter().map(|&s| 0.05 * (0.7 * s).sin()).collect();
-        let r: Vec<f64> = t.iter().map(|&s| 0.04 * (0.3 * s).cos()).collect();
-        let ax: Vec<f64> = t.iter().map(|&s| 1.0 + 0.5 * (0.2 * s).sin()).collect();
-        let ay: Vec<f64> = t.iter().map(|&s| 0.3 * (0.4 * s).sin()).collect();
-        let az: Vec<f64> = t.iter().map(|&s| -9.8 - 2.0 * (0.25 * s).sin()).collect();
+        let [t, p, q, r, ax, ay, az] = motion(0.3);
         let truth_inp = CompatInput {
             t: &t,
             accel: [&ax, &ay, &az],
@@ -577,15 +584,7 @@ mod tests {
     /// could not absorb them (the residual is the check's evidence).
     #[test]
     fn recovers_vane_scale_factors_and_biases() {
-        let n = 3001;
-        let dt = 0.02;
-        let t: Vec<f64> = (0..n).map(|i| i as f64 * dt).collect();
-        let p: Vec<f64> = t.iter().map(|&s| 0.1 * (0.5 * s).sin()).collect();
-        let q: Vec<f64> = t.iter().map(|&s| 0.05 * (0.7 * s).sin()).collect();
-        let r: Vec<f64> = t.iter().map(|&s| 0.04 * (0.3 * s).cos()).collect();
-        let ax: Vec<f64> = t.iter().map(|&s| 1.0 + 0.5 * (0.2 * s).sin()).collect();
-        let ay: Vec<f64> = t.iter().map(|&s| 0.8 * (0.4 * s).sin()).collect();
-        let az: Vec<f64> = t.iter().map(|&s| -9.8 - 2.0 * (0.25 * s).sin()).collect();
+        let [t, p, q, r, ax, ay, az] = motion(0.8);
         let truth_inp = CompatInput {
             t: &t,
             accel: [&ax, &ay, &az],
@@ -655,15 +654,7 @@ mod tests {
     /// and a flank-angle yaw vane: scale factors and biases of the readings come back.
     #[test]
     fn recovers_scale_factors_of_boom_vanes_and_a_flank_vane() {
-        let n = 3001;
-        let dt = 0.02;
-        let t: Vec<f64> = (0..n).map(|i| i as f64 * dt).collect();
-        let p: Vec<f64> = t.iter().map(|&s| 0.1 * (0.5 * s).sin()).collect();
-        let q: Vec<f64> = t.iter().map(|&s| 0.05 * (0.7 * s).sin()).collect();
-        let r: Vec<f64> = t.iter().map(|&s| 0.04 * (0.3 * s).cos()).collect();
-        let ax: Vec<f64> = t.iter().map(|&s| 1.0 + 0.5 * (0.2 * s).sin()).collect();
-        let ay: Vec<f64> = t.iter().map(|&s| 0.8 * (0.4 * s).sin()).collect();
-        let az: Vec<f64> = t.iter().map(|&s| -9.8 - 2.0 * (0.25 * s).sin()).collect();
+        let [t, p, q, r, ax, ay, az] = motion(0.8);
         let vanes = Vanes {
             r_alpha: [8.0, -0.4, 0.5],
             r_beta: [8.2, 0.0, -0.6],
