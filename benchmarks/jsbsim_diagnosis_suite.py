@@ -151,7 +151,9 @@ def run_case(
         if case.skew_s:
             skew_rates(camp, case.skew_s)
         data = ingest(camp, compat=False, progress=False).data
-        diag = diagnose(data, config=config)
+        # the aircraft that flew them (before session 12 the diagnosis took the built-in
+        # ADX-37's mass and geometry here without saying so)
+        diag = diagnose(data, config=config, aircraft=camp / "aircraft.toml")
         out = score_jsbsim_case(diag, camp, case.terms, effects, axes, timing_lag=case.skew_s > 0.0)
     out.seconds = time.perf_counter() - t0
     out.settings = {
