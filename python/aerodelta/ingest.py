@@ -174,6 +174,8 @@ def ingest(  # noqa: PLR0917
     DataError
         Every refused finding of every maneuver at once (file, channel and rows named).
     """
+    if vane_scale and not (compat or apply_compat):
+        raise DataError("vane_scale=True needs the compatibility check: drop compat=False")
     ac = _load_aircraft(aircraft, data)
     cmap = (
         channel_map
@@ -289,8 +291,6 @@ def ingest(  # noqa: PLR0917
                 "plausibility check):\n  " + "\n  ".join(bad)
             )
     compat_df = None
-    if vane_scale and not (compat or apply_compat):
-        raise DataError("vane_scale=True needs the compatibility check: drop compat=False")
     if compat or apply_compat:
         compat_df = _run_compat(out, reports, ac, loadings, vane_scale)
         if apply_compat:
