@@ -369,3 +369,20 @@ def test_jsbsim_with_the_qualified_model(model: DeltaModel, tmp_path: Path) -> N
         np.testing.assert_allclose(got[f"{c}/qualified"], q, rtol=1e-9, atol=1e-14)
         want = q + d[f"d{c}_blended"].to_numpy()
         np.testing.assert_allclose(got[f"{c}/extended"], want, rtol=1e-9, atol=1e-14)
+
+
+def test_jsbsim_functions_have_no_one_argument_sums(model: DeltaModel) -> None:
+    """JSBSim warns that a ``<sum>`` or ``<product>`` of one argument is a no-op: the export
+    writes the argument alone (a one-term Δ, and the qualified model's single-term sums)."""
+    import xml.etree.ElementTree as ET  # noqa: PLC0415
+
+    spec = model.to_spec()
+    first = next(iter(spec["coefficients"]))
+    spec["coefficients"][first]["terms"] = spec["coefficients"][first]["terms"][:1]
+    one = DeltaModel.from_spec(spec, "one term")
+    for m in (model, one):
+        for qualified in (False, True):
+            root = ET.fromstring(jsbsim_xml(m, _TEST_PROPS, qualified=qualified))
+            for tag in ("sum", "product"):
+                for el in root.iter(tag):
+                    assert len(list(el)) >= 2, (tag, ET.tostring(el)[:200])

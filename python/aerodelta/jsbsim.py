@@ -294,6 +294,16 @@ class _Writer:
         )
 
 
+def _sum(items: list[str], sep: str) -> str:
+    """``<sum>`` of the items; one item alone stands for itself (JSBSim warns that a one-argument
+    ``<sum>`` is a no-op) and none is zero."""
+    if not items:
+        return "<value>0</value>"
+    if len(items) == 1:
+        return items[0].strip()
+    return f"<sum>{sep}" + sep.join(items) + "\n    </sum>"
+
+
 def _qualified_functions(w: _Writer, cname: str, qspec: dict[str, Any], done: set[str]) -> str:
     """``aero/aerodelta/<C>/qualified``: a coefficient of a writer spec (sum of products of
     tables and inputs, e.g. the built-in ADX-37 qualified model) as JSBSim functions."""
@@ -330,8 +340,7 @@ def _qualified_functions(w: _Writer, cname: str, qspec: dict[str, Any], done: se
         prods.append(facs[0] if len(facs) == 1 else f"<product>{''.join(facs)}</product>")
     fns.append(
         f'  <function name="aero/aerodelta/{cname}/qualified">\n    <description>qualified '
-        f"{cname}</description>\n    <sum>\n      " + "\n      ".join(prods) + "\n    </sum>\n"
-        "  </function>"
+        f"{cname}</description>\n    " + _sum(prods, "\n      ") + "\n  </function>"
     )
     return "\n".join(fns)
 
@@ -404,8 +413,7 @@ def jsbsim_xml(
                 )
         fns.append(
             f'  <function name="{base}/delta">\n    <description>Δ{cname} before blending '
-            f"(thesis Eq. 3.11)</description>\n    <sum>\n" + "\n".join(prods) + "\n    </sum>\n"
-            "  </function>"
+            f"(thesis Eq. 3.11)</description>\n" + _sum(prods, "\n") + "\n  </function>"
         )
         fns.append(
             f'  <function name="{base}/alpha_l">\n    {w.table1(c["alpha_l_deg"], flap_p)}\n'
