@@ -531,27 +531,64 @@ mod tests {
         ]
     }
 
-    /// Closed-form motion: build consistent inputs by integrating a known truth finely,
-    /// then inject biases and check they come back.
-    #[test]
-    fn recovers_alpha_and_ax_biases() {
-        let [t, p, q, r, ax, ay, az] = motion(0.3);
-        let truth_inp = CompatInput {
-            t: &t,
-            accel: [&ax, &ay, &az],
-            rates: [&p, &q, &r],
-            tas: &t,
-            alpha: &t,
-            beta: &t,
-            euler: [&t, &t, &t],
-            vanes: Vanes::AT_CG,
+    /// The truth the tests invert: `motion(ay_amp)` flown from u = 70, w = 4 m/s, theta 0.05,
+    /// psi 1 rad; its inputs and the outputs the vanes `vanes` read (no sensor error).
+    fn truth(ay_amp: f64, vanes: Vanes) -> ([Vec<f64>; 7], [Vec<f64>; 6]) {
+        let m = motion(ay_amp);
+        let [t, p, q, r, ax, ay, az] = &m;
+        let inp = CompatInput {
+            t,
+            accel: [ax, ay, az],
+            rates: [p, q, r],
+            tas: t,
+            alpha: t,
+            beta: t,
+            euler: [t, t, t],
+            vanes,
         };
         let mut th = vec![0.0; PARAM_NAMES.len()];
         th[11] = 70.0;
         th[13] = 4.0;
         th[15] = 0.05;
         th[16] = 1.0;
-        let y = simulate(&truth_inp, &th);
+        let y = simulate(&inp, &th);
+        (m, y)
+    }
+
+    /// Scale errors `k` and biases `b` (rad) put on the readings of `truth(0.8, vanes)`: the
+    /// check with scale factors gives all four back (1e-5, and 1e-6 rad).
+    fn assert_scale_recovered(vanes: Vanes, k: [f64; 2], b: [f64; 2]) -> CompatResult {
+        let ([t, p, q, r, ax, ay, az], y) = truth(0.8, vanes);
+        let alpha_m: Vec<f64> = y[1].iter().map(|v| (1.0 + k[0]) * v + b[0]).collect();
+        let beta_m: Vec<f64> = y[2].iter().map(|v| (1.0 + k[1]) * v + b[1]).collect();
+        let inp = CompatInput {
+            t: &t,
+            accel: [&ax, &ay, &az],
+            rates: [&p, &q, &r],
+            tas: &y[0],
+            alpha: &alpha_m,
+            beta: &beta_m,
+            euler: [&y[3], &y[4], &y[5]],
+            vanes,
+        };
+        let res = check(&inp, 40, true).unwrap();
+        for (name, want, tol) in [
+            ("k_alpha", k[0], 1e-5),
+            ("k_beta", k[1], 1e-5),
+            ("b_alpha_rad", b[0], 1e-6),
+            ("b_beta_rad", b[1], 1e-6),
+        ] {
+            let got = res.params[PARAM_NAMES.iter().position(|n| *n == name).unwrap()];
+            assert!((got - want).abs() < tol, "{name} {got}");
+        }
+        res
+    }
+
+    /// Closed-form motion: build consistent inputs by integrating a known truth finely,
+    /// then inject biases and check they come back.
+    #[test]
+    fn recovers_alpha_and_ax_biases() {
+        let ([t, p, q, r, ax, ay, az], y) = truth(0.3, Vanes::AT_CG);
         let (b_alpha, b_ax) = (1.0_f64.to_radians(), 0.2);
         let alpha_m: Vec<f64> = y[1].iter().map(|v| v + b_alpha).collect();
         let ax_m: Vec<f64> = ax.iter().map(|v| v + b_ax).collect();
@@ -584,23 +621,7 @@ mod tests {
     /// could not absorb them (the residual is the check's evidence).
     #[test]
     fn recovers_vane_scale_factors_and_biases() {
-        let [t, p, q, r, ax, ay, az] = motion(0.8);
-        let truth_inp = CompatInput {
-            t: &t,
-            accel: [&ax, &ay, &az],
-            rates: [&p, &q, &r],
-            tas: &t,
-            alpha: &t,
-            beta: &t,
-            euler: [&t, &t, &t],
-            vanes: Vanes::AT_CG,
-        };
-        let mut th = vec![0.0; PARAM_NAMES.len()];
-        th[11] = 70.0;
-        th[13] = 4.0;
-        th[15] = 0.05;
-        th[16] = 1.0;
-        let y = simulate(&truth_inp, &th);
+        let (_, y) = truth(0.8, Vanes::AT_CG);
         let spread = |v: &[f64]| {
             let (lo, hi) = v
                 .iter()
@@ -611,41 +632,8 @@ mod tests {
             spread(&y[1]) > 0.1 && spread(&y[2]) > 0.05,
             "the angles must vary"
         );
-        let (k_a, k_b, b_a, b_b) = (0.06, -0.08, 0.5_f64.to_radians(), -0.3_f64.to_radians());
-        let alpha_m: Vec<f64> = y[1].iter().map(|v| (1.0 + k_a) * v + b_a).collect();
-        let beta_m: Vec<f64> = y[2].iter().map(|v| (1.0 + k_b) * v + b_b).collect();
-        let inp = CompatInput {
-            t: &t,
-            accel: [&ax, &ay, &az],
-            rates: [&p, &q, &r],
-            tas: &y[0],
-            alpha: &alpha_m,
-            beta: &beta_m,
-            euler: [&y[3], &y[4], &y[5]],
-            vanes: Vanes::AT_CG,
-        };
-        let res = check(&inp, 40, true).unwrap();
-        let got = |name: &str| res.params[PARAM_NAMES.iter().position(|n| *n == name).unwrap()];
-        assert!(
-            (got("k_alpha") - k_a).abs() < 1e-5,
-            "k_alpha {}",
-            got("k_alpha")
-        );
-        assert!(
-            (got("k_beta") - k_b).abs() < 1e-5,
-            "k_beta {}",
-            got("k_beta")
-        );
-        assert!(
-            (got("b_alpha_rad") - b_a).abs() < 1e-6,
-            "b_alpha {}",
-            got("b_alpha_rad")
-        );
-        assert!(
-            (got("b_beta_rad") - b_b).abs() < 1e-6,
-            "b_beta {}",
-            got("b_beta_rad")
-        );
+        let b = [0.5_f64.to_radians(), -0.3_f64.to_radians()];
+        let res = assert_scale_recovered(Vanes::AT_CG, [0.06, -0.08], b);
         assert!(res.rms_after[1] < 1e-6 && res.rms_after[2] < 1e-6);
         assert!(res.std_err.iter().all(|s| s.is_finite()));
     }
@@ -654,72 +642,20 @@ mod tests {
     /// and a flank-angle yaw vane: scale factors and biases of the readings come back.
     #[test]
     fn recovers_scale_factors_of_boom_vanes_and_a_flank_vane() {
-        let [t, p, q, r, ax, ay, az] = motion(0.8);
         let vanes = Vanes {
             r_alpha: [8.0, -0.4, 0.5],
             r_beta: [8.2, 0.0, -0.6],
             flank: true,
         };
-        let truth_inp = CompatInput {
-            t: &t,
-            accel: [&ax, &ay, &az],
-            rates: [&p, &q, &r],
-            tas: &t,
-            alpha: &t,
-            beta: &t,
-            euler: [&t, &t, &t],
-            vanes,
-        };
-        let mut th = vec![0.0; PARAM_NAMES.len()];
-        th[11] = 70.0;
-        th[13] = 4.0;
-        th[15] = 0.05;
-        th[16] = 1.0;
-        let y = simulate(&truth_inp, &th);
-        let at_cg = simulate(
-            &CompatInput {
-                vanes: Vanes::AT_CG,
-                ..truth_inp
-            },
-            &th,
-        );
+        let (_, y) = truth(0.8, vanes);
+        let (_, at_cg) = truth(0.8, Vanes::AT_CG);
         let most = |a: &[f64], b: &[f64]| {
             a.iter()
                 .zip(b)
                 .fold(0.0f64, |m, (x, z)| m.max((x - z).abs()))
         };
         assert!(most(&y[1], &at_cg[1]) > 0.003 && most(&y[2], &at_cg[2]) > 0.003);
-        let (k_a, k_b, b_a, b_b) = (0.07, 0.05, 0.4_f64.to_radians(), 0.6_f64.to_radians());
-        let alpha_m: Vec<f64> = y[1].iter().map(|v| (1.0 + k_a) * v + b_a).collect();
-        let beta_m: Vec<f64> = y[2].iter().map(|v| (1.0 + k_b) * v + b_b).collect();
-        let inp = CompatInput {
-            tas: &y[0],
-            alpha: &alpha_m,
-            beta: &beta_m,
-            euler: [&y[3], &y[4], &y[5]],
-            ..truth_inp
-        };
-        let res = check(&inp, 40, true).unwrap();
-        let got = |name: &str| res.params[PARAM_NAMES.iter().position(|n| *n == name).unwrap()];
-        assert!(
-            (got("k_alpha") - k_a).abs() < 1e-5,
-            "k_alpha {}",
-            got("k_alpha")
-        );
-        assert!(
-            (got("k_beta") - k_b).abs() < 1e-5,
-            "k_beta {}",
-            got("k_beta")
-        );
-        assert!(
-            (got("b_alpha_rad") - b_a).abs() < 1e-6,
-            "b_alpha {}",
-            got("b_alpha_rad")
-        );
-        assert!(
-            (got("b_beta_rad") - b_b).abs() < 1e-6,
-            "b_beta {}",
-            got("b_beta_rad")
-        );
+        let b = [0.4_f64.to_radians(), 0.6_f64.to_radians()];
+        assert_scale_recovered(vanes, [0.07, 0.05], b);
     }
 }
