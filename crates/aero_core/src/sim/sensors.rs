@@ -348,33 +348,48 @@ mod tests {
         assert_eq!(a[14], b[14]);
     }
 
-    #[test]
-    fn accelerometer_and_vane_kinematics() {
-        let ac = adx37();
-        let s = TrueSample {
+    /// One level, unaccelerated-attitude sample with air velocity `v_air`, rates `omega` and
+    /// angular acceleration `omega_dot` (specific force 9.8 m/s² up).
+    fn one_sample(v_air: Vector3<f64>, omega: Vector3<f64>, omega_dot: Vector3<f64>) -> TrueSample {
+        TrueSample {
             t: 0.0,
-            v_air: Vector3::new(60.0, 0.0, 6.0),
-            omega: Vector3::new(0.0, 0.1, 0.0),
-            omega_dot: Vector3::new(0.5, 0.0, 0.0),
+            v_air,
+            omega,
+            omega_dot,
             euler: Vector3::zeros(),
             f_cg: Vector3::new(0.0, 0.0, -9.8),
-            tas: 60.3,
+            tas: v_air.norm(),
             rho: 1.0,
             h: 3000.0,
             controls: Controls::default(),
             ct: [0.1, 0.1],
-        };
-        let cols = record(
+        }
+    }
+
+    /// The noise-free record of `s` with the CG at `cg` from the datum and effects `meas`.
+    fn record_one(s: TrueSample, cg: &Vector3<f64>, meas: &MeasurementEffects) -> Vec<Vec<f64>> {
+        record(
             &[s],
-            &ac,
-            &Vector3::zeros(),
+            &adx37(),
+            cg,
             0.0,
-            &MeasurementEffects::none(),
+            meas,
             &NoiseSpec::default(),
             0.0,
             0,
             0,
+        )
+    }
+
+    #[test]
+    fn accelerometer_and_vane_kinematics() {
+        let ac = adx37();
+        let s = one_sample(
+            Vector3::new(60.0, 0.0, 6.0),
+            Vector3::new(0.0, 0.1, 0.0),
+            Vector3::new(0.5, 0.0, 0.0),
         );
+        let cols = record_one(s, &Vector3::zeros(), &MeasurementEffects::none());
         let r = ac.accel_m;
         // ω̇ × r with ω̇ = (0.5,0,0): (0, -0.5 r_z, 0.5 r_y); ω×(ω×r) with ω=(0,q,0): (-q² r_x, 0, -q² r_z)
         assert!((cols[9][0] - (-0.01 * r[0])).abs() < 1e-12);
@@ -391,32 +406,12 @@ mod tests {
         // the CG 0.1 m aft, 0.03 m right, 0.05 m below the datum: each sensor is r − d from it
         let ac = adx37();
         let d = Vector3::new(-0.1, 0.03, 0.05);
-        let s = TrueSample {
-            t: 0.0,
-            v_air: Vector3::new(60.0, 1.0, 6.0),
-            omega: Vector3::new(0.0, 0.1, 0.0),
-            omega_dot: Vector3::new(0.5, 0.0, 0.0),
-            euler: Vector3::zeros(),
-            f_cg: Vector3::new(0.0, 0.0, -9.8),
-            tas: 60.3,
-            rho: 1.0,
-            h: 3000.0,
-            controls: Controls::default(),
-            ct: [0.1, 0.1],
-        };
-        let rec = |off: &Vector3<f64>| {
-            record(
-                &[s],
-                &ac,
-                off,
-                0.0,
-                &MeasurementEffects::none(),
-                &NoiseSpec::default(),
-                0.0,
-                0,
-                0,
-            )
-        };
+        let s = one_sample(
+            Vector3::new(60.0, 1.0, 6.0),
+            Vector3::new(0.0, 0.1, 0.0),
+            Vector3::new(0.5, 0.0, 0.0),
+        );
+        let rec = |off: &Vector3<f64>| record_one(s, off, &MeasurementEffects::none());
         let cols = rec(&d);
         let r = [
             ac.accel_m[0] - d.x,
@@ -448,32 +443,12 @@ mod tests {
     fn vane_calibration_errors() {
         use crate::aircraft::effects::VaneCalibration;
         let ac = adx37();
-        let s = TrueSample {
-            t: 0.0,
-            v_air: Vector3::new(55.0, 9.0, 16.0),
-            omega: Vector3::new(0.05, 0.1, -0.08),
-            omega_dot: Vector3::zeros(),
-            euler: Vector3::zeros(),
-            f_cg: Vector3::new(0.0, 0.0, -9.8),
-            tas: 58.0,
-            rho: 1.0,
-            h: 3000.0,
-            controls: Controls::default(),
-            ct: [0.1, 0.1],
-        };
-        let rec = |meas: &MeasurementEffects| {
-            record(
-                &[s],
-                &ac,
-                &Vector3::zeros(),
-                0.0,
-                meas,
-                &NoiseSpec::default(),
-                0.0,
-                0,
-                0,
-            )
-        };
+        let s = one_sample(
+            Vector3::new(55.0, 9.0, 16.0),
+            Vector3::new(0.05, 0.1, -0.08),
+            Vector3::zeros(),
+        );
+        let rec = |meas: &MeasurementEffects| record_one(s, &Vector3::zeros(), meas);
         let ideal = rec(&MeasurementEffects::none());
         let mut m = MeasurementEffects::none();
         m.alpha_vane_bias_deg = 0.7;
