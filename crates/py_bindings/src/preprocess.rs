@@ -188,7 +188,6 @@ fn preprocess_batch<'py>(
             ixz,
             ixy,
             iyz,
-            cg_from_ref_m: [0.0; 3],
         },
         prop_h_per_rpm,
         accel_m,

@@ -65,13 +65,10 @@ pub struct MassGeometry {
     pub ixy: f64,
     /// Product of inertia $I_{yz}$ (Etkin sign), kg m²; 0 for a symmetric aircraft.
     pub iyz: f64,
-    /// CG position relative to the moment reference centre, body axes, m ($\mathbf d$ above;
-    /// zero: moments about the CG).
-    pub cg_from_ref_m: [f64; 3],
 }
 
 impl MassGeometry {
-    /// The principal-plane case: no $I_{xy}$, $I_{yz}$, moments about the CG.
+    /// The principal-plane case: no $I_{xy}$, $I_{yz}$.
     #[allow(clippy::too_many_arguments)]
     pub fn principal(
         s: f64,
@@ -94,7 +91,6 @@ impl MassGeometry {
             ixz,
             ixy: 0.0,
             iyz: 0.0,
-            cg_from_ref_m: [0.0; 3],
         }
     }
 }
@@ -117,18 +113,21 @@ pub struct Coefficients {
 }
 
 /// Coefficients at one sample: rates `w` rad/s, `wdot` rad/s², specific force `a` m/s² at the CG,
-/// dynamic pressure `qbar` Pa, propeller angular momentum `h_p` kg m²/s (thesis sign).
+/// dynamic pressure `qbar` Pa, propeller angular momentum `h_p` kg m²/s (thesis sign); the
+/// moments about the point the CG is `arm` m from (body axes, $\mathbf d$ above; zero: about
+/// the CG).
 ///
 /// ```
 /// use aero_core::preprocess::coefficients::{coefficients_point, MassGeometry};
 /// let mg = MassGeometry::principal(10.0, 10.0, 1.0, 1000.0, 100.0, 200.0, 300.0, 0.0);
-/// let c = coefficients_point(&mg, [0.0; 3], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], 100.0, 0.0);
+/// let c = coefficients_point(&mg, [0.0; 3], [0.0; 3], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], 100.0, 0.0);
 /// assert!((c.cl - 100.0 / (100.0 * 10.0 * 10.0)).abs() < 1e-15);
 /// assert!((c.cy - 1000.0 / (100.0 * 10.0)).abs() < 1e-15);
 /// ```
 #[inline]
 pub fn coefficients_point(
     mg: &MassGeometry,
+    arm: [f64; 3],
     w: [f64; 3],
     wdot: [f64; 3],
     a: [f64; 3],
@@ -140,7 +139,7 @@ pub fn coefficients_point(
     let qs = qbar * mg.s;
     let (ixy, iyz) = (mg.ixy, mg.iyz);
     let f = [mg.mass * a[0], mg.mass * a[1], mg.mass * a[2]];
-    let [dx, dy, dz] = mg.cg_from_ref_m;
+    let [dx, dy, dz] = arm;
     // Eq. 3.2-3.3 and the pitch equation, then the product terms, then d x F: each added
     // term is exactly zero for a principal-plane body about its CG, so those results are
     // bit for bit Eq. 3.2-3.3.
@@ -170,6 +169,7 @@ pub fn coefficients_point(
 /// Returns `[Cl, Cn, CY, CX, CZ, Cm]`.
 pub fn coefficients(
     mg: &MassGeometry,
+    arm: [f64; 3],
     w: [&[f64]; 3],
     wdot: [&[f64]; 3],
     a: [&[f64]; 3],
@@ -184,6 +184,7 @@ pub fn coefficients(
     for i in 0..n {
         let c = coefficients_point(
             mg,
+            arm,
             [w[0][i], w[1][i], w[2][i]],
             [wdot[0][i], wdot[1][i], wdot[2][i]],
             [a[0][i], a[1][i], a[2][i]],
@@ -226,7 +227,15 @@ mod tests {
             let h = Vector3::new(-h_p, 0.0, 0.0);
             let mom = inertia * wd + w.cross(&(inertia * w + h));
             let qbar = 3000.0;
-            let c = coefficients_point(&mg, w.into(), wd.into(), [0.1, 0.2, -9.0], qbar, h_p);
+            let c = coefficients_point(
+                &mg,
+                [0.0; 3],
+                w.into(),
+                wd.into(),
+                [0.1, 0.2, -9.0],
+                qbar,
+                h_p,
+            );
             let qs = qbar * mg.s;
             assert!((c.cl - mom[0] / (qs * mg.b)).abs() < 1e-14);
             assert!((c.cm - mom[1] / (qs * mg.cbar)).abs() < 1e-14);
@@ -289,9 +298,9 @@ mod tests {
                 ixz: -i_cg[(0, 2)],
                 ixy: -i_cg[(0, 1)],
                 iyz: -i_cg[(1, 2)],
-                cg_from_ref_m: [d.x, d.y, d.z],
             };
-            let c = coefficients_point(&mg, w.into(), wd.into(), f_cg.into(), qbar, 0.0);
+            let arm = [d.x, d.y, d.z];
+            let c = coefficients_point(&mg, arm, w.into(), wd.into(), f_cg.into(), qbar, 0.0);
             let qs = qbar * s;
             let rel = |got: f64, m: f64, len: f64| (got * qs * len - m).abs() / want.norm();
             assert!(rel(c.cl, want.x, b) < 1e-12, "{}", rel(c.cl, want.x, b));

@@ -85,8 +85,7 @@ pub const CM_COLUMN: &str = "Cm_meas";
 /// What the pipeline needs to know about the aircraft.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct AircraftParams {
-    /// Mass, inertias and reference geometry of the nominal loading (its
-    /// `cg_from_ref_m` is ignored: the pipeline sets it from `cg_m` and `moment_ref_m`).
+    /// Mass, inertias and reference geometry of the nominal loading.
     pub mg: MassGeometry,
     /// $k_p$ such that $h_p = k_p N_{rpm}$ (kg m²/s per rpm, thesis sign; 0 without propellers).
     pub prop_h_per_rpm: f64,
@@ -294,10 +293,7 @@ pub fn preprocess_maneuver(
     let betadot = central_diff(&b_cg_rad, dt);
     let rho = cols[10];
     let qbar: Vec<f64> = rho.iter().zip(tas).map(|(r, v)| 0.5 * r * v * v).collect();
-    let mg = &MassGeometry {
-        cg_from_ref_m: minus(ac.cg_m, ac.moment_ref_m),
-        ..ac.mg
-    };
+    let mg = &ac.mg;
     let hat = |x: &[f64], len: f64| -> Vec<f64> {
         x.iter()
             .zip(tas)
@@ -307,6 +303,7 @@ pub fn preprocess_maneuver(
     let h_p: Vec<f64> = cols[11].iter().map(|rpm| ac.prop_h_per_rpm * rpm).collect();
     let coef = coefficients(
         mg,
+        minus(ac.cg_m, ac.moment_ref_m),
         [&w[0], &w[1], &w[2]],
         [&wd[0], &wd[1], &wd[2]],
         [&a_cg[0], &a_cg[1], &a_cg[2]],
