@@ -631,23 +631,39 @@ def quiet_trim(fdm: Any, failure: str) -> None:
         os.close(fd)
 
 
-def _trim(fdm: Any, cfg: JsbsimAircraft, flap_deg: float, kts: float, seed: int) -> None:
-    fdm["ic/h-sl-ft"] = cfg.h_ft
-    fdm["ic/vc-kts"] = kts
+def trim_at_ic(fdm: Any, cfg: JsbsimAircraft, flap_deg: float, seed: int, failure: str) -> None:
+    """Trim at the initial conditions already set (speed, altitude, heading): level flight,
+    the flap at ``flap_deg`` (deg), gear up, engines running, turbulence seeded with ``seed``,
+    then the fuel frozen so the mass properties stay those of ``aircraft.toml``.
+
+    Raises
+    ------
+    NoConvergenceError
+        With ``failure`` as the message, when JSBSim cannot trim.
+    """
     fdm["ic/gamma-deg"] = 0.0
-    fdm["ic/psi-true-deg"] = 0.0
     fdm["simulation/randomseed"] = seed % 2_000_000_000
     if cfg.flap_norm_per_deg:
         fdm["fcs/flap-cmd-norm"] = flap_deg * cfg.flap_norm_per_deg
     fdm["gear/gear-cmd-norm"] = 0.0
     fdm["propulsion/set-running"] = -1
     fdm.run_ic()
-    quiet_trim(
+    quiet_trim(fdm, failure)
+    fdm["propulsion/fuel_freeze"] = 1
+
+
+def _trim(fdm: Any, cfg: JsbsimAircraft, flap_deg: float, kts: float, seed: int) -> None:
+    fdm["ic/h-sl-ft"] = cfg.h_ft
+    fdm["ic/vc-kts"] = kts
+    fdm["ic/psi-true-deg"] = 0.0
+    trim_at_ic(
         fdm,
+        cfg,
+        flap_deg,
+        seed,
         f"JSBSim trim failed for {cfg.model} at {kts:g} kt, {cfg.h_ft:g} ft, flap "
         f"{flap_deg:g} deg; choose another entry speed/altitude (JsbsimAircraft)",
     )
-    fdm["propulsion/fuel_freeze"] = 1
 
 
 @dataclass

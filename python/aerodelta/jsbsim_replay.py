@@ -430,20 +430,15 @@ def _trim(fdm: Any, setup: CampaignSetup, rec: pl.DataFrame, seed: int) -> None:
     flap = float(rec["flap_deg"][0])
     fdm["ic/h-sl-ft"] = _initial(rec["h_m"].to_numpy(), t) / jc.FT
     fdm["ic/vt-fps"] = _initial(rec["tas_mps"].to_numpy(), t) / jc.FT
-    fdm["ic/gamma-deg"] = 0.0
     fdm["ic/psi-true-deg"] = _initial(rec["psi_deg"].to_numpy(), t)
-    fdm["simulation/randomseed"] = seed % 2_000_000_000
-    if cfg.flap_norm_per_deg:
-        fdm["fcs/flap-cmd-norm"] = flap * cfg.flap_norm_per_deg
-    fdm["gear/gear-cmd-norm"] = 0.0
-    fdm["propulsion/set-running"] = -1
-    fdm.run_ic()
-    jc.quiet_trim(
+    jc.trim_at_ic(
         fdm,
+        cfg,
+        flap,
+        seed,
         f"JSBSim trim failed for {cfg.model} at the record's initial state "
         f"({float(rec['tas_mps'][0]):.1f} m/s, {float(rec['h_m'][0]):.0f} m)",
     )
-    fdm["propulsion/fuel_freeze"] = 1
 
 
 def _golden(f: Any, lo: float, hi: float, tol: float) -> float:
