@@ -29,6 +29,7 @@ import polars as pl
 
 from aerodelta.aircraft import Aircraft, inertia_definite
 from aerodelta.exceptions import DataError
+from aerodelta.readers import _rows, numeric_column
 
 #: Manifest columns of the loading, in the order the engine takes them.
 LOADING_COLUMNS = (
@@ -90,17 +91,11 @@ def manifest_loadings(man: pl.DataFrame | None, ac: Aircraft, source: str) -> pl
         if c not in man.columns:
             cols[c] = pl.Series(c, np.full(man.height, v0))
             continue
-        text = man[c].cast(pl.Utf8).str.strip_chars()
-        val = text.cast(pl.Float64, strict=False)
-        bad = np.flatnonzero((val.is_null() | val.is_nan() | val.is_infinite()).to_numpy())
-        if bad.size:
-            shown = sorted({str(x) for x in text.gather(bad).to_list()})[:3]
-            raise DataError(
-                f"{source}: column '{c}', rows {_rows(bad)}: {', '.join(shown)} is not a "
-                f"number; give the loading of every maneuver (or drop the column to use "
-                f"the aircraft file's {v0:g})"
-            )
-        cols[c] = val.alias(c)
+        what = (
+            "a number; give the loading of every maneuver (or drop the column to use the "
+            f"aircraft file's {v0:g})"
+        )
+        cols[c] = numeric_column(man, c, source, what).alias(c)
     out = pl.DataFrame(cols)
     m = out["mass_kg"].to_numpy()
     bad = np.flatnonzero(m <= 0.0)
@@ -117,11 +112,6 @@ def manifest_loadings(man: pl.DataFrame | None, ac: Aircraft, source: str) -> pl
             "not positive definite; check the units (kg m²) and the products' signs (Etkin)"
         )
     return out
-
-
-def _rows(idx: np.ndarray) -> str:
-    shown = ", ".join(str(int(i)) for i in idx[:5])
-    return shown + (f" and {idx.size - 5} more" if idx.size > 5 else "")
 
 
 def cg_warnings(loadings: pl.DataFrame, ac: Aircraft) -> list[tuple[str, str]]:

@@ -142,15 +142,9 @@ def read_manifest(path: str | Path) -> pl.DataFrame:
     empty = np.flatnonzero((ids.is_null() | (ids == "")).to_numpy())
     if empty.size:
         raise DataError(f"{path}: column 'maneuver_id', rows {_rows(empty)}: empty")
-    flap_text = df["flap_deg"].cast(pl.Utf8).str.strip_chars()
-    flap = flap_text.cast(pl.Float64, strict=False)
-    bad_flap = np.flatnonzero((flap.is_null() | flap.is_nan() | flap.is_infinite()).to_numpy())
-    if bad_flap.size:
-        shown = sorted({str(v) for v in flap_text.gather(bad_flap).to_list()})[:5]
-        raise DataError(
-            f"{path}: column 'flap_deg', rows {_rows(bad_flap)}: {', '.join(shown)} is not a "
-            "flap angle in deg; give a number in every row"
-        )
+    flap = numeric_column(
+        df, "flap_deg", str(path), "a flap angle in deg; give a number in every row"
+    )
     df = df.with_columns(
         ids.alias("maneuver_id"), flap.alias("flap_deg"), pl.col("kind").cast(pl.Utf8)
     )
@@ -192,6 +186,26 @@ def read_manifest(path: str | Path) -> pl.DataFrame:
 def _first_line(e: BaseException) -> str:
     text = str(e).strip()
     return text.splitlines()[0] if text else type(e).__name__
+
+
+def numeric_column(df: pl.DataFrame, column: str, source: str, what: str) -> pl.Series:
+    """A manifest column as finite floats (text trimmed, then parsed).
+
+    Raises
+    ------
+    DataError
+        ``"{source}: column '{column}', rows ...: X is not {what}"`` for empty cells, text that
+        is not a number, NaN and infinities.
+    """
+    text = df[column].cast(pl.Utf8).str.strip_chars()
+    val = text.cast(pl.Float64, strict=False)
+    bad = np.flatnonzero((val.is_null() | val.is_nan() | val.is_infinite()).to_numpy())
+    if bad.size:
+        shown = sorted({str(v) for v in text.gather(bad).to_list()})[:5]
+        raise DataError(
+            f"{source}: column '{column}', rows {_rows(bad)}: {', '.join(shown)} is not {what}"
+        )
+    return val
 
 
 def _rows(idx: np.ndarray | list[int]) -> str:
