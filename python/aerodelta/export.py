@@ -40,7 +40,7 @@ from aerodelta.campaign import qualified_model_tables
 from aerodelta.daveml import DaveModel, daveml_text, write_daveml
 from aerodelta.exceptions import DataError
 from aerodelta.model import DeltaModel
-from aerodelta.qualified import describe
+from aerodelta.qualified import describe, recorded_source
 
 #: Table inputs of the qualified model and their DAVE-ML variables.
 _TABLE_INPUTS = {
@@ -392,7 +392,7 @@ def extended_daveml_text(
     RuntimeError
         The file disagrees with the engine (a bug: please report it).
     """
-    recorded = str((model.to_spec().get("provenance") or {}).get("qualified", "adx37"))
+    recorded = recorded_source(model.to_spec(), "adx37")
     if qualified is None and recorded != "adx37":
         raise DataError(
             f"the Δ was fitted against {describe(recorded)}, not the built-in ADX-37: give "

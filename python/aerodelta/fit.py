@@ -36,7 +36,7 @@ from aerodelta._core import __version__
 from aerodelta._toml import read_toml
 from aerodelta.exceptions import DataError
 from aerodelta.model import SCHEMA, DeltaModel
-from aerodelta.qualified import describe, resolve
+from aerodelta.qualified import describe, for_model, resolve
 
 COEFFICIENTS = ("Cl", "Cn", "CY")
 
@@ -1818,14 +1818,7 @@ def validate_model(
     (a DAVE-ML one must be named again: the model records its file name, not its path).
     """
     df = model_frame(data)
-    recorded = str((model.to_spec().get("provenance") or {}).get("qualified", "auto"))
-    if str(qualified) == "auto" and recorded.startswith("daveml:"):
-        raise DataError(
-            f"the model was fitted against the DAVE-ML model {recorded.split(':', 1)[1]}; "
-            "pass its path as qualified="
-        )
-    if str(qualified) == "auto" and recorded in ("columns", "adx37"):
-        qualified = recorded
+    qualified = for_model(model.to_spec(), qualified, "pass its path as qualified=")
     df = pl.concat([df, qualified_coefficients(df, qualified)], how="horizontal")
     ev = model.evaluate(df)
     rows = []

@@ -34,7 +34,7 @@ from aerodelta._exportutil import DERIVED_CHANNELS, Node, parse_regressor, write
 from aerodelta.exceptions import DataError
 from aerodelta.export import qualified_daveml_spec
 from aerodelta.model import DeltaModel
-from aerodelta.qualified import describe
+from aerodelta.qualified import describe, recorded_source
 
 __all__ = ["DEFAULT_PROPERTIES", "export_jsbsim", "jsbsim_properties", "jsbsim_xml"]
 
@@ -383,7 +383,7 @@ def jsbsim_xml(
         raise DataError(f"side_axis '{side_axis}': use 'SIDE' or 'Y' (JSBSim axis names)")
     w = _Writer(model, properties or {})
     spec = w.spec
-    recorded = str((spec.get("provenance") or {}).get("qualified", "adx37"))
+    recorded = recorded_source(spec, "adx37")
     if qualified and recorded != "adx37":
         raise DataError(
             f"the Δ was fitted against {describe(recorded)}, not the built-in ADX-37: its "

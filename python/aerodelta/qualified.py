@@ -19,10 +19,11 @@ means nothing for the user's aircraft.
 from __future__ import annotations
 
 import os
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import polars as pl
@@ -74,6 +75,32 @@ def describe(source: str) -> str:
     if source.startswith("daveml:"):
         return f"DAVE-ML model {source.split(':', 1)[1]}"
     return DESCRIPTIONS.get(source, source)
+
+
+def recorded_source(spec: Mapping[str, Any], default: str) -> str:
+    """The qualified model a fitted model's spec records (``provenance.qualified``), or
+    ``default`` for a model fitted before it was recorded."""
+    return str((spec.get("provenance") or {}).get("qualified", default))
+
+
+def for_model(spec: Mapping[str, Any], qualified: str | Path, hint: str) -> str | Path:
+    """The qualified model to evaluate a fitted model's spec against: ``qualified`` when named,
+    for ``"auto"`` the one the fit recorded (``"auto"`` again for a model that recorded none).
+
+    Raises
+    ------
+    DataError
+        ``"auto"`` for a model fitted against a DAVE-ML file, which it records by name only:
+        "the model was fitted against the DAVE-ML model NAME; ``hint``".
+    """
+    if str(qualified) != "auto":
+        return qualified
+    recorded = recorded_source(spec, "auto")
+    if recorded.startswith("daveml:"):
+        raise DataError(
+            f"the model was fitted against the DAVE-ML model {recorded.split(':', 1)[1]}; {hint}"
+        )
+    return recorded
 
 
 def has_columns(data: pl.DataFrame) -> bool:

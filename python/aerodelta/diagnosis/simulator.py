@@ -27,7 +27,7 @@ import polars as pl
 from aerodelta.diagnosis.vocabulary import COEFFICIENTS
 from aerodelta.exceptions import DataError
 from aerodelta.model import DeltaModel
-from aerodelta.qualified import resolve
+from aerodelta.qualified import for_model, resolve
 
 Predict = Callable[[pl.DataFrame], dict[str, np.ndarray]]
 
@@ -89,14 +89,11 @@ def load_simulator(
         return Simulator(q.description, q.predict, q.differentiable)
     if path.suffix.lower() == ".json":
         dm = DeltaModel.load(path)
-        recorded = str((dm.to_spec().get("provenance") or {}).get("qualified", "auto"))
-        if recorded.startswith("daveml:"):
-            raise DataError(
-                f"{path}: the model was fitted against the DAVE-ML model "
-                f"{recorded.split(':', 1)[1]}; diagnose the extended DAVE-ML model "
-                "(aerodelta export --model ... --qualified THAT.dml --daveml EXT.dml) instead"
-            )
-        base = resolve(data, recorded)
+        hint = (
+            f"diagnose the extended DAVE-ML model instead ({path.name} exported with "
+            "aerodelta export --qualified THAT.dml --daveml EXT.dml)"
+        )
+        base = resolve(data, for_model(dm.to_spec(), "auto", hint))
 
         def predict(frame: pl.DataFrame) -> dict[str, np.ndarray]:
             b = base.predict(frame)

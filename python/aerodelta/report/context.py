@@ -13,7 +13,7 @@ import polars as pl
 from aerodelta.exceptions import DataError
 from aerodelta.fit import COEFFICIENTS, model_frame, qualified_coefficients
 from aerodelta.model import DeltaModel, check_params
-from aerodelta.qualified import resolve
+from aerodelta.qualified import for_model, resolve
 
 
 @dataclass
@@ -59,19 +59,9 @@ def resolve_qualified(data: pl.DataFrame, qualified: str, model: DeltaModel | No
     the fit recorded (``provenance.qualified``; a DAVE-ML file must be named again), else
     :func:`aerodelta.qualified.resolve`'s choice (refused for data neither carrying ``*_sim``
     columns nor flown on the virtual aircraft)."""
-    if qualified != "auto":
-        return qualified
-    recorded = str(
-        ((model.to_spec() if model else {}).get("provenance") or {}).get("qualified", "")
-    )
-    if recorded.startswith("daveml:"):
-        raise DataError(
-            f"report: the model was fitted against the DAVE-ML model {recorded.split(':', 1)[1]}; "
-            "name it again (--qualified FILE.dml)"
-        )
-    if recorded in ("columns", "adx37"):
-        return recorded
-    return resolve(data, "auto").source
+    spec = model.to_spec() if model else {}
+    q = str(for_model(spec, qualified, "name it again for the report (--qualified FILE.dml)"))
+    return resolve(data, "auto").source if q == "auto" else q
 
 
 def build_context(
