@@ -255,10 +255,10 @@ def _spec(
     )
     if mass is not None:
         spec["mass_properties"] = mass
-        _core.sim_plan(json.dumps(spec))  # refuses meaningless ranges before flying
     if vanes is not None:
         spec["vanes"] = vanes
-        _core.sim_plan(json.dumps(spec))  # refuses meaningless scale errors before flying
+    if mass is not None or vanes is not None:
+        _core.sim_plan(json.dumps(spec))  # refuses meaningless ranges and errors before flying
     return spec
 
 
@@ -513,10 +513,7 @@ def generate_campaign(
                 bar.update(len(idx))
         manifest = pl.DataFrame(rows, infer_schema_length=None)
         manifest.write_csv(tmp / "manifest.csv")
-        toml = _core.sim_aircraft_toml()
-        if flank_vane:  # the sensors table holds the vane type; [simulator] follows it
-            toml = toml.replace("\n\n[simulator]", '\nbeta_vane_type = "flank"\n\n[simulator]', 1)
-        (tmp / "aircraft.toml").write_text(toml)
+        (tmp / "aircraft.toml").write_text(_aircraft_toml(flank_vane))
         lib = {e["name"]: e for e in effect_library()}
         spec["only"] = []
         info = {
@@ -567,6 +564,18 @@ def spec_effects(spec: Mapping[str, Any]) -> dict[str, float]:
 
 def _kind_name(kind: str) -> str:
     return {"asymmetricthrust": "asymmetric_thrust"}.get(kind, kind)
+
+
+def _aircraft_toml(flank_vane: bool) -> str:
+    """The campaign's ``aircraft.toml``: the representative aircraft's, with the flank-angle
+    yaw vane declared in its ``[sensors]`` table (the one before ``[simulator]``)."""
+    toml = _core.sim_aircraft_toml()
+    if not flank_vane:
+        return toml
+    head, sep, tail = toml.partition("\n\n[simulator]")
+    if not sep:
+        raise RuntimeError("the aircraft file lost its [simulator] table; declare the vane type")
+    return head + '\nbeta_vane_type = "flank"' + sep + tail
 
 
 def aircraft_toml() -> str:
