@@ -415,7 +415,7 @@ _COMPAT_UNITS = {
 
 def _compat_show(name: str, v: float) -> str:
     """An estimate in the units the report speaks: deg, deg/s, m/s², % for the scale."""
-    if name in ("lambda_v", "k_alpha", "k_beta"):
+    if name in ("lambda_v", *SCALE_FACTORS):
         return f"{100.0 * v:.3g} %"
     unit, k = _COMPAT_UNITS[name.rsplit("_", 1)[1]]
     return f"{k * v:.3g} {unit}"
@@ -455,8 +455,8 @@ def _run_compat(
     maneuver against the Cramér-Rao bounds.
     """
     groups = out.partition_by("maneuver_id", maintain_order=True)
-    ids = [str(g["maneuver_id"][0]) for g in groups]
-    cgs = loading_array(loadings, ids)
+    mids = [str(g["maneuver_id"][0]) for g in groups]
+    cgs = loading_array(loadings, mids)
     flank = ac.beta_vane_type == "flank"
 
     def vanes(i: int) -> tuple[list[float], list[float], bool]:
@@ -472,7 +472,6 @@ def _run_compat(
             ex.map(lambda i: _compat_one(groups[i], vanes(i), scale_factors), range(len(groups)))
         )
     by_id = {r.maneuver_id: r for r in reports}
-    mids = [str(g["maneuver_id"][0]) for g in groups]
     nm = len(mids)
     campaign = nm >= COMPAT_MIN_CAMPAIGN
     rows = []
