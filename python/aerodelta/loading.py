@@ -52,16 +52,8 @@ CG_WARN_SHARE = 0.5
 
 
 def _nominal(ac: Aircraft) -> list[float]:
-    return [
-        ac.mass_kg,
-        ac.Ixx_kgm2,
-        ac.Iyy_kgm2,
-        ac.Izz_kgm2,
-        ac.Ixz_kgm2,
-        ac.Ixy_kgm2,
-        ac.Iyz_kgm2,
-        *ac.cg_m,
-    ]
+    """The aircraft file's loading in the order of :data:`LOADING_COLUMNS`."""
+    return [*ac.mass_geometry[3:], *ac.cg_m]
 
 
 def manifest_loadings(man: pl.DataFrame | None, ac: Aircraft, source: str) -> pl.DataFrame | None:
