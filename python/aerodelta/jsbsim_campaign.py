@@ -597,12 +597,20 @@ _REC_PROPS = [
 ]
 
 
-def _new_fdm(cfg: JsbsimAircraft, root: Path) -> Any:
+def new_fdm(root: Path, model: str) -> Any:
+    """A quiet JSBSim executive with aircraft ``model`` of the root folder ``root`` loaded,
+    stepping at :data:`DT`.
+
+    Raises
+    ------
+    DataError
+        JSBSim cannot load the aircraft.
+    """
     jsbsim = _jsbsim()
     fdm = jsbsim.FGFDMExec(str(root))
     fdm.set_debug_level(0)
-    if not fdm.load_model(cfg.model):
-        raise DataError(f"JSBSim could not load aircraft '{cfg.model}' from {root}")
+    if not fdm.load_model(model):
+        raise DataError(f"JSBSim could not load aircraft '{model}' from {root}")
     fdm.set_dt(DT)
     return fdm
 
@@ -725,7 +733,7 @@ def _fly(  # noqa: PLR0917
     half_r = rng.uniform(0.5, 0.9)
     gain = rng.uniform(0.9, 1.1, size=4)
     noise_tau = 0.5
-    fdm = _new_fdm(cfg, root)
+    fdm = new_fdm(root, cfg.model)
     _trim(fdm, cfg, plan.flap_deg, entry, plan.seed)
     if turbulence > 0:
         fdm["atmosphere/turb-type"] = 3
@@ -1158,7 +1166,7 @@ def generate_jsbsim_campaign(
     if only:
         plans = [p for p in plans if p.index in set(only)]
     # properties recorded: channels, truth, every input of the lateral terms
-    fdm0 = _new_fdm(cfg, root)
+    fdm0 = new_fdm(root, cfg.model)
     _trim(fdm0, cfg, cfg.flaps_deg[0], _entry_kts(cfg, cfg.flaps_deg[0]), int(seed))
     n_eng = _n_engines(fdm0)
     lat = [t for t in terms if t.axis in ("ROLL", "YAW", "SIDE")]

@@ -403,16 +403,6 @@ def _merge_delta(setup: CampaignSetup, aero: ET.Element, model: DeltaModel, xml:
 # Replay
 
 
-def _new_fdm(root: Path, model: str) -> Any:
-    jsbsim = jc._jsbsim()
-    fdm = jsbsim.FGFDMExec(str(root))
-    fdm.set_debug_level(0)
-    if not fdm.load_model(model):
-        raise DataError(f"JSBSim could not load aircraft '{model}' from {root}")
-    fdm.set_dt(jc.DT)
-    return fdm
-
-
 def _initial(col: np.ndarray, t: np.ndarray, span_s: float = 0.5) -> float:
     """Value at t[0] of a straight line fitted over the first ``span_s`` (averages the sensor
     noise without the bias of a mean on a trend)."""
@@ -501,7 +491,7 @@ class _Flight:
         self.inputs = _Inputs(ts, surf)
 
     def start(self) -> Any:
-        fdm = _new_fdm(self.root, self.setup.cfg.model)
+        fdm = jc.new_fdm(self.root, self.setup.cfg.model)
         _trim(fdm, self.setup, self.record, self.seed)
         if self.setup.turbulence > 0:
             fdm["atmosphere/turb-type"] = 3
@@ -690,7 +680,7 @@ def aero_at_states(
         and each property of ``extra``.
     """
     cfg = setup.cfg
-    fdm = _new_fdm(Path(aircraft_root), cfg.model)
+    fdm = jc.new_fdm(Path(aircraft_root), cfg.model)
     _trim(fdm, setup, record, 0)
     fdm[_ACTIVE] = 1.0
     out: dict[str, list[float]] = {
