@@ -110,6 +110,9 @@ class DaveModel:
     def variables(
         self,
     ) -> list[tuple[str, str, str, bool, bool, float | None, float | None, float | None]]: ...
+    def uncertainties(
+        self,
+    ) -> list[tuple[str, str, str, float, list[list[float]], list[str], int]]: ...
     def evaluate(
         self,
         inputs: dict[str, npt.NDArray[np.float64]],

@@ -121,6 +121,40 @@ class DaveModel:
             orient="row",
         )
 
+    def uncertainty(self) -> pl.DataFrame:
+        """The ``uncertainty`` elements of the file's variables and tables (DAVE-ML 2.0),
+        each checked when the file was read (bounds bracketing an absolute nominal value, a
+        ``dataTable`` bound shaped as its table).
+
+        Returns
+        -------
+        polars.DataFrame
+            One row per uncertainty: ``variable`` (varID; a table's: the variable its function
+            defines), ``effect`` (``additive``, ``multiplicative``, ``percentage``,
+            ``absolute``), ``distribution`` (``normal``, ``uniform``), ``num_sigmas`` (null
+            for uniform), ``bounds`` (one list per ``bounds`` element, in the variable's units
+            for ``additive``/``absolute``: a number, or a table's values in its row-major
+            order; empty for a ``variableRef``), ``bound_variables`` (the varID of a
+            ``variableRef`` bound, else ""), ``line``.
+        """
+        rows = [
+            (v, e, d, None if math.isnan(s) else s, b, r, line)
+            for v, e, d, s, b, r, line in self._m.uncertainties()
+        ]
+        return pl.DataFrame(
+            rows,
+            schema={
+                "variable": pl.String,
+                "effect": pl.String,
+                "distribution": pl.String,
+                "num_sigmas": pl.Float64,
+                "bounds": pl.List(pl.List(pl.Float64)),
+                "bound_variables": pl.List(pl.String),
+                "line": pl.Int64,
+            },
+            orient="row",
+        )
+
     def evaluate(
         self,
         data: pl.DataFrame | Mapping[str, npt.ArrayLike],

@@ -259,13 +259,25 @@ def extended_daveml_spec(
         terms = []
         for t in c["terms"]:
             node = parse_regressor(t["regressor"])
-            tables.append(
-                {"id": t["name"], "units": "nd",
-                 "description": f"Δ parameter of {cname} multiplying {t['regressor']} "
-                                "(thesis Eq. 3.19), held beyond the last alpha",
-                 "args": [flap_ch, alpha_ch], "breakpoints": [flaps, t["alpha_deg"]],
-                 "values": [v for row in t["values"] for v in row]}
-            )  # fmt: skip
+            table: dict[str, Any] = {
+                "id": t["name"], "units": "nd",
+                "description": f"Δ parameter of {cname} multiplying {t['regressor']} "
+                               "(thesis Eq. 3.19), held beyond the last alpha",
+                "args": [flap_ch, alpha_ch], "breakpoints": [flaps, t["alpha_deg"]],
+                "values": [v for row in t["values"] for v in row],
+            }  # fmt: skip
+            band = t.get("band")
+            if band is not None:
+                table["uncertainty"] = {
+                    "lower": [v for row in band["lower"] for v in row],
+                    "upper": [v for row in band["upper"] for v in row],
+                }
+                table["description"] += (
+                    f"; uncertainty: its {100 * band['level']:g} % confidence band (bootstrap "
+                    "over maneuvers) as absolute bounds; DAVE-ML has no asymmetric "
+                    "distribution, so it is written as uniformPDF: read the range, not the shape"
+                )
+            tables.append(table)
             for col in columns(node):
                 resolve(col)
             if node.op == "const":
@@ -314,6 +326,7 @@ def extended_daveml_spec(
         cp["inputs"] = {k: v for k, v in cp["inputs"].items() if k in all_inputs}
     return {
         "name": "aerodelta extended model (qualified + blended Δ)",
+        "provenance": _provenance(spec),
         "inputs": inputs,
         "calculations": calcs,
         "tables": tables,
@@ -321,6 +334,34 @@ def extended_daveml_spec(
         "checks": checks,
         "check_tolerance": 1e-9,
     }
+
+
+def _provenance(spec: Mapping[str, Any]) -> dict[str, Any]:
+    """The DAVE-ML ``provenance`` of the Δ tables: what the fit recorded (library, data hash,
+    qualified model, maneuvers, bands), in words."""
+    prov = spec.get("provenance") or {}
+    cfg = prov.get("config") or {}
+    parts = [
+        "Δ tables identified from flight test data by equation-error least squares per "
+        "angle-of-attack bin and smoothed over alpha (thesis Sections 3.3-3.6)",
+        f"by {prov.get('library', 'aerodelta')}",
+    ]
+    if prov.get("qualified"):
+        parts.append(f"qualified model: {describe(str(prov['qualified']))}")
+    if prov.get("maneuvers") is not None:
+        parts.append(f"{prov['maneuvers']} maneuvers, {prov.get('rows', '?')} samples")
+    if prov.get("data_sha256"):
+        parts.append(f"data SHA-256 {prov['data_sha256']}")
+    n_boot = int(cfg.get("bootstrap") or 0)
+    if n_boot > 0:
+        parts.append(
+            f"uncertainty: {100 * float(cfg.get('band_level', 0.95)):g} % percentile bands of "
+            f"a {n_boot}-replicate bootstrap over maneuvers (seed {cfg.get('seed', 0)}), "
+            "widened by the smoothing spline's bias"
+        )
+    else:
+        parts.append("no bands: fitted without a bootstrap")
+    return {"id": "aerodelta_fit", "description": "; ".join(parts)}
 
 
 def _flown(model: DeltaModel, inputs: Mapping[str, float]) -> bool:

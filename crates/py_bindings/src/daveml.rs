@@ -23,6 +23,18 @@ type VarTuple = (
     Option<f64>,
 );
 
+/// (varID, effect, distribution, numSigmas (NaN: uniform), bounds (empty for a
+/// variableRef), bound variables, line)
+type UncertaintyTuple = (
+    String,
+    String,
+    String,
+    f64,
+    Vec<Vec<f64>>,
+    Vec<String>,
+    usize,
+);
+
 #[derive(Debug)]
 #[pyclass(frozen, name = "DaveModel", module = "aerodelta._core")]
 pub struct PyDaveModel(pub DaveModel);
@@ -54,6 +66,46 @@ impl PyDaveModel {
     #[getter]
     fn outputs(&self) -> Vec<String> {
         self.0.outputs().iter().map(|v| v.id.clone()).collect()
+    }
+
+    fn uncertainties(&self) -> Vec<UncertaintyTuple> {
+        use daveml::{Bound, Distribution};
+        self.0
+            .uncertainties()
+            .iter()
+            .map(|u| {
+                let (dist, sigmas) = match u.distribution {
+                    Distribution::Normal { num_sigmas } => ("normal", num_sigmas),
+                    Distribution::Uniform => ("uniform", f64::NAN),
+                };
+                let values = u
+                    .bounds
+                    .iter()
+                    .map(|b| match b {
+                        Bound::Value(v) => vec![*v],
+                        Bound::Table(t) => t.clone(),
+                        Bound::Variable(_) => Vec::new(),
+                    })
+                    .collect();
+                let refs = u
+                    .bounds
+                    .iter()
+                    .map(|b| match b {
+                        Bound::Variable(id) => id.clone(),
+                        _ => String::new(),
+                    })
+                    .collect();
+                (
+                    u.var_id.clone(),
+                    u.effect.as_str().to_string(),
+                    dist.to_string(),
+                    sigmas,
+                    values,
+                    refs,
+                    u.line,
+                )
+            })
+            .collect()
     }
 
     fn variables(&self) -> Vec<VarTuple> {

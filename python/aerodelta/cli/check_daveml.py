@@ -2,7 +2,9 @@
 
 For every shot and checked output: expected and actual value, tolerance and
 pass/fail; internal values (``internalValues``) are counted and listed when they
-fail (all of them with ``--internal``). Ends with "N checks, N passed, N failed".
+fail (all of them with ``--internal``). Ends with "N checks, N passed, N failed",
+then the variables and tables that carry an ``uncertainty`` (checked when the file
+is read: absolute bounds bracket their nominal values, table bounds have its shape).
 Exit status 1 when any check fails or the file is malformed (one error line
 naming the element and line).
 """
@@ -38,6 +40,7 @@ def run(args: argparse.Namespace) -> int:
     n = checks.height
     n_fail = int((~checks["pass"]).sum()) if n else 0
     n_out = int((checks["kind"] == "output").sum()) if n else 0
+    unc = model.uncertainty()
     summary = {
         "checks": n,
         "passed": n - n_fail,
@@ -52,7 +55,13 @@ def run(args: argparse.Namespace) -> int:
             r["error"] = r["actual"] - r["expected"]
         print(
             json.dumps(
-                {"file": str(args.file), "model": model.name, "checks": rows, "summary": summary},
+                {
+                    "file": str(args.file),
+                    "model": model.name,
+                    "checks": rows,
+                    "uncertainty": unc.drop("bounds").to_dicts(),
+                    "summary": summary,
+                },
                 indent=1,
             )
         )
@@ -83,6 +92,15 @@ def run(args: argparse.Namespace) -> int:
             f"{n} checks, {n - n_fail} passed, {n_fail} failed "
             f"({n_out} outputs, {n - n_out} internal values)"
         )
+        if unc.height:
+            kinds = unc.group_by("effect", "distribution", maintain_order=True).len()
+            what = ", ".join(
+                f"{r['len']} {r['effect']} {r['distribution']}" for r in kinds.iter_rows(named=True)
+            )
+            print(
+                f"uncertainty: {unc.height} variables or tables ({what}), each consistent with "
+                "its nominal value"
+            )
     if n == 0:
         print(f"note: {args.file} has no checkData static shots; nothing verified", file=sys.stderr)
     return 1 if n_fail else 0

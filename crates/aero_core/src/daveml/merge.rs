@@ -110,7 +110,65 @@ pub fn merge_xml(base: &str, base_name: &str, add: &ModelSpec) -> Result<String>
         })
         .find(|p| !taken.iter().any(|t| t.starts_with(p.as_str())))
         .unwrap_or_default();
-    let parts = sections(add, &shared, &prefix);
+    // The provenance goes at the end of the base's header (DAVE-ML 2 order:
+    // `provenance*` is the header's last content), its provID kept unique
+    // among the file's IDs.
+    let mut prov_edit = None;
+    let prov_id = match &add.provenance {
+        None => None,
+        Some(p) => {
+            let header = kids
+                .iter()
+                .find(|n| n.tag_name() == "fileHeader")
+                .ok_or_else(|| {
+                    AeroError::parse(
+                        base_name,
+                        1,
+                        "has no <fileHeader>; DAVE-ML requires one (author, creationDate) to \
+                         hold the provenance of the added tables",
+                    )
+                })?;
+            let ids: Vec<&str> = doc
+                .descendants()
+                .flat_map(|n| {
+                    ["varID", "bpID", "gtID", "utID", "provID", "refID", "modID"]
+                        .into_iter()
+                        .filter_map(move |a| n.attribute(a))
+                })
+                .collect();
+            let id = (1..)
+                .map(|k| {
+                    if k == 1 {
+                        p.id.clone()
+                    } else {
+                        format!("{}_{k}", p.id)
+                    }
+                })
+                .find(|c| !ids.contains(&c.as_str()))
+                .unwrap_or_else(|| p.id.clone());
+            let end = header.range().end;
+            let at = base[..end]
+                .rfind("</")
+                .filter(|&k| k > header.range().start);
+            let Some(at) = at else {
+                return Err(AeroError::parse(
+                    base_name,
+                    1,
+                    "its <fileHeader/> is empty; DAVE-ML requires an author and a creationDate",
+                ));
+            };
+            let xml = super::write::provenance_xml(p, &id);
+            // on its own lines when the closing tag starts its line
+            let line = base[..at].rfind('\n').map_or(0, |k| k + 1);
+            prov_edit = Some(if base[line..at].trim().is_empty() {
+                (line, line, xml)
+            } else {
+                (at, at, format!("\n{xml}"))
+            });
+            Some(id)
+        }
+    };
+    let parts = sections(add, &shared, &prefix, prov_id.as_deref());
     let mut edits: Vec<(usize, usize, String)> = vec![
         (
             vars_at,
@@ -126,6 +184,9 @@ pub fn merge_xml(base: &str, base_name: &str, add: &ModelSpec) -> Result<String>
     ];
     if let Some(r) = checks {
         edits.push((r.start, r.end, String::new()));
+    }
+    if let Some(e) = prov_edit {
+        edits.push(e);
     }
     // Apply from the end so earlier offsets stay valid; at one offset keep the
     // given order (variables before breakpoints before functions).

@@ -19,7 +19,10 @@
 //!   written as DAVE-ML with check cases generated from the model itself;
 //!   calculations in the regressor language become MathML;
 //! - [`merge`]: a [`ModelSpec`] merged into an existing DAVE-ML file (the Δ of
-//!   the extended model added to a qualified model), with new check cases.
+//!   the extended model added to a qualified model), with new check cases;
+//! - [`uncertainty`]: `uncertainty` of variables and tables (read and checked
+//!   against their nominal values; written for tables with confidence bands)
+//!   and `provenance` references.
 //!
 //! Table lookups use [`crate::table`]: `extrapolate="neither"` holds the end
 //! values, `min`/`max` extrapolate linearly below/above, `both` on both sides;
@@ -30,6 +33,7 @@ pub mod mathml;
 pub mod merge;
 pub mod model;
 pub mod parse;
+pub mod uncertainty;
 pub mod write;
 mod xml;
 
@@ -41,7 +45,10 @@ mod tests;
 pub use check::{CheckKind, CheckRow, Shot};
 pub use merge::merge_xml;
 pub use model::{DaveModel, Variable};
-pub use write::{mathml_of, to_xml, write_model, CalcSpec, ModelSpec};
+pub use uncertainty::{Bound, Distribution, Effect, Uncertainty};
+pub use write::{
+    mathml_of, to_xml, write_model, CalcSpec, ModelSpec, ProvenanceSpec, UncertaintySpec,
+};
 
 use std::borrow::Cow;
 

@@ -125,6 +125,8 @@ pub struct DaveModel {
     pub(crate) locators: Vec<Locator>,
     pub(crate) by_id: HashMap<String, usize>,
     pub(crate) shots: Vec<Shot>,
+    /// The `uncertainty` elements of variables and tables.
+    pub(crate) uncertainties: Vec<super::uncertainty::Uncertainty>,
 }
 
 impl DaveModel {
@@ -205,7 +207,13 @@ impl DaveModel {
         self.vars.iter().filter(|v| v.is_output).collect()
     }
 
-    /// The file's static check cases.
+    /// The `uncertainty` elements of the file's variables and tables, in file
+    /// order (variables first), each checked against its nominal value.
+    pub fn uncertainties(&self) -> &[super::uncertainty::Uncertainty] {
+        &self.uncertainties
+    }
+
+    /// The static check cases of the file.
     pub fn shots(&self) -> &[Shot] {
         &self.shots
     }

@@ -8,6 +8,7 @@ use std::sync::Arc;
 use super::check::parse_check_data;
 use super::mathml;
 use super::model::{DaveModel, Def, Locator, Variable};
+use super::uncertainty;
 use super::{child, elements, parse_document, parse_numbers, text_of, Node, NodeId, Source};
 use crate::error::{AeroError, Result};
 use crate::table::{Axis, Extrapolation, Table, MAX_DIMS};
@@ -147,6 +148,33 @@ pub(crate) fn parse(text: &str, file: &str) -> Result<DaveModel> {
         defined_at[dep] = src.line(f);
     }
 
+    // Uncertainty of variables and of tables (checked against their nominal
+    // values), and the provenance references.
+    let known = |s: &str| by_id.contains_key(s.trim());
+    let mut uncertainties = Vec::new();
+    for v in elements(root).filter(|n| n.tag_name() == "variableDef") {
+        if let Some(&i) = v.attribute("varID").and_then(|id| by_id.get(id.trim())) {
+            uncertainties.extend(uncertainty::parse(&src, v, &vars[i], &defs[i], &known)?);
+        }
+    }
+    for f in elements(root).filter(|n| n.tag_name() == "function") {
+        let dep = child(f, "dependentVarRef")
+            .and_then(|d| d.attribute("varID"))
+            .and_then(|id| by_id.get(id.trim()).copied());
+        let table = child(f, "functionDefn")
+            .and_then(|d| elements(d).next())
+            .and_then(|t| match t.tag_name() {
+                "griddedTableRef" => t
+                    .attribute("gtID")
+                    .and_then(|id| gts.get(id.trim()).copied()),
+                _ => Some(t),
+            });
+        if let (Some(i), Some(t)) = (dep, table) {
+            uncertainties.extend(uncertainty::parse(&src, t, &vars[i], &defs[i], &known)?);
+        }
+    }
+    uncertainty::check_provenance_refs(&src, root)?;
+
     let order = topological_order(&src, &vars, &defs, &defined_at)?;
     let locators = share_locators(&mut defs);
     let mut base = vec![f64::NAN; n];
@@ -168,6 +196,7 @@ pub(crate) fn parse(text: &str, file: &str) -> Result<DaveModel> {
         locators,
         by_id: by_id.clone(),
         shots: Vec::new(),
+        uncertainties,
     };
     if let Some(cd) = child(root, "checkData") {
         model.shots = parse_check_data(&src, cd, &model)?;

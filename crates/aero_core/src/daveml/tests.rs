@@ -197,6 +197,7 @@ fn spec() -> ModelSpec {
                 values: vec![0.1, -0.2, 0.3, 1.0 / 3.0],
                 extrapolate: Extrapolate::Neither,
                 is_output: false,
+                uncertainty: None,
             },
             TableSpec {
                 id: "Tab".into(),
@@ -208,6 +209,7 @@ fn spec() -> ModelSpec {
                 values: (0..8).map(|i| f64::from(i) * 0.1 - 0.35).collect(),
                 extrapolate: Extrapolate::Both,
                 is_output: true,
+                uncertainty: None,
             },
         ],
         outputs: vec![OutputSpec {
@@ -249,6 +251,7 @@ fn spec() -> ModelSpec {
             },
         ],
         check_tolerance: 1e-9,
+        provenance: None,
     }
 }
 

@@ -55,6 +55,11 @@ pub struct ModelSpec {
     /// Points at which check cases are generated.
     #[serde(default)]
     pub checks: Vec<CheckPoint>,
+    /// Where the tables come from: written as a `provenance` element of the
+    /// file header (merged: of the base file's header), which every table of
+    /// the spec cites with a `provenanceRef`.
+    #[serde(default)]
+    pub provenance: Option<ProvenanceSpec>,
     /// Tolerance written on every generated check output.
     #[serde(default = "default_tol")]
     pub check_tolerance: f64,
@@ -135,6 +140,47 @@ pub struct TableSpec {
     /// Also flag the table's variable `isOutput`.
     #[serde(default)]
     pub is_output: bool,
+    /// Lower and upper bounds of the table's values (a confidence band),
+    /// written as DAVE-ML `uncertainty`.
+    #[serde(default)]
+    pub uncertainty: Option<UncertaintySpec>,
+}
+
+/// Bounds on a table's values, on the table's own grid, written as
+/// `<uncertainty effect="absolute"><uniformPDF>` with two `<bounds>`, each a
+/// `dataTable` (DAVE-ML 2.0 reference, section "uncertainty": absolute bounds
+/// give the range of values and must bracket the nominal value). DAVE-ML
+/// offers Gaussian (symmetric) and uniform distributions only: an asymmetric
+/// confidence band is written as uniform absolute bounds, its level stated in
+/// the table's description.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct UncertaintySpec {
+    /// Lower bounds, laid out as `values`.
+    pub lower: Vec<f64>,
+    /// Upper bounds, laid out as `values`.
+    pub upper: Vec<f64>,
+}
+
+/// A DAVE-ML `provenance`: who made the data, when, and how.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ProvenanceSpec {
+    /// `provID` (letters, digits, '_'); merged into a file that already uses
+    /// it, a numbered suffix is added.
+    pub id: String,
+    /// Author's name (default "aerodelta").
+    #[serde(default)]
+    pub author: String,
+    /// Author's organisation (default "aerodelta").
+    #[serde(default)]
+    pub org: String,
+    /// ISO date (default: today, UTC).
+    #[serde(default)]
+    pub date: Option<String>,
+    /// How the data were made (method, data, settings).
+    #[serde(default)]
+    pub description: String,
 }
 
 /// A variable computed from others by an expression of the regressor language
@@ -275,6 +321,10 @@ impl ModelSpec {
                 .map_err(|e| e.context(place("table", &t.id)))?;
             crate::table::Table::new(axes, t.values.clone())
                 .map_err(|e| e.context(place("table", &t.id)))?;
+            if let Some(u) = &t.uncertainty {
+                check_bounds(&t.values, u)
+                    .map_err(|m| AeroError::invalid(place("table", &t.id), m))?;
+            }
             known.push(&t.id);
         }
         for c in &self.calculations {
@@ -309,6 +359,9 @@ impl ModelSpec {
             }
             known.push(&o.id);
         }
+        if let Some(p) = &self.provenance {
+            declare("provenance", &p.id, &mut Vec::new())?;
+        }
         if self.check_tolerance.is_nan() || self.check_tolerance < 0.0 {
             return Err(AeroError::invalid(
                 place("check_tolerance", ""),
@@ -317,6 +370,60 @@ impl ModelSpec {
         }
         Ok(())
     }
+}
+
+/// Absolute bounds must be as many as the values, finite, and bracket them
+/// (DAVE-ML 2.0: "the specified range of values must bracket the nominal
+/// value").
+fn check_bounds(values: &[f64], u: &UncertaintySpec) -> std::result::Result<(), String> {
+    for (what, b) in [("lower", &u.lower), ("upper", &u.upper)] {
+        if b.len() != values.len() {
+            return Err(format!(
+                "uncertainty has {} {what} bounds for {} values; give one per value",
+                b.len(),
+                values.len()
+            ));
+        }
+        if let Some(k) = b.iter().position(|v| !v.is_finite()) {
+            return Err(format!(
+                "uncertainty {what} bound {k} is {}; bounds must be finite",
+                b[k]
+            ));
+        }
+    }
+    let tol = |v: f64| 1e-12 * v.abs().max(1e-300);
+    if let Some(k) = (0..values.len()).find(|&k| {
+        u.lower[k] > values[k] + tol(values[k]) || u.upper[k] < values[k] - tol(values[k])
+    }) {
+        return Err(format!(
+            "uncertainty bounds [{}, {}] at value {k} do not bracket the value {}",
+            u.lower[k], u.upper[k], values[k]
+        ));
+    }
+    Ok(())
+}
+
+/// The `provenance` element of `p` with `provID` `id`, indented for a file header.
+pub(crate) fn provenance_xml(p: &ProvenanceSpec, id: &str) -> String {
+    let mut x = String::new();
+    let _ = writeln!(x, "    <provenance provID=\"{}\">", esc(id));
+    let _ = writeln!(
+        x,
+        "      <author name=\"{}\" org=\"{}\"/>",
+        esc(or(&p.author, "aerodelta")),
+        esc(or(&p.org, "aerodelta"))
+    );
+    let date = p.date.clone().unwrap_or_else(today);
+    let _ = writeln!(x, "      <creationDate date=\"{}\"/>", esc(&date));
+    if !p.description.is_empty() {
+        let _ = writeln!(
+            x,
+            "      <description>{}</description>",
+            esc(&p.description)
+        );
+    }
+    let _ = writeln!(x, "    </provenance>");
+    x
 }
 
 fn esc(s: &str) -> String {
@@ -388,8 +495,12 @@ fn body(spec: &ModelSpec) -> String {
             esc(&spec.description)
         );
     }
+    if let Some(p) = &spec.provenance {
+        x.push_str(&provenance_xml(p, &p.id));
+    }
     let _ = writeln!(x, "  </fileHeader>");
-    let parts = sections(spec, &[], "");
+    let prov = spec.provenance.as_ref().map(|p| p.id.as_str());
+    let parts = sections(spec, &[], "", prov);
     x.push_str(&parts.variables);
     x.push_str(&parts.breakpoints);
     x.push_str(&parts.functions);
@@ -423,7 +534,13 @@ fn open_variable(x: &mut String, name: &str, id: &str, units: &str, description:
 /// The elements of `spec`, leaving out the `variableDef` of the inputs in
 /// `skip_inputs` (declared by the model the elements are merged into), every
 /// `bpID` and `gtID` led by `id_prefix`.
-pub(crate) fn sections(spec: &ModelSpec, skip_inputs: &[&str], id_prefix: &str) -> Sections {
+/// `prov`: the `provID` the tables cite, if any.
+pub(crate) fn sections(
+    spec: &ModelSpec,
+    skip_inputs: &[&str],
+    id_prefix: &str,
+    prov: Option<&str>,
+) -> Sections {
     let mut x = String::new();
     for i in spec
         .inputs
@@ -566,16 +683,41 @@ pub(crate) fn sections(spec: &ModelSpec, skip_inputs: &[&str], id_prefix: &str) 
             esc(&t.id),
             esc(id_prefix)
         );
+        if let Some(p) = prov {
+            let _ = writeln!(x, "        <provenanceRef provID=\"{}\"/>", esc(p));
+        }
         let _ = writeln!(x, "        <breakpointRefs>");
         for id in ids {
             let _ = writeln!(x, "          <bpRef bpID=\"{}\"/>", esc(id));
         }
-        let _ = writeln!(x, "        </breakpointRefs>\n        <dataTable> <!-- last breakpoint varies fastest -->");
+        let _ = writeln!(x, "        </breakpointRefs>");
         let row = t.breakpoints.last().map_or(1, |b| b.len().max(1));
-        for chunk in t.values.chunks(row) {
-            let v: Vec<String> = chunk.iter().map(|&b| num(b)).collect();
-            let _ = writeln!(x, "          {}", v.join(", "));
+        let rows = |x: &mut String, values: &[f64], indent: &str| {
+            for chunk in values.chunks(row) {
+                let v: Vec<String> = chunk.iter().map(|&b| num(b)).collect();
+                let _ = writeln!(x, "{indent}{}", v.join(", "));
+            }
+        };
+        if let Some(u) = &t.uncertainty {
+            let _ = writeln!(
+                x,
+                "        <uncertainty effect=\"absolute\">\n          <uniformPDF>"
+            );
+            for (what, b) in [("lower", &u.lower), ("upper", &u.upper)] {
+                let _ = writeln!(
+                    x,
+                    "            <bounds> <!-- {what} -->\n              <dataTable>"
+                );
+                rows(&mut x, b, "                ");
+                let _ = writeln!(x, "              </dataTable>\n            </bounds>");
+            }
+            let _ = writeln!(x, "          </uniformPDF>\n        </uncertainty>");
         }
+        let _ = writeln!(
+            x,
+            "        <dataTable> <!-- last breakpoint varies fastest -->"
+        );
+        rows(&mut x, &t.values, "          ");
         let _ = writeln!(
             x,
             "        </dataTable>\n      </griddedTableDef>\n    </functionDefn>\n  </function>"
