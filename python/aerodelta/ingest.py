@@ -127,6 +127,7 @@ def ingest(  # noqa: PLR0917
     progress: bool = True,
     plausibility: bool = True,
     vane_scale: bool = False,
+    compat_method: str = "auto",
 ) -> IngestResult:
     """Read, map, validate and preprocess flight test records.
 
@@ -156,6 +157,11 @@ def ingest(  # noqa: PLR0917
         ``compat``). They separate from the biases only where the angle varies within a
         maneuver, and gusts scatter their per-maneuver estimates: the campaign median is
         reported (a sensor's scale is the same in every maneuver).
+    compat_method : str
+        How the compatibility check reconstructs the flight path: ``"output-error"`` (steady
+        air), ``"innovations"`` (the one-step predictor with estimated gains, for turbulence:
+        gusts no longer bias the vane scale factors; about 3x the time) or ``"auto"`` (the
+        innovations form when ``vane_scale`` is set, else output error). See docs/data.md.
     smooth : bool
         Smooth before differentiating (recommended; off only for exact synthetic data).
     progress : bool
@@ -176,6 +182,15 @@ def ingest(  # noqa: PLR0917
     """
     if vane_scale and not (compat or apply_compat):
         raise DataError("vane_scale=True needs the compatibility check: drop compat=False")
+    if compat_method not in COMPAT_METHODS:
+        raise DataError(
+            f"compat_method={compat_method!r}: give one of {', '.join(map(repr, COMPAT_METHODS))}"
+        )
+    if compat_method != "auto" and not (compat or apply_compat):
+        raise DataError(
+            f"compat_method={compat_method!r} needs the compatibility check: drop compat=False"
+        )
+    gusts = compat_method == "innovations" or (compat_method == "auto" and vane_scale)
     ac = _load_aircraft(aircraft, data)
     cmap = (
         channel_map
@@ -292,7 +307,7 @@ def ingest(  # noqa: PLR0917
             )
     compat_df = None
     if compat or apply_compat:
-        compat_df = _run_compat(out, reports, ac, loadings, vane_scale)
+        compat_df = _run_compat(out, reports, ac, loadings, vane_scale, gusts=gusts)
         if apply_compat:
             allc = _apply_compat(allc, compat_df)
             out, smoothing = preprocess_frame(allc, ac, smooth=smooth, loadings=loadings)
@@ -309,7 +324,13 @@ def ingest(  # noqa: PLR0917
 #: converge in 3-5; inconsistent data gain nothing from more), so that a campaign of 200
 #: one-minute maneuvers is checked in seconds.
 COMPAT_MAX_SAMPLES = 500
+
+#: Flight-path reconstructions of the compatibility check (``compat_method``).
+COMPAT_METHODS = ("auto", "output-error", "innovations")
 COMPAT_MAX_ITER = 10
+#: Gauss-Newton iterations of the innovations form: its three gains start far from where the
+#: data put them (near 0 in calm air, 0.7-1 in turbulence) and take 15-20 iterations.
+COMPAT_MAX_ITER_INNOVATIONS = 30
 
 
 #: RMS output residuals after the reconstruction above which the data are reported as not
@@ -364,7 +385,10 @@ def _fast_validate(
 
 
 def _compat_one(
-    g: pl.DataFrame, vanes: tuple[list[float], list[float], bool], scale_factors: bool = False
+    g: pl.DataFrame,
+    vanes: tuple[list[float], list[float], bool],
+    scale_factors: bool = False,
+    gusts: bool = False,
 ) -> dict[str, object]:
     """One maneuver's check: the vane readings (``alpha_deg``, ``beta_deg``) against the
     reconstructed flow at the vanes, ``vanes`` = (alpha vane, beta vane from this maneuver's
@@ -383,11 +407,12 @@ def _compat_one(
         a("alpha_deg", d2r),
         a("beta_deg", d2r),
         [a("phi_deg", d2r), a("theta_deg", d2r), a("psi_deg", d2r)],
-        max_iter=COMPAT_MAX_ITER,
+        max_iter=COMPAT_MAX_ITER_INNOVATIONS if gusts else COMPAT_MAX_ITER,
         scale_factors=scale_factors,
         r_alpha=vanes[0],
         r_beta=vanes[1],
         flank=vanes[2],
+        gusts=gusts,
     )
 
 
@@ -437,6 +462,8 @@ def _run_compat(
     ac: Aircraft,
     loadings: pl.DataFrame | None = None,
     scale_factors: bool = False,
+    *,
+    gusts: bool = False,
 ) -> pl.DataFrame:
     """Run the check per maneuver and report what the campaign supports.
 
@@ -469,7 +496,10 @@ def _run_compat(
 
     with ThreadPoolExecutor(max_workers=os.cpu_count() or 1) as ex:
         results = list(
-            ex.map(lambda i: _compat_one(groups[i], vanes(i), scale_factors), range(len(groups)))
+            ex.map(
+                lambda i: _compat_one(groups[i], vanes(i), scale_factors, gusts),
+                range(len(groups)),
+            )
         )
     by_id = {r.maneuver_id: r for r in reports}
     nm = len(mids)

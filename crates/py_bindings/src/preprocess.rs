@@ -235,9 +235,10 @@ fn preprocess_batch<'py>(
 
 /// Data compatibility check of one maneuver (SI, rad, at the CG). Returns a dict with
 /// `names`, `params`, `std_err` (the estimated parameters only: the vane scale factors with
-/// `scale_factors`), `outputs`, `rms_before`, `rms_after`, `iterations`, `converged`.
+/// `scale_factors`, the innovation gains with `gusts`), `outputs`, `rms_before`, `rms_after`,
+/// `iterations`, `converged`.
 #[pyfunction]
-#[pyo3(signature = (t, accel, rates, tas, alpha, beta, euler, max_iter=20, scale_factors=false, r_alpha=[0.0; 3], r_beta=[0.0; 3], flank=false))]
+#[pyo3(signature = (t, accel, rates, tas, alpha, beta, euler, max_iter=20, scale_factors=false, r_alpha=[0.0; 3], r_beta=[0.0; 3], flank=false, gusts=false))]
 #[allow(clippy::too_many_arguments)]
 fn compat_check<'py>(
     py: Python<'py>,
@@ -253,6 +254,7 @@ fn compat_check<'py>(
     r_alpha: [f64; 3],
     r_beta: [f64; 3],
     flank: bool,
+    gusts: bool,
 ) -> PyResult<Bound<'py, PyDict>> {
     let (a, w, e) = (slices(&accel)?, slices(&rates)?, slices(&euler)?);
     if a.len() != 3 || w.len() != 3 || e.len() != 3 {
@@ -275,7 +277,7 @@ fn compat_check<'py>(
             flank,
         },
     };
-    let r = detached(py, || compat::check(&inp, max_iter, scale_factors))?;
+    let r = detached(py, || compat::check(&inp, max_iter, scale_factors, gusts))?;
     let keep = |v: &[f64]| -> Vec<f64> {
         v.iter()
             .zip(&r.estimated)

@@ -21,7 +21,7 @@ from aerodelta.cli._data import (
     resolve_data,
 )
 from aerodelta.exceptions import InvalidInputError
-from aerodelta.ingest import summarise
+from aerodelta.ingest import COMPAT_METHODS, summarise
 
 HELP = "ingest and preprocess flight test records (CSV, Parquet, .mat)"
 
@@ -41,6 +41,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "compatibility check; needs alpha and sideslip sweeps within the maneuvers",
     )
     parser.add_argument(
+        "--compat-method",
+        choices=COMPAT_METHODS,
+        default="auto",
+        help="flight-path reconstruction of the compatibility check: output-error (steady air), "
+        "innovations (a one-step predictor that follows gusts; about 3x slower) or auto "
+        "(innovations with --vane-scale, else output-error; default)",
+    )
+    parser.add_argument(
         "--apply-compat", action="store_true", help="remove estimated biases and scale factors"
     )
     parser.add_argument("--format", choices=("table", "json"), default="table")
@@ -55,6 +63,8 @@ def run(args: argparse.Namespace) -> int:
         raise InvalidInputError("--apply-compat needs the compatibility check: drop --no-compat")
     if args.vane_scale and args.no_compat:
         raise InvalidInputError("--vane-scale needs the compatibility check: drop --no-compat")
+    if args.compat_method != "auto" and args.no_compat:
+        raise InvalidInputError("--compat-method needs the compatibility check: drop --no-compat")
     out = output_folder(args.out)
     src = resolve_data(args)
     if src.kind == "ingested":
@@ -75,6 +85,7 @@ def run(args: argparse.Namespace) -> int:
         compat=not args.no_compat,
         apply_compat=args.apply_compat,
         vane_scale=args.vane_scale,
+        compat_method=args.compat_method,
     )
     with created(out):
         paths = res.write(out)

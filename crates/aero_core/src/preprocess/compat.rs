@@ -20,6 +20,25 @@
 //! not separable over a stall's speed range). Unknowns: these 11 plus the 6 initial states.
 //! A scale factor and its bias separate only where the angle varies (a stall's alpha sweep;
 //! sideslip maneuvers for beta); the Cramér-Rao bounds say how well.
+//!
+//! **Gusts** (`gusts = true`). Output error assumes the air moves steadily: a gust moves the
+//! vanes and the airspeed but not the accelerometers, and since the aircraft answers a slow
+//! gust (a side gust weathercocks it) the reconstructed angle carries part of the gust with
+//! the opposite sign, an error in the regressor that biases the scale factors toward zero
+//! (on 0.5 m/s Dryden turbulence $k_\beta$ came out 1.2 % low). With gusts the reconstruction
+//! is the one-step predictor of the innovations form (Maine & Iliff 1985, NASA RP-1138,
+//! Section 5.3: the steady-state filter gain estimated directly with the parameters; Ljung
+//! 1999, Chapter 7, prediction-error method): after each sample the air-relative velocity is
+//! corrected toward the airspeed and vane readings, $\delta(V,\alpha,\beta) =
+//! (K_V\nu_V/(1+\lambda_V), K_\alpha\nu_\alpha/(1+k_\alpha), K_\beta\nu_\beta/(1+k_\beta))$
+//! mapped to $(u, v, w)$ through $\partial(u,v,w)/\partial(V,\alpha,\beta)$, where $\nu$ is the
+//! output's innovation (measured minus predicted) and the gains $K \in (0, 1)$ are three more
+//! unknowns (estimated as logits). The innovations, not the open-loop outputs, enter the
+//! cost: a slow gust is followed by the predictor and leaves the scale factors to the parts
+//! of the angles' motion it cannot follow. In calm air the gains go to zero and the estimate
+//! is the output-error one. Every sensitivity is then a finite difference (the feedback makes
+//! the output parameters act on the states).
+//!
 //! They are estimated by output error (thesis Section 2.3.2): Gauss-Newton (modified
 //! Newton-Raphson, Eq. 2.21) with finite-difference output sensitivities, the output noise
 //! covariance re-estimated each iteration from the residuals, Levenberg damping when a step
@@ -35,7 +54,7 @@ use crate::error::{AeroError, Result};
 pub const G0: f64 = 9.80665;
 
 /// Names of the estimated parameters, in order.
-pub const PARAM_NAMES: [&str; 17] = [
+pub const PARAM_NAMES: [&str; 20] = [
     "b_ax_mps2",
     "b_ay_mps2",
     "b_az_mps2",
@@ -53,7 +72,21 @@ pub const PARAM_NAMES: [&str; 17] = [
     "phi0_rad",
     "theta0_rad",
     "psi0_rad",
+    "gain_v",
+    "gain_alpha",
+    "gain_beta",
 ];
+
+/// Indices of the innovation gains $K_V, K_\alpha, K_\beta$ in [`PARAM_NAMES`] (estimated
+/// with `gusts` only; held as logits while estimating, reported as gains in (0, 1)).
+pub const GAINS: [usize; 3] = [17, 18, 19];
+
+/// Starting gain of the gust predictor (a small correction per sample).
+const GAIN_START: f64 = 0.02;
+
+fn sigmoid(g: f64) -> f64 {
+    1.0 / (1.0 + (-g).exp())
+}
 
 /// Convergence: every parameter step below this fraction of its Cramér-Rao standard error
 /// (or a relative cost change under 1e-7).
@@ -109,7 +142,8 @@ pub struct CompatInput<'a> {
 /// Result of the compatibility check.
 #[derive(Debug, Clone)]
 pub struct CompatResult {
-    /// Estimates in the order of [`PARAM_NAMES`] (a parameter not estimated holds 0).
+    /// Estimates in the order of [`PARAM_NAMES`] (a parameter not estimated holds 0; the
+    /// gains [`GAINS`] are gains in (0, 1)).
     pub params: Vec<f64>,
     /// Cramér-Rao standard errors, same order (NaN for a parameter not estimated).
     pub std_err: Vec<f64>,
@@ -143,8 +177,11 @@ fn rhs(x: &State, a: [f64; 3], w: [f64; 3]) -> State {
     ]
 }
 
-/// Simulate the outputs for parameters `th`; returns 6 output vectors.
-fn simulate(inp: &CompatInput<'_>, th: &[f64]) -> [Vec<f64>; 6] {
+/// Simulate the outputs for parameters `th`; returns 6 output vectors. With `gusts`, the
+/// one-step predictions of the innovations form: after each sample the air-relative velocity
+/// is corrected toward the measured airspeed and vane angles with the gains `th[GAINS]`
+/// (logits; see the module notes).
+fn simulate(inp: &CompatInput<'_>, th: &[f64], gusts: bool) -> [Vec<f64>; 6] {
     let n = inp.t.len();
     let inputs = |i: usize| -> ([f64; 3], [f64; 3]) {
         (
@@ -187,14 +224,33 @@ fn simulate(inp: &CompatInput<'_>, th: &[f64]) -> [Vec<f64>; 6] {
                 .clamp(-1.0, 1.0)
                 .asin()
         };
-        out[0].push((1.0 + th[8]) * vt);
-        out[1].push((1.0 + th[9]) * (w + ca[2]).atan2(u + ca[0]) + th[6]);
-        out[2].push((1.0 + th[10]) * beta_vane + th[7]);
+        let y = [
+            (1.0 + th[8]) * vt,
+            (1.0 + th[9]) * (w + ca[2]).atan2(u + ca[0]) + th[6],
+            (1.0 + th[10]) * beta_vane + th[7],
+        ];
+        out[0].push(y[0]);
+        out[1].push(y[1]);
+        out[2].push(y[2]);
         out[3].push(phi);
         out[4].push(theta);
         out[5].push(psi);
         if i + 1 == n {
             break;
+        }
+        if gusts && vt > 0.0 {
+            // innovations of airspeed and vane angles, as increments of V, alpha, beta
+            let d = [
+                sigmoid(th[17]) * (inp.tas[i] - y[0]) / (1.0 + th[8]),
+                sigmoid(th[18]) * (inp.alpha[i] - y[1]) / (1.0 + th[9]),
+                sigmoid(th[19]) * (inp.beta[i] - y[2]) / (1.0 + th[10]),
+            ];
+            let a = w.atan2(u);
+            let b = (v / vt).clamp(-1.0, 1.0).asin();
+            let ((sa, ca_), (sb, cb_)) = (a.sin_cos(), b.sin_cos());
+            x[0] += ca_ * cb_ * d[0] - vt * sa * cb_ * d[1] - vt * ca_ * sb * d[2];
+            x[1] += sb * d[0] + vt * cb_ * d[2];
+            x[2] += sa * cb_ * d[0] + vt * ca_ * cb_ * d[1] - vt * sa * sb * d[2];
         }
         let h = inp.t[i + 1] - inp.t[i];
         let (a0, w0) = inputs(i);
@@ -248,13 +304,14 @@ fn sensitivities(
     inp: &CompatInput<'_>,
     th: &[f64],
     sim: &[Vec<f64>; 6],
-    steps: &[f64; 17],
+    steps: &[f64; 20],
     free: &[usize],
+    gusts: bool,
 ) -> Vec<[Vec<f64>; 6]> {
     let n = inp.t.len();
     free.iter()
         .map(|&j| {
-            if (6..=10).contains(&j) {
+            if !gusts && (6..=10).contains(&j) {
                 let mut d: [Vec<f64>; 6] = std::array::from_fn(|_| vec![0.0; n]);
                 // the simulated angle before its error: (y - b) / (1 + k)
                 let angle = |k: usize, b: f64, s: f64| -> Vec<f64> {
@@ -276,7 +333,7 @@ fn sensitivities(
             }
             let mut tp = th.to_vec();
             tp[j] += steps[j];
-            let sp = simulate(inp, &tp);
+            let sp = simulate(inp, &tp, gusts);
             std::array::from_fn(|k| {
                 sp[k]
                     .iter()
@@ -293,13 +350,19 @@ pub const SCALE_FACTORS: [usize; 2] = [9, 10];
 
 /// Run the compatibility check on one maneuver; the vane scale factors $k_\alpha$, $k_\beta$
 /// are estimated only with `scale_factors` (they need the angle to vary within the maneuver,
-/// and otherwise stay 0).
+/// and otherwise stay 0); with `gusts` the innovations form with its three gains (module
+/// notes) replaces output error.
 ///
 /// # Errors
 /// `TooLittleData` for fewer than 20 samples; `InvalidInput` for unequal lengths, a
 /// non-positive first airspeed or non-finite samples; `NoConvergence` is never returned (the
 /// result says whether it converged).
-pub fn check(inp: &CompatInput<'_>, max_iter: usize, scale_factors: bool) -> Result<CompatResult> {
+pub fn check(
+    inp: &CompatInput<'_>,
+    max_iter: usize,
+    scale_factors: bool,
+    gusts: bool,
+) -> Result<CompatResult> {
     let n = inp.t.len();
     let place = "data compatibility check";
     if n < 20 {
@@ -354,14 +417,21 @@ pub fn check(inp: &CompatInput<'_>, max_iter: usize, scale_factors: bool) -> Res
     th[14] = inp.euler[0][0];
     th[15] = inp.euler[1][0];
     th[16] = inp.euler[2][0];
+    if gusts {
+        let g0 = (GAIN_START / (1.0 - GAIN_START)).ln();
+        for j in GAINS {
+            th[j] = g0;
+        }
+    }
     let free: Vec<usize> = (0..th.len())
         .filter(|j| scale_factors || !SCALE_FACTORS.contains(j))
+        .filter(|j| gusts || !GAINS.contains(j))
         .collect();
     let np = free.len();
     let no = 6;
     // initial output noise scales: 0.5 m/s, 0.2 deg
     let mut sig = [0.5, 3.5e-3, 3.5e-3, 3.5e-3, 3.5e-3, 3.5e-3];
-    let mut sim = simulate(inp, &th);
+    let mut sim = simulate(inp, &th, gusts);
     let mut res = residuals(&meas, &sim);
     let rms_before: Vec<f64> = res.iter().map(|r| rms(r)).collect();
     let cost = |res: &[Vec<f64>; 6], sig: &[f64; 6]| -> f64 {
@@ -371,7 +441,7 @@ pub fn check(inp: &CompatInput<'_>, max_iter: usize, scale_factors: bool) -> Res
     };
     let steps = [
         1e-4, 1e-4, 1e-4, 1e-6, 1e-6, 1e-6, 1e-6, 1e-6, 1e-6, 1e-6, 1e-6, 1e-3, 1e-3, 1e-3, 1e-6,
-        1e-6, 1e-6,
+        1e-6, 1e-6, 1e-3, 1e-3, 1e-3,
     ];
     let mut info = DMatrix::<f64>::zeros(np, np);
     let mut converged = false;
@@ -380,7 +450,7 @@ pub fn check(inp: &CompatInput<'_>, max_iter: usize, scale_factors: bool) -> Res
     for it in 0..max_iter {
         iterations = it + 1;
         // sensitivities dy/dth by forward differences
-        let sens = sensitivities(inp, &th, &sim, &steps, &free);
+        let sens = sensitivities(inp, &th, &sim, &steps, &free, gusts);
         info.fill(0.0);
         let mut grad = DVector::<f64>::zeros(np);
         for k in 0..no {
@@ -412,7 +482,7 @@ pub fn check(inp: &CompatInput<'_>, max_iter: usize, scale_factors: bool) -> Res
             for (d, &j) in free.iter().enumerate() {
                 cand[j] += step[d];
             }
-            let sim_c = simulate(inp, &cand);
+            let sim_c = simulate(inp, &cand, gusts);
             let res_c = residuals(&meas, &sim_c);
             let jc = cost(&res_c, &sig);
             if jc.is_finite() && jc <= j0 {
@@ -452,7 +522,7 @@ pub fn check(inp: &CompatInput<'_>, max_iter: usize, scale_factors: bool) -> Res
     // Cramér-Rao bounds at the final weights
     let mut m = DMatrix::<f64>::zeros(np, np);
     {
-        let sens = sensitivities(inp, &th, &sim, &steps, &free);
+        let sens = sensitivities(inp, &th, &sim, &steps, &free, gusts);
         for k in 0..no {
             let wk = 1.0 / (sig[k] * sig[k]);
             for a in 0..np {
@@ -470,20 +540,31 @@ pub fn check(inp: &CompatInput<'_>, max_iter: usize, scale_factors: bool) -> Res
         }
     }
     let mut std_err = vec![f64::NAN; th.len()];
-    match m.clone().try_inverse() {
-        Some(inv) => {
-            for (d, &j) in free.iter().enumerate() {
-                std_err[j] = inv[(d, d)].abs().sqrt();
-            }
-        }
-        None => {
-            for &j in &free {
-                std_err[j] = f64::INFINITY;
-            }
+    // A gain the data leave without information (saturated at 0 or 1: its logit far out) is
+    // held at its value for the bounds of the others; its own bound is infinite.
+    let keep: Vec<usize> = (0..np)
+        .filter(|&d| !(GAINS.contains(&free[d]) && (th[free[d]].abs() > 12.0 || m[(d, d)] <= 0.0)))
+        .collect();
+    let sub = DMatrix::from_fn(keep.len(), keep.len(), |a, b| m[(keep[a], keep[b])]);
+    for &j in &free {
+        std_err[j] = f64::INFINITY;
+    }
+    if let Some(inv) = sub.try_inverse() {
+        for (a, &d) in keep.iter().enumerate() {
+            std_err[free[d]] = inv[(a, a)].abs().sqrt();
         }
     }
     let estimated = (0..th.len()).map(|j| free.contains(&j)).collect();
     let rms_after = res.iter().map(|r| rms(r)).collect();
+    let mut th = th;
+    if gusts {
+        // logits to gains, their errors by the delta method
+        for j in GAINS {
+            let k = sigmoid(th[j]);
+            th[j] = k;
+            std_err[j] *= k * (1.0 - k);
+        }
+    }
     Ok(CompatResult {
         params: th,
         std_err,
@@ -496,7 +577,9 @@ pub fn check(inp: &CompatInput<'_>, max_iter: usize, scale_factors: bool) -> Res
 }
 
 /// Simulated outputs (V m/s, alpha, beta, phi, theta, psi rad) for given parameters, e.g. to
-/// plot the reconstruction against the measurements.
+/// plot the reconstruction against the measurements; with positive gains
+/// (`params[GAINS]`, as [`check`] reports them) the one-step predictions of the innovations
+/// form.
 pub fn reconstruct(inp: &CompatInput<'_>, params: &[f64]) -> Result<[Vec<f64>; 6]> {
     if params.len() != PARAM_NAMES.len() {
         return Err(AeroError::invalid(
@@ -508,7 +591,16 @@ pub fn reconstruct(inp: &CompatInput<'_>, params: &[f64]) -> Result<[Vec<f64>; 6
             ),
         ));
     }
-    Ok(simulate(inp, params))
+    // the gains as check() reports them: the innovations form when any is positive
+    let gusts = GAINS.iter().any(|&j| params[j] > 0.0);
+    let mut th = params.to_vec();
+    if gusts {
+        for j in GAINS {
+            let k = th[j].clamp(1e-300, 1.0 - 1e-16);
+            th[j] = (k / (1.0 - k)).ln();
+        }
+    }
+    Ok(simulate(inp, &th, gusts))
 }
 
 #[cfg(test)]
@@ -551,7 +643,7 @@ mod tests {
         th[13] = 4.0;
         th[15] = 0.05;
         th[16] = 1.0;
-        let y = simulate(&inp, &th);
+        let y = simulate(&inp, &th, false);
         (m, y)
     }
 
@@ -571,7 +663,7 @@ mod tests {
             euler: [&y[3], &y[4], &y[5]],
             vanes,
         };
-        let res = check(&inp, 40, true).unwrap();
+        let res = check(&inp, 40, true, false).unwrap();
         for (name, want, tol) in [
             ("k_alpha", k[0], 1e-5),
             ("k_beta", k[1], 1e-5),
@@ -602,7 +694,7 @@ mod tests {
             euler: [&y[3], &y[4], &y[5]],
             vanes: Vanes::AT_CG,
         };
-        let res = check(&inp, 30, false).unwrap();
+        let res = check(&inp, 30, false, false).unwrap();
         assert!(
             (res.params[6] - b_alpha).abs() < 1e-5,
             "b_alpha {}",
@@ -635,7 +727,12 @@ mod tests {
         let b = [0.5_f64.to_radians(), -0.3_f64.to_radians()];
         let res = assert_scale_recovered(Vanes::AT_CG, [0.06, -0.08], b);
         assert!(res.rms_after[1] < 1e-6 && res.rms_after[2] < 1e-6);
-        assert!(res.std_err.iter().all(|s| s.is_finite()));
+        // every estimated parameter has a finite bound (the gains are not estimated here)
+        assert!(res
+            .std_err
+            .iter()
+            .zip(&res.estimated)
+            .all(|(s, e)| !e || s.is_finite()));
     }
 
     /// Vanes on a nose boom 8 m ahead (the rates' ω × r terms are several tenths of a degree)
@@ -657,5 +754,44 @@ mod tests {
         assert!(most(&y[1], &at_cg[1]) > 0.003 && most(&y[2], &at_cg[2]) > 0.003);
         let b = [0.4_f64.to_radians(), 0.6_f64.to_radians()];
         assert_scale_recovered(vanes, [0.07, 0.05], b);
+    }
+
+    /// The innovations form on calm (exact) data: the gains stay near zero and the scale
+    /// factors and biases come back as with output error.
+    #[test]
+    fn gust_predictor_on_calm_data_is_output_error() {
+        let vanes = Vanes::AT_CG;
+        let ([t, p, q, r, ax, ay, az], y) = truth(0.8, vanes);
+        let (k, b) = ([0.06, -0.08], [0.5_f64.to_radians(), -0.3_f64.to_radians()]);
+        let alpha_m: Vec<f64> = y[1].iter().map(|v| (1.0 + k[0]) * v + b[0]).collect();
+        let beta_m: Vec<f64> = y[2].iter().map(|v| (1.0 + k[1]) * v + b[1]).collect();
+        let inp = CompatInput {
+            t: &t,
+            accel: [&ax, &ay, &az],
+            rates: [&p, &q, &r],
+            tas: &y[0],
+            alpha: &alpha_m,
+            beta: &beta_m,
+            euler: [&y[3], &y[4], &y[5]],
+            vanes,
+        };
+        let res = check(&inp, 60, true, true).unwrap();
+        for (name, want, tol) in [
+            ("k_alpha", k[0], 1e-4),
+            ("k_beta", k[1], 1e-4),
+            ("b_alpha_rad", b[0], 1e-5),
+            ("b_beta_rad", b[1], 1e-5),
+        ] {
+            let got = res.params[PARAM_NAMES.iter().position(|n| *n == name).unwrap()];
+            assert!((got - want).abs() < tol, "{name} {got}");
+        }
+        assert!(GAINS.iter().all(|&j| res.estimated[j] && (0.0..0.05).contains(&res.params[j])));
+        // the reconstruction with the reported gains is the predictor the fit ended on
+        let y2 = reconstruct(&inp, &res.params).unwrap();
+        let worst = y2[2]
+            .iter()
+            .zip(&beta_m)
+            .fold(0.0f64, |m, (a, z)| m.max((a - z).abs()));
+        assert!(worst < 1e-4, "{worst}");
     }
 }
