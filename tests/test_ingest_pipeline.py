@@ -268,3 +268,40 @@ def test_compat_recovers_vane_scale_factors(tmp_path: Path) -> None:
     assert "alpha vane scale error" in said and "beta vane scale error" in said
     plain = aerodelta.ingest(tmp_path, smooth=False, progress=False)
     assert "k_alpha" not in plain.compat["parameter"].to_list()
+
+
+def test_inertial_biases_shrink_by_how_much_their_errors_explain() -> None:
+    """apply_compat in a campaign: air-data parameters take the campaign median; an inertial
+    bias keeps each maneuver's own estimate where the spread between maneuvers is far above
+    their standard errors (real record-to-record biases) and shrinks to the median where the
+    standard errors explain the spread (gust artefacts): w = tau² / (tau² + se²), tau² the
+    robust spread² less the median se² (closed form below)."""
+    from aerodelta.ingest import _shrunk  # noqa: PLC0415
+
+    rng = np.random.default_rng(4)
+    n = 12
+    real = rng.normal(0.0, 0.02, n)  # gyro biases that differ per record, se 1e-5
+    noise = rng.normal(0.0, 0.03, n)  # apparent accelerometer biases, se 0.03
+    rows = [(f"m{i}", "b_p_rps", real[i], 1e-5) for i in range(n)]
+    rows += [(f"m{i}", "b_ax_mps2", noise[i], 0.03) for i in range(n)]
+    rows += [(f"m{i}", "b_alpha_rad", noise[i], 1e-4) for i in range(n)]
+    table = pl.DataFrame(
+        rows, schema=["maneuver_id", "parameter", "estimate", "std_err"], orient="row"
+    )
+    out = _shrunk(table)
+
+    def col(name: str) -> np.ndarray:
+        return out.filter(pl.col("parameter") == name).sort("maneuver_id")["estimate"].to_numpy()
+
+    def expect(est: np.ndarray, se: float) -> np.ndarray:
+        med = np.median(est)
+        tau2 = max(0.0, (1.4826 * np.median(np.abs(est - med))) ** 2 - se**2)
+        return med + tau2 / (tau2 + se**2) * (est - med)
+
+    order = np.argsort([f"m{i}" for i in range(n)])
+    np.testing.assert_allclose(col("b_p_rps"), expect(real, 1e-5)[order], rtol=1e-12)
+    np.testing.assert_allclose(col("b_ax_mps2"), expect(noise, 0.03)[order], rtol=1e-12)
+    np.testing.assert_allclose(col("b_alpha_rad"), np.median(noise), rtol=1e-12)
+    # the real biases are kept to within 1e-6 of their own, the apparent ones pulled in
+    assert np.max(np.abs(col("b_p_rps") - real[order])) < 1e-6
+    assert np.std(col("b_ax_mps2")) < 0.5 * np.std(noise)

@@ -616,19 +616,45 @@ def _run_compat(
 #: (:data:`COMPAT_MIN_CAMPAIGN` maneuvers or more) ``apply_compat`` removes their campaign
 #: median, not each maneuver's own estimate, which gusts scatter (±0.6-0.7 deg for the vane
 #: biases at 0.5 m/s turbulence) with no sensor error behind it. The inertial sensors' biases
-#: may differ from record to record and are removed per maneuver.
+#: may differ from record to record: each maneuver's is shrunk toward the median by how much
+#: of the spread its standard error leaves unexplained (:func:`_shrunk`).
 SENSOR_PARAMETERS = ("b_alpha_rad", "b_beta_rad", "lambda_v", *SCALE_FACTORS)
+
+
+def _shrunk(compat: pl.DataFrame) -> pl.DataFrame:
+    """Each maneuver's inertial-sensor bias shrunk toward the campaign median by the share of
+    its spread that the maneuvers' own standard errors do not explain (empirical Bayes,
+    random-effects weight ``w = tau² / (tau² + se²)``, ``tau²`` by moments: the robust
+    between-maneuver variance less the typical ``se²``; DerSimonian & Laird 1986). Biases that
+    really differ from record to record (gyros powered up per flight) keep their own estimate
+    (``se`` far below the spread: ``w`` near 1); apparent ones that gusts give each maneuver
+    shrink to the median, where the innovations form's standard errors account for the
+    spread (``w`` near 0)."""
+    stats = compat.group_by("parameter").agg(
+        pl.col("estimate").median().alias("median"),
+        ((pl.col("estimate") - pl.col("estimate").median()).abs().median() * 1.4826)
+        .pow(2)
+        .alias("spread2"),
+        pl.col("std_err").pow(2).median().alias("se2"),
+    )
+    tau2 = (pl.col("spread2") - pl.col("se2")).clip(lower_bound=0.0)
+    se2 = pl.col("std_err").pow(2)
+    w = (
+        pl.when(pl.col("std_err").is_finite() & (tau2 + se2 > 0.0))
+        .then(tau2 / (tau2 + se2))
+        .otherwise(pl.lit(0.0))
+    )
+    return compat.join(stats, on="parameter").with_columns(
+        pl.when(pl.col("parameter").is_in(SENSOR_PARAMETERS))
+        .then(pl.col("median"))
+        .otherwise(pl.col("median") + w * (pl.col("estimate") - pl.col("median")))
+        .alias("estimate")
+    )
 
 
 def _apply_compat(df: pl.DataFrame, compat: pl.DataFrame) -> pl.DataFrame:
     if compat["maneuver_id"].n_unique() >= COMPAT_MIN_CAMPAIGN:
-        med = compat.group_by("parameter").agg(pl.col("estimate").median().alias("median"))
-        compat = compat.join(med, on="parameter").with_columns(
-            pl.when(pl.col("parameter").is_in(SENSOR_PARAMETERS))
-            .then(pl.col("median"))
-            .otherwise(pl.col("estimate"))
-            .alias("estimate")
-        )
+        compat = _shrunk(compat)
     wide = compat.pivot(on="parameter", index="maneuver_id", values="estimate")
     wide = wide.with_columns(pl.lit(0.0).alias(k) for k in SCALE_FACTORS if k not in wide.columns)
     r2d = 180.0 / np.pi
