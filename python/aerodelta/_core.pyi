@@ -207,6 +207,10 @@ def compat_check(
     euler: list[npt.NDArray[np.float64]],
     max_iter: int = 20,
     scale_factors: bool = False,
+    r_alpha: list[float] = ...,
+    r_beta: list[float] = ...,
+    flank: bool = False,
+    gusts: bool = False,
 ) -> dict[str, object]: ...
 def plausibility_check(
     offsets: list[int],
