@@ -32,7 +32,10 @@ coefficient:
 Run: ``python benchmarks/jsbsim_identification_check.py --aircraft f15 --seeds 20
 --first-seed 101 [--size 10] [--bootstrap 100] [--out rows.parquet]``; ``--summarize
 rows_a.parquet rows_b.parquet`` prints the table of saved rows. About 12-15 s per campaign to
-fly (size 10) and 1-10 s per fit on 2 cores.
+fly (size 10) and 1-10 s per fit on 2 cores. ``--campaigns DIR`` keeps the flown campaigns
+and reuses them on the next run (to compare two versions of the fit on the same flights:
+run the script twice with each version on ``PYTHONPATH``); ``--structures stepwise`` runs
+only the selecting fit.
 """
 
 from __future__ import annotations

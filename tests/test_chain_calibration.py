@@ -8,6 +8,8 @@ and second-order smoothing, which the calibration must recover from the samples 
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 import polars as pl
 import pytest
@@ -26,7 +28,12 @@ def _signal(t: np.ndarray, phase: float) -> np.ndarray:
     )
 
 
-def _frame(measured, n_man: int = 8, seconds: float = 20.0, seed: int = 0) -> pl.DataFrame:
+def _frame(
+    measured: Callable[[np.ndarray, float], np.ndarray],
+    n_man: int = 8,
+    seconds: float = 20.0,
+    seed: int = 0,
+) -> pl.DataFrame:
     """Maneuvers whose alpha ramps 2 -> 20 deg; Cl_meas = measured(t, phase) + a Δ above
     10 deg (0.01 per deg past 10, slow) + white noise; Cl_q the qualified model."""
     rng = np.random.default_rng(seed)
@@ -82,7 +89,7 @@ def test_recovers_the_central_difference_kernel() -> None:
 
 def test_leaves_a_consistent_chain_alone() -> None:
     """No chain effect: the estimates are zero within their clustered standard errors."""
-    df = _frame(lambda t, ph: _signal(t, ph), seed=3)
+    df = _frame(_signal, seed=3)
     q, cal = calibrate_chain(df, {"Cl": df["Cl_q"].to_numpy()}, ["Cl"], FitConfig(), [0.0])
     assert abs(cal.t_skew["Cl"]) < 4 and abs(cal.t_curvature["Cl"]) < 4
     assert np.max(np.abs(q["Cl"] - df["Cl_q"].to_numpy())) < 1e-5
@@ -119,13 +126,13 @@ def test_per_flap_alpha_l_and_gaps() -> None:
 
 
 def test_skipped_with_a_reason() -> None:
-    df = _frame(lambda t, ph: _signal(t, ph))
+    df = _frame(_signal)
     q, cal = calibrate_chain(
         df.drop("t"), {"Cl": df["Cl_q"].to_numpy()}, ["Cl"], FitConfig(), [0.0]
     )
     assert "no time column 't'" in cal.note("Cl")
     assert np.array_equal(q["Cl"], df["Cl_q"].to_numpy())
-    few = _frame(lambda t, ph: _signal(t, ph), n_man=2, seconds=3.0)
+    few = _frame(_signal, n_man=2, seconds=3.0)
     _, cal = calibrate_chain(few, {"Cl": few["Cl_q"].to_numpy()}, ["Cl"], FitConfig(), [0.0])
     assert "not calibrated" in cal.note("Cl") and f"{CHAIN_MIN_SAMPLES} samples" in cal.note("Cl")
 
