@@ -142,3 +142,31 @@ def test_setting_is_checked() -> None:
 
     with pytest.raises(DataError, match="chain_calibration"):
         FitConfig(chain_calibration="yes")  # type: ignore[arg-type]
+
+
+def test_a_given_structure_is_estimated_with_the_chain() -> None:
+    """A Δ the fit is told exists (a fixed structure) and that is present below alpha_l, in
+    phase with the model's derivative, is estimated beside the chain instead of being read
+    as a time skew."""
+    tau = 0.004
+    df = _frame(lambda t, ph: _signal(t + tau, ph))
+    da = np.cos(7.3 * df["t"].to_numpy() + 2 * 0.7 * _maneuver_index(df))
+    df = df.with_columns(
+        pl.Series("da_deg", da), (pl.col("Cl_meas") + 0.0005 * pl.Series(da)).alias("Cl_meas")
+    )
+    q = {"Cl": df["Cl_q"].to_numpy()}
+    _, alone = calibrate_chain(df, q, ["Cl"], FitConfig(), [0.0])
+    _, joint = calibrate_chain(
+        df, q, ["Cl"], FitConfig(), [0.0], structures={"Cl": [("dCl_0", "1"), ("dCl_da", "da_deg")]}
+    )
+    assert joint.skew_s["Cl"] == pytest.approx(tau, rel=0.03)
+    assert abs(alone.skew_s["Cl"] - tau) > 0.5 * tau  # the omitted Δ taken for a skew
+    # a structure term on a channel the data lack is left out, not an error
+    _, missing = calibrate_chain(
+        df, q, ["Cl"], FitConfig(), [0.0], structures={"Cl": [("dCl_ct", "ct_left + ct_right")]}
+    )
+    assert missing.skew_s["Cl"] == pytest.approx(alone.skew_s["Cl"], rel=1e-9)
+
+
+def _maneuver_index(df: pl.DataFrame) -> np.ndarray:
+    return df["maneuver_id"].str.slice(1).cast(pl.Int64).to_numpy().astype(float)

@@ -1566,19 +1566,74 @@ def _time_derivatives(
     return d1, d2
 
 
+def _structure_columns(
+    df: pl.DataFrame, coef: str, terms: Sequence[tuple[str, str]], rows: np.ndarray
+) -> list[np.ndarray]:
+    """Values of the regressors of ``terms`` at every row of ``df`` (the engine evaluates each
+    expression as a Δ-model term with a parameter of 1), for :func:`calibrate_chain`. The
+    intercept, a regressor whose channels ``df`` lacks and one constant over ``rows`` are
+    left out."""
+    import json  # noqa: PLC0415
+
+    keep = [
+        (n, e)
+        for n, e in terms
+        if e.replace(" ", "") != "1" and all(ch in df.columns for ch in regressor_channels(e))
+    ]
+    if not keep:
+        return []
+    spec = {
+        "schema": SCHEMA,
+        "flaps_deg": [0.0],
+        "alpha_channel": "alpha_deg",
+        "flap_channel": "flap_deg",
+        "coefficients": {
+            coef: {
+                "terms": [
+                    {"name": n, "regressor": e, "alpha_deg": [0.0, 1.0], "values": [[1.0, 1.0]]}
+                    for n, e in keep
+                ],
+                "alpha_l_deg": [0.0],
+                "alpha_u_deg": [1.0],
+            }
+        },
+    }
+    model = _core.DeltaModel.from_json(json.dumps(spec), "chain calibration")
+    cols = {
+        name: df[name].cast(pl.Float64).to_numpy()
+        for name in model.input_columns
+        if name in df.columns
+    }
+    _, _, values = model.eval_columns(coef, cols, df.height)
+    out = []
+    for n, _ in keep:
+        v = np.asarray(values[n], dtype=float)
+        sel = v[rows & np.isfinite(v)]
+        if sel.size and np.ptp(sel) > 0:
+            out.append(v)
+    return out
+
+
 def calibrate_chain(
     df: pl.DataFrame,
     q: Mapping[str, np.ndarray],
     coefs: Sequence[str],
     cfg: FitConfig,
     flaps: Sequence[float],
+    *,
+    structures: Mapping[str, Sequence[tuple[str, str]]] | None = None,
 ) -> tuple[dict[str, np.ndarray], ChainCalibration]:
     """The qualified model seen through the measurement chain (``FitConfig.chain_calibration``).
 
     Per coefficient ``C``, on the rows whose alpha is below the flap's ``alpha_l_deg`` (where
     the extended model is the qualified one), ``z = C_meas - C_qual`` is regressed on
     ``[1, dC_qual/dt, d²C_qual/dt²]`` (derivatives by three-point differences within each
-    maneuver); the slopes are the chain's time skew τ (s) and second-order smoothing κ (s²),
+    maneuver) and, when ``structures`` gives the Δ terms postulated for ``C`` (a fit without
+    selection), on their regressors too: a Δ the fit is told exists below alpha_l and that
+    correlates with the model's derivatives would otherwise be read as the chain (an omitted
+    regressor). With a selection the structure is not known yet and the premise of the blend,
+    no Δ below alpha_l, is used. The slopes of the two derivatives are the chain's time skew
+    τ (s) and second-order smoothing κ (s²),
     and ``C_qual + τ dC_qual/dt + κ d²C_qual/dt²`` is returned for every row (unchanged where
     a derivative is not defined: a maneuver's ends, gaps). The chain is a property of the
     instrumentation and of the preprocessing, the same at every alpha, so the estimate from
@@ -1599,6 +1654,10 @@ def calibrate_chain(
         Fit settings (``alpha_l_deg``, ``min_maneuvers_identified``).
     flaps
         The flap settings of the data, deg.
+    structures
+        Per coefficient, the Δ terms ``(name, regressor expression)`` fitted without selection
+        (``None``: none; a regressor whose channels the data lack, or that is constant below
+        alpha_l, is left out of the calibration).
 
     Returns
     -------
@@ -1625,6 +1684,9 @@ def calibrate_chain(
         d1, d2 = _time_derivatives(t, qc, man)
         z = df[f"{c}_meas"].cast(pl.Float64).to_numpy() - qc
         rows = trusted & np.isfinite(z) & np.isfinite(d1) & np.isfinite(d2)
+        terms = _structure_columns(df, c, (structures or {}).get(c, []), rows)
+        for col in terms:
+            rows &= np.isfinite(col)
         groups = np.unique(man[rows])
         if rows.sum() < CHAIN_MIN_SAMPLES or groups.size < cfg.min_maneuvers_identified:
             cal.skipped[c] = (
@@ -1633,19 +1695,28 @@ def calibrate_chain(
                 "needed)"
             )
             continue
-        x = np.column_stack([np.ones(int(rows.sum())), d1[rows], d2[rows]])
+        x = np.column_stack(
+            [np.ones(int(rows.sum())), d1[rows], d2[rows], *[col[rows] for col in terms]]
+        )
         scale = np.sqrt(np.mean(x**2, axis=0))
         scale[scale == 0] = 1.0
         xs = x / scale
-        theta, _, rank, _ = np.linalg.lstsq(xs, z[rows], rcond=None)
-        if rank < 3:
-            cal.skipped[c] = "the qualified model does not vary in time below alpha_l"
+        gram = xs.T @ xs
+        inv = np.linalg.pinv(gram)
+        # the derivatives must not be (near) combinations of the other columns
+        if np.linalg.matrix_rank(xs[:, :3]) < 3 or np.any(
+            np.diag(inv)[1:3] * np.diag(gram)[1:3] > 1e8
+        ):
+            cal.skipped[c] = (
+                "the qualified model's time derivatives below alpha_l are not independent of "
+                "the intercept and the structure's regressors"
+            )
             continue
+        theta = np.linalg.lstsq(xs, z[rows], rcond=None)[0]
         # cluster-robust (by maneuver) standard errors of the slopes
         resid = z[rows] - xs @ theta
-        inv = np.linalg.inv(xs.T @ xs)
         _, code = np.unique(man[rows], return_inverse=True)
-        score = np.zeros((groups.size, 3))
+        score = np.zeros((groups.size, xs.shape[1]))
         np.add.at(score, code, xs * resid[:, None])
         g = groups.size
         cov = inv @ (score.T @ score) @ inv * g / (g - 1)
@@ -1726,7 +1797,8 @@ def fit(
         raise DataError("fit: no row has a flap setting (flap_deg); check the manifest")
     notes: list[str] = []
     if cfg.chain_calibration:
-        q, chain = calibrate_chain(df, q, coefs, cfg, flaps)
+        given = cfg.structures if cfg.selection is None else None
+        q, chain = calibrate_chain(df, q, coefs, cfg, flaps, structures=given)
         notes.extend(chain.note(c) for c in coefs)
     df = pl.concat([df, pl.DataFrame({f"{c}_qual": q[c] for c in COEFFICIENTS})], how="horizontal")
     per_flap = df.group_by("flap_deg").agg(pl.col("maneuver_id").n_unique().alias("n"))
