@@ -167,7 +167,8 @@ def main() -> None:
     args = ap.parse_args()
     settings = {k: json.loads(v) for k, v in (s.split("=", 1) for s in args.fit_setting)}
     pl.Config.set_tbl_rows(200)
-    pl.Config.set_tbl_width_chars(200)
+    pl.Config.set_tbl_width_chars(250)
+    pl.Config.set_tbl_cols(-1)
     smooth = not args.no_smooth
     print(chain(args.campaign, smooth))
     print(decompose(args.campaign, args.seed, settings, smooth))
