@@ -32,7 +32,10 @@ coefficient:
 Run: ``python benchmarks/jsbsim_identification_check.py --aircraft f15 --seeds 20
 --first-seed 101 [--size 10] [--bootstrap 100] [--out rows.parquet]``; ``--summarize
 rows_a.parquet rows_b.parquet`` prints the table of saved rows. About 12-15 s per campaign to
-fly (size 10) and 1-10 s per fit on 2 cores.
+fly (size 10) and 1-10 s per fit on 2 cores. ``--campaigns DIR`` keeps the flown campaigns
+and reuses them on the next run (to compare two versions of the fit on the same flights:
+run the script twice with each version on ``PYTHONPATH``); ``--structures stepwise`` runs
+only the selecting fit.
 """
 
 from __future__ import annotations
@@ -265,23 +268,33 @@ def run(args: argparse.Namespace) -> tuple[pl.DataFrame, pl.DataFrame, pl.DataFr
         "thesis": FitConfig(selection=None, bootstrap=args.bootstrap),
         "stepwise": FitConfig(bootstrap=args.bootstrap),
     }
+    configs = {k: v for k, v in configs.items() if k in args.structures.split(",")}
     bins, camps, drops = [], [], []
     t_start = time.perf_counter()
     with tempfile.TemporaryDirectory() as tmp:
         for seed in range(args.first_seed, args.first_seed + args.seeds):
-            camp = Path(tmp) / f"{args.aircraft}_{seed}"
+            keep = args.campaigns is not None
+            root = args.campaigns if keep else Path(tmp)
+            camp = root / f"{args.aircraft}_{seed}_size{args.size}_turb{args.turbulence:g}"
             t0 = time.perf_counter()
-            info = generate_jsbsim_campaign(
-                camp,
-                aircraft=args.aircraft,
-                seed=seed,
-                size=args.size,
-                turbulence=args.turbulence,
-            )
+            if keep and (camp / "truth" / "truth.json").is_file():
+                # flown before with the same seed, size and turbulence: reused
+                walpha = float(
+                    json.loads((camp / "truth" / "truth.json").read_text())["withhold_alpha_deg"]
+                )
+            else:
+                info = generate_jsbsim_campaign(
+                    camp,
+                    aircraft=args.aircraft,
+                    seed=seed,
+                    size=args.size,
+                    turbulence=args.turbulence,
+                )
+                walpha = info.withhold_alpha_deg
             t_fly = time.perf_counter() - t0
             data = ad.ingest(camp, compat=False, progress=False).data
             truth = _truth_frame(camp)
-            cons = _consistency(data, truth, info.withhold_alpha_deg)
+            cons = _consistency(data, truth, walpha)
             ids = data["maneuver_id"].unique().sort().to_list()
             held = set(ids[::5])
             train = data.filter(~pl.col("maneuver_id").is_in(held))
@@ -308,7 +321,8 @@ def run(args: argparse.Namespace) -> tuple[pl.DataFrame, pl.DataFrame, pl.DataFr
                     d = _dropped(r, camp)
                     if d.height:
                         drops.append(d.with_columns(*[pl.lit(v).alias(k) for k, v in tag.items()]))
-            shutil.rmtree(camp)
+            if not keep:
+                shutil.rmtree(camp)
             print(
                 f"{args.aircraft} seed {seed}: fly {t_fly:.1f} s, total "
                 f"{time.perf_counter() - t_start:.0f} s",
@@ -427,6 +441,18 @@ def main() -> None:
     ap.add_argument("--bootstrap", type=int, default=0)
     ap.add_argument("--turbulence", type=float, default=0.0)
     ap.add_argument("--out", type=Path, default=None, help="save the rows (prefix)")
+    ap.add_argument(
+        "--campaigns",
+        type=Path,
+        default=None,
+        help="keep the flown campaigns in this folder and reuse them when run again "
+        "(default: a temporary folder)",
+    )
+    ap.add_argument(
+        "--structures",
+        default="thesis,stepwise",
+        help="comma list of the fits to run: thesis, stepwise",
+    )
     ap.add_argument("--summarize", type=Path, nargs="+", default=None, help="saved prefixes")
     args = ap.parse_args()
     if args.summarize:

@@ -236,6 +236,23 @@ class FitConfig:
         fold (``cross_validation`` row ``selected_outer``). The selection's own folds chose the
         structure, so their score of it is optimistic; this one is not. Costs ``cv_folds``
         more selections per flap and coefficient.
+    chain_calibration
+        Pass the qualified model through the measurement chain before it is subtracted
+        (:func:`calibrate_chain`): the measured coefficients come from central differences of
+        sampled, smoothed rates and from sensors with their own timing, so they are the true
+        coefficient seen through a short filter (a time skew τ and a second-order smoothing
+        κ), while the qualified model is evaluated at each sample's instant. The difference,
+        ``(H - 1) C_qual``, scales with the whole aircraft's coefficient, not with the Δ, and
+        correlates with every regressor that moves quickly (β̇, p̂, the aileron): on the JSBSim
+        DHC-6 it was what the selection kept as ΔC_n_β̇ and ΔC_l_δa. τ and κ are estimated per
+        coefficient where the qualified model is trusted (alpha below ``alpha_l_deg``) by
+        regressing ``C_meas - C_qual`` on ``[1, dC_qual/dt, d²C_qual/dt²]`` (beside the
+        structure's regressors when ``selection`` is ``None``), and
+        ``C_qual + τ dC_qual/dt + κ d²C_qual/dt²`` replaces ``C_qual`` in every bin, the
+        cross-validation and the bootstrap. Needs the time column ``t``; each estimate is
+        listed in the notes. Measured on JSBSim report seeds 401-410 (``docs/identification.md``):
+        DHC-6 zero-truth terms significant in 31 % → 10 % (C_l) and 26 % → 3.7 % (C_n) of their
+        bins, F-15 ΔC_l_p 1.13 → 1.08 × its truth.
     """
 
     structures: Mapping[str, Sequence[tuple[str, str]]] = field(
@@ -271,6 +288,7 @@ class FitConfig:
     bootstrap_selection: bool = True
     band_hz: float | Mapping[str, float] | None = None
     nested_cv: bool = True
+    chain_calibration: bool = True
 
     def __post_init__(self) -> None:
         """Refuse a setting of the wrong type (a TOML string where a number belongs, a
@@ -526,7 +544,9 @@ _FLOAT_SETTINGS = (
     "past_stall_deg", "max_vif", "f_in", "f_out", "band_level",
 )  # fmt: skip
 _OPTIONAL_SETTINGS = ("max_width_deg", "max_vif")
-_BOOL_SETTINGS = ("colored", "weighted", "bootstrap_selection", "nested_cv")
+_BOOL_SETTINGS = (
+    "colored", "weighted", "bootstrap_selection", "nested_cv", "chain_calibration",
+)  # fmt: skip
 
 
 def _per_flap(value: float | Mapping[float, float], flap: float, name: str) -> float:
@@ -1468,6 +1488,254 @@ def _submit(
     return fut
 
 
+#: Fewest calibration samples and maneuvers below alpha_l for :func:`calibrate_chain`.
+CHAIN_MIN_SAMPLES = 200
+
+
+@dataclass(frozen=True)
+class ChainCalibration:
+    """Measurement-chain estimates of :func:`calibrate_chain`, per coefficient.
+
+    Attributes
+    ----------
+    skew_s
+        Time skew τ, s: the measured coefficient reads like the model at ``t + τ``.
+    curvature_s2
+        Second-order smoothing κ, s² (a central difference of rates sampled every Δt alone
+        gives Δt²/4: its response is the trapezoid ¼, ½, ¼ of the derivative).
+    t_skew, t_curvature
+        Their t statistics, clustered by maneuver.
+    samples, maneuvers
+        Calibration samples (alpha below ``alpha_l_deg``) and their maneuvers.
+    skipped
+        Why a coefficient was not calibrated ("" when it was).
+    """
+
+    skew_s: dict[str, float] = field(default_factory=dict)
+    curvature_s2: dict[str, float] = field(default_factory=dict)
+    t_skew: dict[str, float] = field(default_factory=dict)
+    t_curvature: dict[str, float] = field(default_factory=dict)
+    samples: dict[str, int] = field(default_factory=dict)
+    maneuvers: dict[str, int] = field(default_factory=dict)
+    skipped: dict[str, str] = field(default_factory=dict)
+
+    def note(self, coef: str) -> str:
+        """One line for the fit's notes."""
+        if self.skipped.get(coef):
+            return f"{coef}: measurement chain not calibrated: {self.skipped[coef]}"
+        return (
+            f"{coef}: measurement chain calibrated below alpha_l on {self.samples[coef]} samples "
+            f"of {self.maneuvers[coef]} maneuvers: C_qual + tau dC_qual/dt + kappa "
+            f"d2C_qual/dt2, tau = {1e3 * self.skew_s[coef]:.2f} ms "
+            f"(t = {self.t_skew[coef]:.1f}), kappa = {self.curvature_s2[coef]:.3g} s^2 "
+            f"(t = {self.t_curvature[coef]:.1f})"
+        )
+
+
+def _time_derivatives(
+    t: np.ndarray, y: np.ndarray, maneuver: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """First and second time derivatives of ``y`` by three-point differences on the sample
+    times ``t`` (s; unequal spacing allowed), within each maneuver's contiguous samples (rows
+    in time order, as ingested). NaN at a maneuver's ends, across a gap (a spacing over 1.5 x
+    the median) and where a neighbour is not finite."""
+    n = t.size
+    d1 = np.full(n, np.nan)
+    d2 = np.full(n, np.nan)
+    if n < 3:
+        return d1, d2
+    hm = t[1:-1] - t[:-2]
+    hp = t[2:] - t[1:-1]
+    steps = np.diff(t)[maneuver[1:] == maneuver[:-1]]
+    steps = steps[np.isfinite(steps) & (steps > 0)]
+    if steps.size == 0:
+        return d1, d2
+    gap = 1.5 * float(np.median(steps))
+    ok = (
+        (maneuver[:-2] == maneuver[1:-1])
+        & (maneuver[2:] == maneuver[1:-1])
+        & (hm > 0)
+        & (hp > 0)
+        & (hm <= gap)
+        & (hp <= gap)
+    )
+    ym, y0, yp = y[:-2], y[1:-1], y[2:]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        sp = (yp - y0) / hp
+        sm = (y0 - ym) / hm
+        first = (sp * hm + sm * hp) / (hm + hp)
+        second = 2.0 * (sp - sm) / (hm + hp)
+    d1[1:-1] = np.where(ok, first, np.nan)
+    d2[1:-1] = np.where(ok, second, np.nan)
+    return d1, d2
+
+
+def _structure_columns(
+    df: pl.DataFrame, coef: str, terms: Sequence[tuple[str, str]], rows: np.ndarray
+) -> list[np.ndarray]:
+    """Values of the regressors of ``terms`` at every row of ``df`` (the engine evaluates each
+    expression as a Δ-model term with a parameter of 1), for :func:`calibrate_chain`. The
+    intercept, a regressor whose channels ``df`` lacks and one constant over ``rows`` are
+    left out."""
+    import json  # noqa: PLC0415
+
+    keep = [
+        (n, e)
+        for n, e in terms
+        if e.replace(" ", "") != "1" and all(ch in df.columns for ch in regressor_channels(e))
+    ]
+    if not keep:
+        return []
+    spec = {
+        "schema": SCHEMA,
+        "flaps_deg": [0.0],
+        "alpha_channel": "alpha_deg",
+        "flap_channel": "flap_deg",
+        "coefficients": {
+            coef: {
+                "terms": [
+                    {"name": n, "regressor": e, "alpha_deg": [0.0, 1.0], "values": [[1.0, 1.0]]}
+                    for n, e in keep
+                ],
+                "alpha_l_deg": [0.0],
+                "alpha_u_deg": [1.0],
+            }
+        },
+    }
+    model = _core.DeltaModel.from_json(json.dumps(spec), "chain calibration")
+    cols = {
+        name: df[name].cast(pl.Float64).to_numpy()
+        for name in model.input_columns
+        if name in df.columns
+    }
+    _, _, values = model.eval_columns(coef, cols, df.height)
+    out = []
+    for n, _ in keep:
+        v = np.asarray(values[n], dtype=float)
+        sel = v[rows & np.isfinite(v)]
+        if sel.size and np.ptp(sel) > 0:
+            out.append(v)
+    return out
+
+
+def calibrate_chain(
+    df: pl.DataFrame,
+    q: Mapping[str, np.ndarray],
+    coefs: Sequence[str],
+    cfg: FitConfig,
+    flaps: Sequence[float],
+    *,
+    structures: Mapping[str, Sequence[tuple[str, str]]] | None = None,
+) -> tuple[dict[str, np.ndarray], ChainCalibration]:
+    """The qualified model seen through the measurement chain (``FitConfig.chain_calibration``).
+
+    Per coefficient ``C``, on the rows whose alpha is below the flap's ``alpha_l_deg`` (where
+    the extended model is the qualified one), ``z = C_meas - C_qual`` is regressed on
+    ``[1, dC_qual/dt, d²C_qual/dt²]`` (derivatives by three-point differences within each
+    maneuver) and, when ``structures`` gives the Δ terms postulated for ``C`` (a fit without
+    selection), on their regressors too: a Δ the fit is told exists below alpha_l and that
+    correlates with the model's derivatives would otherwise be read as the chain (an omitted
+    regressor). With a selection the structure is not known yet and the premise of the blend,
+    no Δ below alpha_l, is used. The slopes of the two derivatives are the chain's time skew
+    τ (s) and second-order smoothing κ (s²),
+    and ``C_qual + τ dC_qual/dt + κ d²C_qual/dt²`` is returned for every row (unchanged where
+    a derivative is not defined: a maneuver's ends, gaps). The chain is a property of the
+    instrumentation and of the preprocessing, the same at every alpha, so the estimate from
+    the trusted range carries over; the Δ the fit identifies is then what the qualified model
+    lacks, not the chain's response to the whole aircraft's coefficient. Skipped, with the
+    reason, without the time column ``t`` or with fewer than :data:`CHAIN_MIN_SAMPLES`
+    calibration samples or ``min_maneuvers_identified`` maneuvers.
+
+    Parameters
+    ----------
+    df
+        Model frame: ``t`` (s), ``alpha_deg``, ``flap_deg``, ``maneuver_id``, ``C_meas``.
+    q
+        Qualified coefficients per coefficient name, one value per row of ``df``.
+    coefs
+        Coefficients to calibrate.
+    cfg
+        Fit settings (``alpha_l_deg``, ``min_maneuvers_identified``).
+    flaps
+        The flap settings of the data, deg.
+    structures
+        Per coefficient, the Δ terms ``(name, regressor expression)`` fitted without selection
+        (``None``: none; a regressor whose channels the data lack, or that is constant below
+        alpha_l, is left out of the calibration).
+
+    Returns
+    -------
+    tuple
+        The calibrated qualified coefficients (a new dict; coefficients not calibrated are
+        the input arrays) and the :class:`ChainCalibration`.
+    """
+    out = {c: np.asarray(v, dtype=float) for c, v in q.items()}
+    cal = ChainCalibration()
+    if "t" not in df.columns:
+        for c in coefs:
+            cal.skipped[c] = "the data have no time column 't'"
+        return out, cal
+    t = df["t"].cast(pl.Float64).to_numpy()
+    man = df["maneuver_id"].cast(pl.Utf8).to_numpy()
+    alpha = df["alpha_deg"].cast(pl.Float64).to_numpy()
+    flap = df["flap_deg"].cast(pl.Float64).to_numpy()
+    alpha_l = np.full(df.height, -np.inf)
+    for f in flaps:
+        alpha_l[flap == f] = _per_flap(cfg.alpha_l_deg, f, "alpha_l_deg")
+    trusted = np.isfinite(alpha) & (alpha < alpha_l)
+    for c in coefs:
+        qc = out[c]
+        d1, d2 = _time_derivatives(t, qc, man)
+        z = df[f"{c}_meas"].cast(pl.Float64).to_numpy() - qc
+        rows = trusted & np.isfinite(z) & np.isfinite(d1) & np.isfinite(d2)
+        terms = _structure_columns(df, c, (structures or {}).get(c, []), rows)
+        for col in terms:
+            rows &= np.isfinite(col)
+        groups = np.unique(man[rows])
+        if rows.sum() < CHAIN_MIN_SAMPLES or groups.size < cfg.min_maneuvers_identified:
+            cal.skipped[c] = (
+                f"{int(rows.sum())} samples of {groups.size} maneuvers below alpha_l "
+                f"({CHAIN_MIN_SAMPLES} samples and {cfg.min_maneuvers_identified} maneuvers "
+                "needed)"
+            )
+            continue
+        x = np.column_stack(
+            [np.ones(int(rows.sum())), d1[rows], d2[rows], *[col[rows] for col in terms]]
+        )
+        scale = np.sqrt(np.mean(x**2, axis=0))
+        scale[scale == 0] = 1.0
+        xs = x / scale
+        gram = xs.T @ xs
+        inv = np.linalg.pinv(gram)
+        # the derivatives must not be (near) combinations of the other columns
+        if np.linalg.matrix_rank(xs[:, :3]) < 3 or np.any(
+            np.diag(inv)[1:3] * np.diag(gram)[1:3] > 1e8
+        ):
+            cal.skipped[c] = (
+                "the qualified model's time derivatives below alpha_l are not independent of "
+                "the intercept and the structure's regressors"
+            )
+            continue
+        theta = np.linalg.lstsq(xs, z[rows], rcond=None)[0]
+        # cluster-robust (by maneuver) standard errors of the slopes
+        resid = z[rows] - xs @ theta
+        _, code = np.unique(man[rows], return_inverse=True)
+        score = np.zeros((groups.size, xs.shape[1]))
+        np.add.at(score, code, xs * resid[:, None])
+        g = groups.size
+        cov = inv @ (score.T @ score) @ inv * g / (g - 1)
+        se = np.sqrt(np.maximum(np.diag(cov), 0.0))
+        beta = theta / scale
+        with np.errstate(divide="ignore", invalid="ignore"):
+            tstat = theta / se
+        cal.skew_s[c], cal.curvature_s2[c] = float(beta[1]), float(beta[2])
+        cal.t_skew[c], cal.t_curvature[c] = float(tstat[1]), float(tstat[2])
+        cal.samples[c], cal.maneuvers[c] = int(rows.sum()), int(g)
+        corr = np.where(np.isfinite(d1) & np.isfinite(d2), beta[1] * d1 + beta[2] * d2, 0.0)
+        out[c] = qc + corr
+    return out, cal
+
+
 def fit(
     data: pl.DataFrame,
     *,
@@ -1528,10 +1796,15 @@ def fit(
         raise DataError(f"fit: the data lack {missing}; run aerodelta.ingest first")
     qual = resolve(df, qualified)
     q = qual.predict(df)
-    df = pl.concat([df, pl.DataFrame({f"{c}_qual": q[c] for c in COEFFICIENTS})], how="horizontal")
     flaps = sorted(float(f) for f in df["flap_deg"].unique().drop_nulls())
     if not flaps:
         raise DataError("fit: no row has a flap setting (flap_deg); check the manifest")
+    notes: list[str] = []
+    if cfg.chain_calibration:
+        given = cfg.structures if cfg.selection is None else None
+        q, chain = calibrate_chain(df, q, coefs, cfg, flaps, structures=given)
+        notes.extend(chain.note(c) for c in coefs)
+    df = pl.concat([df, pl.DataFrame({f"{c}_qual": q[c] for c in COEFFICIENTS})], how="horizontal")
     per_flap = df.group_by("flap_deg").agg(pl.col("maneuver_id").n_unique().alias("n"))
     if int(per_flap["n"].max() or 0) < cfg.min_maneuvers_identified:
         raise DataError(
@@ -1544,7 +1817,6 @@ def fit(
         c: [tuple(t) for t in v] != [tuple(t) for t in DEFAULT_STRUCTURES.get(c, [])]
         for c, v in cfg.structures.items()
     }
-    notes: list[str] = []
     bins_rows: list[pl.DataFrame] = []
     param_rows: list[pl.DataFrame] = []
     cons_rows: list[dict[str, Any]] = []
