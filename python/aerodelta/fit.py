@@ -34,7 +34,8 @@ from tqdm import tqdm
 from aerodelta import _core
 from aerodelta._core import __version__
 from aerodelta._toml import read_toml
-from aerodelta.exceptions import DataError
+from aerodelta.exceptions import DataError, InvalidInputError
+from aerodelta.lsq import ols
 from aerodelta.model import SCHEMA, DeltaModel
 from aerodelta.qualified import describe, for_model, resolve
 
@@ -1702,35 +1703,30 @@ def calibrate_chain(
         x = np.column_stack(
             [np.ones(int(rows.sum())), d1[rows], d2[rows], *[col[rows] for col in terms]]
         )
-        scale = np.sqrt(np.mean(x**2, axis=0))
-        scale[scale == 0] = 1.0
-        xs = x / scale
-        gram = xs.T @ xs
-        inv = np.linalg.pinv(gram)
+        # the engine's least squares (QR, collinearity diagnostics, CR2 errors by maneuver)
+        try:
+            res = ols(
+                x, z[rows], colored=False, groups=np.unique(man[rows], return_inverse=True)[1]
+            )
+        except InvalidInputError as exc:
+            res, why = None, str(exc)
+        else:
+            why = ""
         # the derivatives must not be (near) combinations of the other columns
-        if np.linalg.matrix_rank(xs[:, :3]) < 3 or np.any(
-            np.diag(inv)[1:3] * np.diag(gram)[1:3] > 1e8
-        ):
+        if res is None or res.rank < x.shape[1] or np.any(res.vif[1:3] > 1e8):
             cal.skipped[c] = (
                 "the qualified model's time derivatives below alpha_l are not independent of "
-                "the intercept and the structure's regressors"
+                f"the intercept and the structure's regressors{': ' + why if why else ''}"
             )
             continue
-        theta = np.linalg.lstsq(xs, z[rows], rcond=None)[0]
-        # cluster-robust (by maneuver) standard errors of the slopes
-        resid = z[rows] - xs @ theta
-        _, code = np.unique(man[rows], return_inverse=True)
-        score = np.zeros((groups.size, xs.shape[1]))
-        np.add.at(score, code, xs * resid[:, None])
-        g = groups.size
-        cov = inv @ (score.T @ score) @ inv * g / (g - 1)
-        se = np.sqrt(np.maximum(np.diag(cov), 0.0))
-        beta = theta / scale
+        beta = res.params
+        se = res.std_err_cluster
+        g = int(res.n_groups or groups.size)
         with np.errstate(divide="ignore", invalid="ignore"):
-            tstat = theta / se
+            tstat = beta / se
         cal.skew_s[c], cal.curvature_s2[c] = float(beta[1]), float(beta[2])
         cal.t_skew[c], cal.t_curvature[c] = float(tstat[1]), float(tstat[2])
-        cal.samples[c], cal.maneuvers[c] = int(rows.sum()), int(g)
+        cal.samples[c], cal.maneuvers[c] = int(rows.sum()), g
         corr = np.where(np.isfinite(d1) & np.isfinite(d2), beta[1] * d1 + beta[2] * d2, 0.0)
         out[c] = qc + corr
     return out, cal
