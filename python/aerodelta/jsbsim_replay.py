@@ -57,6 +57,7 @@ __all__ = [
     "aero_at_states",
     "load_setup",
     "predictable_until",
+    "read_record",
     "replay_campaign",
     "replay_maneuver",
     "replay_properties",
@@ -827,7 +828,7 @@ def replay_campaign(
             for v in dict.fromkeys([*variants, "qualified"])
         }
         for mid in chosen:
-            rec = _read_record(setup, mid)
+            rec = read_record(setup, mid)
             seed = int(seeds[mid])
             sched = _Flight(setup, roots["qualified"], rec, seed).throttle_schedule()
             t_end = score_window(rec, setup.withhold_alpha_deg)
@@ -886,8 +887,13 @@ def _load_model(path: str | os.PathLike[str]) -> DeltaModel:
     return DeltaModel.load(p)
 
 
-def _read_record(setup: CampaignSetup, mid: str) -> pl.DataFrame:
+def read_record(setup: CampaignSetup, mid: str) -> pl.DataFrame:
+    """The campaign's record of maneuver ``mid`` (``records/<id>.parquet`` as the manifest
+    names it), checked for the channels a replay reads; ``DataError`` naming the file
+    otherwise."""
     row = setup.manifest.filter(pl.col("maneuver_id") == mid)
+    if row.height == 0:
+        raise DataError(f"{setup.path / 'manifest.csv'}: no maneuver {mid}")
     p = setup.path / str(row["file"][0])
     try:
         rec = pl.read_parquet(p)

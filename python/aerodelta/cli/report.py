@@ -23,7 +23,7 @@ from aerodelta.cli._data import (
     qualified_choice,
     resolve_data,
 )
-from aerodelta.exceptions import DataError
+from aerodelta.exceptions import DataError, InvalidInputError
 
 HELP = "write the HTML validation report of a fitted Δ model"
 
@@ -53,6 +53,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default="elevator",
         choices=["elevator", "all"],
         help="feed the recorded elevator and thrust only (thesis Section 4.3), or all controls",
+    )
+    parser.add_argument(
+        "--jsbsim-campaign",
+        metavar="DIR",
+        help="the JSBSim campaign (aerodelta campaign --simulator jsbsim) the records come from: "
+        "the 6-DOF replay flies its JSBSim aircraft, qualified and qualified + Δ, as aerodelta "
+        "jsbsim-replay (default: the built-in ADX-37, for its own records only)",
     )
     parser.add_argument("--no-svg", action="store_true", help="PNG figures only")
     parser.add_argument("--no-progress", action="store_true", help="no progress bars")
@@ -87,6 +94,9 @@ def run(args: argparse.Namespace) -> int:
         else None
     )
     assert model_file is not None
+    campaign = Path(args.jsbsim_campaign) if args.jsbsim_campaign else None
+    if campaign is not None and not campaign.is_dir():
+        raise InvalidInputError(f"--jsbsim-campaign {campaign}: folder not found")
     out = output_folder(args.out)
     held = maneuver_ids(args.held_out)
     progress = not args.no_progress
@@ -108,6 +118,7 @@ def run(args: argparse.Namespace) -> int:
             qualified=args.qualified,
             replay_count=args.replays,
             replay_controls=args.replay_controls,
+            jsbsim_campaign=campaign,
             svg=not args.no_svg,
             progress=progress,
         )

@@ -5,6 +5,7 @@ record side by side, and checked for divergence."""
 from __future__ import annotations
 
 import math
+import os
 from collections.abc import Sequence
 
 import numpy as np
@@ -15,6 +16,7 @@ from aerodelta.exceptions import AerodeltaError
 from aerodelta.model import DeltaModel
 from aerodelta.plots import COLORS, FigureSink, figures
 from aerodelta.qualified import describe, flown_on_builtin
+from aerodelta.report import jsbsim_section
 from aerodelta.report.context import ReportContext
 from aerodelta.report.html import Section, p, table
 
@@ -168,9 +170,19 @@ def section(
     count: int = 3,
     controls: str = "elevator",
     ids: Sequence[str] | None = None,
+    jsbsim_campaign: str | os.PathLike[str] | None = None,
 ) -> Section:
-    """Build the replay section."""
+    """Build the replay section.
+
+    ``jsbsim_campaign``: the JSBSim campaign folder the records come from (or the qualified
+    model named ``"jsbsim:DIR"``): its JSBSim aircraft are flown instead of the built-in ADX-37
+    (:mod:`aerodelta.report.jsbsim_section`); ``controls`` then does not apply (every recorded
+    surface drives the replay).
+    """
     sec = Section("replay", "4.3 6-DOF replay")
+    campaign = jsbsim_section.campaign_of(ctx, jsbsim_campaign)
+    if campaign is not None:
+        return jsbsim_section.section(ctx, sink, sec, campaign, count=count, ids=ids)
     sec.body.append(
         p(
             (
@@ -205,7 +217,9 @@ def section(
                 f"{describe(ctx.qualified)}). Replaying them needs your aircraft's own 6-DOF "
                 "model with the Δ added (e.g. JSBSim with the exported increments, "
                 "docs/export.md); flying another aircraft from your initial states would "
-                "prove nothing."
+                "prove nothing. For the records of a JSBSim campaign, name the campaign "
+                "(--jsbsim-campaign DIR, or the qualified model 'jsbsim:DIR') and this section "
+                "flies its JSBSim aircraft."
             )
         )
         return sec
