@@ -16,6 +16,7 @@ from aerodelta.cli._data import (
     check_outputs,
     created,
     existing_file,
+    jsbsim_campaign_option,
     load_model,
     load_records,
     maneuver_ids,
@@ -44,8 +45,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--qualified",
         default="auto",
         type=qualified_choice,
-        metavar="auto|columns|adx37|FILE.dml",
-        help="the qualified model (as aerodelta fit --model); auto: the one the fit recorded",
+        metavar="auto|columns|adx37|jsbsim:DIR|FILE.dml",
+        help="the qualified model (as aerodelta fit --model); auto: the one the fit recorded; "
+        "jsbsim:DIR also replays the JSBSim campaign's aircraft (as --jsbsim-campaign DIR)",
     )
     parser.add_argument("--replays", type=int, default=3, help="maneuvers replayed in 6-DOF")
     parser.add_argument(
@@ -94,6 +96,7 @@ def run(args: argparse.Namespace) -> int:
         else None
     )
     assert model_file is not None
+    jsbsim_campaign_option(args.qualified, "--qualified")
     campaign = Path(args.jsbsim_campaign) if args.jsbsim_campaign else None
     if campaign is not None and not campaign.is_dir():
         raise InvalidInputError(f"--jsbsim-campaign {campaign}: folder not found")
