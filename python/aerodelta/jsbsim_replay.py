@@ -52,6 +52,7 @@ from aerodelta.model import DeltaModel
 __all__ = [
     "CHANNELS",
     "DIVERGED",
+    "SMOOTHED",
     "STATE_CHANNELS",
     "VARIANTS",
     "CampaignSetup",
@@ -748,6 +749,11 @@ STATE_CHANNELS = ("maneuver_id", "t", "h_m", "tas_mps", "alpha_deg", "beta_deg",
                   "dr_deg", "flap_deg")  # fmt: skip
 
 
+#: State channel -> the ingestion's smoothed channel that :func:`aero_along` reads instead
+#: when the frame has it.
+SMOOTHED = {"p_dps": "p_s_dps", "q_dps": "q_s_dps", "r_dps": "r_s_dps", "tas_mps": "tas_s_mps"}
+
+
 def aero_along(
     setup: CampaignSetup, frame: pl.DataFrame, *, variant: str = "qualified"
 ) -> dict[str, np.ndarray]:
@@ -756,7 +762,10 @@ def aero_along(
     sorted by time, trimmed at its first sample), in the frame's row order.
 
     ``frame`` needs :data:`STATE_CHANNELS` (SI and degrees, as ingested), finite, one flap
-    setting per maneuver. Raises ``DataError`` naming the missing channel, or the channel and
+    setting per maneuver. The body rates and airspeed are the smoothed ones of
+    :data:`SMOOTHED` when the frame has them (an ingested model frame does): the states the
+    fit's regressors (p̂, r̂, alpha, beta at the CG) are formed from, so the qualified model and
+    the Δ see the same sample. Raises ``DataError`` naming the missing channel, or the channel and
     row of a value that is not finite.
     """
     missing = [c for c in STATE_CHANNELS if c not in frame.columns]
@@ -773,7 +782,9 @@ def aero_along(
                 f"channel {c}, row {int(bad[0])}: not a finite number; the JSBSim qualified "
                 "model needs every state of every sample (drop or fill the sample)"
             )
-    idx = frame.with_row_index("_row")
+    # the smoothed states the ingestion forms the fit's regressors from (p̂ = p_s b / 2 V_s)
+    smooth = {c: s for c, s in SMOOTHED.items() if s in frame.columns}
+    idx = frame.with_columns(pl.col(s).alias(c) for c, s in smooth.items()).with_row_index("_row")
     out = {c: np.full(frame.height, math.nan) for c in ("Cl", "Cn", "CY")}
     with tempfile.TemporaryDirectory(prefix="aerodelta-qualified-") as tmp:
         root = write_replay_aircraft(setup, tmp, variant=variant)
