@@ -7,18 +7,20 @@ from __future__ import annotations
 import math
 import os
 from collections.abc import Sequence
+from pathlib import Path
 
 import numpy as np
 import polars as pl
 
 from aerodelta.campaign import replay
+from aerodelta.daveml import DaveModel
 from aerodelta.exceptions import AerodeltaError
 from aerodelta.model import DeltaModel
 from aerodelta.plots import COLORS, FigureSink, figures
 from aerodelta.qualified import describe, flown_on_builtin
 from aerodelta.report import jsbsim_section
 from aerodelta.report.context import ReportContext
-from aerodelta.report.html import Section, p, table
+from aerodelta.report.html import Section, esc, p, table
 
 #: Bounds of the divergence check: every state finite and inside these limits for the whole
 #: replay (V relative to its initial value; angles in deg).
@@ -137,6 +139,38 @@ def divergence(sim: pl.DataFrame) -> tuple[bool, str]:
     return True, "bounded"
 
 
+#: The moment and side-force coefficients a 6-DOF simulation needs from an aerodynamic model,
+#: besides the longitudinal forces (:data:`FORCE_PAIRS`).
+MOMENTS_AND_SIDE = ("CY", "Cl", "Cm", "Cn")
+#: Either pair gives the longitudinal forces: body axes (CX, CZ) or lift and drag (CL, CD).
+FORCE_PAIRS = (("CX", "CZ"), ("CL", "CD"))
+
+
+def daveml_outputs_note(qualified: str) -> str:
+    """For a DAVE-ML qualified model (its path), a sentence saying whether it gives the six
+    coefficients a 6-DOF replay needs (:data:`MOMENTS_AND_SIDE` and one of
+    :data:`FORCE_PAIRS`) and which it lacks; ``""`` for another qualified model."""
+    if not qualified.lower().endswith((".dml", ".xml")):
+        return ""
+    path = Path(qualified)
+    outs = set(DaveModel(path).outputs)
+    lack = [c for c in MOMENTS_AND_SIDE if c not in outs]
+    if not any(set(pair) <= outs for pair in FORCE_PAIRS):
+        lack.append("CX and CZ (or lift and drag, CL and CD)")
+    have = [c for c in ("CX", "CZ", "CL", "CD", *MOMENTS_AND_SIDE) if c in outs]
+    if lack:
+        return (
+            f" The DAVE-ML model {esc(path.name)} gives {', '.join(have) or 'none'} of the "
+            f"coefficients a 6-DOF replay needs; missing: {', '.join(lack)}."
+        )
+    return (
+        f" The DAVE-ML model {esc(path.name)} gives all six coefficients ({', '.join(have)}); "
+        "aerodelta does not fly a DAVE-ML model in its 6-DOF simulator (that also needs your "
+        "aircraft's mass, inertias and engine geometry): fly it in your simulator with the "
+        "exported Δ."
+    )
+
+
 def pick_maneuvers(ctx: ReportContext, count: int) -> list[str]:
     """Up to ``count`` maneuvers to replay: straight stalls first, held-out ones first, one per
     flap setting in turn."""
@@ -219,7 +253,7 @@ def section(
                 "docs/export.md); flying another aircraft from your initial states would "
                 "prove nothing. For the records of a JSBSim campaign, name the campaign "
                 "(--jsbsim-campaign DIR, or the qualified model 'jsbsim:DIR') and this section "
-                "flies its JSBSim aircraft."
+                "flies its JSBSim aircraft." + daveml_outputs_note(ctx.qualified)
             )
         )
         return sec
