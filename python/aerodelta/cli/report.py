@@ -32,7 +32,11 @@ HELP = "write the HTML validation report of a fitted Δ model"
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``aerodelta report``."""
     parser.add_argument("--model", required=True, help="model file from aerodelta fit (.json)")
-    add_data_arguments(parser)
+    add_data_arguments(
+        parser,
+        aircraft_help="aircraft reference TOML (default DATA/aircraft.toml); with a DAVE-ML "
+        "--qualified model the 6-DOF replay flies this aircraft",
+    )
     parser.add_argument("--out", required=True, help="output folder")
     parser.add_argument("--diagnosis", help="diagnosis.json from aerodelta diagnose")
     parser.add_argument(
@@ -103,7 +107,7 @@ def run(args: argparse.Namespace) -> int:
     out = output_folder(args.out)
     held = maneuver_ids(args.held_out)
     progress = not args.no_progress
-    src = resolve_data(args)
+    src = resolve_data(args, aircraft_with_ingested=True)
     check_outputs(src, "--out", folder=out, inputs=[model_file, diagnosis_file, dml])
     # every input file read before the output folder is made: a bad one leaves nothing behind
     model = load_model(model_file)
@@ -122,6 +126,7 @@ def run(args: argparse.Namespace) -> int:
             replay_count=args.replays,
             replay_controls=args.replay_controls,
             jsbsim_campaign=campaign,
+            aircraft=src.aircraft,
             svg=not args.no_svg,
             progress=progress,
         )

@@ -23,6 +23,7 @@ import polars as pl
 from tqdm import tqdm
 
 from aerodelta._fsutil import write_text_atomic
+from aerodelta.aircraft import Aircraft
 from aerodelta.exceptions import InvalidInputError
 from aerodelta.model import DeltaModel
 from aerodelta.plots import FigureSink
@@ -94,6 +95,7 @@ def build_report(
     replay_count: int = 3,
     replay_controls: str = "elevator",
     jsbsim_campaign: str | os.PathLike[str] | None = None,
+    aircraft: Aircraft | str | os.PathLike[str] | None = None,
     svg: bool = True,
     title: str = "aerodelta validation report",
     progress: bool = False,
@@ -128,6 +130,10 @@ def build_report(
         ingested from: the 6-DOF replay then flies its JSBSim aircraft, the qualified one and
         the qualified one with the fitted Δ, as ``aerodelta jsbsim-replay`` (also when
         ``qualified`` is ``"jsbsim:DIR"``). ``None``: the built-in ADX-37, for its records only.
+    aircraft
+        The aircraft file (or :class:`aerodelta.aircraft.Aircraft`) of the records: with a
+        DAVE-ML qualified model giving the six coefficients, the 6-DOF replay flies this
+        aircraft with that model (``aerodelta.report.daveml_replay``). Read for nothing else.
     svg
         Also write SVG files of the figures.
     title
@@ -181,6 +187,7 @@ def build_report(
                     count=replay_count,
                     controls=replay_controls,
                     jsbsim_campaign=jsbsim_campaign,
+                    aircraft=aircraft,
                 ),
             ),
             ("roll-off", lambda c: rolloff_section.section(c, sink)),
