@@ -53,10 +53,12 @@ def daveml_flyer(path: str | os.PathLike[str], aircraft: Aircraft | str | os.Pat
 
     Raises
     ------
-    DataError
+    InvalidInputError
         The model cannot be flown: outputs missing (CY, Cl, Cm, Cn, and CX, CZ or CL, CD), or
         inputs that are not aerodelta channels and have no default (the engine's message
-        names them); a bad aircraft file.
+        names them), or aircraft values the simulator refuses.
+    DataError
+        The aircraft file is missing or invalid.
     """
     ac = aircraft if isinstance(aircraft, Aircraft) else Aircraft.from_toml(Path(aircraft))
     model = DaveModel(path)
