@@ -125,3 +125,24 @@ def test_daveml_replay_flies_the_users_aircraft(user: pl.DataFrame, tmp_path: Pa
     text = " ".join(str(b) for b in replay.section(ctx, FigureSink(None), aircraft=toml).body)
     assert text.count("Replay not run") == 1
     assert "missing: Cm, CX and CZ (or lift and drag, CL and CD)" in text
+
+
+def test_cli_report_flies_the_daveml_model(
+    user: pl.DataFrame, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``aerodelta report --qualified model.dml --aircraft FILE`` on an ingest output: the
+    section flies the user's aircraft with the DAVE-ML model."""
+    adx = tmp_path / "adx37.dml"
+    assert main(["export-qualified", str(adx)]) == 0
+    toml = tmp_path / "aircraft.toml"
+    toml.write_text(ad.campaign.aircraft_toml())
+    ad.fit(user, qualified=adx, config=FitConfig(selection=None)).model.save(tmp_path / "m.json")
+    user.write_parquet(tmp_path / "user.parquet")
+    argv = ["report", "--model", str(tmp_path / "m.json"), "--data", str(tmp_path / "user.parquet"),
+            "--qualified", str(adx), "--aircraft", str(toml), "--replays", "1", "--no-svg",
+            "--no-progress", "--out", str(tmp_path / "rep")]  # fmt: skip
+    capsys.readouterr()
+    assert main(argv) == 0, capsys.readouterr().err
+    html = (tmp_path / "rep" / "report.html").read_text()
+    assert "your DAVE-ML model</b> adx37.dml" in html and "Replay not run" not in html
+    assert "6-DOF replay of m000_f00_straight_p" in html
