@@ -148,6 +148,16 @@ def sim_replay_extended(
     ct: npt.NDArray[np.float64],
     rolloff_seed: int | None = None,
 ) -> npt.NDArray[np.float64]: ...
+def sim_replay_daveml(
+    model: DaveModel,
+    aircraft: list[float],
+    flap_deg: float,
+    x0: list[float],
+    dt: float,
+    controls_deg: npt.NDArray[np.float64],
+    ct: npt.NDArray[np.float64],
+    delta: DeltaModel | None = None,
+) -> npt.NDArray[np.float64]: ...
 def sim_trim(flap_deg: float, v: float, h: float) -> tuple[list[float], list[float], float]: ...
 def sim_effect_library() -> str: ...
 def sim_aircraft_toml() -> str: ...

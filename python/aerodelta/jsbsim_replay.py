@@ -52,11 +52,16 @@ from aerodelta.model import DeltaModel
 __all__ = [
     "CHANNELS",
     "DIVERGED",
+    "SMOOTHED",
+    "STATE_CHANNELS",
     "VARIANTS",
     "CampaignSetup",
+    "aero_along",
     "aero_at_states",
     "load_setup",
     "predictable_until",
+    "propellers",
+    "read_record",
     "replay_campaign",
     "replay_maneuver",
     "replay_properties",
@@ -717,6 +722,81 @@ def aero_at_states(
     return pl.DataFrame(out)
 
 
+def propellers(setup: CampaignSetup) -> list[str]:
+    """The thruster files of the campaign's aircraft that are propellers (root element
+    ``<propeller>``, looked up as JSBSim does: the aircraft's ``Engines/``, then the root's
+    ``engine/``)."""
+    xml = _model_xml_of(setup)
+    out = []
+    for th in ET.parse(xml).getroot().findall("propulsion/engine/thruster"):
+        name = th.get("file", "")
+        for d in (xml.parent / "Engines", xml.parent / "engine", setup.jsbsim_root / "engine"):
+            f = d / f"{name}.xml"
+            if f.is_file():
+                if ET.parse(f).getroot().tag == "propeller":
+                    out.append(name)
+                break
+    return list(dict.fromkeys(out))
+
+
+def _model_xml_of(setup: CampaignSetup) -> Path:
+    return setup.jsbsim_root / "aircraft" / setup.cfg.model / f"{setup.cfg.model}.xml"
+
+
+#: Channels :func:`aero_along` reads from each row (a model frame of ingested records).
+STATE_CHANNELS = ("maneuver_id", "t", "h_m", "tas_mps", "alpha_deg", "beta_deg", "phi_deg",
+                  "theta_deg", "psi_deg", "p_dps", "q_dps", "r_dps", "da_deg", "de_deg",
+                  "dr_deg", "flap_deg")  # fmt: skip
+
+
+#: State channel -> the ingestion's smoothed channel that :func:`aero_along` reads instead
+#: when the frame has it.
+SMOOTHED = {"p_dps": "p_s_dps", "q_dps": "q_s_dps", "r_dps": "r_s_dps", "tas_mps": "tas_s_mps"}
+
+
+def aero_along(
+    setup: CampaignSetup, frame: pl.DataFrame, *, variant: str = "qualified"
+) -> dict[str, np.ndarray]:
+    """A replay aircraft's aerodynamic ``Cl``, ``Cn`` (about the CG, over q̄Sb) and ``CY``
+    (over q̄S) at every row of ``frame``: :func:`aero_at_states` maneuver by maneuver (each
+    sorted by time, trimmed at its first sample), in the frame's row order.
+
+    ``frame`` needs :data:`STATE_CHANNELS` (SI and degrees, as ingested), finite, one flap
+    setting per maneuver. The body rates and airspeed are the smoothed ones of
+    :data:`SMOOTHED` when the frame has them (an ingested model frame does): the states the
+    fit's regressors (p̂, r̂, alpha, beta at the CG) are formed from, so the qualified model and
+    the Δ see the same sample. Raises ``DataError`` naming the missing channel, or the channel and
+    row of a value that is not finite.
+    """
+    missing = [c for c in STATE_CHANNELS if c not in frame.columns]
+    if missing:
+        raise DataError(
+            f"the JSBSim qualified model ({setup.path}) sets the recorded state of each sample "
+            f"and the records lack {', '.join(missing)}"
+        )
+    for c in STATE_CHANNELS[1:]:
+        x = frame[c].cast(pl.Float64).fill_null(math.nan).to_numpy()
+        bad = np.nonzero(~np.isfinite(x))[0]
+        if bad.size:
+            raise DataError(
+                f"channel {c}, row {int(bad[0])}: not a finite number; the JSBSim qualified "
+                "model needs every state of every sample (drop or fill the sample)"
+            )
+    # the smoothed states the ingestion forms the fit's regressors from (p̂ = p_s b / 2 V_s)
+    smooth = {c: s for c, s in SMOOTHED.items() if s in frame.columns}
+    idx = frame.with_columns(pl.col(s).alias(c) for c, s in smooth.items()).with_row_index("_row")
+    out = {c: np.full(frame.height, math.nan) for c in ("Cl", "Cn", "CY")}
+    with tempfile.TemporaryDirectory(prefix="aerodelta-qualified-") as tmp:
+        root = write_replay_aircraft(setup, tmp, variant=variant)
+        for group in idx.partition_by("maneuver_id", maintain_order=True):
+            part = group.sort("t")
+            res = aero_at_states(setup, root, part, range(part.height))
+            rows = part["_row"].to_numpy()
+            for c, v in out.items():
+                v[rows] = res[f"{c}_aero"].to_numpy()
+    return out
+
+
 # --------------------------------------------------------------------------------------------
 # Scoring
 
@@ -827,7 +907,7 @@ def replay_campaign(
             for v in dict.fromkeys([*variants, "qualified"])
         }
         for mid in chosen:
-            rec = _read_record(setup, mid)
+            rec = read_record(setup, mid)
             seed = int(seeds[mid])
             sched = _Flight(setup, roots["qualified"], rec, seed).throttle_schedule()
             t_end = score_window(rec, setup.withhold_alpha_deg)
@@ -886,8 +966,13 @@ def _load_model(path: str | os.PathLike[str]) -> DeltaModel:
     return DeltaModel.load(p)
 
 
-def _read_record(setup: CampaignSetup, mid: str) -> pl.DataFrame:
+def read_record(setup: CampaignSetup, mid: str) -> pl.DataFrame:
+    """The campaign's record of maneuver ``mid`` (``records/<id>.parquet`` as the manifest
+    names it), checked for the channels a replay reads; ``DataError`` naming the file
+    otherwise."""
     row = setup.manifest.filter(pl.col("maneuver_id") == mid)
+    if row.height == 0:
+        raise DataError(f"{setup.path / 'manifest.csv'}: no maneuver {mid}")
     p = setup.path / str(row["file"][0])
     try:
         rec = pl.read_parquet(p)

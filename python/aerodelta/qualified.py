@@ -8,6 +8,9 @@ It is one of
 - a DAVE-ML file (``.dml``/``.xml``) with outputs ``Cl``, ``Cn``, ``CY`` and inputs named as
   the data's channels (``alpha_deg``, ``beta_deg`` or ``beta_rad``, ``phat``, ``rhat``,
   ``da_deg``, ... as ``aerodelta export-qualified`` writes them), evaluated along the records;
+- ``"jsbsim:DIR"``: the qualified JSBSim aircraft of the JSBSim campaign ``DIR``
+  (``aerodelta campaign --simulator jsbsim``), evaluated by JSBSim at every recorded state
+  (:func:`jsbsim_predict`);
 - ``"adx37"``: the built-in virtual aircraft's qualified model, for data flown on it.
 
 ``"auto"`` takes the columns when the records carry them, else the built-in model when the
@@ -70,10 +73,17 @@ class Qualified:
         return describe(self.source)
 
 
+#: Prefix of a JSBSim qualified model: ``"jsbsim:<campaign folder>"``.
+JSBSIM = "jsbsim:"
+
+
 def describe(source: str) -> str:
-    """A qualified model's ``source`` (``"columns"``, ``"adx37"``, ``"daveml:NAME"``) in words."""
+    """A qualified model's ``source`` (``"columns"``, ``"adx37"``, ``"daveml:NAME"``,
+    ``"jsbsim:DIR"``) in words."""
     if source.startswith("daveml:"):
         return f"DAVE-ML model {source.split(':', 1)[1]}"
+    if source.startswith(JSBSIM):
+        return f"the qualified JSBSim aircraft of campaign {source[len(JSBSIM) :]}"
     return DESCRIPTIONS.get(source, source)
 
 
@@ -91,11 +101,18 @@ def for_model(spec: Mapping[str, Any], qualified: str | Path, hint: str) -> str 
     ------
     DataError
         ``"auto"`` for a model fitted against a DAVE-ML file, which it records by name only:
-        "the model was fitted against the DAVE-ML model NAME; ``hint``".
+        "the model was fitted against the DAVE-ML model NAME; ``hint``"; likewise for a
+        JSBSim campaign (``"jsbsim:NAME"``), to be named again as ``jsbsim:DIR``.
     """
     if str(qualified) != "auto":
         return qualified
     recorded = recorded_source(spec, "auto")
+    if recorded.startswith(JSBSIM):
+        raise DataError(
+            f"the model was fitted against the qualified JSBSim aircraft of campaign "
+            f"{recorded[len(JSBSIM) :]}; name the campaign folder again (qualified="
+            "'jsbsim:DIR', CLI --qualified jsbsim:DIR)"
+        )
     if recorded.startswith("daveml:"):
         raise DataError(
             f"the model was fitted against the DAVE-ML model {recorded.split(':', 1)[1]}; {hint}"
@@ -203,6 +220,47 @@ def daveml_predict(path: Path, cbar_m: float | None = None) -> Predict:
     return predict
 
 
+def jsbsim_predict(campaign: Path) -> Predict:
+    """The qualified JSBSim aircraft of a JSBSim campaign evaluated along model frames.
+
+    The aircraft is the campaign's own with its withheld terms frozen above the withhold alpha
+    (:func:`aerodelta.jsbsim_replay.write_replay_aircraft`, ``variant="qualified"``); at every
+    sample JSBSim's initial conditions are set to the recorded altitude, airspeed, alpha, beta,
+    Euler angles, body rates, surfaces and flaps and its aerodynamic moments and side force
+    read back (:func:`aerodelta.jsbsim_replay.aero_along`: ``Cl``, ``Cn`` about the CG over
+    q̄Sb, ``CY`` over q̄S). The samples' states must be finite: the model frame's
+    ``alpha_deg``/``beta_deg`` (CG angles), SI and degrees as ingested.
+
+    Raises
+    ------
+    DataError
+        Not a JSBSim campaign (no ``truth/truth.json``), or an aircraft with propellers:
+        JSBSim computes their torque and gyroscopic moments from its engines' state, which a
+        recorded state does not set, while the measured coefficients hold them; a Δ against
+        the aerodynamics alone would absorb them (give the simulator's total as ``*_sim``
+        columns instead).
+    InvalidInputError
+        The ``jsbsim`` package is not installed.
+    """
+    from aerodelta import jsbsim_replay as jr  # noqa: PLC0415  (jsbsim is optional)
+
+    setup = jr.load_setup(campaign)
+    props = jr.propellers(setup)
+    if props:
+        raise DataError(
+            f"{campaign}: the JSBSim {setup.cfg.model} has propellers ({', '.join(props)}), "
+            "whose torque and gyroscopic moments JSBSim computes from its engines' state, not "
+            "from a recorded state; the qualified model 'jsbsim:' gives the aerodynamics only "
+            "and the Δ would absorb them: give the simulator's total as Cl_sim, Cn_sim, CY_sim "
+            "columns (qualified='columns')"
+        )
+
+    def predict(frame: pl.DataFrame) -> dict[str, np.ndarray]:
+        return jr.aero_along(setup, frame)
+
+    return predict
+
+
 NO_SIMULATOR = (
     "no qualified model for these records: they carry no Cl_sim, Cn_sim, CY_sim columns (your "
     "simulator's predictions along the flown states) and were not flown on the built-in "
@@ -222,7 +280,8 @@ def resolve(
     data
         A model frame (CG angles as ``alpha_deg``/``beta_deg``).
     qualified
-        ``"auto"``, ``"columns"``, ``"adx37"`` or the path of a DAVE-ML file.
+        ``"auto"``, ``"columns"``, ``"adx37"``, ``"jsbsim:DIR"`` (a JSBSim campaign folder)
+        or the path of a DAVE-ML file.
     cbar_m
         Mean aerodynamic chord for a DAVE-ML model's ``alphadot_hat``, m (None: the data's).
 
@@ -250,11 +309,21 @@ def resolve(
         return Qualified("columns", _columns, False)
     if q == "adx37":
         return Qualified("adx37", _adx37, True)
+    if q.startswith(JSBSIM):
+        camp = Path(q[len(JSBSIM) :])
+        if not q[len(JSBSIM) :] or not camp.is_dir():
+            raise DataError(
+                f"qualified={q!r}: no such JSBSim campaign folder; name the folder written by "
+                "aerodelta campaign --simulator jsbsim (qualified='jsbsim:DIR')"
+            )
+        # not differentiable: JSBSim reads the states (p, r in deg/s), not the fit's regressors
+        return Qualified(f"{JSBSIM}{camp.resolve().name}", jsbsim_predict(camp), False)
     path = Path(q)
     if path.suffix.lower() in (".dml", ".xml"):
         if not path.is_file():
             raise DataError(f"{path}: no such DAVE-ML file (the qualified model)")
         return Qualified(f"daveml:{path.name}", daveml_predict(path, cbar_m), True)
     raise DataError(
-        f"qualified={q!r}: use 'auto', 'columns', 'adx37' or the path of a DAVE-ML file (.dml)"
+        f"qualified={q!r}: use 'auto', 'columns', 'adx37', 'jsbsim:DIR' (a JSBSim campaign) "
+        "or the path of a DAVE-ML file (.dml)"
     )

@@ -9,6 +9,7 @@ use aero_core::rolloff::{sample_draws, RollOffConfig};
 use aero_core::sim::campaign::{
     plan, replay_adx37, replay_adx37_extended, run_campaign, trim_adx37, CampaignSpec,
 };
+use aero_core::sim::dave_aero::{replay_daveml, UserAircraft};
 use aero_core::AeroError;
 use numpy::{
     IntoPyArray, PyArray1, PyArray2, PyArrayMethods, PyReadonlyArray2, PyUntypedArrayMethods,
@@ -16,6 +17,7 @@ use numpy::{
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
+use crate::daveml::PyDaveModel;
 use crate::delta_model::PyDeltaModel;
 use crate::error::to_py;
 use crate::util::detached;
@@ -142,6 +144,52 @@ fn sim_replay_extended<'py>(
     states_array(py, states)
 }
 
+/// Replay recorded controls on a user's aircraft flown by a DAVE-ML model (plus a Δ model;
+/// see `aero_core::sim::dave_aero::replay_daveml`). `aircraft`: S_m2, b_m, cbar_m, mass_kg,
+/// Ixx, Iyy, Izz, Ixz (kg m²), n_engines, prop_inertia_kgm2, prop_rpm.
+#[pyfunction]
+#[pyo3(signature = (model, aircraft, flap_deg, x0, dt, controls_deg, ct, delta=None))]
+#[allow(clippy::too_many_arguments)]
+fn sim_replay_daveml<'py>(
+    py: Python<'py>,
+    model: &Bound<'py, PyDaveModel>,
+    aircraft: [f64; 11],
+    flap_deg: f64,
+    x0: [f64; 12],
+    dt: f64,
+    controls_deg: PyReadonlyArray2<'py, f64>,
+    ct: PyReadonlyArray2<'py, f64>,
+    delta: Option<&Bound<'py, PyDeltaModel>>,
+) -> PyResult<Bound<'py, PyArray2<f64>>> {
+    let (c, k) = replay_rows(&controls_deg, &ct)?;
+    let a = aircraft;
+    if !(a[8].is_finite() && a[8] >= 0.0 && a[8].fract() == 0.0) {
+        return Err(to_py(AeroError::invalid(
+            "aircraft n_engines",
+            format!("{} must be a whole number >= 0", a[8]),
+        )));
+    }
+    let ac = UserAircraft {
+        s_m2: a[0],
+        b_m: a[1],
+        cbar_m: a[2],
+        mass_kg: a[3],
+        ixx: a[4],
+        iyy: a[5],
+        izz: a[6],
+        ixz: a[7],
+        n_engines: a[8] as usize,
+        prop_inertia: a[9],
+        prop_rpm: a[10],
+    };
+    let dave = &model.get().0;
+    let dm = delta.map(|d| &d.get().0);
+    let states = detached(py, || {
+        replay_daveml(&ac, dave, dm, flap_deg, x0, dt, &c, &k)
+    })?;
+    states_array(py, states)
+}
+
 /// Wings-level trim of the qualified ADX-37: (states, controls deg, C_T per engine).
 #[pyfunction]
 fn sim_trim(flap_deg: f64, v: f64, h: f64) -> PyResult<(Vec<f64>, Vec<f64>, f64)> {
@@ -222,6 +270,7 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(sim_default_spec, m)?)?;
     m.add_function(wrap_pyfunction!(sim_replay, m)?)?;
     m.add_function(wrap_pyfunction!(sim_replay_extended, m)?)?;
+    m.add_function(wrap_pyfunction!(sim_replay_daveml, m)?)?;
     m.add_function(wrap_pyfunction!(sim_trim, m)?)?;
     m.add_function(wrap_pyfunction!(sim_effect_library, m)?)?;
     m.add_function(wrap_pyfunction!(sim_aircraft_toml, m)?)?;

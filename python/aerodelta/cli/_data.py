@@ -129,13 +129,30 @@ def _data_path(args: argparse.Namespace) -> Path:
 
 
 def qualified_choice(value: str) -> str:
-    """``--model``: auto, columns, adx37 or a DAVE-ML file (its existence is checked with the
-    other inputs)."""
-    if value in ("auto", "columns", "adx37") or value.lower().endswith((".dml", ".xml")):
+    """``--model``: auto, columns, adx37, jsbsim:DIR (a JSBSim campaign folder) or a DAVE-ML
+    file (their existence is checked with the other inputs)."""
+    if (
+        value in ("auto", "columns", "adx37")
+        or value.lower().endswith((".dml", ".xml"))
+        or (value.startswith("jsbsim:") and len(value) > len("jsbsim:"))
+    ):
         return value
     raise argparse.ArgumentTypeError(
-        f"invalid choice: {value!r} (use auto, columns, adx37 or a DAVE-ML file, .dml)"
+        f"invalid choice: {value!r} (use auto, columns, adx37, jsbsim:DIR or a DAVE-ML file, .dml)"
     )
+
+
+def jsbsim_campaign_option(value: str, option: str) -> Path | None:
+    """The campaign folder of a ``jsbsim:DIR`` qualified model (checked to exist), else None."""
+    if not value.startswith("jsbsim:"):
+        return None
+    p = Path(value[len("jsbsim:") :])
+    if not p.is_dir():
+        raise InvalidInputError(
+            f"{option} {value}: folder not found; name a JSBSim campaign folder "
+            "(aerodelta campaign --simulator jsbsim)"
+        )
+    return p
 
 
 def existing_file(value: str | None, option: str) -> Path | None:

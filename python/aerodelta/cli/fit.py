@@ -25,6 +25,7 @@ from aerodelta.cli._data import (
     check_outputs,
     created,
     existing_file,
+    jsbsim_campaign_option,
     load_records,
     output_file,
     qualified_choice,
@@ -43,10 +44,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--model",
         default="auto",
         type=qualified_choice,
-        metavar="auto|columns|adx37|FILE.dml",
+        metavar="auto|columns|adx37|jsbsim:DIR|FILE.dml",
         help="qualified model (your simulator): the records' Cl_sim, Cn_sim, CY_sim columns, "
-        "a DAVE-ML file, or the built-in ADX-37 (only meaningful for the virtual campaign); "
-        "auto: the columns, else the built-in model for data flown on it, else refused",
+        "a DAVE-ML file, the qualified JSBSim aircraft of a JSBSim campaign folder (jsbsim:DIR, "
+        "evaluated at the recorded states), or the built-in ADX-37 (only meaningful for the "
+        "virtual campaign); auto: the columns, else the built-in model for data flown on it, "
+        "else refused",
     )
     parser.add_argument("--config", help="fit settings (TOML, see aerodelta.FitConfig)")
     parser.add_argument("--out", required=True, help="model file to write (.json)")
@@ -136,6 +139,7 @@ def run(args: argparse.Namespace) -> int:
         if args.model.lower().endswith((".dml", ".xml"))
         else None
     )
+    jsbsim_campaign_option(args.model, "--model")
     src = resolve_data(args)
     outs = [out, out.with_suffix(".params.parquet")]
     if args.holdout is not None:

@@ -16,6 +16,7 @@ from aerodelta.cli._data import (
     check_outputs,
     created,
     existing_file,
+    jsbsim_campaign_option,
     load_model,
     load_records,
     maneuver_ids,
@@ -23,7 +24,7 @@ from aerodelta.cli._data import (
     qualified_choice,
     resolve_data,
 )
-from aerodelta.exceptions import DataError
+from aerodelta.exceptions import DataError, InvalidInputError
 
 HELP = "write the HTML validation report of a fitted Δ model"
 
@@ -31,7 +32,11 @@ HELP = "write the HTML validation report of a fitted Δ model"
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``aerodelta report``."""
     parser.add_argument("--model", required=True, help="model file from aerodelta fit (.json)")
-    add_data_arguments(parser)
+    add_data_arguments(
+        parser,
+        aircraft_help="aircraft reference TOML (default DATA/aircraft.toml); with a DAVE-ML "
+        "--qualified model the 6-DOF replay flies this aircraft",
+    )
     parser.add_argument("--out", required=True, help="output folder")
     parser.add_argument("--diagnosis", help="diagnosis.json from aerodelta diagnose")
     parser.add_argument(
@@ -44,8 +49,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--qualified",
         default="auto",
         type=qualified_choice,
-        metavar="auto|columns|adx37|FILE.dml",
-        help="the qualified model (as aerodelta fit --model); auto: the one the fit recorded",
+        metavar="auto|columns|adx37|jsbsim:DIR|FILE.dml",
+        help="the qualified model (as aerodelta fit --model); auto: the one the fit recorded; "
+        "jsbsim:DIR also replays the JSBSim campaign's aircraft (as --jsbsim-campaign DIR)",
     )
     parser.add_argument("--replays", type=int, default=3, help="maneuvers replayed in 6-DOF")
     parser.add_argument(
@@ -53,6 +59,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default="elevator",
         choices=["elevator", "all"],
         help="feed the recorded elevator and thrust only (thesis Section 4.3), or all controls",
+    )
+    parser.add_argument(
+        "--jsbsim-campaign",
+        metavar="DIR",
+        help="the JSBSim campaign (aerodelta campaign --simulator jsbsim) the records come from: "
+        "the 6-DOF replay flies its JSBSim aircraft, qualified and qualified + Δ, as aerodelta "
+        "jsbsim-replay (default: the built-in ADX-37, for its own records only)",
     )
     parser.add_argument("--no-svg", action="store_true", help="PNG figures only")
     parser.add_argument("--no-progress", action="store_true", help="no progress bars")
@@ -87,10 +100,14 @@ def run(args: argparse.Namespace) -> int:
         else None
     )
     assert model_file is not None
+    jsbsim_campaign_option(args.qualified, "--qualified")
+    campaign = Path(args.jsbsim_campaign) if args.jsbsim_campaign else None
+    if campaign is not None and not campaign.is_dir():
+        raise InvalidInputError(f"--jsbsim-campaign {campaign}: folder not found")
     out = output_folder(args.out)
     held = maneuver_ids(args.held_out)
     progress = not args.no_progress
-    src = resolve_data(args)
+    src = resolve_data(args, aircraft_with_ingested=True)
     check_outputs(src, "--out", folder=out, inputs=[model_file, diagnosis_file, dml])
     # every input file read before the output folder is made: a bad one leaves nothing behind
     model = load_model(model_file)
@@ -108,6 +125,8 @@ def run(args: argparse.Namespace) -> int:
             qualified=args.qualified,
             replay_count=args.replays,
             replay_controls=args.replay_controls,
+            jsbsim_campaign=campaign,
+            aircraft=src.aircraft,
             svg=not args.no_svg,
             progress=progress,
         )

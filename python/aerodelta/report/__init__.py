@@ -23,6 +23,7 @@ import polars as pl
 from tqdm import tqdm
 
 from aerodelta._fsutil import write_text_atomic
+from aerodelta.aircraft import Aircraft
 from aerodelta.exceptions import InvalidInputError
 from aerodelta.model import DeltaModel
 from aerodelta.plots import FigureSink
@@ -93,6 +94,8 @@ def build_report(
     qualified: str = "auto",
     replay_count: int = 3,
     replay_controls: str = "elevator",
+    jsbsim_campaign: str | os.PathLike[str] | None = None,
+    aircraft: Aircraft | str | os.PathLike[str] | None = None,
     svg: bool = True,
     title: str = "aerodelta validation report",
     progress: bool = False,
@@ -122,6 +125,15 @@ def build_report(
     replay_controls
         ``"elevator"``: the recorded elevator and thrust, lateral controls at zero (as the
         thesis, Section 4.3); ``"all"``: every recorded control.
+    jsbsim_campaign
+        The JSBSim campaign folder (``aerodelta campaign --simulator jsbsim``) the records were
+        ingested from: the 6-DOF replay then flies its JSBSim aircraft, the qualified one and
+        the qualified one with the fitted Δ, as ``aerodelta jsbsim-replay`` (also when
+        ``qualified`` is ``"jsbsim:DIR"``). ``None``: the built-in ADX-37, for its records only.
+    aircraft
+        The aircraft file (or :class:`aerodelta.aircraft.Aircraft`) of the records: with a
+        DAVE-ML qualified model giving the six coefficients, the 6-DOF replay flies this
+        aircraft with that model (``aerodelta.report.daveml_replay``). Read for nothing else.
     svg
         Also write SVG files of the figures.
     title
@@ -169,7 +181,14 @@ def build_report(
             ("parameters", lambda c: params.section(c, sink)),
             (
                 "6-DOF replay",
-                lambda c: replay.section(c, sink, count=replay_count, controls=replay_controls),
+                lambda c: replay.section(
+                    c,
+                    sink,
+                    count=replay_count,
+                    controls=replay_controls,
+                    jsbsim_campaign=jsbsim_campaign,
+                    aircraft=aircraft,
+                ),
             ),
             ("roll-off", lambda c: rolloff_section.section(c, sink)),
             ("envelope", lambda c: envelope.section(c, sink)),

@@ -5,18 +5,24 @@ record side by side, and checked for divergence."""
 from __future__ import annotations
 
 import math
+import os
 from collections.abc import Sequence
+from pathlib import Path
 
 import numpy as np
 import polars as pl
 
+from aerodelta.aircraft import Aircraft
 from aerodelta.campaign import replay
+from aerodelta.daveml import DaveModel
 from aerodelta.exceptions import AerodeltaError
 from aerodelta.model import DeltaModel
 from aerodelta.plots import COLORS, FigureSink, figures
 from aerodelta.qualified import describe, flown_on_builtin
+from aerodelta.report import jsbsim_section
 from aerodelta.report.context import ReportContext
-from aerodelta.report.html import Section, p, table
+from aerodelta.report.daveml_replay import Fly, daveml_flyer
+from aerodelta.report.html import Section, esc, p, table
 
 #: Bounds of the divergence check: every state finite and inside these limits for the whole
 #: replay (V relative to its initial value; angles in deg).
@@ -82,6 +88,7 @@ def replay_maneuver(
     controls: str = "elevator",
     rolloff_seed: int | None = 7,
     model: DeltaModel | None = None,
+    fly: Fly | None = None,
 ) -> pl.DataFrame:
     """Replay one record (``model_frame`` rows of one maneuver, sorted by time).
 
@@ -95,6 +102,9 @@ def replay_maneuver(
         Seed of the stochastic roll-off (``None``: off).
     model
         The fitted Δ model (the extended model in the loop); ``None``: the qualified model.
+    fly
+        The simulator (:func:`aerodelta.report.daveml_replay.daveml_flyer`: the user's
+        aircraft and DAVE-ML model; no roll-off); ``None``: the built-in ADX-37.
     """
     t = rec["t"].to_numpy()
     n = rec.height - 1
@@ -108,6 +118,9 @@ def replay_maneuver(
     if controls == "elevator":
         ctl[:, [0, 2, 3, 4]] = 0.0
     ct = np.column_stack([col("ct_left"), col("ct_right")])
+    if fly is not None:
+        x = fly(float(rec["flap_deg"][0]), initial_state(rec), dt, ctl, ct, model)
+        return states_frame(np.asarray(x), t[0] + dt * np.arange(n + 1))
     x = replay(
         float(rec["flap_deg"][0]), initial_state(rec), dt, ctl, ct,
         rolloff_seed=rolloff_seed, delta_model=model,
@@ -133,6 +146,37 @@ def divergence(sim: pl.DataFrame) -> tuple[bool, str]:
             if x.min() < lo or x.max() > hi:
                 return False, f"{s} left [{lo:g}, {hi:g}] deg"
     return True, "bounded"
+
+
+#: The moment and side-force coefficients a 6-DOF simulation needs from an aerodynamic model,
+#: besides the longitudinal forces (:data:`FORCE_PAIRS`).
+MOMENTS_AND_SIDE = ("CY", "Cl", "Cm", "Cn")
+#: Either pair gives the longitudinal forces: body axes (CX, CZ) or lift and drag (CL, CD).
+FORCE_PAIRS = (("CX", "CZ"), ("CL", "CD"))
+
+
+def daveml_outputs_note(qualified: str) -> str:
+    """For a DAVE-ML qualified model (its path) replayed without an aircraft file, a sentence
+    saying whether it gives the six coefficients a 6-DOF replay needs (:data:`MOMENTS_AND_SIDE`
+    and one of :data:`FORCE_PAIRS`) and which it lacks; ``""`` for another qualified model."""
+    if not qualified.lower().endswith((".dml", ".xml")):
+        return ""
+    path = Path(qualified)
+    outs = set(DaveModel(path).outputs)
+    lack = [c for c in MOMENTS_AND_SIDE if c not in outs]
+    if not any(set(pair) <= outs for pair in FORCE_PAIRS):
+        lack.append("CX and CZ (or lift and drag, CL and CD)")
+    have = [c for c in ("CX", "CZ", "CL", "CD", *MOMENTS_AND_SIDE) if c in outs]
+    if lack:
+        return (
+            f" The DAVE-ML model {esc(path.name)} gives {', '.join(have) or 'none'} of the "
+            f"coefficients a 6-DOF replay needs; missing: {', '.join(lack)}."
+        )
+    return (
+        f" The DAVE-ML model {esc(path.name)} gives all six coefficients ({', '.join(have)}): "
+        "name your aircraft file (--aircraft FILE, default DATA/aircraft.toml; build_report("
+        "aircraft=...)) and this section flies your aircraft with it."
+    )
 
 
 def pick_maneuvers(ctx: ReportContext, count: int) -> list[str]:
@@ -168,9 +212,29 @@ def section(
     count: int = 3,
     controls: str = "elevator",
     ids: Sequence[str] | None = None,
+    jsbsim_campaign: str | os.PathLike[str] | None = None,
+    aircraft: Aircraft | str | os.PathLike[str] | None = None,
 ) -> Section:
-    """Build the replay section."""
+    """Build the replay section.
+
+    ``jsbsim_campaign``: the JSBSim campaign folder the records come from (or the qualified
+    model named ``"jsbsim:DIR"``): its JSBSim aircraft are flown instead of the built-in ADX-37
+    (:mod:`aerodelta.report.jsbsim_section`); ``controls`` then does not apply (every recorded
+    surface drives the replay).
+
+    ``aircraft``: the aircraft file (or :class:`aerodelta.aircraft.Aircraft`) of records fitted
+    against a DAVE-ML qualified model that gives the six coefficients: the replay then flies
+    that aircraft with that model (:mod:`aerodelta.report.daveml_replay`), without roll-off.
+    """
     sec = Section("replay", "4.3 6-DOF replay")
+    campaign = jsbsim_section.campaign_of(ctx, jsbsim_campaign)
+    if campaign is not None:
+        return jsbsim_section.section(ctx, sink, sec, campaign, count=count, ids=ids)
+    if aircraft is not None and _is_daveml(ctx.qualified):
+        fly = _daveml_intro(ctx, sec, controls, aircraft)
+        if fly is None:
+            return sec
+        return _replays(ctx, sink, sec, count=count, controls=controls, ids=ids, fly=fly)
     sec.body.append(
         p(
             (
@@ -205,10 +269,69 @@ def section(
                 f"{describe(ctx.qualified)}). Replaying them needs your aircraft's own 6-DOF "
                 "model with the Δ added (e.g. JSBSim with the exported increments, "
                 "docs/export.md); flying another aircraft from your initial states would "
-                "prove nothing."
+                "prove nothing. For the records of a JSBSim campaign, name the campaign "
+                "(--jsbsim-campaign DIR, or the qualified model 'jsbsim:DIR') and this section "
+                "flies its JSBSim aircraft." + daveml_outputs_note(ctx.qualified)
             )
         )
         return sec
+    return _replays(ctx, sink, sec, count=count, controls=controls, ids=ids, fly=None)
+
+
+def _is_daveml(qualified: str) -> bool:
+    return qualified.lower().endswith((".dml", ".xml"))
+
+
+def _daveml_intro(
+    ctx: ReportContext, sec: Section, controls: str, aircraft: Aircraft | str | os.PathLike[str]
+) -> Fly | None:
+    """The DAVE-ML replay's paragraph, and its simulator (``None``, with the reason, when the
+    model cannot be flown)."""
+    name = esc(Path(ctx.qualified).name)
+    sec.body.append(
+        p(
+            (
+                "The recorded elevator and thrust of each maneuver (aileron, rudder and spoilers "
+                "held at zero, as the thesis's Section 4.3 validation) are"
+                if controls == "elevator"
+                else "All recorded controls of each maneuver are"
+            )
+            + " fed to aerodelta's 6-DOF simulator flying <b>your aircraft</b> (mass, inertias "
+            f"and geometry from its aircraft file) with <b>your DAVE-ML model</b> {name} from "
+            "the recorded initial state, twice: with the extended model (the DAVE-ML "
+            "coefficients plus the fitted Δ model, Eq. 3.12, in the loop) and, for "
+            "reference, with the DAVE-ML model alone; no stochastic roll-off. The replay runs "
+            "open loop, so the lateral states part from the record once the stall is "
+            "reached; the check is that the simulation behaves qualitatively like the "
+            "flight and nothing blows up. Divergence check: every state finite and inside "
+            f"V ∈ [{BOUNDS['V_ratio'][0]}, {BOUNDS['V_ratio'][1]}]·V₀, "
+            + ", ".join(
+                f"{k.replace('_deg', '')} ∈ [{lo:g}, {hi:g}] deg"
+                for k, (lo, hi) in BOUNDS.items()
+                if k != "V_ratio"
+            )
+            + " (the bank angle is free; its maximum is reported against the 20 deg of "
+            "FAR 25.203)."
+        )
+    )
+    try:
+        return daveml_flyer(ctx.qualified, aircraft)
+    except AerodeltaError as e:
+        sec.body.append(p(f"Replay not run: {esc(e)}"))
+        return None
+
+
+def _replays(
+    ctx: ReportContext,
+    sink: FigureSink,
+    sec: Section,
+    *,
+    count: int,
+    controls: str,
+    ids: Sequence[str] | None,
+    fly: Fly | None,
+) -> Section:
+    """The replays, their figures and table (the built-in aircraft, or ``fly``'s)."""
     need = {"tas_mps", "p_dps", "q_dps", "r_dps", "phi_deg", "theta_deg", "de_deg"}
     if not need <= set(ctx.data.columns):
         sec.body.append(
@@ -219,8 +342,8 @@ def section(
     for mid in ids if ids is not None else pick_maneuvers(ctx, count):
         rec = ctx.data.filter(pl.col("maneuver_id") == mid).sort("t")
         try:
-            sim = replay_maneuver(rec, controls=controls, model=ctx.model)
-            qual = replay_maneuver(rec, controls=controls)
+            sim = replay_maneuver(rec, controls=controls, model=ctx.model, fly=fly)
+            qual = replay_maneuver(rec, controls=controls, fly=fly)
         except AerodeltaError as e:  # the engine's own message names the cause
             rows.append({"maneuver_id": mid, "bounded": False, "reason": f"replay failed: {e}"})
             continue

@@ -5,6 +5,7 @@
 //! - [`mass`]: per-maneuver mass, CG and inertia, and the moment transfer from the datum to the CG;
 //! - [`aero`]: the [`aero::AeroModel`] trait any aerodynamic model implements;
 //! - [`extended`]: a base model plus a fitted Δ model in the loop (thesis Section 4.3);
+//! - [`dave_aero`]: a DAVE-ML model as the loop's aerodynamics (the user's own simulator);
 //! - [`engine`], [`actuator`]: turboprop and control-surface actuators;
 //! - [`turbulence`]: Dryden gusts (MIL-F-8785C);
 //! - [`pilot`]: the pilot model and stick pusher flying the stall maneuvers of Section 3.2.1;
@@ -17,6 +18,7 @@ pub mod actuator;
 pub mod aero;
 pub mod atmosphere;
 pub mod campaign;
+pub mod dave_aero;
 pub mod engine;
 pub mod eom;
 pub mod extended;
