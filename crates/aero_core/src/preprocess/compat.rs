@@ -556,7 +556,6 @@ pub fn check(
     }
     let estimated = (0..th.len()).map(|j| free.contains(&j)).collect();
     let rms_after = res.iter().map(|r| rms(r)).collect();
-    let mut th = th;
     if gusts {
         // logits to gains, their errors by the delta method
         for j in GAINS {
@@ -647,23 +646,51 @@ mod tests {
         (m, y)
     }
 
+    /// The readings of `truth(0.8, vanes)` with scale errors `k` and biases `b` (rad) on the
+    /// vanes.
+    struct Scaled {
+        m: [Vec<f64>; 7],
+        y: [Vec<f64>; 6],
+        alpha: Vec<f64>,
+        beta: Vec<f64>,
+        vanes: Vanes,
+    }
+
+    impl Scaled {
+        fn new(vanes: Vanes, k: [f64; 2], b: [f64; 2]) -> Self {
+            let (m, y) = truth(0.8, vanes);
+            let alpha = y[1].iter().map(|v| (1.0 + k[0]) * v + b[0]).collect();
+            let beta = y[2].iter().map(|v| (1.0 + k[1]) * v + b[1]).collect();
+            Scaled {
+                m,
+                y,
+                alpha,
+                beta,
+                vanes,
+            }
+        }
+
+        fn input(&self) -> CompatInput<'_> {
+            let [t, p, q, r, ax, ay, az] = &self.m;
+            CompatInput {
+                t,
+                accel: [ax, ay, az],
+                rates: [p, q, r],
+                tas: &self.y[0],
+                alpha: &self.alpha,
+                beta: &self.beta,
+                euler: [&self.y[3], &self.y[4], &self.y[5]],
+                vanes: self.vanes,
+            }
+        }
+    }
+
     /// Scale errors `k` and biases `b` (rad) put on the readings of `truth(0.8, vanes)`: the
     /// check with scale factors gives all four back (1e-5, and 1e-6 rad; with `gusts`, the
     /// innovations form, ten times those).
     fn assert_scale_recovered(vanes: Vanes, k: [f64; 2], b: [f64; 2], gusts: bool) -> CompatResult {
-        let ([t, p, q, r, ax, ay, az], y) = truth(0.8, vanes);
-        let alpha_m: Vec<f64> = y[1].iter().map(|v| (1.0 + k[0]) * v + b[0]).collect();
-        let beta_m: Vec<f64> = y[2].iter().map(|v| (1.0 + k[1]) * v + b[1]).collect();
-        let inp = CompatInput {
-            t: &t,
-            accel: [&ax, &ay, &az],
-            rates: [&p, &q, &r],
-            tas: &y[0],
-            alpha: &alpha_m,
-            beta: &beta_m,
-            euler: [&y[3], &y[4], &y[5]],
-            vanes,
-        };
+        let data = Scaled::new(vanes, k, b);
+        let inp = data.input();
         let (res, f) = if gusts {
             (check(&inp, 60, true, true).unwrap(), 10.0)
         } else {
@@ -768,19 +795,8 @@ mod tests {
         let vanes = Vanes::AT_CG;
         let (k, b) = ([0.06, -0.08], [0.5_f64.to_radians(), -0.3_f64.to_radians()]);
         let res = assert_scale_recovered(vanes, k, b, true);
-        let ([t, p, q, r, ax, ay, az], y) = truth(0.8, vanes);
-        let beta_m: Vec<f64> = y[2].iter().map(|v| (1.0 + k[1]) * v + b[1]).collect();
-        let alpha_m: Vec<f64> = y[1].iter().map(|v| (1.0 + k[0]) * v + b[0]).collect();
-        let inp = CompatInput {
-            t: &t,
-            accel: [&ax, &ay, &az],
-            rates: [&p, &q, &r],
-            tas: &y[0],
-            alpha: &alpha_m,
-            beta: &beta_m,
-            euler: [&y[3], &y[4], &y[5]],
-            vanes,
-        };
+        let data = Scaled::new(vanes, k, b);
+        let inp = data.input();
         assert!(GAINS
             .iter()
             .all(|&j| res.estimated[j] && (0.0..0.05).contains(&res.params[j])));
@@ -788,7 +804,7 @@ mod tests {
         let y2 = reconstruct(&inp, &res.params).unwrap();
         let worst = y2[2]
             .iter()
-            .zip(&beta_m)
+            .zip(&data.beta)
             .fold(0.0f64, |m, (a, z)| m.max((a - z).abs()));
         assert!(worst < 1e-4, "{worst}");
     }
