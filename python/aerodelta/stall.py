@@ -13,23 +13,25 @@ be valid to at least 10 deg of alpha beyond it. This module measures each criter
 Each criterion, as measured here (constants below, times in s, angles in deg):
 
 - **pusher**: the first sample of the optional ``pusher_active`` discrete above 0.5;
-- **pitch break**: the first sample where the pitch-attitude rate (θ smoothed over
-  :data:`SMOOTH_S`, then differentiated) is below ``-PITCH_BREAK_RATE_DPS`` while the elevator is
-  *not* commanding it: it lies within :data:`COMMAND_TOL_DEG` of its most nose-up position of the
-  preceding :data:`COMMAND_WINDOW_S` (positive elevator is nose down, Etkin);
+- **pitch break**: the onset of a nose-down pitch (the first sample of a run where the
+  pitch-attitude rate, θ smoothed over :data:`SMOOTH_S` then differentiated, is below
+  ``-PITCH_BREAK_RATE_DPS``) that the elevator did not command: at the onset it lies within
+  :data:`COMMAND_TOL_DEG` of its most nose-up position of the preceding :data:`COMMAND_WINDOW_S`
+  (positive elevator is nose down, Etkin);
 - **g-break**: the first sample where the normal load factor n = -a_z,CG / g (smoothed over
-  :data:`SMOOTH_S`) has fallen :data:`G_BREAK_DN` below its running maximum in the search window,
-  the elevator again not commanding it;
+  :data:`SMOOTH_S`) has fallen :data:`G_BREAK_DN` below its running maximum in the search window
+  while alpha is no lower than where that maximum was set: lift lost at constant or rising
+  alpha (a pushover, the pilot's or the pusher's, loses alpha first);
 - **aft stop**: the end of the first :data:`AFT_STOP_HOLD_S` hold of the elevator within
   :data:`AFT_STOP_TOL_DEG` of its aft (most nose-up) stop in which the smoothed pitch attitude
   rose less than :data:`AFT_STOP_PITCH_DEG`; the stop is the one given, else the most nose-up
   deflection recorded in the maneuver;
 - **buffet**: not assessed (no accelerometer-spectrum buffet detector yet: issue 20 item 3).
 
-Pitch break, g-break and aft stop are searched from the first sample within
-:data:`SEARCH_BELOW_PEAK_DEG` of the maneuver's peak alpha to :data:`SEARCH_AFTER_PEAK_S` after
-that peak: a stall is identified around the highest alpha a maneuver reaches, and the same
-signals earlier in the approach (a gust, a turn entry) are not a stall.
+Pitch break, g-break and aft stop are searched in the run of samples within
+:data:`SEARCH_BELOW_PEAK_DEG` of the maneuver's peak alpha that holds the peak: a stall is
+identified around the highest alpha a maneuver reaches (the recovery takes alpha out of the run),
+and the same signals earlier in the approach (a gust, a turn entry) are not a stall.
 """
 
 from __future__ import annotations
@@ -68,10 +70,8 @@ AFT_STOP_TOL_DEG = 0.5
 AFT_STOP_HOLD_S = 2.0
 #: Pitch-attitude rise (deg) over the hold below which the pitch "does not increase further".
 AFT_STOP_PITCH_DEG = 0.5
-#: Search window: from the first sample within this many deg of the maneuver's peak alpha ...
+#: Search window: the run of samples within this many deg of the maneuver's peak alpha.
 SEARCH_BELOW_PEAK_DEG = 3.0
-#: ... to this many seconds after the peak.
-SEARCH_AFTER_PEAK_S = 1.0
 #: Attachment 7's validity requirement: valid to this many deg beyond stall identification.
 VALIDITY_MARGIN_DEG = 10.0
 #: Maneuvers that must reach an alpha for the records to cover it.
@@ -170,8 +170,12 @@ def detect_criteria(
     w_s = max(1, round(SMOOTH_S / dt) | 1)
     w_c = max(1, round(COMMAND_WINDOW_S / dt) + 1)
     peak = int(np.argmax(a))
-    k0 = _first(a >= a[peak] - SEARCH_BELOW_PEAK_DEG) or 0
-    k1 = int(np.searchsorted(tt, tt[peak] + SEARCH_AFTER_PEAK_S, side="right"))
+    # the window: the run of samples within SEARCH_BELOW_PEAK_DEG of the peak that holds the peak
+    near = a >= a[peak] - SEARCH_BELOW_PEAK_DEG
+    idx = np.arange(n)
+    k0 = int(np.max(np.where(~near[: peak + 1], idx[: peak + 1], -1))) + 1
+    after = np.flatnonzero(~near[peak:])
+    k1 = peak + int(after[0]) if after.size else n
     win = np.zeros(n, dtype=bool)
     win[k0:k1] = True
     # uncommanded: the elevator within COMMAND_TOL_DEG of its most nose-up position of the
@@ -182,17 +186,23 @@ def detect_criteria(
     out["pusher"] = None if pusher is None else _first(np.asarray(pusher, dtype=np.float64) > 0.5)
     th_s = _centred_mean(th, w_s)
     thdot = np.gradient(th_s, tt) if n > 1 else np.zeros(n)
-    out["pitch_break"] = _first(win & uncommanded & (thdot < -PITCH_BREAK_RATE_DPS))
+    # the onset of each nose-down episode; a push's episode stays commanded however long it lasts
+    down = thdot < -PITCH_BREAK_RATE_DPS
+    onset = down & ~np.concatenate(([False], down[:-1]))
+    out["pitch_break"] = _first(win & uncommanded & onset)
     if nz is None:
         out["g_break"] = None
     else:
         ns = _centred_mean(np.asarray(nz, dtype=np.float64), w_s)
         run = np.where(win, ns, -np.inf)
         run_max = np.maximum.accumulate(run)
-        out["g_break"] = _first(win & uncommanded & (run_max - ns >= G_BREAK_DN))
+        # the alpha where the running maximum was set: lift lost at no lower alpha is a stall,
+        # a pushover (the pilot's or the pusher's) loses alpha first
+        at_max = np.maximum.accumulate(np.where(win & (run >= run_max), idx, 0))
+        lost = (run_max - ns >= G_BREAK_DN) & (a >= a[at_max])
+        out["g_break"] = _first(win & lost)
     stop = float(np.min(de)) if aft_stop_deg is None else float(aft_stop_deg)
     held = de <= stop + AFT_STOP_TOL_DEG
-    idx = np.arange(n)
     # start of the current hold at each sample: one past the last sample not held
     start = np.maximum.accumulate(np.where(held, -1, idx)) + 1
     start = np.minimum(start, n - 1)
