@@ -15,13 +15,14 @@ Each criterion, as measured here (constants below, times in s, angles in deg):
 - **pusher**: the first sample of the optional ``pusher_active`` discrete above 0.5;
 - **pitch break**: the onset of a nose-down pitch (the first sample of a run where the
   pitch-attitude rate, θ smoothed over :data:`SMOOTH_S` then differentiated, is below
-  ``-PITCH_BREAK_RATE_DPS``) that the elevator did not command: at the onset it lies within
-  :data:`COMMAND_TOL_DEG` of its most nose-up position of the preceding :data:`COMMAND_WINDOW_S`
-  (positive elevator is nose down, Etkin);
+  ``-PITCH_BREAK_RATE_DPS``) that the elevator did not command: at the onset it (smoothed over
+  :data:`SMOOTH_S`) lies within :data:`COMMAND_TOL_DEG` of its most nose-up position of the
+  preceding :data:`COMMAND_WINDOW_S` (positive elevator is nose down, Etkin);
 - **g-break**: the first sample where the normal load factor n = -a_z,CG / g (smoothed over
-  :data:`SMOOTH_S`) has fallen :data:`G_BREAK_DN` below its running maximum in the search window
-  while alpha is no lower than where that maximum was set: lift lost at constant or rising
-  alpha (a pushover, the pilot's or the pusher's, loses alpha first);
+  :data:`SMOOTH_S`) has fallen :data:`G_BREAK_DN` below its maximum of the preceding
+  :data:`G_BREAK_WINDOW_S` in the search window while alpha is no lower than where that maximum
+  was: a sudden loss of lift at constant or rising alpha (a pushover, the pilot's or the
+  pusher's, loses alpha first; a slow decay of n in a decelerating turn is no break);
 - **aft stop**: the end of the first :data:`AFT_STOP_HOLD_S` hold of the elevator within
   :data:`AFT_STOP_TOL_DEG` of its aft (most nose-up) stop in which the smoothed pitch attitude
   rose less than :data:`AFT_STOP_PITCH_DEG`; the stop is the one given, else the most nose-up
@@ -58,8 +59,11 @@ KT = 1852.0 / 3600.0
 SMOOTH_S = 0.3
 #: Pitch-attitude rate below which the nose pitches down in a pitch break, deg/s (negative sign).
 PITCH_BREAK_RATE_DPS = 2.0
-#: Load factor loss from its running maximum that makes a g-break, g.
+#: Load factor loss from its maximum of the preceding :data:`G_BREAK_WINDOW_S` that makes a
+#: g-break, g.
 G_BREAK_DN = 0.1
+#: The g-break is a sudden loss: the maximum it is measured from is at most this old, s.
+G_BREAK_WINDOW_S = 2.0
 #: Look-back window of the "uncommanded" test, s.
 COMMAND_WINDOW_S = 1.0
 #: Elevator movement nose down (deg) within the look-back window that makes a motion commanded.
@@ -180,8 +184,9 @@ def detect_criteria(
     win[k0:k1] = True
     # uncommanded: the elevator within COMMAND_TOL_DEG of its most nose-up position of the
     # preceding window (min de over the window; positive de is nose down)
-    de_min = -_window_max(-de, w_c)
-    uncommanded = de - de_min <= COMMAND_TOL_DEG
+    de_s = _centred_mean(de, w_s)
+    de_min = -_window_max(-de_s, w_c)
+    uncommanded = de_s - de_min <= COMMAND_TOL_DEG
     out: dict[str, int | None] = {"peak": peak}
     out["pusher"] = None if pusher is None else _first(np.asarray(pusher, dtype=np.float64) > 0.5)
     th_s = _centred_mean(th, w_s)
@@ -195,11 +200,15 @@ def detect_criteria(
     else:
         ns = _centred_mean(np.asarray(nz, dtype=np.float64), w_s)
         run = np.where(win, ns, -np.inf)
-        run_max = np.maximum.accumulate(run)
-        # the alpha where the running maximum was set: lift lost at no lower alpha is a stall,
-        # a pushover (the pilot's or the pusher's) loses alpha first
-        at_max = np.maximum.accumulate(np.where(win & (run >= run_max), idx, 0))
-        lost = (run_max - ns >= G_BREAK_DN) & (a >= a[at_max])
+        # the maximum of the preceding G_BREAK_WINDOW_S (inside the search window) and where it
+        # was: lift lost at no lower alpha is a stall, a pushover (the pilot's or the pusher's)
+        # loses alpha first
+        w_g = max(1, round(G_BREAK_WINDOW_S / dt) + 1)
+        pad = np.lib.stride_tricks.sliding_window_view(
+            np.concatenate((np.full(w_g - 1, -np.inf), run)), w_g
+        )
+        at_max = np.maximum(idx - (w_g - 1) + np.argmax(pad, axis=1), 0)
+        lost = (run[at_max] - ns >= G_BREAK_DN) & (a >= a[at_max])
         out["g_break"] = _first(win & lost)
     stop = float(np.min(de)) if aft_stop_deg is None else float(aft_stop_deg)
     held = de <= stop + AFT_STOP_TOL_DEG
