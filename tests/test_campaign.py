@@ -36,6 +36,7 @@ CHANNELS = [
     "t", "alpha_deg", "beta_deg", "p_dps", "q_dps", "r_dps", "phi_deg", "theta_deg",
     "psi_deg", "ax_mps2", "ay_mps2", "az_mps2", "tas_mps", "rho_kgm3", "da_deg", "de_deg",
     "dr_deg", "dsl_deg", "dsr_deg", "flap_deg", "ct_left", "ct_right", "prop_rpm", "h_m",
+    "pusher_active", "stall_warning",
 ]  # fmt: skip
 
 

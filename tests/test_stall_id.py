@@ -1,9 +1,10 @@
 """Stall identification (Part 60 Attachment 7 criteria) against the virtual aircraft's truth.
 
-The truth of each criterion is the same definition applied to the simulator's noise-free signals
-(``truth/<id>.parquet``: true alpha at the CG, pitch attitude, acting elevator, load factor,
-airspeed) and, for the pusher, the time the simulator's own pusher fired; the records carry
-noise, sensor offsets, biases and turbulence-driven vane errors.
+The truth of each criterion (``aerodelta.stall.virtual_truth``) is the same definition applied to
+the simulator's noise-free signals (``truth/<id>.parquet``: true alpha at the CG, pitch attitude,
+acting elevator, load factor, airspeed) and, for the pusher, the time the simulator's own pusher
+fired; the records carry noise, sensor offsets, biases and turbulence-driven vane errors. The
+detector itself is checked on analytic signals, the pusher against its activation alpha.
 """
 
 from __future__ import annotations
@@ -24,12 +25,12 @@ from aerodelta.stall import (
     stall_identification,
     stall_summary,
     validity_range,
+    virtual_truth,
 )
 
 #: The ADX-37's C_L,max alpha per flap (crates/aero_core/src/aircraft/qualified.rs FLAP_STALL,
 #: docs/aircraft.md): its pusher fires 1 deg below, its stall warning 5 deg below.
 ALPHA_MAX = {0.0: 19.5, 5.0: 19.0, 10.0: 18.5, 15.0: 18.5, 35.0: 18.0}
-SEED = 5
 
 
 @pytest.fixture(scope="module")
@@ -42,58 +43,10 @@ def table(ingested: pl.DataFrame) -> pl.DataFrame:
     return stall_identification(ingested)
 
 
-@pytest.fixture(scope="module")
-def fired_at(quick_campaign: Path) -> dict[str, float]:
-    """The simulator's own pusher firing time per maneuver (the same maneuvers flown again)."""
-    man = pl.read_csv(quick_campaign / "manifest.csv")
-    idx = [i for i, p in enumerate(man["pusher_fired"]) if p]
-    flown = ad.simulate_campaign(seed=SEED, size="quick", only=idx)
-    return {m["id"]: float(m["meta"]["pusher_fired_at_s"]) for m in flown}
-
-
-def _truth(campaign: Path, table: pl.DataFrame, fired_at: dict[str, float]) -> pl.DataFrame:
-    """Per maneuver: the truth's stall identification (time, alpha, criterion) and speeds."""
-    rows = []
-    for r in table.iter_rows(named=True):
-        mid = r["maneuver_id"]
-        tr = pl.read_parquet(campaign / "truth" / f"{mid}.parquet")
-        rec = pl.read_parquet(campaign / "records" / f"{mid}.parquet")
-        t = tr["t"].to_numpy()
-        got = detect_criteria(
-            t,
-            tr["alpha_true_deg"].to_numpy(),
-            tr["theta_true_deg"].to_numpy(),
-            tr["de_true_deg"].to_numpy(),
-            nz=tr["nz_true"].to_numpy(),
-        )
-        times = {c: (None if got[c] is None else float(t[got[c]])) for c in
-                 ("pitch_break", "g_break", "aft_stop")}  # fmt: skip
-        times["pusher"] = fired_at.get(mid)
-        met = [(v, c) for c, v in times.items() if v is not None]
-        t_id, by = min(met) if met else (None, None)
-        eas = tr["tas_true_mps"].to_numpy() * np.sqrt(rec["rho_kgm3"].to_numpy() / RHO0) / KT
-        warn = rec["stall_warning"].to_numpy() > 0.5
-        k_w = int(np.argmax(warn)) if warn.any() else None
-        rows.append(
-            {
-                "maneuver_id": mid,
-                "truth_by": by,
-                "truth_t_s": t_id,
-                "truth_alpha_deg": None
-                if t_id is None
-                else float(np.interp(t_id, t, tr["alpha_true_deg"].to_numpy())),
-                "truth_v_stall_keas": None if t_id is None else float(np.interp(t_id, t, eas)),
-                "truth_v_warning_keas": None if k_w is None else float(eas[k_w]),
-                **{f"truth_{c}_t_s": v for c, v in times.items()},
-            }
-        )
-    return table.join(pl.DataFrame(rows), on="maneuver_id")
-
-
 def test_identified_alpha_and_speeds_match_the_truth(
-    quick_campaign: Path, table: pl.DataFrame, fired_at: dict[str, float]
+    quick_campaign: Path, table: pl.DataFrame
 ) -> None:
-    j = _truth(quick_campaign, table, fired_at)
+    j = virtual_truth(quick_campaign, table)
     # every maneuver the truth identifies is identified, by the same criterion
     assert (j["truth_by"].is_null() == j["stall_id_by"].is_null()).all(), j.filter(
         j["truth_by"].is_null() != j["stall_id_by"].is_null()

@@ -37,7 +37,9 @@ and the same signals earlier in the approach (a gust, a turn entry) are not a st
 
 from __future__ import annotations
 
+import json
 import math
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -547,3 +549,86 @@ def validity_range(
         orient="row",
     )
     return coverage, verdict
+
+
+def virtual_truth(campaign: str | Path, table: pl.DataFrame) -> pl.DataFrame:
+    """The truth's stall identification beside ``table``, for a virtual flight-test campaign.
+
+    The truth of each criterion is :func:`detect_criteria` on the simulator's noise-free signals
+    (``truth/<id>.parquet``: true alpha at the CG, pitch attitude, acting elevator, load factor)
+    and, for the pusher, the time the simulator's own pusher fired (the campaign's pusher
+    maneuvers flown again from ``truth/campaign.json``: same seed, same flight). Speeds: the true
+    airspeed as EAS with the recorded density; the warning onset is the recorded discrete's.
+
+    Parameters
+    ----------
+    campaign
+        A folder written by :func:`aerodelta.generate_campaign`.
+    table
+        :func:`stall_identification` of its records.
+
+    Returns
+    -------
+    polars.DataFrame
+        ``table`` with ``truth_by``, ``truth_t_s``, ``truth_alpha_deg``, ``truth_v_stall_keas``,
+        ``truth_v_warning_keas`` and ``truth_<criterion>_t_s`` per criterion.
+
+    Raises
+    ------
+    DataError
+        When ``campaign`` has no ``truth/campaign.json`` (not a virtual campaign).
+    """
+    from aerodelta import _core  # noqa: PLC0415  (the engine only for virtual campaigns)
+
+    folder = Path(campaign)
+    info_path = folder / "truth" / "campaign.json"
+    if not info_path.is_file():
+        raise DataError(f"{folder}: no truth/campaign.json; give a virtual campaign's folder")
+    spec = json.loads(info_path.read_text())["spec"]
+    man = pl.read_csv(folder / "manifest.csv")
+    fired_ids = man.filter(pl.col("pusher_fired"))["maneuver_id"].to_list()
+    spec["only"] = [int(m[1:4]) for m in fired_ids]
+    fired: dict[str, float] = {}
+    if spec["only"]:
+        for m in _core.sim_run_campaign(json.dumps(spec)):
+            fired[m["id"]] = float(json.loads(m["meta"])["pusher_fired_at_s"])
+    rows = []
+    for mid in table["maneuver_id"]:
+        tr = pl.read_parquet(folder / "truth" / f"{mid}.parquet")
+        rec = pl.read_parquet(folder / "records" / f"{mid}.parquet", columns=["rho_kgm3"])
+        t = tr["t"].to_numpy()
+        alpha = tr["alpha_true_deg"].to_numpy()
+        got = detect_criteria(
+            t,
+            alpha,
+            tr["theta_true_deg"].to_numpy(),
+            tr["de_true_deg"].to_numpy(),
+            nz=tr["nz_true"].to_numpy(),
+        )
+        times: dict[str, float | None] = {
+            c: None if got[c] is None else float(t[got[c]]) for c in CRITERIA[1:]
+        }
+        times["pusher"] = fired.get(mid)
+        met = sorted((v, CRITERIA.index(c), c) for c, v in times.items() if v is not None)
+        t_id, by = (met[0][0], met[0][2]) if met else (None, None)
+        eas = _eas_kt(tr["tas_true_mps"].to_numpy(), rec["rho_kgm3"].to_numpy())
+        t_w = table.filter(pl.col("maneuver_id") == mid)["warning_t_s"][0]
+        rows.append(
+            {
+                "maneuver_id": mid,
+                "truth_by": by,
+                "truth_t_s": t_id,
+                "truth_alpha_deg": None if t_id is None else float(np.interp(t_id, t, alpha)),
+                "truth_v_stall_keas": None if t_id is None else float(np.interp(t_id, t, eas)),
+                "truth_v_warning_keas": None if t_w is None else float(np.interp(t_w, t, eas)),
+                **{f"truth_{c}_t_s": times[c] for c in CRITERIA},
+            }
+        )
+    schema = {
+        "maneuver_id": pl.Utf8,
+        "truth_by": pl.Utf8,
+        **{c: pl.Float64 for c in ("truth_t_s", "truth_alpha_deg", "truth_v_stall_keas")},
+        "truth_v_warning_keas": pl.Float64,
+        **{f"truth_{c}_t_s": pl.Float64 for c in CRITERIA},
+    }
+    return table.join(pl.DataFrame(rows, schema=schema), on="maneuver_id", how="left")

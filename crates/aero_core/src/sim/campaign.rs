@@ -633,7 +633,10 @@ fn fly(
     );
     // the discretes: the pusher's activation, and the stall warning of the virtual aircraft's
     // warning computer, which compares the alpha vane's reading with a per-flap threshold
-    let warning = stall_warning(&meas_cols[1], stall.alpha_max_deg - STALL_WARNING_MARGIN_DEG);
+    let warning = stall_warning(
+        &meas_cols[1],
+        stall.alpha_max_deg - STALL_WARNING_MARGIN_DEG,
+    );
     meas_cols.push(pusher_rows);
     meas_cols.push(warning);
     // truth columns
@@ -717,7 +720,11 @@ fn fly(
         max_alpha_deg: max_alpha,
         load_factor_at_stall: n_at,
         pusher_fired: f.pusher_fired(),
-        pusher_fired_at_s: f.pusher.as_ref().map(|p| p.fired_at).filter(|t| t.is_finite()),
+        pusher_fired_at_s: f
+            .pusher
+            .as_ref()
+            .map(|p| p.fired_at)
+            .filter(|t| t.is_finite()),
         max_bank_deg: max_bank,
         mass_properties: varied,
     })
@@ -990,7 +997,11 @@ mod tests {
             // the pusher's discrete starts at the first record sample at or after its firing
             match (m.pusher_fired_at_s, first(push)) {
                 (Some(tf), Some(k)) => {
-                    assert!(t[k] >= tf - 1e-9 && t[k] - tf < 1.5 / s.record_hz, "{}", m.id);
+                    assert!(
+                        t[k] >= tf - 1e-9 && t[k] - tf < 1.5 / s.record_hz,
+                        "{}",
+                        m.id
+                    );
                 }
                 (None, None) => assert!(!m.plan.pusher || !m.pusher_fired, "{}", m.id),
                 other => panic!("{}: {other:?}", m.id),
@@ -1002,7 +1013,11 @@ mod tests {
                 .unwrap();
             let on = stall.alpha_max_deg - STALL_WARNING_MARGIN_DEG;
             let k = first(warn).unwrap();
-            assert!(alpha[k] >= on && alpha[..k].iter().all(|&a| a < on), "{}", m.id);
+            assert!(
+                alpha[k] >= on && alpha[..k].iter().all(|&a| a < on),
+                "{}",
+                m.id
+            );
             let tk = m.truth_names.iter().position(|c| c == "nz_true").unwrap();
             assert_eq!(m.truth[tk].len(), t.len());
         }
