@@ -13,9 +13,11 @@ be valid to at least 10 deg of alpha beyond it. This module measures each criter
 Each criterion, as measured here (constants below, times in s, angles in deg):
 
 - **pusher**: the first sample of the optional ``pusher_active`` discrete above 0.5;
-- **pitch break**: the onset of a nose-down pitch (the first sample of a run where the
-  pitch-attitude rate, θ smoothed over :data:`SMOOTH_S` then differentiated, is below
-  ``-PITCH_BREAK_RATE_DPS``) that the elevator did not command: at the onset it (smoothed over
+- **pitch break**: the onset of a sudden nose-down pitch (the first sample of a run where the
+  pitch-attitude rate, θ smoothed over :data:`SMOOTH_S` then differentiated, is at or below
+  ``-PITCH_BREAK_RATE_DPS`` although it was >= 0 within the preceding
+  :data:`PITCH_BREAK_WINDOW_S`: the nose starts going down, a steady descending turn is none)
+  that the elevator did not command: at the onset it (smoothed over
   :data:`SMOOTH_S`) lies within :data:`COMMAND_TOL_DEG` of its most nose-up position of the
   preceding :data:`COMMAND_WINDOW_S` (positive elevator is nose down, Etkin);
 - **g-break**: the first sample where the normal load factor n = -a_z,CG / g (smoothed over
@@ -59,8 +61,11 @@ KT = 1852.0 / 3600.0
 
 #: Centred moving-average window of the pitch attitude and the load factor, s.
 SMOOTH_S = 0.3
-#: Pitch-attitude rate below which the nose pitches down in a pitch break, deg/s (negative sign).
-PITCH_BREAK_RATE_DPS = 2.0
+#: Nose-down pitch-attitude rate of a pitch break, deg/s (reached from a nose not going down:
+#: the rate was >= 0 within the preceding :data:`PITCH_BREAK_WINDOW_S`).
+PITCH_BREAK_RATE_DPS = 3.0
+#: The pitch break is a sudden change: from a nose not going down this long ago at most, s.
+PITCH_BREAK_WINDOW_S = 1.0
 #: Load factor loss from its maximum of the preceding :data:`G_BREAK_WINDOW_S` that makes a
 #: g-break, g.
 G_BREAK_DN = 0.1
@@ -193,8 +198,10 @@ def detect_criteria(
     out["pusher"] = None if pusher is None else _first(np.asarray(pusher, dtype=np.float64) > 0.5)
     th_s = _centred_mean(th, w_s)
     thdot = np.gradient(th_s, tt) if n > 1 else np.zeros(n)
-    # the onset of each nose-down episode; a push's episode stays commanded however long it lasts
-    down = thdot < -PITCH_BREAK_RATE_DPS
+    # a sudden nose-down change of the pitch rate (a steady descending turn is none), counted at
+    # the onset of each episode: a push's episode stays commanded however long it lasts
+    w_p = max(1, round(PITCH_BREAK_WINDOW_S / dt) + 1)
+    down = (_window_max(thdot, w_p) >= 0.0) & (thdot <= -PITCH_BREAK_RATE_DPS)
     onset = down & ~np.concatenate(([False], down[:-1]))
     out["pitch_break"] = _first(win & uncommanded & onset)
     if nz is None:
