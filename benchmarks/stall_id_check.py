@@ -8,7 +8,7 @@ the simulator's own pusher firing time). Prints per seed and pooled: the maneuve
 by the records and by the truth, how many by a different criterion (and whether the truth meets
 that one within 0.5 s: a near tie), the error of the stall-identification alpha (floor 0.5 deg),
 of the stall speed and of the stall-warning speed (floor 1 kt), and the criteria counts; then
-the validity verdict lines of the first seed.
+the validity verdict lines of the first seed. Misses are listed with their times.
 
 Usage: python benchmarks/stall_id_check.py [seeds=21-30] [size=quick]
 """
@@ -53,6 +53,19 @@ def main() -> None:
         frames.append(j)
         _report(f"seed {seed}", j, time.perf_counter() - t0)
     _report("pooled", pl.concat(frames), None)
+    pooled = pl.concat(frames)
+    bad = pooled.filter(
+        ((pl.col("stall_id_alpha_deg") - pl.col("truth_alpha_deg")).abs() >= 0.5)
+        | ((pl.col("v_stall_keas") - pl.col("truth_v_stall_keas")).abs() >= 1.0)
+        | (pl.col("truth_by").is_null() != pl.col("stall_id_by").is_null())
+    )
+    for r in bad.iter_rows(named=True):
+        print(
+            f"  seed {r['seed']} {r['maneuver_id']}: records {r['stall_id_by']} at "
+            f"{r['stall_id_t_s']} s, alpha {r['stall_id_alpha_deg']}, {r['v_stall_keas']} KEAS; "
+            f"truth {r['truth_by']} at {r['truth_t_s']} s, alpha {r['truth_alpha_deg']}, "
+            f"{r['truth_v_stall_keas']} KEAS"
+        )
     by = pl.concat(frames).group_by("stall_id_by").len().sort("stall_id_by", nulls_last=True)
     print("criteria (records):", dict(by.iter_rows()))
     if first_verdict is not None:
@@ -83,8 +96,10 @@ def _report(name: str, j: pl.DataFrame, seconds: float | None) -> None:
     print(
         f"{name}: {j.height} maneuvers, identified {both.height} (records and truth), "
         f"{only_one} by one only, {other.height} by another criterion ({ties} near ties); "
-        f"|d alpha| deg {stat(da)}; |d V stall| kt {stat(dv)}; |d V warning| kt {stat(dw)}"
-        f"{took}"
+        f"alpha within 0.5 deg {int((da < 0.5).sum())}/{da.size}, stall speed within 1 kt "
+        f"{int((dv < 1.0).sum())}/{dv.size}, warning speed within 1 kt "
+        f"{int((dw < 1.0).sum())}/{dw.size}; |d alpha| deg {stat(da)}; |d V stall| kt "
+        f"{stat(dv)}; |d V warning| kt {stat(dw)}{took}"
     )
 
 

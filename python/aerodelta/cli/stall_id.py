@@ -113,7 +113,7 @@ def run(args: argparse.Namespace) -> int:
         print("(alpha in deg at the CG; speeds KEAS, means per cell)")
         note = table["not_assessed"][0] if table.height else ""
         if note:
-            print(f"not assessed: {note}")
+            print(note)
         for line in verdict["verdict"]:
             print(line)
         if out is not None:
