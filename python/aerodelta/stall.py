@@ -251,7 +251,11 @@ def _check(data: pl.DataFrame) -> None:
         )
     cols = [
         c
-        for c in (*_REQUIRED[1:], "alpha_cg_deg", "alpha_deg", "az_cg_mps2", "az_mps2", "flap_deg")
+        for c in (
+            *_REQUIRED[1:],
+            *("alpha_cg_deg", "alpha_deg", "az_cg_mps2", "az_mps2", "tas_s_mps", "flap_deg"),
+            *("pusher_active", "stall_warning"),
+        )
         if c in data.columns
     ]
     bad = data.select(pl.col(cols).cast(pl.Float64).is_nan().or_(pl.col(cols).is_null()).any())
