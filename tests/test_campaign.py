@@ -36,6 +36,7 @@ CHANNELS = [
     "t", "alpha_deg", "beta_deg", "p_dps", "q_dps", "r_dps", "phi_deg", "theta_deg",
     "psi_deg", "ax_mps2", "ay_mps2", "az_mps2", "tas_mps", "rho_kgm3", "da_deg", "de_deg",
     "dr_deg", "dsl_deg", "dsr_deg", "flap_deg", "ct_left", "ct_right", "prop_rpm", "h_m",
+    "pusher_active", "stall_warning",
 ]  # fmt: skip
 
 
@@ -237,6 +238,18 @@ def test_cli_list_effects_and_quick_run(tmp_path: Path, capsys: pytest.CaptureFi
     assert "wrote 40 maneuvers" in capsys.readouterr().out
 
 
+def _warns_on_its_vane(rec: pl.DataFrame, on_deg: float) -> None:
+    """The record's stall warning is the Schmitt trigger of its own alpha vane: on at
+    ``on_deg``, off 0.5 deg below (``aero_core::sim::sensors::stall_warning``)."""
+    a = rec["alpha_deg"].to_numpy()
+    w = rec["stall_warning"].to_numpy()
+    assert np.isin(w, (0.0, 1.0)).all() and w.any()
+    prev = np.concatenate(([0.0], w[:-1]))
+    assert (a[(w == 1.0) & (prev == 0.0)] >= on_deg).all()  # switched on at the threshold
+    assert (a[(w == 0.0) & (prev == 1.0)] < on_deg - 0.5).all()  # off below the hysteresis
+    assert (w[a >= on_deg] == 1.0).all() and (w[a < on_deg - 0.5] == 0.0).all()
+
+
 def test_measurement_effects_act_on_their_channels_only() -> None:
     # Same seed: the flight is identical (sensors do not feed back), so each
     # measurement effect shows as its exact signature on its own channels.
@@ -248,7 +261,13 @@ def test_measurement_effects_act_on_their_channels_only() -> None:
     # design magnitudes of issue 7: 1 deg of vane bias (so magnitude 2 is 2 deg)
     np.testing.assert_allclose(bias["alpha_deg"] - base["alpha_deg"], 1.0, atol=1e-9)
     np.testing.assert_allclose(bias["beta_deg"] - base["beta_deg"], 2.0, atol=1e-9)
-    assert bias.drop("alpha_deg", "beta_deg").equals(base.drop("alpha_deg", "beta_deg"))
+    # the stall warning reads the alpha vane (docs/stall.md): it follows the biased vane
+    vane = ("alpha_deg", "beta_deg", "stall_warning")
+    assert bias.drop(vane).equals(base.drop(vane))
+    for r in (base, bias):
+        _warns_on_its_vane(r, on_deg=19.5 - 5.0)  # maneuver 5 flies flap 0 (alpha_max 19.5)
+    t_on = [float(r.filter(pl.col("stall_warning") == 1.0)["t"][0]) for r in (base, bias)]
+    assert t_on[1] < t_on[0]  # 1 deg more on the vane: the warning comes earlier
 
     # A timing effect moves what the sensor sees; each sample keeps its own noise (same seed:
     # the same noise draws), so the shifted record differs from the base record shifted by
@@ -265,9 +284,10 @@ def test_measurement_effects_act_on_their_channels_only() -> None:
         same_signal(lag[c].to_numpy()[:-5], base[c].to_numpy()[5:], 0.05)
     skew = rec("time_skew")  # air data 0.04 s = 2 samples late
     same_signal(skew["alpha_deg"].to_numpy()[2:], base["alpha_deg"].to_numpy()[:-2], 0.05)
-    assert skew.drop("alpha_deg", "beta_deg", "tas_mps").equals(
-        base.drop("alpha_deg", "beta_deg", "tas_mps")
+    assert skew.drop("alpha_deg", "beta_deg", "tas_mps", "stall_warning").equals(
+        base.drop("alpha_deg", "beta_deg", "tas_mps", "stall_warning")
     )
+    _warns_on_its_vane(skew, on_deg=19.5 - 5.0)
     acc = rec("accelerometer_offset")
     assert not np.allclose(acc["ay_mps2"], base["ay_mps2"])
     assert acc.drop("ax_mps2", "ay_mps2", "az_mps2").equals(

@@ -52,6 +52,7 @@ from aerodelta.rolloff import (
 )
 from aerodelta.rolloff import monte_carlo as rolloff_monte_carlo
 from aerodelta.spline import SmoothingSpline, smoothing_spline
+from aerodelta.stall import stall_identification, stall_summary, validity_range
 from aerodelta.table import Table
 from aerodelta.truth import band_check, campaign_effects, true_parameter
 from aerodelta.validate import Finding, ValidationReport
@@ -108,8 +109,11 @@ __all__ = [
     "rolloff_statistics",
     "simulate_campaign",
     "smoothing_spline",
+    "stall_identification",
+    "stall_summary",
     "true_parameter",
     "validate_model",
+    "validity_range",
     "write_daveml",
     "write_example_model",
 ]

@@ -21,7 +21,7 @@ class ChannelSpec:
         Canonical unit (a :mod:`aerodelta.units` name).
     role : str
         ``sensor`` (continuous measurement), ``control`` (surface or setting), ``time``,
-        ``derived`` or ``sim``.
+        ``discrete`` (an on/off event signal, 1 = on), ``derived`` or ``sim``.
     lo, hi : float
         Plausible physical range in the canonical unit.
     doc : str
@@ -69,6 +69,9 @@ _SPECS = [
     ChannelSpec("rpm_left", "rpm", "sensor", 0.0, 1e5, "left propeller speed"),
     ChannelSpec("rpm_right", "rpm", "sensor", 0.0, 1e5, "right propeller speed"),
     ChannelSpec("prop_rpm", "rpm", "sensor", 0.0, 1e5, "propeller speed (gyroscopic term)"),
+    # optional discretes of the stall-protection system (docs/stall.md): 1 while on, 0 off
+    ChannelSpec("pusher_active", "-", "discrete", 0.0, 1.0, "stick pusher pushing (1) or not (0)"),
+    ChannelSpec("stall_warning", "-", "discrete", 0.0, 1.0, "stall warning on (1) or off (0)"),
     ChannelSpec("Cl_sim", "-", "sim", -5.0, 5.0, "simulator rolling moment coefficient"),
     ChannelSpec("Cn_sim", "-", "sim", -5.0, 5.0, "simulator yawing moment coefficient"),
     ChannelSpec("CY_sim", "-", "sim", -5.0, 5.0, "simulator side force coefficient"),
@@ -95,6 +98,10 @@ REQUIRED: tuple[str, ...] = (
     "de_deg",
     "dr_deg",
 )
+
+#: Optional on/off channels (0 or 1; a value above 0.5 reads as on): the stall-protection
+#: system's pusher activation and stall warning (read by :mod:`aerodelta.stall`).
+DISCRETE: tuple[str, ...] = tuple(s.name for s in _SPECS if s.role == "discrete")
 
 #: Alternatives: a channel or the set of channels that replaces it.
 ALTERNATIVES: dict[str, tuple[str, ...]] = {

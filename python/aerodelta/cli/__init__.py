@@ -37,6 +37,7 @@ _register("report", "report")
 _register("validate", "validate")
 _register("map-template", "map_template")
 _register("jsbsim-replay", "jsbsim_replay")
+_register("stall-id", "stall_id")
 
 
 def cli_wording(message: str, command: str) -> str:

@@ -27,7 +27,10 @@ use crate::sim::maneuver::{trim, AirData, Simulator};
 use crate::sim::mass::{MassProperties, MassVariation};
 use crate::sim::pilot::{Command, Kind, Observation, Pilot, PilotParams, Pusher};
 use crate::sim::rng::{derive_seed, Stream};
-use crate::sim::sensors::{record, NoiseSpec, TrueSample, CHANNELS};
+use crate::sim::sensors::{
+    record, stall_warning, NoiseSpec, TrueSample, CHANNELS, DISCRETE_CHANNELS,
+    STALL_WARNING_MARGIN_DEG,
+};
 use crate::sim::turbulence::Dryden;
 
 /// Random streams of one maneuver.
@@ -135,6 +138,9 @@ pub struct ManeuverResult {
     pub load_factor_at_stall: f64,
     /// Whether the pusher fired.
     pub pusher_fired: bool,
+    /// Time the pusher fired, s (absent when it did not).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub pusher_fired_at_s: Option<f64>,
     /// Maximum |bank|, deg.
     pub max_bank_deg: f64,
     /// The mass properties flown, when the campaign varies them (absent otherwise).
@@ -547,6 +553,10 @@ fn fly(
     let mut truth_rows: Vec<[f64; 8]> = Vec::with_capacity(max_steps / decim + 2);
     let mut eff_rows: Vec<[f64; 3]> = Vec::with_capacity((max_steps / decim + 2) * effects.len());
     let mut contrib = vec![[0.0; 3]; effects.len()];
+    // the pusher's activation discrete, and the truth of the stall-identification quantities:
+    // true airspeed, load factor at the CG, pitch rate, pitch attitude, acting elevator
+    let mut pusher_rows: Vec<f64> = Vec::with_capacity(max_steps / decim + 2);
+    let mut stall_rows: Vec<[f64; 5]> = Vec::with_capacity(max_steps / decim + 2);
     let (mut max_alpha, mut n_at, mut max_bank) = (f64::NEG_INFINITY, 1.0, 0.0f64);
     for step in 0..max_steps {
         let st = f.command();
@@ -586,6 +596,18 @@ fn fly(
                 ct: [inp.ct_left, inp.ct_right],
             });
             let n = -loads.force.z / w;
+            pusher_rows.push(if f.pusher.as_ref().is_some_and(Pusher::is_active) {
+                1.0
+            } else {
+                0.0
+            });
+            stall_rows.push([
+                ad.tas,
+                n,
+                x[ix::Q].to_degrees(),
+                x[ix::THETA].to_degrees(),
+                surfaces.de.to_degrees(),
+            ]);
             let a_deg = ad.alpha.to_degrees();
             if a_deg >= stall.alpha_max_deg - 1.0 && max_alpha < stall.alpha_max_deg - 1.0 {
                 n_at = n; // load factor at the stall onset (first reach of α_max − 1°)
@@ -598,7 +620,7 @@ fn fly(
         }
         f.integrate(&st, m.index)?;
     }
-    let meas_cols = record(
+    let mut meas_cols = record(
         &samples,
         &ac,
         &mass.cg_offset(),
@@ -609,6 +631,14 @@ fn fly(
         m.seed,
         stream::SENSORS,
     );
+    // the discretes: the pusher's activation, and the stall warning of the virtual aircraft's
+    // warning computer, which compares the alpha vane's reading with a per-flap threshold
+    let warning = stall_warning(
+        &meas_cols[1],
+        stall.alpha_max_deg - STALL_WARNING_MARGIN_DEG,
+    );
+    meas_cols.push(pusher_rows);
+    meas_cols.push(warning);
     // truth columns
     let ns = samples.len();
     let mut truth_names: Vec<String> = [
@@ -650,6 +680,19 @@ fn fly(
         truth_names.push("dCl_stochastic_rolloff".into());
         truth.push((0..ns).map(|k| truth_rows[2 * k][7]).collect());
     }
+    for (j, name) in [
+        "tas_true_mps",
+        "nz_true",
+        "q_true_dps",
+        "theta_true_deg",
+        "de_true_deg",
+    ]
+    .iter()
+    .enumerate()
+    {
+        truth_names.push((*name).into());
+        truth.push(stall_rows.iter().map(|r| r[j]).collect());
+    }
     let id = format!(
         "m{:03}_f{:02}_{}_{}",
         m.index,
@@ -660,7 +703,11 @@ fn fly(
     Ok(ManeuverResult {
         id,
         plan: *m,
-        record_names: CHANNELS.iter().map(|s| s.to_string()).collect(),
+        record_names: CHANNELS
+            .iter()
+            .chain(DISCRETE_CHANNELS.iter())
+            .map(|s| s.to_string())
+            .collect(),
         record: meas_cols,
         truth_names,
         truth,
@@ -673,6 +720,11 @@ fn fly(
         max_alpha_deg: max_alpha,
         load_factor_at_stall: n_at,
         pusher_fired: f.pusher_fired(),
+        pusher_fired_at_s: f
+            .pusher
+            .as_ref()
+            .map(|p| p.fired_at)
+            .filter(|t| t.is_finite()),
         max_bank_deg: max_bank,
         mass_properties: varied,
     })
@@ -926,6 +978,48 @@ mod tests {
                 m.id,
                 t.last().unwrap()
             );
+        }
+    }
+
+    #[test]
+    fn records_carry_the_pusher_and_stall_warning_discretes() {
+        let mut s = quick(3);
+        s.only = vec![0, 1, 12];
+        for m in run_campaign(&s).unwrap() {
+            let col = |name: &str| {
+                let k = m.record_names.iter().position(|c| c == name).unwrap();
+                &m.record[k]
+            };
+            let (t, alpha) = (col("t"), col("alpha_deg"));
+            let (push, warn) = (col("pusher_active"), col("stall_warning"));
+            assert!(push.iter().chain(warn).all(|&v| v == 0.0 || v == 1.0));
+            let first = |x: &[f64]| x.iter().position(|&v| v == 1.0);
+            // the pusher's discrete starts at the first record sample at or after its firing
+            match (m.pusher_fired_at_s, first(push)) {
+                (Some(tf), Some(k)) => {
+                    assert!(
+                        t[k] >= tf - 1e-9 && t[k] - tf < 1.5 / s.record_hz,
+                        "{}",
+                        m.id
+                    );
+                }
+                (None, None) => assert!(!m.plan.pusher || !m.pusher_fired, "{}", m.id),
+                other => panic!("{}: {other:?}", m.id),
+            }
+            // the warning starts where the vane first reads the flap's threshold
+            let stall = FLAP_STALL
+                .iter()
+                .find(|f| f.flap_deg == m.plan.flap_deg)
+                .unwrap();
+            let on = stall.alpha_max_deg - STALL_WARNING_MARGIN_DEG;
+            let k = first(warn).unwrap();
+            assert!(
+                alpha[k] >= on && alpha[..k].iter().all(|&a| a < on),
+                "{}",
+                m.id
+            );
+            let tk = m.truth_names.iter().position(|c| c == "nz_true").unwrap();
+            assert_eq!(m.truth[tk].len(), t.len());
         }
     }
 

@@ -105,6 +105,11 @@ impl Pusher {
             0.0
         }
     }
+    /// Whether it is pushing now (the activation discrete a flight-test
+    /// recorder logs as `pusher_active`).
+    pub fn is_active(&self) -> bool {
+        self.active
+    }
     /// Whether it has fired.
     pub fn has_fired(&self) -> bool {
         !self.fired_at.is_nan()

@@ -113,6 +113,50 @@ pub const CHANNELS: [&str; 24] = [
     "h_m",
 ];
 
+/// The discrete channels recorded after [`CHANNELS`]: the stick pusher's activation
+/// (1 while it pushes, 0 otherwise or without a pusher) and the stall warning (1 while
+/// it warns), as a flight-test recorder logs them from the stall-protection computer.
+pub const DISCRETE_CHANNELS: [&str; 2] = ["pusher_active", "stall_warning"];
+
+/// The virtual aircraft's stall-warning computer warns when the alpha vane reads at least
+/// α_max − this margin (deg), α_max the flap setting's C_L,max alpha: ≈ 5-6 % above the
+/// 1-g stall speed on the ADX-37's lift curves, the margin a stall warning gives.
+pub const STALL_WARNING_MARGIN_DEG: f64 = 5.0;
+
+/// The warning stops once the vane reads this far (deg) below its onset threshold
+/// (hysteresis: vane noise does not make it chatter).
+pub const STALL_WARNING_HYSTERESIS_DEG: f64 = 0.5;
+
+/// The stall-warning discrete (0/1 per sample) of a recorded alpha-vane signal: on at the
+/// first sample with `alpha_vane_deg[k] ≥ on_deg`, off at the first sample after it with
+/// `alpha_vane_deg[k] < on_deg − STALL_WARNING_HYSTERESIS_DEG` (a Schmitt trigger on the
+/// vane, as a stall-warning computer's alpha comparator is).
+///
+/// ```
+/// use aero_core::sim::sensors::stall_warning;
+/// let w = stall_warning(&[10.0, 14.1, 13.8, 13.4, 14.0], 14.0);
+/// assert_eq!(w, vec![0.0, 1.0, 1.0, 0.0, 1.0]);
+/// ```
+pub fn stall_warning(alpha_vane_deg: &[f64], on_deg: f64) -> Vec<f64> {
+    let off = on_deg - STALL_WARNING_HYSTERESIS_DEG;
+    let mut on = false;
+    alpha_vane_deg
+        .iter()
+        .map(|&a| {
+            if a >= on_deg {
+                on = true;
+            } else if a < off {
+                on = false;
+            }
+            if on {
+                1.0
+            } else {
+                0.0
+            }
+        })
+        .collect()
+}
+
 fn shifted(t: &[f64], y: &[f64], shift: f64) -> Vec<f64> {
     // value at t_k + shift by linear interpolation, holding the ends
     let n = t.len();
