@@ -239,3 +239,18 @@ def test_build_report_reads_its_inputs_before_making_the_folder(tmp_path: Path) 
     with pytest.raises(ad.AerodeltaError):
         build_report(m, pl.DataFrame({"t": [0.0]}), out)
     assert not out.exists()
+
+
+def test_a_model_without_provenance_still_builds_its_context() -> None:
+    """A model file written by another tool may carry ``"provenance": null``: the report's
+    context and the fit summary read it as empty, with the stall alpha unknown, rather than
+    crashing on ``None.get``."""
+    from aerodelta.model import DeltaModel  # noqa: PLC0415
+    from aerodelta.report.context import build_context  # noqa: PLC0415
+
+    _, data, res, held = quick_fit()
+    spec = res.model.to_spec()
+    spec["provenance"] = None
+    bare = DeltaModel.from_spec(spec)
+    ctx = build_context(bare, data, held_out=held, qualified="adx37")
+    assert ctx.stall_alpha_deg == {}

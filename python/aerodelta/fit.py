@@ -1062,8 +1062,8 @@ def _header_lines(
     """Data, qualified model, structure selection, standard errors, identification rules,
     stall alpha per flap, and the identified share per coefficient."""
     spec = r.model.to_spec()
-    prov = spec.get("provenance", {})
-    cfg = prov.get("config", {})
+    prov = spec.get("provenance") or {}
+    cfg = prov.get("config") or {}
     flaps = sorted(r.stall_alpha_deg)
     lines = [
         "Δ-model identification: equation-error least squares per alpha bin (thesis 3.3-3.6)",

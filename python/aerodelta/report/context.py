@@ -97,7 +97,7 @@ def build_context(
     unknown = sorted(set(held_out) - ids)
     if unknown:
         raise DataError(f"report: held-out maneuvers {unknown[:5]} are not in the data")
-    stall = model.to_spec().get("provenance", {}).get("stall_alpha_deg", {})
+    stall = (model.to_spec().get("provenance") or {}).get("stall_alpha_deg") or {}
     return ReportContext(
         model=model,
         data=df,
