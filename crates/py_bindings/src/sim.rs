@@ -146,14 +146,15 @@ fn sim_replay_extended<'py>(
 
 /// Replay recorded controls on a user's aircraft flown by a DAVE-ML model (plus a Δ model;
 /// see `aero_core::sim::dave_aero::replay_daveml`). `aircraft`: S_m2, b_m, cbar_m, mass_kg,
-/// Ixx, Iyy, Izz, Ixz (kg m²), n_engines, prop_inertia_kgm2, prop_rpm.
+/// Ixx, Iyy, Izz, Ixz (kg m²), n_engines, prop_inertia_kgm2, prop_rpm, and the CG from the
+/// model's moment reference centre x, y, z (m, body axes).
 #[pyfunction]
 #[pyo3(signature = (model, aircraft, flap_deg, x0, dt, controls_deg, ct, delta=None))]
 #[allow(clippy::too_many_arguments)]
 fn sim_replay_daveml<'py>(
     py: Python<'py>,
     model: &Bound<'py, PyDaveModel>,
-    aircraft: [f64; 11],
+    aircraft: [f64; 14],
     flap_deg: f64,
     x0: [f64; 12],
     dt: f64,
@@ -181,6 +182,7 @@ fn sim_replay_daveml<'py>(
         n_engines: a[8] as usize,
         prop_inertia: a[9],
         prop_rpm: a[10],
+        cg_offset_m: [a[11], a[12], a[13]],
     };
     let dave = &model.get().0;
     let dm = delta.map(|d| &d.get().0);

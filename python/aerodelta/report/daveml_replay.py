@@ -33,7 +33,10 @@ Fly = Callable[
 
 def aircraft_values(aircraft: Aircraft) -> list[float]:
     """The engine's aircraft row: S (m²), b, c̄ (m), mass (kg), Ixx, Iyy, Izz, Ixz (kg m²),
-    engines, propeller polar inertia (kg m²), propeller speed (rpm).
+    engines, propeller polar inertia (kg m²), propeller speed (rpm), and the CG from the
+    moment reference centre (``cg_m − moment_ref_m``, body axes, m): the DAVE-ML model's
+    moments are about that centre (the fitted Δ's too: it was fitted about
+    ``moment_ref_m``) and the simulator transfers them to the CG.
 
     The simulator counts one propeller angular momentum ``n I Ω`` with the aircraft file's
     sense (``prop_rotation``: ccw +, cw −, opposite 0; thesis Eq. 3.3), so it is given as one
@@ -45,6 +48,7 @@ def aircraft_values(aircraft: Aircraft) -> list[float]:
     return [
         aircraft.S_m2, aircraft.b_m, aircraft.cbar_m, aircraft.mass_kg, aircraft.Ixx_kgm2,
         aircraft.Iyy_kgm2, aircraft.Izz_kgm2, aircraft.Ixz_kgm2, 1.0, h_per_rpm_inertia, rpm,
+        *np.subtract(aircraft.cg_m, aircraft.reference_m).tolist(),
     ]  # fmt: skip
 
 

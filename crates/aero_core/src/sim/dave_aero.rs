@@ -251,6 +251,10 @@ pub struct UserAircraft {
     pub prop_inertia: f64,
     /// Propeller speed, rpm.
     pub prop_rpm: f64,
+    /// CG position from the model's moment reference centre, body axes (x forward, y right,
+    /// z down), m: the model's moments (about that centre, as DAVE-ML gives them) are
+    /// transferred to the CG, `M_cg = M_ref − d × F` ([`Simulator::cg_offset`]).
+    pub cg_offset_m: [f64; 3],
 }
 
 impl UserAircraft {
@@ -275,9 +279,13 @@ impl UserAircraft {
                 ));
             }
         }
-        if !self.ixz.is_finite() || !self.prop_inertia.is_finite() || !self.prop_rpm.is_finite() {
+        if !self.ixz.is_finite()
+            || !self.prop_inertia.is_finite()
+            || !self.prop_rpm.is_finite()
+            || !self.cg_offset_m.iter().all(|v| v.is_finite())
+        {
             return Err(AeroError::invalid(
-                "aircraft Ixz_kgm2, prop_inertia_kgm2, prop_rpm",
+                "aircraft Ixz_kgm2, prop_inertia_kgm2, prop_rpm, cg_m - moment_ref_m",
                 "must be finite numbers for the 6-DOF replay",
             ));
         }
@@ -332,6 +340,7 @@ pub fn replay_daveml(
         })
         .collect();
     let mut sim = Simulator::new(ac, flap_deg, nalgebra::SVector::from(x0), dt);
+    sim.cg_offset = nalgebra::Vector3::from(aircraft.cg_offset_m);
     let states = match delta {
         Some(dm) => {
             let mut m = ExtendedAero::new(base, dm)?;
