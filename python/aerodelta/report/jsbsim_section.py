@@ -88,7 +88,12 @@ def section(
     cannot be flown (no ``jsbsim`` package, not a JSBSim campaign, records not the campaign's)
     the section says why in one sentence.
     """
-    from aerodelta.report.replay import BOUNDS, STATES, divergence, pick_maneuvers  # noqa: PLC0415
+    from aerodelta.report.replay import (  # noqa: PLC0415
+        STATES,
+        bounds_text,
+        divergence,
+        pick_maneuvers,
+    )
 
     sec.body.append(
         p(
@@ -110,12 +115,7 @@ def section(
             "aircraft's own replay leaves the record by 10 % of a channel's range; "
             f"ratio = TIC extended / TIC qualified (issue 19's floor: ≤ {RATIO_FLOOR:g}). "
             "Divergence check (extended replay) as for the built-in aircraft: "
-            f"V ∈ [{BOUNDS['V_ratio'][0]}, {BOUNDS['V_ratio'][1]}]·V₀, "
-            + ", ".join(
-                f"{k.replace('_deg', '')} ∈ [{lo:g}, {hi:g}] deg"
-                for k, (lo, hi) in BOUNDS.items()
-                if k != "V_ratio"
-            )
+            + bounds_text()
             + "."
         )
     )

@@ -33,6 +33,16 @@ BOUNDS = {
     "theta_deg": (-85.0, 85.0),
 }
 
+
+def bounds_text() -> str:
+    """The divergence bounds in words: ``V ∈ [..]·V₀, alpha ∈ [..] deg, ...``."""
+    return f"V ∈ [{BOUNDS['V_ratio'][0]}, {BOUNDS['V_ratio'][1]}]·V₀, " + ", ".join(
+        f"{k.replace('_deg', '')} ∈ [{lo:g}, {hi:g}] deg"
+        for k, (lo, hi) in BOUNDS.items()
+        if k != "V_ratio"
+    )
+
+
 STATES = ("V_mps", "alpha_deg", "beta_deg", "theta_deg", "phi_deg")
 _REC = {
     "V_mps": "tas_mps",
@@ -251,12 +261,7 @@ def section(
             "the lateral states part from the record once the stall is reached; the check is "
             "that the simulation behaves qualitatively like the flight and nothing blows up. "
             "Divergence check: every state finite and inside "
-            f"V ∈ [{BOUNDS['V_ratio'][0]}, {BOUNDS['V_ratio'][1]}]·V₀, "
-            + ", ".join(
-                f"{k.replace('_deg', '')} ∈ [{lo:g}, {hi:g}] deg"
-                for k, (lo, hi) in BOUNDS.items()
-                if k != "V_ratio"
-            )
+            + bounds_text()
             + " (the bank angle is free; its maximum is reported against the 20 deg of "
             "FAR 25.203)."
         )
@@ -304,12 +309,7 @@ def _daveml_intro(
             "open loop, so the lateral states part from the record once the stall is "
             "reached; the check is that the simulation behaves qualitatively like the "
             "flight and nothing blows up. Divergence check: every state finite and inside "
-            f"V ∈ [{BOUNDS['V_ratio'][0]}, {BOUNDS['V_ratio'][1]}]·V₀, "
-            + ", ".join(
-                f"{k.replace('_deg', '')} ∈ [{lo:g}, {hi:g}] deg"
-                for k, (lo, hi) in BOUNDS.items()
-                if k != "V_ratio"
-            )
+            + bounds_text()
             + " (the bank angle is free; its maximum is reported against the 20 deg of "
             "FAR 25.203)."
         )
