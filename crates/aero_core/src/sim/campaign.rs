@@ -877,6 +877,20 @@ fn replay_with<M: AeroModel>(
     ct: &[[f64; 2]],
 ) -> Result<Vec<[f64; 12]>> {
     let mut sim = Simulator::new(adx37(), flap_deg, nalgebra::SVector::from(x0), dt);
+    replay_states(&mut sim, model, controls_deg, ct)
+}
+
+/// Fly `sim` with `model` through recorded controls (da, de, dr, dsl, dsr in deg, Etkin) and
+/// thrust coefficients per engine; the 12 states at each step (n + 1 rows).
+///
+/// # Errors
+/// Mismatched input lengths ([`crate::sim::maneuver::replay_ct`]).
+pub(crate) fn replay_states<M: AeroModel + ?Sized>(
+    sim: &mut Simulator,
+    model: &mut M,
+    controls_deg: &[[f64; 5]],
+    ct: &[[f64; 2]],
+) -> Result<Vec<[f64; 12]>> {
     let d = f64::to_radians;
     let controls: Vec<Controls> = controls_deg
         .iter()
@@ -888,7 +902,7 @@ fn replay_with<M: AeroModel>(
             dsr: d(c[4]),
         })
         .collect();
-    let states = crate::sim::maneuver::replay_ct(&mut sim, model, &controls, ct)?;
+    let states = crate::sim::maneuver::replay_ct(sim, model, &controls, ct)?;
     Ok(states.iter().map(|x| x.data.0[0]).collect())
 }
 

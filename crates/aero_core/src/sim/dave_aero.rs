@@ -18,9 +18,10 @@ use crate::aircraft::turboprop::{adx37, AircraftRef};
 use crate::daveml::DaveModel;
 use crate::delta_model::DeltaModel;
 use crate::error::{AeroError, Result};
-use crate::sim::aero::{AeroCoeffs, AeroInput, AeroModel, Controls};
+use crate::sim::aero::{AeroCoeffs, AeroInput, AeroModel};
+use crate::sim::campaign::replay_states;
 use crate::sim::extended::ExtendedAero;
-use crate::sim::maneuver::{replay_ct, Simulator};
+use crate::sim::maneuver::Simulator;
 
 /// A loop input a DAVE-ML variable can be bound to.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -328,30 +329,18 @@ pub fn replay_daveml(
 ) -> Result<Vec<[f64; 12]>> {
     let ac = aircraft.to_ref()?;
     let base = DaveAero::new(model.clone(), ac.cbar_m)?;
-    let d = f64::to_radians;
-    let controls: Vec<Controls> = controls_deg
-        .iter()
-        .map(|c| Controls {
-            da: d(c[0]),
-            de: d(c[1]),
-            dr: d(c[2]),
-            dsl: d(c[3]),
-            dsr: d(c[4]),
-        })
-        .collect();
     let mut sim = Simulator::new(ac, flap_deg, nalgebra::SVector::from(x0), dt);
     sim.cg_offset = nalgebra::Vector3::from(aircraft.cg_offset_m);
-    let states = match delta {
+    match delta {
         Some(dm) => {
             let mut m = ExtendedAero::new(base, dm)?;
-            replay_ct(&mut sim, &mut m, &controls, ct)?
+            replay_states(&mut sim, &mut m, controls_deg, ct)
         }
         None => {
             let mut m = base;
-            replay_ct(&mut sim, &mut m, &controls, ct)?
+            replay_states(&mut sim, &mut m, controls_deg, ct)
         }
-    };
-    Ok(states.iter().map(|x| x.data.0[0]).collect())
+    }
 }
 
 #[cfg(test)]
