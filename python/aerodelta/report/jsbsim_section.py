@@ -19,18 +19,10 @@ import numpy as np
 import polars as pl
 
 from aerodelta.exceptions import AerodeltaError
-from aerodelta.plots import COLORS, FigureSink, figures
+from aerodelta.plots import FigureSink, figures
 from aerodelta.report.context import ReportContext
 from aerodelta.report.html import Section, esc, p, table
 
-#: Report state -> column of the campaign's records and of a JSBSim replay.
-_COLUMN = {
-    "V_mps": "tas_mps",
-    "alpha_deg": "alpha_deg",
-    "beta_deg": "beta_deg",
-    "theta_deg": "theta_deg",
-    "phi_deg": "phi_deg",
-}
 #: Windows of :func:`aerodelta.jsbsim_replay.replay_campaign` shown in the TIC table.
 WINDOWS = ("delta", "predictable")
 #: The issue-19 floor on the pooled TIC ratio (extended / qualified).
@@ -90,8 +82,8 @@ def section(
     """
     from aerodelta.report.replay import (  # noqa: PLC0415
         STATES,
+        against_record,
         bounds_text,
-        divergence,
         pick_maneuvers,
     )
 
@@ -171,40 +163,19 @@ def section(
             .select("t", *STATES)
             for v in jr.VARIANTS
         }
-        ok, why = divergence(run["extended"])
-        flap = float(rec["flap_deg"][0])
-        row: dict[str, object] = {
-            "maneuver_id": mid,
-            "flap_deg": flap,
-            "held_out": mid in ctx.held_out,
-            "bounded": ok,
-            "reason": why,
-            "qualified_bounded": divergence(run["qualified"])[0],
-            "max_bank_deg_flight": float(np.nanmax(np.abs(rec["phi_deg"].to_numpy()))),
-            "max_bank_deg_ext": float(np.nanmax(np.abs(run["extended"]["phi_deg"].to_numpy()))),
-        }
-        tr = rec["t"].to_numpy()
-        panels = []
-        for s in STATES:
-            y = rec[_COLUMN[s]].to_numpy()
-            lines = []
-            for name, v, col in (
-                ("qual", "qualified", COLORS["qual"]),
-                ("ext", "extended", COLORS["ext"]),
-            ):
-                ts, ys = run[v]["t"].to_numpy(), run[v][s].to_numpy()
-                lab = f"JSBSim, {v}" + (" + Δ" if v == "extended" else "")
-                lines.append((ts, ys, col, lab))
-                err = np.interp(tr, ts, ys) - y
-                row[f"rms_{s}_{name}"] = float(np.sqrt(np.nanmean(err**2)))
-            panels.append({"title": s, "t": tr, "y": y, "runs": lines})
+        row, panels = against_record(
+            rec, run["qualified"], run["extended"], mid=mid, held_out=mid in ctx.held_out,
+            labels=("JSBSim, qualified", "JSBSim, extended + Δ"),
+        )  # fmt: skip
+        why = row["reason"]
         sec.body.append(
             sink.plot(
                 figures.replay,
                 f"replay_jsbsim_{mid}",
-                f"JSBSim replay of {mid} (flap {flap:g}) on the campaign's {setup.cfg.model}: "
-                "flight record vs the qualified JSBSim aircraft and the qualified aircraft with "
-                f"the fitted Δ; divergence check of the extended replay: {why}.",
+                f"JSBSim replay of {mid} (flap {row['flap_deg']:g}) on the campaign's "
+                f"{setup.cfg.model}: flight record vs the qualified JSBSim aircraft and the "
+                "qualified aircraft with the fitted Δ; divergence check of the extended "
+                f"replay: {why}.",
                 panels=panels,
             )
         )

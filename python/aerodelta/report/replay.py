@@ -53,6 +53,47 @@ _REC = {
 }
 
 
+def against_record(
+    rec: pl.DataFrame,
+    qual: pl.DataFrame,
+    ext: pl.DataFrame,
+    *,
+    mid: str,
+    held_out: bool,
+    labels: tuple[str, str],
+) -> tuple[dict[str, object], list[dict[str, object]]]:
+    """A replayed maneuver against its record: the table row (divergence check of the
+    extended replay and of the qualified one, largest bank angles in deg, RMS difference of
+    each of :data:`STATES` from the record, interpolated to its times) and the figure's
+    panels, the qualified and extended replays labelled ``labels``."""
+    ok, why = divergence(ext)
+    row: dict[str, object] = {
+        "maneuver_id": mid,
+        "flap_deg": float(rec["flap_deg"][0]),
+        "held_out": held_out,
+        "bounded": ok,
+        "reason": why,
+        "qualified_bounded": divergence(qual)[0],
+        "max_bank_deg_flight": float(np.nanmax(np.abs(rec["phi_deg"].to_numpy()))),
+        "max_bank_deg_ext": float(np.nanmax(np.abs(ext["phi_deg"].to_numpy()))),
+    }
+    tr = rec["t"].to_numpy()
+    panels: list[dict[str, object]] = []
+    for s in STATES:
+        y = rec[_REC[s]].to_numpy()
+        runs = []
+        for name, run, col, lab in (
+            ("qual", qual, COLORS["qual"], labels[0]),
+            ("ext", ext, COLORS["ext"], labels[1]),
+        ):
+            ts, ys = run["t"].to_numpy(), run[s].to_numpy()
+            runs.append((ts, ys, col, lab))
+            err = np.interp(tr, ts, ys) - y
+            row[f"rms_{s}_{name}"] = float(np.sqrt(np.nanmean(err**2)))
+        panels.append({"title": s, "t": tr, "y": y, "runs": runs})
+    return row, panels
+
+
 def initial_state(rec: pl.DataFrame) -> list[float]:
     """The 12 simulator states (u v w [m/s], p q r [rad/s], φ θ ψ [rad], x y h [m]) at the
     first record sample, from airspeed and the CG angles of attack and sideslip."""
@@ -347,29 +388,11 @@ def _replays(
         except AerodeltaError as e:  # the engine's own message names the cause
             rows.append({"maneuver_id": mid, "bounded": False, "reason": f"replay failed: {e}"})
             continue
-        ok, why = divergence(sim)
-        row: dict[str, object] = {
-            "maneuver_id": mid,
-            "flap_deg": float(rec["flap_deg"][0]),
-            "held_out": mid in ctx.held_out,
-            "bounded": ok,
-            "reason": why,
-            "qualified_bounded": divergence(qual)[0],
-            "max_bank_deg_flight": float(np.nanmax(np.abs(rec["phi_deg"].to_numpy()))),
-            "max_bank_deg_ext": float(np.nanmax(np.abs(sim["phi_deg"].to_numpy()))),
-        }
-        tr = rec["t"].to_numpy()
-        panels = []
-        for s in STATES:
-            y = rec[_REC[s]].to_numpy()
-            runs = []
-            for name, run, col in (("qual", qual, COLORS["qual"]), ("ext", sim, COLORS["ext"])):
-                ts, ys = run["t"].to_numpy(), run[s].to_numpy()
-                lab = "replay, extended" if name == "ext" else "replay, qualified"
-                runs.append((ts, ys, col, lab))
-                err = np.interp(tr, ts, ys) - y
-                row[f"rms_{s}_{name}"] = float(np.sqrt(np.nanmean(err**2)))
-            panels.append({"title": s, "t": tr, "y": y, "runs": runs})
+        row, panels = against_record(
+            rec, qual, sim, mid=mid, held_out=mid in ctx.held_out,
+            labels=("replay, qualified", "replay, extended"),
+        )  # fmt: skip
+        why = row["reason"]
         sec.body.append(
             sink.plot(
                 figures.replay,
