@@ -16,6 +16,7 @@ is per degree; non-dimensional rates ``phat``, ``rhat`` are per radian of ``pb/2
 from __future__ import annotations
 
 import hashlib
+import json
 import math
 import numbers
 import os
@@ -516,7 +517,6 @@ def _parse_regressors(table: Mapping[str, Sequence[tuple[str, str]]], source: st
     InvalidInputError
         From the engine, naming ``source``, the coefficient and the term.
     """
-    import json  # noqa: PLC0415
 
     coefs = {
         c: {
@@ -1578,7 +1578,6 @@ def _structure_columns(
     expression as a Δ-model term with a parameter of 1), for :func:`calibrate_chain`. The
     intercept, a regressor whose channels ``df`` lacks and one constant over ``rows`` are
     left out."""
-    import json  # noqa: PLC0415
 
     keep = [
         (n, e)

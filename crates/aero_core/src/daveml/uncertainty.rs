@@ -208,9 +208,9 @@ pub(crate) fn parse(
         }
         (_, [lo, hi]) => {
             if let (Some(lo), Some(hi)) = (values(lo), values(hi)) {
-                if let Some(k) = (0..lo.len().min(hi.len()))
-                    .find(|&k| !(lo[k] <= 0.0 && 0.0 <= hi[k]) && effect == Effect::Additive)
-                {
+                let n = lo.len().min(hi.len());
+                let unbracketed = (0..n).find(|&k| !(lo[k] <= 0.0 && 0.0 <= hi[k]));
+                if let (Effect::Additive, Some(k)) = (effect, unbracketed) {
                     return Err(src.err(
                         pdf,
                         format!(
@@ -219,7 +219,7 @@ pub(crate) fn parse(
                         ),
                     ));
                 }
-                if let Some(k) = (0..lo.len().min(hi.len())).find(|&k| lo[k] > hi[k]) {
+                if let Some(k) = (0..n).find(|&k| lo[k] > hi[k]) {
                     return Err(src.err(
                         pdf,
                         format!("bounds [{}, {}] (value {}) are in the wrong order; give the lower first", lo[k], hi[k], k + 1),
