@@ -159,7 +159,7 @@ def run_case(
     out.settings = {
         "aircraft": aircraft, "part": case.part, "label": case.label, "seed": case.seed,
         "size": size, "turbulence": case.turbulence, "skew_s": case.skew_s, "noise": 1.0,
-        "per_flap": bool(config and config.per_flap),
+        "per_flap": "auto" if config is None or config.per_flap is None else config.per_flap,
     }  # fmt: skip
     return out
 
@@ -309,7 +309,7 @@ def main() -> int:
     ap.add_argument("--match", default=None, help="only cases whose label contains this")
     ap.add_argument("--list", action="store_true", help="print the cases and stop")
     ap.add_argument(
-        "--per-flap", action="store_true", help="diagnose with one alpha curve per flap"
+        "--per-flap", action="store_true", help="diagnose with one alpha curve per flap always"
     )
     ap.add_argument(
         "--rescore",

@@ -75,7 +75,22 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="smaller share accepted for a broad effect (signed-rank test at alpha/10; "
         f"default {defaults.min_shrink_broad:g}, at most --min-shrink)",
     )
-    parser.add_argument("--per-flap", action="store_true", help="one alpha curve per flap")
+    flap_curves = parser.add_mutually_exclusive_group()
+    flap_curves.add_argument(
+        "--per-flap",
+        dest="per_flap",
+        action="store_const",
+        const=True,
+        help="always one alpha curve per flap (default: one curve for all flaps, split per "
+        "flap where the data show the flaps differ)",
+    )
+    flap_curves.add_argument(
+        "--shared-flaps",
+        dest="per_flap",
+        action="store_const",
+        const=False,
+        help="always one alpha curve for all flaps",
+    )
     parser.add_argument(
         "--no-nested",
         action="store_true",

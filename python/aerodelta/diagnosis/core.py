@@ -33,6 +33,7 @@ from aerodelta.diagnosis.cv import (
     total_solve,
 )
 from aerodelta.diagnosis.data import in_order, load_records, maneuver_codes, sorted_columns
+from aerodelta.diagnosis.flaps import FlapLayout, choose_layout
 from aerodelta.diagnosis.nested import effect_outer, outer_evaluation, outer_summary
 from aerodelta.diagnosis.regressors import (
     delayed_controls,
@@ -123,8 +124,11 @@ class DiagnoseConfig:
     measurement
         Test the measurement effects (vane biases, control lag, time skew, accelerometer).
     per_flap
-        Fit each candidate's alpha curve per flap (default: one curve shared by all flaps,
-        five times the data per parameter; the gap map is per flap either way).
+        ``None`` (default): one alpha curve per candidate shared by all flaps (five times the
+        data per parameter), refitted per flap when the per-flap curves pass the selection's
+        own test and effect-size floor (:mod:`aerodelta.diagnosis.flaps`), per coefficient.
+        ``True``: always per flap; ``False``: always shared. The gap map is per flap either
+        way.
     seed
         Seed of the fold assignment and of the randomization tests.
     band_match
@@ -141,7 +145,7 @@ class DiagnoseConfig:
     where_bin_deg: float = 2.0
     where_alpha: float = 0.05
     measurement: bool = True
-    per_flap: bool = False
+    per_flap: bool | None = None
     seed: int = 0
     nested: bool = True
     band_match: bool = True
@@ -502,6 +506,12 @@ def _diagnose(  # noqa: PLR0917 - the arguments of diagnose(), passed through
     grid = HatGrid.covering(alpha, cfg.knot_deg)
     dflap = fidx if cfg.per_flap else np.zeros_like(fidx)
     n_dflaps = len(flaps) if cfg.per_flap else 1
+    # each maneuver's flap, for the per-flap refinement (default ``per_flap=None``)
+    layout = (
+        FlapLayout(np.searchsorted(np.array(flaps), man["flap_deg"].to_numpy()), len(flaps))
+        if cfg.per_flap is None
+        else None
+    )
     steps = tqdm(COEFFICIENTS, desc="diagnose", disable=not progress, file=None)
     coefs: dict[str, Any] = {}
     pred_cols: dict[str, np.ndarray] = {}
@@ -578,8 +588,16 @@ def _diagnose(  # noqa: PLR0917 - the arguments of diagnose(), passed through
                 del nuis
                 stats = fold_stats(design, folds_m)
                 sel = forward_select(design, stats, cands, cfg.selection)
+        flap_rows = dflap
+        shared = design  # the outer folds choose the layout on their own inner folds
+        layout_report: dict[str, Any] = {"layout": "per_flap" if cfg.per_flap else "shared"}
+        if layout is not None:
+            ch = choose_layout(design, stats, sel, cands, layout, cfg.selection)
+            design, stats, sel, layout_report = ch.design, ch.stats, ch.sel, ch.report
+            if ch.per_flap:
+                flap_rows = fidx
         rows = {
-            "y": y, "fold": folds_m[mcode], "flap": dflap, "alpha": alpha,
+            "y": y, "fold": folds_m[mcode], "flap": flap_rows, "alpha": alpha,
             "aero": aero_x, "glob": glob_x,
         }  # fmt: skip
         effects, steps_ = _effect_rows(sel, design, stats, rows)
@@ -587,7 +605,7 @@ def _diagnose(  # noqa: PLR0917 - the arguments of diagnose(), passed through
         del aero_x, glob_x, rows
         outer = None
         if cfg.nested:
-            ev = outer_evaluation(design, folds_m, cands, cfg.selection)
+            ev = outer_evaluation(shared, folds_m, cands, cfg.selection, layout)
             outer = outer_summary(ev, cfg.selection.n_perm, cfg.seed + 17)
             for i, e in enumerate(effects):
                 share, p_out, k = effect_outer(
@@ -619,12 +637,13 @@ def _diagnose(  # noqa: PLR0917 - the arguments of diagnose(), passed through
             "where": gap_map(frame, y, phase, cfg.where_bin_deg, cfg.where_alpha),
             "worst_segments": worst_segments(frame, y),
             "effects": effects,
+            "flap_curves": layout_report,
             "shrink": _shrink_table(y, meas, region_rows, steps_),
         }
         if outer is not None:
             coefs[coef]["outer"] = outer
         # this coefficient's rows and statistics go before the next one's are built
-        del design, stats, sel, steps_
+        del design, shared, stats, sel, steps_
         sim_c.pop(coef)
     coefs["Cl"]["rolloff"] = {k: v for k, v in ro.items() if k != "centres"}
     coefs["Cl"]["rolloff"]["events_profiled_out"] = len(ro["centres"]) if ro["detected"] else 0
@@ -672,7 +691,7 @@ def _diagnose(  # noqa: PLR0917 - the arguments of diagnose(), passed through
         },
         "settings": {
             "knot_deg": cfg.knot_deg,
-            "per_flap": cfg.per_flap,
+            "per_flap": "auto" if cfg.per_flap is None else cfg.per_flap,
             "alpha": cfg.selection.alpha,
             "min_shrink": cfg.selection.min_shrink,
             "min_shrink_broad": cfg.selection.min_shrink_broad,

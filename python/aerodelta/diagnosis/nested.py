@@ -49,6 +49,7 @@ from aerodelta.diagnosis.cv import (
     model_sse,
     total_solve,
 )
+from aerodelta.diagnosis.flaps import FlapLayout, choose_layout, per_flap_design
 from aerodelta.diagnosis.select import (
     SelectionConfig,
     columns_for,
@@ -90,6 +91,7 @@ class OuterEvaluation:
     sse_model: FloatArray
     chosen: list[list[str]]
     effect_gain: dict[str, FloatArray] = field(default_factory=dict)
+    per_flap: list[bool] = field(default_factory=list)  # per outer fold: curves split by flap
 
 
 def _fit_and_score(
@@ -113,6 +115,7 @@ def outer_evaluation(
     folds: IntArray,
     candidates: Sequence[Candidate],
     cfg: SelectionConfig,
+    layout: FlapLayout | None = None,
 ) -> OuterEvaluation:
     """Run the selection once per outer fold on the other folds and score the left-out one.
 
@@ -126,6 +129,10 @@ def outer_evaluation(
         The candidate effects (as given to the full-data selection).
     cfg
         Thresholds of the selection (the same as the full-data selection's).
+    layout
+        Each maneuver's flap, when the full-data diagnosis chooses between one curve for all
+        flaps and one per flap (:mod:`aerodelta.diagnosis.flaps`): each outer fold makes that
+        choice again on its own inner folds. ``None``: ``design``'s layout, as given.
     """
     folds = np.asarray(folds, dtype=np.int64)
     n_q = int(folds.max()) + 1 if folds.size else 0
@@ -135,11 +142,14 @@ def outer_evaluation(
     sse_model = sse_gap.copy()
     chosen: list[list[str]] = []
     gains: dict[str, FloatArray] = {}
+    split: list[bool] = []
+    full_per = per_flap_design(design, layout) if layout is not None else None
     for o in range(n_q):
         outer = np.flatnonzero(folds == o)
         inner_idx = np.flatnonzero(folds != o)
         if outer.size == 0 or inner_idx.size == 0:
             chosen.append([])
+            split.append(False)
             continue
         inner = design.subset(inner_idx)
         # the inner folds: the other outer folds, renumbered 0..K-2
@@ -152,12 +162,23 @@ def outer_evaluation(
             replace(cfg, seed=cfg.seed + _FOLD_SEED * (o + 1)),
             report=False,
         )
+        scored = design
+        if layout is not None and full_per is not None:
+            fold_cfg = replace(cfg, seed=cfg.seed + _FOLD_SEED * (o + 1))
+            inner_layout = FlapLayout(layout.man_flap[inner_idx], layout.n_flaps)
+            ch = choose_layout(inner, stats, sel, candidates, inner_layout, fold_cfg, report=False)
+            inner, stats, sel = ch.design, ch.stats, ch.sel
+            if ch.per_flap:
+                scored = full_per
+            split.append(ch.per_flap)
+        else:
+            split.append(False)
         total = stats
         nuis = list(sel.nuisance)
         effects = [s.candidate for s in sel.selected if s.candidate not in nuis]
         model = nuis + effects
-        sse_timing[outer] = _fit_and_score(inner, total, design, outer, nuis)
-        sse_model[outer] = with_all = _fit_and_score(inner, total, design, outer, model)
+        sse_timing[outer] = _fit_and_score(inner, total, scored, outer, nuis)
+        sse_model[outer] = with_all = _fit_and_score(inner, total, scored, outer, model)
         chosen.append([s.candidate.name for s in sel.selected])
         # each chosen effect's gain in its fold's selection order (the timing terms, always
         # in the model, by leaving each out of the final model), as the selection reports it
@@ -165,13 +186,13 @@ def outer_evaluation(
         for s in sel.selected:
             if s.candidate in nuis:
                 rest = [c for c in model if c is not s.candidate]
-                gain = _fit_and_score(inner, total, design, outer, rest) - with_all
+                gain = _fit_and_score(inner, total, scored, outer, rest) - with_all
             else:
                 so_far.append(s.candidate)
-                now = _fit_and_score(inner, total, design, outer, so_far)
+                now = _fit_and_score(inner, total, scored, outer, so_far)
                 gain, prev = prev - now, now
             gains.setdefault(s.candidate.name, np.zeros(m))[outer] = gain
-    return OuterEvaluation(n_q, sse_gap, sse_timing, sse_model, chosen, gains)
+    return OuterEvaluation(n_q, sse_gap, sse_timing, sse_model, chosen, gains, split)
 
 
 def outer_summary(ev: OuterEvaluation, n_perm: int, seed: int) -> dict[str, object]:
@@ -196,6 +217,7 @@ def outer_summary(ev: OuterEvaluation, n_perm: int, seed: int) -> dict[str, obje
         "p_value_effects": p_eff,
         "chosen_per_fold": [list(c) for c in ev.chosen],
         "chosen_in_folds": dict(sorted(counts.items())),
+        "per_flap_folds": int(sum(ev.per_flap)),
     }
 
 
