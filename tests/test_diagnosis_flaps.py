@@ -110,3 +110,42 @@ def test_outer_folds_choose_the_layout_on_their_own_inner_folds() -> None:
     assert ev.sse_model.sum() < 0.9 * plain.sse_model.sum()
     same, _, layout1, _ = _campaign(1.0)
     assert outer_evaluation(same, folds, CANDS, CFG, layout1).per_flap == [False] * 5
+
+
+@pytest.mark.parametrize("profiled", [False, True])
+def test_a_design_restricted_to_a_models_regressors_fits_that_model_alike(profiled: bool) -> None:
+    """``Design.restrict``: the held-out errors and parameters of a model are those of the
+    full design (same penalty scales, same solves), per flap too, with roll-off nuisance
+    columns profiled out of each maneuver or not."""
+    shared, _, layout, folds = _campaign(0.3)
+    design = shared
+    if profiled:
+        rng = np.random.default_rng(5)
+        n_man, per = shared.n_maneuvers, 150
+        man = np.repeat(np.arange(n_man), per)
+        alpha = rng.uniform(0, 12, man.size)
+        aero = rng.normal(size=(man.size, 2))
+        glob = rng.normal(size=(man.size, 1))
+        u = (alpha - rng.uniform(3, 9, n_man)[man]) / 0.8
+        nuis = np.exp(-0.5 * u * u)[:, None]
+        y = np.sin(alpha / 4) * aero[:, 0] + 0.3 * nuis[:, 0] + 0.1 * rng.normal(size=man.size)
+        full = cv.build_design(
+            y, man, np.zeros_like(man), alpha, aero, np.hstack([glob, nuis]), ["a", "b"],
+            ["g", "n0"], cv.HatGrid.covering(alpha, 2.0), n_man, 1,
+        )  # fmt: skip
+        design = cv.profile_out(full, 1)
+    for lay in (None, layout):
+        d_full = design if lay is None else per_flap_design(design, lay)
+        small = d_full.restrict(["a"], ["g"])
+        assert small.aero_names == ["a"] and small.global_names == ["g"]
+        s_full, s_small = cv.fold_stats(d_full, folds), cv.fold_stats(small, folds)
+        sse_full, th_full = cv.heldout_sse(d_full, s_full, cv.local_columns(d_full, ["a"], ["g"]))
+        sse_small, th_small = cv.heldout_sse(small, s_small, cv.local_columns(small, ["a"], ["g"]))
+        np.testing.assert_allclose(sse_small, sse_full, rtol=1e-9)
+        cols = cv.local_columns(d_full, ["a"], ["g"])
+        keep = np.concatenate(cols)
+        for q in range(5):
+            for f in range(d_full.n_flaps):
+                np.testing.assert_allclose(
+                    th_small[q][f], th_full[q][f][keep], rtol=1e-9, atol=1e-12
+                )

@@ -218,6 +218,37 @@ class Design:
             self.block_index(idx),
         )
 
+    def restrict(self, aero: Sequence[str], glob: Sequence[str]) -> Design:
+        """This design on the regressors ``aero`` and ``glob`` only (kept in this design's
+        order; its own copy of their blocks). A model on those regressors has the same fits
+        and errors here as in the full design (each regressor's penalty is scaled by its own
+        Gram diagonal), at the cost of its columns only: the per-flap test of
+        :mod:`aerodelta.diagnosis.flaps` sums the statistics of one model, not of the pool."""
+        ra = np.array(sorted(self.aero_names.index(a) for a in aero), dtype=np.int64)
+        rg = np.array(sorted(self.global_names.index(g) for g in glob), dtype=np.int64)
+        k_n, r_n = self.grid.n, len(self.aero_names)
+        old = np.concatenate(
+            [(np.arange(k_n)[:, None] * r_n + ra[None, :]).ravel(), k_n * r_n + rg]
+        )
+        rows = self.block_index(np.arange(self.n_maneuvers))
+        lowrank = None if self.lowrank is None else np.ascontiguousarray(self.lowrank[old])
+        return Design(
+            self.grid,
+            self.n_flaps,
+            [self.aero_names[i] for i in ra],
+            [self.global_names[i] for i in rg],
+            self.man_flap.copy(),
+            self.diag[rows][:, ra][:, :, ra],
+            self.off[rows][:, ra][:, :, ra],
+            self.cross[rows][:, ra][:, :, rg],
+            self.glob[rows][:, rg][:, :, rg],
+            self.xty[:, old],
+            self.yty.copy(),
+            self.n_rows.copy(),
+            lowrank,
+            None if self.lowrank_of is None else self.lowrank_of.copy(),
+        )
+
     def owning(self) -> Design:
         """This design with its own copy of its maneuvers' Gram blocks (itself if it has
         them)."""

@@ -117,11 +117,17 @@ def choose_layout(  # noqa: PLR0917 - the selection's state, all needed
     if not aero:
         keep.report["reason"] = "no alpha-dependent effect selected"
         return keep
-    per = per_flap_design(design, layout)
-    pstats = fold_stats(per, stats.folds)
-    cols = columns_for(design, model)
-    sse_shared = heldout_sse(design, stats, cols)[0]
-    sse_per = heldout_sse(per, pstats, cols)[0]
+    # the shared model's held-out errors are the selection's own (memoised); the per-flap
+    # ones are computed on the model's regressors only (Design.restrict: the same fits)
+    sse_shared = heldout_sse(design, stats, columns_for(design, model))[0]
+    small = per_flap_design(
+        design.restrict(
+            sorted({r for c in model if not c.global_ for r in c.regressors}),
+            sorted({r for c in model if c.global_ for r in c.regressors}),
+        ),
+        layout,
+    )
+    sse_per = heldout_sse(small, fold_stats(small, stats.folds), columns_for(small, model))[0]
     d = material_change(sse_shared, sse_per)
     _, p = improvement_test(d, cfg.n_perm, cfg.seed + _SEED)
     total0 = float(sel.sse0.sum())
@@ -139,5 +145,7 @@ def choose_layout(  # noqa: PLR0917 - the selection's state, all needed
     }
     if not passes:
         return LayoutChoice(design, stats, sel, False, {"layout": "shared", **info})
+    per = per_flap_design(design, layout)
+    pstats = fold_stats(per, stats.folds)
     psel = forward_select(per, pstats, candidates, cfg, report=report)
     return LayoutChoice(per, pstats, psel, True, {"layout": "per_flap", **info})
