@@ -51,6 +51,12 @@ class DeltaModel:
     def parameter(
         self, coefficient: str, term: str, flap_deg: float, alpha_deg: float
     ) -> float: ...
+    def in_envelope(
+        self,
+        flap_deg: npt.NDArray[np.float64],
+        alpha_deg: npt.NDArray[np.float64],
+        beta_deg: npt.NDArray[np.float64],
+    ) -> npt.NDArray[np.bool_] | None: ...
     def eval_columns(
         self, coefficient: str, columns: dict[str, npt.NDArray[np.float64]], n: int
     ) -> tuple[

@@ -2044,7 +2044,7 @@ def _model_spec(
             "alpha_l_deg": [_per_flap(cfg.alpha_l_deg, f, "alpha_l_deg") for f in flaps],
             "alpha_u_deg": [_per_flap(cfg.alpha_u_deg, f, "alpha_u_deg") for f in flaps],
         }
-    return {
+    spec: dict[str, Any] = {
         "schema": SCHEMA,
         "flaps_deg": flaps,
         "alpha_channel": "alpha_deg",
@@ -2064,6 +2064,58 @@ def _model_spec(
             }
             | {"structures": {c: [list(t) for t in s] for c, s in cfg.structures.items()}},
         },
+    }
+    envelope = data_envelope(data, flaps, cfg.min_maneuvers_identified)
+    if envelope is not None:
+        spec["envelope"] = envelope
+    return spec
+
+
+#: Width of the alpha bands of the validated envelope, deg.
+ENVELOPE_BAND_DEG = 1.0
+
+
+def data_envelope(
+    data: pl.DataFrame,
+    flaps: Sequence[float],
+    min_maneuvers: int,
+    band_deg: float = ENVELOPE_BAND_DEG,
+) -> dict[str, Any] | None:
+    """The flight data's alpha/beta coverage per flap, as stored with a fitted model
+    (``envelope`` in the model JSON; ``aero_core::envelope``): per flap setting and alpha band
+    of ``band_deg`` (deg), the smallest and largest sideslip measured (deg) where at least
+    ``min_maneuvers`` maneuvers have samples. ``None`` when ``flap_deg``, ``alpha_deg``,
+    ``beta_deg`` or ``maneuver_id`` is missing. The simulator's "outside the validated
+    envelope" indication (14 CFR Part 60, FSTD Directive 2) is read from it
+    (:meth:`aerodelta.model.DeltaModel.in_envelope`)."""
+    need = ("flap_deg", "alpha_deg", "beta_deg", "maneuver_id")
+    if any(c not in data.columns for c in need):
+        return None
+    cells = (
+        data.select(
+            pl.col("flap_deg").cast(pl.Float64),
+            (pl.col("alpha_deg").cast(pl.Float64) / band_deg).floor().alias("band"),
+            pl.col("beta_deg").cast(pl.Float64),
+            "maneuver_id",
+        )
+        .drop_nulls()
+        .filter(pl.col("band").is_finite() & pl.col("beta_deg").is_finite())
+        .group_by("flap_deg", "band")
+        .agg(
+            pl.col("beta_deg").min().alias("beta_min_deg"),
+            pl.col("beta_deg").max().alias("beta_max_deg"),
+            pl.col("maneuver_id").n_unique().alias("maneuvers"),
+        )
+        .filter(pl.col("maneuvers") >= min_maneuvers)
+        .with_columns(pl.col("band").cast(pl.Int64), pl.col("maneuvers").cast(pl.UInt32))
+        .sort("flap_deg", "band")
+    )
+    bands = [cells.filter(pl.col("flap_deg") == f).drop("flap_deg").to_dicts() for f in flaps]
+    return {
+        "band_deg": band_deg,
+        "flaps_deg": [float(f) for f in flaps],
+        "bands": bands,
+        "min_maneuvers": int(min_maneuvers),
     }
 
 

@@ -16,6 +16,7 @@ import numpy as np
 import polars as pl
 
 from aerodelta import _core
+from aerodelta.exceptions import DataError, InvalidInputError
 
 SCHEMA = "aerodelta.model/1"
 
@@ -128,6 +129,66 @@ class DeltaModel:
             if terms:
                 out.update(contribs)
         return pl.DataFrame(out)
+
+    @property
+    def envelope(self) -> pl.DataFrame | None:
+        """The flight data's validated envelope stored with the model: per flap and alpha
+        band, the band's alpha limits and the measured sideslip range (deg) and its
+        maneuvers; ``None`` for a model without one (an older model file, or one written by
+        hand)."""
+        env = self.to_spec().get("envelope")
+        if env is None:
+            return None
+        w = float(env["band_deg"])
+        rows = [
+            {
+                "flap_deg": float(f),
+                "alpha_lo_deg": b["band"] * w,
+                "alpha_hi_deg": (b["band"] + 1) * w,
+                "beta_min_deg": b["beta_min_deg"],
+                "beta_max_deg": b["beta_max_deg"],
+                "maneuvers": b["maneuvers"],
+            }
+            for f, bands in zip(env["flaps_deg"], env["bands"], strict=True)
+            for b in bands
+        ]
+        schema = {
+            "flap_deg": pl.Float64, "alpha_lo_deg": pl.Float64, "alpha_hi_deg": pl.Float64,
+            "beta_min_deg": pl.Float64, "beta_max_deg": pl.Float64, "maneuvers": pl.Int64,
+        }  # fmt: skip
+        return pl.DataFrame(rows, schema=schema)
+
+    def in_envelope(self, frame: pl.DataFrame) -> pl.Series:
+        """Per row of ``frame`` (``flap_deg``, ``alpha_deg``, ``beta_deg``, deg): whether the
+        state lies inside the validated envelope of the flight data (a covered alpha band of
+        the nearest flap setting, within its measured sideslip range) — the "outside the
+        validated envelope" indication of 14 CFR Part 60 a simulator shows. A missing value is
+        outside.
+
+        Raises
+        ------
+        DataError
+            When a column is missing.
+        InvalidInputError
+            When the model carries no envelope.
+        """
+        missing = [c for c in ("flap_deg", "alpha_deg", "beta_deg") if c not in frame.columns]
+        if missing:
+            raise DataError(
+                f"in_envelope: the frame lacks {', '.join(missing)} (deg); it needs flap_deg, "
+                "alpha_deg and beta_deg"
+            )
+        cols = [
+            np.ascontiguousarray(frame[c].cast(pl.Float64).fill_null(np.nan).to_numpy())
+            for c in ("flap_deg", "alpha_deg", "beta_deg")
+        ]
+        out = self._m.in_envelope(*cols)
+        if out is None:
+            raise InvalidInputError(
+                "in_envelope: this model carries no validated envelope (an older model file, "
+                "or one written by hand); fit it again to store the data's alpha/beta coverage"
+            )
+        return pl.Series("in_envelope", out)
 
     def __repr__(self) -> str:
         return f"DeltaModel({', '.join(self.coefficients)})"

@@ -22,6 +22,7 @@ use std::path::Path;
 
 use serde::{Deserialize, Serialize};
 
+use crate::envelope::{Envelope, EnvelopeSpec};
 use crate::error::{AeroError, Result, ResultExt};
 use crate::regressor::{BoundExpr, Expr};
 use crate::table::{Axis, Table};
@@ -89,6 +90,9 @@ pub struct DeltaModelSpec {
     /// Stochastic roll-off configuration, when the model carries one (free form here).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub rolloff: Option<serde_json::Value>,
+    /// The flight data's α/β coverage per flap ([`crate::envelope`]), when the fit wrote it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub envelope: Option<EnvelopeSpec>,
 }
 
 fn default_alpha() -> String {
@@ -118,6 +122,7 @@ struct Coefficient {
 pub struct DeltaModel {
     spec: DeltaModelSpec,
     coefficients: Vec<Coefficient>,
+    envelope: Option<Envelope>,
 }
 
 /// Linear blending weight of Eq. 3.12.
@@ -233,7 +238,52 @@ impl DeltaModel {
                 alpha_u: one(&c.alpha_u_deg)?,
             });
         }
-        Ok(DeltaModel { spec, coefficients })
+        let envelope = spec.envelope.clone().map(Envelope::new).transpose()?;
+        Ok(DeltaModel {
+            spec,
+            coefficients,
+            envelope,
+        })
+    }
+
+    /// Whether the state (flap, α, β in deg) lies inside the validated envelope of the flight
+    /// data ([`Envelope::contains`]); `None` when the model carries no envelope.
+    pub fn in_envelope(&self, flap_deg: f64, alpha_deg: f64, beta_deg: f64) -> Option<bool> {
+        self.envelope
+            .as_ref()
+            .map(|e| e.contains(flap_deg, alpha_deg, beta_deg))
+    }
+
+    /// [`DeltaModel::in_envelope`] of each row of three columns (deg); `None` when the model
+    /// carries no envelope.
+    ///
+    /// # Errors
+    /// [`AeroError::InvalidInput`] when the columns differ in length.
+    pub fn in_envelope_columns(
+        &self,
+        flap_deg: &[f64],
+        alpha_deg: &[f64],
+        beta_deg: &[f64],
+    ) -> Result<Option<Vec<bool>>> {
+        if alpha_deg.len() != flap_deg.len() || beta_deg.len() != flap_deg.len() {
+            return Err(AeroError::invalid(
+                "in_envelope",
+                format!(
+                    "columns of {} (flap), {} (alpha) and {} (beta) rows; they must have one length",
+                    flap_deg.len(),
+                    alpha_deg.len(),
+                    beta_deg.len()
+                ),
+            ));
+        }
+        Ok(self.envelope.as_ref().map(|e| {
+            flap_deg
+                .iter()
+                .zip(alpha_deg)
+                .zip(beta_deg)
+                .map(|((f, a), b)| e.contains(*f, *a, *b))
+                .collect()
+        }))
     }
 
     /// The stored form.
@@ -511,7 +561,42 @@ mod tests {
             coefficients,
             provenance: serde_json::json!({"test": true}),
             rolloff: None,
+            envelope: None,
         }
+    }
+
+    #[test]
+    fn envelope_is_read_checked_and_answers() {
+        let m = DeltaModel::new(spec()).unwrap();
+        assert_eq!(m.in_envelope(0.0, 12.0, 0.0), None);
+        let mut s = spec();
+        s.envelope = Some(crate::envelope::EnvelopeSpec {
+            band_deg: 1.0,
+            flaps_deg: vec![0.0, 10.0],
+            bands: vec![
+                vec![crate::envelope::EnvelopeBand {
+                    band: 12,
+                    beta_min_deg: -4.0,
+                    beta_max_deg: 3.0,
+                    maneuvers: 5,
+                }],
+                vec![],
+            ],
+            min_maneuvers: 2,
+        });
+        let m = DeltaModel::new(s.clone()).unwrap();
+        assert_eq!(m.in_envelope(0.0, 12.5, 2.0), Some(true));
+        assert_eq!(m.in_envelope(0.0, 12.5, 3.5), Some(false));
+        assert_eq!(m.in_envelope(10.0, 12.5, 0.0), Some(false));
+        // round trip through the JSON document, and a malformed one refused on load
+        let back = DeltaModel::from_json(&m.to_json().unwrap(), "t").unwrap();
+        assert_eq!(back.spec(), m.spec());
+        let mut bad = s;
+        if let Some(e) = bad.envelope.as_mut() {
+            e.bands[0][0].beta_max_deg = f64::NAN;
+        }
+        let msg = DeltaModel::new(bad).unwrap_err().to_string();
+        assert!(msg.contains("envelope, flap 0, band 12"), "{msg}");
     }
 
     #[test]

@@ -45,6 +45,7 @@ pub mod band;
 pub mod bootstrap;
 pub mod daveml;
 pub mod delta_model;
+pub mod envelope;
 pub mod error;
 pub mod fsutil;
 pub mod identify;

@@ -61,6 +61,25 @@ impl PyDeltaModel {
             .map_err(to_py)
     }
 
+    /// Per row, whether (flap, alpha, beta) in deg lies in the model's validated envelope;
+    /// None when the model carries no envelope.
+    fn in_envelope<'py>(
+        &self,
+        py: Python<'py>,
+        flap_deg: PyReadonlyArray1<'py, f64>,
+        alpha_deg: PyReadonlyArray1<'py, f64>,
+        beta_deg: PyReadonlyArray1<'py, f64>,
+    ) -> PyResult<Option<Bound<'py, PyArray1<bool>>>> {
+        let (f, a, b) = (
+            flap_deg.as_slice()?,
+            alpha_deg.as_slice()?,
+            beta_deg.as_slice()?,
+        );
+        let m = &self.0;
+        let out = detached(py, || m.in_envelope_columns(f, a, b))?;
+        Ok(out.map(|v| v.into_pyarray(py)))
+    }
+
     /// Evaluate one coefficient over named float64 columns of `n` rows.
     /// Returns (delta, weight, {term: contribution}).
     #[allow(clippy::type_complexity)]

@@ -77,6 +77,7 @@ pub struct ExtendedAero<'m, M> {
     /// The base model (qualified aerodynamics, roll-off).
     pub base: M,
     delta: BoundDeltaModel<'m>,
+    model: &'m DeltaModel,
     slots: Vec<Slot>,
 }
 
@@ -110,8 +111,18 @@ impl<'m, M: AeroModel> ExtendedAero<'m, M> {
         Ok(ExtendedAero {
             base,
             delta: delta.bind(&LAYOUT)?,
+            model: delta,
             slots,
         })
+    }
+
+    /// Whether the state lies inside the flight data's α/β envelope stored with the Δ model
+    /// ([`crate::envelope`]): the "outside the validated envelope" indication a simulator
+    /// shows its instructor (14 CFR Part 60, FSTD Directive 2). `None` when the model carries
+    /// no envelope.
+    pub fn in_envelope(&self, s: &AeroInput) -> Option<bool> {
+        self.model
+            .in_envelope(s.flap_deg, s.alpha.to_degrees(), s.beta.to_degrees())
     }
 
     /// The blended corrections `[ΔC_Y, ΔC_l, ΔC_n]` at one instant (0 for a coefficient
@@ -216,6 +227,27 @@ mod tests {
         // below alpha_l: the base model
         let low = e.coefficients(&input(5.0, 5.0));
         assert_eq!(low.cl, 0.01);
+    }
+
+    #[test]
+    fn in_envelope_reads_the_state_in_degrees_at_its_flap() {
+        let terms = r#""Cl": {"terms": [{"name": "dCl_0", "regressor": "1", "alpha_deg": [0, 30], "values": [[0.0, 0.0]]}],
+                  "alpha_l_deg": [10.0], "alpha_u_deg": [14.0]}"#;
+        let plain = model(terms);
+        let e = ExtendedAero::new(Fixed, &plain).expect("binds");
+        assert_eq!(e.in_envelope(&input(20.0, 1.0)), None);
+        let text = format!(
+            r#"{{"schema": "aerodelta.model/1", "flaps_deg": [0.0], "coefficients": {{{terms}}},
+                "envelope": {{"band_deg": 2.0, "flaps_deg": [0.0], "min_maneuvers": 2,
+                  "bands": [[{{"band": 10, "beta_min_deg": -6.0, "beta_max_deg": 4.0, "maneuvers": 4}}]]}}}}"#
+        );
+        let m = DeltaModel::from_json(&text, "test").expect("valid model");
+        let e = ExtendedAero::new(Fixed, &m).expect("binds");
+        assert_eq!(e.in_envelope(&input(20.0, -5.999)), Some(true));
+        assert_eq!(e.in_envelope(&input(21.9, 3.999)), Some(true));
+        assert_eq!(e.in_envelope(&input(21.9, 4.1)), Some(false));
+        assert_eq!(e.in_envelope(&input(22.0, 0.0)), Some(false));
+        assert_eq!(e.in_envelope(&input(19.9, 0.0)), Some(false));
     }
 
     #[test]

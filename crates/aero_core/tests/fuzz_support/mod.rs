@@ -2168,6 +2168,7 @@ pub fn model_seed() -> Vec<u8> {
             "params_sha256": "cd".repeat(32)
         }),
         rolloff: Some(serde_json::json!({"enabled": true, "sigma_deg": [0.5, 0.7], "seed": 7})),
+        envelope: None,
     };
     DeltaModel::new(spec)
         .expect("the seed model is valid")
