@@ -10,6 +10,7 @@ refused with one line naming it and the allowed ones (``docs/plan.md`` lists the
 from __future__ import annotations
 
 import hashlib
+import itertools
 import json
 import math
 from collections.abc import Mapping
@@ -337,7 +338,7 @@ def parse_matrix(doc: Mapping[str, Any], path: Path | str, name: str) -> Matrix:
     if "alpha_edges_deg" in t:
         where = _where(path, "targets", "alpha_edges_deg")
         edges = _numbers(t["alpha_edges_deg"], None, where)
-        if len(edges) < 2 or any(b <= a for a, b in zip(edges, edges[1:], strict=False)):
+        if len(edges) < 2 or any(b <= a for a, b in itertools.pairwise(edges)):
             raise DataError(f"{where} = {list(edges)}: give two or more ascending edges, deg")
         kw["alpha_edges_deg"] = edges
     if "relative_band_width" in t:

@@ -7,6 +7,7 @@ arguments only, so the same seed gives the same summary on any worker.
 
 from __future__ import annotations
 
+import itertools
 import math
 import resource
 import sys
@@ -46,10 +47,16 @@ def _flap_rows(spec: Mapping[str, Any]) -> pl.DataFrame:
             for pusher, k in split.items():
                 if k > 0:
                     rows.append(
-                        {"flap_deg": float(f["flap_deg"]), "kind": kind, "pusher": pusher, "want": k}
+                        {
+                            "flap_deg": float(f["flap_deg"]),
+                            "kind": kind,
+                            "pusher": pusher,
+                            "want": k,
+                        }
                     )
     return pl.DataFrame(
-        rows, schema={"flap_deg": pl.Float64, "kind": pl.String, "pusher": pl.Boolean, "want": pl.Int64}
+        rows,
+        schema={"flap_deg": pl.Float64, "kind": pl.String, "pusher": pl.Boolean, "want": pl.Int64},
     )
 
 
@@ -64,9 +71,7 @@ def select_maneuvers(manifest: pl.DataFrame, spec: Mapping[str, Any]) -> pl.Data
         The selected manifest rows, in maneuver order.
     """
     cells = ["flap_deg", "kind", "pusher"]
-    m = manifest.sort("maneuver_id").with_columns(
-        pl.int_range(pl.len()).over(cells).alias("_rank")
-    )
+    m = manifest.sort("maneuver_id").with_columns(pl.int_range(pl.len()).over(cells).alias("_rank"))
     return (
         m.join(_flap_rows(spec), on=cells, how="inner")
         .filter(pl.col("_rank") < pl.col("want"))
@@ -98,22 +103,26 @@ def _range_rows(
     keys = sm.select("coefficient", "flap_deg", "param").unique(maintain_order=True)
     for coef, flap, name in keys.sort(["coefficient", "flap_deg", "param"]).iter_rows():
         g = sm.filter(
-            (pl.col("coefficient") == coef) & (pl.col("flap_deg") == flap) & (pl.col("param") == name)
+            (pl.col("coefficient") == coef)
+            & (pl.col("flap_deg") == flap)
+            & (pl.col("param") == name)
         ).sort("alpha_deg")
         kept = g["note"][0] == ""
         grid = g["alpha_deg"].to_numpy()
-        reg = params.filter(
-            (pl.col("coefficient") == coef) & (pl.col("param") == name)
-        )["regressor"]
+        reg = params.filter((pl.col("coefficient") == coef) & (pl.col("param") == name))[
+            "regressor"
+        ]
         regressor = str(reg[0]) if reg.len() else ""
         truth_grid = true_parameter(effects, str(coef), regressor, float(flap), grid)
         truth_max = float(np.max(np.abs(truth_grid))) if grid.size else 0.0
         rep = result.replicates.get((coef, name, flap))
         centres = ident.filter(
-            (pl.col("coefficient") == coef) & (pl.col("flap_deg") == flap) & (pl.col("param") == name)
+            (pl.col("coefficient") == coef)
+            & (pl.col("flap_deg") == flap)
+            & (pl.col("param") == name)
         )["centre"].to_numpy()
         value, lower, upper = (g[c].to_numpy() for c in ("value", "lower", "upper"))
-        for lo, hi in zip(edges[:-1], edges[1:], strict=True):
+        for lo, hi in itertools.pairwise(edges):
             sel = (grid >= lo) & (grid < hi)
             if not sel.any():
                 continue
@@ -155,9 +164,11 @@ def _coverage(data: pl.DataFrame, edges: list[float]) -> list[dict[str, Any]]:
     counts = d.group_by("flap_deg", "kind", "r").agg(pl.len().alias("samples"))
     out = []
     for flap, kind, n in maneuvers.sort("flap_deg", "kind").iter_rows():
-        for i, (lo, hi) in enumerate(zip(edges[:-1], edges[1:], strict=True)):
+        for i, (lo, hi) in enumerate(itertools.pairwise(edges)):
             s = counts.filter(
-                (pl.col("flap_deg") == flap) & (pl.col("kind") == kind) & (pl.col("r") == str(i + 1))
+                (pl.col("flap_deg") == flap)
+                & (pl.col("kind") == kind)
+                & (pl.col("r") == str(i + 1))
             )["samples"]
             out.append(
                 {
