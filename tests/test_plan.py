@@ -133,10 +133,11 @@ def test_summary_holds_the_matrix_counts_and_aggregates_match_numpy(
     ).row(0, named=True)
     assert got["p_identified"] == pytest.approx(len(ok) / SEEDS)
     se = np.array([r["se"] for r in ok])
-    assert got["se_predicted"] == pytest.approx(float(np.sqrt(np.mean(se**2))), rel=1e-12)
+    assert got["se_bootstrap"] == pytest.approx(float(np.sqrt(np.mean(se**2))), rel=1e-12)
     assert got["band_width"] == pytest.approx(float(np.median([r["band"] for r in ok])), rel=1e-12)
     est = np.array([r["estimate"] for r in ok])
-    assert got["estimate_sd"] == pytest.approx(float(np.std(est, ddof=1)), rel=1e-9)
+    assert got["se_predicted"] == pytest.approx(float(np.std(est, ddof=1)), rel=1e-9)
+    assert got["bias"] == pytest.approx(float(np.mean(est)) - sel[0]["truth"], rel=1e-9)
     # expected Δ: roll damping is in the truth, so the relative band is defined there
     assert got["truth_max"] > 0
     assert got["band_relative"] == pytest.approx(got["band_width"] / got["truth_max"])

@@ -1,9 +1,9 @@
 """Aggregate task summaries into a study's tables and recommendation (no Dask here).
 
-Per coefficient, flap, parameter and alpha range: the predicted standard error (root mean
-square of the campaigns' bootstrap standard errors), the band width (median over campaigns),
-the probability of being identified, the spread of the estimates over the campaigns, and the
-band width against the largest expected |Δ|; per effect, the probability the diagnosis names
+Per coefficient, flap, parameter and alpha range: the predicted standard error (the spread of
+the estimates over the campaigns), the bootstrap standard error and band width the fits
+report, the probability of being identified, and the band width against the largest expected
+|Δ|; per effect, the probability the diagnosis names
 it. The recommendation is derived from these numbers only.
 """
 
@@ -72,12 +72,14 @@ def param_table(tasks: Sequence[Mapping[str, Any]], matrix: Matrix) -> pl.DataFr
     -------
     polars.DataFrame
         Key columns, ``campaigns`` (campaigns whose fit has the parameter), ``p_identified``,
-        ``se_predicted`` (RMS of the bootstrap standard errors where identified, parameter
-        unit), ``estimate_mean``, ``estimate_sd`` (spread over the campaigns where identified),
-        ``band_width`` (median where identified, parameter unit), ``truth`` (expected Δ, mean
-        over the range), ``truth_max`` (largest expected |Δ| of the parameter at the flap),
-        ``band_relative`` (``band_width / truth_max``; null without an expected Δ) and
-        ``meets_target`` (null without an expected Δ).
+        ``se_predicted`` (the standard deviation of the estimates over the campaigns where
+        identified: the standard error of one campaign's estimate, by Monte Carlo; parameter
+        unit), ``se_bootstrap`` (root mean square of the bootstrap standard errors the fits
+        reported where identified), ``estimate_mean``, ``bias`` (``estimate_mean - truth``),
+        ``band_width`` (median bootstrap band width where identified, parameter unit),
+        ``truth`` (expected Δ, mean over the range), ``truth_max`` (largest expected |Δ| of
+        the parameter at the flap), ``band_relative`` (``band_width / truth_max``; null without
+        an expected Δ) and ``meets_target`` (null without an expected Δ).
     """
     n = len(tasks)
     d = pl.DataFrame(_rows(tasks, "params"), schema=_PARAM_SCHEMA)
@@ -88,17 +90,18 @@ def param_table(tasks: Sequence[Mapping[str, Any]], matrix: Matrix) -> pl.DataFr
         .agg(
             pl.len().alias("campaigns"),
             (ok.sum() / max(n, 1)).alias("p_identified"),
-            pl.col("se").filter(ok).pow(2).mean().sqrt().alias("se_predicted"),
+            pl.col("estimate").filter(ok).std().alias("se_predicted"),
+            pl.col("se").filter(ok).pow(2).mean().sqrt().alias("se_bootstrap"),
             pl.col("estimate").filter(ok).mean().alias("estimate_mean"),
-            pl.col("estimate").filter(ok).std().alias("estimate_sd"),
             pl.col("band").filter(ok).median().alias("band_width"),
             pl.col("truth").first(),
             pl.col("truth_max").first(),
         )
         .with_columns(
+            (pl.col("estimate_mean") - pl.col("truth")).alias("bias"),
             pl.when(pl.col("truth_max") > 0)
             .then(pl.col("band_width") / pl.col("truth_max"))
-            .alias("band_relative")
+            .alias("band_relative"),
         )
         .with_columns(
             pl.when(pl.col("truth_max") > 0)

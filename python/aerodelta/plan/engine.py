@@ -124,7 +124,7 @@ def open_client(workers: int = 2, scheduler: str | None = None) -> Iterator[Any]
         n_workers=workers,
         threads_per_worker=1,
         processes=True,
-        dashboard_address=None,
+        dashboard_address=":0",  # a free port: 8787 may be taken by another cluster
         silence_logs=logging.ERROR,
         env=dict(WORKER_ENV),
         local_directory=os.environ.get("AERODELTA_PLAN_SCRATCH"),

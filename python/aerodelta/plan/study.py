@@ -319,7 +319,14 @@ def run_plan(
 def compare_table(a: PlanResult, b: PlanResult) -> pl.DataFrame:
     """Two studies side by side per coefficient, flap, parameter and alpha range (columns
     suffixed with the matrices' names; a parameter one study never fitted has nulls there)."""
-    cols = ["p_identified", "se_predicted", "band_width", "band_relative", "meets_target"]
+    cols = [
+        "p_identified",
+        "se_predicted",
+        "se_bootstrap",
+        "band_width",
+        "band_relative",
+        "meets_target",
+    ]
     na, nb = a.matrix.name, b.matrix.name
     if na == nb:
         na, nb = f"{na}_a", f"{nb}_b"
