@@ -10,7 +10,11 @@ against numpy over the task files; the roll-off Monte Carlo in chunks against on
 from __future__ import annotations
 
 import json
+import os
 import shutil
+import signal
+import threading
+import time
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -172,6 +176,30 @@ def test_resume_runs_only_the_missing_seed_and_a_failing_task_is_reported(
     assert r.ran == [2] and r.failures == []
     assert (out / "summary.json").read_bytes() == (study / "summary.json").read_bytes()
     assert (out / "params.csv").read_bytes() == (study / "params.csv").read_bytes()
+
+
+def test_a_killed_worker_loses_no_result(study: Path, tiny: Path, tmp_path: Path) -> None:
+    """SIGKILL one of two workers once the first seed is saved: Dask moves its task to the
+    other worker (the nanny restarts the dead one) and the study ends with the same bytes."""
+    out = tmp_path / "killed"
+    killed: list[int] = []
+    with open_client(workers=2) as c:
+        pids = sorted(c.run(os.getpid).values())
+
+        def kill_one() -> None:
+            deadline = time.monotonic() + 120
+            while not list((out / "tasks").glob("seed-*.json")) and time.monotonic() < deadline:
+                time.sleep(0.2)
+            os.kill(pids[0], signal.SIGKILL)
+            killed.append(pids[0])
+
+        t = threading.Thread(target=kill_one, daemon=True)
+        t.start()
+        r = run_plan(tiny, campaigns=SEEDS, seed=1, out=out, client=c, progress=False)
+        t.join(timeout=5)
+    assert killed == [pids[0]]
+    assert r.failures == [] and r.ran == [1, 2, 3]
+    assert (out / "summary.json").read_bytes() == (study / "summary.json").read_bytes()
 
 
 def test_a_task_folder_of_another_matrix_is_refused(study: Path, tmp_path: Path) -> None:
