@@ -265,6 +265,16 @@ def parse_matrix(doc: Mapping[str, Any], path: Path | str, name: str) -> Matrix:
     ------
     DataError
         One line per problem: the file, the table, the key, what is allowed.
+
+    Examples
+    --------
+    >>> m = parse_matrix({"flaps": {"15": {"turning": 3}}}, "m.toml", "m")
+    >>> m.n_maneuvers(), m.flaps[0].per_variant()[("turning", True)]
+    (3, 2)
+    >>> parse_matrix({"flaps": {"15": {"turnings": 3}}}, "m.toml", "m")
+    Traceback (most recent call last):
+    ...
+    aerodelta.exceptions.DataError: m.toml: [flaps.15]: unknown key 'turnings'; allowed: ...
     """
     _check_keys(doc, _TOP, f"{path}")
     for t, allowed in _TABLES.items():
