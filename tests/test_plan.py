@@ -202,6 +202,31 @@ def test_a_killed_worker_loses_no_result(study: Path, tiny: Path, tmp_path: Path
     assert (out / "summary.json").read_bytes() == (study / "summary.json").read_bytes()
 
 
+def test_cli_on_a_scheduler_address_runs_the_missing_seed(
+    study: Path, tiny: Path, client: Any, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "sched"
+    shutil.copytree(study, out)
+    (out / "tasks" / "seed-000003.json").unlink()
+    addr = client.scheduler.address
+    argv = ["plan", str(tiny), "--campaigns", "3", "--seed", "1", "--out", str(out)]
+    assert main([*argv, "--scheduler", addr, "--no-progress"]) == 0
+    assert "seeds run now: 1, resumed: 2" in capsys.readouterr().out
+    run = json.loads((out / "run.json").read_text())
+    assert run["ran"] == [3] and run["workers"] == addr
+    assert (out / "summary.json").read_bytes() == (study / "summary.json").read_bytes()
+
+
+def test_a_scheduler_that_does_not_answer_is_one_line(
+    tiny: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    argv = ["plan", str(tiny), "--campaigns", "1", "--out", str(tmp_path / "o")]
+    assert main([*argv, "--scheduler", "tcp://127.0.0.1:9", "--no-progress"]) == 1
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1
+    assert "--scheduler tcp://127.0.0.1:9: no Dask scheduler answered" in err
+
+
 def test_a_task_folder_of_another_matrix_is_refused(study: Path, tmp_path: Path) -> None:
     out = tmp_path / "other"
     shutil.copytree(study, out)
@@ -251,7 +276,8 @@ def test_bad_matrix_is_refused_in_one_line(
 def test_recommendation_follows_the_numbers() -> None:
     """A hand-built table: one parameter at flap 15 with a band twice the target over 8
     maneuvers needs (0.4 / 0.2)² x 8 = 32 maneuvers, as the kind with the most samples per
-    maneuver in that alpha range (turning, 300 against 120)."""
+    maneuver in that alpha range (turning, 300 against 120); one five times the target would
+    need 200, beyond 4x the flap's 8, and is reported as not fixable by the count."""
     m = parse_matrix(
         {"flaps": {"15": {"straight": 2, "turning": 2, "accelerated": 2, "asymmetric_thrust": 2}}},
         "hand.toml",
@@ -259,15 +285,15 @@ def test_recommendation_follows_the_numbers() -> None:
     )
     params = pl.DataFrame(
         {
-            "coefficient": ["Cn", "Cn"],
-            "flap_deg": [15.0, 15.0],
-            "param": ["dCn_beta", "dCn_beta"],
-            "regressor": ["beta_deg", "beta_deg"],
-            "alpha_lo_deg": [8.0, 16.0],
-            "alpha_hi_deg": [16.0, 24.0],
-            "p_identified": [1.0, 0.9],
-            "band_relative": [0.1, 0.4],
-            "meets_target": [True, False],
+            "coefficient": ["Cn", "Cn", "Cl"],
+            "flap_deg": [15.0, 15.0, 15.0],
+            "param": ["dCn_beta", "dCn_beta", "dCl_0"],
+            "regressor": ["beta_deg", "beta_deg", "1"],
+            "alpha_lo_deg": [8.0, 16.0, 8.0],
+            "alpha_hi_deg": [16.0, 24.0, 16.0],
+            "p_identified": [1.0, 0.9, 1.0],
+            "band_relative": [0.1, 0.4, 1.0],
+            "meets_target": [True, False, False],
         }
     )
     coverage = pl.DataFrame(
@@ -282,12 +308,15 @@ def test_recommendation_follows_the_numbers() -> None:
     )
     effects = pl.DataFrame({"effect": ["dihedral"], "campaigns": [4], "p_named": [0.5]})
     text = recommendation(m, params, effects, coverage, 4)
-    assert "flap 15: 1 parameter/alpha ranges miss a target (8 maneuvers flown)" in text
+    assert "flap 15: 2 parameter/alpha ranges miss a target (8 maneuvers flown)" in text
     assert "Cn dCn_beta (beta_deg), alpha 16-24 deg: band 40% of its largest expected |Δ|" in text
-    assert "raise flap 15 from 8 to about 32 maneuvers (+24), as turning stalls" in text
+    assert "raise flap 15 from 8 to about 32 maneuvers (+24) for 1 of these, as turning" in text
+    # only the fixable miss's range (16-24 deg) chooses the kind: turning 300 against straight 120
     assert "(300 per maneuver, against 120 for straight)" in text
+    # dCl_0's band is 5x the target: 25 x 8 = 200 maneuvers, beyond 4x: not proposed as a count
+    assert "1 of these need more than 4x the flap's maneuvers (up to 200 for dCl_0" in text
     assert "the diagnosis names dihedral in 50% of 4 campaigns (target 80%)" in text
-    assert "alpha 8-16" not in text
+    assert "dCn_beta (beta_deg), alpha 8-16" not in text
 
 
 def test_compare_two_matrices_side_by_side(tiny: Path, client: Any, tmp_path: Path) -> None:

@@ -9,7 +9,6 @@ it. The recommendation is derived from these numbers only.
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping, Sequence
 from typing import Any
 
@@ -43,6 +42,10 @@ _PARAM_SCHEMA: dict[str, Any] = {
     "truth": pl.Float64,
     "truth_max": pl.Float64,
 }
+#: Largest multiple of a flap's maneuvers the recommendation proposes; beyond it a miss is
+#: reported as not fixable by the count alone.
+MAX_FACTOR = 4.0
+
 _COVERAGE_SCHEMA: dict[str, Any] = {
     "seed": pl.Int64,
     "flap_deg": pl.Float64,
@@ -165,7 +168,8 @@ def recommendation(
     flap would need and of which kind. Heuristic, stated as such: the band width scales as
     1/√(maneuvers at the flap) (the fit is per flap and the bootstrap resamples maneuvers), and
     the kind to add is the one that put the most samples per maneuver in the missed alpha
-    ranges in this study.
+    ranges in this study. Misses needing more than :data:`MAX_FACTOR` times the flap's
+    maneuvers are reported as not fixable by the count alone.
     """
     t, p_t = matrix.relative_band_width, matrix.identified_probability
     lines = [
@@ -173,7 +177,11 @@ def recommendation(
         f"band <= {t:.0%} of the largest expected |Δ|, identified in >= {p_t:.0%} of campaigns"
     ]
     miss = params.filter(pl.col("meets_target").not_())
-    if miss.height == 0:
+    if n_campaigns == 0:
+        lines.append("No campaign finished: nothing to recommend (see the failures).")
+    elif params.filter(pl.col("meets_target").is_not_null()).height == 0:
+        lines.append("No parameter has an expected Δ (no effect in [effects]): no band target.")
+    elif miss.height == 0:
         lines.append(
             "Every parameter with an expected Δ meets both targets in every alpha range reported."
         )
@@ -204,47 +212,62 @@ def recommendation(
             )
         if m.height > 6:
             lines.append(f"  ... and {m.height - 6} more (params.csv, meets_target = false)")
-        widths = m["band_relative"].drop_nulls()
-        factor = max((float(w) / t) ** 2 for w in widths) if widths.len() else 2.0
-        ranges = m.select("alpha_lo_deg", "alpha_hi_deg").unique()
-        cov = coverage.filter(pl.col("flap_deg") == flap).join(
-            ranges, on=["alpha_lo_deg", "alpha_hi_deg"], how="inner"
-        )
-        per_kind = (
-            cov.group_by("kind")
-            .agg(pl.col("samples_per_maneuver").sum())
-            .sort(["samples_per_maneuver", "kind"], descending=[True, False])
-        )
-        if per_kind.height == 0 or n_flap == 0:
-            lines.append(f"  -> flap {flap:g} flew no maneuver reaching these ranges; add some")
+        if n_flap == 0:
+            lines.append(f"  -> flap {flap:g} flew no maneuver; add some")
             continue
-        best, spm = per_kind.row(0)
-        need = math.ceil(n_flap * factor)
-        why = (
-            "band width ∝ 1/√(maneuvers at the flap): "
-            f"({max(float(w) for w in widths):.2f}/{t:.2f})²"
-            if widths.len()
-            else "identification misses only: doubling assumed"
+        # maneuvers each miss needs (identification-only misses: twice the flap's, assumed)
+        need = m.with_columns(
+            pl.when(pl.col("band_relative").is_not_null())
+            .then((pl.col("band_relative") / t).pow(2) * n_flap)
+            .otherwise(2.0 * n_flap)
+            .ceil()
+            .cast(pl.Int64)
+            .alias("need")
         )
-        nxt = (
-            f", against {per_kind.row(1)[1]:.0f} for {per_kind.row(1)[0]}"
-            if per_kind.height > 1
-            else ""
-        )
-        lines.append(
-            f"  -> raise flap {flap:g} from {n_flap} to about {need} maneuvers (+{need - n_flap}), "
-            f"as {best} stalls: they put the most samples in the missed alpha ranges "
-            f"({spm:.0f} per maneuver{nxt}). Heuristic: {why}."
-        )
-        unflown = [k for k in KINDS if counts.get(flap, {}).get(k, 0) == 0]
-        if unflown:
-            lines.append(
-                f"     (kinds not flown at this flap, so not measured: {', '.join(unflown)})"
+        fix = need.filter(pl.col("need") <= MAX_FACTOR * n_flap)
+        hard = need.filter(pl.col("need") > MAX_FACTOR * n_flap)
+        if fix.height:
+            ranges = fix.select("alpha_lo_deg", "alpha_hi_deg").unique()
+            per_kind = (
+                coverage.filter(pl.col("flap_deg") == flap)
+                .join(ranges, on=["alpha_lo_deg", "alpha_hi_deg"], how="inner")
+                .group_by("kind")
+                .agg(pl.col("samples_per_maneuver").sum())
+                .sort(["samples_per_maneuver", "kind"], descending=[True, False])
             )
-        if factor > 4.0:
+            n_need = int(fix["need"].max())  # type: ignore[arg-type]
+            what = f"{fix.height} of these"
+            if per_kind.height:
+                best, spm = per_kind.row(0)
+                nxt = (
+                    f", against {per_kind.row(1)[1]:.0f} for {per_kind.row(1)[0]}"
+                    if per_kind.height > 1
+                    else ""
+                )
+                how = (
+                    f"as {best} stalls: they put the most samples in those alpha ranges "
+                    f"({spm:.0f} per maneuver{nxt})"
+                )
+            else:
+                how = "as stalls reaching those alpha ranges (none flown reached them)"
             lines.append(
-                "     (more than 4x the maneuvers: count alone is unlikely to get there; raise "
-                "the excitation or accept a wider band)"
+                f"  -> raise flap {flap:g} from {n_flap} to about {n_need} maneuvers "
+                f"(+{n_need - n_flap}) for {what}, {how}. Heuristic: band width ∝ "
+                "1/√(maneuvers at the flap), so a band r times the target needs r² times the "
+                "maneuvers; an identification miss alone is given twice the maneuvers."
+            )
+            unflown = [k for k in KINDS if counts.get(flap, {}).get(k, 0) == 0]
+            if unflown:
+                lines.append(
+                    f"     (kinds not flown at this flap, so not measured: {', '.join(unflown)})"
+                )
+        if hard.height:
+            worst = hard.sort("need", descending=True).row(0, named=True)
+            lines.append(
+                f"  -> {hard.height} of these need more than {MAX_FACTOR:g}x the flap's "
+                f"maneuvers (up to {worst['need']} for {worst['param']} at alpha "
+                f"{worst['alpha_lo_deg']:g}-{worst['alpha_hi_deg']:g} deg): count alone will not "
+                "get there; raise the excitation, or accept the wider band there"
             )
     low = effects.filter(pl.col("p_named") < matrix.named_probability)
     for e, camps, p in low.iter_rows():

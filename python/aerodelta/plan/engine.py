@@ -109,7 +109,7 @@ def open_client(workers: int = 2, scheduler: str | None = None) -> Iterator[Any]
         raise InvalidInputError(f"--workers {workers}: give 1 or more worker processes")
     if scheduler is not None:
         try:
-            client = distributed.Client(scheduler, timeout="20s")
+            client = distributed.Client(scheduler, timeout="10s")
         except OSError as e:
             raise InvalidInputError(
                 f"--scheduler {scheduler}: no Dask scheduler answered ({e}); start one with "

@@ -362,6 +362,11 @@ def compare_plans(
         Both results and the side-by-side table (also ``out/compare.csv``).
     """
     ma, mb = _matrix(a), _matrix(b)
+    if ma.digest() == mb.digest():
+        raise InvalidInputError(
+            f"--compare: {ma.name} and {mb.name} fly and fit the same campaigns (only targets, "
+            "retries or drills differ); compare matrices that differ in what is flown or fitted"
+        )
     seeds = _seeds(campaigns, seed)
     root = Path(out)
     na, nb = (ma.name, mb.name) if ma.name != mb.name else (f"{ma.name}_a", f"{mb.name}_b")
