@@ -23,7 +23,14 @@ import numpy as np
 import polars as pl
 import pytest
 
-pytest.importorskip("distributed")
+try:
+    import distributed  # noqa: F401
+except ImportError:  # the plan/test extras install it; CI (CI=1) must run these tests
+    if os.environ.get("CI"):
+        raise
+    pytest.skip(
+        "dask[distributed] not installed: pip install 'aerodelta[plan]'", allow_module_level=True
+    )
 
 from aerodelta.cli import main
 from aerodelta.exceptions import DataError
