@@ -86,6 +86,8 @@ def run(args: argparse.Namespace) -> int:
     """Run ``aerodelta plan``; 1 when a task failed (reported with its seed)."""
     from aerodelta.plan.study import compare_plans, run_plan  # noqa: PLC0415
 
+    if args.scheduler is None:
+        check_at_least(args.workers, "--workers", 1)
     if args.rolloff is not None:
         if args.matrix or args.compare:
             raise InvalidInputError("--rolloff runs the Monte Carlo alone; drop the matrix")
