@@ -38,6 +38,7 @@ from aerodelta.plan import load_matrix, run_plan, run_rolloff_study
 from aerodelta.plan.aggregate import recommendation
 from aerodelta.plan.engine import open_client
 from aerodelta.plan.matrix import KINDS, parse_matrix
+from aerodelta.plan.plots import band_figure
 from aerodelta.rolloff import monte_carlo
 
 TINY = """
@@ -152,6 +153,21 @@ def test_summary_holds_the_matrix_counts_and_aggregates_match_numpy(
     # expected Δ: roll damping is in the truth, so the relative band is defined there
     assert got["truth_max"] > 0
     assert got["band_relative"] == pytest.approx(got["band_width"] / got["truth_max"])
+    # the figure shows the table: each Cl cell is band_relative (capped at 3x the target)
+    assert (study / "band.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    fig = band_figure(params, m.relative_band_width, m.alpha_edges_deg, m.name)
+    shown = fig.axes[0].images[0].get_array()
+    cl = params.filter((pl.col("coefficient") == "Cl") & (pl.col("truth_max") > 0))
+    labels = sorted(set(cl.select("param", "flap_deg").iter_rows()))
+    for r in cl.iter_rows(named=True):
+        v = shown[
+            labels.index((r["param"], r["flap_deg"])), m.alpha_edges_deg.index(r["alpha_lo_deg"])
+        ]
+        want = r["band_relative"]
+        if want is None or not np.isfinite(want):
+            assert np.ma.is_masked(v) or not np.isfinite(v)
+        else:
+            assert float(v) == pytest.approx(min(want, 3 * m.relative_band_width))
     eff = pl.read_csv(study / "effects.csv")
     named = [t["effects"]["roll_damping"] for t in tasks]
     assert eff.filter(pl.col("effect") == "roll_damping")["p_named"][0] == pytest.approx(

@@ -5,7 +5,7 @@ probability the diagnosis names it, and a recommendation. With --compare, two ma
 by side; with --rolloff N, the roll-off Monte Carlo of N stalls on the same engine.
 
 Writes into OUT: summary.json, params.csv, effects.csv, coverage.csv, recommendation.txt,
-run.json and tasks/ (one file per finished seed: a rerun resumes). See docs/plan.md.
+band.png, run.json and tasks/ (one file per finished seed: a rerun resumes). See docs/plan.md.
 Results go to stdout, progress to stderr.
 """
 

@@ -8,6 +8,7 @@
     DIR/effects.csv              per expected effect (with the diagnosis on)
     DIR/coverage.csv             samples per maneuver per flap, kind and alpha range
     DIR/recommendation.txt       what to change, derived from the numbers
+    DIR/band.png                 band width against the target per parameter, flap, alpha range
     DIR/run.json                 this run only: workers, seeds run and resumed, time, memory
 
 ``compare_plans`` runs two matrices on the same seeds and writes each study in
@@ -38,7 +39,9 @@ from aerodelta.plan.aggregate import (
 )
 from aerodelta.plan.engine import Failure, Job, open_client, run_jobs
 from aerodelta.plan.matrix import Matrix, load_matrix
+from aerodelta.plan.plots import band_figure
 from aerodelta.plan.task import TASK_SCHEMA, run_task
+from aerodelta.rolloff_plots import save_figure
 
 SCHEMA = "aerodelta.plan/1"
 
@@ -209,6 +212,9 @@ def _finish(st: _Study, failures: Sequence[Failure], seconds: float, workers: st
     write_atomic(st.out / "effects.csv", effects.write_csv)
     write_atomic(st.out / "coverage.csv", coverage.write_csv)
     write_text_atomic(st.out / "recommendation.txt", text)
+    if params.height:
+        fig = band_figure(params, m.relative_band_width, m.alpha_edges_deg, m.name)
+        save_figure(fig, st.out / "band.png")
     rss = [r for r in st.rss if math.isfinite(r)]
     run = {
         "workers": workers,
