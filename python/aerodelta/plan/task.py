@@ -1,0 +1,272 @@
+"""One task of a campaign design study: fly one seeded campaign of a test matrix, fit it with
+bootstrap bands, optionally diagnose it, and return a small summary (never the records).
+
+The function runs on a Dask worker (:mod:`aerodelta.plan.engine`); it depends on its
+arguments only, so the same seed gives the same summary on any worker.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+import resource
+import sys
+import tempfile
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import polars as pl
+
+from aerodelta.campaign import generate_campaign
+from aerodelta.exceptions import AerodeltaError
+from aerodelta.fit import FitConfig, fit
+from aerodelta.ingest import ingest
+from aerodelta.truth import true_parameter
+
+#: Version of the task summary's layout (a task file of another version is run again).
+TASK_SCHEMA = "aerodelta.plan.task/1"
+
+
+class FaultDrillError(AerodeltaError):
+    """Raised on purpose by a seed listed in ``[engine] fault_drill_seeds``."""
+
+
+def _flap_rows(spec: Mapping[str, Any]) -> pl.DataFrame:
+    """Maneuvers wanted per (flap, kind, pusher) cell of the matrix."""
+    rows = []
+    for f in spec["flaps"]:
+        counts: Mapping[str, int] = f["counts"]
+        for kind, n in counts.items():
+            if f["pusher"] == "both":
+                split = {True: (n + 1) // 2, False: n // 2}
+            else:
+                on = f["pusher"] == "on"
+                split = {on: n, not on: 0}
+            for pusher, k in split.items():
+                if k > 0:
+                    rows.append(
+                        {
+                            "flap_deg": float(f["flap_deg"]),
+                            "kind": kind,
+                            "pusher": pusher,
+                            "want": k,
+                        }
+                    )
+    return pl.DataFrame(
+        rows,
+        schema={"flap_deg": pl.Float64, "kind": pl.String, "pusher": pl.Boolean, "want": pl.Int64},
+    )
+
+
+def select_maneuvers(manifest: pl.DataFrame, spec: Mapping[str, Any]) -> pl.DataFrame:
+    """The manifest rows the matrix uses: in each (flap, kind, pusher) cell, the first
+    ``want`` maneuvers in maneuver order (each maneuver has its own seeded streams, so the
+    subset is a campaign of the matrix's counts).
+
+    Returns
+    -------
+    polars.DataFrame
+        The selected manifest rows, in maneuver order.
+    """
+    cells = ["flap_deg", "kind", "pusher"]
+    m = manifest.sort("maneuver_id").with_columns(pl.int_range(pl.len()).over(cells).alias("_rank"))
+    return (
+        m.join(_flap_rows(spec), on=cells, how="inner")
+        .filter(pl.col("_rank") < pl.col("want"))
+        .drop("_rank", "want")
+        .sort("maneuver_id")
+    )
+
+
+def _finite(x: float) -> float | None:
+    return float(x) if math.isfinite(x) else None
+
+
+def _range_rows(
+    result: Any, spec: Mapping[str, Any], effects: Mapping[str, float]
+) -> list[dict[str, Any]]:
+    """Per coefficient, flap, parameter and alpha range of the matrix: the smoothed
+    parameter's mean over the range (``estimate``), its bootstrap standard error (the standard
+    deviation over the replicates of the same mean), the band width (mean of upper - lower over
+    the range), the identified bins there, and the expected (true) Δ."""
+    edges = np.asarray(spec["alpha_edges_deg"], dtype=float)
+    sm: pl.DataFrame = result.smoothed
+    params: pl.DataFrame = result.params
+    ident = (
+        params.filter(pl.col("identifiable"))
+        .with_columns(((pl.col("alpha_lo_deg") + pl.col("alpha_hi_deg")) / 2).alias("centre"))
+        .select("coefficient", "flap_deg", "param", "centre")
+    )
+    rows: list[dict[str, Any]] = []
+    keys = sm.select("coefficient", "flap_deg", "param").unique(maintain_order=True)
+    for coef, flap, name in keys.sort(["coefficient", "flap_deg", "param"]).iter_rows():
+        g = sm.filter(
+            (pl.col("coefficient") == coef)
+            & (pl.col("flap_deg") == flap)
+            & (pl.col("param") == name)
+        ).sort("alpha_deg")
+        kept = g["note"][0] == ""
+        grid = g["alpha_deg"].to_numpy()
+        reg = params.filter((pl.col("coefficient") == coef) & (pl.col("param") == name))[
+            "regressor"
+        ]
+        regressor = str(reg[0]) if reg.len() else ""
+        truth_grid = true_parameter(effects, str(coef), regressor, float(flap), grid)
+        truth_max = float(np.max(np.abs(truth_grid))) if grid.size else 0.0
+        rep = result.replicates.get((coef, name, flap))
+        centres = ident.filter(
+            (pl.col("coefficient") == coef)
+            & (pl.col("flap_deg") == flap)
+            & (pl.col("param") == name)
+        )["centre"].to_numpy()
+        value, lower, upper = (g[c].to_numpy() for c in ("value", "lower", "upper"))
+        for lo, hi in itertools.pairwise(edges):
+            sel = (grid >= lo) & (grid < hi)
+            if not sel.any():
+                continue
+            se = math.nan
+            if rep is not None and kept:
+                rg, rv = rep
+                rsel = (rg >= lo) & (rg < hi)
+                if rsel.any() and rv.shape[0] > 1:
+                    se = float(np.std(rv[:, rsel].mean(axis=1), ddof=1))
+            n_bins = int(np.count_nonzero((centres >= lo) & (centres < hi)))
+            rows.append(
+                {
+                    "coefficient": str(coef),
+                    "flap_deg": float(flap),
+                    "param": str(name),
+                    "regressor": regressor,
+                    "alpha_lo_deg": float(lo),
+                    "alpha_hi_deg": float(hi),
+                    "kept": bool(kept),
+                    "identified": bool(kept and n_bins > 0),
+                    "bins": n_bins,
+                    "estimate": _finite(float(value[sel].mean())),
+                    "se": _finite(se),
+                    "band": _finite(float((upper[sel] - lower[sel]).mean())) if kept else None,
+                    "truth": float(truth_grid[sel].mean()),
+                    "truth_max": truth_max,
+                }
+            )
+    return rows
+
+
+def _coverage(data: pl.DataFrame, edges: list[float]) -> list[dict[str, Any]]:
+    """Samples and maneuvers per flap, kind and alpha range (what each kind contributes)."""
+    labels = [f"{i}" for i in range(len(edges) + 1)]
+    d = data.select("maneuver_id", "flap_deg", "kind", "alpha_deg").with_columns(
+        pl.col("alpha_deg").cut(edges, labels=labels, left_closed=True).alias("r")
+    )
+    maneuvers = d.group_by("flap_deg", "kind").agg(pl.col("maneuver_id").n_unique().alias("n"))
+    counts = d.group_by("flap_deg", "kind", "r").agg(pl.len().alias("samples"))
+    out = []
+    for flap, kind, n in maneuvers.sort("flap_deg", "kind").iter_rows():
+        for i, (lo, hi) in enumerate(itertools.pairwise(edges)):
+            s = counts.filter(
+                (pl.col("flap_deg") == flap)
+                & (pl.col("kind") == kind)
+                & (pl.col("r") == str(i + 1))
+            )["samples"]
+            out.append(
+                {
+                    "flap_deg": float(flap),
+                    "kind": str(kind),
+                    "maneuvers": int(n),
+                    "alpha_lo_deg": float(lo),
+                    "alpha_hi_deg": float(hi),
+                    "samples": int(s[0]) if s.len() else 0,
+                }
+            )
+    return out
+
+
+def _effects_named(camp: Path, data: pl.DataFrame, effects: Mapping[str, float]) -> dict[str, bool]:
+    """Per expected effect: whether the diagnosis names it (scored against the campaign's truth
+    as the withheld-effect suite does, :func:`aerodelta.diagnosis.withheld.score_case`)."""
+    from aerodelta.diagnosis import diagnose  # noqa: PLC0415  (only with the diagnosis on)
+    from aerodelta.diagnosis.withheld import score_case  # noqa: PLC0415
+
+    diag = diagnose(data)
+    case = score_case(diag, camp / "truth", effects)
+    return {str(k): bool(v) for k, v in sorted(case.found.items())}
+
+
+def peak_rss_mib() -> float:
+    """Peak resident memory of this process, MiB (``getrusage``)."""
+    kb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    return kb / (1024.0 * 1024.0) if sys.platform == "darwin" else kb / 1024.0
+
+
+def run_task(spec: Mapping[str, Any], seed: int, drill: bool = False) -> dict[str, Any]:
+    """Fly, fit and (optionally) diagnose one campaign of a matrix; return its summary.
+
+    Parameters
+    ----------
+    spec
+        :meth:`aerodelta.plan.matrix.Matrix.task_spec`.
+    seed
+        Campaign seed (also the fit's bootstrap seed).
+    drill
+        Raise :class:`FaultDrillError` instead (``[engine] fault_drill_seeds``).
+
+    Returns
+    -------
+    dict
+        ``schema``, ``seed``, ``maneuvers`` (used), ``params`` (per coefficient, flap,
+        parameter and alpha range: ``estimate``, ``se``, ``band`` in the parameter's unit,
+        ``identified``, ``bins``, ``truth``), ``coverage`` (samples per flap, kind and alpha
+        range), ``effects`` (expected effect -> named by the diagnosis; empty without it) and
+        ``peak_rss_mib`` (memory of the worker, not part of the study's result).
+
+    Raises
+    ------
+    FaultDrillError
+        With ``drill``.
+    """
+    if drill:
+        raise FaultDrillError(f"seed {seed}: fault drill ([engine] fault_drill_seeds)")
+    effects: dict[str, float] = dict(spec["effects"])
+    with tempfile.TemporaryDirectory(prefix="aerodelta-plan-") as tmp:
+        camp = Path(tmp) / "campaign"
+        info = generate_campaign(
+            camp,
+            effects=effects or "none",
+            seed=int(seed),
+            size=int(max([1, *(_flap_rows(spec)["want"].to_list())])),
+            noise=float(spec["noise"]),
+            turbulence=float(spec["turbulence_mps"]),
+            rolloff=bool(spec["rolloff"]),
+            excitation=float(spec["excitation"]),
+            cg_range_m=spec["cg_range_m"],
+            mass_range=spec["mass_range"],
+            inertia_range=spec["inertia_range"],
+            vane_scale=spec["vane_scale"],
+            flank_vane=bool(spec["flank_vane"]),
+        )
+        manifest = select_maneuvers(info.manifest, spec)
+        data = ingest(camp, manifest=manifest, compat=False, progress=False).data
+        truth_effects = dict(info.effects)
+        selection = None if spec["selection"] == "none" else spec["selection"]
+        cfg = FitConfig(
+            bootstrap=int(spec["bootstrap"]),
+            seed=int(seed),
+            selection=selection,
+            band_level=float(spec["band_level"]),
+        )
+        result = fit(data, config=cfg)
+        rows = _range_rows(result, spec, truth_effects)
+        named = _effects_named(camp, data, truth_effects) if spec["diagnose"] else {}
+        coverage = _coverage(data, list(spec["alpha_edges_deg"]))
+        n = manifest.height
+    return {
+        "schema": TASK_SCHEMA,
+        "seed": int(seed),
+        "maneuvers": int(n),
+        "params": rows,
+        "coverage": coverage,
+        "effects": named,
+        "peak_rss_mib": peak_rss_mib(),
+    }
