@@ -786,7 +786,11 @@ fn fly(
         mass_properties: varied,
         buffet: buffet.map(|b| BuffetTruth {
             schedule: *b.schedule(),
-            modes: spec.buffet.as_ref().map(|s| s.modes.clone()).unwrap_or_default(),
+            modes: spec
+                .buffet
+                .as_ref()
+                .map(|s| s.modes.clone())
+                .unwrap_or_default(),
         }),
     })
 }
@@ -1228,7 +1232,10 @@ mod tests {
             let below: Vec<usize> = (0..alpha.len()).filter(|&i| alpha[i] < onset).collect();
             // silent while alpha has stayed below the onset (before the first crossing the
             // modes are at rest)
-            let first_above = alpha.iter().position(|&v| v >= onset).unwrap_or(alpha.len());
+            let first_above = alpha
+                .iter()
+                .position(|&v| v >= onset)
+                .unwrap_or(alpha.len());
             assert!(below.iter().all(|&i| rms[i] == 0.0));
             assert!(bz[..first_above].iter().all(|&v| v == 0.0), "{}", x.id);
             if first_above < alpha.len() {
