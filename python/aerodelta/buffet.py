@@ -13,8 +13,9 @@ a constant bias is removed from them, which no band-pass sees). Definitions (con
 - **buffet RMS**: the RMS of the band-passed normal acceleration over the trailing
   :data:`RMS_WINDOW_S` (a trailing window: it rises after the buffet starts, not before);
 - **approach**: the samples up to where alpha first falls :data:`APPROACH_DROP_DEG` below its
-  highest value so far (the first approach to the stall; a pusher's pitch-down, the recovery
-  and a second stall after them are not searched);
+  highest value so far, that value within :data:`APPROACH_NEAR_PEAK_DEG` of the peak alpha (the
+  first approach to the stall; a pusher's pitch-down, the recovery and a second stall after
+  them are not searched);
 - **noise floor** of a maneuver: the :data:`FLOOR_QUANTILE` quantile of the buffet mean square
   over the approach: its quietest part, which buffet, felt only in its last degrees, does not
   reach;
@@ -79,9 +80,12 @@ ONSET_START_FACTOR = 1.5
 #: the window's edges).
 EDGE_S = 1.0
 #: The approach searched for the onset ends where alpha first falls this many deg below its
-#: highest value so far: the first approach to the stall (what follows, a pusher's pitch-down
-#: or the recovery and a second stall, shakes the accelerometers too, but is not the onset).
-APPROACH_DROP_DEG = 3.0
+#: highest value so far, once that is within :data:`APPROACH_NEAR_PEAK_DEG` of the maneuver's
+#: peak alpha: the first approach to the stall (what follows, a pusher's pitch-down or the
+#: recovery and a second stall, shakes the accelerometers too, but is not the onset; the
+#: pilot's doublets at low alpha, early in the approach, do not end it).
+APPROACH_DROP_DEG = 4.0
+APPROACH_NEAR_PEAK_DEG = 12.0
 #: Gaps (s) the buffet RMS may spend below the onset level inside one buffet segment.
 GAP_S = 0.5
 #: Welch segment length, samples (at 50 Hz: 2.56 s, 0.39 Hz resolution).
@@ -227,7 +231,10 @@ def detect_onset(
     ms = rms * rms
     peak = int(np.argmax(a))
     edge = min(max(round(EDGE_S / dt), round(RMS_WINDOW_S / dt)), tt.size // 4)
-    dropped = np.flatnonzero(a < np.maximum.accumulate(a) - APPROACH_DROP_DEG)
+    top = np.maximum.accumulate(a)
+    dropped = np.flatnonzero(
+        (a < top - APPROACH_DROP_DEG) & (top >= a[peak] - APPROACH_NEAR_PEAK_DEG)
+    )
     stop = int(dropped[0]) if dropped.size else tt.size
     approach = ms[edge : max(stop, edge + 1)]
     floor_ms = float(np.quantile(approach, FLOOR_QUANTILE)) if approach.size else 0.0
