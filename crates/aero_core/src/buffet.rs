@@ -180,9 +180,11 @@ impl BuffetSpec {
                 ),
             ));
         }
-        if !(self.onset_rms_g.is_finite() && self.onset_rms_g >= 0.0)
-            || !(self.max_rms_g.is_finite() && self.max_rms_g >= self.onset_rms_g)
-        {
+        let amplitudes_ok = self.onset_rms_g.is_finite()
+            && self.onset_rms_g >= 0.0
+            && self.max_rms_g.is_finite()
+            && self.max_rms_g >= self.onset_rms_g;
+        if !amplitudes_ok {
             return Err(AeroError::invalid(
                 place("max_rms_g"),
                 format!(
@@ -269,7 +271,7 @@ impl BuffetSchedule {
     /// assert_eq!(s.rms_mps2(25.0), 1.1);
     /// ```
     pub fn rms_mps2(&self, alpha_deg: f64) -> f64 {
-        if !(alpha_deg >= self.onset_alpha_deg) {
+        if alpha_deg.is_nan() || alpha_deg < self.onset_alpha_deg {
             return 0.0;
         }
         let span = self.full_alpha_deg - self.onset_alpha_deg;

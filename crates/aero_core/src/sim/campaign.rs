@@ -1220,8 +1220,9 @@ mod tests {
                 match name.as_str() {
                     "ay_mps2" | "az_mps2" => {
                         let add = if name == "ay_mps2" { by } else { bz };
-                        for i in 0..add.len() {
-                            assert_eq!(y.record[k][i], x.record[k][i] + add[i], "{} {i}", x.id);
+                        let pairs = y.record[k].iter().zip(&x.record[k]);
+                        for (i, (d, (got, base))) in add.iter().zip(pairs).enumerate() {
+                            assert_eq!(*got, base + d, "{} {i}", x.id);
                         }
                     }
                     _ => assert_eq!(x.record[k], y.record[k], "{}: {name}", x.id),
