@@ -116,7 +116,8 @@ def _uniform_dt(t: FloatArray, where: str) -> float:
         raise DataError(f"{where}: {t.size} samples; a buffet analysis needs at least 8")
     d = np.diff(t)
     dt = float(np.median(d))
-    if not (dt > 0 and np.all(np.abs(d - dt) <= 1e-3 * dt + 1e-9)):
+    # the ingestion's tolerance (aerodelta.validate: steps within 1 % of each other)
+    if not (dt > 0 and np.all(np.abs(d - dt) <= 0.01 * dt + 1e-9)):
         raise DataError(
             f"{where}: the time step is not uniform; resample the record to one rate "
             "(docs/data.md) before the buffet analysis"
