@@ -10,6 +10,7 @@ import importlib
 
 from aerodelta._core import __version__
 from aerodelta.aircraft import Aircraft
+from aerodelta.buffet import BuffetResult, buffet_identification, compare_frequencies
 from aerodelta.campaign import (
     CampaignInfo,
     effect_library,
@@ -62,6 +63,7 @@ __all__ = [
     "AerodeltaError",
     "Aircraft",
     "AlphaBins",
+    "BuffetResult",
     "CampaignInfo",
     "ChannelMap",
     "DataError",
@@ -85,9 +87,11 @@ __all__ = [
     "ValidationReport",
     "__version__",
     "band_check",
+    "buffet_identification",
     "build_report",
     "campaign_effects",
     "check_daveml",
+    "compare_frequencies",
     "compare_with_records",
     "detect_rolloff",
     "diagnose",

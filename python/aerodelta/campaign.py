@@ -233,6 +233,7 @@ def _spec(
     record_hz: float = 50.0,
     mass: dict[str, Any] | None = None,
     vanes: dict[str, Any] | None = None,
+    buffet: dict[str, Any] | None = None,
 ) -> dict[str, Any]:
     reps = SIZES.get(size, 0) if isinstance(size, str) else int(size)
     if reps <= 0:
@@ -257,9 +258,28 @@ def _spec(
         spec["mass_properties"] = mass
     if vanes is not None:
         spec["vanes"] = vanes
-    if mass is not None or vanes is not None:
+    if buffet is not None:
+        spec["buffet"] = buffet
+    if mass is not None or vanes is not None or buffet is not None:
         _core.sim_plan(json.dumps(spec))  # refuses meaningless ranges and errors before flying
     return spec
+
+
+def buffet_spec(buffet: bool | Mapping[str, Any] | None) -> dict[str, Any] | None:
+    """The spec's ``buffet`` entry: ``None``/``False`` for none, ``True`` for the virtual
+    aircraft's default buffet (``docs/stall.md``, "Buffet"), or a mapping of the fields to
+    change (``onset_below_alpha_max_deg``, ``full_above_alpha_max_deg``, ``onset_rms_g``,
+    ``max_rms_g``, ``modes``: list of ``freq_hz``, ``damping``, ``nz_gain``, ``ny_gain``)."""
+    if buffet is None or buffet is False:
+        return None
+    if buffet is True:
+        return {}
+    if not isinstance(buffet, Mapping):
+        raise InvalidInputError(
+            f"buffet {buffet!r}: give True (the default buffet), False or a mapping of buffet "
+            "fields (docs/stall.md)"
+        )
+    return dict(buffet)
 
 
 def vane_calibration(vane_scale: Sequence[float] | None, flank_vane: bool) -> dict[str, Any] | None:
@@ -292,6 +312,7 @@ def simulate_campaign(
     inertia_range: float | None = None,
     vane_scale: Sequence[float] | None = None,
     flank_vane: bool = False,
+    buffet: bool | Mapping[str, Any] | None = None,
 ) -> list[dict[str, Any]]:
     """Fly a campaign in memory (no files).
 
@@ -299,8 +320,9 @@ def simulate_campaign(
     ----------
     effects, seed, size, noise, turbulence, rolloff, excitation
         As :func:`generate_campaign`.
-    vane_scale, flank_vane
-        As :func:`generate_campaign`.
+    vane_scale, flank_vane, buffet
+        As :func:`generate_campaign`; with a buffet the maneuver's ``meta["buffet"]`` holds
+        its flap's ``schedule`` and the ``modes``.
     cg_range_m, mass_range, inertia_range
         As :func:`generate_campaign`; the maneuver's ``meta["mass_properties"]`` then holds
         ``mass_kg``, ``cg_m`` (x, y, z from the datum), ``ixx``, ``iyy``, ``izz``, ``ixz``.
@@ -327,6 +349,7 @@ def simulate_campaign(
         record_hz=record_hz,
         mass=mass_variation(cg_range_m, mass_range, inertia_range),
         vanes=vane_calibration(vane_scale, flank_vane),
+        buffet=buffet_spec(buffet),
     )
     out = []
     for m in _core.sim_run_campaign(json.dumps(spec)):
@@ -379,6 +402,7 @@ def generate_campaign(
     inertia_range: float | None = None,
     vane_scale: Sequence[float] | None = None,
     flank_vane: bool = False,
+    buffet: bool | Mapping[str, Any] | None = None,
     overwrite: bool = False,
     progress: bool = False,
 ) -> CampaignInfo:
@@ -426,6 +450,14 @@ def generate_campaign(
     flank_vane
         The beta vane is a boom yaw vane reading the flank angle ``atan(v/u)``; the campaign's
         ``aircraft.toml`` then says ``beta_vane_type = "flank"``.
+    buffet
+        Stall buffet at the accelerometers (structural vibration added to ``ay_mps2`` and
+        ``az_mps2``; the flight is unchanged): ``True`` for the virtual aircraft's buffet (onset
+        2 deg below each flap's C_L,max alpha, modes at 7.5, 9.2 and 12.6 Hz; ``docs/stall.md``),
+        a mapping of fields to change, or ``None`` (no buffet: the files are those of a
+        campaign without the option). The truth (onset alpha per flap, mode frequencies) is
+        written to ``truth/campaign.json`` under ``"buffet"`` and per sample to the truth
+        files (``buffet_ay_true_mps2``, ``buffet_az_true_mps2``, ``buffet_rms_true_mps2``).
     overwrite
         Replace an existing folder.
     progress
@@ -456,6 +488,7 @@ def generate_campaign(
         excitation=excitation,
         mass=mass_variation(cg_range_m, mass_range, inertia_range),
         vanes=vane_calibration(vane_scale, flank_vane),
+        buffet=buffet_spec(buffet),
     )
     plan = json.loads(_core.sim_plan(json.dumps(spec)))
     out.parent.mkdir(parents=True, exist_ok=True)
@@ -467,6 +500,7 @@ def generate_campaign(
     rows: list[dict[str, Any]] = []
     draws: dict[str, Any] = {}
     seeds: dict[str, int] = {}
+    buffet_truth: dict[str, Any] = {}
     bar = None
     if progress:
         bar = tqdm(total=len(plan), desc="campaign", unit="maneuver")
@@ -507,6 +541,10 @@ def generate_campaign(
                 )
                 if "mass_properties" in meta:
                     rows[-1].update(_mass_columns(meta["mass_properties"]))
+                if "buffet" in meta:
+                    flap_key = f"{float(p['flap_deg']):g}"
+                    buffet_truth.setdefault("schedules", {})[flap_key] = meta["buffet"]["schedule"]
+                    buffet_truth["modes"] = meta["buffet"]["modes"]
                 draws[mid] = meta["rolloff_draws"]
                 seeds[mid] = int(p["seed"])
             if bar is not None:
@@ -533,6 +571,8 @@ def generate_campaign(
             "rolloff_draws": draws,
             "rolloff_config": json.loads(_core.sim_rolloff_config()),
         }
+        if buffet_truth:
+            info["buffet"] = buffet_truth
         (tmp / "truth" / "campaign.json").write_text(json.dumps(info, indent=1, sort_keys=True))
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)

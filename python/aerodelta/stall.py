@@ -29,7 +29,13 @@ Each criterion, as measured here (constants below, times in s, angles in deg):
   :data:`AFT_STOP_TOL_DEG` of its aft (most nose-up) stop in which the smoothed pitch attitude
   rose less than :data:`AFT_STOP_PITCH_DEG`; the stop is the one given, else the most nose-up
   deflection recorded in the maneuver;
-- **buffet**: not assessed (no accelerometer-spectrum buffet detector yet: issue 20 item 3).
+- **buffet** (a deterrent buffet): the first sample where the buffet RMS of the raw normal
+  accelerometer (:func:`aerodelta.buffet.buffet_rms`: band-passed 4-20 Hz, RMS over the trailing
+  0.4 s) reaches :data:`DETERRENT_BUFFET_RMS_G`; not assessed without the raw ``az_mps2``
+  channel or below 16 samples per second. The buffet **onset** (where the buffet first clears
+  the maneuver's noise floor, :func:`aerodelta.buffet.detect_onset`) is reported beside it, with
+  its alpha and speed (Part 60 compares buffet-onset speeds within ±3 kt), but is not a
+  stall-identification criterion: light buffet is a warning, not a stall.
 
 Pitch break, g-break and aft stop are searched in the run of samples within
 :data:`SEARCH_BELOW_PEAK_DEG` of the maneuver's peak alpha that holds the peak: a stall is
@@ -48,6 +54,7 @@ import numpy as np
 import numpy.typing as npt
 import polars as pl
 
+from aerodelta.buffet import BAND_HZ, buffet_rms, detect_onset
 from aerodelta.exceptions import DataError
 
 FloatArray = npt.NDArray[np.float64]
@@ -88,13 +95,12 @@ VALIDITY_MARGIN_DEG = 10.0
 #: Maneuvers that must reach an alpha for the records to cover it.
 MIN_MANEUVERS_COVERING = 2
 
-#: The criteria in the order ties are broken (a tie: the same sample).
-CRITERIA: tuple[str, ...] = ("pusher", "pitch_break", "g_break", "aft_stop")
+#: Buffet RMS (normal axis, g) of a deterrent buffet: about ±0.2 g peaks, buffet a pilot does
+#: not fly deeper into (no regulatory number exists that we know of; docs/stall.md).
+DETERRENT_BUFFET_RMS_G = 0.06
 
-#: Why the buffet criterion is not assessed.
-BUFFET_NOT_ASSESSED = (
-    "buffet: not assessed (no accelerometer-spectrum buffet detector yet; issue 20 item 3)"
-)
+#: The criteria in the order ties are broken (a tie: the same sample); Attachment 7's order.
+CRITERIA: tuple[str, ...] = ("pusher", "pitch_break", "g_break", "buffet", "aft_stop")
 
 _REQUIRED = ("maneuver_id", "t", "theta_deg", "de_deg", "tas_mps", "rho_kgm3")
 
@@ -134,6 +140,7 @@ def detect_criteria(
     nz: npt.ArrayLike | None = None,
     pusher: npt.ArrayLike | None = None,
     aft_stop_deg: float | None = None,
+    buffet_rms_mps2: npt.ArrayLike | None = None,
 ) -> dict[str, int | None]:
     """Sample index at which each stall-identification criterion is met in one maneuver.
 
@@ -156,12 +163,15 @@ def detect_criteria(
         Pusher activation discrete (1 pushing); None: pusher not assessed.
     aft_stop_deg
         The elevator's aft (nose-up) stop, deg; None: the most nose-up deflection recorded.
+    buffet_rms_mps2
+        Buffet RMS of the normal acceleration, m/s² (:func:`aerodelta.buffet.buffet_rms`);
+        None: buffet not assessed.
 
     Returns
     -------
     dict
-        ``pusher``, ``pitch_break``, ``g_break``, ``aft_stop`` -> sample index or None (not met
-        or not assessed), and ``peak`` (index of the peak alpha).
+        ``pusher``, ``pitch_break``, ``g_break``, ``buffet``, ``aft_stop`` -> sample index or
+        None (not met or not assessed), and ``peak`` (index of the peak alpha).
 
     Examples
     --------
@@ -219,6 +229,11 @@ def detect_criteria(
         at_max = np.maximum(idx - (w_g - 1) + np.argmax(pad, axis=1), 0)
         lost = (run[at_max] - ns >= G_BREAK_DN) & (a >= a[at_max])
         out["g_break"] = _first(win & lost)
+    if buffet_rms_mps2 is None:
+        out["buffet"] = None
+    else:
+        deterrent = np.asarray(buffet_rms_mps2, dtype=np.float64) >= DETERRENT_BUFFET_RMS_G * G0
+        out["buffet"] = _first(win & deterrent)
     stop = float(np.min(de)) if aft_stop_deg is None else float(aft_stop_deg)
     held = de <= stop + AFT_STOP_TOL_DEG
     # start of the current hold at each sample: one past the last sample not held
@@ -287,8 +302,9 @@ def stall_identification(
         Ingested records (:func:`aerodelta.ingest` result or its ``data`` frame): ``maneuver_id``,
         ``t``, ``alpha_cg_deg`` (or ``alpha_deg``), ``theta_deg``, ``de_deg``, ``az_cg_mps2`` (or
         ``az_mps2``), ``tas_mps`` (``tas_s_mps`` used when present), ``rho_kgm3``, ``flap_deg``;
-        ``kind`` (from the manifest), ``pusher`` (the manifest's pusher armed flag) and the
-        optional discretes ``pusher_active`` and ``stall_warning`` when present.
+        ``kind`` (from the manifest), ``pusher`` (the manifest's pusher armed flag), the
+        optional discretes ``pusher_active`` and ``stall_warning`` and the raw normal
+        accelerometer ``az_mps2`` (buffet) when present.
     aft_stop_deg
         The elevator's aft (nose-up) stop, deg (negative, Etkin); None: the most nose-up
         deflection recorded in each maneuver is taken as the stop.
@@ -298,7 +314,9 @@ def stall_identification(
     polars.DataFrame
         One row per maneuver: ``maneuver_id``, ``flap_deg``, ``kind``, ``pusher_armed``; per
         criterion ``<c>_t_s`` and ``<c>_alpha_deg`` (null: not met or not assessed) for
-        ``warning``, ``pusher``, ``pitch_break``, ``g_break``, ``aft_stop``; ``stall_id_by``
+        ``warning``, ``pusher``, ``pitch_break``, ``g_break``, ``buffet``, ``aft_stop``;
+        ``buffet_onset_t_s``, ``buffet_onset_alpha_deg``, ``v_buffet_onset_keas`` (the buffet
+        onset, its alpha and EAS; null: no buffet or not assessed); ``stall_id_by``
         (the first criterion met, null when none), ``stall_id_t_s``, ``stall_id_alpha_deg``,
         ``v_warning_keas`` (equivalent airspeed at the warning onset, kt), ``v_stall_keas`` (at
         stall identification, kt), ``v_min_keas`` (minimum from the start to the identification,
@@ -329,7 +347,10 @@ def stall_identification(
     vcol = "tas_s_mps" if "tas_s_mps" in df.columns else "tas_mps"
     has_push = "pusher_active" in df.columns
     has_warn = "stall_warning" in df.columns
-    skipped = [BUFFET_NOT_ASSESSED]
+    has_raw_az = "az_mps2" in df.columns
+    skipped = []
+    if not has_raw_az:
+        skipped.append("buffet: not assessed (no raw az_mps2 channel)")
     if not has_push:
         skipped.append("pusher: no pusher_active channel")
     if not has_warn:
@@ -348,6 +369,7 @@ def stall_identification(
                 vcol=vcol,
                 has_push=has_push,
                 has_warn=has_warn,
+                has_raw_az=has_raw_az,
                 aft_stop_deg=aft_stop_deg,
                 note=note,
             )
@@ -362,6 +384,9 @@ _SCHEMA: dict[str, Any] = {
     "kind": pl.Utf8,
     "pusher_armed": pl.Boolean,
     **{f"{c}_{s}": pl.Float64 for c in _CRIT_COLUMNS for s in ("t_s", "alpha_deg")},
+    "buffet_onset_t_s": pl.Float64,
+    "buffet_onset_alpha_deg": pl.Float64,
+    "v_buffet_onset_keas": pl.Float64,
     "stall_id_by": pl.Utf8,
     "stall_id_t_s": pl.Float64,
     "stall_id_alpha_deg": pl.Float64,
@@ -383,12 +408,20 @@ def _one(
     vcol: str,
     has_push: bool,
     has_warn: bool,
+    has_raw_az: bool,
     aft_stop_deg: float | None,
     note: str,
 ) -> list[Any]:
     col = lambda c: g[c].cast(pl.Float64).to_numpy()  # noqa: E731
     t, a = col("t"), col(acol)
     nz = None if zcol is None else -col(zcol) / G0
+    rms, k_on = None, None
+    fast = t.size > 1 and 0.5 / float(np.median(np.diff(t))) >= 2.0 * BAND_HZ[0]
+    if has_raw_az and fast and t.size >= 8:
+        onset = detect_onset(t, a, col("az_mps2"))
+        rms, k_on = onset["rms_mps2"], onset["onset"]
+    elif has_raw_az:
+        note = "; ".join([n for n in (note, "buffet: not assessed (sampled below 16 Hz)") if n])
     found = detect_criteria(
         t,
         a,
@@ -397,6 +430,7 @@ def _one(
         nz=nz,
         pusher=col("pusher_active") if has_push else None,
         aft_stop_deg=aft_stop_deg,
+        buffet_rms_mps2=rms,
     )
     eas = _eas_kt(col(vcol), col("rho_kgm3"))
     k_warn = _first(col("stall_warning") > 0.5) if has_warn else None
@@ -410,6 +444,7 @@ def _one(
     row: list[Any] = [mid, float(g["flap_deg"][0]), kind, armed]
     for c in _CRIT_COLUMNS:
         row += [val(t, at[c]), val(a, at[c])]
+    row += [val(t, k_on), val(a, k_on), val(eas, k_on)]
     row += [
         by,
         val(t, k_id),
@@ -436,7 +471,8 @@ def stall_summary(table: pl.DataFrame) -> pl.DataFrame:
     -------
     polars.DataFrame
         ``flap_deg``, ``kind``, ``n_maneuvers``, ``n_identified``, ``by_pusher``,
-        ``by_pitch_break``, ``by_g_break``, ``by_aft_stop`` (counts), ``stall_id_alpha_mean_deg``,
+        ``by_pitch_break``, ``by_g_break``, ``by_buffet``, ``by_aft_stop`` (counts),
+        ``stall_id_alpha_mean_deg``,
         ``stall_id_alpha_min_deg``, ``stall_id_alpha_max_deg``, ``v_warning_mean_keas``,
         ``v_stall_mean_keas``, ``v_min_mean_keas`` (kt), ``warning_margin_mean_kt`` (warning
         minus stall speed, kt).
@@ -566,7 +602,8 @@ def virtual_truth(campaign: str | Path, table: pl.DataFrame) -> pl.DataFrame:
     """The truth's stall identification beside ``table``, for a virtual flight-test campaign.
 
     The truth of each criterion is :func:`detect_criteria` on the simulator's noise-free signals
-    (``truth/<id>.parquet``: true alpha at the CG, pitch attitude, acting elevator, load factor)
+    (``truth/<id>.parquet``: true alpha at the CG, pitch attitude, acting elevator, load factor,
+    and, in a campaign with buffet, the buffet acceleration the accelerometers felt)
     and, for the pusher, the time the simulator's own pusher fired (the campaign's pusher
     maneuvers flown again from ``truth/campaign.json``: same seed, same flight). Speeds: the true
     airspeed as EAS with the recorded density; the warning onset is the recorded discrete's.
@@ -615,6 +652,10 @@ def virtual_truth(campaign: str | Path, table: pl.DataFrame) -> pl.DataFrame:
             tr["theta_true_deg"].to_numpy(),
             tr["de_true_deg"].to_numpy(),
             nz=tr["nz_true"].to_numpy(),
+            # the buffet the accelerometers felt, without the sensor noise and rigid-body motion
+            buffet_rms_mps2=buffet_rms(t, tr["buffet_az_true_mps2"].to_numpy())
+            if "buffet_az_true_mps2" in tr.columns
+            else None,
         )
         times: dict[str, float | None] = {
             c: None if got[c] is None else float(t[got[c]]) for c in CRITERIA[1:]

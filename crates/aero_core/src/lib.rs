@@ -12,6 +12,8 @@
 //! - [`sim`]: the 6-DOF simulator (Eq. 3.1), pilot, sensors and campaign generator;
 //! - [`aircraft`]: the representative turboprop, its qualified and truth models;
 //! - [`rolloff`]: the stochastic roll-off of Section 3.4.3 (runtime model);
+//! - [`buffet`]: the stall buffet at the accelerometers (runtime model: seeded structural
+//!   modes driven by an alpha-scheduled forcing);
 //! - [`preprocess`]: flight-test preprocessing: smoothing, derivatives, CG and
 //!   vane transfers, measured coefficients (Eq. 3.2-3.4), data compatibility;
 //! - [`daveml`]: DAVE-ML (AIAA S-119) models: read, evaluate, run their check
@@ -43,6 +45,7 @@
 pub mod aircraft;
 pub mod band;
 pub mod bootstrap;
+pub mod buffet;
 pub mod daveml;
 pub mod delta_model;
 pub mod envelope;

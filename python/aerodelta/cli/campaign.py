@@ -95,6 +95,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         action="store_true",
         help="builtin: the beta vane is a boom yaw vane reading the flank angle atan(v/u)",
     )
+    parser.add_argument(
+        "--buffet",
+        action="store_true",
+        help="builtin: stall buffet at the accelerometers (onset 2 deg below each flap's "
+        "C_L,max alpha, modes 7.5, 9.2, 12.6 Hz; truth in truth/campaign.json; docs/stall.md)",
+    )
     parser.add_argument("--overwrite", action="store_true", help="replace an existing folder")
     parser.add_argument("--list-effects", action="store_true", help="list the effect vocabulary")
     parser.add_argument("--out", help="campaign folder to write")
@@ -135,6 +141,7 @@ def run(args: argparse.Namespace) -> int:
         inertia_range=args.inertia_range,
         vane_scale=_pair(args.vane_scale),
         flank_vane=args.flank_vane,
+        buffet=args.buffet,
         overwrite=args.overwrite,
         progress=not args.no_progress,
     )
@@ -171,6 +178,7 @@ def _check_options(args: argparse.Namespace) -> None:
             "--inertia-range": args.inertia_range is not None,
             "--vane-scale": args.vane_scale,
             "--flank-vane": args.flank_vane,
+            "--buffet": args.buffet,
         }
         needs = "--simulator builtin"
     given = [o for o, v in other.items() if v]

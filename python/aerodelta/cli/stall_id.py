@@ -1,11 +1,13 @@
 """Stall identification per maneuver by each Part 60 Attachment 7 criterion (stick pusher, pitch
-break, g-break, 2 s at the aft stop; buffet not assessed), the stall-warning and stall speeds,
-and the validity range the records cover against stall identification + 10 deg (docs/stall.md).
+break, g-break, deterrent buffet, 2 s at the aft stop), the stall-warning, buffet-onset and stall
+speeds, the buffet's onset alpha and predominant frequencies per flap, and the validity range the
+records cover against stall identification + 10 deg (docs/stall.md).
 
 Prints the per-flap-and-kind summary and one validity verdict line per flap to stdout (or
 everything as JSON with --format json); --out FILE also writes the per-maneuver table as CSV
-(FILE) with the summary, the alpha-band coverage and the verdicts beside it
-(FILE's stem + .summary.csv, .coverage.csv, .validity.csv).
+(FILE) with the summary, the alpha-band coverage, the verdicts and the buffet (per flap, its
+predominant frequencies, amplitude against alpha) beside it (FILE's stem + .summary.csv,
+.coverage.csv, .validity.csv, .buffet.csv, .buffet_freq.csv, .buffet_amplitude.csv).
 """
 
 from __future__ import annotations
@@ -51,7 +53,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def _companions(out: Path) -> list[Path]:
-    return [out.with_name(f"{out.stem}.{k}.csv") for k in ("summary", "coverage", "validity")]
+    return [out.with_name(f"{out.stem}.{k}.csv") for k in _KINDS]
+
+
+_KINDS = ("summary", "coverage", "validity", "buffet", "buffet_freq", "buffet_amplitude")
 
 
 def _num(x: Any, fmt: str = ".1f") -> str:
@@ -60,6 +65,7 @@ def _num(x: Any, fmt: str = ".1f") -> str:
 
 def run(args: argparse.Namespace) -> int:
     """Run ``aerodelta stall-id``; returns the exit status."""
+    from aerodelta.buffet import buffet_identification  # noqa: PLC0415  (CLI start-up light)
     from aerodelta.stall import (  # noqa: PLC0415  (CLI start-up light)
         stall_identification,
         stall_summary,
@@ -78,11 +84,13 @@ def run(args: argparse.Namespace) -> int:
     table = stall_identification(data, aft_stop_deg=args.aft_stop)
     summary = stall_summary(table)
     coverage, verdict = validity_range(data, table, band_deg=args.band)
+    buffet = buffet_identification(data) if "az_mps2" in data.columns else None
+    frames = (table, summary, coverage, verdict)
+    if buffet is not None:
+        frames += (buffet.per_flap, buffet.frequencies, buffet.amplitude)
     if out is not None:
         out.parent.mkdir(parents=True, exist_ok=True)
-        for frame, path in zip(
-            (table, summary, coverage, verdict), (out, *_companions(out)), strict=True
-        ):
+        for frame, path in zip(frames, (out, *_companions(out)), strict=False):
             write_atomic(path, frame.write_csv)
     if args.format == "json":
         print(
@@ -92,6 +100,12 @@ def run(args: argparse.Namespace) -> int:
                     "summary": summary.to_dicts(),
                     "validity": verdict.to_dicts(),
                     "coverage": coverage.to_dicts(),
+                    "buffet": None
+                    if buffet is None
+                    else {
+                        "per_flap": buffet.per_flap.to_dicts(),
+                        "frequencies": buffet.frequencies.to_dicts(),
+                    },
                 },
                 indent=2,
             )
@@ -99,13 +113,13 @@ def run(args: argparse.Namespace) -> int:
     else:
         print(
             f"{'flap':>4} {'kind':<17} {'n':>3} {'id':>3} {'push':>4} {'pitch':>5} {'g':>3} "
-            f"{'stop':>4} {'alpha id':>8} {'V warn':>7} {'V stall':>7} {'V min':>7}"
+            f"{'buf':>3} {'stop':>4} {'alpha id':>8} {'V warn':>7} {'V stall':>7} {'V min':>7}"
         )
         for r in summary.iter_rows(named=True):
             print(
                 f"{r['flap_deg']:>4g} {r['kind']:<17} {r['n_maneuvers']:>3} "
                 f"{r['n_identified']:>3} {r['by_pusher']:>4} {r['by_pitch_break']:>5} "
-                f"{r['by_g_break']:>3} {r['by_aft_stop']:>4} "
+                f"{r['by_g_break']:>3} {r['by_buffet']:>3} {r['by_aft_stop']:>4} "
                 f"{_num(r['stall_id_alpha_mean_deg']):>8} "
                 f"{_num(r['v_warning_mean_keas']):>7} {_num(r['v_stall_mean_keas']):>7} "
                 f"{_num(r['v_min_mean_keas']):>7}"
@@ -116,8 +130,27 @@ def run(args: argparse.Namespace) -> int:
             print(note)
         for line in verdict["verdict"]:
             print(line)
+        if buffet is not None:
+            _print_buffet(buffet)
         if out is not None:
             for p in (out, *_companions(out)):
                 print(f"wrote {p}")
     sys.stdout.flush()
     return 0
+
+
+def _print_buffet(buffet: Any) -> None:
+    """One line per flap: buffet onset alpha and speed, predominant frequencies per axis."""
+    for r in buffet.per_flap.iter_rows(named=True):
+        f = buffet.frequencies.filter(buffet.frequencies["flap_deg"] == r["flap_deg"])
+        spikes = "; ".join(
+            f"{axis} " + ", ".join(f"{v:.1f}" for v in f.filter(f["axis"] == axis)["freq_hz"])
+            for axis in ("nz", "ny")
+            if (f["axis"] == axis).any()
+        )
+        print(
+            f"flap {r['flap_deg']:g}: buffet in {r['n_buffet']} of {r['n_maneuvers']} maneuvers, "
+            f"onset alpha {_num(r['onset_alpha_deg'])} deg (median), "
+            f"{_num(r['v_buffet_onset_mean_keas'])} KEAS; predominant frequencies, Hz: "
+            f"{spikes or 'none (no buffet segment long enough for a spectrum)'}"
+        )

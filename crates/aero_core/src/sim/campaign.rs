@@ -7,6 +7,9 @@
 //! the thread count (`parallel` feature, rayon). With `mass_properties` each
 //! maneuver flies its own mass, CG and inertia ([`crate::sim::mass`]), drawn from
 //! a stream of its own: the other streams, and a campaign without it, are untouched.
+//! With `buffet` the accelerometers also record the stall buffet ([`crate::buffet`]),
+//! drawn from its own stream too and added to the recorded `ay_mps2`, `az_mps2` only
+//! (structural vibration at the sensor: the flight itself is unchanged).
 
 use nalgebra::Vector3;
 
@@ -14,6 +17,7 @@ use crate::aircraft::effects::{ActiveEffect, MeasurementEffects};
 use crate::aircraft::qualified::{FlapModel, FlapStall, QualifiedModel, FLAP_STALL};
 use crate::aircraft::truth::{active_effects, EffectSpec, TruthAero};
 use crate::aircraft::turboprop::{adx37, AircraftRef};
+use crate::buffet::{Buffet, BuffetMode, BuffetSchedule, BuffetSpec};
 use crate::delta_model::DeltaModel;
 use crate::error::{AeroError, Result, ResultExt};
 use crate::rolloff::{RollOff, RollOffConfig, RollOffDraw};
@@ -41,6 +45,7 @@ mod stream {
     pub const ROLLOFF: u64 = 4;
     pub const SENSORS: u64 = 5;
     pub const MASS: u64 = 6;
+    pub const BUFFET: u64 = 7;
 }
 
 /// What a campaign contains and how it is flown.
@@ -77,6 +82,11 @@ pub struct CampaignSpec {
     /// default, absent from the JSON): ideal vanes.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub vanes: Option<crate::aircraft::effects::VaneCalibration>,
+    /// Stall buffet at the accelerometers (onset, modes, intensity; [`BuffetSpec`]); `None`
+    /// (the default, absent from the JSON): no buffet, and the records are those of a
+    /// campaign without the option, bit for bit.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub buffet: Option<BuffetSpec>,
 }
 
 impl Default for CampaignSpec {
@@ -94,6 +104,7 @@ impl Default for CampaignSpec {
             only: Vec::new(),
             mass_properties: None,
             vanes: None,
+            buffet: None,
         }
     }
 }
@@ -146,6 +157,18 @@ pub struct ManeuverResult {
     /// The mass properties flown, when the campaign varies them (absent otherwise).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub mass_properties: Option<MassProperties>,
+    /// The buffet injected, when the campaign has one (absent otherwise).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub buffet: Option<BuffetTruth>,
+}
+
+/// The buffet a maneuver's accelerometers recorded: its flap setting's schedule and the modes.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct BuffetTruth {
+    /// Amplitude schedule (onset and full-intensity alpha, deg; normal-axis RMS, m/s²).
+    pub schedule: BuffetSchedule,
+    /// Structural modes (frequencies, Hz; damping; relative gains).
+    pub modes: Vec<BuffetMode>,
 }
 
 impl CampaignSpec {
@@ -557,6 +580,16 @@ fn fly(
     // true airspeed, load factor at the CG, pitch rate, pitch attitude, acting elevator
     let mut pusher_rows: Vec<f64> = Vec::with_capacity(max_steps / decim + 2);
     let mut stall_rows: Vec<[f64; 5]> = Vec::with_capacity(max_steps / decim + 2);
+    // the stall buffet, one frame per record sample at the true alpha (its own stream)
+    let mut buffet = spec
+        .buffet
+        .as_ref()
+        .map(|b| {
+            let sched = BuffetSchedule::for_alpha_max(b, stall.alpha_max_deg);
+            Buffet::new(b, sched, decim as f64 / spec.sim_hz, m.seed, stream::BUFFET)
+        })
+        .transpose()?;
+    let mut buffet_rows: Vec<[f64; 3]> = Vec::new();
     let (mut max_alpha, mut n_at, mut max_bank) = (f64::NEG_INFINITY, 1.0, 0.0f64);
     for step in 0..max_steps {
         let st = f.command();
@@ -609,6 +642,10 @@ fn fly(
                 surfaces.de.to_degrees(),
             ]);
             let a_deg = ad.alpha.to_degrees();
+            if let Some(b) = buffet.as_mut() {
+                let [ay, az] = b.step(a_deg);
+                buffet_rows.push([ay, az, b.schedule().rms_mps2(a_deg)]);
+            }
             if a_deg >= stall.alpha_max_deg - 1.0 && max_alpha < stall.alpha_max_deg - 1.0 {
                 n_at = n; // load factor at the stall onset (first reach of α_max − 1°)
             }
@@ -639,6 +676,13 @@ fn fly(
     );
     meas_cols.push(pusher_rows);
     meas_cols.push(warning);
+    if buffet.is_some() {
+        // structural vibration at the sensor: added to what the accelerometers record
+        for (k, r) in buffet_rows.iter().enumerate() {
+            meas_cols[10][k] += r[0];
+            meas_cols[11][k] += r[1];
+        }
+    }
     // truth columns
     let ns = samples.len();
     let mut truth_names: Vec<String> = [
@@ -693,6 +737,19 @@ fn fly(
         truth_names.push((*name).into());
         truth.push(stall_rows.iter().map(|r| r[j]).collect());
     }
+    if buffet.is_some() {
+        for (j, name) in [
+            "buffet_ay_true_mps2",
+            "buffet_az_true_mps2",
+            "buffet_rms_true_mps2",
+        ]
+        .iter()
+        .enumerate()
+        {
+            truth_names.push((*name).into());
+            truth.push(buffet_rows.iter().map(|r| r[j]).collect());
+        }
+    }
     let id = format!(
         "m{:03}_f{:02}_{}_{}",
         m.index,
@@ -727,6 +784,14 @@ fn fly(
             .filter(|t| t.is_finite()),
         max_bank_deg: max_bank,
         mass_properties: varied,
+        buffet: buffet.map(|b| BuffetTruth {
+            schedule: *b.schedule(),
+            modes: spec
+                .buffet
+                .as_ref()
+                .map(|s| s.modes.clone())
+                .unwrap_or_default(),
+        }),
     })
 }
 
@@ -748,6 +813,10 @@ pub fn resolve_effects(
         }
     }
     spec.rolloff.validate()?;
+    if let Some(b) = &spec.buffet {
+        let decim = ((spec.sim_hz / spec.record_hz).round()).max(1.0);
+        b.validate(decim / spec.sim_hz)?;
+    }
     if let Some(v) = &spec.mass_properties {
         v.validate()?;
     }
@@ -1119,6 +1188,72 @@ mod tests {
             assert_eq!(x.plan, z.plan);
             assert_ne!(x.record, z.record, "{}", x.id);
         }
+    }
+
+    #[test]
+    fn buffet_adds_its_vibration_to_the_accelerometers_and_changes_nothing_else() {
+        // the same maneuvers without and with the buffet: every record column but ay, az is
+        // bit for bit the same, and ay, az differ by exactly the truth's buffet columns (the
+        // flight is untouched); the buffet is silent below the flap's onset alpha and present
+        // above it; the default spec's JSON has no trace of the option
+        let mut off = quick(4);
+        off.only = vec![0, 9, 21];
+        let mut on = off.clone();
+        on.buffet = Some(BuffetSpec::default());
+        let (a, b) = (run_campaign(&off).unwrap(), run_campaign(&on).unwrap());
+        assert!(!CampaignSpec::default().to_json().contains("buffet"));
+        for (x, y) in a.iter().zip(&b) {
+            assert!(x.buffet.is_none() && !x.meta_json().contains("buffet"));
+            let truth = y.buffet.as_ref().unwrap();
+            assert_eq!(x.truth_names, y.truth_names[..x.truth_names.len()]);
+            assert_eq!(x.truth[..], y.truth[..x.truth.len()]);
+            let col = |name: &str| {
+                let k = y.truth_names.iter().position(|c| c == name).unwrap();
+                &y.truth[k]
+            };
+            let (by, bz, rms) = (
+                col("buffet_ay_true_mps2"),
+                col("buffet_az_true_mps2"),
+                col("buffet_rms_true_mps2"),
+            );
+            for (k, name) in x.record_names.iter().enumerate() {
+                match name.as_str() {
+                    "ay_mps2" | "az_mps2" => {
+                        let add = if name == "ay_mps2" { by } else { bz };
+                        let pairs = y.record[k].iter().zip(&x.record[k]);
+                        for (i, (d, (got, base))) in add.iter().zip(pairs).enumerate() {
+                            assert_eq!(*got, base + d, "{} {i}", x.id);
+                        }
+                    }
+                    _ => assert_eq!(x.record[k], y.record[k], "{}: {name}", x.id),
+                }
+            }
+            let alpha = col("alpha_true_deg");
+            let onset = truth.schedule.onset_alpha_deg;
+            let below: Vec<usize> = (0..alpha.len()).filter(|&i| alpha[i] < onset).collect();
+            // silent while alpha has stayed below the onset (before the first crossing the
+            // modes are at rest)
+            let first_above = alpha
+                .iter()
+                .position(|&v| v >= onset)
+                .unwrap_or(alpha.len());
+            assert!(below.iter().all(|&i| rms[i] == 0.0));
+            assert!(bz[..first_above].iter().all(|&v| v == 0.0), "{}", x.id);
+            if first_above < alpha.len() {
+                let peak = bz[first_above..].iter().fold(0.0f64, |m, v| m.max(v.abs()));
+                assert!(peak > truth.schedule.onset_rms_mps2, "{}: {peak}", x.id);
+            }
+            let stall = FLAP_STALL
+                .iter()
+                .find(|f| f.flap_deg == x.plan.flap_deg)
+                .unwrap();
+            assert_eq!(onset, stall.alpha_max_deg - 2.0);
+        }
+        // a mode above the record's Nyquist frequency is refused before flying
+        let mut bad = on.clone();
+        bad.buffet.as_mut().unwrap().modes[0].freq_hz = 30.0;
+        let e = run_campaign(&bad).unwrap_err().to_string();
+        assert!(e.contains("buffet.modes[0].freq_hz"), "{e}");
     }
 
     #[test]
