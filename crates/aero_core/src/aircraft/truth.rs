@@ -4,10 +4,14 @@
 //! "flies"; the fit never sees it.
 
 use crate::aircraft::effects::{effect, flap_index, ActiveEffect, AlphaShape};
-use crate::aircraft::qualified::{to_body, FlapModel};
-use crate::error::Result;
+use crate::aircraft::qualified::{
+    to_body, FlapModel, QualifiedModel, CL_ALPHA_PER_DEG, FLAP_STALL,
+};
+use crate::error::{AeroError, Result};
+use crate::kirchhoff::{KirchhoffParams, KirchhoffState};
 use crate::rolloff::RollOff;
 use crate::sim::aero::{AeroCoeffs, AeroInput, AeroModel};
+use crate::table::Table;
 
 /// An effect request: vocabulary name, magnitude (1 = design), optional shape override.
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -50,6 +54,103 @@ pub fn active_effects(specs: &[EffectSpec]) -> Result<Vec<ActiveEffect>> {
     Ok(out)
 }
 
+/// The longitudinal stall the truth aircraft can fly instead of its qualified
+/// static curves.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum LongitudinalStall {
+    /// The qualified model's static C_L and C_m curves (the default).
+    #[default]
+    Static,
+    /// A Kirchhoff flow-separation stall ([`crate::kirchhoff`]) with the
+    /// parameters of [`kirchhoff_truth_params`].
+    Kirchhoff,
+}
+
+/// The Kirchhoff stall of the virtual aircraft at one of its flap settings
+/// (0, 5, 10, 15, 35 deg; others take the nearest).
+///
+/// Attached flow keeps the qualified lift line (C_Lα = 5.2 /rad and the zero-lift
+/// alpha of [`FLAP_STALL`]) and pitch line (C_m0 of [`FLAP_STALL`], C_mα = −0.75 /rad);
+/// the breakpoint α* lies 1.5 deg above the qualified model's alpha of C_L,max
+/// and the steepness is a₁ = 20 /rad, so the static C_L,max is within 3 % of the
+/// qualified one and is reached about 1 deg earlier; C_mx = −0.12 is the
+/// qualified nose-down break. The time constants, τ₁ = 0.20 + 0.002 δf s and
+/// τ₂ = 0.060 + 0.0006 δf s (δf in deg), are representative values of a few
+/// tenths (τ₁) and hundredths (τ₂) of a second chosen for this aircraft, not
+/// identified from any flight data.
+pub fn kirchhoff_truth_params(flap_deg: f64) -> KirchhoffParams {
+    let fs = FLAP_STALL
+        .iter()
+        .min_by(|a, b| {
+            (a.flap_deg - flap_deg)
+                .abs()
+                .total_cmp(&(b.flap_deg - flap_deg).abs())
+        })
+        .copied()
+        .unwrap_or(FLAP_STALL[0]);
+    let cl0 = fs.cl_max + 3.0 * CL_ALPHA_PER_DEG - CL_ALPHA_PER_DEG * fs.alpha_max_deg;
+    KirchhoffParams {
+        tau1: 0.20 + 0.002 * fs.flap_deg,
+        tau2: 0.060 + 0.0006 * fs.flap_deg,
+        alpha_star: (fs.alpha_max_deg + 1.5).to_radians(),
+        a1: 20.0,
+        cl_alpha: CL_ALPHA_PER_DEG.to_degrees(),
+        alpha0: (-cl0 / CL_ALPHA_PER_DEG).to_radians(),
+        cm0: fs.cm0,
+        cm_alpha: -0.75,
+        cm_x: -0.12,
+    }
+}
+
+/// A Kirchhoff stall replacing the qualified static C_L and C_m curves: the
+/// truth's C_L is the qualified C_L minus its `CL_basic` table plus the
+/// Kirchhoff lift, likewise C_m with `Cm_basic` (control, rate and thrust
+/// terms unchanged).
+#[derive(Debug, Clone)]
+pub struct KirchhoffTruth {
+    /// The separation state.
+    pub state: KirchhoffState,
+    cl_basic: Table,
+    cm_basic: Table,
+}
+
+impl KirchhoffTruth {
+    /// The virtual aircraft's Kirchhoff stall at `flap_deg` over the qualified model `q`.
+    ///
+    /// # Errors
+    /// If `q` lacks its `CL_basic` or `Cm_basic` table.
+    pub fn adx37(q: &QualifiedModel, flap_deg: f64) -> Result<Self> {
+        let table = |name: &str| {
+            q.tables
+                .iter()
+                .find(|(n, _)| n == name)
+                .map(|(_, t)| t.clone())
+                .ok_or_else(|| AeroError::invalid("qualified model", format!("no table '{name}'")))
+        };
+        Ok(KirchhoffTruth {
+            state: KirchhoffState::new(kirchhoff_truth_params(flap_deg))?,
+            cl_basic: table("CL_basic")?,
+            cm_basic: table("Cm_basic")?,
+        })
+    }
+
+    /// `[ΔC_L, ΔC_m]` replacing the static curves at `s`, and the separation point.
+    #[inline]
+    pub fn delta(&self, s: &AeroInput) -> ([f64; 2], f64) {
+        let x = self.state.x_at(s.alpha, s.alpha_dot);
+        let p = &self.state.params;
+        let at = [s.alpha.to_degrees(), s.flap_deg];
+        (
+            [
+                p.cl(s.alpha, x) - self.cl_basic.eval(&at),
+                p.cm(s.alpha, x) - self.cm_basic.eval(&at),
+            ],
+            x,
+        )
+    }
+}
+
 /// Qualified + effects + roll-off at one flap setting.
 #[derive(Debug, Clone)]
 pub struct TruthAero {
@@ -59,6 +160,8 @@ pub struct TruthAero {
     pub effects: Vec<ActiveEffect>,
     /// The stochastic roll-off, if on.
     pub rolloff: Option<RollOff>,
+    /// The Kirchhoff longitudinal stall, if on.
+    pub kirchhoff: Option<KirchhoffTruth>,
     flap_i: usize,
 }
 
@@ -70,8 +173,23 @@ impl TruthAero {
             qualified,
             effects,
             rolloff,
+            kirchhoff: None,
             flap_i,
         }
+    }
+
+    /// The same truth with a Kirchhoff longitudinal stall.
+    #[must_use]
+    pub fn with_kirchhoff(mut self, k: Option<KirchhoffTruth>) -> Self {
+        self.kirchhoff = k;
+        self
+    }
+
+    /// The separation point at `s` (NaN without the Kirchhoff stall).
+    pub fn separation(&self, s: &AeroInput) -> f64 {
+        self.kirchhoff
+            .as_ref()
+            .map_or(f64::NAN, |k| k.state.x_at(s.alpha, s.alpha_dot))
     }
 
     /// Per effect `[ΔC_Y, ΔC_l, ΔC_n]`, in the order of `self.effects`.
@@ -105,12 +223,20 @@ impl AeroModel for TruthAero {
             c[5] += d[2];
         }
         c[3] += self.rolloff_cl(s);
+        if let Some(k) = &self.kirchhoff {
+            let (d, _) = k.delta(s);
+            c[0] += d[0];
+            c[4] += d[1];
+        }
         to_body(&c, s)
     }
 
     fn advance(&mut self, t: f64, s: &AeroInput) {
         if let Some(r) = self.rolloff.as_mut() {
             r.update(t, s.alpha.to_degrees());
+        }
+        if let Some(k) = self.kirchhoff.as_mut() {
+            k.state.update(t, s.alpha, s.alpha_dot);
         }
     }
 }

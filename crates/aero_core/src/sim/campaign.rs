@@ -12,7 +12,9 @@ use nalgebra::Vector3;
 
 use crate::aircraft::effects::{ActiveEffect, MeasurementEffects};
 use crate::aircraft::qualified::{FlapModel, FlapStall, QualifiedModel, FLAP_STALL};
-use crate::aircraft::truth::{active_effects, EffectSpec, TruthAero};
+use crate::aircraft::truth::{
+    active_effects, EffectSpec, KirchhoffTruth, LongitudinalStall, TruthAero,
+};
 use crate::aircraft::turboprop::{adx37, AircraftRef};
 use crate::delta_model::DeltaModel;
 use crate::error::{AeroError, Result, ResultExt};
@@ -77,6 +79,16 @@ pub struct CampaignSpec {
     /// default, absent from the JSON): ideal vanes.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub vanes: Option<crate::aircraft::effects::VaneCalibration>,
+    /// The truth's longitudinal stall: the qualified static curves (the default,
+    /// absent from the JSON) or a Kirchhoff flow-separation stall
+    /// ([`crate::aircraft::truth::kirchhoff_truth_params`]), whose records then
+    /// carry the truth columns `x_sep_true`, `CL_true`, `Cm_true`.
+    #[serde(skip_serializing_if = "is_static")]
+    pub longitudinal_stall: LongitudinalStall,
+}
+
+fn is_static(s: &LongitudinalStall) -> bool {
+    *s == LongitudinalStall::Static
 }
 
 impl Default for CampaignSpec {
@@ -94,6 +106,7 @@ impl Default for CampaignSpec {
             only: Vec::new(),
             mass_properties: None,
             vanes: None,
+            longitudinal_stall: LongitudinalStall::Static,
         }
     }
 }
@@ -346,7 +359,12 @@ impl Flight {
         } else {
             None
         };
-        let model = TruthAero::new(slice(qual, m.flap_deg)?, effects.to_vec(), rolloff);
+        let kirchhoff = match spec.longitudinal_stall {
+            LongitudinalStall::Static => None,
+            LongitudinalStall::Kirchhoff => Some(KirchhoffTruth::adx37(qual, m.flap_deg)?),
+        };
+        let model = TruthAero::new(slice(qual, m.flap_deg)?, effects.to_vec(), rolloff)
+            .with_kirchhoff(kirchhoff);
         let mut sim =
             Simulator::with_mass(ac.clone(), m.flap_deg, nalgebra::SVector::zeros(), dt, mass);
         let tr = trim(&sim, &model, v0, h0).context(format!("maneuver {}", m.index))?;
@@ -557,6 +575,8 @@ fn fly(
     // true airspeed, load factor at the CG, pitch rate, pitch attitude, acting elevator
     let mut pusher_rows: Vec<f64> = Vec::with_capacity(max_steps / decim + 2);
     let mut stall_rows: Vec<[f64; 5]> = Vec::with_capacity(max_steps / decim + 2);
+    // the Kirchhoff stall's truth: separation point, wind-axis C_L, C_m (with it on)
+    let mut long_rows: Vec<[f64; 3]> = Vec::new();
     let (mut max_alpha, mut n_at, mut max_bank) = (f64::NEG_INFINITY, 1.0, 0.0f64);
     for step in 0..max_steps {
         let st = f.command();
@@ -567,6 +587,10 @@ fn fly(
             let (inp, _) = sim.aero_input(&sim.x, &surfaces, thrust);
             let coeffs = model.coefficients(&inp);
             let qc = model.qualified_coeffs(&inp);
+            if let Some(k) = &model.kirchhoff {
+                let (d, x) = k.delta(&inp);
+                long_rows.push([x, qc[0] + d[0], coeffs.cm]);
+            }
             model.contributions(&inp, &mut contrib);
             eff_rows.extend_from_slice(&contrib);
             truth_rows.push([
@@ -692,6 +716,12 @@ fn fly(
     {
         truth_names.push((*name).into());
         truth.push(stall_rows.iter().map(|r| r[j]).collect());
+    }
+    if !long_rows.is_empty() {
+        for (j, name) in ["x_sep_true", "CL_true", "Cm_true"].iter().enumerate() {
+            truth_names.push((*name).into());
+            truth.push(long_rows.iter().map(|r| r[j]).collect());
+        }
     }
     let id = format!(
         "m{:03}_f{:02}_{}_{}",
