@@ -127,7 +127,9 @@ def check_seed(seed: int, size: int, work: Path) -> list[dict[str, object]]:
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--seeds", type=int, nargs="+", default=list(REPORT_SEEDS))
-    ap.add_argument("--size", type=int, default=2, help="repetitions per (flap, kind, pusher)")
+    ap.add_argument(
+        "--size", type=int, default=5, help="repetitions per (flap, kind, pusher); 5: 200 maneuvers"
+    )
     ap.add_argument("--json", type=Path, help="write the rows here")
     args = ap.parse_args(argv)
     rows: list[dict[str, object]] = []

@@ -19,6 +19,7 @@ from scipy.signal import lfilter, lfilter_zi
 
 from aerodelta import _core
 from aerodelta.campaign import generate_campaign, simulate_campaign
+from aerodelta.cli import main
 from aerodelta.exceptions import InvalidInputError, TooLittleDataError
 from aerodelta.longitudinal import PARAMS, theil
 
@@ -178,7 +179,9 @@ def test_theil() -> None:
         theil(z, z[:2])
 
 
-def test_kirchhoff_campaign_truth_and_default_unchanged(tmp_path: Path) -> None:
+def test_kirchhoff_campaign_truth_and_default_unchanged(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     plain = simulate_campaign(seed=3, size="quick", only=[0, 1])
     again = simulate_campaign(seed=3, size="quick", only=[0, 1], longitudinal_stall="static")
     for x, y in zip(plain, again, strict=True):
@@ -203,5 +206,17 @@ def test_kirchhoff_campaign_truth_and_default_unchanged(tmp_path: Path) -> None:
     assert p10["tau1"] == pytest.approx(_core.kirchhoff_truth_params(10.0)["tau1"])
     assert meta["spec"]["longitudinal_stall"] == "kirchhoff"
     assert pl.read_csv(info.path / "manifest.csv").height == info.n_maneuvers
+    # the command line fits it (all 8 maneuvers of flap 10)
+    assert main(["longitudinal", str(info.path), "--flaps", "10", "--format", "json",
+                 "--no-progress"]) == 0  # fmt: skip
+    rows = {r["parameter"]: r for r in json.loads(capsys.readouterr().out)}
+    truth10 = _core.kirchhoff_truth_params(10.0)
+    assert rows["tau1"]["estimate"] == pytest.approx(truth10["tau1"], rel=0.3)
+    assert rows["alpha_star_deg"]["estimate"] == pytest.approx(
+        math.degrees(truth10["alpha_star"]), abs=0.5
+    )
+    assert rows["tau1"]["std_err_colored"] > 0
+    assert main(["longitudinal", str(info.path), "--flaps", "12", "--no-progress"]) == 1
+    assert "no records at flap 12" in capsys.readouterr().err
     # the default campaign is the one before the option: test_campaign_mass.py's stored
     # content digest of generate_campaign(seed=11, size="quick") (NOMINAL_QUICK_11) covers it

@@ -289,10 +289,12 @@ impl KirchhoffState {
 
     /// Advance to time `t` (s) where the flow angles are `alpha`, `alpha_dot`
     /// (the input held linear since the last update). The first call sets the
-    /// static solution; a call at the same or an earlier time restarts there.
+    /// static solution; a call at the time of the last one changes nothing; a
+    /// call at an earlier time restarts at the static solution there.
     pub fn update(&mut self, t: f64, alpha: f64, alpha_dot: f64) {
         let u = self.params.x0(alpha - self.params.tau2 * alpha_dot);
         let x = match self.last {
+            Some((t0, _, _)) if t == t0 => return,
             Some((t0, x, u0)) if t > t0 => step(x, u0, u, t - t0, self.params.tau1),
             _ => u,
         };
@@ -569,6 +571,8 @@ mod tests {
         assert!((s.x_at(a[0], ad[0]) - x[0]).abs() < 1e-15);
         for k in 0..t.len() {
             s.update(t[k], a[k], ad[k]);
+            assert_eq!(s.x_at(0.0, 0.0), x[k]);
+            s.update(t[k], a[k] + 0.1, 0.0); // again at the same time: no change
             assert_eq!(s.x_at(0.0, 0.0), x[k]);
         }
     }

@@ -38,6 +38,7 @@ _register("validate", "validate")
 _register("map-template", "map_template")
 _register("jsbsim-replay", "jsbsim_replay")
 _register("stall-id", "stall_id")
+_register("longitudinal", "longitudinal")
 
 
 def cli_wording(message: str, command: str) -> str:

@@ -95,6 +95,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         action="store_true",
         help="builtin: the beta vane is a boom yaw vane reading the flank angle atan(v/u)",
     )
+    parser.add_argument(
+        "--longitudinal-stall",
+        choices=("static", "kirchhoff"),
+        default=None,
+        help="builtin: the truth's lift and pitching moment: the qualified static curves "
+        "(default) or a Kirchhoff flow-separation stall (docs/longitudinal.md)",
+    )
     parser.add_argument("--overwrite", action="store_true", help="replace an existing folder")
     parser.add_argument("--list-effects", action="store_true", help="list the effect vocabulary")
     parser.add_argument("--out", help="campaign folder to write")
@@ -135,6 +142,7 @@ def run(args: argparse.Namespace) -> int:
         inertia_range=args.inertia_range,
         vane_scale=_pair(args.vane_scale),
         flank_vane=args.flank_vane,
+        longitudinal_stall=args.longitudinal_stall or "static",
         overwrite=args.overwrite,
         progress=not args.no_progress,
     )
@@ -171,6 +179,7 @@ def _check_options(args: argparse.Namespace) -> None:
             "--inertia-range": args.inertia_range is not None,
             "--vane-scale": args.vane_scale,
             "--flank-vane": args.flank_vane,
+            "--longitudinal-stall": args.longitudinal_stall,
         }
         needs = "--simulator builtin"
     given = [o for o, v in other.items() if v]

@@ -150,8 +150,11 @@ impl KirchhoffTruth {
 
     /// Advance the separation state to time `t` (s) at the input `s` (module docs of
     /// [`KirchhoffTruth`]: α̇ as the backward difference of α; at the first update,
-    /// the input's α̇).
+    /// the input's α̇). A second call at the same time changes nothing.
     pub fn advance(&mut self, t: f64, s: &AeroInput) {
+        if self.prev.is_some_and(|(t0, _)| t0 == t) {
+            return; // already at `t`
+        }
         let alpha_dot = match self.prev {
             Some((t0, a0)) if t > t0 => (s.alpha - a0) / (t - t0),
             _ => s.alpha_dot,

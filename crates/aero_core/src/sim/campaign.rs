@@ -581,6 +581,17 @@ fn fly(
     for step in 0..max_steps {
         let st = f.command();
         let (ad, thrust) = (st.air, st.thrust_n);
+        if step % decim == 0 && f.model.kirchhoff.is_some() {
+            // the separation state at this sample's time before it is recorded (the loop
+            // advances the model's memory only when it integrates the step, after the
+            // record): the recorded loads and x_sep_true are then those of x(t), not of
+            // x(t − dt). Advancing twice to the same time is a no-op.
+            let (inp, _) = f.sim.aero_input(&f.sim.x, &f.surfaces_start, thrust);
+            let t = f.sim.t;
+            if let Some(k) = f.model.kirchhoff.as_mut() {
+                k.advance(t, &inp);
+            }
+        }
         let (sim, model, surfaces) = (&f.sim, &f.model, f.surfaces_start);
         if step % decim == 0 {
             let (xd, loads) = sim.derivative(model, &surfaces, thrust);
