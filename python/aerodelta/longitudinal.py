@@ -25,7 +25,7 @@ import numpy.typing as npt
 import polars as pl
 
 from aerodelta import _core
-from aerodelta.exceptions import DataError, InvalidInputError
+from aerodelta.exceptions import AerodeltaError, DataError, InvalidInputError
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -391,7 +391,7 @@ def fit_kirchhoff(
                 max_iter=int(max_iter),
                 max_lag=max_lag,
             )
-        except Exception as e:
+        except AerodeltaError as e:
             raise type(e)(f"flap {flap:g} deg: {e}") from e
         names = list(r["names"])
         fits[flap] = FlapFit(

@@ -354,7 +354,7 @@ pub fn equation_error_start(series: &[Series<'_>]) -> Result<KirchhoffParams> {
         .collect();
     let f = ols(&x, brk.len(), 3, &z, &opts).map_err(|e| e.context(place))?;
     let a1 = f.params[0];
-    if !(a1 > 0.0) {
+    if a1.is_nan() || a1 <= 0.0 {
         return Err(AeroError::too_little(
             place,
             format!("the static separation curve does not fall with alpha (a1 = {a1:.3} /rad)"),
@@ -509,7 +509,9 @@ pub fn fit(series: &[Series<'_>], opts: &OeOptions) -> Result<OeFit> {
     let mut mid = DMatrix::<f64>::zeros(np, np);
     for s in series {
         let o = outputs(&params, &s.inputs, true)?;
-        let outs: [(&[f64], &[f64], &[f64], f64); 2] = [
+        // (measured, model, sensitivities, weight) per output
+        type Output<'a> = (&'a [f64], &'a [f64], &'a [f64], f64);
+        let outs: [Output<'_>; 2] = [
             (s.cl, &o.cl, &o.dcl, w[0]),
             (s.cm.unwrap_or(&[]), &o.cm, &o.dcm, w[1]),
         ];
