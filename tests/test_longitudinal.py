@@ -20,8 +20,8 @@ from scipy.signal import lfilter, lfilter_zi
 from aerodelta import _core
 from aerodelta.campaign import generate_campaign, simulate_campaign
 from aerodelta.cli import main
-from aerodelta.exceptions import InvalidInputError, TooLittleDataError
-from aerodelta.longitudinal import PARAMS, theil
+from aerodelta.exceptions import DataError, InvalidInputError, TooLittleDataError
+from aerodelta.longitudinal import PARAMS, fit_kirchhoff, theil
 
 HZ = 50.0
 
@@ -168,6 +168,29 @@ def test_bad_inputs_name_the_problem() -> None:
     pre = np.radians(np.linspace(2.0, 8.0, t.size))
     with pytest.raises(TooLittleDataError):
         _core.output_error_kirchhoff([t], [pre], [ad * 0], [5.2 * pre])
+
+
+def test_fit_kirchhoff_names_the_maneuver_and_the_flap() -> None:
+    n = 300
+    a = np.linspace(2.0, 22.0, n)
+    frame = pl.DataFrame(
+        {
+            "maneuver_id": ["m007"] * n,
+            "t": np.arange(n) * 0.02,
+            "alpha_deg": a,
+            "alphadot_dps": np.full(n, 1.0),
+            "flap_deg": np.full(n, 5.0),
+            "CX_meas": np.zeros(n),
+            "CZ_meas": np.where(np.arange(n) == 40, np.nan, -0.09 * a),
+            "Cm_meas": np.zeros(n),
+        }
+    )
+    with pytest.raises(InvalidInputError, match=r"flap 5 deg: .*maneuver m007: CL row 40"):
+        fit_kirchhoff(frame, known="none")
+    with pytest.raises(DataError, match="lack CZ_meas"):
+        fit_kirchhoff(frame.drop("CZ_meas"))
+    with pytest.raises(DataError, match="no records at flap 10"):
+        fit_kirchhoff(frame, flaps=[10.0], known="none")
 
 
 def test_theil() -> None:

@@ -15,7 +15,9 @@ SIDPAC ``m_colores``, auto-correlation of each output, biased estimate).
 
 from __future__ import annotations
 
+import functools
 import math
+import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -280,6 +282,12 @@ class KirchhoffResult:
         return pl.DataFrame({"x_sep": x, "CL_model": cl + rest_l, "Cm_model": cm + rest_m})
 
 
+def _maneuver_name(ids: tuple[str, ...], m: re.Match[str]) -> str:
+    """``maneuver <index>`` of an engine message as ``maneuver <id>``."""
+    k = int(m.group(1))
+    return f"maneuver {ids[k]}" if k < len(ids) else m.group(0)
+
+
 def _check(data: pl.DataFrame) -> None:
     missing = [c for c in _NEEDED if c not in data.columns]
     if missing:
@@ -392,7 +400,9 @@ def fit_kirchhoff(
                 max_lag=max_lag,
             )
         except AerodeltaError as e:
-            raise type(e)(f"flap {flap:g} deg: {e}") from e
+            # the engine numbers the maneuvers it was given: name them
+            msg = re.sub(r"maneuver (\d+)", functools.partial(_maneuver_name, tuple(ids)), str(e))
+            raise type(e)(f"flap {flap:g} deg: {msg}") from e
         names = list(r["names"])
         fits[flap] = FlapFit(
             flap_deg=flap,
