@@ -118,7 +118,7 @@ pub fn kirchhoff_truth_params(flap_deg: f64) -> KirchhoffParams {
 /// the nominal campaigns τ₂ up to 20 % low: the filter's 0.04 s lag is of the
 /// order of the second-order terms that separate τ₁ from τ₂.)
 #[derive(Debug, Clone)]
-pub struct KirchhoffTruth {
+pub struct KirchhoffStall {
     /// The separation state.
     pub state: KirchhoffState,
     cl_basic: Table,
@@ -127,12 +127,27 @@ pub struct KirchhoffTruth {
     prev: Option<(f64, f64)>,
 }
 
-impl KirchhoffTruth {
-    /// The virtual aircraft's Kirchhoff stall at `flap_deg` over the qualified model `q`.
+impl KirchhoffStall {
+    /// The virtual aircraft's Kirchhoff stall at `flap_deg` over the qualified model `q`
+    /// (the truth of [`kirchhoff_truth_params`]).
     ///
     /// # Errors
     /// If `q` lacks its `CL_basic` or `Cm_basic` table.
     pub fn adx37(q: &QualifiedModel, flap_deg: f64) -> Result<Self> {
+        Self::new(q, kirchhoff_truth_params(flap_deg))
+    }
+
+    /// A Kirchhoff stall with the parameters `params` (e.g. fitted by
+    /// [`crate::output_error::fit`]) replacing the static curves of the qualified model `q`:
+    /// `TruthAero::new(slice, vec![], None).with_kirchhoff(Some(stall))` is then the
+    /// qualified model with the identified longitudinal stall, and an
+    /// [`crate::sim::extended::ExtendedAero`] over it carries the separation state
+    /// (its `advance` reaches the base model's).
+    ///
+    /// # Errors
+    /// If `q` lacks its `CL_basic` or `Cm_basic` table, or `params` fail
+    /// [`KirchhoffParams::check`].
+    pub fn new(q: &QualifiedModel, params: KirchhoffParams) -> Result<Self> {
         let table = |name: &str| {
             q.tables
                 .iter()
@@ -140,8 +155,8 @@ impl KirchhoffTruth {
                 .map(|(_, t)| t.clone())
                 .ok_or_else(|| AeroError::invalid("qualified model", format!("no table '{name}'")))
         };
-        Ok(KirchhoffTruth {
-            state: KirchhoffState::new(kirchhoff_truth_params(flap_deg))?,
+        Ok(KirchhoffStall {
+            state: KirchhoffState::new(params)?,
             cl_basic: table("CL_basic")?,
             cm_basic: table("Cm_basic")?,
             prev: None,
@@ -149,7 +164,7 @@ impl KirchhoffTruth {
     }
 
     /// Advance the separation state to time `t` (s) at the input `s` (module docs of
-    /// [`KirchhoffTruth`]: α̇ as the backward difference of α; at the first update,
+    /// [`KirchhoffStall`]: α̇ as the backward difference of α; at the first update,
     /// the input's α̇). A second call at the same time changes nothing.
     pub fn advance(&mut self, t: f64, s: &AeroInput) {
         if self.prev.is_some_and(|(t0, _)| t0 == t) {
@@ -189,7 +204,7 @@ pub struct TruthAero {
     /// The stochastic roll-off, if on.
     pub rolloff: Option<RollOff>,
     /// The Kirchhoff longitudinal stall, if on.
-    pub kirchhoff: Option<KirchhoffTruth>,
+    pub kirchhoff: Option<KirchhoffStall>,
     flap_i: usize,
 }
 
@@ -208,7 +223,7 @@ impl TruthAero {
 
     /// The same truth with a Kirchhoff longitudinal stall.
     #[must_use]
-    pub fn with_kirchhoff(mut self, k: Option<KirchhoffTruth>) -> Self {
+    pub fn with_kirchhoff(mut self, k: Option<KirchhoffStall>) -> Self {
         self.kirchhoff = k;
         self
     }
@@ -266,5 +281,68 @@ impl AeroModel for TruthAero {
         if let Some(k) = self.kirchhoff.as_mut() {
             k.advance(t, s);
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::aircraft::turboprop::adx37;
+    use crate::delta_model::DeltaModel;
+    use crate::sim::extended::ExtendedAero;
+
+    fn lift(c: &crate::sim::aero::AeroCoeffs, s: &AeroInput) -> f64 {
+        let (sa, ca) = s.alpha.sin_cos();
+        -c.cz * ca + (c.cx - s.ct_sum()) * sa
+    }
+
+    fn at(alpha_deg: f64) -> AeroInput {
+        AeroInput {
+            alpha: alpha_deg.to_radians(),
+            flap_deg: 10.0,
+            tas: 55.0,
+            ..AeroInput::default()
+        }
+    }
+
+    #[test]
+    fn kirchhoff_base_replaces_the_static_curves_and_an_extended_model_carries_its_state() {
+        let q = QualifiedModel::adx37(&adx37()).expect("model");
+        let mut p = kirchhoff_truth_params(10.0);
+        p.tau1 = 0.3; // "fitted" parameters other than the truth's
+        let stall = KirchhoffStall::new(&q, p).expect("stall");
+        let base = TruthAero::new(q.at_flap(10.0).expect("slice"), Vec::new(), None)
+            .with_kirchhoff(Some(stall));
+        // static: before any update the lift is the Kirchhoff static curve (no control,
+        // rate or thrust terms at this input)
+        for a in [4.0, 17.0, 20.0, 25.0] {
+            let s = at(a);
+            let cl = lift(&base.coefficients(&s), &s);
+            assert!((cl - p.cl_static(s.alpha)).abs() < 1e-12, "{a}: {cl}");
+        }
+        let text = r#"{"schema": "aerodelta.model/1", "flaps_deg": [10.0], "coefficients": {}}"#;
+        let delta = DeltaModel::from_json(text, "test").expect("empty Δ model");
+        let mut ext = ExtendedAero::new(base, &delta).expect("extended");
+        // pull from 10 to 24 deg at 20 deg/s: the state lags, so lift overshoots the static
+        // curve past the break, and the extended model's loop reaches the state
+        let dt = 0.01;
+        let mut s = at(10.0);
+        for k in 0..=70 {
+            s = at(10.0 + 0.2 * k as f64);
+            s.alpha_dot = 20f64.to_radians();
+            ext.advance(k as f64 * dt, &s);
+        }
+        let cl = lift(&ext.coefficients(&s), &s);
+        assert!(
+            cl > p.cl_static(s.alpha) + 0.1,
+            "{cl} vs {}",
+            p.cl_static(s.alpha)
+        );
+        let x = ext.base.separation(&s);
+        assert!(x > p.x0(s.alpha) && x < 1.0);
+        // bad parameters are refused with their name
+        p.a1 = -1.0;
+        let e = KirchhoffStall::new(&q, p).unwrap_err();
+        assert!(e.to_string().contains("a1"), "{e}");
     }
 }

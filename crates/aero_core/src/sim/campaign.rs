@@ -13,7 +13,7 @@ use nalgebra::Vector3;
 use crate::aircraft::effects::{ActiveEffect, MeasurementEffects};
 use crate::aircraft::qualified::{FlapModel, FlapStall, QualifiedModel, FLAP_STALL};
 use crate::aircraft::truth::{
-    active_effects, EffectSpec, KirchhoffTruth, LongitudinalStall, TruthAero,
+    active_effects, EffectSpec, KirchhoffStall, LongitudinalStall, TruthAero,
 };
 use crate::aircraft::turboprop::{adx37, AircraftRef};
 use crate::delta_model::DeltaModel;
@@ -361,7 +361,7 @@ impl Flight {
         };
         let kirchhoff = match spec.longitudinal_stall {
             LongitudinalStall::Static => None,
-            LongitudinalStall::Kirchhoff => Some(KirchhoffTruth::adx37(qual, m.flap_deg)?),
+            LongitudinalStall::Kirchhoff => Some(KirchhoffStall::adx37(qual, m.flap_deg)?),
         };
         let model = TruthAero::new(slice(qual, m.flap_deg)?, effects.to_vec(), rolloff)
             .with_kirchhoff(kirchhoff);
