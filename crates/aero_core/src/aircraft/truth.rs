@@ -114,9 +114,10 @@ pub fn kirchhoff_truth_params(flap_deg: f64) -> KirchhoffParams {
 /// feel): the stall is then the model of [`crate::kirchhoff`] as written, with
 /// α̇ the rate a flight test measures, so its τ₂ is the one an identification
 /// can recover. (Driven by the low-passed rate, the output-error fit of a
-/// noise-free, calm-air campaign put τ₂ 3-7 % low and τ₁ 3-7 % high, and of
-/// the nominal campaigns τ₂ up to 20 % low: the filter's 0.04 s lag is of the
-/// order of the second-order terms that separate τ₁ from τ₂.)
+/// noise-free, calm-air campaign, recorded then with a 10 ms delay of the state,
+/// put τ₂ 3-7 % low and τ₁ 3-7 % high: the
+/// filter's 0.04 s lag is of the order of the second-order terms that separate
+/// τ₁ from τ₂; `docs/longitudinal.md`.)
 #[derive(Debug, Clone)]
 pub struct KirchhoffStall {
     /// The separation state.
