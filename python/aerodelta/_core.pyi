@@ -344,6 +344,42 @@ def beta_inc_reg(a: float, b: float, x: float) -> float: ...
 def qualified_lateral_adx37(
     columns: dict[str, npt.NDArray[np.float64]],
 ) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64], npt.NDArray[np.float64]]: ...
+def qualified_longitudinal_adx37(
+    columns: dict[str, npt.NDArray[np.float64]],
+) -> tuple[
+    npt.NDArray[np.float64],
+    npt.NDArray[np.float64],
+    npt.NDArray[np.float64],
+    npt.NDArray[np.float64],
+]: ...
+def kirchhoff_param_names() -> list[str]: ...
+def kirchhoff_truth_params(flap_deg: float) -> dict[str, float]: ...
+def kirchhoff_cl_max(params: dict[str, float]) -> tuple[float, float]: ...
+def kirchhoff_outputs(
+    params: dict[str, float],
+    t: npt.NDArray[np.float64],
+    alpha: npt.NDArray[np.float64],
+    alpha_dot: npt.NDArray[np.float64],
+    sensitivities: bool = False,
+) -> tuple[
+    npt.NDArray[np.float64],
+    npt.NDArray[np.float64],
+    npt.NDArray[np.float64],
+    npt.NDArray[np.float64] | None,
+    npt.NDArray[np.float64] | None,
+]: ...
+def output_error_kirchhoff(
+    t: list[npt.NDArray[np.float64]],
+    alpha: list[npt.NDArray[np.float64]],
+    alpha_dot: list[npt.NDArray[np.float64]],
+    cl: list[npt.NDArray[np.float64]],
+    cm: list[npt.NDArray[np.float64]] | None = None,
+    start: dict[str, float] | None = None,
+    fixed: list[str] = ...,
+    max_iter: int = 60,
+    tol: float = 1e-9,
+    max_lag: int | None = None,
+) -> dict[str, Any]: ...
 def identify_flap(
     regressors: list[tuple[str, str]],
     columns: dict[str, npt.NDArray[np.float64]],

@@ -58,6 +58,15 @@ DEFAULT_EFFECTS: tuple[str, ...] = (
 #: Repetitions of each (flap, kind, pusher) cell: 5 flaps x 4 kinds x 2 x reps maneuvers.
 SIZES: dict[str, int] = {"default": 5, "quick": 1}
 
+#: The truth's longitudinal stall options (:func:`generate_campaign`).
+LONGITUDINAL_STALLS = ("static", "kirchhoff")
+
+#: Units of the Kirchhoff parameters in the engine's order.
+KIRCHHOFF_UNITS: dict[str, str] = {
+    "tau1": "s", "tau2": "s", "alpha_star": "rad", "a1": "1/rad", "CL_alpha": "1/rad",
+    "alpha0": "rad", "Cm0": "-", "Cm_alpha": "1/rad", "Cm_x": "-",
+}  # fmt: skip
+
 #: Manifest columns of a campaign with per-maneuver mass properties: mass (kg), CG from the
 #: datum (body axes x forward, y right, z down; m) and the inertia about that CG (kg m^2;
 #: Etkin's sign, the tensor holds -Ixz off the diagonal; Ixy = Iyz = 0).
@@ -234,7 +243,13 @@ def _spec(
     mass: dict[str, Any] | None = None,
     vanes: dict[str, Any] | None = None,
     buffet: dict[str, Any] | None = None,
+    longitudinal_stall: str = "static",
 ) -> dict[str, Any]:
+    if longitudinal_stall not in LONGITUDINAL_STALLS:
+        raise InvalidInputError(
+            f"longitudinal_stall '{longitudinal_stall}': use one of "
+            + ", ".join(LONGITUDINAL_STALLS)
+        )
     reps = SIZES.get(size, 0) if isinstance(size, str) else int(size)
     if reps <= 0:
         raise InvalidInputError(f"size '{size}': use 'default', 'quick' or a positive integer")
@@ -260,6 +275,8 @@ def _spec(
         spec["vanes"] = vanes
     if buffet is not None:
         spec["buffet"] = buffet
+    if longitudinal_stall != "static":
+        spec["longitudinal_stall"] = longitudinal_stall
     if mass is not None or vanes is not None or buffet is not None:
         _core.sim_plan(json.dumps(spec))  # refuses meaningless ranges and errors before flying
     return spec
@@ -313,6 +330,7 @@ def simulate_campaign(
     vane_scale: Sequence[float] | None = None,
     flank_vane: bool = False,
     buffet: bool | Mapping[str, Any] | None = None,
+    longitudinal_stall: str = "static",
 ) -> list[dict[str, Any]]:
     """Fly a campaign in memory (no files).
 
@@ -320,7 +338,7 @@ def simulate_campaign(
     ----------
     effects, seed, size, noise, turbulence, rolloff, excitation
         As :func:`generate_campaign`.
-    vane_scale, flank_vane, buffet
+    vane_scale, flank_vane, buffet, longitudinal_stall
         As :func:`generate_campaign`; with a buffet the maneuver's ``meta["buffet"]`` holds
         its flap's ``schedule`` and the ``modes``.
     cg_range_m, mass_range, inertia_range
@@ -350,6 +368,7 @@ def simulate_campaign(
         mass=mass_variation(cg_range_m, mass_range, inertia_range),
         vanes=vane_calibration(vane_scale, flank_vane),
         buffet=buffet_spec(buffet),
+        longitudinal_stall=longitudinal_stall,
     )
     out = []
     for m in _core.sim_run_campaign(json.dumps(spec)):
@@ -403,6 +422,7 @@ def generate_campaign(
     vane_scale: Sequence[float] | None = None,
     flank_vane: bool = False,
     buffet: bool | Mapping[str, Any] | None = None,
+    longitudinal_stall: str = "static",
     overwrite: bool = False,
     progress: bool = False,
 ) -> CampaignInfo:
@@ -458,6 +478,12 @@ def generate_campaign(
         campaign without the option). The truth (onset alpha per flap, mode frequencies) is
         written to ``truth/campaign.json`` under ``"buffet"`` and per sample to the truth
         files (``buffet_ay_true_mps2``, ``buffet_az_true_mps2``, ``buffet_rms_true_mps2``).
+    longitudinal_stall
+        ``"static"`` (default): the truth's lift and pitching moment follow the qualified
+        model's static curves. ``"kirchhoff"``: a Kirchhoff flow-separation stall
+        (``docs/longitudinal.md``) with known time constants, breakpoint and steepness per flap,
+        written to ``truth/campaign.json`` (``longitudinal_stall``); the truth files then carry
+        ``x_sep_true``, ``CL_true`` and ``Cm_true``.
     overwrite
         Replace an existing folder.
     progress
@@ -489,6 +515,7 @@ def generate_campaign(
         mass=mass_variation(cg_range_m, mass_range, inertia_range),
         vanes=vane_calibration(vane_scale, flank_vane),
         buffet=buffet_spec(buffet),
+        longitudinal_stall=longitudinal_stall,
     )
     plan = json.loads(_core.sim_plan(json.dumps(spec)))
     out.parent.mkdir(parents=True, exist_ok=True)
@@ -573,6 +600,8 @@ def generate_campaign(
         }
         if buffet_truth:
             info["buffet"] = buffet_truth
+        if longitudinal_stall == "kirchhoff":
+            info["longitudinal_stall"] = kirchhoff_truth()
         (tmp / "truth" / "campaign.json").write_text(json.dumps(info, indent=1, sort_keys=True))
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
@@ -588,6 +617,29 @@ def generate_campaign(
         effects=spec_effects(spec),
         manifest=manifest,
     )
+
+
+def kirchhoff_truth() -> dict[str, Any]:
+    """The virtual aircraft's Kirchhoff stall per flap, as written to ``truth/campaign.json``.
+
+    Returns
+    -------
+    dict
+        ``model`` ("kirchhoff"), ``units`` per parameter and ``params_by_flap``: for each flap
+        (key: the flap in deg as text) the engine's parameters (radians, seconds) plus
+        ``alpha_star_deg``, ``alpha_cl_max_deg`` and ``cl_max`` of the static lift curve.
+    """
+    flaps: dict[str, Any] = {}
+    for f in (0.0, 5.0, 10.0, 15.0, 35.0):
+        p = _core.kirchhoff_truth_params(f)
+        a_max, cl_max = _core.kirchhoff_cl_max(p)
+        flaps[f"{f:g}"] = {
+            **p,
+            "alpha_star_deg": math.degrees(p["alpha_star"]),
+            "alpha_cl_max_deg": math.degrees(a_max),
+            "cl_max": cl_max,
+        }
+    return {"model": "kirchhoff", "units": KIRCHHOFF_UNITS, "params_by_flap": flaps}
 
 
 def _mass_columns(mp: Mapping[str, Any]) -> dict[str, float]:

@@ -35,6 +35,10 @@
 //! - [`bootstrap`]: confidence bands on the smoothed parameters by resampling maneuvers;
 //! - [`delta_model`]: the Δ part of the extended model (Eq. 3.11-3.12, 3.19),
 //!   its versioned file and an allocation-free bound evaluation;
+//! - [`kirchhoff`]: the Kirchhoff flow-separation stall of the longitudinal axis
+//!   (Fischenberg): static separation curve, the exact ODE step, C_L and C_m, a runtime state;
+//! - [`output_error`]: output-error estimation (Levenberg-Marquardt with sensitivities,
+//!   multi-maneuver, Cramér-Rao bounds with the coloured-residual correction) of the Kirchhoff model;
 //! - [`rolloff_detect`]: detection of uncommanded roll-off events (Section 3.4.3);
 //! - [`rolloff_mc`]: parallel Monte Carlo of straight stalls with the roll-off,
 //!   per-stall summaries (max bank, onset alpha, DRC peak, FAR 25.203);
@@ -52,7 +56,9 @@ pub mod envelope;
 pub mod error;
 pub mod fsutil;
 pub mod identify;
+pub mod kirchhoff;
 pub mod lsq;
+pub mod output_error;
 pub mod partition;
 pub mod preprocess;
 pub mod regressor;

@@ -9,6 +9,7 @@ mod daveml;
 mod delta_model;
 mod error;
 mod identify;
+mod kirchhoff;
 mod lsq;
 mod partition;
 mod preprocess;
@@ -24,6 +25,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     error::register(m)?;
     table::register(m)?;
     identify::register(m)?;
+    kirchhoff::register(m)?;
     delta_model::register(m)?;
     spline::register(m)?;
     partition::register(m)?;

@@ -39,6 +39,7 @@ _register("map-template", "map_template")
 _register("jsbsim-replay", "jsbsim_replay")
 _register("stall-id", "stall_id")
 _register("plan", "plan")
+_register("longitudinal", "longitudinal")
 
 
 def cli_wording(message: str, command: str) -> str:

@@ -101,6 +101,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="builtin: stall buffet at the accelerometers (onset 2 deg below each flap's "
         "C_L,max alpha, modes 7.5, 9.2, 12.6 Hz; truth in truth/campaign.json; docs/stall.md)",
     )
+    parser.add_argument(
+        "--longitudinal-stall",
+        choices=("static", "kirchhoff"),
+        default=None,
+        help="builtin: the truth's lift and pitching moment: the qualified static curves "
+        "(default) or a Kirchhoff flow-separation stall (docs/longitudinal.md)",
+    )
     parser.add_argument("--overwrite", action="store_true", help="replace an existing folder")
     parser.add_argument("--list-effects", action="store_true", help="list the effect vocabulary")
     parser.add_argument("--out", help="campaign folder to write")
@@ -142,6 +149,7 @@ def run(args: argparse.Namespace) -> int:
         vane_scale=_pair(args.vane_scale),
         flank_vane=args.flank_vane,
         buffet=args.buffet,
+        longitudinal_stall=args.longitudinal_stall or "static",
         overwrite=args.overwrite,
         progress=not args.no_progress,
     )
@@ -179,6 +187,7 @@ def _check_options(args: argparse.Namespace) -> None:
             "--vane-scale": args.vane_scale,
             "--flank-vane": args.flank_vane,
             "--buffet": args.buffet,
+            "--longitudinal-stall": args.longitudinal_stall,
         }
         needs = "--simulator builtin"
     given = [o for o, v in other.items() if v]

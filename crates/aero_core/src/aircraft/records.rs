@@ -52,6 +52,48 @@ pub struct RecordColumns<'a> {
 /// # Errors
 /// [`AeroError::InvalidInput`] naming a column whose length differs.
 pub fn qualified_lateral(model: &QualifiedModel, c: &RecordColumns<'_>) -> Result<[Vec<f64>; 3]> {
+    check_lengths(c)?;
+    let lateral = model.resolve(|c| matches!(c, Coef::Cl | Coef::Cn | Coef::CY));
+    let row = |i: usize| -> [f64; 3] {
+        let v = model.evaluate_resolved(&lateral, &input_at(c, i));
+        [
+            v[coef_index(Coef::Cl)],
+            v[coef_index(Coef::Cn)],
+            v[coef_index(Coef::CY)],
+        ]
+    };
+    Ok(by_rows(c.alpha_deg.len(), row))
+}
+
+/// `[C_L, C_m, C_L,basic, C_m,basic]` of the qualified model at every row: the
+/// wind-axis lift and the pitching moment (total, as measured), and the parts
+/// of them the static curves (the `CL_basic`, `Cm_basic` tables) give; the
+/// difference is what control, rate and thrust terms add.
+///
+/// # Errors
+/// [`AeroError::InvalidInput`] naming a column whose length differs.
+pub fn qualified_longitudinal(
+    model: &QualifiedModel,
+    c: &RecordColumns<'_>,
+) -> Result<[Vec<f64>; 4]> {
+    check_lengths(c)?;
+    let all = model.resolve(|c| matches!(c, Coef::CL | Coef::Cm));
+    let basic: Vec<_> = all
+        .iter()
+        .filter(|(t, _)| t.table == "CL_basic" || t.table == "Cm_basic")
+        .copied()
+        .collect();
+    let (il, im) = (coef_index(Coef::CL), coef_index(Coef::Cm));
+    let row = |i: usize| -> [f64; 4] {
+        let s = input_at(c, i);
+        let v = model.evaluate_resolved(&all, &s);
+        let b = model.evaluate_resolved(&basic, &s);
+        [v[il], v[im], b[il], b[im]]
+    };
+    Ok(by_rows(c.alpha_deg.len(), row))
+}
+
+fn check_lengths(c: &RecordColumns<'_>) -> Result<()> {
     let n = c.alpha_deg.len();
     let cols: [(&str, &[f64]); 16] = [
         ("alpha_deg", c.alpha_deg),
@@ -79,50 +121,47 @@ pub fn qualified_lateral(model: &QualifiedModel, c: &RecordColumns<'_>) -> Resul
             ));
         }
     }
-    let lateral = model.resolve(|c| matches!(c, Coef::Cl | Coef::Cn | Coef::CY));
-    let row = |i: usize| -> [f64; 3] {
-        let s = AeroInput {
-            alpha: c.alpha_deg[i].to_radians(),
-            beta: c.beta_deg[i].to_radians(),
-            p_hat: c.phat[i],
-            q_hat: c.qhat[i],
-            r_hat: c.rhat[i],
-            alpha_dot: c.alphadot_dps[i].to_radians(),
-            beta_dot: c.betadot_dps[i].to_radians(),
-            controls: Controls {
-                da: c.da_deg[i].to_radians(),
-                de: c.de_deg[i].to_radians(),
-                dr: c.dr_deg[i].to_radians(),
-                dsl: c.dsl_deg[i].to_radians(),
-                dsr: c.dsr_deg[i].to_radians(),
-            },
-            flap_deg: c.flap_deg[i],
-            ct_left: c.ct_left[i],
-            ct_right: c.ct_right[i],
-            mach: c.tas_mps[i] / SOUND_SPEED_MPS,
-            tas: c.tas_mps[i],
-        };
-        let v = model.evaluate_resolved(&lateral, &s);
-        [
-            v[coef_index(Coef::Cl)],
-            v[coef_index(Coef::Cn)],
-            v[coef_index(Coef::CY)],
-        ]
-    };
+    Ok(())
+}
+
+/// The model input at row `i` (lengths checked).
+fn input_at(c: &RecordColumns<'_>, i: usize) -> AeroInput {
+    AeroInput {
+        alpha: c.alpha_deg[i].to_radians(),
+        beta: c.beta_deg[i].to_radians(),
+        p_hat: c.phat[i],
+        q_hat: c.qhat[i],
+        r_hat: c.rhat[i],
+        alpha_dot: c.alphadot_dps[i].to_radians(),
+        beta_dot: c.betadot_dps[i].to_radians(),
+        controls: Controls {
+            da: c.da_deg[i].to_radians(),
+            de: c.de_deg[i].to_radians(),
+            dr: c.dr_deg[i].to_radians(),
+            dsl: c.dsl_deg[i].to_radians(),
+            dsr: c.dsr_deg[i].to_radians(),
+        },
+        flap_deg: c.flap_deg[i],
+        ct_left: c.ct_left[i],
+        ct_right: c.ct_right[i],
+        mach: c.tas_mps[i] / SOUND_SPEED_MPS,
+        tas: c.tas_mps[i],
+    }
+}
+
+/// `row(i)` for every row (in parallel with the `parallel` feature), as columns.
+fn by_rows<const K: usize>(
+    n: usize,
+    row: impl Fn(usize) -> [f64; K] + Sync + Send,
+) -> [Vec<f64>; K] {
     #[cfg(feature = "parallel")]
-    let rows: Vec<[f64; 3]> = {
+    let rows: Vec<[f64; K]> = {
         use rayon::prelude::*;
         (0..n).into_par_iter().map(row).collect()
     };
     #[cfg(not(feature = "parallel"))]
-    let rows: Vec<[f64; 3]> = (0..n).map(row).collect();
-    let mut out = [vec![0.0; n], vec![0.0; n], vec![0.0; n]];
-    for (i, r) in rows.iter().enumerate() {
-        for k in 0..3 {
-            out[k][i] = r[k];
-        }
-    }
-    Ok(out)
+    let rows: Vec<[f64; K]> = (0..n).map(row).collect();
+    std::array::from_fn(|k| rows.iter().map(|r| r[k]).collect())
 }
 
 #[cfg(test)]
@@ -203,6 +242,20 @@ mod tests {
             assert!((cl[i] - w[coef_index(Coef::Cl)]).abs() < 1e-12);
             assert!((cn[i] - w[coef_index(Coef::Cn)]).abs() < 1e-12);
             assert!((cy[i] - w[coef_index(Coef::CY)]).abs() < 1e-12);
+        }
+        let [lift, cm, lift_b, cm_b] = qualified_longitudinal(&q, &cols).expect("evaluates");
+        for i in 0..n {
+            let s = input_at(&cols, i);
+            let w = fm.evaluate(&s);
+            assert!((lift[i] - w[coef_index(Coef::CL)]).abs() < 1e-12);
+            assert!((cm[i] - w[coef_index(Coef::Cm)]).abs() < 1e-12);
+            // the static curves at table nodes are the curves of qualified.rs
+            let st = crate::aircraft::qualified::FLAP_STALL[2];
+            if alpha[i].fract() == 0.0 {
+                let lc = crate::aircraft::qualified::lift_curve(&st, alpha[i]);
+                let pc = crate::aircraft::qualified::pitch_curve(&st, alpha[i]);
+                assert!((lift_b[i] - lc).abs() < 1e-12 && (cm_b[i] - pc).abs() < 1e-12);
+            }
         }
         let short = RecordColumns {
             tas_mps: &tas[..3],

@@ -4,10 +4,14 @@
 //! "flies"; the fit never sees it.
 
 use crate::aircraft::effects::{effect, flap_index, ActiveEffect, AlphaShape};
-use crate::aircraft::qualified::{to_body, FlapModel};
-use crate::error::Result;
+use crate::aircraft::qualified::{
+    to_body, FlapModel, QualifiedModel, CL_ALPHA_PER_DEG, FLAP_STALL,
+};
+use crate::error::{AeroError, Result};
+use crate::kirchhoff::{KirchhoffParams, KirchhoffState};
 use crate::rolloff::RollOff;
 use crate::sim::aero::{AeroCoeffs, AeroInput, AeroModel};
+use crate::table::Table;
 
 /// An effect request: vocabulary name, magnitude (1 = design), optional shape override.
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -50,6 +54,147 @@ pub fn active_effects(specs: &[EffectSpec]) -> Result<Vec<ActiveEffect>> {
     Ok(out)
 }
 
+/// The longitudinal stall the truth aircraft can fly instead of its qualified
+/// static curves.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum LongitudinalStall {
+    /// The qualified model's static C_L and C_m curves (the default).
+    #[default]
+    Static,
+    /// A Kirchhoff flow-separation stall ([`crate::kirchhoff`]) with the
+    /// parameters of [`kirchhoff_truth_params`].
+    Kirchhoff,
+}
+
+/// The Kirchhoff stall of the virtual aircraft at one of its flap settings
+/// (0, 5, 10, 15, 35 deg; others take the nearest).
+///
+/// Attached flow keeps the qualified lift line (C_Lα = 5.2 /rad and the zero-lift
+/// alpha of [`FLAP_STALL`]) and pitch line (C_m0 of [`FLAP_STALL`], C_mα = −0.75 /rad);
+/// the breakpoint α* lies 1.5 deg above the qualified model's alpha of C_L,max
+/// and the steepness is a₁ = 20 /rad, so the static C_L,max is within 3 % of the
+/// qualified one and is reached about 1 deg earlier; C_mx = −0.12 is the
+/// qualified nose-down break. The time constants, τ₁ = 0.20 + 0.002 δf s and
+/// τ₂ = 0.060 + 0.0006 δf s (δf in deg), are representative values of a few
+/// tenths (τ₁) and hundredths (τ₂) of a second chosen for this aircraft, not
+/// identified from any flight data.
+pub fn kirchhoff_truth_params(flap_deg: f64) -> KirchhoffParams {
+    let fs = FLAP_STALL
+        .iter()
+        .min_by(|a, b| {
+            (a.flap_deg - flap_deg)
+                .abs()
+                .total_cmp(&(b.flap_deg - flap_deg).abs())
+        })
+        .copied()
+        .unwrap_or(FLAP_STALL[0]);
+    let cl0 = fs.cl_max + 3.0 * CL_ALPHA_PER_DEG - CL_ALPHA_PER_DEG * fs.alpha_max_deg;
+    KirchhoffParams {
+        tau1: 0.20 + 0.002 * fs.flap_deg,
+        tau2: 0.060 + 0.0006 * fs.flap_deg,
+        alpha_star: (fs.alpha_max_deg + 1.5).to_radians(),
+        a1: 20.0,
+        cl_alpha: CL_ALPHA_PER_DEG.to_degrees(),
+        alpha0: (-cl0 / CL_ALPHA_PER_DEG).to_radians(),
+        cm0: fs.cm0,
+        cm_alpha: -0.75,
+        cm_x: -0.12,
+    }
+}
+
+/// A Kirchhoff stall replacing the qualified static C_L and C_m curves: the
+/// truth's C_L is the qualified C_L minus its `CL_basic` table plus the
+/// Kirchhoff lift, likewise C_m with `Cm_basic` (control, rate and thrust
+/// terms unchanged).
+///
+/// The separation state is driven by the air-relative α at the CG and its rate
+/// as the backward difference of α over each simulation step (not the
+/// low-passed α̇ of [`crate::sim::maneuver::FLOW_RATE_TAU_S`] the rate terms
+/// feel): the stall is then the model of [`crate::kirchhoff`] as written, with
+/// α̇ the rate a flight test measures, so its τ₂ is the one an identification
+/// can recover. (Driven by the low-passed rate, the output-error fit of a
+/// noise-free, calm-air campaign, recorded then with a 10 ms delay of the state,
+/// put τ₂ 3-7 % low and τ₁ 3-7 % high: the
+/// filter's 0.04 s lag is of the order of the second-order terms that separate
+/// τ₁ from τ₂; `docs/longitudinal.md`.)
+#[derive(Debug, Clone)]
+pub struct KirchhoffStall {
+    /// The separation state.
+    pub state: KirchhoffState,
+    cl_basic: Table,
+    cm_basic: Table,
+    /// `(t, α)` at the last update.
+    prev: Option<(f64, f64)>,
+}
+
+impl KirchhoffStall {
+    /// The virtual aircraft's Kirchhoff stall at `flap_deg` over the qualified model `q`
+    /// (the truth of [`kirchhoff_truth_params`]).
+    ///
+    /// # Errors
+    /// If `q` lacks its `CL_basic` or `Cm_basic` table.
+    pub fn adx37(q: &QualifiedModel, flap_deg: f64) -> Result<Self> {
+        Self::new(q, kirchhoff_truth_params(flap_deg))
+    }
+
+    /// A Kirchhoff stall with the parameters `params` (e.g. fitted by
+    /// [`crate::output_error::fit`]) replacing the static curves of the qualified model `q`:
+    /// `TruthAero::new(slice, vec![], None).with_kirchhoff(Some(stall))` is then the
+    /// qualified model with the identified longitudinal stall, and an
+    /// [`crate::sim::extended::ExtendedAero`] over it carries the separation state
+    /// (its `advance` reaches the base model's).
+    ///
+    /// # Errors
+    /// If `q` lacks its `CL_basic` or `Cm_basic` table, or `params` fail
+    /// [`KirchhoffParams::check`].
+    pub fn new(q: &QualifiedModel, params: KirchhoffParams) -> Result<Self> {
+        let table = |name: &str| {
+            q.tables
+                .iter()
+                .find(|(n, _)| n == name)
+                .map(|(_, t)| t.clone())
+                .ok_or_else(|| AeroError::invalid("qualified model", format!("no table '{name}'")))
+        };
+        Ok(KirchhoffStall {
+            state: KirchhoffState::new(params)?,
+            cl_basic: table("CL_basic")?,
+            cm_basic: table("Cm_basic")?,
+            prev: None,
+        })
+    }
+
+    /// Advance the separation state to time `t` (s) at the input `s` (module docs of
+    /// [`KirchhoffStall`]: α̇ as the backward difference of α; at the first update,
+    /// the input's α̇). A second call at the same time changes nothing.
+    pub fn advance(&mut self, t: f64, s: &AeroInput) {
+        if self.prev.is_some_and(|(t0, _)| t0 == t) {
+            return; // already at `t`
+        }
+        let alpha_dot = match self.prev {
+            Some((t0, a0)) if t > t0 => (s.alpha - a0) / (t - t0),
+            _ => s.alpha_dot,
+        };
+        self.prev = Some((t, s.alpha));
+        self.state.update(t, s.alpha, alpha_dot);
+    }
+
+    /// `[ΔC_L, ΔC_m]` replacing the static curves at `s`, and the separation point.
+    #[inline]
+    pub fn delta(&self, s: &AeroInput) -> ([f64; 2], f64) {
+        let x = self.state.x_at(s.alpha, s.alpha_dot);
+        let p = &self.state.params;
+        let at = [s.alpha.to_degrees(), s.flap_deg];
+        (
+            [
+                p.cl(s.alpha, x) - self.cl_basic.eval(&at),
+                p.cm(s.alpha, x) - self.cm_basic.eval(&at),
+            ],
+            x,
+        )
+    }
+}
+
 /// Qualified + effects + roll-off at one flap setting.
 #[derive(Debug, Clone)]
 pub struct TruthAero {
@@ -59,6 +204,8 @@ pub struct TruthAero {
     pub effects: Vec<ActiveEffect>,
     /// The stochastic roll-off, if on.
     pub rolloff: Option<RollOff>,
+    /// The Kirchhoff longitudinal stall, if on.
+    pub kirchhoff: Option<KirchhoffStall>,
     flap_i: usize,
 }
 
@@ -70,8 +217,23 @@ impl TruthAero {
             qualified,
             effects,
             rolloff,
+            kirchhoff: None,
             flap_i,
         }
+    }
+
+    /// The same truth with a Kirchhoff longitudinal stall.
+    #[must_use]
+    pub fn with_kirchhoff(mut self, k: Option<KirchhoffStall>) -> Self {
+        self.kirchhoff = k;
+        self
+    }
+
+    /// The separation point at `s` (NaN without the Kirchhoff stall).
+    pub fn separation(&self, s: &AeroInput) -> f64 {
+        self.kirchhoff
+            .as_ref()
+            .map_or(f64::NAN, |k| k.state.x_at(s.alpha, s.alpha_dot))
     }
 
     /// Per effect `[ΔC_Y, ΔC_l, ΔC_n]`, in the order of `self.effects`.
@@ -105,6 +267,11 @@ impl AeroModel for TruthAero {
             c[5] += d[2];
         }
         c[3] += self.rolloff_cl(s);
+        if let Some(k) = &self.kirchhoff {
+            let (d, _) = k.delta(s);
+            c[0] += d[0];
+            c[4] += d[1];
+        }
         to_body(&c, s)
     }
 
@@ -112,5 +279,71 @@ impl AeroModel for TruthAero {
         if let Some(r) = self.rolloff.as_mut() {
             r.update(t, s.alpha.to_degrees());
         }
+        if let Some(k) = self.kirchhoff.as_mut() {
+            k.advance(t, s);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::aircraft::turboprop::adx37;
+    use crate::delta_model::DeltaModel;
+    use crate::sim::extended::ExtendedAero;
+
+    fn lift(c: &crate::sim::aero::AeroCoeffs, s: &AeroInput) -> f64 {
+        let (sa, ca) = s.alpha.sin_cos();
+        -c.cz * ca + (c.cx - s.ct_sum()) * sa
+    }
+
+    fn at(alpha_deg: f64) -> AeroInput {
+        AeroInput {
+            alpha: alpha_deg.to_radians(),
+            flap_deg: 10.0,
+            tas: 55.0,
+            ..AeroInput::default()
+        }
+    }
+
+    #[test]
+    fn kirchhoff_base_replaces_the_static_curves_and_an_extended_model_carries_its_state() {
+        let q = QualifiedModel::adx37(&adx37()).expect("model");
+        let mut p = kirchhoff_truth_params(10.0);
+        p.tau1 = 0.3; // "fitted" parameters other than the truth's
+        let stall = KirchhoffStall::new(&q, p).expect("stall");
+        let base = TruthAero::new(q.at_flap(10.0).expect("slice"), Vec::new(), None)
+            .with_kirchhoff(Some(stall));
+        // static: before any update the lift is the Kirchhoff static curve (no control,
+        // rate or thrust terms at this input)
+        for a in [4.0, 17.0, 20.0, 25.0] {
+            let s = at(a);
+            let cl = lift(&base.coefficients(&s), &s);
+            assert!((cl - p.cl_static(s.alpha)).abs() < 1e-12, "{a}: {cl}");
+        }
+        let text = r#"{"schema": "aerodelta.model/1", "flaps_deg": [10.0], "coefficients": {}}"#;
+        let delta = DeltaModel::from_json(text, "test").expect("empty Δ model");
+        let mut ext = ExtendedAero::new(base, &delta).expect("extended");
+        // pull from 10 to 24 deg at 20 deg/s: the state lags, so lift overshoots the static
+        // curve past the break, and the extended model's loop reaches the state
+        let dt = 0.01;
+        let mut s = at(10.0);
+        for k in 0..=70 {
+            s = at(10.0 + 0.2 * k as f64);
+            s.alpha_dot = 20f64.to_radians();
+            ext.advance(k as f64 * dt, &s);
+        }
+        let cl = lift(&ext.coefficients(&s), &s);
+        assert!(
+            cl > p.cl_static(s.alpha) + 0.1,
+            "{cl} vs {}",
+            p.cl_static(s.alpha)
+        );
+        let x = ext.base.separation(&s);
+        assert!(x > p.x0(s.alpha) && x < 1.0);
+        // bad parameters are refused with their name
+        p.a1 = -1.0;
+        let e = KirchhoffStall::new(&q, p).unwrap_err();
+        assert!(e.to_string().contains("a1"), "{e}");
     }
 }

@@ -15,7 +15,9 @@ use nalgebra::Vector3;
 
 use crate::aircraft::effects::{ActiveEffect, MeasurementEffects};
 use crate::aircraft::qualified::{FlapModel, FlapStall, QualifiedModel, FLAP_STALL};
-use crate::aircraft::truth::{active_effects, EffectSpec, TruthAero};
+use crate::aircraft::truth::{
+    active_effects, EffectSpec, KirchhoffStall, LongitudinalStall, TruthAero,
+};
 use crate::aircraft::turboprop::{adx37, AircraftRef};
 use crate::buffet::{Buffet, BuffetMode, BuffetSchedule, BuffetSpec};
 use crate::delta_model::DeltaModel;
@@ -87,6 +89,16 @@ pub struct CampaignSpec {
     /// campaign without the option, bit for bit.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub buffet: Option<BuffetSpec>,
+    /// The truth's longitudinal stall: the qualified static curves (the default,
+    /// absent from the JSON) or a Kirchhoff flow-separation stall
+    /// ([`crate::aircraft::truth::kirchhoff_truth_params`]), whose records then
+    /// carry the truth columns `x_sep_true`, `CL_true`, `Cm_true`.
+    #[serde(skip_serializing_if = "is_static")]
+    pub longitudinal_stall: LongitudinalStall,
+}
+
+fn is_static(s: &LongitudinalStall) -> bool {
+    *s == LongitudinalStall::Static
 }
 
 impl Default for CampaignSpec {
@@ -105,6 +117,7 @@ impl Default for CampaignSpec {
             mass_properties: None,
             vanes: None,
             buffet: None,
+            longitudinal_stall: LongitudinalStall::Static,
         }
     }
 }
@@ -369,7 +382,12 @@ impl Flight {
         } else {
             None
         };
-        let model = TruthAero::new(slice(qual, m.flap_deg)?, effects.to_vec(), rolloff);
+        let kirchhoff = match spec.longitudinal_stall {
+            LongitudinalStall::Static => None,
+            LongitudinalStall::Kirchhoff => Some(KirchhoffStall::adx37(qual, m.flap_deg)?),
+        };
+        let model = TruthAero::new(slice(qual, m.flap_deg)?, effects.to_vec(), rolloff)
+            .with_kirchhoff(kirchhoff);
         let mut sim =
             Simulator::with_mass(ac.clone(), m.flap_deg, nalgebra::SVector::zeros(), dt, mass);
         let tr = trim(&sim, &model, v0, h0).context(format!("maneuver {}", m.index))?;
@@ -590,16 +608,33 @@ fn fly(
         })
         .transpose()?;
     let mut buffet_rows: Vec<[f64; 3]> = Vec::new();
+    // the Kirchhoff stall's truth: separation point, wind-axis C_L, C_m (with it on)
+    let mut long_rows: Vec<[f64; 3]> = Vec::new();
     let (mut max_alpha, mut n_at, mut max_bank) = (f64::NEG_INFINITY, 1.0, 0.0f64);
     for step in 0..max_steps {
         let st = f.command();
         let (ad, thrust) = (st.air, st.thrust_n);
+        if step % decim == 0 && f.model.kirchhoff.is_some() {
+            // the separation state at this sample's time before it is recorded (the loop
+            // advances the model's memory only when it integrates the step, after the
+            // record): the recorded loads and x_sep_true are then those of x(t), not of
+            // x(t − dt). Advancing twice to the same time is a no-op.
+            let (inp, _) = f.sim.aero_input(&f.sim.x, &f.surfaces_start, thrust);
+            let t = f.sim.t;
+            if let Some(k) = f.model.kirchhoff.as_mut() {
+                k.advance(t, &inp);
+            }
+        }
         let (sim, model, surfaces) = (&f.sim, &f.model, f.surfaces_start);
         if step % decim == 0 {
             let (xd, loads) = sim.derivative(model, &surfaces, thrust);
             let (inp, _) = sim.aero_input(&sim.x, &surfaces, thrust);
             let coeffs = model.coefficients(&inp);
             let qc = model.qualified_coeffs(&inp);
+            if let Some(k) = &model.kirchhoff {
+                let (d, x) = k.delta(&inp);
+                long_rows.push([x, qc[0] + d[0], coeffs.cm]);
+            }
             model.contributions(&inp, &mut contrib);
             eff_rows.extend_from_slice(&contrib);
             truth_rows.push([
@@ -748,6 +783,12 @@ fn fly(
         {
             truth_names.push((*name).into());
             truth.push(buffet_rows.iter().map(|r| r[j]).collect());
+        }
+    }
+    if !long_rows.is_empty() {
+        for (j, name) in ["x_sep_true", "CL_true", "Cm_true"].iter().enumerate() {
+            truth_names.push((*name).into());
+            truth.push(long_rows.iter().map(|r| r[j]).collect());
         }
     }
     let id = format!(

@@ -1,0 +1,257 @@
+//! The Kirchhoff stall model and its output-error fit (conversion only).
+use std::collections::HashMap;
+
+use aero_core::aircraft::qualified::QualifiedModel;
+use aero_core::aircraft::records::{qualified_longitudinal, RecordColumns};
+use aero_core::aircraft::truth::kirchhoff_truth_params as truth_params;
+use aero_core::aircraft::turboprop::adx37;
+use aero_core::kirchhoff::{outputs, Inputs, KirchhoffParams, N_PARAMS, PARAM_NAMES};
+use aero_core::output_error::{fit, OeOptions, Series};
+use aero_core::AeroError;
+use numpy::ndarray::Array2;
+use numpy::{IntoPyArray, PyArray1, PyArray2, PyReadonlyArray1};
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+
+use crate::error::to_py;
+use crate::util::detached;
+
+type Array<'py> = Bound<'py, PyArray1<f64>>;
+type Matrix<'py> = Bound<'py, PyArray2<f64>>;
+
+fn params_from(d: &HashMap<String, f64>, arg: &str) -> PyResult<KirchhoffParams> {
+    let mut v = [0.0; N_PARAMS];
+    for (slot, name) in v.iter_mut().zip(PARAM_NAMES) {
+        *slot = *d.get(name).ok_or_else(|| {
+            to_py(AeroError::invalid(
+                format!("argument '{arg}'"),
+                format!("has no '{name}'; give all of {}", PARAM_NAMES.join(", ")),
+            ))
+        })?;
+    }
+    Ok(KirchhoffParams::from_array(&v))
+}
+
+fn params_dict(p: &KirchhoffParams) -> HashMap<String, f64> {
+    PARAM_NAMES
+        .iter()
+        .zip(p.to_array())
+        .map(|(n, v)| ((*n).to_string(), v))
+        .collect()
+}
+
+fn matrix<'py>(py: Python<'py>, v: Vec<f64>, rows: usize) -> PyResult<Matrix<'py>> {
+    Array2::from_shape_vec((rows, N_PARAMS), v)
+        .map(|a| a.into_pyarray(py))
+        .map_err(|e| to_py(AeroError::invalid("matrix", e.to_string())))
+}
+
+/// Parameter names in the engine's order.
+#[pyfunction]
+fn kirchhoff_param_names() -> Vec<String> {
+    PARAM_NAMES.iter().map(|s| (*s).to_string()).collect()
+}
+
+/// The virtual aircraft's Kirchhoff stall parameters at a flap setting.
+#[pyfunction]
+fn kirchhoff_truth_params(flap_deg: f64) -> HashMap<String, f64> {
+    params_dict(&truth_params(flap_deg))
+}
+
+/// `(alpha at C_L,max [rad], C_L,max)` of the static curve.
+#[pyfunction]
+fn kirchhoff_cl_max(params: HashMap<String, f64>) -> PyResult<(f64, f64)> {
+    let p = params_from(&params, "params")?;
+    p.check().map_err(to_py)?;
+    Ok(p.cl_max())
+}
+
+/// `(x, CL, Cm, dCL/dθ, dCm/dθ)` along one record (sensitivities `None` unless asked).
+#[pyfunction]
+#[pyo3(signature = (params, t, alpha, alpha_dot, sensitivities=false))]
+#[allow(clippy::type_complexity)]
+fn kirchhoff_outputs<'py>(
+    py: Python<'py>,
+    params: HashMap<String, f64>,
+    t: PyReadonlyArray1<'py, f64>,
+    alpha: PyReadonlyArray1<'py, f64>,
+    alpha_dot: PyReadonlyArray1<'py, f64>,
+    sensitivities: bool,
+) -> PyResult<(
+    Array<'py>,
+    Array<'py>,
+    Array<'py>,
+    Option<Matrix<'py>>,
+    Option<Matrix<'py>>,
+)> {
+    let p = params_from(&params, "params")?;
+    let (t, a, ad) = (t.as_slice()?, alpha.as_slice()?, alpha_dot.as_slice()?);
+    let o = detached(py, || {
+        outputs(
+            &p,
+            &Inputs {
+                t,
+                alpha: a,
+                alpha_dot: ad,
+            },
+            sensitivities,
+        )
+    })?;
+    let n = o.x.len();
+    let (dcl, dcm) = if sensitivities {
+        (Some(matrix(py, o.dcl, n)?), Some(matrix(py, o.dcm, n)?))
+    } else {
+        (None, None)
+    };
+    Ok((
+        o.x.into_pyarray(py),
+        o.cl.into_pyarray(py),
+        o.cm.into_pyarray(py),
+        dcl,
+        dcm,
+    ))
+}
+
+/// Output-error fit over maneuvers; returns a dict of plain values.
+#[pyfunction]
+#[pyo3(signature = (t, alpha, alpha_dot, cl, cm=None, start=None, fixed=Vec::new(), max_iter=60, tol=1e-9, max_lag=None))]
+#[allow(clippy::too_many_arguments)]
+fn output_error_kirchhoff<'py>(
+    py: Python<'py>,
+    t: Vec<PyReadonlyArray1<'py, f64>>,
+    alpha: Vec<PyReadonlyArray1<'py, f64>>,
+    alpha_dot: Vec<PyReadonlyArray1<'py, f64>>,
+    cl: Vec<PyReadonlyArray1<'py, f64>>,
+    cm: Option<Vec<PyReadonlyArray1<'py, f64>>>,
+    start: Option<HashMap<String, f64>>,
+    fixed: Vec<String>,
+    max_iter: usize,
+    tol: f64,
+    max_lag: Option<usize>,
+) -> PyResult<Bound<'py, PyDict>> {
+    let k = t.len();
+    let counts = [
+        alpha.len(),
+        alpha_dot.len(),
+        cl.len(),
+        cm.as_ref().map_or(k, Vec::len),
+    ];
+    if counts.iter().any(|&c| c != k) {
+        return Err(to_py(AeroError::invalid(
+            "output-error fit",
+            format!("give one array per maneuver in every list (t has {k}, others {counts:?})"),
+        )));
+    }
+    let start = start.map(|d| params_from(&d, "start")).transpose()?;
+    let mut fx = [false; N_PARAMS];
+    for name in &fixed {
+        let j = PARAM_NAMES.iter().position(|n| n == name).ok_or_else(|| {
+            to_py(AeroError::invalid(
+                "argument 'fixed'",
+                format!(
+                    "unknown parameter '{name}'; valid: {}",
+                    PARAM_NAMES.join(", ")
+                ),
+            ))
+        })?;
+        fx[j] = true;
+    }
+    let mut series = Vec::with_capacity(k);
+    for i in 0..k {
+        series.push(Series {
+            inputs: Inputs {
+                t: t[i].as_slice()?,
+                alpha: alpha[i].as_slice()?,
+                alpha_dot: alpha_dot[i].as_slice()?,
+            },
+            cl: cl[i].as_slice()?,
+            cm: match &cm {
+                Some(c) => Some(c[i].as_slice()?),
+                None => None,
+            },
+        });
+    }
+    let opts = OeOptions {
+        max_iter,
+        tol,
+        start,
+        fixed: fx,
+        max_lag,
+    };
+    let f = detached(py, || fit(&series, &opts))?;
+    let d = PyDict::new(py);
+    d.set_item("params", params_dict(&f.params))?;
+    d.set_item("start", params_dict(&f.start))?;
+    d.set_item("free", f.free.to_vec())?;
+    d.set_item("std_err", f.std_err.to_vec())?;
+    d.set_item("std_err_colored", f.std_err_colored.to_vec())?;
+    d.set_item("cov", matrix(py, f.cov, N_PARAMS)?)?;
+    d.set_item("cov_colored", matrix(py, f.cov_colored, N_PARAMS)?)?;
+    d.set_item("iterations", f.iterations)?;
+    d.set_item("converged", f.converged)?;
+    d.set_item("cost", f.cost)?;
+    d.set_item("residual_var", f.residual_var.to_vec())?;
+    d.set_item("n_samples", f.n_samples)?;
+    d.set_item("n_maneuvers", f.n_maneuvers)?;
+    d.set_item("names", kirchhoff_param_names())?;
+    Ok(d)
+}
+
+fn column<'a>(cols: &'a HashMap<String, &'a [f64]>, name: &str) -> Result<&'a [f64], AeroError> {
+    cols.get(name).copied().ok_or_else(|| {
+        AeroError::invalid(
+            format!("column '{name}'"),
+            "is required by the qualified model but missing; run the ingestion first",
+        )
+    })
+}
+
+/// `(CL, Cm, CL_basic, Cm_basic)` of the ADX-37 qualified model along records.
+#[pyfunction]
+fn qualified_longitudinal_adx37<'py>(
+    py: Python<'py>,
+    columns: HashMap<String, PyReadonlyArray1<'py, f64>>,
+) -> PyResult<(Array<'py>, Array<'py>, Array<'py>, Array<'py>)> {
+    let mut cols: HashMap<String, &[f64]> = HashMap::new();
+    for (k, v) in &columns {
+        cols.insert(k.clone(), v.as_slice()?);
+    }
+    let [a, b, c, d] = detached(py, || {
+        let model = QualifiedModel::adx37(&adx37())?;
+        let r = RecordColumns {
+            alpha_deg: column(&cols, "alpha_deg")?,
+            beta_deg: column(&cols, "beta_deg")?,
+            phat: column(&cols, "phat")?,
+            qhat: column(&cols, "qhat")?,
+            rhat: column(&cols, "rhat")?,
+            alphadot_dps: column(&cols, "alphadot_dps")?,
+            betadot_dps: column(&cols, "betadot_dps")?,
+            da_deg: column(&cols, "da_deg")?,
+            de_deg: column(&cols, "de_deg")?,
+            dr_deg: column(&cols, "dr_deg")?,
+            dsl_deg: column(&cols, "dsl_deg")?,
+            dsr_deg: column(&cols, "dsr_deg")?,
+            flap_deg: column(&cols, "flap_deg")?,
+            ct_left: column(&cols, "ct_left")?,
+            ct_right: column(&cols, "ct_right")?,
+            tas_mps: column(&cols, "tas_mps")?,
+        };
+        qualified_longitudinal(&model, &r)
+    })?;
+    Ok((
+        a.into_pyarray(py),
+        b.into_pyarray(py),
+        c.into_pyarray(py),
+        d.into_pyarray(py),
+    ))
+}
+
+pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_function(wrap_pyfunction!(kirchhoff_param_names, m)?)?;
+    m.add_function(wrap_pyfunction!(kirchhoff_truth_params, m)?)?;
+    m.add_function(wrap_pyfunction!(kirchhoff_cl_max, m)?)?;
+    m.add_function(wrap_pyfunction!(kirchhoff_outputs, m)?)?;
+    m.add_function(wrap_pyfunction!(output_error_kirchhoff, m)?)?;
+    m.add_function(wrap_pyfunction!(qualified_longitudinal_adx37, m)?)?;
+    Ok(())
+}

@@ -1,0 +1,91 @@
+"""Fit the Kirchhoff flow-separation stall of lift and pitching moment by output error, per flap
+(docs/longitudinal.md): time constants tau1, tau2, breakpoint alpha*, steepness a1, the attached
+lift and pitch lines and the pitch break C_mx, with Cramér-Rao bounds and the bounds corrected
+for coloured residuals, the static C_L,max and its alpha.
+
+Prints one row per flap and parameter (or JSON with --format json); --out FILE also writes
+that table as CSV. The built-in aircraft's qualified control, rate and thrust terms are taken
+off the measured coefficients (--known adx37, the default); --known none fits them as measured.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+
+from aerodelta._fsutil import write_atomic
+from aerodelta.cli._data import (
+    add_data_arguments,
+    check_outputs,
+    load_records,
+    output_file,
+    resolve_data,
+)
+from aerodelta.exceptions import InvalidInputError
+
+HELP = "Kirchhoff stall of C_L and C_m by output error (tau1, tau2, alpha*, C_L,max)"
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Options of ``aerodelta longitudinal``."""
+    add_data_arguments(parser)
+    parser.add_argument("--flaps", metavar="F,...", help="flap settings to fit, deg (default all)")
+    parser.add_argument("--no-cm", action="store_true", help="fit C_L only")
+    parser.add_argument("--known", choices=("adx37", "none"), default="adx37")
+    parser.add_argument("--max-iter", type=int, default=60, metavar="N")
+    parser.add_argument("--out", metavar="FILE", help="write the parameter table as CSV")
+    parser.add_argument("--format", choices=("table", "json"), default="table")
+    parser.add_argument("--no-progress", action="store_true", help="no progress bars")
+
+
+def _flaps(text: str | None) -> list[float] | None:
+    if text is None:
+        return None
+    try:
+        return [float(f) for f in text.split(",")]
+    except ValueError:
+        raise InvalidInputError(f"--flaps {text}: give flap settings in deg, e.g. 0,15") from None
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run ``aerodelta longitudinal``; returns the exit status."""
+    from aerodelta.fit import model_frame  # noqa: PLC0415  (CLI start-up light)
+    from aerodelta.longitudinal import fit_kirchhoff  # noqa: PLC0415
+
+    if args.max_iter < 1:
+        raise InvalidInputError(f"--max-iter {args.max_iter}: give at least 1")
+    flaps = _flaps(args.flaps)
+    out = output_file(args.out, "--out", "kirchhoff.csv") if args.out else None
+    src = resolve_data(args)
+    if out is not None:
+        check_outputs(src, "--out", files=[out])
+    data = model_frame(load_records(src, progress=not args.no_progress))
+    res = fit_kirchhoff(
+        data, flaps=flaps, fit_cm=not args.no_cm, known=args.known, max_iter=args.max_iter
+    )
+    table = res.summary()
+    if out is not None:
+        out.parent.mkdir(parents=True, exist_ok=True)
+        write_atomic(out, table.write_csv)
+    if args.format == "json":
+        print(json.dumps(table.to_dicts(), indent=2, allow_nan=True))
+    else:
+        print(
+            f"{'flap':>4} {'parameter':<17} {'unit':<6} {'estimate':>10} {'CR bound':>10} "
+            f"{'coloured':>10}"
+        )
+        for r in table.iter_rows(named=True):
+            if not math.isfinite(r["estimate"]):
+                continue
+            se = "-" if math.isnan(r["std_err"]) else f"{r['std_err']:.4g}"
+            sec = "-" if math.isnan(r["std_err_colored"]) else f"{r['std_err_colored']:.4g}"
+            print(
+                f"{r['flap_deg']:>4g} {r['parameter']:<17} {r['unit']:<6} "
+                f"{r['estimate']:>10.4g} {se:>10} {sec:>10}"
+            )
+        if out is not None:
+            print(f"wrote {out}")
+    sys.stdout.flush()
+    return 0
