@@ -480,9 +480,10 @@ pub fn outputs(p: &KirchhoffParams, inp: &Inputs<'_>, sensitivities: bool) -> Re
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
 
+    /// The parameters both this module's and `output_error`'s tests fly.
     pub(crate) fn truth() -> KirchhoffParams {
         KirchhoffParams {
             tau1: 0.25,

@@ -571,21 +571,8 @@ pub fn fit(series: &[Series<'_>], opts: &OeOptions) -> Result<OeFit> {
 mod tests {
     use super::*;
     use crate::kirchhoff::outputs;
+    use crate::kirchhoff::tests::truth;
     use crate::sim::rng::Stream;
-
-    fn truth() -> KirchhoffParams {
-        KirchhoffParams {
-            tau1: 0.25,
-            tau2: 0.08,
-            alpha_star: 18.0f64.to_radians(),
-            a1: 25.0,
-            cl_alpha: 5.2,
-            alpha0: -3.0f64.to_radians(),
-            cm0: 0.05,
-            cm_alpha: -0.75,
-            cm_x: -0.15,
-        }
-    }
 
     /// Stall-like maneuvers: a slow pull through the break and a recovery, with doublets.
     fn maneuvers(k: usize, seed: u64) -> Vec<(Vec<f64>, Vec<f64>, Vec<f64>)> {

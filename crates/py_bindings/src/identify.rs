@@ -2,7 +2,7 @@
 use std::collections::HashMap;
 
 use aero_core::aircraft::qualified::QualifiedModel;
-use aero_core::aircraft::records::{qualified_lateral, RecordColumns};
+use aero_core::aircraft::records::qualified_lateral;
 use aero_core::aircraft::turboprop::adx37;
 use aero_core::band::lowpass_by_maneuver;
 use aero_core::bootstrap::{Bootstrap, BootstrapOptions};
@@ -17,20 +17,11 @@ use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
 use crate::error::to_py;
-use crate::util::detached;
+use crate::util::{detached, record_columns};
 
 type Array<'py> = Bound<'py, PyArray1<f64>>;
 type SmoothedRow = (String, Vec<f64>, Vec<f64>, usize, String);
 type CvTuple = (Vec<usize>, f64, f64, f64, f64);
-
-fn column<'a>(cols: &'a HashMap<String, &'a [f64]>, name: &str) -> Result<&'a [f64], AeroError> {
-    cols.get(name).copied().ok_or_else(|| {
-        AeroError::invalid(
-            format!("column '{name}'"),
-            "is required by the qualified model but missing; run the ingestion first",
-        )
-    })
-}
 
 /// `(Cl, Cn, CY)` of the ADX-37 qualified model along records.
 #[pyfunction]
@@ -44,24 +35,7 @@ fn qualified_lateral_adx37<'py>(
     }
     let [cl, cn, cy] = detached(py, || {
         let model = QualifiedModel::adx37(&adx37())?;
-        let c = RecordColumns {
-            alpha_deg: column(&cols, "alpha_deg")?,
-            beta_deg: column(&cols, "beta_deg")?,
-            phat: column(&cols, "phat")?,
-            qhat: column(&cols, "qhat")?,
-            rhat: column(&cols, "rhat")?,
-            alphadot_dps: column(&cols, "alphadot_dps")?,
-            betadot_dps: column(&cols, "betadot_dps")?,
-            da_deg: column(&cols, "da_deg")?,
-            de_deg: column(&cols, "de_deg")?,
-            dr_deg: column(&cols, "dr_deg")?,
-            dsl_deg: column(&cols, "dsl_deg")?,
-            dsr_deg: column(&cols, "dsr_deg")?,
-            flap_deg: column(&cols, "flap_deg")?,
-            ct_left: column(&cols, "ct_left")?,
-            ct_right: column(&cols, "ct_right")?,
-            tas_mps: column(&cols, "tas_mps")?,
-        };
+        let c = record_columns(&cols)?;
         qualified_lateral(&model, &c)
     })?;
     Ok((

@@ -20,3 +20,36 @@ where
         .parse::<T>()
         .map_err(|e| crate::error::to_py(e.context(format!("argument '{arg}'"))))
 }
+
+/// The record columns the qualified model reads, named in a dict of float64 columns (angles
+/// in deg, rates in deg/s); a missing one is refused by name.
+pub fn record_columns<'a>(
+    cols: &'a std::collections::HashMap<String, &'a [f64]>,
+) -> Result<aero_core::aircraft::records::RecordColumns<'a>, AeroError> {
+    let column = |name: &str| {
+        cols.get(name).copied().ok_or_else(|| {
+            AeroError::invalid(
+                format!("column '{name}'"),
+                "is required by the qualified model but missing; run the ingestion first",
+            )
+        })
+    };
+    Ok(aero_core::aircraft::records::RecordColumns {
+        alpha_deg: column("alpha_deg")?,
+        beta_deg: column("beta_deg")?,
+        phat: column("phat")?,
+        qhat: column("qhat")?,
+        rhat: column("rhat")?,
+        alphadot_dps: column("alphadot_dps")?,
+        betadot_dps: column("betadot_dps")?,
+        da_deg: column("da_deg")?,
+        de_deg: column("de_deg")?,
+        dr_deg: column("dr_deg")?,
+        dsl_deg: column("dsl_deg")?,
+        dsr_deg: column("dsr_deg")?,
+        flap_deg: column("flap_deg")?,
+        ct_left: column("ct_left")?,
+        ct_right: column("ct_right")?,
+        tas_mps: column("tas_mps")?,
+    })
+}
