@@ -119,18 +119,53 @@ pub struct RolloffEvent {
     pub rejected: String,
 }
 
+/// The median of each window `[i - half, i + half]` of `x` (clipped at the ends, NaNs left
+/// out), by a sorted copy of the window updated one sample at a time: `O(n·w)` memory moves
+/// instead of a selection per sample. The values are those of [`median`] on each window.
 fn running_median(x: &[f64], half: usize) -> Vec<f64> {
+    fn place(win: &[f64], v: f64) -> usize {
+        win.partition_point(|w| w.total_cmp(&v).is_lt())
+    }
     let n = x.len();
     let mut out = Vec::with_capacity(n);
-    let mut buf: Vec<f64> = Vec::with_capacity(2 * half + 1);
+    let mut win: Vec<f64> = Vec::with_capacity(2 * half + 1);
+    for &v in &x[..half.saturating_add(1).min(n)] {
+        if !v.is_nan() {
+            win.insert(place(&win, v), v);
+        }
+    }
     for i in 0..n {
-        let lo = i.saturating_sub(half);
-        let hi = (i + half + 1).min(n);
-        buf.clear();
-        buf.extend(x[lo..hi].iter().copied().filter(|v| !v.is_nan()));
-        out.push(median(&mut buf));
+        if i > 0 {
+            if let Some(&v) = x.get(i.saturating_add(half)) {
+                if !v.is_nan() {
+                    win.insert(place(&win, v), v);
+                }
+            }
+            if i > half {
+                let v = x[i - half - 1];
+                if !v.is_nan() {
+                    // the first element not below v is v itself (total order: same bits)
+                    win.remove(place(&win, v));
+                }
+            }
+        }
+        out.push(median_sorted(&win));
     }
     out
+}
+
+/// The median of sorted values (NaN when empty), as [`median`] computes it.
+fn median_sorted(win: &[f64]) -> f64 {
+    let n = win.len();
+    if n == 0 {
+        return f64::NAN;
+    }
+    let m = n / 2;
+    if n % 2 == 1 {
+        win[m]
+    } else {
+        0.5 * (win[m - 1] + win[m])
+    }
 }
 
 fn median(buf: &mut [f64]) -> f64 {
@@ -626,5 +661,42 @@ mod tests {
         assert_eq!(median(&mut [4.0, 1.0, 3.0, 2.0]), 2.5);
         let rm = running_median(&[1.0, 9.0, 2.0, 8.0, 3.0], 1);
         assert_eq!(rm, vec![5.0, 2.0, 8.0, 3.0, 5.5]);
+    }
+
+    #[test]
+    fn sliding_median_is_the_median_of_each_window_bit_for_bit() {
+        // the reference: a selection on each clipped window, NaNs left out
+        let naive = |x: &[f64], half: usize| -> Vec<f64> {
+            (0..x.len())
+                .map(|i| {
+                    let lo = i.saturating_sub(half);
+                    let hi = (i + half + 1).min(x.len());
+                    let mut b: Vec<f64> =
+                        x[lo..hi].iter().copied().filter(|v| !v.is_nan()).collect();
+                    median(&mut b)
+                })
+                .collect()
+        };
+        let mut rng = crate::sim::rng::Stream::new(17, 3);
+        for (n, half) in [(0, 3), (1, 0), (5, 10), (200, 7), (700, 300), (64, 1)] {
+            let x: Vec<f64> = (0..n)
+                .map(|k| match k % 13 {
+                    0 => f64::NAN,
+                    1 => -0.0,
+                    2 => 0.0,
+                    3 => 1.5, // repeated values
+                    _ => rng.normal(),
+                })
+                .collect();
+            let got = running_median(&x, half);
+            let want = naive(&x, half);
+            assert_eq!(got.len(), want.len());
+            for (g, w) in got.iter().zip(&want) {
+                assert!(g.to_bits() == w.to_bits(), "n {n} half {half}: {g} vs {w}");
+            }
+        }
+        assert!(running_median(&[f64::NAN, f64::NAN], 1)
+            .iter()
+            .all(|v| v.is_nan()));
     }
 }
