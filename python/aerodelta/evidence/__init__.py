@@ -46,6 +46,7 @@ __all__ = [
     "SHOWN",
     "EvidenceResult",
     "MatrixRow",
+    "check_output_folder",
     "frame_sha256",
     "read_sim_buffet",
     "write_evidence",
@@ -96,7 +97,9 @@ def frame_sha256(df: pl.DataFrame) -> str:
         s = df[name]
         h.update(f"{name}\x1f{s.dtype}\x1e".encode())
         if s.dtype.is_numeric() or s.dtype == pl.Boolean:
-            h.update(np.ascontiguousarray(s.cast(pl.Float64).fill_null(np.nan).to_numpy()).tobytes())
+            h.update(
+                np.ascontiguousarray(s.cast(pl.Float64).fill_null(np.nan).to_numpy()).tobytes()
+            )
         else:
             h.update("\x1f".join(s.cast(pl.Utf8).fill_null("\x00").to_list()).encode())
     return h.hexdigest()
@@ -171,8 +174,8 @@ def read_sim_buffet(value: str | Path | Sequence[float] | pl.DataFrame) -> pl.Da
     bad = np.flatnonzero(~(np.isfinite(f) & (f > 0)))
     if bad.size:
         raise InvalidInputError(
-            f"{where}: freq_hz row {int(bad[0]) + 1} is {f[bad[0]]!r}; give a positive frequency "
-            "in Hz"
+            f"{where}: freq_hz row {int(bad[0]) + 1} is {float(f[bad[0]]):g}; give a positive "
+            "frequency in Hz"
         )
     cols = [flap.alias("flap_deg"), pl.Series("freq_hz", f)]
     if "axis" in frame.columns:
@@ -211,7 +214,9 @@ def _png_size(png: bytes) -> tuple[int, int]:
     return int(w), int(h)
 
 
-def _check_out(out: Path, overwrite: bool) -> None:
+def check_output_folder(out: Path, overwrite: bool) -> None:
+    """Refuse a file at ``out``, an existing pack without ``overwrite``, and a non-empty folder
+    that is not an evidence pack (it would be replaced whole)."""
     if out.exists() and not out.is_dir():
         raise InvalidInputError(f"{out}: is a file; give a folder for the evidence pack")
     if out.exists() and any(out.iterdir()):
@@ -298,7 +303,7 @@ def write_evidence(
     from aerodelta.report.html import generated_at  # noqa: PLC0415
 
     out = Path(out)
-    _check_out(out, overwrite)
+    check_output_folder(out, overwrite)
     if not (math.isfinite(power_on_ct) and power_on_ct > 0):
         raise InvalidInputError(
             f"power_on_ct {power_on_ct}: give a positive thrust coefficient, e.g. 0.03"
@@ -345,7 +350,7 @@ def write_evidence(
         longitudinal=longitudinal,
     )
     if files:
-        ftable, digest = file_table(files, root)
+        ftable, digest = file_table(files, camp)
     else:
         ftable, digest = None, frame_sha256(frame)
     info: dict[str, Any] = {
@@ -401,7 +406,9 @@ def _call_text(data: object, out: Path, model: object, sim_buffet: object) -> st
     return f"aerodelta.evidence.write_evidence({d}, {str(out)!r}{m}{s})"
 
 
-def _model(model: str | os.PathLike[str] | DeltaModel | None) -> tuple[DeltaModel | None, Path | None]:
+def _model(
+    model: str | os.PathLike[str] | DeltaModel | None,
+) -> tuple[DeltaModel | None, Path | None]:
     if model is None or isinstance(model, DeltaModel):
         return model, None
     p = Path(model)
@@ -433,7 +440,9 @@ def _load(data: Any) -> tuple[pl.DataFrame, str, list[Path], Path | None]:
         try:
             frame = pl.read_parquet(parquet)
         except Exception as e:
-            raise DataError(f"{parquet}: cannot read the ingest output; run aerodelta ingest again") from e
+            raise DataError(
+                f"{parquet}: cannot read the ingest output; run aerodelta ingest again"
+            ) from e
         if "maneuver_id" not in frame.columns:
             raise DataError(f"{parquet}: not an aerodelta ingest output (no maneuver_id column)")
         return frame, f"the ingest output {parquet}", [parquet], None

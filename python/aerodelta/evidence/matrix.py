@@ -268,9 +268,7 @@ def _stall_id_row(out: Assessment, table: pl.DataFrame, flaps: Sequence[float]) 
     )
 
 
-def _speed_rows(
-    out: Assessment, table: pl.DataFrame, flaps: Sequence[float], buffet: Any
-) -> None:
+def _speed_rows(out: Assessment, table: pl.DataFrame, flaps: Sequence[float], buffet: Any) -> None:
     fig = out.figure(
         FigureSpec(
             "fig-speeds",
@@ -364,7 +362,9 @@ def _breaks_row(out: Assessment, data: pl.DataFrame, table: pl.DataFrame) -> Non
         pl.col("g_break_t_s").is_not_null().sum().alias("g"),
         pl.col("pitch_break_t_s").is_not_null().sum().alias("p"),
     )
-    detail = "; ".join(f"{k}: g-break {g}, pitch break {p}" for k, g, p in by_kind.sort("kind").rows())
+    detail = "; ".join(
+        f"{k}: g-break {g}, pitch break {p}" for k, g, p in by_kind.sort("kind").rows()
+    )
     out.rows.append(
         MatrixRow(
             "breaks",
@@ -424,7 +424,12 @@ def _rolloff_row(out: Assessment, data: pl.DataFrame, table: pl.DataFrame) -> No
         }
     shown = win.filter((pl.col("dt") >= -2.0) & (pl.col("dt") <= 3.0 * ROLL_WINDOW_S))
     lines = [
-        {"id": m, "t": g["dt"].to_numpy(), "y": g["phi_deg"].to_numpy(), "events": events.get(m, [])}
+        {
+            "id": m,
+            "t": g["dt"].to_numpy(),
+            "y": g["phi_deg"].to_numpy(),
+            "events": events.get(m, []),
+        }
         for (m,), g in shown.partition_by("maneuver_id", as_dict=True, maintain_order=True).items()
     ]
     out.tables["rolloff"] = wl.select("maneuver_id", "flap_deg", "stall_id_t_s").join(
@@ -562,14 +567,18 @@ def _buffet_rows(
         )
         ok = bool(per["flap_pass"].all())
         status = PASS if ok else FAIL
-        detail = _flaps_text(
-            {
-                float(r["flap_deg"]): f"{'PASS' if r['flap_pass'] else 'FAIL'} "
-                f"({r['n_present']} of {r['n_required']} required spikes within "
-                f"±{FREQ_TOLERANCE_HZ:g} Hz; flight test {spikes.get(float(r['flap_deg']), '')} Hz)"
-                for r in per.iter_rows(named=True)
-            }
-        ) + f". Simulator: {sim_source}"
+        detail = (
+            _flaps_text(
+                {
+                    float(r["flap_deg"]): f"{'PASS' if r['flap_pass'] else 'FAIL'} "
+                    f"({r['n_present']} of {r['n_required']} required spikes within "
+                    f"±{FREQ_TOLERANCE_HZ:g} Hz; flight test "
+                    f"{spikes.get(float(r['flap_deg']), '')} Hz)"
+                    for r in per.iter_rows(named=True)
+                }
+            )
+            + f". Simulator: {sim_source}"
+        )
     out.facts["buffet_status"] = status
     out.rows.append(
         MatrixRow("buffet_freq", "Stall buffet: predominant frequencies", rule_f, data_text, fig,
@@ -610,7 +619,7 @@ def _validity_row(out: Assessment, data: pl.DataFrame, table: pl.DataFrame) -> N
             f"flight data reach stall identification + {VALIDITY_MARGIN_DEG:g} deg in at least "
             f"{MIN_MANEUVERS_COVERING} maneuvers per flap (else other data must be declared)",
             status,
-            " ".join(verdict["verdict"].to_list()),
+            "; ".join(verdict["verdict"].to_list()),
         )
     )
 
@@ -619,9 +628,11 @@ def _outlines(env: pl.DataFrame) -> dict[float, list[tuple[np.ndarray, np.ndarra
     """Closed (β, α) polygons of the validated envelope per flap, one per run of adjacent
     alpha bands."""
     out: dict[float, list[tuple[np.ndarray, np.ndarray]]] = {}
-    for (flap,), g in env.sort("flap_deg", "alpha_lo_deg").partition_by(
-        "flap_deg", as_dict=True, maintain_order=True
-    ).items():
+    for (flap,), g in (
+        env.sort("flap_deg", "alpha_lo_deg")
+        .partition_by("flap_deg", as_dict=True, maintain_order=True)
+        .items()
+    ):
         lo, hi = g["alpha_lo_deg"].to_numpy(), g["alpha_hi_deg"].to_numpy()
         bmin, bmax = g["beta_min_deg"].to_numpy(), g["beta_max_deg"].to_numpy()
         cuts = np.flatnonzero(lo[1:] != hi[:-1]) + 1
@@ -741,9 +752,7 @@ def _entries_row(out: Assessment, table: pl.DataFrame, power_on_ct: float) -> No
     )
 
 
-def _lateral_row(
-    out: Assessment, model: DeltaModel | None, params: pl.DataFrame | None
-) -> None:
+def _lateral_row(out: Assessment, model: DeltaModel | None, params: pl.DataFrame | None) -> None:
     rule = (
         "Part 60 App. A, Attachment 7 (FSTD Directive 2): the model covers degraded "
         "lateral-directional stability and control"

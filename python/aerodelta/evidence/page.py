@@ -33,11 +33,11 @@ h3{font-size:15px;margin:18px 0 6px}
 table{border-collapse:collapse;margin:8px 0;font-size:12.5px}
 th,td{border:1px solid #d0d7de;padding:3px 8px;text-align:right;vertical-align:top}
 th{background:#f0f3f6} td:first-child,th:first-child{text-align:left}
-table.matrix td{text-align:left} table.matrix td.detail{font-size:11.5px;color:#444}
+table.matrix td,table.matrix th{text-align:left} table.matrix td.detail{font-size:11.5px;color:#444}
 td.status{font-weight:600;white-space:nowrap}
 td.pass{background:#e8f5e9;color:#1b5e20} td.fail{background:#fdecea;color:#b42318}
 td.shown{background:#e8f0fb;color:#1f3b57} td.na{background:#f4f4f4;color:#555;white-space:normal;
-font-weight:400}
+font-weight:400;font-size:11.5px;min-width:150px}
 figure{margin:14px 0} figure img{max-width:100%;height:auto;border:1px solid #eee}
 figcaption{font-size:12.5px;color:#555;margin-top:3px}
 .note{color:#666;font-size:12.5px}
@@ -62,6 +62,13 @@ def status_class(status: str) -> str:
     return {PASS: "pass", FAIL: "fail", SHOWN: "shown"}.get(status, "na")
 
 
+def _status_html(status: str) -> str:
+    """A status cell: the verdict in bold, a not-assessed reason in plain text after it."""
+    if status.startswith(NOT_ASSESSED):
+        return f"<b>{esc(NOT_ASSESSED.rstrip())}</b> {esc(status[len(NOT_ASSESSED) :])}"
+    return esc(status)
+
+
 def _matrix(rows: Sequence[MatrixRow], numbers: Mapping[str, int]) -> str:
     head = (
         "<tr><th>#</th><th>Characteristic</th><th>Rule (as we read it)</th><th>Data used</th>"
@@ -79,7 +86,7 @@ def _matrix(rows: Sequence[MatrixRow], numbers: Mapping[str, int]) -> str:
             f'<tr id="row-{esc(r.key)}" data-status="{esc(status_class(r.status))}">'
             f"<td>{i}</td><td><b>{esc(r.item)}</b>{detail}</td><td>{esc(r.rule)}</td>"
             f"<td>{esc(r.data)}</td><td>{fig}</td><td>{esc(r.tolerance)}</td>"
-            f'<td class="status {status_class(r.status)}">{esc(r.status)}</td></tr>'
+            f'<td class="status {status_class(r.status)}">{_status_html(r.status)}</td></tr>'
         )
     return f'<table class="matrix"><thead>{head}</thead><tbody>{"".join(body)}</tbody></table>'
 
@@ -98,11 +105,20 @@ _FIGURE_TABLES: dict[str, list[tuple[str, Sequence[str] | None, str]]] = {
     "fig-speeds": [
         (
             "stall",
-            ("maneuver_id", "flap_deg", "kind", "stall_id_by", "stall_id_alpha_deg",
-             "v_warning_keas", "v_buffet_onset_keas", "v_stall_keas", "v_min_keas"),
+            (
+                "maneuver_id",
+                "flap_deg",
+                "kind",
+                "stall_id_by",
+                "stall_id_alpha_deg",
+                "v_warning_keas",
+                "v_buffet_onset_keas",
+                "v_stall_keas",
+                "v_min_keas",
+            ),
             "Per maneuver (speeds KEAS, kt; alpha deg)",
         )
-    ],  # fmt: skip
+    ],
     "fig-rolloff": [("rolloff", None, "Wings-level stalls: bank change after identification")],
     "fig-buffet-spectra": [
         ("buffet_frequencies", None, "Identified predominant frequencies"),
@@ -119,7 +135,7 @@ _FIGURE_TABLES: dict[str, list[tuple[str, Sequence[str] | None, str]]] = {
 
 
 def _figure_block(
-    out: Assessment, anchor: str, number: int, src: str, caption: str, size: tuple[int, int]
+    out: Assessment, anchor: str, number: int, *, src: str, caption: str, size: tuple[int, int]
 ) -> str:
     parts = [_figure(anchor, number, src, caption, size)]
     for key, cols, title in _FIGURE_TABLES.get(anchor, []):
@@ -241,7 +257,14 @@ def render_page(
     envelope = ""
     if env_anchor in figure_files:
         src, size = figure_files[env_anchor]
-        envelope = _figure_block(out, env_anchor, numbers[env_anchor], src, spec_by[env_anchor].caption, size)
+        envelope = _figure_block(
+            out,
+            env_anchor,
+            numbers[env_anchor],
+            src=src,
+            caption=spec_by[env_anchor].caption,
+            size=size,
+        )
     blocks = []
     for s in out.figures:
         if s.anchor == env_anchor or s.anchor not in figure_files:
@@ -250,12 +273,16 @@ def render_page(
         item = next((r.item for r in out.rows if r.figure == s.anchor), s.name)
         blocks.append(
             f"<h3>{esc(item)}</h3>"
-            + _figure_block(out, s.anchor, numbers[s.anchor], src, s.caption, size)
+            + _figure_block(out, s.anchor, numbers[s.anchor], src=src, caption=s.caption, size=size)
         )
     others = "".join(blocks)
     stamp = generated.strftime("%Y-%m-%d %H:%M UTC")
     sections = [
-        ("matrix", "1. Characteristic-by-characteristic matrix", legend + _matrix(out.rows, numbers)),
+        (
+            "matrix",
+            "1. Characteristic-by-characteristic matrix",
+            legend + _matrix(out.rows, numbers),
+        ),
         ("envelope-plots", "2. Envelope plots", envelope or '<p class="note">No samples.</p>'),
         ("figures", "3. Figures and data", others),
         ("soc", "4. Statement of Compliance (draft)", _soc(out, out.rows, info)),
