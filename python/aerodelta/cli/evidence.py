@@ -125,6 +125,7 @@ def run(args: argparse.Namespace) -> int:
         longitudinal=not args.no_longitudinal,
         overwrite=args.overwrite,
         command=_command(args),
+        data_label=f"{src.describe()} ({data['maneuver_id'].n_unique()} maneuvers)",
     )
     if args.format == "json":
         print(json.dumps({"html": str(res.html), "matrix": res.matrix.to_dicts()}, indent=2))

@@ -246,6 +246,7 @@ def write_evidence(
     longitudinal: bool = True,
     overwrite: bool = False,
     command: str | None = None,
+    data_label: str | None = None,
 ) -> EvidenceResult:
     """Write the Part 60 stall-model evidence pack.
 
@@ -283,6 +284,8 @@ def write_evidence(
         Replace an existing evidence pack at ``out``.
     command
         The command line to record in the provenance (default: this call).
+    data_label
+        A few words naming the data on the page (default: from ``data``).
 
     Returns
     -------
@@ -312,6 +315,7 @@ def write_evidence(
         raise InvalidInputError(f"aft_stop_deg {aft_stop_deg}: give the stop in deg, e.g. -22")
     generated = generated_at()
     frame, source_text, files, root = _load(data)
+    source_text = data_label or source_text
     files = [*files, *(Path(s) for s in sources)]
     camp = Path(campaign) if campaign is not None else root
     delta, model_path = _model(model)
@@ -453,7 +457,7 @@ def _load(data: Any) -> tuple[pl.DataFrame, str, list[Path], Path | None]:
 
     manifest_path = p / "manifest.csv"
     manifest = read_manifest(manifest_path) if manifest_path.is_file() else None
-    frame = ingest(p, compat=False).data
+    frame = ingest(p, compat=False, progress=False).data
     files = [r.path for r in find_records(p, manifest)]
     files += [f for f in (manifest_path, p / "aircraft.toml") if f.is_file()]
     return frame, f"the campaign {p}", files, p
