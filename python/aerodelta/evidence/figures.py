@@ -36,6 +36,12 @@ CRITERION_COLORS: dict[str, str] = {
 FLAP_COLORS = ("#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2")
 
 
+def _legend(ax: Any, **kw: Any) -> None:
+    """A legend when the axes have labelled artists (none: no legend, no warning)."""
+    if ax.get_legend_handles_labels()[0]:
+        ax.legend(fontsize=7, frameon=False, **kw)
+
+
 def _kind_color(kind: str) -> str:
     return KIND_COLORS.get(kind, KIND_COLORS["other"])
 
@@ -59,7 +65,7 @@ def _positions(table: pl.DataFrame, flaps: Sequence[float]) -> np.ndarray:
 def _kind_legend(ax: Any, kinds: Sequence[str]) -> None:
     for k in kinds:
         ax.plot([], [], "o", color=_kind_color(k), label=k, ms=4)
-    ax.legend(loc="best", fontsize=7, frameon=False)
+    _legend(ax, loc="best")
 
 
 def stall_alpha(*, table: pl.DataFrame, flaps: Sequence[float]) -> Figure:
@@ -76,7 +82,7 @@ def stall_alpha(*, table: pl.DataFrame, flaps: Sequence[float]) -> Figure:
             left.plot(x[m], a[m], "o", ms=5, color=CRITERION_COLORS[crit], label=crit)
     left.set_ylabel("α at stall identification [deg]")
     left.set_title("stall identification (first criterion met)")
-    left.legend(loc="best", fontsize=7, frameon=False)
+    _legend(left, loc="best")
     _flap_axis(left, flaps)
     for k, crit in enumerate((*CRITERION_COLORS,)):
         col = f"{crit}_alpha_deg"
@@ -88,7 +94,7 @@ def stall_alpha(*, table: pl.DataFrame, flaps: Sequence[float]) -> Figure:
             right.plot(x[ok] + 0.02 * (k - 3), v[ok], "_", ms=9, mew=2,
                        color=CRITERION_COLORS[crit], label=crit)  # fmt: skip
     right.set_title("α at each criterion met, the warning and the buffet onset")
-    right.legend(loc="best", fontsize=7, frameon=False, ncol=2)
+    _legend(right, loc="best", ncol=2)
     _flap_axis(right, flaps)
     return fig
 
@@ -182,7 +188,7 @@ def buffet_spectra(
         a.set_title(f"flap {flap:g}")
         a.set_xlabel("frequency [Hz]")
     ax[0, 0].set_ylabel("PSD [(m/s²)²/Hz]")
-    ax[0, 0].legend(loc="best", fontsize=7, frameon=False)
+    _legend(ax[0, 0], loc="best")
     return fig
 
 
@@ -205,7 +211,7 @@ def buffet_amplitude(*, amplitude: pl.DataFrame, onsets: Mapping[float, float]) 
     for a in ax[0]:
         a.set_xlabel("α at the CG [deg]")
     ax[0, 0].set_ylabel("buffet RMS [m/s²]")
-    ax[0, 0].legend(loc="best", fontsize=7, frameon=False)
+    _legend(ax[0, 0], loc="best")
     return fig
 
 
@@ -228,7 +234,7 @@ def validity(*, verdict: pl.DataFrame, coverage: pl.DataFrame) -> Figure:
         a.set_title(f"flap {r['flap_deg']:g}: {'covered' if r['covered'] else 'not covered'}")
         a.set_xlabel("samples per band")
     ax[0, 0].set_ylabel("α at the CG [deg]")
-    ax[0, 0].legend(loc="lower right", fontsize=7, frameon=False)
+    _legend(ax[0, 0], loc="lower right")
     return fig
 
 
@@ -266,7 +272,7 @@ def envelope(
         leg.plot([], [], "s", color=_kind_color(kd), label=kd, ms=5)
     if outlines:
         leg.plot([], [], color="#222", lw=1.0, label="validated envelope (model)")
-    leg.legend(loc="best", fontsize=7, frameon=False)
+    _legend(leg, loc="best")
     return fig
 
 
@@ -284,7 +290,7 @@ def entries(*, table: pl.DataFrame, power_on_ct: float) -> Figure:
     a.axhline(power_on_ct, color="#b42318", lw=0.9, ls="--", label="power-on threshold")
     a.set_xlabel("bank angle at stall identification [deg]")
     a.set_ylabel("thrust coefficient C_T (sum) [-]")
-    a.legend(loc="best", fontsize=7, frameon=False)
+    _legend(a, loc="best")
     return fig
 
 
@@ -306,7 +312,7 @@ def lateral(*, panels: Sequence[Mapping[str, Any]]) -> Figure:
         a.axhline(0.0, color="#444", lw=0.6)
         a.set_title(str(pan["name"]))
         a.set_xlabel("α [deg]")
-    ax[0, 0].legend(loc="best", fontsize=7, frameon=False)
+    _legend(ax[0, 0], loc="best")
     return fig
 
 
@@ -326,5 +332,5 @@ def longitudinal(*, panels: Sequence[Mapping[str, Any]]) -> Figure:
         a.set_xlabel("α [deg]")
     ax[0, 0].set_title("lift: measured (grey) and Kirchhoff model")
     ax[0, 1].set_title("pitching moment: measured (grey) and model")
-    ax[0, 0].legend(loc="best", fontsize=7, frameon=False, markerscale=6)
+    _legend(ax[0, 0], loc="best", markerscale=6)
     return fig

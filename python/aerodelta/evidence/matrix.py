@@ -127,10 +127,6 @@ def _flaps_text(values: Mapping[float, str]) -> str:
     return "; ".join(f"flap {f:g}: {v}" for f, v in sorted(values.items()))
 
 
-def _n(x: object) -> int:
-    return int(x) if x is not None else 0
-
-
 def _fmt(x: float | None, spec: str = ".1f") -> str:
     return "-" if x is None or (isinstance(x, float) and not math.isfinite(x)) else format(x, spec)
 
@@ -387,7 +383,11 @@ def _rolloff_row(out: Assessment, data: pl.DataFrame, table: pl.DataFrame) -> No
         pl.col("kind").is_in(list(WINGS_LEVEL_KINDS)) & pl.col("stall_id_t_s").is_not_null()
     )
     if wl.height == 0 or "phi_deg" not in data.columns:
-        why = "no phi_deg channel" if "phi_deg" not in data.columns else "no wings-level stall"
+        why = (
+            "no phi_deg channel"
+            if "phi_deg" not in data.columns
+            else "no wings-level stall (manifest kind straight) identified"
+        )
         out.rows.append(
             MatrixRow(
                 "rolloff", "Roll-off (uncommanded roll at the stall), apparent randomness",
@@ -410,7 +410,7 @@ def _rolloff_row(out: Assessment, data: pl.DataFrame, table: pl.DataFrame) -> No
     events_note = ""
     try:
         ev = detect_rolloff(data, kinds=list(WINGS_LEVEL_KINDS)).filter(pl.col("accepted"))
-    except AerodeltaError as e:
+    except (AerodeltaError, pl.exceptions.PolarsError) as e:
         ev = None
         events_note = f" (roll-off events not detected: {str(e).splitlines()[0]})"
     events: dict[str, np.ndarray] = {}
@@ -732,8 +732,16 @@ def _entries_row(out: Assessment, table: pl.DataFrame, power_on_ct: float) -> No
                 f"power-on threshold C_T = {power_on_ct:g}.",
             )
         )
-    if not has_ct:
+    known_kinds = set(WINGS_LEVEL_KINDS) | set(TURNING_KINDS)
+    if ident.height == 0:
+        status = NOT_ASSESSED + "no stall identified in the records"
+    elif not has_ct:
         status = NOT_ASSESSED + "no ct_left/ct_right channels, so power-on cannot be told"
+    elif ident.height and not ident["kind"].is_in(list(known_kinds | {"asymmetric_thrust"})).any():
+        status = NOT_ASSESSED + (
+            "no maneuver kind in the manifest (straight, turning, accelerated), so wings-level "
+            "and turning entries cannot be told; give --manifest"
+        )
     else:
         status = PASS if not missing else FAIL
     out.rows.append(
