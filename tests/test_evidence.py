@@ -259,6 +259,11 @@ def test_without_model_the_model_rows_say_so(pack: dict[str, Any], tmp_path: Pat
     assert st["lateral"].startswith("not assessed: no fitted Δ model")
     assert st["buffet_freq"].startswith("not assessed: no simulator buffet frequencies")
     assert st["longitudinal"].startswith("not assessed: switched off")
+    # without the manifest's kinds the entries cannot be told: not assessed, not FAIL
+    res2 = write_evidence(pack["data"].drop("kind"), tmp_path / "q", longitudinal=False)
+    assert next(r for r in res2.rows if r.key == "entries").status.startswith(
+        "not assessed: no maneuver kind"
+    )
     page = _parse(res.html)
     for key, row in page.rows.items():  # rows with a figure link one on the page
         for col, href in row["links"]:

@@ -310,6 +310,20 @@ def lateral(*, panels: Sequence[Mapping[str, Any]]) -> Figure:
                 err = np.vstack([est - np.asarray(s["lo"]), np.asarray(s["hi"]) - est])
                 a.errorbar(s["c"], est, yerr=err, fmt="o", ms=2.5, lw=0.7, color=color)
         a.axhline(0.0, color="#444", lw=0.6)
+        # scale to the tables and the estimates: a wide interval past the stall runs off the
+        # panel rather than flattening every curve
+        vals = np.concatenate(
+            [
+                np.ravel(np.asarray(s[k], dtype=float))
+                for s in pan["series"]
+                for k in ("table", "est")
+            ]
+        )
+        vals = vals[np.isfinite(vals)]
+        if vals.size:
+            lo, hi = float(vals.min()), float(vals.max())
+            pad = 0.15 * (hi - lo) if hi > lo else max(abs(hi), 1e-6)
+            a.set_ylim(lo - pad, hi + pad)
         a.set_title(str(pan["name"]))
         a.set_xlabel("α [deg]")
     _legend(ax[0, 0], loc="best")
