@@ -132,6 +132,10 @@ def breaks(*, gbreak: Sequence[Mapping[str, Any]], pitch: Sequence[Mapping[str, 
     ):
         for ln in lines:
             a.plot(ln["t"], ln["y"], lw=0.9, color=_kind_color(str(ln["kind"])))
+        if not lines:
+            a.text(0.5, 0.5, "none in the records", transform=a.transAxes, ha="center",
+                   va="center", color="#666")  # fmt: skip
+            a.set_xlim(-3.0, 3.0)
         a.axvline(0.0, color="#444", lw=0.8, ls="--")
         a.set_xlabel("time from the break [s]")
         a.set_ylabel(ylabel)
