@@ -414,14 +414,20 @@ def _rolloff_row(out: Assessment, data: pl.DataFrame, table: pl.DataFrame) -> No
         ev = None
         events_note = f" (roll-off events not detected: {str(e).splitlines()[0]})"
     events: dict[str, np.ndarray] = {}
+    n_all = 0
     if ev is not None and ev.height:
         rel = ev.join(wl.select("maneuver_id", "stall_id_t_s"), on="maneuver_id").with_columns(
             (pl.col("t_onset") - pl.col("stall_id_t_s")).alias("dt")
         )
         events = {
             str(m): g["dt"].to_numpy()
-            for (m,), g in rel.partition_by("maneuver_id", as_dict=True).items()
+            for (m,), g in rel.filter(
+                (pl.col("dt") >= -2.0) & (pl.col("dt") <= 3.0 * ROLL_WINDOW_S)
+            )
+            .partition_by("maneuver_id", as_dict=True)
+            .items()
         }
+        n_all = ev.filter(pl.col("maneuver_id").is_in(wl["maneuver_id"].to_list())).height
     shown = win.filter((pl.col("dt") >= -2.0) & (pl.col("dt") <= 3.0 * ROLL_WINDOW_S))
     lines = [
         {
@@ -448,14 +454,15 @@ def _rolloff_row(out: Assessment, data: pl.DataFrame, table: pl.DataFrame) -> No
         )
     )
     b = out.tables["rolloff"]["bank_change_deg"]
-    n_ev = sum(len(v) for v in events.values())
+    n_ev = sum(len(v) for v in events.values())  # those in the window drawn
     out.rows.append(
         MatrixRow(
             "rolloff",
             "Roll-off (uncommanded roll at the stall), apparent randomness",
             "Part 60 App. A, Table A1A objective stall tests: roll-off shown; Attachment 7 "
             "(uncommanded roll-off, apparent randomness)",
-            f"{wl.height} wings-level stalls identified, {n_ev} roll-off events detected",
+            f"{wl.height} wings-level stalls identified, {n_all} roll-off events detected in "
+            f"them ({n_ev} from 2 s before to {3 * ROLL_WINDOW_S:g} s after stall identification)",
             fig,
             "shown (no numeric tolerance)",
             SHOWN,
