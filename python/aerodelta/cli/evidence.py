@@ -93,11 +93,12 @@ def run(args: argparse.Namespace) -> int:
         )
     if args.aft_stop is not None and not math.isfinite(args.aft_stop):
         raise InvalidInputError(f"--aft-stop {args.aft_stop}: give the stop in deg, e.g. -22")
-    sim: str | Path | None = args.sim_buffet
-    if sim == "none":
-        sim = None
-    elif sim != "auto":
-        sim = existing_file(sim, "--sim-buffet")
+    sim: str | Path | None = None
+    if args.sim_buffet == "auto":
+        sim = "auto"
+    elif args.sim_buffet != "none":
+        sim = existing_file(str(args.sim_buffet), "--sim-buffet")
+        assert sim is not None
         read_sim_buffet(sim)  # refused here, in one line, before the records are read
     out = output_folder(args.out, "--out")
     check_output_folder(out, args.overwrite)

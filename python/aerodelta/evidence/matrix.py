@@ -843,7 +843,7 @@ def _lateral_row(out: Assessment, model: DeltaModel | None, params: pl.DataFrame
             "lateral",
             "Degraded lateral-directional stability (fitted Δ)",
             rule,
-            f"{len(panels)} Δ derivatives ({', '.join(p['name'] for p in panels)}) in "
+            f"{len(panels)} Δ derivatives ({', '.join(str(p['name']) for p in panels)}) in "
             f"{len(flaps)} flap settings; {n_ident} identified bins",
             fig,
             "shown with its uncertainty",
