@@ -40,6 +40,7 @@ _register("jsbsim-replay", "jsbsim_replay")
 _register("stall-id", "stall_id")
 _register("plan", "plan")
 _register("longitudinal", "longitudinal")
+_register("evidence", "evidence")
 
 
 def cli_wording(message: str, command: str) -> str:
