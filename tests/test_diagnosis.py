@@ -306,6 +306,8 @@ def test_json_contract_keys(diagnoses, tmp_path):
             "shrink_fraction_effects", "p_value_effects", "chosen_per_fold", "chosen_in_folds",
         }  # fmt: skip
         assert r["outer"]["n_maneuvers"] == doc["data"]["n_maneuvers"]
+        assert r["flap_curves"]["layout"] in {"shared", "per_flap"}
+        assert 0 <= r["outer"]["per_flap_folds"] <= r["outer"]["folds"]
     # the withheld dihedral effect holds out of sample: chosen in every outer fold, most of
     # its in-sample shrink kept on maneuvers no choice saw
     top = doc["coefficients"]["Cl"]["effects"][0]
@@ -313,6 +315,7 @@ def test_json_contract_keys(diagnoses, tmp_path):
     assert top["outer_shrink_fraction"] >= 0.8 * top["shrink_fraction"]
     assert doc["coefficients"]["Cl"]["outer"]["p_value_effects"] < 0.01
     assert "outer folds" in (tmp_path / "diagnosis.txt").read_text()
+    assert doc["settings"]["per_flap"] == "auto"
 
 
 def test_gap_numbers_match_a_direct_computation(campaigns, diagnoses):

@@ -149,3 +149,33 @@ def test_a_design_restricted_to_a_models_regressors_fits_that_model_alike(profil
                 np.testing.assert_allclose(
                     th_small[q][f], th_full[q][f][keep], rtol=1e-9, atol=1e-12
                 )
+
+
+def test_the_report_says_which_curves_were_kept() -> None:
+    from aerodelta.diagnosis.report import summary_text  # noqa: PLC0415
+
+    coef = {
+        "verdict": "none", "gap": {"rms": 0.0, "bias": 0.0, "tic": 0.0},
+        "remaining_gap": {"rms": 0.0, "tic": 0.0}, "effects": [], "where": [],
+    }  # fmt: skip
+    per = {"layout": "per_flap", "tested": True, "shrink_fraction": 0.123, "p_value": 0.0004}
+    shared = {"layout": "shared", "tested": True, "shrink_fraction": -0.02, "p_value": 1.0}
+    doc = {
+        "simulator": "s", "data": {"n_maneuvers": 1, "n_points": 1, "flaps_deg": [0.0, 20.0],
+                                   "folds": 5},
+        "coefficients": {
+            "Cl": {**coef, "flap_curves": per},
+            "Cn": {**coef, "flap_curves": shared},
+            "CY": {**coef, "flap_curves": {"layout": "shared", "tested": False}},
+        },
+    }  # fmt: skip
+    lines = summary_text(doc).splitlines()
+    assert (
+        "  alpha curves: one per flap (the flaps differ); "
+        "per flap they remove +12.3% of the gap held out (p = 0.0004)" in lines
+    )
+    assert (
+        "  alpha curves: one for all flaps (per-flap curves not better); "
+        "per flap they remove -2.0% of the gap held out (p = 1)" in lines
+    )
+    assert sum("alpha curves" in x for x in lines) == 2

@@ -61,6 +61,19 @@ def summary_text(result: dict[str, Any]) -> str:
         sig = [e for e in r["effects"] if e["significant"] and e.get("kind") != "stochastic"]
         if not sig:
             lines.append("  no significant unmodelled effect")
+        fc = r.get("flap_curves") or {}
+        if fc.get("tested"):
+            how = (
+                "one per flap (the flaps differ)"
+                if fc["layout"] == "per_flap"
+                else "one for all flaps (per-flap curves not better)"
+            )
+            lines.append(
+                f"  alpha curves: {how}; per flap they remove "
+                f"{100 * fc['shrink_fraction']:+.1f}% of the gap held out (p = {fc['p_value']:.2g})"
+            )
+        elif fc.get("layout") == "per_flap":
+            lines.append("  alpha curves: one per flap (--per-flap)")
         outer = r.get("outer")
         if outer:
             lines.append(
