@@ -6,9 +6,7 @@ Skipped only when no Chromium is installed and the environment variable CI is un
 
 from __future__ import annotations
 
-import os
 import re
-import shutil
 import subprocess
 from pathlib import Path
 
@@ -16,40 +14,14 @@ import pytest
 from matplotlib.image import imread
 
 import aerodelta as ad
+from _browser import CONSOLE_ERROR, chromium, needs_chromium
 from aerodelta.evidence import write_evidence
 
-CHROMIUM = next(
-    (p for p in (shutil.which(n) for n in ("chromium", "chromium-browser", "google-chrome")) if p),
-    None,
-)
-
-pytestmark = pytest.mark.skipif(
-    CHROMIUM is None and not os.environ.get("CI"),
-    reason="headless Chromium not installed (apt-get install chromium); runs whenever CI is set",
-)
-
-#: Console-error markers in Chromium's ``--enable-logging=stderr`` output. (Chromium does not
-#: log a missing local image; tests/test_evidence.py checks every figure file exists.)
-CONSOLE_ERROR = re.compile(r"Uncaught|CONSOLE\(\d+\).*(error|Error)|:ERROR:CONSOLE", re.I)
+pytestmark = needs_chromium
 
 
 def _chromium(*args: str, tmp: Path) -> subprocess.CompletedProcess[str]:
-    assert CHROMIUM is not None, "CI is set but no chromium is installed (see .ci/run)"
-    cmd = [
-        CHROMIUM,
-        "--headless",
-        "--no-sandbox",
-        "--disable-gpu",
-        "--disable-dev-shm-usage",
-        "--no-first-run",
-        "--hide-scrollbars",
-        "--allow-file-access-from-files",
-        f"--user-data-dir={tmp / 'profile'}",
-        "--enable-logging=stderr",
-        "--v=0",
-        *args,
-    ]
-    return subprocess.run(cmd, capture_output=True, text=True, timeout=120, check=False)
+    return chromium(*args, tmp=tmp, file_access=True)
 
 
 @pytest.fixture(scope="module")

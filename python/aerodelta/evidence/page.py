@@ -12,27 +12,15 @@ from typing import Any
 import polars as pl
 
 from aerodelta.evidence.matrix import FAIL, NOT_ASSESSED, PASS, SHOWN, Assessment, MatrixRow
-from aerodelta.report.html import esc, table
+from aerodelta.report.html import BASE_CSS, esc, table
 
 #: The placeholder the sponsor replaces in the Statement of Compliance.
 TODO = "[to be completed by the sponsor]"
 
-_CSS = """
-body{font:14px/1.45 system-ui,-apple-system,'Segoe UI',Roboto,sans-serif;margin:0;color:#222;
-background:#fafafa}
-header{background:#1f3b57;color:#fff;padding:14px 28px}
-header h1{margin:0;font-size:22px} header p{margin:4px 0 0;opacity:.85}
-nav{position:sticky;top:0;background:#eef2f6;padding:6px 28px;border-bottom:1px solid #ccd;
-z-index:2;font-size:13px}
-nav a{margin-right:14px;color:#1f3b57;text-decoration:none}
-main{max-width:1180px;margin:0 auto;padding:8px 28px 40px}
-section{background:#fff;border:1px solid #e1e4e8;border-radius:6px;padding:6px 20px 14px;
-margin:16px 0}
-h2{border-bottom:2px solid #1f3b57;padding-bottom:4px;font-size:19px}
-h3{font-size:15px;margin:18px 0 6px}
-table{border-collapse:collapse;margin:8px 0;font-size:12.5px}
-th,td{border:1px solid #d0d7de;padding:3px 8px;text-align:right;vertical-align:top}
-th{background:#f0f3f6} td:first-child,th:first-child{text-align:left}
+_CSS = (
+    BASE_CSS
+    + "th,td{border:1px solid #d0d7de;padding:3px 8px;text-align:right;vertical-align:top}\n"
+    + """th{background:#f0f3f6} td:first-child,th:first-child{text-align:left}
 table.matrix td,table.matrix th{text-align:left} table.matrix td.detail{font-size:11.5px;color:#444}
 td.status{font-weight:600;white-space:nowrap}
 td.pass{background:#e8f5e9;color:#1b5e20} td.fail{background:#fdecea;color:#b42318}
@@ -55,6 +43,7 @@ code{font-size:12px;background:#f3f3f3;padding:0 3px}
  .todo{border:1px solid #000}
 }
 """
+)
 
 
 def status_class(status: str) -> str:

@@ -97,7 +97,9 @@ def details(summary: str, inner: str) -> str:
     return f"<details><summary>{esc(summary)}</summary>{inner}</details>"
 
 
-_CSS = """
+#: The page style shared by the report and the evidence pack (header, navigation, sections,
+#: tables); each adds its own cell and row rules.
+BASE_CSS = """
 body{font:14px/1.45 system-ui,-apple-system,'Segoe UI',Roboto,sans-serif;margin:0;color:#222;
 background:#fafafa}
 header{background:#1f3b57;color:#fff;padding:14px 28px}
@@ -111,7 +113,11 @@ margin:16px 0}
 h2{border-bottom:2px solid #1f3b57;padding-bottom:4px;font-size:19px}
 h3{font-size:15px;margin:18px 0 6px}
 table{border-collapse:collapse;margin:8px 0;font-size:12.5px}
-th,td{border:1px solid #d0d7de;padding:3px 8px;text-align:right}
+"""
+
+_CSS = (
+    BASE_CSS
+    + """th,td{border:1px solid #d0d7de;padding:3px 8px;text-align:right}
 th{background:#f0f3f6} td:first-child,th:first-child{text-align:left}
 tr.held td{background:#fff8e1} tr.bad td{background:#fdecea} tr.good td{background:#e8f5e9}
 figure{margin:10px 0} figure img{max-width:100%;height:auto;border:1px solid #eee}
@@ -124,6 +130,7 @@ figcaption{font-size:12.5px;color:#555;margin-top:3px}
 .ok{color:#1b7f3b;font-weight:600} .fail{color:#b42318;font-weight:600}
 details{margin:6px 0} summary{cursor:pointer;color:#1f3b57}
 """
+)
 
 
 def generated_at() -> _dt.datetime:
