@@ -47,6 +47,7 @@ from aerodelta.diagnosis.select import (
     SelectionConfig,
     columns_for,
     forward_select,
+    regressors_of,
 )
 from aerodelta.diagnosis.simulator import load_simulator
 from aerodelta.diagnosis.stochastic import DETECTOR_CHANNELS, event_columns, rolloff_finding
@@ -528,8 +529,7 @@ def _diagnose(  # noqa: PLR0917 - the arguments of diagnose(), passed through
             skip = [c.name for c in cands if c.name in NEEDS_MODEL]
             not_testable += [s for s in skip if s not in not_testable]
             cands = [c for c in cands if c.name not in NEEDS_MODEL]
-        aero_names = sorted({r for c in cands if not c.global_ for r in c.regressors})
-        glob_names = sorted({r for c in cands if c.global_ for r in c.regressors})
+        aero_names, glob_names = regressors_of(cands)
         aero_x, glob_x = design_columns(
             records, coef, aero_names=aero_names, glob_names=glob_names, vocab=vocab,
             meas=meas_cols, order=order,

@@ -42,6 +42,7 @@ from aerodelta.diagnosis.select import (
     columns_for,
     forward_select,
     material_change,
+    regressors_of,
     robust_gain,
 )
 from aerodelta.diagnosis.vocabulary import Candidate
@@ -120,13 +121,7 @@ def choose_layout(  # noqa: PLR0917 - the selection's state, all needed
     # the shared model's held-out errors are the selection's own (memoised); the per-flap
     # ones are computed on the model's regressors only (Design.restrict: the same fits)
     sse_shared = heldout_sse(design, stats, columns_for(design, model))[0]
-    small = per_flap_design(
-        design.restrict(
-            sorted({r for c in model if not c.global_ for r in c.regressors}),
-            sorted({r for c in model if c.global_ for r in c.regressors}),
-        ),
-        layout,
-    )
+    small = per_flap_design(design.restrict(*regressors_of(model)), layout)
     sse_per = heldout_sse(small, fold_stats(small, stats.folds), columns_for(small, model))[0]
     d = material_change(sse_shared, sse_per)
     _, p = improvement_test(d, cfg.n_perm, cfg.seed + _SEED)

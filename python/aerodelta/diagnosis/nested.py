@@ -143,7 +143,6 @@ def outer_evaluation(
     chosen: list[list[str]] = []
     gains: dict[str, FloatArray] = {}
     split: list[bool] = []
-    full_per = per_flap_design(design, layout) if layout is not None else None
     for o in range(n_q):
         outer = np.flatnonzero(folds == o)
         inner_idx = np.flatnonzero(folds != o)
@@ -155,24 +154,17 @@ def outer_evaluation(
         # the inner folds: the other outer folds, renumbered 0..K-2
         inner_folds = np.searchsorted(np.unique(folds[inner_idx]), folds[inner_idx])
         stats = fold_stats(inner, inner_folds)
-        sel = forward_select(
-            inner,
-            stats,
-            candidates,
-            replace(cfg, seed=cfg.seed + _FOLD_SEED * (o + 1)),
-            report=False,
-        )
+        fold_cfg = replace(cfg, seed=cfg.seed + _FOLD_SEED * (o + 1))
+        sel = forward_select(inner, stats, candidates, fold_cfg, report=False)
         scored = design
-        if layout is not None and full_per is not None:
-            fold_cfg = replace(cfg, seed=cfg.seed + _FOLD_SEED * (o + 1))
+        per_flap = False
+        if layout is not None:
             inner_layout = FlapLayout(layout.man_flap[inner_idx], layout.n_flaps)
             ch = choose_layout(inner, stats, sel, candidates, inner_layout, fold_cfg, report=False)
-            inner, stats, sel = ch.design, ch.stats, ch.sel
-            if ch.per_flap:
-                scored = full_per
-            split.append(ch.per_flap)
-        else:
-            split.append(False)
+            inner, stats, sel, per_flap = ch.design, ch.stats, ch.sel, ch.per_flap
+            if per_flap:
+                scored = per_flap_design(design, layout)
+        split.append(per_flap)
         total = stats
         nuis = list(sel.nuisance)
         effects = [s.candidate for s in sel.selected if s.candidate not in nuis]

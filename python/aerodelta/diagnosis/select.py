@@ -150,10 +150,16 @@ class Selection:
 NUISANCE = frozenset({"control_lag", "time_skew"})
 
 
+def regressors_of(cands: Sequence[Candidate]) -> tuple[list[str], list[str]]:
+    """The aerodynamic (alpha-dependent) and the global regressors of a set of candidates,
+    each sorted and without repeats."""
+    aero = {r for c in cands if not c.global_ for r in c.regressors}
+    glob = {r for c in cands if c.global_ for r in c.regressors}
+    return sorted(aero), sorted(glob)
+
+
 def _cols(design: Design, cands: Sequence[Candidate]) -> tuple[IntArray, IntArray]:
-    aero = [r for c in cands if not c.global_ for r in c.regressors]
-    glob = [r for c in cands if c.global_ for r in c.regressors]
-    return local_columns(design, sorted(set(aero)), sorted(set(glob)))
+    return local_columns(design, *regressors_of(cands))
 
 
 #: Quantile of the per-maneuver absolute improvements at which :func:`robust_gain` caps each
