@@ -127,14 +127,23 @@ impl BinStats {
             }
             let (g, s, n) = &mut out[f];
             *n += w * self.n[k] as f64;
-            for (a, b) in g
-                .iter_mut()
-                .zip(&self.gram[k * dim * dim..(k + 1) * dim * dim])
-            {
-                *a += w * b;
+            // the lower triangle only (the Gram matrices are symmetric), mirrored below
+            let gk = &self.gram[k * dim * dim..(k + 1) * dim * dim];
+            for i in 0..dim {
+                let r = i * dim..i * dim + i + 1;
+                for (a, b) in g[r.clone()].iter_mut().zip(&gk[r]) {
+                    *a += w * b;
+                }
             }
             for (a, b) in s.iter_mut().zip(&self.sums[k * dim..(k + 1) * dim]) {
                 *a += w * b;
+            }
+        }
+        for (g, _, _) in &mut out {
+            for i in 0..dim {
+                for j in 0..i {
+                    g[j * dim + i] = g[i * dim + j];
+                }
             }
         }
         out
@@ -1002,16 +1011,40 @@ fn select_impl(
         ));
     }
     let p = design.ncols();
-    let members = bin_members(pool_fit);
     let dim = grams.dim;
-    let nb = members.len();
+    let nb = pool_fit.bins.len();
+    // rows per bin, only for the residual autocorrelation when no kappa is given
+    let members = if kappa.is_none() {
+        bin_members(pool_fit)
+    } else {
+        Vec::new()
+    };
     let fitted: Vec<bool> = pool_fit.bins.iter().map(|b| b.note.is_empty()).collect();
-    let totals: Vec<(Vec<f64>, Vec<f64>, f64)> = grams
+    // per bin and fold, the fold's Gram matrix (every maneuver is in one fold), in one pass
+    // over the maneuvers; a bin's total is the sum of its folds
+    let fold_map = fold_of(maneuver, opts.folds, opts.seed);
+    let folds: FoldGrams = grams
         .bins
         .iter()
-        .map(|b| {
-            let w: Option<Vec<f64>> = weights.map(|_| b.maneuvers.iter().map(weight).collect());
-            b.total(dim, w.as_deref())
+        .map(|bs| {
+            bs.fold_totals(
+                dim,
+                opts.folds,
+                |k| fold_map.get(&bs.maneuvers[k]).copied(),
+                |k| weight(&bs.maneuvers[k]),
+            )
+        })
+        .collect();
+    let totals: Vec<(Vec<f64>, Vec<f64>, f64)> = folds
+        .iter()
+        .map(|fg| {
+            let (mut g, mut s, mut n) = (vec![0.0; dim * dim], vec![0.0; dim], 0.0);
+            for (gf, sf, nf) in fg {
+                g.iter_mut().zip(gf).for_each(|(a, b)| *a += b);
+                s.iter_mut().zip(sf).for_each(|(a, b)| *a += b);
+                n += nf;
+            }
+            (g, s, n)
         })
         .collect();
     if kappa.is_some_and(|k| k.len() != nb) {
@@ -1088,21 +1121,6 @@ fn select_impl(
     }
     let count: Vec<usize> = (0..p)
         .map(|j| (0..nb).filter(|&b| fitted[b] && selected[b][j]).count())
-        .collect();
-
-    // folds: per bin and fold, the fold's Gram matrix
-    let fold_map = fold_of(maneuver, opts.folds, opts.seed);
-    let folds: FoldGrams = grams
-        .bins
-        .iter()
-        .map(|bs| {
-            bs.fold_totals(
-                dim,
-                opts.folds,
-                |k| fold_map.get(&bs.maneuvers[k]).copied(),
-                |k| weight(&bs.maneuvers[k]),
-            )
-        })
         .collect();
 
     let mut order: Vec<usize> = (0..p)

@@ -30,6 +30,9 @@ struct Cell<'g> {
     w: Vec<Vec<f64>>,
     /// The held-out sums of the path itself.
     base: (f64, f64, f64),
+    /// The fold's Gram matrix over the factor's columns, in their order: row `i` holds
+    /// `G[S_i, S_0..=S_i]`, then `G[S_i, z]` (contiguous, for [`held_out_packed`]).
+    packed: Vec<Vec<f64>>,
 }
 
 /// The path's cells and the rules of a training fit.
@@ -82,9 +85,10 @@ impl<'g> PathScorer<'g> {
                     theta: Vec::new(),
                     w: vec![Vec::new(); p],
                     base: (0.0, 0.0, 0.0),
+                    packed: Vec::new(),
                 };
                 for &c in start {
-                    cell.push(c);
+                    cell.push(c, dim);
                 }
                 cell.refresh(dim, min_points);
                 cells.push((f, cell));
@@ -103,7 +107,7 @@ impl<'g> PathScorer<'g> {
     /// Scores of `path + [c]` for each `c` of `cands`.
     pub(super) fn scores(&mut self, cands: &[usize]) -> Vec<CvScore> {
         let mut accs = vec![CvAccum::new(self.nf); cands.len()];
-        let (mut th, mut cols) = (Vec::new(), Vec::new());
+        let mut th = Vec::new();
         let (dim, min_points) = (self.dim, self.min_points);
         for (f, cell) in &mut self.cells {
             let k = cell.factor.as_ref().map_or(0, |fa| fa.cols().len());
@@ -116,10 +120,14 @@ impl<'g> PathScorer<'g> {
                         Some(fa) if enough => match fa.probe_cached(c, &mut cell.w[c]) {
                             Some((d, u)) => {
                                 fa.theta_with(&cell.theta, &cell.w[c], d, u, &mut th);
-                                cols.clear();
-                                cols.extend_from_slice(fa.cols());
-                                cols.push(c);
-                                let s = held_out(cell.fold, dim, &cols, &th);
+                                let s = held_out_packed(
+                                    &cell.packed,
+                                    &cell.fold[c * dim..(c + 1) * dim],
+                                    fa.cols(),
+                                    c,
+                                    cell.fold[dim * dim - 1],
+                                    &th,
+                                );
                                 if th.iter().all(|v| v.is_finite()) {
                                     s
                                 } else {
@@ -150,7 +158,7 @@ impl<'g> PathScorer<'g> {
         self.path.push(c);
         let (dim, min_points) = (self.dim, self.min_points);
         for (_, cell) in &mut self.cells {
-            cell.push(c);
+            cell.push(c, dim);
             cell.refresh(dim, min_points);
         }
     }
@@ -158,14 +166,20 @@ impl<'g> PathScorer<'g> {
 
 impl Cell<'_> {
     /// Column `c` joins the path: into the factor when this training set excites it.
-    fn push(&mut self, c: usize) {
+    fn push(&mut self, c: usize, dim: usize) {
         if !self.excited[c] {
             return;
         }
         if let Some(fa) = &mut self.factor {
             let mut w = std::mem::take(&mut self.w[c]);
             match fa.probe_cached(c, &mut w) {
-                Some((d, u)) => fa.push(c, Probe { w, d, u }),
+                Some((d, u)) => {
+                    fa.push(c, Probe { w, d, u });
+                    let row = &self.fold[c * dim..(c + 1) * dim];
+                    let mut packed: Vec<f64> = fa.cols().iter().map(|&s| row[s]).collect();
+                    packed.push(row[dim - 1]);
+                    self.packed.push(packed);
+                }
                 None => self.factor = None,
             }
         }
@@ -188,5 +202,86 @@ impl Cell<'_> {
             }
             None => zero_prediction(self.fold, dim),
         };
+    }
+}
+
+/// [`held_out`] of the columns `cols` followed by `c`, with the fold's Gram matrix over `cols`
+/// given `packed` (rows as [`Cell::packed`]), `row_c` the fold's row of `c` and `zz` its
+/// `Σz²`: the same sums in the same order (bit-identical), the `cols` block read contiguously.
+fn held_out_packed(
+    packed: &[Vec<f64>],
+    row_c: &[f64],
+    cols: &[usize],
+    c: usize,
+    zz: f64,
+    theta: &[f64],
+) -> (f64, f64, f64) {
+    let k = cols.len();
+    let zc = row_c.len() - 1;
+    let mut cross = 0.0;
+    let mut yy = 0.0;
+    for (i, row) in packed.iter().enumerate() {
+        cross += theta[i] * row[i + 1];
+        let mut off = 0.0;
+        for (t, g) in theta[..i].iter().zip(&row[..i]) {
+            off += t * g;
+        }
+        yy += theta[i] * (2.0 * off + theta[i] * row[i]);
+    }
+    cross += theta[k] * row_c[zc];
+    let mut off = 0.0;
+    for (t, &s) in theta[..k].iter().zip(cols) {
+        off += t * row_c[s];
+    }
+    yy += theta[k] * (2.0 * off + theta[k] * row_c[c]);
+    ((zz - 2.0 * cross + yy).max(0.0), zz, yy.max(0.0))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sim::rng::Stream;
+
+    /// The packed held-out sums are `held_out`'s, bit for bit, for columns in any order.
+    #[test]
+    fn packed_held_out_is_held_out_bit_for_bit() {
+        let mut rng = Stream::new(7, 1);
+        let (n, dim) = (50, 7);
+        let rows: Vec<Vec<f64>> = (0..n)
+            .map(|_| (0..dim).map(|_| rng.normal()).collect())
+            .collect();
+        let mut g = vec![0.0; dim * dim];
+        for r in &rows {
+            for a in 0..dim {
+                for b in 0..dim {
+                    g[a * dim + b] += r[a] * r[b];
+                }
+            }
+        }
+        for cols in [vec![0usize], vec![3, 0, 5], vec![5, 1, 2, 0, 4]] {
+            let (path, c) = cols.split_at(cols.len() - 1);
+            let packed: Vec<Vec<f64>> = path
+                .iter()
+                .enumerate()
+                .map(|(i, &s)| {
+                    let mut row: Vec<f64> = path[..=i].iter().map(|&t| g[s * dim + t]).collect();
+                    row.push(g[s * dim + dim - 1]);
+                    row
+                })
+                .collect();
+            let theta: Vec<f64> = (0..cols.len()).map(|_| rng.normal()).collect();
+            let a = held_out(&g, dim, &cols, &theta);
+            let b = held_out_packed(
+                &packed,
+                &g[c[0] * dim..(c[0] + 1) * dim],
+                path,
+                c[0],
+                g[dim * dim - 1],
+                &theta,
+            );
+            assert_eq!(a.0.to_bits(), b.0.to_bits(), "{cols:?}");
+            assert_eq!(a.1.to_bits(), b.1.to_bits());
+            assert_eq!(a.2.to_bits(), b.2.to_bits());
+        }
     }
 }

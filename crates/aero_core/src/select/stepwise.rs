@@ -81,19 +81,27 @@ impl<'a> Factor<'a> {
         let k = self.cols.len();
         let tc = u / d.sqrt();
         out.clear();
-        out.resize(k + 1, 0.0);
-        // v = L⁻ᵀ w, into out[..k]
-        for i in (0..k).rev() {
-            let mut s = w[i];
-            for m in i + 1..k {
-                s -= self.l[m][i] * out[m];
+        out.extend_from_slice(&w[..k]);
+        // v = L⁻ᵀ w into out[..k], by rows of L (each row read contiguously)
+        self.back_substitute(out);
+        for (o, t) in out.iter_mut().zip(theta) {
+            *o = t - tc * *o;
+        }
+        out.push(tc);
+    }
+
+    /// `x ← L⁻ᵀ x` (the first `k` entries), sweeping the rows of `L` from the last: row `i`
+    /// fixes `x_i` and is subtracted from the entries before it: the column-oriented back
+    /// substitution of `Lᵀ x = b` (Golub & Van Loan 2013, Section 3.1).
+    fn back_substitute(&self, x: &mut [f64]) {
+        for i in (0..self.cols.len()).rev() {
+            let row = &self.l[i];
+            let xi = x[i] / row[i];
+            x[i] = xi;
+            for (a, l) in x[..i].iter_mut().zip(&row[..i]) {
+                *a -= l * xi;
             }
-            out[i] = s / self.l[i][i];
         }
-        for i in 0..k {
-            out[i] = theta[i] - tc * out[i];
-        }
-        out[k] = tc;
     }
 
     /// The forward substitution of column `c`; `None` when it is (numerically) dependent on
@@ -158,15 +166,8 @@ impl<'a> Factor<'a> {
 
     /// Estimates `θ = L⁻ᵀ y` (scaled units).
     pub(super) fn theta(&self) -> Vec<f64> {
-        let k = self.cols.len();
-        let mut th = vec![0.0; k];
-        for i in (0..k).rev() {
-            let mut s = self.y[i];
-            for m in i + 1..k {
-                s -= self.l[m][i] * th[m];
-            }
-            th[i] = s / self.l[i][i];
-        }
+        let mut th = self.y.clone();
+        self.back_substitute(&mut th);
         th
     }
 
@@ -290,27 +291,28 @@ pub fn stepwise(
         if dof <= 0.0 {
             break;
         }
-        let mut trials: Vec<(usize, f64, Probe)> = candidates
+        // (column, partial F, pivot, new entry of y); the substitution stays in the cache
+        let mut trials: Vec<(usize, f64, f64, f64)> = candidates
             .iter()
             .filter(|c| !fac.cols.contains(c))
             .filter_map(|&c| {
                 let (d, u) = fac.probe_cached(c, &mut cache[c])?;
-                let p = Probe {
-                    w: cache[c].clone(),
-                    d,
-                    u,
-                };
-                let e = fac.sse_with(&p);
-                Some((c, partial_f(fac.sse - e, e, dof, kappa), p))
+                let e = (fac.sse - u * u).max(0.0);
+                Some((c, partial_f(fac.sse - e, e, dof, kappa), d, u))
             })
             .collect();
         // stable: equal F keep the candidates' order
         trials.sort_by(|a, b| b.1.total_cmp(&a.1));
         let mut entered = false;
-        for (c, f, p) in trials {
+        for (c, f, d, u) in trials {
             if f.is_nan() || f <= f_in {
                 break;
             }
+            let p = Probe {
+                w: cache[c].clone(),
+                d,
+                u,
+            };
             let mut next = fac.clone();
             next.push(c, p);
             if max_vif.is_finite() && next.max_vif(nf) > max_vif {
