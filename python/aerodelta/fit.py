@@ -19,7 +19,6 @@ import hashlib
 import json
 import math
 import numbers
-import os
 import re
 import sys
 from collections.abc import Mapping, Sequence
@@ -34,6 +33,7 @@ from tqdm import tqdm
 
 from aerodelta import _core
 from aerodelta._core import __version__
+from aerodelta._threads import engine_threads
 from aerodelta._toml import read_toml
 from aerodelta.exceptions import DataError, InvalidInputError
 from aerodelta.lsq import ols
@@ -1922,7 +1922,7 @@ def fit(
     exprs = [e for c in coefs for _, e in [*cfg.structures[c], *pools.get(c, [])]]
     wanted = {"alpha_deg", "t", *(f"{c}_{k}" for c in coefs for k in ("meas", "qual"))}
     wanted |= {c for c in df.columns if any(c in e for e in exprs)}
-    with ThreadPoolExecutor(max_workers=max(1, min(4, os.cpu_count() or 1))) as ex:
+    with ThreadPoolExecutor(max_workers=engine_threads(cap=4)) as ex:
         # the provenance hash (hashlib releases the GIL) beside the engine's fits
         data_hash = ex.submit(_data_hash, data)
         for flap in flaps:

@@ -7,7 +7,6 @@
 from __future__ import annotations
 
 import json
-import os
 import re
 from collections.abc import Callable, Sequence
 from concurrent.futures import ThreadPoolExecutor
@@ -21,6 +20,7 @@ from tqdm import tqdm
 
 from aerodelta import _core
 from aerodelta._fsutil import write_atomic
+from aerodelta._threads import engine_threads
 from aerodelta.aircraft import BUILTIN_COLUMN, BUILTINS, Aircraft
 from aerodelta.channel_map import ChannelMap
 from aerodelta.channels import ALTERNATIVES, CHANNELS, REQUIRED
@@ -494,7 +494,7 @@ def _run_compat(
             flank,
         )
 
-    with ThreadPoolExecutor(max_workers=os.cpu_count() or 1) as ex:
+    with ThreadPoolExecutor(max_workers=engine_threads()) as ex:
         results = list(
             ex.map(
                 lambda i: _compat_one(groups[i], vanes(i), scale_factors, gusts),

@@ -21,7 +21,6 @@ means nothing for the user's aircraft.
 
 from __future__ import annotations
 
-import os
 from collections.abc import Callable, Mapping
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
@@ -32,6 +31,7 @@ import numpy as np
 import polars as pl
 
 from aerodelta import _core
+from aerodelta._threads import engine_threads
 from aerodelta.aircraft import BUILTIN_COLUMN
 from aerodelta.daveml import DaveModel
 from aerodelta.exceptions import DataError
@@ -153,7 +153,7 @@ def _adx37(frame: pl.DataFrame) -> dict[str, np.ndarray]:
             cols[n] = np.zeros(frame.height)
     # row chunks side by side (the engine releases the GIL; row-wise, so chunking is exact)
     n = frame.height
-    step = max(50_000, -(-n // max(1, min(4, os.cpu_count() or 1))))
+    step = max(50_000, -(-n // engine_threads(cap=4)))
     chunks = [{k: v[i : i + step] for k, v in cols.items()} for i in range(0, max(n, 1), step)]
     with ThreadPoolExecutor(max_workers=len(chunks)) as ex:
         parts = list(ex.map(_core.qualified_lateral_adx37, chunks))

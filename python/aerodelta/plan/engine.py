@@ -23,9 +23,11 @@ from tqdm import tqdm
 
 from aerodelta.exceptions import InvalidInputError
 
-#: Environment of the local workers: one engine thread per worker process (the cluster's
-#: parallelism is the tasks; an engine pool per worker would oversubscribe the cores).
+#: Environment of the local workers: one engine thread per worker process, the front end's
+#: thread pools included (``aerodelta._threads``; the cluster's parallelism is the tasks; an
+#: engine pool per worker would oversubscribe the cores).
 WORKER_ENV: dict[str, str] = {
+    "AERODELTA_NUM_THREADS": "1",
     "RAYON_NUM_THREADS": "1",
     "OMP_NUM_THREADS": "1",
     "OPENBLAS_NUM_THREADS": "1",
