@@ -418,6 +418,18 @@ def identify_flap(
     nested_cv: bool = True,
 ) -> dict[str, Any]: ...
 
+# sign-flip randomization counts on numpy's PCG64 stream (crates/py_bindings/src/signflip.rs)
+def sign_flip_hits(
+    weights: npt.NDArray[np.float64],
+    w: float,
+    state: int,
+    inc: int,
+    draws: int,
+    per_call: int,
+    tail: int,
+    min_hits: int,
+) -> tuple[int, int]: ...
+
 # roll-off detection and configurable runtime draws (crates/py_bindings/src/rolloff.rs)
 def rolloff_detect_defaults() -> dict[str, float | bool]: ...
 def rolloff_detect(

@@ -66,6 +66,7 @@ pub mod rolloff;
 pub mod rolloff_detect;
 pub mod rolloff_mc;
 pub mod select;
+pub mod signflip;
 pub mod sim;
 pub mod spline;
 pub mod table;

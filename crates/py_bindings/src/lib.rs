@@ -14,6 +14,7 @@ mod lsq;
 mod partition;
 mod preprocess;
 mod rolloff;
+mod signflip;
 mod sim;
 mod spline;
 mod table;
@@ -34,5 +35,6 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     preprocess::register(m)?;
     lsq::register(m)?;
     rolloff::register(m)?;
+    signflip::register(m)?;
     Ok(())
 }

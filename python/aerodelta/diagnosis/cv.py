@@ -33,6 +33,8 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from aerodelta import _core
+
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
 
@@ -965,84 +967,46 @@ TAIL_DRAWS = 10
 #: Rows of random signs of one ``Generator.integers`` call of the sign-flip draws.
 _DRAW_CALL = 50_000
 
-#: Sign-flip draws are summed in blocks of about this many signs (bounds the memory of a
-#: test whatever the number of maneuvers: a few arrays of 4 MB).
-_SIGNS_BLOCK = 1 << 22
-
-#: Bit ``i`` of pattern ``p``: +1 or -1, the sign of the ``i``-th of 8 consecutive maneuvers.
-_PATTERN_SIGNS = ((np.arange(256)[:, None] >> np.arange(8)[None, :]) & 1) * 2.0 - 1.0
+#: Fewer hits than this in the first draws add the tail draws (see :func:`_flip_p`).
+_MIN_TAIL_HITS = 20
 
 
-class _SignBytes:
-    """The bytes from which ``Generator.integers(0, 2, dtype=np.int8)`` draws its values,
-    read straight from the bit generator.
-
-    numpy draws an 8-bit integer from the next byte of a buffered 32-bit output (the 32-bit
-    outputs of PCG64 being the halves of its 64-bit ones, low half first), and the value in
-    ``[0, 2)`` is that byte's top bit (Lemire's method, which never rejects for a range of 2).
-    Each call starts a new 32-bit word, so it uses ``4 * ceil(size / 4)`` bytes.
-    :func:`_sign_bytes_match` checks this against numpy at first use.
-    """
-
-    def __init__(self, seed: int) -> None:
-        self._bits = np.random.default_rng(seed).bit_generator
-        self._left = np.zeros(0, dtype=np.uint8)
-
-    def take(self, n: int) -> npt.NDArray[np.uint8]:
-        """The next ``n`` bytes."""
-        need = n - self._left.size
-        buf = self._left
-        if need > 0:
-            words = np.asarray(self._bits.random_raw((need + 7) // 8), dtype="<u8")
-            buf = np.concatenate([buf, words.view(np.uint8)]) if buf.size else words.view(np.uint8)
-        out, self._left = buf[:n], buf[n:]
-        return out
-
-
-def _call_sums(stream: _SignBytes, rows: int, weights: FloatArray) -> Iterator[FloatArray]:
-    """``signs @ weights`` for the signs of one ``integers(0, 2, size=(rows, n),
-    dtype=np.int8) * 2 - 1`` call, in blocks of draws.
-
-    The top bits of each 8 bytes of a draw are gathered into one 8-bit pattern (a multiply
-    that moves bit ``8i + 7`` of a little-endian word to bit ``56 + i``), and the sum of the
-    8 signed weights is read from a table of the 256 patterns per group of 8 maneuvers."""
-    n = weights.size
-    groups = -(-n // 8)
-    padded = np.zeros(groups * 8)
-    padded[:n] = weights
-    table = (padded.reshape(groups, 8) @ _PATTERN_SIGNS.T).ravel()  # (groups * 256)
-    offset = (256 * np.arange(groups, dtype=np.uint64))[None, :]
-    block = max(1, _SIGNS_BLOCK // max(n, 1))
-    done = 0
-    while done < rows:
-        k = min(block, rows - done)
-        raw = stream.take(k * n).reshape(k, n)
-        if n % 8:
-            raw = np.concatenate([raw, np.zeros((k, groups * 8 - n), dtype=np.uint8)], axis=1)
-        # in place on the bytes just taken (the stream keeps none of them)
-        w = np.ascontiguousarray(raw).view("<u8")
-        np.right_shift(w, np.uint64(7), out=w)
-        np.bitwise_and(w, np.uint64(0x0101010101010101), out=w)
-        np.multiply(w, np.uint64(0x0102040810204080), out=w)
-        np.right_shift(w, np.uint64(56), out=w)
-        np.add(w, offset, out=w)
-        yield np.take(table, w.view(np.int64)).sum(axis=1)
-        done += k
-    stream.take(-(rows * n) % 4)  # the rest of the call's last 32-bit word
+def _engine_hits(weights: FloatArray, w: float, n_perm: int, seed: int) -> tuple[int, int]:
+    """``(hits, draws)`` of :func:`_flip_p` counted by the engine
+    (``aero_core::signflip``) on the PCG64 stream of ``np.random.default_rng(seed)``."""
+    st = np.random.default_rng(seed).bit_generator.state["state"]
+    return _core.sign_flip_hits(
+        np.ascontiguousarray(weights, dtype=np.float64), float(w), int(st["state"]),
+        int(st["inc"]), n_perm, _DRAW_CALL, TAIL_DRAWS, _MIN_TAIL_HITS,
+    )  # fmt: skip
 
 
 @functools.cache
 def _sign_bytes_match() -> bool:
-    """True when :class:`_SignBytes` reproduces this numpy's ``integers`` draws."""
-    for seed, n, calls in ((3, 7, (3, 5, 2)), (11, 200, (20, 9))):
-        rng = np.random.default_rng(seed)
-        stream = _SignBytes(seed)
-        for k in calls:
-            w = 2.0 ** np.arange(n) % 251.0  # integers: the sums are exact in any order
-            ref = (rng.integers(0, 2, size=(k, n), dtype=np.int8) * 2 - 1) @ w
-            if not np.array_equal(ref, np.concatenate(list(_call_sums(stream, k, w)))):
+    """True when the engine's draws are this numpy's ``integers`` signs (checked once:
+    ranks, so the sums are exact; maneuver counts with and without a remainder of 8, calls
+    ending inside a 32-bit word, the tail extension)."""
+    for seed, n, n_perm in ((3, 7, 1001), (11, 203, 1000), (5, 13, 999)):
+        weights = np.arange(1.0, n + 1.0)
+        for w in (0.0, 0.6 * weights.sum()):
+            if _engine_hits(weights, w, n_perm, seed) != _numpy_hits(weights, w, n_perm, seed):
                 return False
     return True
+
+
+def _numpy_hits(weights: FloatArray, w: float, n_perm: int, seed: int) -> tuple[int, int]:
+    """``(hits, draws)`` of :func:`_flip_p` with numpy's own ``integers`` signs."""
+    rng = np.random.default_rng(seed)
+    n = weights.size
+    hits, draws, total = 0, 0, n_perm
+    while draws < total:
+        k = min(total - draws, _DRAW_CALL)
+        signs8 = rng.integers(0, 2, size=(k, n), dtype=np.int8) * 2 - 1
+        hits += int(np.sum(signs8 @ weights >= w))
+        draws += k
+        if draws == n_perm and hits < _MIN_TAIL_HITS:
+            total = n_perm * TAIL_DRAWS
+    return hits, draws
 
 
 def _flip_p(weights: FloatArray, w: float, n_perm: int, seed: int) -> float:
@@ -1053,26 +1017,12 @@ def _flip_p(weights: FloatArray, w: float, n_perm: int, seed: int) -> float:
     ``TAIL_DRAWS - 1`` times as many draws are added (same seed, same answer).
 
     The signs are those of ``Generator(seed).integers(0, 2, size=(k, n), dtype=np.int8)``
-    called for at most :data:`_DRAW_CALL` draws at a time, read in blocks of about
-    :data:`_SIGNS_BLOCK` signs (:func:`_call_sums`; numpy's own calls if it draws otherwise).
-    The sums are added in another order than ``signs @ weights``: the same for integer
-    weights (ranks), within rounding otherwise."""
+    called for at most :data:`_DRAW_CALL` draws at a time, counted by the engine
+    (``aero_core::signflip``, which reads numpy's PCG64 stream; :func:`_numpy_hits`, numpy's
+    own draws, if this numpy draws otherwise). The engine adds each draw's signed weights in
+    groups of 8, another order than ``signs @ weights``: the same for integer weights (ranks),
+    within rounding otherwise."""
     weights = np.asarray(weights, dtype=np.float64)
-    n = weights.size
-    fast = _sign_bytes_match()
-    stream = _SignBytes(seed)
-    rng = np.random.default_rng(seed)
-    hits, draws = 0, 0
-    total = n_perm
-    while draws < total:
-        k = min(total - draws, _DRAW_CALL)
-        if fast:
-            for sums in _call_sums(stream, k, weights):
-                hits += int(np.count_nonzero(sums >= w))
-        else:
-            signs8 = rng.integers(0, 2, size=(k, n), dtype=np.int8) * 2 - 1
-            hits += int(np.sum(signs8 @ weights >= w))
-        draws += k
-        if draws == n_perm and hits < 20:
-            total = n_perm * TAIL_DRAWS
+    count = _engine_hits if _sign_bytes_match() else _numpy_hits
+    hits, draws = count(weights, w, n_perm, seed)
     return (1.0 + hits) / (draws + 1.0)
