@@ -99,14 +99,20 @@ pub const OUTPUT_COLUMNS: [&str; 15] = [
 ];
 
 /// Smoothing of the recorded airspeed the pilot tracks (centred moving average), s.
-pub const SPEED_SMOOTH_S: f64 = 1.0;
-/// Window before the record's stall identification over which the entry's deceleration is
-/// measured, s.
-pub const DECEL_WINDOW_S: f64 = 8.0;
-/// Least deceleration the pilot keeps past the record's identification, m/s² (≈ 0.5 kt/s).
-pub const MIN_DECEL_MPS2: f64 = 0.25;
-/// Longest the pilot keeps decelerating past the record's identification without a stall, s.
-pub const MAX_EXTEND_S: f64 = 20.0;
+pub const SPEED_SMOOTH_S: f64 = 2.0;
+/// Smoothing of the recorded alpha and pitch rate the pilot follows (centred moving average),
+/// s; the elevator's feed-forward is a trailing mean over twice that (no later push leaks
+/// into it): the record's gust responses and noise are not replayed into calm air.
+pub const TRACK_SMOOTH_S: f64 = 0.6;
+/// Time constant of the low-pass on the simulator's airspeed rate in the speed loop, s.
+const RATE_TAU_S: f64 = 1.0;
+/// Window before the record's stall identification over which the test pilot's pull (mean
+/// alpha rate to the peak alpha) is measured, s.
+pub const PULL_WINDOW_S: f64 = 2.0;
+/// Least pull the pilot keeps past the record's peak alpha until the simulator stalls, deg/s.
+pub const MIN_PULL_DPS: f64 = 0.5;
+/// Longest the pilot keeps pulling past the record's peak alpha without a stall cue, s.
+pub const MAX_EXTEND_S: f64 = 15.0;
 /// Pilot reaction from recognition to recovery input, s.
 pub const REACTION_S: f64 = 0.3;
 /// Simulated time after recognition, s (the recovery takes alpha out of the stall).
@@ -120,9 +126,9 @@ const RECOVERY_ALPHA_DEG: f64 = 4.0;
 
 // speed loop: α_c = K_V e + K_D ė + K_I ∫e (rad, e in m/s); the phugoid-like response of speed
 // to alpha is about V̈ ≈ −6 m/s³ per rad at these speeds, so K_V, K_D give ω ≈ 0.3 rad/s, ζ ≈ 0.7
-const K_V: f64 = 0.015;
-const K_D: f64 = 0.07;
-const K_I: f64 = 0.002;
+const K_V: f64 = 0.01;
+const K_D: f64 = 0.05;
+const K_I: f64 = 0.001;
 const ALPHA_C_MAX: f64 = 0.2; // rad
                               // alpha loop (the campaign pilot's nominal gains, rad per rad and per rad/s)
 const K_A: f64 = 0.9;
@@ -143,8 +149,14 @@ pub struct ClosedLoopOptions {
     pub pusher_alpha_deg: Option<f64>,
     /// The pilot resisted the pusher in the record (keeps the entry law against the push).
     pub resist_pusher: bool,
-    /// Time of the record's stall identification (or its peak alpha when none), s.
-    pub t_track_end_s: f64,
+    /// Time of the record's stall identification (its peak alpha when none), s: the end of
+    /// the entry.
+    pub t_id_s: f64,
+    /// Time of the record's peak alpha (the test pilot's deepest point), s.
+    pub t_peak_s: f64,
+    /// Normal-axis buffet RMS the pilot recognises as a deterrent buffet, m/s² (None: not a
+    /// recognition cue).
+    pub deterrent_buffet_rms_mps2: Option<f64>,
     /// The simulator's buffet model (None: no buffet).
     pub buffet: Option<BuffetSpec>,
     /// White noise added to the accelerometer's normal channel, m/s² (the record's floor).
@@ -163,7 +175,9 @@ impl Default for ClosedLoopOptions {
             warning_hysteresis_deg: crate::sim::sensors::STALL_WARNING_HYSTERESIS_DEG,
             pusher_alpha_deg: None,
             resist_pusher: false,
-            t_track_end_s: f64::NAN,
+            t_id_s: f64::NAN,
+            t_peak_s: f64::NAN,
+            deterrent_buffet_rms_mps2: None,
             buffet: None,
             az_noise_mps2: 0.0,
             seed: 0,
@@ -214,7 +228,7 @@ impl ClosedLoopRun {
 /// A record resampled for the pilot: linear interpolation, ends held.
 struct Track<'a> {
     t: &'a [f64],
-    cols: &'a [Vec<f64>],
+    cols: Vec<Vec<f64>>,
     eas: Vec<f64>,
     eas_rate: Vec<f64>,
     thrust: [Vec<f64>; 2],
@@ -251,6 +265,19 @@ fn centred_mean(x: &[f64], w: usize) -> Vec<f64> {
             let lo = k.saturating_sub(h);
             let hi = (k + h + 1).min(x.len());
             (c[hi] - c[lo]) / (hi - lo) as f64
+        })
+        .collect()
+}
+
+fn trailing_mean(x: &[f64], w: usize) -> Vec<f64> {
+    let mut c = vec![0.0; x.len() + 1];
+    for (i, v) in x.iter().enumerate() {
+        c[i + 1] = c[i] + v;
+    }
+    (0..x.len())
+        .map(|k| {
+            let lo = (k + 1).saturating_sub(w.max(1));
+            (c[k + 1] - c[lo]) / (k + 1 - lo) as f64
         })
         .collect()
 }
@@ -318,30 +345,35 @@ pub fn fly_closed_loop<M: AeroModel + ?Sized>(
     opts: &ClosedLoopOptions,
 ) -> Result<ClosedLoopRun> {
     check_record(record)?;
-    let t = &record[0];
-    let n = t.len();
-    let dt_rec = (t[n - 1] - t[0]) / (n - 1) as f64;
-    let decim = (opts.sim_hz * dt_rec).round().max(1.0) as usize;
-    let dt = dt_rec / decim as f64;
     if !(opts.sim_hz.is_finite() && opts.sim_hz > 0.0) {
         return Err(AeroError::invalid(
             "closed-loop options sim_hz",
             format!("{}: give a positive rate, e.g. 100", opts.sim_hz),
         ));
     }
-    let t_end = if opts.t_track_end_s.is_finite() {
-        opts.t_track_end_s.clamp(t[0], t[n - 1])
-    } else {
-        t[n - 1]
+    let t = &record[0];
+    let n = t.len();
+    let dt_rec = (t[n - 1] - t[0]) / (n - 1) as f64;
+    let decim = (opts.sim_hz * dt_rec).round().max(1.0) as usize;
+    let dt = dt_rec / decim as f64;
+    let clamp_t = |v: f64, fallback: f64| {
+        if v.is_finite() {
+            v.clamp(t[0], t[n - 1])
+        } else {
+            fallback
+        }
     };
-    // the recorded EAS (smoothed), its rate, and each engine's thrust
+    let t_peak = clamp_t(opts.t_peak_s, t[n - 1]);
+    let t_id = clamp_t(opts.t_id_s, t_peak).min(t_peak);
+    // the recorded EAS (smoothed) and its rate, each engine's thrust, and the alpha, pitch
+    // rate (centred means) and elevator (trailing mean: no later push leaks into it) the pilot
+    // follows
     let eas_raw: Vec<f64> = record[7]
         .iter()
         .zip(&record[8])
         .map(|(v, r)| v * (r / 1.225).sqrt())
         .collect();
-    let w = ((SPEED_SMOOTH_S / dt_rec).round() as usize) | 1;
-    let eas = centred_mean(&eas_raw, w);
+    let eas = centred_mean(&eas_raw, ((SPEED_SMOOTH_S / dt_rec).round() as usize) | 1);
     let eas_rate: Vec<f64> = (0..n)
         .map(|k| {
             let (a, b) = (k.saturating_sub(1), (k + 1).min(n - 1));
@@ -354,21 +386,32 @@ pub fn fly_closed_loop<M: AeroModel + ?Sized>(
             .collect()
     });
     let max_thrust = [0, 1].map(|e| thrust[e].iter().fold(0.0f64, |m, v| m.max(*v)));
+    let ws = ((TRACK_SMOOTH_S / dt_rec).round() as usize) | 1;
+    let smoothed: Vec<Vec<f64>> = record
+        .iter()
+        .enumerate()
+        .map(|(j, c)| match RECORD_COLUMNS[j] {
+            "alpha_deg" | "q_dps" => centred_mean(c, ws),
+            "de_deg" => trailing_mean(c, 2 * ws),
+            _ => c.clone(),
+        })
+        .collect();
     let tr = Track {
         t,
-        cols: record,
+        cols: smoothed,
         eas,
         eas_rate,
         thrust,
     };
-    let v_end = tr.at(&tr.eas, t_end);
-    let t_a = (t_end - DECEL_WINDOW_S).max(t[0]);
-    let decel = if t_end - t_a > 1.0 {
-        (tr.at(&tr.eas, t_a) - v_end) / (t_end - t_a)
+    // the test pilot's pull past the identification (recorded mean alpha rate to the peak)
+    let t_pull = (t_id - PULL_WINDOW_S).max(t[0]);
+    let pull = if t_peak - t_pull > 0.5 {
+        (tr.col("alpha_deg", t_peak) - tr.col("alpha_deg", t_pull)) / (t_peak - t_pull)
     } else {
         0.0
     }
-    .max(MIN_DECEL_MPS2);
+    .max(MIN_PULL_DPS)
+    .to_radians();
 
     let stall = FLAP_STALL
         .iter()
@@ -412,19 +455,24 @@ pub fn fly_closed_loop<M: AeroModel + ?Sized>(
     let (mut int_v, mut int_a) = (0.0f64, 0.0f64);
     let mut alpha_c = 0.0f64;
     let mut prev_eas: Option<f64> = None;
+    let mut eas_rate_lp = 0.0f64;
     let mut recognised: Option<(f64, &'static str)> = None;
+    let mut recover_at = f64::INFINITY;
     let mut nz_hist: Vec<(f64, f64, f64)> = Vec::new(); // (t, nz, alpha deg)
     let mut cols: Vec<Vec<f64>> = (0..OUTPUT_COLUMNS.len()).map(|_| Vec::new()).collect();
     let mut warn_on = false;
-    let t_stop_max = t_end + MAX_EXTEND_S + RECOVERY_S;
+    let t_stop_max = t_peak + MAX_EXTEND_S + REACTION_S + RECOVERY_S;
     let mut step = 0usize;
     loop {
         let tn = sim.t;
         let ad = sim.air(&sim.x);
         let x = sim.x;
         let alpha_deg = ad.alpha.to_degrees();
-        let tq = tn.min(t_end);
-        let recovering = recognised.is_some_and(|(tr0, _)| tn >= tr0 + REACTION_S);
+        let entry = tn <= t_id;
+        let recovering = tn >= recover_at;
+        // the recorded values the pilot follows: now in the entry, then those of the record
+        // up to its peak alpha (alpha), or at its identification (the rest)
+        let tq = tn.min(t_id);
         let thrust_n = if recovering {
             max_thrust
         } else {
@@ -443,30 +491,27 @@ pub fn fly_closed_loop<M: AeroModel + ?Sized>(
                 warn_on = false;
             }
         }
-        // the pilot
+        // the pilot: the speed loop sets the alpha correction in the entry, then holds it
         let eas_sim = ad.tas * (ad.rho / 1.225).sqrt();
-        let (v_ref, vdot_ref) = if tn <= t_end {
-            (tr.at(&tr.eas, tn), tr.at(&tr.eas_rate, tn))
-        } else {
-            (v_end - decel * (tn - t_end), -decel)
-        };
-        let e = eas_sim - v_ref;
-        let edot = prev_eas.map_or(0.0, |p| (eas_sim - p) / dt) - vdot_ref;
+        if let Some(p) = prev_eas {
+            eas_rate_lp += dt / (RATE_TAU_S + dt) * ((eas_sim - p) / dt - eas_rate_lp);
+        }
         prev_eas = Some(eas_sim);
-        let a_rec = d(tr.col("alpha_deg", tq));
+        if entry {
+            let e = eas_sim - tr.at(&tr.eas, tn);
+            let edot = eas_rate_lp - tr.at(&tr.eas_rate, tn);
+            int_v = (int_v + e * dt).clamp(-ALPHA_C_MAX / K_I, ALPHA_C_MAX / K_I);
+            alpha_c = (K_V * e + K_D * edot + K_I * int_v).clamp(-ALPHA_C_MAX, ALPHA_C_MAX);
+        }
         let alpha_ref = if recovering {
             d(RECOVERY_ALPHA_DEG)
         } else {
-            if recognised.is_none() {
-                int_v = (int_v + e * dt).clamp(-ALPHA_C_MAX / K_I, ALPHA_C_MAX / K_I);
-                alpha_c = (K_V * e + K_D * edot + K_I * int_v).clamp(-ALPHA_C_MAX, ALPHA_C_MAX);
-            }
-            a_rec + alpha_c
+            d(tr.col("alpha_deg", tn.min(t_peak))) + alpha_c + pull * (tn - t_peak).max(0.0)
         };
-        let q_ref = if tn <= t_end && !recovering {
-            d(tr.col("q_dps", tq))
-        } else {
+        let q_ref = if recovering || tn > t_peak {
             0.0
+        } else {
+            d(tr.col("q_dps", tn))
         };
         let ea = ad.alpha - alpha_ref;
         int_a = (int_a + ea * dt).clamp(-0.3, 0.3);
@@ -474,7 +519,7 @@ pub fn fly_closed_loop<M: AeroModel + ?Sized>(
         let de_cmd = de_ff + K_A * ea + K_AI * int_a + K_Q * (x[ix::Q] - q_ref);
         let (phi_ref, p_ref, beta_ref, r_ref) = if recovering {
             (0.0, 0.0, 0.0, 0.0)
-        } else if tn <= t_end {
+        } else if entry {
             (
                 d(tr.col("phi_deg", tq)),
                 d(tr.col("p_dps", tq)),
@@ -504,11 +549,11 @@ pub fn fly_closed_loop<M: AeroModel + ?Sized>(
         };
         let push = pusher.as_mut().map_or(0.0, |p| p.update(tn, alpha_deg));
         let fired = pusher.as_ref().is_some_and(Pusher::has_fired);
-        // recognition
+        // recognition: the simulator's stall cues (its pusher, a g-break with the warning on,
+        // a deterrent buffet), or the time limit
         if recognised.is_none() && step > 0 {
             nz_hist.push((tn, nz, alpha_deg));
-            let t_min = tn - G_BREAK_WINDOW_S;
-            let start = nz_hist.partition_point(|h| h.0 < t_min);
+            let start = nz_hist.partition_point(|h| h.0 < tn - G_BREAK_WINDOW_S);
             let (mut best, mut a_best) = (f64::NEG_INFINITY, 0.0);
             for h in &nz_hist[start..] {
                 if h.1 > best {
@@ -517,12 +562,26 @@ pub fn fly_closed_loop<M: AeroModel + ?Sized>(
                 }
             }
             let warning_ok = opts.warning_alpha_deg.is_none() || warn_on;
-            if fired && !opts.resist_pusher {
-                recognised = Some((tn, "pusher"));
+            let deterrent = match (&buffet, opts.deterrent_buffet_rms_mps2) {
+                (Some(b), Some(level)) => b.schedule().rms_mps2(alpha_deg) >= level,
+                _ => false,
+            };
+            recognised = if fired && !opts.resist_pusher {
+                Some((tn, "pusher"))
             } else if warning_ok && best - nz >= G_BREAK_DN && alpha_deg >= a_best {
-                recognised = Some((tn, "g_break"));
-            } else if tn > t_end + MAX_EXTEND_S {
-                recognised = Some((tn, "time"));
+                Some((tn, "g_break"))
+            } else if deterrent {
+                Some((tn, "buffet"))
+            } else if tn > t_peak + MAX_EXTEND_S {
+                Some((tn, "time"))
+            } else {
+                None
+            };
+        }
+        // recovery: at once after the pusher, else not before the record's depth (its peak)
+        if let Some((tr0, by)) = recognised {
+            if recover_at.is_infinite() && (by == "pusher" || tn >= t_peak) {
+                recover_at = (tr0 + REACTION_S).max(tn);
             }
         }
         if step % decim == 0 {
@@ -553,8 +612,7 @@ pub fn fly_closed_loop<M: AeroModel + ?Sized>(
                 c.push(v);
             }
         }
-        let done = recognised.is_some_and(|(tr0, _)| tn >= tr0 + RECOVERY_S) || tn >= t_stop_max;
-        if done {
+        if tn >= recover_at + RECOVERY_S || tn >= t_stop_max {
             break;
         }
         let next = Controls {
