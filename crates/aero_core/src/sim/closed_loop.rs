@@ -106,13 +106,21 @@ pub const SPEED_SMOOTH_S: f64 = 2.0;
 pub const TRACK_SMOOTH_S: f64 = 0.6;
 /// Time constant of the low-pass on the simulator's airspeed rate in the speed loop, s.
 const RATE_TAU_S: f64 = 1.0;
+/// Window before the record's stall identification over which the entry's deceleration is
+/// measured, s.
+pub const DECEL_WINDOW_S: f64 = 8.0;
+/// Least deceleration the pilot keeps past the record's identification, m/s² (≈ 0.5 kt/s).
+pub const MIN_DECEL_MPS2: f64 = 0.25;
+/// Longest the pilot keeps decelerating past the record's identification without a stall
+/// cue, s.
+pub const MAX_EXTEND_S: f64 = 15.0;
 /// Window before the record's stall identification over which the test pilot's pull (mean
 /// alpha rate to the peak alpha) is measured, s.
 pub const PULL_WINDOW_S: f64 = 2.0;
-/// Least pull the pilot keeps past the record's peak alpha until the simulator stalls, deg/s.
+/// Least pull past a stall cue, deg/s.
 pub const MIN_PULL_DPS: f64 = 0.5;
-/// Longest the pilot keeps pulling past the record's peak alpha without a stall cue, s.
-pub const MAX_EXTEND_S: f64 = 15.0;
+/// Least time the pilot pulls on past a g-break or deterrent buffet before recovering, s.
+pub const MIN_DEPTH_S: f64 = 0.3;
 /// Pilot reaction from recognition to recovery input, s.
 pub const REACTION_S: f64 = 0.3;
 /// Simulated time after recognition, s (the recovery takes alpha out of the stall).
@@ -403,7 +411,18 @@ pub fn fly_closed_loop<M: AeroModel + ?Sized>(
         eas_rate,
         thrust,
     };
+    // the entry's deceleration before the record's identification, continued past it
+    let v_id = tr.at(&tr.eas, t_id);
+    let t_b = (t_id - DECEL_WINDOW_S).max(t[0]);
+    let decel = if t_id - t_b > 1.0 {
+        (tr.at(&tr.eas, t_b) - v_id) / (t_id - t_b)
+    } else {
+        0.0
+    }
+    .max(MIN_DECEL_MPS2);
     // the test pilot's pull past the identification (recorded mean alpha rate to the peak)
+    // and how long it lasted
+    let depth = (t_peak - t_id).max(MIN_DEPTH_S);
     let t_pull = (t_id - PULL_WINDOW_S).max(t[0]);
     let pull = if t_peak - t_pull > 0.5 {
         (tr.col("alpha_deg", t_peak) - tr.col("alpha_deg", t_pull)) / (t_peak - t_pull)
@@ -461,17 +480,17 @@ pub fn fly_closed_loop<M: AeroModel + ?Sized>(
     let mut nz_hist: Vec<(f64, f64, f64)> = Vec::new(); // (t, nz, alpha deg)
     let mut cols: Vec<Vec<f64>> = (0..OUTPUT_COLUMNS.len()).map(|_| Vec::new()).collect();
     let mut warn_on = false;
-    let t_stop_max = t_peak + MAX_EXTEND_S + REACTION_S + RECOVERY_S;
+    let mut alpha_at_cue = 0.0f64;
+    let t_stop_max = t_id + MAX_EXTEND_S + depth + REACTION_S + RECOVERY_S;
     let mut step = 0usize;
     loop {
         let tn = sim.t;
         let ad = sim.air(&sim.x);
         let x = sim.x;
         let alpha_deg = ad.alpha.to_degrees();
-        let entry = tn <= t_id;
+        let entry = recognised.is_none();
         let recovering = tn >= recover_at;
-        // the recorded values the pilot follows: now in the entry, then those of the record
-        // up to its peak alpha (alpha), or at its identification (the rest)
+        // the recorded values the pilot follows: now, up to the record's identification
         let tq = tn.min(t_id);
         let thrust_n = if recovering {
             max_thrust
@@ -498,17 +517,22 @@ pub fn fly_closed_loop<M: AeroModel + ?Sized>(
         }
         prev_eas = Some(eas_sim);
         if entry {
-            let e = eas_sim - tr.at(&tr.eas, tn);
-            let edot = eas_rate_lp - tr.at(&tr.eas_rate, tn);
+            let (v_ref, vdot_ref) = if tn <= t_id {
+                (tr.at(&tr.eas, tn), tr.at(&tr.eas_rate, tn))
+            } else {
+                (v_id - decel * (tn - t_id), -decel)
+            };
+            let e = eas_sim - v_ref;
+            let edot = eas_rate_lp - vdot_ref;
             int_v = (int_v + e * dt).clamp(-ALPHA_C_MAX / K_I, ALPHA_C_MAX / K_I);
             alpha_c = (K_V * e + K_D * edot + K_I * int_v).clamp(-ALPHA_C_MAX, ALPHA_C_MAX);
         }
-        let alpha_ref = if recovering {
-            d(RECOVERY_ALPHA_DEG)
-        } else {
-            d(tr.col("alpha_deg", tn.min(t_peak))) + alpha_c + pull * (tn - t_peak).max(0.0)
+        let alpha_ref = match recognised {
+            _ if recovering => d(RECOVERY_ALPHA_DEG),
+            Some((tc, _)) => alpha_at_cue + pull * (tn - tc),
+            None => d(tr.col("alpha_deg", tq)) + alpha_c,
         };
-        let q_ref = if recovering || tn > t_peak {
+        let q_ref = if recovering || !entry || tn > t_id {
             0.0
         } else {
             d(tr.col("q_dps", tn))
@@ -572,16 +596,19 @@ pub fn fly_closed_loop<M: AeroModel + ?Sized>(
                 Some((tn, "g_break"))
             } else if deterrent {
                 Some((tn, "buffet"))
-            } else if tn > t_peak + MAX_EXTEND_S {
+            } else if tn > t_id + MAX_EXTEND_S {
                 Some((tn, "time"))
             } else {
                 None
             };
-        }
-        // recovery: at once after the pusher, else not before the record's depth (its peak)
-        if let Some((tr0, by)) = recognised {
-            if recover_at.is_infinite() && (by == "pusher" || tn >= t_peak) {
-                recover_at = (tr0 + REACTION_S).max(tn);
+            if let Some((tc, by)) = recognised {
+                // recovery: at once after the pusher (or the time limit), else after pulling
+                // on as long as the test pilot did past the identification
+                alpha_at_cue = alpha_ref;
+                recover_at = match by {
+                    "g_break" | "buffet" => tc + depth,
+                    _ => tc + REACTION_S,
+                };
             }
         }
         if step % decim == 0 {
