@@ -233,7 +233,8 @@ def closed_loop_replay(
     aft_stop_deg
         The elevator's aft stop for the identification, deg (None: the recorded extreme).
     seed
-        Seed of the simulated buffet and accelerometer noise (maneuver ``i`` uses ``seed + i``).
+        Seed of the simulated buffet and accelerometer noise (the ``i``-th maneuver of the
+        records uses ``seed + i``, whichever are replayed).
     table
         :func:`aerodelta.stall.stall_identification` of ``data`` when already computed.
 
@@ -288,6 +289,7 @@ def closed_loop_replay(
     warn = discrete_thresholds(df, "stall_warning", "alpha_deg")
     push = discrete_thresholds(df, "pusher_active", "alpha_cg_deg")
     ids = [str(m) for m in rec_table["maneuver_id"]]
+    order = {m: i for i, m in enumerate(ids)}  # seeds follow the records' order, any subset
     if maneuvers is not None:
         unknown = sorted(set(maneuvers) - set(ids))
         if unknown:
@@ -300,7 +302,7 @@ def closed_loop_replay(
     }
     runs: dict[str, pl.DataFrame] = {}
     meta: dict[str, dict[str, Any]] = {}
-    for i, mid in enumerate(ids):
+    for mid in ids:
         g = groups[mid]
         r = rec_table.filter(pl.col("maneuver_id") == mid).row(0, named=True)
         flap = float(r["flap_deg"])
@@ -335,7 +337,7 @@ def closed_loop_replay(
             "az_noise_mps2": _noise_std(t, g["alpha_cg_deg"].to_numpy(), g["az_mps2"].to_numpy())
             if "az_mps2" in g.columns and buffet_model is not None
             else 0.0,
-            "seed": int(seed) + i,
+            "seed": int(seed) + order[mid],
             "sim_hz": SIM_HZ,
         }
         if buffet_model is not None:
