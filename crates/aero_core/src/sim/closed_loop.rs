@@ -7,32 +7,37 @@
 //! the maneuver again on the simulator, entering it as the aircraft was flown, and the
 //! simulator's own warning, pusher and buffet logic act:
 //!
-//! - **Entry (until the record's stall identification, `t_track_end_s`)**: the pilot tracks the
-//!   recorded equivalent-airspeed history (the entry's deceleration, smoothed over
-//!   [`SPEED_SMOOTH_S`]) with the elevator: the recorded elevator as feed-forward, a
-//!   proportional-integral loop on alpha with pitch-rate damping around the reference
-//!   α_ref = α_rec(t) + α_c, and an outer loop that sets α_c from the airspeed error and its
-//!   rate. A model that needs less alpha for the same speed gets α_c < 0 and reaches the warning
-//!   alpha later, at a lower speed: the difference the objective test measures. Ailerons and
-//!   rudder add to the recorded deflections a bank (PD) and sideslip (P, yaw-rate damping) hold
-//!   on the recorded bank and sideslip; spoilers are the recorded ones; each engine gives the
-//!   recorded thrust (`C_T q̄ S` of the record: the power set, in newtons).
-//! - **Past it**: the pilot keeps the deceleration going at the entry's rate (the recorded rate
-//!   over the [`DECEL_WINDOW_S`] before, at least [`MIN_DECEL_MPS2`]), controls otherwise held,
-//!   until the simulator stalls: a model that stalls later than the aircraft is flown into its
-//!   own stall rather than stopped at the aircraft's.
-//! - **Recognition and recovery**: the pilot recognises the stall when the simulator's pusher
-//!   fires (unless the record says the pilot resisted it: then the pilot keeps the entry law
-//!   against the push), when the load factor breaks ([`G_BREAK_DN`] below its maximum of the
-//!   last [`G_BREAK_WINDOW_S`] at no lower alpha, with the warning on when there is one), or at
-//!   [`MAX_EXTEND_S`] past the record's identification; [`REACTION_S`] later it recovers
-//!   (alpha 4 deg, wings level, the record's highest thrust) and the run ends
-//!   [`RECOVERY_S`] after the recognition.
+//! - **Entry** (until the simulator shows a stall cue): the pilot tracks the recorded
+//!   equivalent-airspeed history (the entry's deceleration, smoothed over [`SPEED_SMOOTH_S`])
+//!   with the elevator: the recorded elevator as feed-forward (a trailing mean, so no later push
+//!   leaks in), a proportional-integral loop on alpha with pitch-rate damping around
+//!   α_ref = α_rec(t) + α_c (α_rec smoothed over [`TRACK_SMOOTH_S`]: the record's gust
+//!   responses are not replayed into calm air), and an outer loop that sets α_c from the
+//!   airspeed error and its rate. A model that needs less alpha for the same speed gets α_c < 0
+//!   and reaches the warning, buffet and stall alphas later, at lower speeds: the differences
+//!   the objective test measures. Ailerons and rudder add to the recorded deflections a bank
+//!   (PD) and sideslip (P, yaw-rate damping) hold on the recorded bank and sideslip; spoilers
+//!   are the recorded ones; each engine gives the recorded thrust (`C_T q̄ S` of the record).
+//!   Past the record's stall identification (`t_id_s`) the recorded values are held at it and
+//!   the airspeed reference keeps falling at the entry's rate (measured over the
+//!   [`DECEL_WINDOW_S`] before, at least [`MIN_DECEL_MPS2`]): a model that stalls later than
+//!   the aircraft is flown on into its own stall, not stopped at the aircraft's.
+//! - **Stall cues**: the simulator's pusher (fired at the aircraft's activation alpha), a
+//!   g-break (the load factor [`G_BREAK_DN`] below its maximum of the last
+//!   [`G_BREAK_WINDOW_S`] at no lower alpha, with the warning on), a deterrent buffet (the
+//!   simulator's buffet schedule at the given level), or [`MAX_EXTEND_S`] past the record's
+//!   identification.
+//! - **Recovery**: [`REACTION_S`] after the pusher (the pilot lets it push; unless the record
+//!   says the pilot resisted it, when the pilot flies on against the push), or, after a g-break
+//!   or buffet, once the pilot has pulled on (at the record's alpha rate into its peak, at least
+//!   [`MIN_PULL_DPS`]) for as long as the test pilot went past the identification to the peak
+//!   alpha (at least [`MIN_DEPTH_S`]); then alpha 4 deg, wings level, the record's highest
+//!   thrust, for [`RECOVERY_S`].
 //!
 //! The run yields the channels the stall identification reads (`aerodelta.stall`): the same
 //! code then finds the simulator's warning onset (the records' warning rule: the vane alpha
 //! against the aircraft's threshold, with its hysteresis), buffet onset (the simulator's buffet
-//! model at the accelerometer, with sensor noise at the record's floor) and stall
+//! model at the accelerometer, with white noise at the record's floor) and stall
 //! identification. Calm air; no roll-off; nominal mass.
 
 use nalgebra::{SVector, Vector3};
@@ -733,5 +738,140 @@ pub fn closed_loop_adx37(
                 .with_kirchhoff(stall(*kirchhoff)?);
             fly_closed_loop(&mut m, &ac, record, x0, opts)
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sim::campaign::{run_campaign, CampaignSpec};
+
+    fn column(names: &[String], cols: &[Vec<f64>], name: &str) -> Vec<f64> {
+        let k = names.iter().position(|c| c == name).expect(name);
+        cols[k].clone()
+    }
+
+    #[test]
+    fn a_calm_noise_free_pusher_stall_replayed_with_its_truth_fires_where_the_aircraft_did() {
+        // flap 0, straight, pusher: the maneuver flown by the campaign's own pilot, replayed by
+        // the closed-loop pilot on the same (qualified) model; the CG alpha, sideslip and
+        // airspeed of the record are the truth's, the rest is the noise-free record
+        let spec = CampaignSpec {
+            seed: 3,
+            repetitions: 1,
+            noise_scale: 0.0,
+            turbulence_mps: 0.0,
+            only: vec![0],
+            ..CampaignSpec::default()
+        };
+        let m = run_campaign(&spec).expect("campaign").remove(0);
+        assert!(m.plan.pusher && m.pusher_fired, "{}", m.id);
+        let rec = |n: &str| column(&m.record_names, &m.record, n);
+        let tru = |n: &str| column(&m.truth_names, &m.truth, n);
+        let record: Vec<Vec<f64>> = RECORD_COLUMNS
+            .iter()
+            .map(|c| match *c {
+                "alpha_deg" => tru("alpha_true_deg"),
+                "beta_deg" => tru("beta_true_deg"),
+                "tas_mps" => tru("tas_true_mps"),
+                other => rec(other),
+            })
+            .collect();
+        let (t, alpha) = (&record[0], &record[1]);
+        let k_peak = (0..t.len())
+            .max_by(|&a, &b| alpha[a].total_cmp(&alpha[b]))
+            .expect("samples");
+        let (v, a, b) = (
+            record[7][0],
+            record[1][0].to_radians(),
+            record[2][0].to_radians(),
+        );
+        let d = f64::to_radians;
+        let x0 = [
+            v * a.cos() * b.cos(),
+            v * b.sin(),
+            v * a.sin() * b.cos(),
+            d(record[3][0]),
+            d(record[4][0]),
+            d(record[5][0]),
+            d(record[6][0]),
+            d(rec("theta_deg")[0]),
+            d(rec("psi_deg")[0]),
+            0.0,
+            0.0,
+            rec("h_m")[0],
+        ];
+        let fired = m.pusher_fired_at_s.expect("fired");
+        let stall = FLAP_STALL[0];
+        let opts = ClosedLoopOptions {
+            flap_deg: 0.0,
+            warning_alpha_deg: Some(stall.alpha_max_deg - 5.0),
+            pusher_alpha_deg: Some(stall.alpha_max_deg - 1.0),
+            t_id_s: fired,
+            t_peak_s: t[k_peak],
+            ..ClosedLoopOptions::default()
+        };
+        let model = ReplayModel::Truth {
+            effects: &[],
+            kirchhoff: None,
+        };
+        let run = closed_loop_adx37(&model, &record, x0, &opts).expect("replay");
+        assert_eq!(run.recognised_by, Some("pusher"));
+        let t_sim = run.pusher_fired_at_s.expect("the simulator's pusher fired");
+        assert!((t_sim - fired).abs() < 1.0, "{t_sim} vs {fired}");
+        // the speed at the firing: the record's against the simulated history's (EAS, kt)
+        let eas = |tas: f64, rho: f64| tas * (rho / 1.225).sqrt() / 0.514_444;
+        let at = |ts: &[f64], y: &[f64], tq: f64| {
+            let j = ts.partition_point(|&x| x < tq).min(ts.len() - 1);
+            y[j]
+        };
+        let v_rec = eas(at(t, &record[7], fired), at(t, &record[8], fired));
+        let c = &run.columns;
+        let v_sim = eas(at(&c[0], &c[8], t_sim), at(&c[0], &c[9], t_sim));
+        assert!((v_sim - v_rec).abs() < 1.5, "{v_sim} vs {v_rec} kt");
+        // the discretes are 0/1 and the pusher's starts at the firing
+        assert!(c[12].iter().chain(&c[13]).all(|&x| x == 0.0 || x == 1.0));
+        let k = c[12].iter().position(|&x| x == 1.0).expect("pusher active");
+        assert!((c[0][k] - t_sim).abs() < 0.03);
+    }
+
+    #[test]
+    fn bad_records_and_options_are_refused_naming_the_column() {
+        let n = 20;
+        let mut record: Vec<Vec<f64>> = (0..RECORD_COLUMNS.len()).map(|_| vec![1.0; n]).collect();
+        record[0] = (0..n).map(|k| k as f64 * 0.02).collect();
+        record[7] = vec![50.0; n];
+        record[7][4] = f64::NAN;
+        let model = ReplayModel::Truth {
+            effects: &[],
+            kirchhoff: None,
+        };
+        let x0 = [
+            50.0, 0.0, 3.0, 0.0, 0.0, 0.0, 0.0, 0.05, 0.0, 0.0, 0.0, 3000.0,
+        ];
+        let opts = ClosedLoopOptions::default();
+        let e = closed_loop_adx37(&model, &record, x0, &opts)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("tas_mps") && e.contains("row 4"), "{e}");
+        record[7][4] = 50.0;
+        record[0][7] = record[0][6];
+        let e = closed_loop_adx37(&model, &record, x0, &opts)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("column t") && e.contains("row 7"), "{e}");
+        record[0] = (0..n).map(|k| k as f64 * 0.02).collect();
+        let bad = ClosedLoopOptions {
+            flap_deg: 7.0,
+            ..ClosedLoopOptions::default()
+        };
+        let e = closed_loop_adx37(&model, &record, x0, &bad)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("flap_deg"), "{e}");
+        let e = ClosedLoopOptions::from_json(r#"{"flap": 0}"#)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("flap"), "{e}");
     }
 }
