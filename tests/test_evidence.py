@@ -336,6 +336,20 @@ def _one_line_error(capsys: pytest.CaptureFixture[str], argv: list[str], *needle
         assert n in lines[0], (n, lines[0])
 
 
+def test_no_replay_flag(
+    pack: dict[str, Any], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "p"
+    argv = ["evidence", str(pack["camp"]), "--model", str(pack["root"] / "model.json"), "--out",
+            str(out), "--no-replay", "--no-longitudinal", "--no-progress"]  # fmt: skip
+    assert main(argv) == 0
+    text = capsys.readouterr().out
+    for item in ("Stall-warning speed", "Buffet-onset speed", "Stall speed"):
+        line = next(ln for ln in text.splitlines() if item in ln)
+        assert "not assessed: the closed-loop replays were switched off" in line, line
+    assert "replay=False" in (out / "evidence.html").read_text(encoding="utf-8")
+
+
 def test_bad_input_gets_one_line(
     pack: dict[str, Any], tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
