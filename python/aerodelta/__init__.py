@@ -21,6 +21,7 @@ from aerodelta.campaign import (
     simulate_campaign,
 )
 from aerodelta.channel_map import ChannelMap
+from aerodelta.closed_loop import ClosedLoopResult, closed_loop_replay
 from aerodelta.daveml import (
     DaveModel,
     check_daveml,
@@ -66,6 +67,7 @@ __all__ = [
     "BuffetResult",
     "CampaignInfo",
     "ChannelMap",
+    "ClosedLoopResult",
     "DataError",
     "DaveModel",
     "DeltaModel",
@@ -91,6 +93,7 @@ __all__ = [
     "build_report",
     "campaign_effects",
     "check_daveml",
+    "closed_loop_replay",
     "compare_frequencies",
     "compare_with_records",
     "detect_rolloff",

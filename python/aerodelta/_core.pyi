@@ -155,6 +155,15 @@ def sim_replay_extended(
     ct: npt.NDArray[np.float64],
     rolloff_seed: int | None = None,
 ) -> npt.NDArray[np.float64]: ...
+def sim_closed_loop(
+    record: npt.NDArray[np.float64],
+    x0: list[float],
+    options_json: str,
+    model: DeltaModel | None = None,
+    kirchhoff: list[float] | None = None,
+    effects_json: str | None = None,
+) -> tuple[npt.NDArray[np.float64], str]: ...
+def sim_closed_loop_columns() -> tuple[list[str], list[str]]: ...
 def sim_replay_daveml(
     model: DaveModel,
     aircraft: list[float],

@@ -9,6 +9,9 @@ use aero_core::rolloff::{sample_draws, RollOffConfig};
 use aero_core::sim::campaign::{
     plan, replay_adx37, replay_adx37_extended, run_campaign, trim_adx37, CampaignSpec,
 };
+use aero_core::sim::closed_loop::{
+    closed_loop_adx37, ClosedLoopOptions, ReplayModel, OUTPUT_COLUMNS, RECORD_COLUMNS,
+};
 use aero_core::sim::dave_aero::{replay_daveml, UserAircraft};
 use aero_core::AeroError;
 use numpy::{
@@ -266,7 +269,80 @@ fn sim_rolloff_config() -> PyResult<String> {
         .map_err(|e| to_py(AeroError::invalid("rolloff", e.to_string())))
 }
 
+/// Closed-loop replay of a recorded stall maneuver on the ADX-37 (see
+/// `aero_core::sim::closed_loop`). `record`: n x 16 in `sim_closed_loop_columns()[0]` order;
+/// `model`: the fitted Δ model (the extended model) or None (the qualified model with the
+/// truth effects `effects_json`); `kirchhoff`: the 9 Kirchhoff parameters of this flap
+/// (`aero_core::kirchhoff::PARAM_NAMES`) or None (static curves). Returns the simulated
+/// history (m x 15, `sim_closed_loop_columns()[1]` order) and its metadata as JSON.
+#[pyfunction]
+#[pyo3(signature = (record, x0, options_json, model=None, kirchhoff=None, effects_json=None))]
+fn sim_closed_loop<'py>(
+    py: Python<'py>,
+    record: PyReadonlyArray2<'py, f64>,
+    x0: [f64; 12],
+    options_json: &str,
+    model: Option<&Bound<'py, PyDeltaModel>>,
+    kirchhoff: Option<[f64; 9]>,
+    effects_json: Option<&str>,
+) -> PyResult<(Bound<'py, PyArray2<f64>>, String)> {
+    let shape = record.shape();
+    if shape[1] != RECORD_COLUMNS.len() {
+        return Err(to_py(AeroError::invalid(
+            "closed-loop replay",
+            format!(
+                "the record must be n x {} ({}); got {shape:?}",
+                RECORD_COLUMNS.len(),
+                RECORD_COLUMNS.join(", ")
+            ),
+        )));
+    }
+    let flat = record.as_slice()?;
+    let k = RECORD_COLUMNS.len();
+    let cols: Vec<Vec<f64>> = (0..k)
+        .map(|j| flat.iter().skip(j).step_by(k).copied().collect())
+        .collect();
+    let opts = ClosedLoopOptions::from_json(options_json).map_err(to_py)?;
+    let effects: Vec<EffectSpec> = match effects_json {
+        Some(text) => serde_json::from_str(text)
+            .map_err(|e| to_py(AeroError::parse("effects (JSON)", e.line(), e.to_string())))?,
+        None => Vec::new(),
+    };
+    let kp = kirchhoff.map(|a| aero_core::kirchhoff::KirchhoffParams::from_array(&a));
+    let delta = model.map(|m| &m.get().0);
+    let run = detached(py, || {
+        let which = match &delta {
+            Some(d) => ReplayModel::Extended {
+                delta: d,
+                kirchhoff: kp,
+            },
+            None => ReplayModel::Truth {
+                effects: &effects,
+                kirchhoff: kp,
+            },
+        };
+        closed_loop_adx37(&which, &cols, x0, &opts)
+    })?;
+    let m = run.columns.first().map_or(0, Vec::len);
+    let mut out = Vec::with_capacity(m * OUTPUT_COLUMNS.len());
+    for i in 0..m {
+        out.extend(run.columns.iter().map(|c| c[i]));
+    }
+    Ok((
+        out.into_pyarray(py).reshape([m, OUTPUT_COLUMNS.len()])?,
+        run.meta_json(),
+    ))
+}
+
+/// The closed-loop replay's record columns and output columns.
+#[pyfunction]
+fn sim_closed_loop_columns() -> (Vec<&'static str>, Vec<&'static str>) {
+    (RECORD_COLUMNS.to_vec(), OUTPUT_COLUMNS.to_vec())
+}
+
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_function(wrap_pyfunction!(sim_closed_loop, m)?)?;
+    m.add_function(wrap_pyfunction!(sim_closed_loop_columns, m)?)?;
     m.add_function(wrap_pyfunction!(sim_run_campaign, m)?)?;
     m.add_function(wrap_pyfunction!(sim_plan, m)?)?;
     m.add_function(wrap_pyfunction!(sim_default_spec, m)?)?;

@@ -71,6 +71,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         action="store_true",
         help="do not fit the Kirchhoff longitudinal stall (its row says so)",
     )
+    parser.add_argument(
+        "--no-replay",
+        action="store_true",
+        help="do not fly the closed-loop replays of the stall maneuvers (the ±3 kt speed rows "
+        "then say so)",
+    )
     parser.add_argument("--overwrite", action="store_true", help="replace an earlier pack at --out")
     parser.add_argument("--format", choices=("table", "json"), default="table")
     parser.add_argument("--no-progress", action="store_true", help="no progress bars")
@@ -124,6 +130,7 @@ def run(args: argparse.Namespace) -> int:
         aft_stop_deg=args.aft_stop,
         power_on_ct=ct,
         longitudinal=not args.no_longitudinal,
+        replay=not args.no_replay,
         overwrite=args.overwrite,
         command=_command(args),
         data_label=f"{src.describe()} ({data['maneuver_id'].n_unique()} maneuvers)",

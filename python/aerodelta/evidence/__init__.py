@@ -209,6 +209,21 @@ def _virtual_sim_buffet(campaign: Path) -> tuple[pl.DataFrame, str] | None:
     )
 
 
+def _virtual_buffet_model(campaign: Path | None) -> dict[str, Any] | None:
+    """The BuffetSpec a virtual campaign was flown with (``truth/campaign.json``), or None."""
+    import json  # noqa: PLC0415
+
+    if campaign is None:
+        return None
+    path = campaign / "truth" / "campaign.json"
+    try:
+        spec = json.loads(path.read_text())["spec"]
+    except (OSError, ValueError, KeyError):
+        return None
+    b = spec.get("buffet") if isinstance(spec, dict) else None
+    return dict(b) if isinstance(b, dict) else None
+
+
 def _png_size(png: bytes) -> tuple[int, int]:
     w, h = struct.unpack(">II", png[16:24])
     return int(w), int(h)
@@ -244,6 +259,7 @@ def write_evidence(
     aft_stop_deg: float | None = None,
     power_on_ct: float = POWER_ON_CT,
     longitudinal: bool = True,
+    replay: bool = True,
     overwrite: bool = False,
     command: str | None = None,
     data_label: str | None = None,
@@ -280,6 +296,12 @@ def write_evidence(
         Thrust coefficient, summed over the engines, from which a stall entry is power-on (-).
     longitudinal
         Fit the Kirchhoff stall by output error where it applies.
+    replay
+        Fly the closed-loop replays of the stall maneuvers with the extended model (the fitted
+        Δ model, the Kirchhoff stall fitted here; :func:`aerodelta.closed_loop_replay`) for the
+        ±3 kt speed rows; needs ``model`` and records flown on the built-in ADX-37. With
+        ``sim_buffet="auto"`` on a virtual campaign flown with buffet, the replayed simulator
+        carries the campaign's buffet model (else none: the buffet-onset row is not assessed).
     overwrite
         Replace an existing evidence pack at ``out``.
     command
@@ -324,10 +346,12 @@ def write_evidence(
 
         params = load_params(model_path)
     sim, sim_source = None, ""
+    buffet_model = None
     if isinstance(sim_buffet, str) and sim_buffet == "auto":
         got = _virtual_sim_buffet(camp) if camp is not None and camp.is_dir() else None
         if got is not None:
             sim, sim_source = got
+            buffet_model = _virtual_buffet_model(camp)
     elif sim_buffet is not None:
         sim = read_sim_buffet(sim_buffet)  # type: ignore[arg-type]
         sim_source = (
@@ -352,6 +376,8 @@ def write_evidence(
         aft_stop_deg=aft_stop_deg,
         power_on_ct=power_on_ct,
         longitudinal=longitudinal,
+        buffet_model=buffet_model,
+        replay=replay,
     )
     if files:
         ftable, digest = file_table(files, camp)
@@ -369,7 +395,8 @@ def write_evidence(
         "model_sha256": hashlib.sha256(model_path.read_bytes()).hexdigest()
         if model_path is not None else None,
         "options": f"aft_stop_deg={aft_stop_deg}, power_on_ct={power_on_ct:g}, "
-        f"longitudinal={longitudinal}, simulator buffet: {sim_source or 'none'}",
+        f"longitudinal={longitudinal}, replay={replay}, simulator buffet: "
+        f"{sim_source or 'none'}",
         "generated": generated.strftime("%Y-%m-%d %H:%M:%S UTC"),
     }  # fmt: skip
     from aerodelta.evidence.page import render_page  # noqa: PLC0415

@@ -99,22 +99,34 @@ def stall_alpha(*, table: pl.DataFrame, flaps: Sequence[float]) -> Figure:
     return fig
 
 
-def speeds(*, table: pl.DataFrame, flaps: Sequence[float]) -> Figure:
-    """Stall-warning, buffet-onset and stall speeds (KEAS) per maneuver, by flap and kind."""
+def speeds(
+    *, table: pl.DataFrame, flaps: Sequence[float], replay: pl.DataFrame | None = None
+) -> Figure:
+    """Stall-warning, buffet-onset and stall speeds (KEAS) per maneuver, by flap and kind; with
+    ``replay`` (:attr:`aerodelta.closed_loop.ClosedLoopResult.table`), the simulator's speeds as
+    open markers beside them and ±3 kt bars around the flight test."""
     fig, ax = new_figure(1, 3, width=10.0, height=3.2, sharey=True)
     x = _positions(table, flaps)
     kinds = table["kind"].to_list()
     cols = (
-        ("v_warning_keas", "stall warning"),
-        ("v_buffet_onset_keas", "buffet onset"),
-        ("v_stall_keas", "stall (at identification)"),
+        ("v_warning_keas", "v_warning", "stall warning"),
+        ("v_buffet_onset_keas", "v_buffet_onset", "buffet onset"),
+        ("v_stall_keas", "v_stall", "stall (at identification)"),
     )
-    for a, (col, title) in zip(ax[0], cols, strict=True):
+    sim = None
+    if replay is not None:
+        sim = table.select("maneuver_id").join(replay, on="maneuver_id", how="left")
+    for a, (col, key, title) in zip(ax[0], cols, strict=True):
         v = table[col].to_numpy().astype(float)
         for kind in dict.fromkeys(kinds):
             m = np.array([k == kind for k in kinds]) & np.isfinite(v)
             if m.any():
                 a.plot(x[m], v[m], "o", ms=4, color=_kind_color(kind))
+                if sim is not None:
+                    a.errorbar(x[m], v[m], yerr=3.0, fmt="none", ecolor="#999", lw=0.6)
+                    s = sim[f"{key}_sim_keas"].to_numpy().astype(float)
+                    ms = m & np.isfinite(s)
+                    a.plot(x[ms] + 0.05, s[ms], "o", ms=4, mfc="none", color=_kind_color(kind))
         a.set_title(f"{title}: {int(np.isfinite(v).sum())} maneuvers")
         _flap_axis(a, flaps)
     ax[0, 0].set_ylabel("equivalent airspeed [kt]")

@@ -35,12 +35,6 @@ from aerodelta.stall import (
 PASS, FAIL, SHOWN = "PASS", "FAIL", "shown"
 #: Prefix of a status that could not be assessed (followed by the reason).
 NOT_ASSESSED = "not assessed: "
-#: Why the simulator-against-aircraft speed comparisons are not made.
-NO_REPLAY = (
-    "not assessed: the simulator's speed needs a closed-loop replay of each stall maneuver "
-    "with the extended model (recorded inputs, pusher logic), which aerodelta does not fly yet "
-    "(issue 20 item 4); the flight-test speeds are shown"
-)
 #: Stall speeds tolerance of the objective stall tests, kt (Part 60 Table A1A, issue 20).
 SPEED_TOLERANCE_KT = 3.0
 #: Power-on entry: the thrust coefficient summed over the engines at stall identification is
@@ -141,6 +135,8 @@ def assess(
     aft_stop_deg: float | None = None,
     power_on_ct: float = POWER_ON_CT,
     longitudinal: bool = True,
+    buffet_model: Mapping[str, Any] | None = None,
+    replay: bool = True,
 ) -> Assessment:
     """Assess every characteristic of the matrix from ingested records.
 
@@ -163,6 +159,12 @@ def assess(
         Thrust coefficient (sum over engines) at or above which an entry is power-on.
     longitudinal
         Fit the Kirchhoff stall (:func:`aerodelta.longitudinal.fit_kirchhoff`) where it applies.
+    buffet_model
+        The simulator's buffet model for the closed-loop replays (an ``aero_core`` BuffetSpec
+        as a mapping), or None (the replayed simulator has no buffet).
+    replay
+        Fly the closed-loop replays of the stall maneuvers (rows 2-4,
+        :func:`aerodelta.closed_loop.closed_loop_replay`) when a model is given.
 
     Returns
     -------
@@ -184,8 +186,17 @@ def assess(
         by=dict(ident.group_by("stall_id_by").len().sort("stall_id_by").iter_rows()),
     )
     buffet = buffet_identification(data) if "az_mps2" in data.columns else None
+    fits = fit_longitudinal(data, longitudinal)
+    loop, why = _replay(
+        data, table, model=model, fits=fits, buffet_model=buffet_model,
+        aft_stop_deg=aft_stop_deg, enabled=replay,
+    )  # fmt: skip
+    if loop is not None:
+        out.tables["closed_loop"] = loop.table
+        out.tables["closed_loop_summary"] = loop.summary()
+        out.facts["closed_loop_setup"] = loop.setup
     _stall_id_row(out, table, flaps)
-    _speed_rows(out, table, flaps, buffet)
+    _speed_rows(out, table, flaps, buffet, loop=loop, why=why)
     _breaks_row(out, data, table)
     _rolloff_row(out, data, table)
     _buffet_rows(out, table, buffet, sim_buffet, sim_buffet_source)
@@ -193,7 +204,7 @@ def assess(
     _envelope_row(out, data, model)
     _entries_row(out, table, power_on_ct)
     _lateral_row(out, model, params)
-    _longitudinal_row(out, data, longitudinal)
+    _longitudinal_row(out, fits)
     return out
 
 
@@ -264,54 +275,140 @@ def _stall_id_row(out: Assessment, table: pl.DataFrame, flaps: Sequence[float]) 
     )
 
 
-def _speed_rows(out: Assessment, table: pl.DataFrame, flaps: Sequence[float], buffet: Any) -> None:
+def _replay(
+    data: pl.DataFrame,
+    table: pl.DataFrame,
+    *,
+    model: DeltaModel | None,
+    fits: LongitudinalFits,
+    buffet_model: Mapping[str, Any] | None,
+    aft_stop_deg: float | None,
+    enabled: bool,
+) -> tuple[Any, str]:
+    """The closed-loop replays of the stall maneuvers with the extended model, or None and why
+    not."""
+    from aerodelta.closed_loop import closed_loop_replay  # noqa: PLC0415
+
+    if not enabled:
+        return None, "the closed-loop replays were switched off (replay=False, --no-replay)"
+    if model is None:
+        return None, (
+            "no fitted Δ model given (--model model.json): the closed-loop replay flies the "
+            "extended model"
+        )
+    try:
+        res = closed_loop_replay(
+            data,
+            model=model,
+            kirchhoff=fits.params(),
+            buffet_model=buffet_model,
+            aft_stop_deg=aft_stop_deg,
+            table=table,
+        )
+    except AerodeltaError as e:
+        return None, str(e).splitlines()[0]
+    return res, ""
+
+
+def _speed_rows(
+    out: Assessment,
+    table: pl.DataFrame,
+    flaps: Sequence[float],
+    buffet: Any,
+    *,
+    loop: Any,
+    why: str,
+) -> None:
+    from aerodelta.closed_loop import QUANTITIES  # noqa: PLC0415
+
+    lt = loop.table if loop is not None else None
     fig = out.figure(
         FigureSpec(
             "fig-speeds",
             "speeds",
             figures.speeds,
-            {"table": table, "flaps": list(flaps)},
+            {"table": table, "flaps": list(flaps), "replay": lt},
             "Flight-test stall-warning, buffet-onset and stall speeds (equivalent airspeed, kt) "
-            "per maneuver, by flap and maneuver kind.",
+            "per maneuver, by flap and maneuver kind"
+            + (
+                "; open markers: the closed-loop replay with the extended model (same "
+                "identification code), ±3 kt bars around the flight test."
+                if lt is not None
+                else "."
+            ),
         )
     )
     note = str(table["not_assessed"][0] or "") if table.height else ""
-    for key, item, col, missing in (
-        (
-            "v_warning",
-            "Stall-warning speed",
-            "v_warning_keas",
-            "no stall_warning channel in the records"
-            if "stall warning" in note
-            else "no stall warning recorded",
-        ),
-        (
-            "v_buffet_onset",
-            "Buffet-onset speed",
-            "v_buffet_onset_keas",
-            "no raw az_mps2 channel in the records"
-            if buffet is None
-            else "no buffet onset found in the records",
-        ),
-        ("v_stall", "Stall speed (at stall identification)", "v_stall_keas", "no stall identified"),
-    ):
-        per = {
-            float(r["flap_deg"]): f"{r['n']} maneuvers, mean {_fmt(r['v'])} kt"
+    missing = {
+        "v_warning": "no stall_warning channel in the records"
+        if "stall warning" in note
+        else "no stall warning recorded",
+        "v_buffet_onset": "no raw az_mps2 channel in the records"
+        if buffet is None
+        else "no buffet onset found in the records",
+        "v_stall": "no stall identified",
+    }
+    items = {
+        "v_warning": "Stall-warning speed",
+        "v_buffet_onset": "Buffet-onset speed",
+        "v_stall": "Stall speed (at stall identification)",
+    }
+    setup = loop.setup if loop is not None else {}
+    for key, col, _ in QUANTITIES:
+        per_rec = {
+            float(r["flap_deg"]): (r["n"], r["v"])
             for r in table.group_by("flap_deg")
             .agg(pl.col(col).is_not_null().sum().alias("n"), pl.col(col).mean().alias("v"))
             .iter_rows(named=True)
             if r["n"]
         }
         n = int(table[col].is_not_null().sum())
+        data_text = f"{n} of {table.height} maneuvers with a flight-test value"
+        if n == 0:
+            status = NOT_ASSESSED + missing[key]
+            per = {f: f"{k} maneuvers, mean {_fmt(v)} kt" for f, (k, v) in per_rec.items()}
+        elif lt is None:
+            status = NOT_ASSESSED + f"{why}; the flight-test speeds are shown"
+            per = {f: f"{k} maneuvers, mean {_fmt(v)} kt" for f, (k, v) in per_rec.items()}
+        elif key == "v_buffet_onset" and not setup.get("buffet_model"):
+            status = NOT_ASSESSED + (
+                "no simulator buffet model to fly in the closed-loop replay (a virtual "
+                "campaign flown with --buffet carries one); the flight-test speeds are shown"
+            )
+            per = {f: f"{k} maneuvers, mean {_fmt(v)} kt" for f, (k, v) in per_rec.items()}
+        else:
+            cmp = lt.filter(pl.col(f"{key}_status").is_not_null())
+            n_pass = int((cmp[f"{key}_status"] == "PASS").sum())
+            status = PASS if n_pass == cmp.height else FAIL
+            data_text += f"; {cmp.height} replayed in closed loop with the extended model"
+            per = {}
+            for r in (
+                cmp.group_by("flap_deg")
+                .agg(
+                    pl.len().alias("n"),
+                    (pl.col(f"{key}_status") == "PASS").sum().alias("ok"),
+                    pl.col(f"{key}_diff_kt").mean().alias("mean"),
+                    pl.col(f"{key}_diff_kt").abs().max().alias("worst"),
+                    pl.col(f"{key}_sim_keas").is_null().sum().alias("none"),
+                )
+                .iter_rows(named=True)
+            ):
+                per[float(r["flap_deg"])] = (
+                    f"{r['ok']} of {r['n']} within ±{SPEED_TOLERANCE_KT:g} kt (simulator minus "
+                    f"flight test: mean {_fmt(r['mean'], '+.1f')} kt, largest "
+                    f"{_fmt(r['worst'])} kt"
+                    + (f"; {r['none']} with none in the simulator" if r["none"] else "")
+                    + ")"
+                )
         out.rows.append(
             MatrixRow(
                 key,
-                item,
+                items[key],
                 "Part 60 App. A, Table A1A objective stall tests (full-stall, FSTD Directive 2)",
-                f"{n} of {table.height} maneuvers with a flight-test value",
+                data_text,
                 fig,
                 f"simulator within ±{SPEED_TOLERANCE_KT:g} kt of the aircraft",
-                NO_REPLAY if n else NOT_ASSESSED + missing,
+                status,
                 _flaps_text(per),
             )
         )
@@ -855,34 +952,60 @@ def _lateral_row(out: Assessment, model: DeltaModel | None, params: pl.DataFrame
     )
 
 
-def _longitudinal_row(out: Assessment, data: pl.DataFrame, enabled: bool) -> None:
+@dataclass
+class LongitudinalFits:
+    """The Kirchhoff output-error fits of the records per flap (:func:`fit_longitudinal`)."""
+
+    fitted: dict[float, Any] = field(default_factory=dict)
+    notes: dict[float, str] = field(default_factory=dict)
+    known: str = "none"
+    frame: pl.DataFrame | None = None
+    why: str | None = None
+
+    def params(self) -> dict[float, dict[str, float]]:
+        """flap -> the fitted parameters (engine units, by name)."""
+        return {f: dict(r[f].params) for f, r in self.fitted.items()}
+
+
+def fit_longitudinal(data: pl.DataFrame, enabled: bool) -> LongitudinalFits:
+    """Fit the Kirchhoff stall by output error per flap where it applies (``why`` says why
+    not when it does not)."""
     from aerodelta.fit import model_frame  # noqa: PLC0415
-    from aerodelta.longitudinal import fit_kirchhoff, measured_lift  # noqa: PLC0415
+    from aerodelta.longitudinal import fit_kirchhoff  # noqa: PLC0415
     from aerodelta.qualified import flown_on_builtin  # noqa: PLC0415
 
-    item = "Longitudinal stall: lift break, pitch break, hysteresis (Kirchhoff)"
-    rule = (
-        "Part 60 App. A, Attachment 7 (FSTD Directive 2): the model covers changes in pitch "
-        "stability and the stall's lift loss"
-    )
     need = ("CX_meas", "CZ_meas", "Cm_meas", "alphadot_dps")
     missing = [c for c in need if c not in data.columns]
     if not enabled or missing:
         why = "switched off (longitudinal=False)" if not enabled else (
             f"the records lack {', '.join(missing)} (ingest them with aerodelta ingest)"
         )  # fmt: skip
-        out.rows.append(MatrixRow("longitudinal", item, rule, "-", None, "shown",
-                                  NOT_ASSESSED + why))  # fmt: skip
-        return
+        return LongitudinalFits(why=why)
     mf = model_frame(data)
     known = "adx37" if flown_on_builtin(mf) else "none"
-    fitted = {}
-    notes: dict[float, str] = {}
+    out = LongitudinalFits(known=known, frame=mf)
     for flap in sorted({float(f) for f in mf["flap_deg"]}):
         try:
-            fitted[flap] = fit_kirchhoff(mf, flaps=[flap], known=known)
+            out.fitted[flap] = fit_kirchhoff(mf, flaps=[flap], known=known)
         except AerodeltaError as e:
-            notes[flap] = "not fitted: " + str(e).splitlines()[0]
+            out.notes[flap] = "not fitted: " + str(e).splitlines()[0]
+    return out
+
+
+def _longitudinal_row(out: Assessment, fits: LongitudinalFits) -> None:
+    from aerodelta.longitudinal import measured_lift  # noqa: PLC0415
+
+    item = "Longitudinal stall: lift break, pitch break, hysteresis (Kirchhoff)"
+    rule = (
+        "Part 60 App. A, Attachment 7 (FSTD Directive 2): the model covers changes in pitch "
+        "stability and the stall's lift loss"
+    )
+    if fits.why is not None or fits.frame is None:
+        out.rows.append(MatrixRow("longitudinal", item, rule, "-", None, "shown",
+                                  NOT_ASSESSED + str(fits.why)))  # fmt: skip
+        return
+    mf, known, fitted = fits.frame, fits.known, fits.fitted
+    notes = dict(fits.notes)
     panels = []
     rows = []
     for flap, res in fitted.items():

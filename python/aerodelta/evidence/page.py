@@ -106,7 +106,23 @@ _FIGURE_TABLES: dict[str, list[tuple[str, Sequence[str] | None, str]]] = {
                 "v_min_keas",
             ),
             "Per maneuver (speeds KEAS, kt; alpha deg)",
-        )
+        ),
+        ("closed_loop_summary", None, "Closed-loop replays: simulator minus flight test per flap"),
+        (
+            "closed_loop",
+            (
+                "maneuver_id",
+                "sim_stall_id_by",
+                "recognised_by",
+                "v_warning_diff_kt",
+                "v_warning_status",
+                "v_buffet_onset_diff_kt",
+                "v_buffet_onset_status",
+                "v_stall_diff_kt",
+                "v_stall_status",
+            ),
+            "Closed-loop replays per maneuver (simulator minus flight test, kt)",
+        ),
     ],
     "fig-rolloff": [("rolloff", None, "Wings-level stalls: bank change after identification")],
     "fig-buffet-spectra": [
@@ -180,8 +196,11 @@ def _soc(out: Assessment, rows: Sequence[MatrixRow], info: Mapping[str, Any]) ->
         f"{esc(status.get('buffet_onset', ''))}. How the FSTD implements each (and Mach "
         f"effects, where applicable): {todo}.</li>",
         "<li><b>Objective stall tests.</b> The flight-test stall-warning, buffet-onset and stall "
-        "speeds are in the pack (matrix rows 2-4); the FSTD's results against them within "
-        f"±3 kt (QTG test references and results): {todo}. Entries flown: "
+        "speeds are in the pack (matrix rows 2-4) with aerodelta's closed-loop replays of the "
+        "stall maneuvers with the extended model against ±3 kt: stall warning "
+        f"{esc(status.get('v_warning', ''))}; buffet onset "
+        f"{esc(status.get('v_buffet_onset', ''))}; stall {esc(status.get('v_stall', ''))}. "
+        f"The FSTD's own QTG test references and results: {todo}. Entries flown: "
         f"{ent.get('wings_level', 0)} wings-level, {ent.get('turning', 0)} turning, "
         f"{ent.get('power_on', 0)} power-on identified stalls (status "
         f"{esc(status.get('entries', ''))}).</li>",

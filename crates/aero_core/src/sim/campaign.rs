@@ -246,7 +246,7 @@ fn engine_spec(ac: &AircraftRef) -> EngineSpec {
     }
 }
 
-fn actuators(c0: &Controls) -> [Actuator; 5] {
+pub(crate) fn actuators(c0: &Controls) -> [Actuator; 5] {
     let d = f64::to_radians;
     [
         Actuator::new(0.06, d(60.0), d(-20.0), d(20.0), c0.da),
@@ -919,7 +919,7 @@ pub fn adx37_models() -> Result<&'static (QualifiedModel, Vec<FlapModel>)> {
 }
 
 /// The qualified model of `q` at `flap_deg`: a cached slice for the five standard settings.
-fn slice(q: &QualifiedModel, flap_deg: f64) -> Result<FlapModel> {
+pub(crate) fn slice(q: &QualifiedModel, flap_deg: f64) -> Result<FlapModel> {
     let (_, slices) = adx37_models()?;
     match slices.iter().find(|s| s.flap_deg == flap_deg) {
         Some(s) if q.aircraft == adx37() => Ok(s.clone()),

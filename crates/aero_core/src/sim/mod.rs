@@ -12,12 +12,14 @@
 //! - [`sensors`]: flight-test instrumentation (positions, noise, biases, lags);
 //! - [`maneuver`]: the simulation loop of one maneuver, and replay of recorded controls;
 //! - [`campaign`]: a deterministic campaign of maneuvers;
+//! - [`closed_loop`]: closed-loop replay of a recorded stall maneuver (objective stall tests);
 //! - [`rng`]: seeded portable random streams.
 
 pub mod actuator;
 pub mod aero;
 pub mod atmosphere;
 pub mod campaign;
+pub mod closed_loop;
 pub mod dave_aero;
 pub mod engine;
 pub mod eom;

@@ -1,0 +1,423 @@
+"""Closed-loop replays of the stall maneuvers: the objective stall tests of 14 CFR Part 60
+Table A1A (stall-warning, buffet-onset and stall speeds within ±3 kt; ``docs/evidence.md``).
+
+:func:`closed_loop_replay` flies each recorded stall maneuver again on the simulator
+(``aero_core::sim::closed_loop``): from the record's first state, a pilot tracks the recorded
+airspeed history (the entry's deceleration) through an alpha loop around the recorded alpha,
+holds the recorded bank and sideslip, sets the recorded thrust, and past the record's stall
+identification keeps decelerating at the entry's rate until the *simulator* stalls; the
+simulator's pusher (at the aircraft's activation alpha read from the records), stall warning
+(the aircraft's vane threshold read from the records) and buffet model act. The simulated time
+history then goes through the same identification code as the records
+(:func:`aerodelta.stall.stall_identification`), and the three speeds are compared, maneuver by
+maneuver, against ±3 kt.
+
+Supported: records flown on the built-in ADX-37 (ingest's ``builtin_simulator`` mark), whose
+qualified model, mass, engines, actuators and pusher aerodelta carries. Other aircraft are
+refused in one line.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import polars as pl
+
+from aerodelta import _core
+from aerodelta.buffet import _band, detect_onset
+from aerodelta.exceptions import DataError, InvalidInputError
+from aerodelta.model import DeltaModel
+from aerodelta.stall import DETERRENT_BUFFET_RMS_G, G0, stall_identification
+
+__all__ = [
+    "QUANTITIES",
+    "SPEED_TOLERANCE_KT",
+    "ClosedLoopResult",
+    "closed_loop_replay",
+    "discrete_thresholds",
+]
+
+#: Part 60 Table A1A tolerance on the three speeds, kt.
+SPEED_TOLERANCE_KT = 3.0
+#: (key, column of the stall-identification table, label) of each compared speed.
+QUANTITIES: tuple[tuple[str, str, str], ...] = (
+    ("v_warning", "v_warning_keas", "stall-warning speed"),
+    ("v_buffet_onset", "v_buffet_onset_keas", "buffet-onset speed"),
+    ("v_stall", "v_stall_keas", "stall speed"),
+)
+#: Simulation rate of the replays, Hz.
+SIM_HZ = 100.0
+
+_RECORD_COLUMNS, _OUTPUT_COLUMNS = _core.sim_closed_loop_columns()
+_KIRCHHOFF_NAMES = tuple(_core.kirchhoff_param_names())
+
+
+@dataclass
+class ClosedLoopResult:
+    """What :func:`closed_loop_replay` found.
+
+    Attributes
+    ----------
+    table
+        One row per maneuver: ``maneuver_id``, ``flap_deg``, ``kind``, ``pusher_armed``,
+        ``recognised_by`` (what made the simulated pilot recover: ``pusher``, ``g_break``,
+        ``time``), ``alpha_correction_deg`` (the alpha the pilot's speed loop added to the
+        recorded one when it recognised the stall: model minus aircraft), ``stall_id_by`` and
+        ``sim_stall_id_by``; per quantity ``<q>_rec_keas``, ``<q>_sim_keas``, ``<q>_diff_kt``
+        (simulator minus aircraft) and ``<q>_status`` (``PASS``, ``FAIL`` or null when the
+        record has no value) for ``v_warning``, ``v_buffet_onset``, ``v_stall``.
+    runs
+        The simulated time histories by maneuver (the columns the identification reads).
+    setup
+        The warning and pusher thresholds per flap (deg), the model, the buffet model.
+    """
+
+    table: pl.DataFrame
+    runs: dict[str, pl.DataFrame] = field(default_factory=dict)
+    setup: dict[str, Any] = field(default_factory=dict)
+
+    def summary(self) -> pl.DataFrame:
+        """Per flap and quantity: ``n`` compared, ``n_pass``, ``mean_diff_kt``,
+        ``max_abs_diff_kt``."""
+        rows = []
+        for key, _, _ in QUANTITIES:
+            g = (
+                self.table.filter(pl.col(f"{key}_status").is_not_null())
+                .group_by("flap_deg")
+                .agg(
+                    pl.len().alias("n"),
+                    (pl.col(f"{key}_status") == "PASS").sum().alias("n_pass"),
+                    pl.col(f"{key}_diff_kt").mean().alias("mean_diff_kt"),
+                    pl.col(f"{key}_diff_kt").abs().max().alias("max_abs_diff_kt"),
+                )
+                .with_columns(pl.lit(key).alias("quantity"))
+            )
+            rows.append(g)
+        return (
+            pl.concat(rows)
+            .select("quantity", "flap_deg", "n", "n_pass", "mean_diff_kt", "max_abs_diff_kt")
+            .sort("quantity", "flap_deg")
+        )
+
+
+def _first_on(x: np.ndarray) -> int | None:
+    on = np.flatnonzero(x > 0.5)
+    return int(on[0]) if on.size else None
+
+
+def discrete_thresholds(data: pl.DataFrame, discrete: str, alpha: str) -> dict[float, float]:
+    """The alpha (deg) at which a discrete (``stall_warning``, ``pusher_active``) switches on,
+    per flap, read from the records.
+
+    Every sample before a maneuver's first activation lies below the threshold and the
+    activation sample at or above it, so the threshold lies between the highest pre-activation
+    alpha and the lowest activation alpha of the flap's maneuvers: the midpoint is taken. When
+    noise makes the bracket empty, the median over the maneuvers of the midpoint of the last
+    sample before and the first sample at activation.
+
+    Parameters
+    ----------
+    data
+        Ingested records with ``maneuver_id``, ``t``, ``flap_deg``, ``discrete`` and ``alpha``.
+    discrete
+        The discrete channel (1 on).
+    alpha
+        The alpha channel it is compared with, deg (the vane ``alpha_deg`` for the warning
+        computer, ``alpha_cg_deg`` for the virtual aircraft's pusher).
+
+    Returns
+    -------
+    dict
+        flap (deg) -> threshold (deg); flaps without an activation are absent.
+    """
+    if discrete not in data.columns or alpha not in data.columns:
+        return {}
+    per: dict[float, list[tuple[float, float, float]]] = {}
+    for (_,), g in data.sort("t").partition_by("maneuver_id", as_dict=True).items():
+        a = g[alpha].cast(pl.Float64).to_numpy()
+        k = _first_on(g[discrete].cast(pl.Float64).fill_null(0.0).to_numpy())
+        if k is None or k == 0:
+            continue
+        per.setdefault(float(g["flap_deg"][0]), []).append(
+            (float(np.max(a[:k])), float(a[k]), 0.5 * float(a[k - 1] + a[k]))
+        )
+    out = {}
+    for flap, v in per.items():
+        arr = np.asarray(v)
+        lo, hi = float(arr[:, 0].max()), float(arr[:, 1].min())
+        out[flap] = 0.5 * (lo + hi) if lo < hi else float(np.median(arr[:, 2]))
+    return out
+
+
+def _kirchhoff_array(params: Mapping[str, float] | Sequence[float] | None) -> list[float] | None:
+    if params is None:
+        return None
+    if isinstance(params, Mapping):
+        missing = [n for n in _KIRCHHOFF_NAMES if n not in params]
+        if missing:
+            raise InvalidInputError(
+                f"closed-loop replay: Kirchhoff parameters lack {', '.join(missing)}; give all "
+                f"of {', '.join(_KIRCHHOFF_NAMES)}"
+            )
+        return [float(params[n]) for n in _KIRCHHOFF_NAMES]
+    v = [float(x) for x in params]
+    if len(v) != len(_KIRCHHOFF_NAMES):
+        raise InvalidInputError(
+            f"closed-loop replay: {len(v)} Kirchhoff parameters; give {len(_KIRCHHOFF_NAMES)} "
+            f"({', '.join(_KIRCHHOFF_NAMES)})"
+        )
+    return v
+
+
+def _noise_std(t: np.ndarray, alpha: np.ndarray, az: np.ndarray) -> float:
+    """White noise (m/s²) whose band-passed RMS is the record's buffet noise floor."""
+    dt = float(np.median(np.diff(t)))
+    lo, hi = _band(dt)
+    floor = float(detect_onset(t, alpha, az)["floor_rms_mps2"])
+    frac = max(hi - lo, 0.0) / (0.5 / dt)
+    return floor / math.sqrt(frac) if frac > 0 else 0.0
+
+
+def _initial_state(r: Mapping[str, Any]) -> list[float]:
+    """The 12 simulator states (u v w [m/s], p q r [rad/s], φ θ ψ [rad], x y h [m]) at a
+    record's first sample: airspeed and the CG angles of attack and sideslip."""
+    v = float(r["tas_mps"])
+    a, b = math.radians(r["alpha_cg_deg"]), math.radians(r["beta_cg_deg"])
+    h = float(r["h_m"]) if r.get("h_m") is not None else 3000.0
+    rad = [math.radians(float(r.get(c) or 0.0)) for c in
+           ("p_dps", "q_dps", "r_dps", "phi_deg", "theta_deg", "psi_deg")]  # fmt: skip
+    uvw = [v * math.cos(a) * math.cos(b), v * math.sin(b), v * math.sin(a) * math.cos(b)]
+    return [*uvw, *rad, 0.0, 0.0, h]
+
+
+def _status(d: float | None) -> str:
+    return "PASS" if d is not None and abs(d) <= SPEED_TOLERANCE_KT else "FAIL"
+
+
+def closed_loop_replay(
+    data: pl.DataFrame | Any,
+    *,
+    model: DeltaModel | None = None,
+    kirchhoff: Mapping[float, Mapping[str, float] | Sequence[float]] | None = None,
+    truth_effects: Sequence[str] | Mapping[str, float] | None = None,
+    buffet_model: Mapping[str, Any] | None = None,
+    maneuvers: Sequence[str] | None = None,
+    resist_pusher: bool | None = None,
+    aft_stop_deg: float | None = None,
+    seed: int = 0,
+    table: pl.DataFrame | None = None,
+) -> ClosedLoopResult:
+    """Fly each stall maneuver of ``data`` again on the ADX-37 simulator in closed loop and
+    compare its stall-warning, buffet-onset and stall speeds with the records' (module docs).
+
+    Parameters
+    ----------
+    data
+        Ingested records (:func:`aerodelta.ingest` result or its ``data``) flown on the
+        built-in ADX-37.
+    model
+        The fitted Δ model: the extended model (qualified + Δ) flies. None: the qualified
+        model, with ``truth_effects`` when given (a virtual aircraft's truth, for checks).
+    kirchhoff
+        Per flap (deg), the Kirchhoff stall parameters (by name, engine units, or in
+        ``_core.kirchhoff_param_names()`` order) replacing the qualified static C_L, C_m
+        curves (e.g. :func:`aerodelta.longitudinal.fit_kirchhoff`'s); a flap absent flies the
+        static curves.
+    truth_effects
+        Effects of the virtual aircraft's truth (names or name -> magnitude); only without
+        ``model``.
+    buffet_model
+        The simulator's buffet model (an ``aero_core`` BuffetSpec as a mapping, e.g. a virtual
+        campaign's ``truth/campaign.json`` ``spec.buffet``). None: the simulator has no buffet
+        (no buffet onset, and no buffet criterion in its stall identification).
+    maneuvers
+        Only these maneuver ids (default: all).
+    resist_pusher
+        Whether the pilots resisted the pusher; None: the manifest's ``pusher_resisted``
+        column when the records carry it, else False (the virtual ADX-37's pilots recover when
+        the pusher fires).
+    aft_stop_deg
+        The elevator's aft stop for the identification, deg (None: the recorded extreme).
+    seed
+        Seed of the simulated buffet and accelerometer noise (the ``i``-th maneuver of the
+        records uses ``seed + i``, whichever are replayed).
+    table
+        :func:`aerodelta.stall.stall_identification` of ``data`` when already computed.
+
+    Returns
+    -------
+    ClosedLoopResult
+
+    Raises
+    ------
+    InvalidInputError
+        Records not flown on the ADX-37, or bad options: one line.
+    DataError
+        Records the identification cannot read.
+
+    Examples
+    --------
+    >>> # res = closed_loop_replay(aerodelta.ingest("camp/").data, model=DeltaModel.load("m.json"))
+    >>> # res.summary()
+    """
+    from aerodelta.qualified import flown_on_builtin  # noqa: PLC0415
+
+    df: pl.DataFrame = getattr(data, "data", data)
+    if not isinstance(df, pl.DataFrame) or "maneuver_id" not in df.columns:
+        raise DataError("closed-loop replay: give ingested records (a frame with maneuver_id)")
+    if not flown_on_builtin(df):
+        raise InvalidInputError(
+            "closed-loop replay: the records were not flown on the built-in ADX-37 (ingest's "
+            "builtin_simulator mark); aerodelta flies closed-loop stall replays only on the "
+            "ADX-37, whose qualified model, mass, engines, actuators and pusher it carries"
+        )
+    if model is not None and truth_effects:
+        raise InvalidInputError(
+            "closed-loop replay: give either model (the extended model) or truth_effects"
+        )
+    effects_json = None
+    if truth_effects:
+        eff = (
+            dict(truth_effects)
+            if isinstance(truth_effects, Mapping)
+            else {str(n): 1.0 for n in truth_effects}
+        )
+        effects_json = json.dumps([{"name": n, "magnitude": float(m)} for n, m in eff.items()])
+    need = [c for c in ("alpha_cg_deg", "beta_cg_deg", *_RECORD_COLUMNS[3:]) if c not in df]
+    need = [c for c in need if c not in ("alpha_deg", "beta_deg")]
+    if need:
+        raise DataError(
+            f"closed-loop replay: the records lack {', '.join(need)}; ingest them with "
+            "aerodelta ingest (the canonical channels, docs/data.md)"
+        )
+    kp = {float(f): _kirchhoff_array(p) for f, p in (kirchhoff or {}).items()}
+    rec_table = table if table is not None else stall_identification(df, aft_stop_deg=aft_stop_deg)
+    warn = discrete_thresholds(df, "stall_warning", "alpha_deg")
+    push = discrete_thresholds(df, "pusher_active", "alpha_cg_deg")
+    ids = [str(m) for m in rec_table["maneuver_id"]]
+    order = {m: i for i, m in enumerate(ids)}  # seeds follow the records' order, any subset
+    if maneuvers is not None:
+        unknown = sorted(set(maneuvers) - set(ids))
+        if unknown:
+            raise InvalidInputError(f"closed-loop replay: no maneuver {unknown[0]} in the records")
+        ids = [m for m in ids if m in set(maneuvers)]
+    groups = {
+        str(k[0]): g.sort("t")
+        for k, g in df.partition_by("maneuver_id", as_dict=True).items()
+        if str(k[0]) in set(ids)
+    }
+    runs: dict[str, pl.DataFrame] = {}
+    meta: dict[str, dict[str, Any]] = {}
+    for mid in ids:
+        g = groups[mid]
+        r = rec_table.filter(pl.col("maneuver_id") == mid).row(0, named=True)
+        flap = float(r["flap_deg"])
+        t = g["t"].cast(pl.Float64).to_numpy()
+        t_peak = float(t[int(np.argmax(g["alpha_cg_deg"].to_numpy()))])
+        t_id = t_peak if r["stall_id_t_s"] is None else min(float(r["stall_id_t_s"]), t_peak)
+        cols = {
+            **{c: g[c] for c in _RECORD_COLUMNS},
+            "alpha_deg": g["alpha_cg_deg"],
+            "beta_deg": g["beta_cg_deg"],
+        }
+        rec = np.column_stack(
+            [cols[c].cast(pl.Float64).fill_null(0.0).to_numpy() for c in _RECORD_COLUMNS]
+        )
+        x0 = _initial_state(g.row(0, named=True))
+        resist = resist_pusher
+        if resist is None:
+            resist = bool(g["pusher_resisted"][0]) if "pusher_resisted" in g.columns else False
+        armed = r["pusher_armed"]
+        opts: dict[str, Any] = {
+            "flap_deg": flap,
+            "warning_alpha_deg": warn.get(flap),
+            "pusher_alpha_deg": push.get(flap) if armed is not False else None,
+            "resist_pusher": bool(resist),
+            "t_id_s": t_id,
+            "t_peak_s": t_peak,
+            "deterrent_buffet_rms_mps2": DETERRENT_BUFFET_RMS_G * G0,
+            "az_noise_mps2": _noise_std(t, g["alpha_cg_deg"].to_numpy(), g["az_mps2"].to_numpy())
+            if "az_mps2" in g.columns and buffet_model is not None
+            else 0.0,
+            "seed": int(seed) + order[mid],
+            "sim_hz": SIM_HZ,
+        }
+        if buffet_model is not None:
+            opts["buffet"] = dict(buffet_model)
+        x, info = _core.sim_closed_loop(
+            np.ascontiguousarray(rec),
+            x0,
+            json.dumps(opts),
+            model=model._m if model is not None else None,
+            kirchhoff=kp.get(flap),
+            effects_json=effects_json,
+        )
+        sim = pl.DataFrame(np.asarray(x), schema=list(_OUTPUT_COLUMNS), orient="row")
+        runs[mid] = sim.with_columns(
+            pl.lit(mid).alias("maneuver_id"),
+            pl.lit(flap).alias("flap_deg"),
+            pl.lit(r["kind"]).alias("kind"),
+            pl.lit(armed, dtype=pl.Boolean).alias("pusher"),
+        )
+        meta[mid] = json.loads(info)
+    if not runs:
+        raise InvalidInputError("closed-loop replay: no maneuver to replay")
+    sim_all = pl.concat(list(runs.values()))
+    if buffet_model is None:
+        sim_all = sim_all.drop("az_mps2")
+    sim_table = stall_identification(sim_all, aft_stop_deg=aft_stop_deg)
+    rows = []
+    for mid in ids:
+        r = rec_table.filter(pl.col("maneuver_id") == mid).row(0, named=True)
+        s = sim_table.filter(pl.col("maneuver_id") == mid).row(0, named=True)
+        row: dict[str, Any] = {
+            "maneuver_id": mid,
+            "flap_deg": float(r["flap_deg"]),
+            "kind": r["kind"],
+            "pusher_armed": r["pusher_armed"],
+            "recognised_by": meta[mid]["recognised_by"],
+            "alpha_correction_deg": meta[mid]["alpha_correction_deg"],
+            "stall_id_by": r["stall_id_by"],
+            "sim_stall_id_by": s["stall_id_by"],
+        }
+        for key, col, _ in QUANTITIES:
+            a, b = r[col], s[col]
+            d = None if a is None or b is None else float(b) - float(a)
+            row |= {
+                f"{key}_rec_keas": a,
+                f"{key}_sim_keas": b,
+                f"{key}_diff_kt": d,
+                f"{key}_status": None if a is None else _status(d),
+            }
+        rows.append(row)
+    schema: dict[str, Any] = {
+        "maneuver_id": pl.Utf8,
+        "flap_deg": pl.Float64,
+        "kind": pl.Utf8,
+        "pusher_armed": pl.Boolean,
+        "recognised_by": pl.Utf8,
+        "alpha_correction_deg": pl.Float64,
+        "stall_id_by": pl.Utf8,
+        "sim_stall_id_by": pl.Utf8,
+    }
+    for key, _, _ in QUANTITIES:
+        schema |= {
+            f"{key}_rec_keas": pl.Float64,
+            f"{key}_sim_keas": pl.Float64,
+            f"{key}_diff_kt": pl.Float64,
+            f"{key}_status": pl.Utf8,
+        }
+    setup = {
+        "warning_alpha_deg": warn,
+        "pusher_alpha_deg": push,
+        "model": "extended (qualified + fitted Δ)" if model is not None else (
+            "truth effects" if truth_effects else "qualified"),
+        "kirchhoff_flaps": sorted(f for f, v in kp.items() if v is not None),
+        "buffet_model": buffet_model is not None,
+    }  # fmt: skip
+    return ClosedLoopResult(table=pl.DataFrame(rows, schema=schema), runs=runs, setup=setup)
