@@ -236,11 +236,16 @@ def test_objective_speed_rows_from_closed_loop_replays(
         assert "within ±3 kt" in page.rows[key]["cells"][1]
     for key in ("stall_id", "breaks", "rolloff", "envelope", "lateral"):
         assert _status(page, key) == "shown", key
+    # the extended model leaves the qualified one unchanged below the blend (tests/test_prestall)
+    assert _status(page, "prestall") == "PASS"
     res = write_evidence(pack["camp"], tmp_path / "p", model=pack["root"] / "model.json")
     loop, stall = res.tables["closed_loop"], res.tables["stall"]
     assert loop.height == stall.height
     assert res.tables["closed_loop_summary"]["n"].sum() > 0
     st = {r.key: r.status for r in res.rows}
+    pre = next(r for r in res.rows if r.key == "prestall")
+    assert pre.status == "PASS" and "identical over the" in pre.detail
+    assert res.tables["prestall"]["max_state_diff"].max() == 0.0
     for key, col in (("v_warning", "v_warning_keas"), ("v_buffet_onset", "v_buffet_onset_keas"),
                      ("v_stall", "v_stall_keas")):  # fmt: skip
         # the flight-test side is the records' identification
@@ -289,6 +294,7 @@ def test_without_model_the_model_rows_say_so(pack: dict[str, Any], tmp_path: Pat
     res = write_evidence(pack["data"], tmp_path / "p", sim_buffet=None, longitudinal=False)
     st = {r.key: r.status for r in res.rows}
     assert st["lateral"].startswith("not assessed: no fitted Δ model")
+    assert st["prestall"].startswith("not assessed: no fitted Δ model")
     assert st["buffet_freq"].startswith("not assessed: no simulator buffet frequencies")
     assert st["longitudinal"].startswith("not assessed: switched off")
     # without the manifest's kinds the entries cannot be told: not assessed, not FAIL

@@ -183,7 +183,7 @@ def _noise_std(t: np.ndarray, alpha: np.ndarray, az: np.ndarray) -> float:
     return floor / math.sqrt(frac) if frac > 0 else 0.0
 
 
-def _initial_state(r: Mapping[str, Any]) -> list[float]:
+def initial_state(r: Mapping[str, Any]) -> list[float]:
     """The 12 simulator states (u v w [m/s], p q r [rad/s], φ θ ψ [rad], x y h [m]) at a
     record's first sample: airspeed and the CG angles of attack and sideslip."""
     v = float(r["tas_mps"])
@@ -328,7 +328,7 @@ def closed_loop_replay(
         rec = np.column_stack(
             [cols[c].cast(pl.Float64).fill_null(0.0).to_numpy() for c in _RECORD_COLUMNS]
         )
-        x0 = _initial_state(g.row(0, named=True))
+        x0 = initial_state(g.row(0, named=True))
         resist = resist_pusher
         if resist is None:
             resist = bool(g["pusher_resisted"][0]) if "pusher_resisted" in g.columns else False

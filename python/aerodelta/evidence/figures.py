@@ -364,3 +364,34 @@ def longitudinal(*, panels: Sequence[Mapping[str, Any]]) -> Figure:
     ax[0, 1].set_title("pitching moment: measured (grey) and model")
     _legend(ax[0, 0], loc="best", markerscale=6)
     return fig
+
+
+def prestall(*, panels: Sequence[Mapping[str, Any]]) -> Figure:
+    """Per flap, one maneuver replayed open loop on the qualified and on the extended model:
+    angle of attack and roll rate against time, the blend start ``alpha_l`` and the end of the
+    bit-for-bit comparison marked (``panels``: ``flap``, ``id``, ``run`` frame of
+    :func:`aerodelta.evidence.prestall.prestall_regression`, ``alpha_l``, ``t_end``)."""
+    n = max(1, len(panels))
+    fig, ax = new_figure(n, 2, width=8.0, height=2.0 * n + 0.6)
+    for i, pn in enumerate(panels):
+        run = pn["run"]
+        t = run["t"].to_numpy()
+        pairs = (
+            ("alpha_qual_deg", "alpha_ext_deg", "α [deg]"),
+            ("p_qual_dps", "p_ext_dps", "p [deg/s]"),
+        )
+        for j, (q, e, label) in enumerate(pairs):
+            a = ax[i, j]
+            a.plot(t, run[q].to_numpy(), color="#1f77b4", lw=1.6, label="qualified")
+            a.plot(t, run[e].to_numpy(), color="#d62728", lw=0.9, ls="--", label="extended")
+            if j == 0:
+                a.axhline(pn["alpha_l"], color="#444", lw=0.8, ls=":", label="blend start α_l")
+            if pn["t_end"] is not None:
+                a.axvline(pn["t_end"], color="#2ca02c", lw=0.8, label="end of comparison")
+            a.set_ylabel(label)
+            a.set_title(f"flap {pn['flap']:g}: {pn['id']}", fontsize=8)
+            if i == n - 1:
+                a.set_xlabel("time [s]")
+            if i == 0:
+                _legend(a, loc="best")
+    return fig

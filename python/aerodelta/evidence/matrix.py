@@ -205,6 +205,7 @@ def assess(
     _entries_row(out, table, power_on_ct)
     _lateral_row(out, model, params)
     _longitudinal_row(out, fits)
+    _prestall_row(out, data, model)
     return out
 
 
@@ -1055,5 +1056,65 @@ def _longitudinal_row(out: Assessment, fits: LongitudinalFits) -> None:
             "shown with Cramér-Rao bounds corrected for coloured residuals",
             SHOWN if fitted else NOT_ASSESSED + "the output-error fit applied to no flap setting",
             _flaps_text(notes),
+        )
+    )
+
+
+def _prestall_row(out: Assessment, data: pl.DataFrame, model: DeltaModel | None) -> None:
+    """Pre-stall regression: the extended model equals the qualified model where the Δ is
+    blended out (:mod:`aerodelta.evidence.prestall`)."""
+    from aerodelta.evidence import prestall  # noqa: PLC0415
+
+    item = "Pre-stall regression: the qualified model's behaviour unchanged below the Δ"
+    rule = (
+        "Part 60 App. A, Attachment 7 (FSTD Directive 2): the stall model extends the validated "
+        "model without changing the pre-stall behaviour its tests were passed on"
+    )
+    tol = "identical (bit for bit) where the blend weight is zero"
+    if model is None:
+        out.rows.append(
+            MatrixRow("prestall", item, rule, "-", None, tol,
+                      NOT_ASSESSED + "no fitted Δ model given (--model model.json)")
+        )  # fmt: skip
+        return
+    chk = prestall.prestall_regression(data, model)
+    out.tables["prestall"] = chk.table
+    out.facts["prestall_passed"] = chk.passed
+    fig = None
+    if chk.runs:
+        panels = []
+        replayed = chk.table.filter(pl.col("maneuver_id").is_in(list(chk.runs)))
+        for flap, g in replayed.partition_by("flap_deg", as_dict=True, maintain_order=True).items():
+            # the maneuver of the flap compared over the most steps
+            r = g.sort("steps_compared", descending=True, nulls_last=True).row(0, named=True)
+            run = chk.runs[r["maneuver_id"]]
+            steps = r["steps_compared"]
+            t_end = float(run["t"][steps - 1]) if steps else None
+            panels.append(
+                {"flap": float(flap[0]), "id": r["maneuver_id"], "run": run,
+                 "alpha_l": r["alpha_l_deg"], "t_end": t_end}
+            )  # fmt: skip
+        fig = out.figure(
+            FigureSpec(
+                "fig-prestall",
+                "prestall",
+                figures.prestall,
+                {"panels": panels},
+                "Recorded controls replayed open loop on the qualified (blue) and the extended "
+                "(red, dashed) model, one maneuver per flap: identical until the blend start "
+                "(green line: end of the bit-for-bit comparison), then the Δ acts.",
+            )
+        )
+    out.rows.append(
+        MatrixRow(
+            "prestall",
+            item,
+            rule,
+            f"{chk.table.height} maneuvers, {int(chk.table['samples_blended_out'].sum())} "
+            "samples with the blend weight at zero",
+            fig,
+            tol,
+            PASS if chk.passed else FAIL,
+            prestall.describe(chk),
         )
     )

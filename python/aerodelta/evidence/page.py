@@ -136,6 +136,7 @@ _FIGURE_TABLES: dict[str, list[tuple[str, Sequence[str] | None, str]]] = {
         ("envelope_inside", None, "Share of samples inside the model's validated envelope"),
     ],
     "fig-longitudinal": [("kirchhoff", None, "Kirchhoff parameters per flap (engine units)")],
+    "fig-prestall": [("prestall", None, "Pre-stall regression per maneuver")],
 }
 
 
@@ -207,6 +208,10 @@ def _soc(out: Assessment, rows: Sequence[MatrixRow], info: Mapping[str, Any]) ->
         "<li><b>Stall buffet spectra.</b> Predominant frequencies within ±2 Hz: "
         f"{esc(status.get('buffet_freq', ''))}. The FSTD's buffet model and its test: {todo}."
         "</li>",
+        "<li><b>Pre-stall regression.</b> The extended model against the qualified model where "
+        "the Δ is blended out (the qualified model's validation tests unchanged): "
+        f"{esc(status.get('prestall', ''))}. The FSTD's pre-stall QTG results rerun with the "
+        f"stall model installed: {todo}.</li>",
         "<li><b>Validated envelope.</b> The α/β envelope of the flight-test points is plotted per "
         "flap and maneuver kind (section 2). The FSTD shows the instructor when the flight "
         f"leaves the validated envelope by: {todo}.</li>",
