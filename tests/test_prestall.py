@@ -12,8 +12,7 @@ import pytest
 
 import aerodelta as ad
 from aerodelta.aircraft import BUILTIN_COLUMN
-from aerodelta.campaign import replay
-from aerodelta.closed_loop import initial_state
+from aerodelta.campaign import record_state, replay
 from aerodelta.evidence import prestall
 
 
@@ -71,7 +70,7 @@ def test_replays_are_the_campaign_replay_of_the_recorded_controls(fitted: dict[s
     controls = np.column_stack([g[c].cast(pl.Float64).fill_null(0.0) for c in prestall.CONTROLS])
     ct = np.column_stack([g[c].cast(pl.Float64).fill_null(0.0) for c in prestall.THRUST])
     t = g["t"].to_numpy()
-    x = replay(float(g["flap_deg"][0]), initial_state(g.row(0, named=True)),
+    x = replay(float(g["flap_deg"][0]), record_state(g.row(0, named=True)),
                float(np.median(np.diff(t))), controls, ct)  # fmt: skip
     alpha = np.degrees(np.arctan2(x[:, 2], x[:, 0]))
     np.testing.assert_array_equal(chk.runs[str(mid)]["alpha_qual_deg"].to_numpy(), alpha)

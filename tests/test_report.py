@@ -14,7 +14,7 @@ import pytest
 
 import aerodelta as ad
 from _report_data import diagnosis_fixture, quick_fit, quick_report
-from aerodelta.campaign import replay, trim
+from aerodelta.campaign import record_state, replay, trim
 from aerodelta.cli import main
 from aerodelta.model import DeltaModel
 from aerodelta.plots import FigureSink
@@ -23,7 +23,7 @@ from aerodelta.report import diagnosis as diag
 from aerodelta.report.context import ReportContext
 from aerodelta.report.effects import derivative
 from aerodelta.report.envelope import LEVELS, classify
-from aerodelta.report.replay import divergence, initial_state, states_frame
+from aerodelta.report.replay import divergence, states_frame
 
 SECTIONS = ("timehistory", "effects", "params", "replay", "rolloff", "envelope", "diagnosis")
 
@@ -147,7 +147,7 @@ def test_replay_initial_state_round_trips_the_record_angles() -> None:
             "h_m": [2500.0],
         }
     )
-    x = np.array([initial_state(rec)])
+    x = np.array([record_state(rec.row(0, named=True))])
     s = states_frame(x, np.array([0.0])).row(0, named=True)
     assert s["V_mps"] == pytest.approx(70.0)
     assert s["alpha_deg"] == pytest.approx(12.0)

@@ -719,6 +719,22 @@ def trim(flap_deg: float, tas_mps: float, h_m: float) -> dict[str, Any]:
     return {"state": x, "controls_deg": c, "ct": ct}
 
 
+def record_state(row: Mapping[str, Any]) -> list[float]:
+    """The 12 simulator states (u v w [m/s], p q r [rad/s], φ θ ψ [rad], x y h [m]) at one
+    record sample (``row``: column -> value, e.g. ``frame.row(0, named=True)``): the airspeed
+    ``tas_mps`` and the CG angles (``alpha_cg_deg``/``beta_cg_deg`` of ingested records, else
+    ``alpha_deg``/``beta_deg`` of a model frame, where they are the CG's), the rates and
+    attitudes (a missing one is 0), ``h_m`` (missing: 3000 m); x and y are 0."""
+    v = float(row["tas_mps"])
+    a = math.radians(float(row["alpha_cg_deg"] if "alpha_cg_deg" in row else row["alpha_deg"]))
+    b = math.radians(float(row["beta_cg_deg"] if "beta_cg_deg" in row else row["beta_deg"]))
+    h = float(row["h_m"]) if row.get("h_m") is not None else 3000.0
+    rad = [math.radians(float(row.get(c) or 0.0)) for c in
+           ("p_dps", "q_dps", "r_dps", "phi_deg", "theta_deg", "psi_deg")]  # fmt: skip
+    uvw = [v * math.cos(a) * math.cos(b), v * math.sin(b), v * math.sin(a) * math.cos(b)]
+    return [*uvw, *rad, 0.0, 0.0, h]
+
+
 def replay(
     flap_deg: float,
     state0: Sequence[float],

@@ -30,6 +30,7 @@ import polars as pl
 
 from aerodelta import _core
 from aerodelta.buffet import _band, detect_onset
+from aerodelta.campaign import record_state
 from aerodelta.exceptions import DataError, InvalidInputError
 from aerodelta.model import DeltaModel
 from aerodelta.stall import DETERRENT_BUFFET_RMS_G, G0, stall_identification
@@ -183,18 +184,6 @@ def _noise_std(t: np.ndarray, alpha: np.ndarray, az: np.ndarray) -> float:
     return floor / math.sqrt(frac) if frac > 0 else 0.0
 
 
-def initial_state(r: Mapping[str, Any]) -> list[float]:
-    """The 12 simulator states (u v w [m/s], p q r [rad/s], φ θ ψ [rad], x y h [m]) at a
-    record's first sample: airspeed and the CG angles of attack and sideslip."""
-    v = float(r["tas_mps"])
-    a, b = math.radians(r["alpha_cg_deg"]), math.radians(r["beta_cg_deg"])
-    h = float(r["h_m"]) if r.get("h_m") is not None else 3000.0
-    rad = [math.radians(float(r.get(c) or 0.0)) for c in
-           ("p_dps", "q_dps", "r_dps", "phi_deg", "theta_deg", "psi_deg")]  # fmt: skip
-    uvw = [v * math.cos(a) * math.cos(b), v * math.sin(b), v * math.sin(a) * math.cos(b)]
-    return [*uvw, *rad, 0.0, 0.0, h]
-
-
 def _status(d: float | None) -> str:
     return "PASS" if d is not None and abs(d) <= SPEED_TOLERANCE_KT else "FAIL"
 
@@ -328,7 +317,7 @@ def closed_loop_replay(
         rec = np.column_stack(
             [cols[c].cast(pl.Float64).fill_null(0.0).to_numpy() for c in _RECORD_COLUMNS]
         )
-        x0 = initial_state(g.row(0, named=True))
+        x0 = record_state(g.row(0, named=True))
         resist = resist_pusher
         if resist is None:
             resist = bool(g["pusher_resisted"][0]) if "pusher_resisted" in g.columns else False

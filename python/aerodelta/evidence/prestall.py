@@ -27,8 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 import polars as pl
 
-from aerodelta.campaign import replay
-from aerodelta.closed_loop import initial_state
+from aerodelta.campaign import record_state, replay
 from aerodelta.exceptions import AerodeltaError
 from aerodelta.fit import model_frame
 from aerodelta.model import DeltaModel
@@ -146,7 +145,7 @@ def prestall_regression(data: pl.DataFrame, model: DeltaModel) -> PrestallCheck:
             ct = np.column_stack([g[c].cast(pl.Float64).fill_null(0.0) for c in THRUST])
             t = g["t"].cast(pl.Float64).to_numpy()
             dt = float(np.median(np.diff(t))) if t.size > 1 else 0.0
-            x0 = initial_state(g.row(0, named=True))
+            x0 = record_state(g.row(0, named=True))
             try:
                 qual = replay(flap, x0, dt, controls, ct)
                 ext = replay(flap, x0, dt, controls, ct, delta_model=model)

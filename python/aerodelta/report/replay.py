@@ -4,7 +4,6 @@ record side by side, and checked for divergence."""
 
 from __future__ import annotations
 
-import math
 import os
 from collections.abc import Sequence
 from pathlib import Path
@@ -13,7 +12,7 @@ import numpy as np
 import polars as pl
 
 from aerodelta.aircraft import Aircraft
-from aerodelta.campaign import replay
+from aerodelta.campaign import record_state, replay
 from aerodelta.daveml import DaveModel
 from aerodelta.exceptions import AerodeltaError
 from aerodelta.model import DeltaModel
@@ -94,28 +93,6 @@ def against_record(
     return row, panels
 
 
-def initial_state(rec: pl.DataFrame) -> list[float]:
-    """The 12 simulator states (u v w [m/s], p q r [rad/s], φ θ ψ [rad], x y h [m]) at the
-    first record sample, from airspeed and the CG angles of attack and sideslip."""
-    r = rec.row(0, named=True)
-    v, a, b = float(r["tas_mps"]), math.radians(r["alpha_deg"]), math.radians(r["beta_deg"])
-    h = float(r["h_m"]) if "h_m" in rec.columns and r["h_m"] is not None else 3000.0
-    return [
-        v * math.cos(a) * math.cos(b),
-        v * math.sin(b),
-        v * math.sin(a) * math.cos(b),
-        math.radians(r["p_dps"]),
-        math.radians(r["q_dps"]),
-        math.radians(r["r_dps"]),
-        math.radians(r["phi_deg"]),
-        math.radians(r["theta_deg"]),
-        math.radians(r.get("psi_deg", 0.0) or 0.0),
-        0.0,
-        0.0,
-        h,
-    ]
-
-
 def states_frame(x: np.ndarray, t: np.ndarray) -> pl.DataFrame:
     """Airspeed and angles (deg) from the simulator's 12-state history."""
     u, v, w = x[:, 0], x[:, 1], x[:, 2]
@@ -170,10 +147,10 @@ def replay_maneuver(
         ctl[:, [0, 2, 3, 4]] = 0.0
     ct = np.column_stack([col("ct_left"), col("ct_right")])
     if fly is not None:
-        x = fly(float(rec["flap_deg"][0]), initial_state(rec), dt, ctl, ct, model)
+        x = fly(float(rec["flap_deg"][0]), record_state(rec.row(0, named=True)), dt, ctl, ct, model)
         return states_frame(np.asarray(x), t[0] + dt * np.arange(n + 1))
     x = replay(
-        float(rec["flap_deg"][0]), initial_state(rec), dt, ctl, ct,
+        float(rec["flap_deg"][0]), record_state(rec.row(0, named=True)), dt, ctl, ct,
         rolloff_seed=rolloff_seed, delta_model=model,
     )  # fmt: skip
     return states_frame(np.asarray(x), t[0] + dt * np.arange(n + 1))
