@@ -249,17 +249,7 @@ struct Track<'a> {
 
 impl Track<'_> {
     fn at(&self, y: &[f64], tq: f64) -> f64 {
-        let t = self.t;
-        let n = t.len();
-        if tq <= t[0] {
-            return y[0];
-        }
-        if tq >= t[n - 1] {
-            return y[n - 1];
-        }
-        let j = (t.partition_point(|&x| x <= tq) - 1).min(n - 2);
-        let f = (tq - t[j]) / (t[j + 1] - t[j]);
-        y[j] + f * (y[j + 1] - y[j])
+        crate::sim::interp_held(self.t, y, tq)
     }
     fn col(&self, name: &str, tq: f64) -> f64 {
         let k = RECORD_COLUMNS.iter().position(|c| *c == name).unwrap_or(0);

@@ -30,3 +30,18 @@ pub mod pilot;
 pub mod rng;
 pub mod sensors;
 pub mod turbulence;
+
+/// `y` at time `tq` by linear interpolation in `t` (increasing, at least one sample), the end
+/// values held outside `[t_0, t_{n-1}]`.
+pub(crate) fn interp_held(t: &[f64], y: &[f64], tq: f64) -> f64 {
+    let n = t.len();
+    if n < 2 || tq <= t[0] {
+        return y[0];
+    }
+    if tq >= t[n - 1] {
+        return y[n - 1];
+    }
+    let j = (t.partition_point(|&x| x <= tq) - 1).min(n - 2);
+    let f = (tq - t[j]) / (t[j + 1] - t[j]);
+    y[j] + f * (y[j + 1] - y[j])
+}

@@ -159,20 +159,8 @@ pub fn stall_warning(alpha_vane_deg: &[f64], on_deg: f64) -> Vec<f64> {
 
 fn shifted(t: &[f64], y: &[f64], shift: f64) -> Vec<f64> {
     // value at t_k + shift by linear interpolation, holding the ends
-    let n = t.len();
-    (0..n)
-        .map(|k| {
-            let tq = t[k] + shift;
-            if tq <= t[0] {
-                return y[0];
-            }
-            if tq >= t[n - 1] {
-                return y[n - 1];
-            }
-            let j = (t.partition_point(|&x| x <= tq) - 1).min(n - 2);
-            let f = (tq - t[j]) / (t[j + 1] - t[j]);
-            y[j] + f * (y[j + 1] - y[j])
-        })
+    t.iter()
+        .map(|&tk| crate::sim::interp_held(t, y, tk + shift))
         .collect()
 }
 
