@@ -237,7 +237,7 @@ def check_seed(aircraft: str, seed: int, size: int, work: Path) -> list[dict[str
             on="alpha_deg",
             how="left",
         )
-        ag = grid["alpha_deg"].to_numpy()
+        ag = grid["alpha_mean_deg"].to_numpy()
         oe_c = static_curves(ff.params, ag, ff.cov_colored)
         ee_c = static_curves(ee, ag, ee_cov)
         row: dict[str, Any] = {
