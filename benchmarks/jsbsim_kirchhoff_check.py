@@ -29,9 +29,11 @@ Criteria, fixed before the report seeds were run (grid: the 1-deg bins of the fi
 maneuvers holding >= 20 samples of >= 2 maneuvers; 95 % band of a difference:
 ``1.96 sqrt(se_a^2 + se_b^2)``; OE bands from the coloured-residual covariance):
 
-- **tau -> 0**: the fit reports the lags not identified with tau1, tau2 at the engine's lower
-  bounds (1 ms, 0), or it identifies them and each is within 2 coloured-residual bounds of 0 or
-  below 0.02 s (one 50 Hz sample).
+- **tau -> 0**: the fit reports the lags not identified (``FlapFit.tau_identified`` False:
+  the free fit and its restart from the static solution put the total lag tau1 + tau2 under
+  half a sample interval, and tau1, tau2 are held at the engine's lower bounds 1 ms, 0), or it
+  identifies them and each is within 2 coloured-residual bounds of 0 or below 0.02 s (one
+  50 Hz sample).
 - **OE agrees with EE** (the floor): the OE static curves of C_L and of C_m lie within the 95 %
   band of the EE-K curves on >= 90 % of the grid.
 - Reported beside it, not part of the floor: OE against EE-bins (does the Kirchhoff form follow
