@@ -19,6 +19,7 @@ import polars as pl
 import pytest
 
 from aerodelta import _core
+from aerodelta.cli import main
 from aerodelta.longitudinal import (
     PARAMS,
     TAU1_MIN_S,
@@ -164,7 +165,7 @@ def test_held_lags_keep_the_engine_error() -> None:
         fit_kirchhoff(data, known="none", fixed=["tau2"], max_iter=2)
 
 
-def test_jsbsim_f15_static_tables(tmp_path: Path) -> None:
+def test_jsbsim_f15_static_tables(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     pytest.importorskip(
         "jsbsim", reason="jsbsim is not installed (pip install 'aerodelta[jsbsim]')"
     )
@@ -185,3 +186,6 @@ def test_jsbsim_f15_static_tables(tmp_path: Path) -> None:
     band = 1.96 * np.hypot(oe["CL_se"], bins["CL_se"].to_numpy())
     inside = np.abs(oe["CL"] - bins["CL"].to_numpy()) <= band
     assert inside.mean() >= 0.9, inside
+    # the command line prints the note after the table
+    assert main(["longitudinal", str(camp), "--known", "none", "--no-progress"]) == 0
+    assert "flap 0: tau1, tau2 not identified" in capsys.readouterr().out
