@@ -10,7 +10,11 @@ coefficients before the fit. The engine (``aero_core::output_error``) integrates
 the measured alpha and its rate, and fits all maneuvers of a flap setting at once by
 Levenberg-Marquardt on the maximum-likelihood cost, starting from an equation-error fit; it
 returns Cramér-Rao bounds and the bounds corrected for coloured residuals (Morelli & Klein,
-SIDPAC ``m_colores``, auto-correlation of each output, biased estimate).
+SIDPAC ``m_colores``, auto-correlation of each output, biased estimate). Records without a
+separation lag (static aerodynamics, e.g. JSBSim's tables) leave tau1, tau2 not identified: the
+fit says so and holds them at the engine's lower bounds (:func:`fit_kirchhoff`, Notes).
+:func:`static_curves` and :func:`binned_static_curve` give the static curves of a fit and the
+model-free equation-error curves they are compared with.
 """
 
 from __future__ import annotations
