@@ -6,6 +6,8 @@ for coloured residuals, the static C_L,max and its alpha.
 Prints one row per flap and parameter (or JSON with --format json); --out FILE also writes
 that table as CSV. The built-in aircraft's qualified control, rate and thrust terms are taken
 off the measured coefficients (--known adx37, the default); --known none fits them as measured.
+A flap whose records show no separation lag (static aerodynamics) is reported with tau1, tau2
+held at the engine's lower bounds and a "not identified" note after the table.
 """
 
 from __future__ import annotations
@@ -71,6 +73,8 @@ def run(args: argparse.Namespace) -> int:
         write_atomic(out, table.write_csv)
     if args.format == "json":
         print(json.dumps(table.to_dicts(), indent=2, allow_nan=True))
+        for flap, note in res.notes.items():  # stdout stays the JSON table
+            print(f"flap {flap:g}: {note}", file=sys.stderr)
     else:
         print(
             f"{'flap':>4} {'parameter':<17} {'unit':<6} {'estimate':>10} {'CR bound':>10} "
@@ -85,6 +89,8 @@ def run(args: argparse.Namespace) -> int:
                 f"{r['flap_deg']:>4g} {r['parameter']:<17} {r['unit']:<6} "
                 f"{r['estimate']:>10.4g} {se:>10} {sec:>10}"
             )
+        for flap, note in res.notes.items():
+            print(f"flap {flap:g}: {note}")
         if out is not None:
             print(f"wrote {out}")
     sys.stdout.flush()
