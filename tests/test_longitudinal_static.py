@@ -189,3 +189,19 @@ def test_jsbsim_f15_static_tables(tmp_path: Path, capsys: pytest.CaptureFixture[
     # the command line prints the note after the table
     assert main(["longitudinal", str(camp), "--known", "none", "--no-progress"]) == 0
     assert "flap 0: tau1, tau2 not identified" in capsys.readouterr().out
+
+
+def test_evidence_row_says_the_lags_are_not_identified(tmp_path: Path) -> None:
+    # the built-in aircraft without its Kirchhoff stall has static longitudinal aerodynamics:
+    # the evidence pack's longitudinal row gives the fit's "not identified" note per flap, not a
+    # bound of NaN
+    import aerodelta as ad  # noqa: PLC0415
+    from aerodelta.evidence.matrix import assess  # noqa: PLC0415
+
+    camp = tmp_path / "camp"
+    ad.generate_campaign(camp, seed=41, size="quick", progress=False)
+    data = ad.ingest(camp, compat=False, progress=False).data
+    row = next(r for r in assess(data, replay=False).rows if r.key == "longitudinal")
+    assert row.status == "shown"
+    assert row.detail.count("tau1, tau2 not identified") == data["flap_deg"].n_unique()
+    assert "nan" not in row.detail

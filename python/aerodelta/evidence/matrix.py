@@ -1025,9 +1025,14 @@ def _longitudinal_row(out: Assessment, fits: LongitudinalFits) -> None:
         )
         a_max, cl_max = ff.cl_max
         sec = ff.std_err_colored
-        notes[flap] = (
+        lags = (
             f"tau1 {ff.params['tau1']:.3f} ± {sec['tau1']:.3f} s, tau2 {ff.params['tau2']:.3f} ± "
-            f"{sec['tau2']:.3f} s, α* {ff.alpha_star_deg:.2f} deg, C_L,max {cl_max:.3f} at "
+            f"{sec['tau2']:.3f} s"
+            if ff.tau_identified
+            else ff.note  # static records: "tau1, tau2 not identified: why ..."
+        )
+        notes[flap] = (
+            f"{lags}, α* {ff.alpha_star_deg:.2f} deg, C_L,max {cl_max:.3f} at "
             f"{a_max:.1f} deg ({ff.n_maneuvers} maneuvers, {ff.iterations} iterations)"
         )
         rows.append(res.summary())
