@@ -18,6 +18,7 @@ The other files an ingest output holds (``compat.csv``, ``smoothing.csv``,
 from __future__ import annotations
 
 import argparse
+import math
 import shutil
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
@@ -111,6 +112,24 @@ class DataSource:
         what = "campaign" if self.kind == "campaign" else "record file"
         extra = [f"map {self.channel_map}"] if self.channel_map else []
         return f"the {what} {self.path}" + (f" ({', '.join(extra)})" if extra else "")
+
+
+def add_aft_stop_argument(parser: argparse.ArgumentParser) -> None:
+    """Declare ``--aft-stop DEG`` (the stall identification's aft-stop criterion)."""
+    parser.add_argument(
+        "--aft-stop",
+        type=float,
+        metavar="DEG",
+        help="the elevator's aft (nose-up) stop, deg (negative, Etkin); default: the most "
+        "nose-up deflection recorded in each maneuver",
+    )
+
+
+def aft_stop_deg(args: argparse.Namespace) -> float | None:
+    """``--aft-stop`` in deg (None: not given); a non-finite value is refused in one line."""
+    if args.aft_stop is not None and not math.isfinite(args.aft_stop):
+        raise InvalidInputError(f"--aft-stop {args.aft_stop}: give the stop in deg, e.g. -22")
+    return args.aft_stop
 
 
 def _data_path(args: argparse.Namespace) -> Path:

@@ -18,7 +18,9 @@ import sys
 from pathlib import Path
 
 from aerodelta.cli._data import (
+    add_aft_stop_argument,
     add_data_arguments,
+    aft_stop_deg,
     check_outputs,
     existing_file,
     load_model,
@@ -51,13 +53,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "freq_hz (Hz) and optional axis (nz/ny), for the ±2 Hz comparison; 'auto' (default): "
         "the virtual ADX-37's buffet model for a virtual campaign flown with buffet; 'none'",
     )
-    parser.add_argument(
-        "--aft-stop",
-        type=float,
-        metavar="DEG",
-        help="the elevator's aft (nose-up) stop, deg (negative, Etkin); default: the most "
-        "nose-up deflection recorded in each maneuver",
-    )
+    add_aft_stop_argument(parser)
     parser.add_argument(
         "--power-on-ct",
         type=float,
@@ -97,8 +93,7 @@ def run(args: argparse.Namespace) -> int:
         raise InvalidInputError(
             f"--power-on-ct {ct:g}: give a positive thrust coefficient, e.g. 0.03"
         )
-    if args.aft_stop is not None and not math.isfinite(args.aft_stop):
-        raise InvalidInputError(f"--aft-stop {args.aft_stop}: give the stop in deg, e.g. -22")
+    aft_stop = aft_stop_deg(args)
     sim: str | Path | None = None
     if args.sim_buffet == "auto":
         sim = "auto"
@@ -127,7 +122,7 @@ def run(args: argparse.Namespace) -> int:
         sim_buffet=sim,
         campaign=src.path if src.kind == "campaign" else None,
         sources=sources,
-        aft_stop_deg=args.aft_stop,
+        aft_stop_deg=aft_stop,
         power_on_ct=ct,
         longitudinal=not args.no_longitudinal,
         replay=not args.no_replay,

@@ -21,7 +21,9 @@ from typing import Any
 
 from aerodelta._fsutil import write_atomic
 from aerodelta.cli._data import (
+    add_aft_stop_argument,
     add_data_arguments,
+    aft_stop_deg,
     check_outputs,
     load_records,
     output_file,
@@ -38,13 +40,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--out", metavar="FILE", help="write the per-maneuver table as CSV (and its companions)"
     )
-    parser.add_argument(
-        "--aft-stop",
-        type=float,
-        metavar="DEG",
-        help="the elevator's aft (nose-up) stop, deg (negative, Etkin); default: the most "
-        "nose-up deflection recorded in each maneuver",
-    )
+    add_aft_stop_argument(parser)
     parser.add_argument(
         "--band", type=float, default=2.0, metavar="DEG", help="alpha band of the coverage table"
     )
@@ -74,14 +70,13 @@ def run(args: argparse.Namespace) -> int:
 
     if not (math.isfinite(args.band) and args.band > 0):
         raise InvalidInputError(f"--band {args.band:g}: give a positive band width, e.g. --band 2")
-    if args.aft_stop is not None and not math.isfinite(args.aft_stop):
-        raise InvalidInputError(f"--aft-stop {args.aft_stop}: give the stop in deg, e.g. -22")
+    aft_stop = aft_stop_deg(args)
     out = output_file(args.out, "--out", "stall_id.csv") if args.out else None
     src = resolve_data(args)
     if out is not None:
         check_outputs(src, "--out", files=[out, *_companions(out)])
     data = load_records(src, progress=not args.no_progress)
-    table = stall_identification(data, aft_stop_deg=args.aft_stop)
+    table = stall_identification(data, aft_stop_deg=aft_stop)
     summary = stall_summary(table)
     coverage, verdict = validity_range(data, table, band_deg=args.band)
     buffet = buffet_identification(data) if "az_mps2" in data.columns else None
