@@ -35,6 +35,19 @@ def daveml_dir() -> Path:
 
 
 @pytest.fixture(scope="session")
+def stall_campaign(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The quick virtual campaign of the stall evidence, seed 41, with buffet and the Kirchhoff
+    stall, generated once for the session (read only)."""
+    import aerodelta as ad  # noqa: PLC0415
+
+    out = tmp_path_factory.mktemp("stall41") / "camp"
+    ad.generate_campaign(
+        out, seed=41, size="quick", buffet=True, longitudinal_stall="kirchhoff", progress=False
+    )
+    return out
+
+
+@pytest.fixture(scope="session")
 def quick_campaign(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """The quick virtual campaign, seed 5, generated once for the session (read only)."""
     import aerodelta as ad  # noqa: PLC0415  (the DAVE-ML checks above need no engine)

@@ -28,12 +28,8 @@ FLAPS = (0.0, 5.0, 10.0, 15.0, 35.0)
 
 
 @pytest.fixture(scope="module")
-def camp(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
-    root = tmp_path_factory.mktemp("closed_loop")
-    folder = root / "camp"
-    ad.generate_campaign(
-        folder, seed=41, size="quick", buffet=True, longitudinal_stall="kirchhoff", progress=False
-    )
+def camp(stall_campaign: Path) -> dict[str, Any]:
+    folder = stall_campaign
     data = ad.ingest(folder, compat=False, progress=False).data
     info = json.loads((folder / "truth" / "campaign.json").read_text())
     effects = {e["name"]: e["magnitude"] for e in info["spec"]["effects"]}

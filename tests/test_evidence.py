@@ -85,12 +85,9 @@ def _status(page: _Page, key: str) -> str:
 
 
 @pytest.fixture(scope="module")
-def pack(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
+def pack(tmp_path_factory: pytest.TempPathFactory, stall_campaign: Path) -> dict[str, Any]:
     root = tmp_path_factory.mktemp("evidence")
-    camp = root / "camp"
-    ad.generate_campaign(
-        camp, seed=41, size="quick", buffet=True, longitudinal_stall="kirchhoff", progress=False
-    )
+    camp = stall_campaign
     data = ad.ingest(camp, compat=False, progress=False).data
     res = ad.fit(data)
     res.model.save(root / "model.json")
