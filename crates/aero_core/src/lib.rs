@@ -55,6 +55,7 @@ pub mod delta_model;
 pub mod envelope;
 pub mod error;
 pub mod fsutil;
+pub mod hatcv;
 pub mod identify;
 pub mod kirchhoff;
 pub mod lsq;

@@ -8,6 +8,7 @@ use pyo3::prelude::*;
 mod daveml;
 mod delta_model;
 mod error;
+mod hatcv;
 mod identify;
 mod kirchhoff;
 mod lsq;
@@ -36,5 +37,6 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     lsq::register(m)?;
     rolloff::register(m)?;
     signflip::register(m)?;
+    hatcv::register(m)?;
     Ok(())
 }

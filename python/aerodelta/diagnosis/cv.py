@@ -548,7 +548,8 @@ def penalty(design: Design) -> list[FloatArray]:
 @dataclass
 class FoldStats:
     """Per fold and flap, the normal equations on the flap's local layout (training = total
-    minus the fold's), with the penalty added to the training ones.
+    minus the fold's), with the penalty added to the training ones; stacked, C order, as
+    the engine (``aero_core::hatcv``) reads them.
 
     ``memo`` keeps the solves already made on these statistics, by model columns
     (:func:`fold_solves`, :func:`total_solve`, :func:`heldout_sse`): the selection meets the
@@ -557,10 +558,10 @@ class FoldStats:
     solve repeated on the same numbers gives the same numbers."""
 
     folds: IntArray  # fold per maneuver
-    train_gram: list[list[FloatArray]]  # [fold][flap]
-    train_xty: list[list[FloatArray]]
-    total_gram: list[FloatArray]  # [flap], penalised
-    total_xty: list[FloatArray]
+    train_gram: FloatArray  # (Q, F, p, p): per fold and flap, penalised
+    train_xty: FloatArray  # (Q, F, p)
+    total_gram: FloatArray  # (F, p, p), penalised
+    total_xty: FloatArray  # (F, p)
     members: list[list[IntArray]] = field(default_factory=list)  # [fold][flap]: maneuvers
     memo: dict[tuple[str, bytes, bytes], tuple[Design, object]] = field(
         default_factory=dict, repr=False, compare=False
@@ -588,14 +589,9 @@ def fold_solves(
     design: Design, stats: FoldStats, cols: tuple[IntArray, IntArray]
 ) -> list[list[FloatArray]]:
     """Per fold, the per-flap parameters of the model on ``cols`` fitted on the fold's
-    complement (:func:`solve` on the training statistics; shared, do not modify)."""
-    return _memoised(
-        design, stats, "folds", cols,
-        lambda: [
-            solve(design, stats.train_gram[q], stats.train_xty[q], cols)
-            for q in range(len(stats.train_gram))
-        ],
-    )  # fmt: skip
+    complement (penalised least squares on the training statistics, computed with the
+    held-out errors by :func:`heldout_sse`; shared, do not modify)."""
+    return list(_memoised(design, stats, "heldout", cols, lambda: _heldout(design, stats, cols))[1])
 
 
 def total_solve(
@@ -605,7 +601,7 @@ def total_solve(
     (:func:`solve` on the penalised totals; shared, do not modify)."""
     return _memoised(
         design, stats, "total", cols,
-        lambda: solve(design, stats.total_gram, stats.total_xty, cols),
+        lambda: _solve_stacked(design, stats.total_gram, stats.total_xty, cols),
     )  # fmt: skip
 
 
@@ -625,19 +621,14 @@ def fold_stats(design: Design, folds: IntArray) -> FoldStats:
             if idx.size:
                 g[q, f] = design.gram_sum(idx)
                 x[q, f] = design.xty[idx].sum(axis=0)
-    pen = penalty(design)
+    pen = np.stack(penalty(design)) if n_f else np.zeros((0, p, p))
     tg = g.sum(axis=0)
     tx = x.sum(axis=0)
-    train_g = [[tg[f] - g[q, f] + pen[f] for f in range(n_f)] for q in range(n_q)]
-    train_x = [[tx[f] - x[q, f] for f in range(n_f)] for q in range(n_q)]
-    return FoldStats(
-        folds,
-        train_g,
-        train_x,
-        [tg[f] + pen[f] for f in range(n_f)],
-        [tx[f] for f in range(n_f)],
-        members,
-    )
+    # training = total - the fold's (+ the penalty), in place over the fold sums
+    np.subtract(tg[None], g, out=g)
+    g += pen[None]
+    np.subtract(tx[None], x, out=x)
+    return FoldStats(folds, g, x, tg + pen, tx, members)
 
 
 def local_columns(
@@ -651,6 +642,39 @@ def local_columns(
     return a_cols, g_cols
 
 
+def _layout(design: Design) -> tuple[int, int, int]:
+    """``(knots, aerodynamic regressors, global regressors)`` of the local layout."""
+    return design.grid.n, len(design.aero_names), len(design.global_names)
+
+
+def _block_args(design: Design) -> tuple[Any, ...]:
+    """The design's per-maneuver statistics as the engine reads them (C-contiguous; no copy
+    when they already are)."""
+
+    def c(a: Any, dtype: Any = np.float64) -> Any:
+        return None if a is None else np.ascontiguousarray(a, dtype=dtype)
+
+    return (
+        c(design.diag), c(design.off), c(design.cross), c(design.glob), c(design.xty),
+        c(design.yty), c(design.block_rows, np.int64), c(design.lowrank),
+        c(design.lowrank_of, np.int64),
+    )  # fmt: skip
+
+
+def _cols64(cols: tuple[IntArray, IntArray]) -> tuple[IntArray, IntArray]:
+    return np.asarray(cols[0], dtype=np.int64), np.asarray(cols[1], dtype=np.int64)
+
+
+def _solve_stacked(
+    design: Design, grams: FloatArray, xtys: FloatArray, cols: tuple[IntArray, IntArray]
+) -> list[FloatArray]:
+    """:func:`solve` on stacked per-flap statistics (``(F, p, p)``, ``(F, p)``)."""
+    out = _core.hat_solve(
+        np.ascontiguousarray(grams), np.ascontiguousarray(xtys), _layout(design), *_cols64(cols)
+    )
+    return list(out.reshape(grams.shape[0], design.n_local))
+
+
 def solve(
     design: Design,
     grams: Sequence[FloatArray],
@@ -660,52 +684,11 @@ def solve(
     """Penalised least squares on the columns ``cols``; per flap, the local parameter vector.
 
     The flaps' alpha-dependent blocks are independent given the global parameters, so the
-    system is solved by the Schur complement of the global block (block-diagonal solves per
-    flap, then one small dense solve).
+    system is solved by the Schur complement of the global block (per flap a Cholesky solve
+    of its alpha-dependent block, then one small least-squares solve for the global
+    parameters): ``aero_core::hatcv::penalised_solve``.
     """
-    a_cols, g_cols = cols
-    n_f = design.n_flaps
-    thetas = [np.zeros(design.n_local) for _ in range(n_f)]
-    ng = g_cols.size
-    s_mat = np.zeros((ng, ng))
-    s_rhs = np.zeros(ng)
-    parts = []
-    for f in range(n_f):
-        gm, xv = grams[f], xtys[f]
-        # rows, then columns: the same block as gm[np.ix_(a_cols, a_cols)], a third of the time
-        a = gm[a_cols][:, a_cols]
-        d = np.diag(a)
-        live = d > 1e-12 * max(float(d.max()) if d.size else 0.0, 1e-300)
-        ac = a_cols
-        if not live.all():
-            ac = a_cols[live]
-            a = a[live][:, live]
-        c = gm[_ix(ac, g_cols)]
-        s_mat += gm[_ix(g_cols, g_cols)]
-        s_rhs += xv[g_cols]
-        if ac.size:
-            rhs = np.column_stack([xv[ac], c])
-            try:
-                sol = np.linalg.solve(a, rhs)
-            except np.linalg.LinAlgError:
-                sol = np.linalg.lstsq(a, rhs, rcond=None)[0]
-            s_mat -= c.T @ sol[:, 1:]
-            s_rhs -= c.T @ sol[:, 0]
-        else:
-            sol = np.zeros((0, ng + 1))
-        parts.append((ac, sol))
-    th_g = np.zeros(ng)
-    if ng:
-        dg = np.diag(s_mat)
-        livg = dg > 1e-12 * max(float(np.abs(dg).max()), 1e-300)
-        if livg.any():
-            sm = s_mat[np.ix_(livg, livg)]
-            th_g[livg] = np.linalg.lstsq(sm, s_rhs[livg], rcond=None)[0]
-    for f, (ac, sol) in enumerate(parts):
-        if ac.size:
-            thetas[f][ac] = sol[:, 0] - sol[:, 1:] @ th_g
-        thetas[f][g_cols] = th_g
-    return thetas
+    return _solve_stacked(design, np.stack(list(grams)), np.stack(list(xtys)), cols)
 
 
 def _ix(*index: IntArray) -> tuple[IntArray, ...]:
@@ -718,36 +701,16 @@ def _ix(*index: IntArray) -> tuple[IntArray, ...]:
 def _quadratic_forms(
     design: Design, ms: IntArray, theta: FloatArray, cols: tuple[IntArray, IntArray]
 ) -> FloatArray:
-    """``theta' G_m theta - 2 theta' b_m`` for each maneuver in ``ms`` (ascending; one flap's local
-    ``theta``, zero off ``cols``), from the blocks of :class:`Design`."""
-    k_n, r_n = design.grid.n, len(design.aero_names)
-    kr = k_n * r_n
-    a_cols, g_cols = cols
-    ridx = np.unique(a_cols % r_n) if r_n else a_cols
-    gidx = g_cols - kr
-    idx = np.concatenate(cols)
-    n = ms.size
-    bm = design.block_index(ms)  # the blocks' rows (a subset shares them)
-    out = -2.0 * (design.xty[_ix(ms, idx)] @ theta[idx])
-    a = theta[:kr].reshape(k_n, r_n)[:, ridx].T  # (r, K)
-    g = theta[g_cols]
-    if ridx.size:
-        wd = a[:, None, :] * a[None, :, :]
-        out += design.diag[_ix(bm, ridx, ridx)].reshape(n, -1) @ wd.ravel()
-        wo = a[:, None, :-1] * a[None, :, 1:]
-        out += 2.0 * (design.off[_ix(bm, ridx, ridx)].reshape(n, -1) @ wo.ravel())
-        if gidx.size:
-            wc = a[:, None, :] * g[None, :, None]
-            out += 2.0 * (design.cross[_ix(bm, ridx, gidx)].reshape(n, -1) @ wc.ravel())
-    if gidx.size:
-        out += design.glob[_ix(bm, gidx, gidx)].reshape(n, -1) @ np.outer(g, g).ravel()
-    if design.lowrank is not None and design.lowrank_of is not None:
-        own = np.isin(design.lowrank_of, ms)
-        if own.any():
-            v = theta[idx] @ design.lowrank[np.ix_(idx, np.flatnonzero(own))]
-            pos = np.searchsorted(ms, design.lowrank_of[own])
-            out -= np.bincount(pos, weights=v * v, minlength=n)
-    return out
+    """``theta' G_m theta - 2 theta' b_m`` for each maneuver in ``ms`` (one flap's local
+    ``theta``, zero off ``cols``), from the blocks of :class:`Design`
+    (``aero_core::hatcv::quadratic_forms``)."""
+    return _core.hat_quadratic_forms(
+        _block_args(design),
+        _layout(design),
+        np.asarray(ms, dtype=np.int64),
+        np.ascontiguousarray(theta, dtype=np.float64),
+        *_cols64(cols),
+    )
 
 
 def model_sse(
@@ -783,18 +746,20 @@ def heldout_sse(
 def _heldout(
     design: Design, stats: FoldStats, cols: tuple[IntArray, IntArray]
 ) -> tuple[FloatArray, list[list[FloatArray]]]:
-    n_q = len(stats.train_gram)
-    sse = design.yty.copy()
-    members = stats.members or [
-        [np.flatnonzero((stats.folds == q) & (design.man_flap == f)) for f in range(design.n_flaps)]
-        for q in range(n_q)
-    ]
-    thetas = fold_solves(design, stats, cols)
-    for q in range(n_q):
-        for f, ms in enumerate(members[q]):
-            if ms.size:
-                sse[ms] = design.yty[ms] + _quadratic_forms(design, ms, thetas[q][f], cols)
-    return sse, thetas
+    """Each fold's fit and its maneuvers' held-out errors, in the engine
+    (``aero_core::hatcv::held_out``)."""
+    sse, th = _core.hat_held_out(
+        _block_args(design),
+        _layout(design),
+        stats.train_gram,
+        stats.train_xty,
+        np.asarray(stats.folds, dtype=np.int64),
+        np.asarray(design.man_flap, dtype=np.int64),
+        design.n_flaps,
+        *_cols64(cols),
+    )
+    th = th.reshape(stats.train_xty.shape)
+    return sse, [list(tq) for tq in th]
 
 
 def fold_prediction(  # noqa: PLR0917 - rows' columns, positional by design

@@ -1,0 +1,898 @@
+//! Cross-validated penalised least squares on a hat basis in alpha, from per-maneuver Gram
+//! matrices held in block form: the engine of the gap diagnosis (`aerodelta.diagnosis.cv`).
+//!
+//! The gap of one coefficient is modelled as `Σ θ_{f,k,r} h_k(α) x_r + Σ θ_g x_g`: per flap
+//! `f`, piecewise-linear hat functions `h_k` on a knot grid times the aerodynamic regressors
+//! `x_r` (the continuous counterpart of the thesis's per-bin Δ parameters, Eq. 3.10), plus
+//! global (measurement) regressors shared by every flap. A flap's *local layout* is the
+//! columns `k·R + r` (`K` knots, `R` aerodynamic regressors) then the `G` global ones.
+//!
+//! A row touches two neighbouring knots, so a maneuver's Gram matrix `G_m` is
+//! block-tridiagonal in the knots and is held as its non-zero blocks ([`Blocks`]):
+//! `2KR² + KRG + G²` numbers instead of `(KR + G)²`. A maneuver's held-out squared error
+//! under parameters `θ` is `y_m'y_m − 2θ'b_m + θ'G_mθ` (cross-validation by whole maneuvers
+//! from sufficient statistics), evaluated on the blocks directly ([`quadratic_forms`]).
+//! The training fits are penalised least squares solved by the Schur complement of the
+//! global block: per flap a Cholesky solve of its alpha-dependent block, then one small
+//! least-squares solve for the shared global parameters ([`penalised_solve`]).
+//!
+//! Per-maneuver nuisance columns profiled out (Frisch-Waugh-Lovell) leave a low-rank term,
+//! `G_m = blocks_m − F_m F_m'` ([`LowRank`]).
+
+use faer::dyn_stack::{MemBuffer, MemStack};
+use faer::{Mat, Par};
+
+use crate::error::{AeroError, Result};
+
+/// The shape of a flap's local layout.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Layout {
+    /// Knots `K` of the hat grid in alpha.
+    pub knots: usize,
+    /// Alpha-dependent (aerodynamic) regressors `R`.
+    pub aero: usize,
+    /// Global regressors `G`.
+    pub global: usize,
+}
+
+impl Layout {
+    /// Columns of the local layout, `K·R + G`.
+    pub fn n_local(&self) -> usize {
+        self.knots * self.aero + self.global
+    }
+}
+
+/// Profiled-out per-maneuver nuisance: `G_m` loses `F_m F_m'`, the columns of `F_m` being
+/// those of `factors` (`n_local × L`, row-major) whose `owner` is `m` (ascending owners).
+#[derive(Clone, Copy, Debug)]
+pub struct LowRank<'a> {
+    pub factors: &'a [f64],
+    pub owner: &'a [usize],
+}
+
+/// Per-maneuver sufficient statistics in block form (the layout of
+/// `aerodelta.diagnosis.cv.Design`, C order):
+///
+/// - `diag[b, r, s, k]` = `G[kR + r, kR + s]`;
+/// - `off[b, r, s, k]` = `G[kR + r, (k+1)R + s]` (`k < K − 1`; its transpose below);
+/// - `cross[b, r, g, k]` = `G[kR + r, KR + g]`;
+/// - `glob[b, g, h]` = `G[KR + g, KR + h]`;
+///
+/// `b` being maneuver `m`'s block row (`block_row[m]`, or `m`); `xty` (`M × n_local`) and
+/// `yty` (`M`) per maneuver.
+#[derive(Clone, Copy, Debug)]
+pub struct Blocks<'a> {
+    pub layout: Layout,
+    pub diag: &'a [f64],
+    pub off: &'a [f64],
+    pub cross: &'a [f64],
+    pub glob: &'a [f64],
+    pub xty: &'a [f64],
+    pub yty: &'a [f64],
+    pub block_row: Option<&'a [usize]>,
+    pub lowrank: Option<LowRank<'a>>,
+}
+
+/// The columns of a model on the local layout: alpha-dependent ones (`k·R + r`) and global
+/// ones (`K·R + g`), each ascending.
+#[derive(Clone, Debug, Default)]
+pub struct Columns {
+    pub aero: Vec<usize>,
+    pub global: Vec<usize>,
+}
+
+impl Blocks<'_> {
+    /// Maneuvers `M`.
+    pub fn n_maneuvers(&self) -> usize {
+        self.yty.len()
+    }
+
+    fn n_blocks(&self) -> usize {
+        let Layout { knots, aero, .. } = self.layout;
+        if aero > 0 && knots > 0 {
+            self.diag.len() / (aero * aero * knots)
+        } else if self.layout.global > 0 {
+            self.glob.len() / (self.layout.global * self.layout.global)
+        } else {
+            usize::MAX
+        }
+    }
+
+    /// Check the arrays' sizes against the layout, one line naming the array.
+    pub fn check(&self) -> Result<()> {
+        let Layout {
+            knots: k,
+            aero: r,
+            global: g,
+        } = self.layout;
+        if k < 2 {
+            return Err(AeroError::invalid("hat grid", "needs at least 2 knots"));
+        }
+        let m = self.n_maneuvers();
+        let p = self.layout.n_local();
+        let nb = match self.block_row {
+            Some(rows) => {
+                if rows.len() != m {
+                    return Err(AeroError::invalid(
+                        "block_rows",
+                        format!("has {} entries for {m} maneuvers", rows.len()),
+                    ));
+                }
+                if r == 0 && g == 0 {
+                    0
+                } else {
+                    self.n_blocks()
+                }
+            }
+            None => m,
+        };
+        let sizes = [
+            ("diag", self.diag.len(), nb * r * r * k),
+            ("off", self.off.len(), nb * r * r * (k - 1)),
+            ("cross", self.cross.len(), nb * r * g * k),
+            ("glob", self.glob.len(), nb * g * g),
+            ("xty", self.xty.len(), m * p),
+        ];
+        for (name, got, want) in sizes {
+            if got != want {
+                return Err(AeroError::invalid(
+                    name,
+                    format!("has {got} numbers where the layout needs {want}"),
+                ));
+            }
+        }
+        if let Some(rows) = self.block_row {
+            if let Some(&bad) = rows.iter().find(|&&b| b >= nb) {
+                return Err(AeroError::invalid(
+                    "block_rows",
+                    format!("row {bad} is past the {nb} block rows"),
+                ));
+            }
+        }
+        if let Some(lr) = self.lowrank {
+            let l = lr.owner.len();
+            if lr.factors.len() != p * l {
+                return Err(AeroError::invalid(
+                    "lowrank",
+                    format!(
+                        "has {} numbers where {p} x {l} are needed",
+                        lr.factors.len()
+                    ),
+                ));
+            }
+            if lr.owner.windows(2).any(|w| w[1] < w[0]) || lr.owner.iter().any(|&o| o >= m) {
+                return Err(AeroError::invalid(
+                    "lowrank_of",
+                    "must be ascending maneuver indices of this design",
+                ));
+            }
+        }
+        Ok(())
+    }
+}
+
+impl Columns {
+    /// Check the columns against the layout (ascending, in range, each in its part).
+    pub fn check(&self, layout: &Layout) -> Result<()> {
+        let kr = layout.knots * layout.aero;
+        let ok_a = self.aero.windows(2).all(|w| w[0] < w[1]) && self.aero.iter().all(|&c| c < kr);
+        let ok_g = self.global.windows(2).all(|w| w[0] < w[1])
+            && self.global.iter().all(|&c| c >= kr && c < layout.n_local());
+        if !ok_a {
+            return Err(AeroError::invalid(
+                "aero columns",
+                format!("must be ascending local columns below {kr}"),
+            ));
+        }
+        if !ok_g {
+            return Err(AeroError::invalid(
+                "global columns",
+                format!(
+                    "must be ascending local columns in {kr}..{}",
+                    layout.n_local()
+                ),
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// `θ'G_mθ − 2θ'b_m` for each maneuver of `ms` (its flap's local `θ`, zero off `cols`), from
+/// the blocks; into `out` (one per maneuver of `ms`). Per-maneuver nuisance profiled out
+/// subtracts `(θ'F_m)²` per column of `F_m`.
+pub fn quadratic_forms(
+    blocks: &Blocks<'_>,
+    ms: &[usize],
+    theta: &[f64],
+    cols: &Columns,
+    out: &mut [f64],
+) {
+    let Layout {
+        knots: kn,
+        aero: rn,
+        global: gn,
+    } = blocks.layout;
+    let p = blocks.layout.n_local();
+    let kr = kn * rn;
+    // the model's aerodynamic regressors, and θ on them as a[i][k]
+    let mut ridx: Vec<usize> = cols.aero.iter().map(|c| c % rn.max(1)).collect();
+    ridx.sort_unstable();
+    ridx.dedup();
+    let a: Vec<Vec<f64>> = ridx
+        .iter()
+        .map(|&r| (0..kn).map(|k| theta[k * rn + r]).collect())
+        .collect();
+    let gidx: Vec<usize> = cols.global.iter().map(|c| c - kr).collect();
+    let gv: Vec<f64> = cols.global.iter().map(|&c| theta[c]).collect();
+    let idx: Vec<usize> = cols.aero.iter().chain(&cols.global).copied().collect();
+    for (o, &m) in out.iter_mut().zip(ms) {
+        let b = blocks.block_row.map_or(m, |rows| rows[m]);
+        let xrow = &blocks.xty[m * p..(m + 1) * p];
+        let lin: f64 = idx.iter().map(|&c| xrow[c] * theta[c]).sum();
+        let mut q = -2.0 * lin;
+        for (i, &ri) in ridx.iter().enumerate() {
+            for (j, &rj) in ridx.iter().enumerate() {
+                let d = &blocks.diag[((b * rn + ri) * rn + rj) * kn..][..kn];
+                let mut s: f64 = d
+                    .iter()
+                    .zip(&a[i])
+                    .zip(&a[j])
+                    .map(|((g, x), y)| g * x * y)
+                    .sum();
+                let ob = &blocks.off[((b * rn + ri) * rn + rj) * (kn - 1)..][..kn - 1];
+                let so: f64 = ob
+                    .iter()
+                    .zip(&a[i][..kn - 1])
+                    .zip(&a[j][1..])
+                    .map(|((g, x), y)| g * x * y)
+                    .sum();
+                s += 2.0 * so;
+                q += s;
+            }
+            for (gj, &g) in gidx.iter().enumerate() {
+                let c = &blocks.cross[((b * rn + ri) * gn + g) * kn..][..kn];
+                let s: f64 = c.iter().zip(&a[i]).map(|(g, x)| g * x).sum();
+                q += 2.0 * s * gv[gj];
+            }
+        }
+        for (gi, &g) in gidx.iter().enumerate() {
+            let row = &blocks.glob[(b * gn + g) * gn..][..gn];
+            let s: f64 = gidx.iter().zip(&gv).map(|(&h, v)| row[h] * v).sum();
+            q += gv[gi] * s;
+        }
+        if let Some(lr) = blocks.lowrank {
+            let l = lr.owner.len();
+            let lo = lr.owner.partition_point(|&o| o < m);
+            let hi = lr.owner.partition_point(|&o| o <= m);
+            for j in lo..hi {
+                let v: f64 = idx.iter().map(|&c| theta[c] * lr.factors[c * l + j]).sum();
+                q -= v * v;
+            }
+        }
+        *o = q;
+    }
+}
+
+/// Numpy's `lstsq` with its default cutoff: the minimum-norm least-squares solution of
+/// `a x = b` (`n × n`, row-major) over the singular values above `ε·n·σ_max`.
+fn lstsq(a: &[f64], n: usize, b: &[f64], nrhs: usize) -> Vec<f64> {
+    let am = Mat::from_fn(n, n, |i, j| a[i * n + j]);
+    let mut x = vec![0.0; n * nrhs];
+    let Ok(svd) = am.thin_svd() else {
+        return x;
+    };
+    let (u, s, v) = (svd.U(), svd.S(), svd.V());
+    let smax = (0..n).map(|i| s[i]).fold(0.0_f64, f64::max);
+    let cut = f64::EPSILON * n as f64 * smax;
+    for i in 0..n {
+        let si = s[i];
+        if si <= cut || si == 0.0 {
+            continue;
+        }
+        for c in 0..nrhs {
+            let ub: f64 = (0..n).map(|r| u[(r, i)] * b[r * nrhs + c]).sum::<f64>() / si;
+            for r in 0..n {
+                x[r * nrhs + c] += v[(r, i)] * ub;
+            }
+        }
+    }
+    x
+}
+
+/// Solve `a x = b` (`a` symmetric positive definite, `n × n` row-major; `b` `n × nrhs`
+/// row-major) by Cholesky; the minimum-norm least-squares solution ([`lstsq`]) when the
+/// factorisation meets a non-positive pivot.
+fn spd_solve(a: &[f64], n: usize, b: &[f64], nrhs: usize) -> Vec<f64> {
+    let mut l = Mat::from_fn(n, n, |i, j| a[i * n + j]);
+    let mut mem = MemBuffer::new(
+        faer::linalg::cholesky::llt::factor::cholesky_in_place_scratch::<f64>(
+            n,
+            Par::Seq,
+            Default::default(),
+        ),
+    );
+    let factored = faer::linalg::cholesky::llt::factor::cholesky_in_place(
+        l.as_mut(),
+        Default::default(),
+        Par::Seq,
+        MemStack::new(&mut mem),
+        Default::default(),
+    );
+    if factored.is_err() {
+        return lstsq(a, n, b, nrhs);
+    }
+    let mut rhs = Mat::from_fn(n, nrhs, |i, c| b[i * nrhs + c]);
+    faer::linalg::cholesky::llt::solve::solve_in_place(
+        l.as_ref(),
+        rhs.as_mut(),
+        Par::Seq,
+        MemStack::new(&mut MemBuffer::new(faer::dyn_stack::StackReq::EMPTY)),
+    );
+    let x: Vec<f64> = (0..n * nrhs).map(|i| rhs[(i / nrhs, i % nrhs)]).collect();
+    if x.iter().all(|v| v.is_finite()) {
+        x
+    } else {
+        lstsq(a, n, b, nrhs)
+    }
+}
+
+/// Penalised least squares on the columns `cols`, per flap the local parameter vector
+/// (zero off `cols`). `grams[f]` (`n_local × n_local`, row-major, the penalty included) and
+/// `xtys[f]` are flap `f`'s normal equations.
+///
+/// The flaps' alpha-dependent blocks are independent given the global parameters, so the
+/// system is solved by the Schur complement of the global block: per flap
+/// `A_f⁻¹ [b_f, C_f]` (Cholesky), then `S = Σ_f (G_gg,f − C_f'A_f⁻¹C_f)` solved in least
+/// squares for the shared global parameters. An alpha-dependent column whose diagonal is
+/// under `1e-12` of the block's largest (a knot no data reach) stays at zero, and so does a
+/// global one whose Schur diagonal is.
+pub fn penalised_solve(
+    grams: &[&[f64]],
+    xtys: &[&[f64]],
+    p: usize,
+    cols: &Columns,
+) -> Vec<Vec<f64>> {
+    let ng = cols.global.len();
+    let mut s_mat = vec![0.0; ng * ng];
+    let mut s_rhs = vec![0.0; ng];
+    let mut parts: Vec<(Vec<usize>, Vec<f64>)> = Vec::with_capacity(grams.len());
+    for (gm, xv) in grams.iter().zip(xtys) {
+        let dmax = cols
+            .aero
+            .iter()
+            .map(|&c| gm[c * p + c])
+            .fold(0.0_f64, f64::max);
+        let tol = 1e-12 * dmax.max(1e-300);
+        let ac: Vec<usize> = cols
+            .aero
+            .iter()
+            .copied()
+            .filter(|&c| gm[c * p + c] > tol)
+            .collect();
+        for (i, &gi) in cols.global.iter().enumerate() {
+            for (j, &gj) in cols.global.iter().enumerate() {
+                s_mat[i * ng + j] += gm[gi * p + gj];
+            }
+            s_rhs[i] += xv[gi];
+        }
+        let na = ac.len();
+        let sol = if na > 0 {
+            let a: Vec<f64> = ac
+                .iter()
+                .flat_map(|&i| ac.iter().map(move |&j| gm[i * p + j]))
+                .collect();
+            let w = ng + 1;
+            let mut rhs = vec![0.0; na * w];
+            for (i, &ci) in ac.iter().enumerate() {
+                rhs[i * w] = xv[ci];
+                for (j, &gj) in cols.global.iter().enumerate() {
+                    rhs[i * w + 1 + j] = gm[ci * p + gj];
+                }
+            }
+            let sol = spd_solve(&a, na, &rhs, w);
+            // S -= C' A⁻¹ C, s -= C' A⁻¹ b
+            for (i, &gi) in cols.global.iter().enumerate() {
+                let mut sr = 0.0;
+                for (r, &cr) in ac.iter().enumerate() {
+                    sr += gm[cr * p + gi] * sol[r * w];
+                }
+                s_rhs[i] -= sr;
+                for j in 0..ng {
+                    let mut sm = 0.0;
+                    for (r, &cr) in ac.iter().enumerate() {
+                        sm += gm[cr * p + gi] * sol[r * w + 1 + j];
+                    }
+                    s_mat[i * ng + j] -= sm;
+                }
+            }
+            sol
+        } else {
+            Vec::new()
+        };
+        parts.push((ac, sol));
+    }
+    let mut th_g = vec![0.0; ng];
+    if ng > 0 {
+        let dmax = (0..ng)
+            .map(|i| s_mat[i * ng + i].abs())
+            .fold(0.0_f64, f64::max);
+        let live: Vec<usize> = (0..ng)
+            .filter(|&i| s_mat[i * ng + i] > 1e-12 * dmax.max(1e-300))
+            .collect();
+        if !live.is_empty() {
+            let nl = live.len();
+            let sm: Vec<f64> = live
+                .iter()
+                .flat_map(|&i| live.iter().map(move |&j| (i, j)))
+                .map(|(i, j)| s_mat[i * ng + j])
+                .collect();
+            let sr: Vec<f64> = live.iter().map(|&i| s_rhs[i]).collect();
+            let x = lstsq(&sm, nl, &sr, 1);
+            for (k, &i) in live.iter().enumerate() {
+                th_g[i] = x[k];
+            }
+        }
+    }
+    parts
+        .into_iter()
+        .map(|(ac, sol)| {
+            let mut th = vec![0.0; p];
+            let w = ng + 1;
+            for (i, &c) in ac.iter().enumerate() {
+                let corr: f64 = (0..ng).map(|j| sol[i * w + 1 + j] * th_g[j]).sum();
+                th[c] = sol[i * w] - corr;
+            }
+            for (j, &c) in cols.global.iter().enumerate() {
+                th[c] = th_g[j];
+            }
+            th
+        })
+        .collect()
+}
+
+/// [`penalised_solve`] on flat arrays, checked: `grams` (`F × p × p`) and `xtys` (`F × p`)
+/// row-major with `p` the layout's `n_local`; the parameters flat, `F × p`.
+pub fn solve_flaps(
+    grams: &[f64],
+    xtys: &[f64],
+    layout: &Layout,
+    cols: &Columns,
+) -> Result<Vec<f64>> {
+    let p = layout.n_local();
+    cols.check(layout)?;
+    if p == 0 || xtys.len() % p != 0 || grams.len() != xtys.len() * p {
+        return Err(AeroError::invalid(
+            "grams",
+            format!(
+                "{} and {} numbers are not flaps x {p} x {p} and flaps x {p}",
+                grams.len(),
+                xtys.len()
+            ),
+        ));
+    }
+    let nf = xtys.len() / p;
+    let gs: Vec<&[f64]> = (0..nf).map(|f| &grams[f * p * p..][..p * p]).collect();
+    let xs: Vec<&[f64]> = (0..nf).map(|f| &xtys[f * p..][..p]).collect();
+    Ok(penalised_solve(&gs, &xs, p, cols).concat())
+}
+
+/// [`quadratic_forms`] checked against the blocks' layout: one value per maneuver of `ms`.
+pub fn quadratic_forms_checked(
+    blocks: &Blocks<'_>,
+    ms: &[usize],
+    theta: &[f64],
+    cols: &Columns,
+) -> Result<Vec<f64>> {
+    blocks.check()?;
+    cols.check(&blocks.layout)?;
+    if theta.len() != blocks.layout.n_local() {
+        return Err(AeroError::invalid(
+            "theta",
+            format!(
+                "has {} numbers for {} columns",
+                theta.len(),
+                blocks.layout.n_local()
+            ),
+        ));
+    }
+    if let Some(&bad) = ms.iter().find(|&&m| m >= blocks.n_maneuvers()) {
+        return Err(AeroError::invalid(
+            "maneuvers",
+            format!("index {bad} is past the design"),
+        ));
+    }
+    let mut out = vec![0.0; ms.len()];
+    quadratic_forms(blocks, ms, theta, cols, &mut out);
+    Ok(out)
+}
+
+/// Held-out squared error per maneuver of the model on `cols`, each maneuver predicted by
+/// the fit on the other folds (`y'y − 2θ'b + θ'Gθ` with its fold's `θ`), and the fits:
+/// `thetas[(q·F + f)·p ..]`, fold `q`'s flap-`f` parameters.
+///
+/// `train_grams` (`Q × F × p × p`) and `train_xty` (`Q × F × p`) are each fold's penalised
+/// training normal equations (total minus the fold's), `folds[m]` and `flap[m]` each
+/// maneuver's fold and flap. Folds run in parallel (each its own, sequential, arithmetic:
+/// the same bytes with any number of threads).
+pub fn held_out(
+    blocks: &Blocks<'_>,
+    train_grams: &[f64],
+    train_xty: &[f64],
+    folds: &[usize],
+    flap: &[usize],
+    n_flaps: usize,
+    cols: &Columns,
+) -> Result<(Vec<f64>, Vec<f64>)> {
+    blocks.check()?;
+    cols.check(&blocks.layout)?;
+    let m = blocks.n_maneuvers();
+    let p = blocks.layout.n_local();
+    if folds.len() != m || flap.len() != m {
+        return Err(AeroError::invalid(
+            "folds",
+            format!(
+                "fold and flap per maneuver: {} and {} for {m} maneuvers",
+                folds.len(),
+                flap.len()
+            ),
+        ));
+    }
+    if n_flaps == 0 || train_xty.len() % (n_flaps * p) != 0 {
+        return Err(AeroError::invalid(
+            "train_xty",
+            "is not folds x flaps x columns",
+        ));
+    }
+    let nq = train_xty.len() / (n_flaps * p);
+    if train_grams.len() != nq * n_flaps * p * p {
+        return Err(AeroError::invalid(
+            "train_grams",
+            format!(
+                "has {} numbers where {nq} x {n_flaps} x {p} x {p} are needed",
+                train_grams.len()
+            ),
+        ));
+    }
+    if let Some(&bad) = folds.iter().find(|&&q| q >= nq) {
+        return Err(AeroError::invalid(
+            "folds",
+            format!("fold {bad} has no training statistics"),
+        ));
+    }
+    if let Some(&bad) = flap.iter().find(|&&f| f >= n_flaps) {
+        return Err(AeroError::invalid(
+            "flap",
+            format!("flap {bad} of {n_flaps}"),
+        ));
+    }
+    let fold_fit = |q: usize| -> (Vec<(usize, f64)>, Vec<Vec<f64>>) {
+        let grams: Vec<&[f64]> = (0..n_flaps)
+            .map(|f| &train_grams[(q * n_flaps + f) * p * p..][..p * p])
+            .collect();
+        let xtys: Vec<&[f64]> = (0..n_flaps)
+            .map(|f| &train_xty[(q * n_flaps + f) * p..][..p])
+            .collect();
+        let thetas = penalised_solve(&grams, &xtys, p, cols);
+        let mut sse = Vec::new();
+        for (f, th) in thetas.iter().enumerate() {
+            let ms: Vec<usize> = (0..m).filter(|&i| folds[i] == q && flap[i] == f).collect();
+            if ms.is_empty() {
+                continue;
+            }
+            let mut out = vec![0.0; ms.len()];
+            quadratic_forms(blocks, &ms, th, cols, &mut out);
+            sse.extend(ms.iter().zip(&out).map(|(&i, v)| (i, blocks.yty[i] + v)));
+        }
+        (sse, thetas)
+    };
+    #[cfg(feature = "parallel")]
+    let per_fold: Vec<_> = {
+        use rayon::prelude::*;
+        (0..nq).into_par_iter().map(fold_fit).collect()
+    };
+    #[cfg(not(feature = "parallel"))]
+    let per_fold: Vec<_> = (0..nq).map(fold_fit).collect();
+    let mut sse = blocks.yty.to_vec();
+    let mut thetas = Vec::with_capacity(nq * n_flaps * p);
+    for (part, th) in per_fold {
+        for (i, v) in part {
+            sse[i] = v;
+        }
+        for t in th {
+            thetas.extend(t);
+        }
+    }
+    Ok((sse, thetas))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nalgebra::{DMatrix, DVector};
+
+    /// Tiny deterministic generator for the test data (xorshift).
+    struct Rng(u64);
+    impl Rng {
+        fn next(&mut self) -> f64 {
+            self.0 ^= self.0 << 13;
+            self.0 ^= self.0 >> 7;
+            self.0 ^= self.0 << 17;
+            (self.0 >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        }
+    }
+
+    /// Rows of a toy problem, their dense local design per maneuver, and its blocks.
+    struct Toy {
+        layout: Layout,
+        dense: Vec<DMatrix<f64>>, // per maneuver, rows x p
+        y: Vec<DVector<f64>>,
+        diag: Vec<f64>,
+        off: Vec<f64>,
+        cross: Vec<f64>,
+        glob: Vec<f64>,
+        xty: Vec<f64>,
+        yty: Vec<f64>,
+    }
+
+    fn toy(m: usize, rows: usize, layout: Layout, seed: u64) -> Toy {
+        let Layout {
+            knots: kn,
+            aero: rn,
+            global: gn,
+        } = layout;
+        let p = layout.n_local();
+        let mut rng = Rng(seed);
+        let mut t = Toy {
+            layout,
+            dense: Vec::new(),
+            y: Vec::new(),
+            diag: vec![0.0; m * rn * rn * kn],
+            off: vec![0.0; m * rn * rn * (kn - 1)],
+            cross: vec![0.0; m * rn * gn * kn],
+            glob: vec![0.0; m * gn * gn],
+            xty: vec![0.0; m * p],
+            yty: vec![0.0; m],
+        };
+        for mi in 0..m {
+            let mut x = DMatrix::zeros(rows, p);
+            let mut y = DVector::zeros(rows);
+            for i in 0..rows {
+                let u = (rng.next() + 0.5) * (kn - 1) as f64;
+                let j = (u.floor() as usize).min(kn - 2);
+                let w1 = u - j as f64;
+                for r in 0..rn {
+                    let v = rng.next() * (1.0 + r as f64);
+                    x[(i, j * rn + r)] += (1.0 - w1) * v;
+                    x[(i, (j + 1) * rn + r)] += w1 * v;
+                }
+                for g in 0..gn {
+                    x[(i, kn * rn + g)] = rng.next();
+                }
+                y[i] = rng.next();
+            }
+            let g = x.transpose() * &x;
+            let b = x.transpose() * &y;
+            for r in 0..rn {
+                for s in 0..rn {
+                    for k in 0..kn {
+                        t.diag[((mi * rn + r) * rn + s) * kn + k] = g[(k * rn + r, k * rn + s)];
+                        if k + 1 < kn {
+                            t.off[((mi * rn + r) * rn + s) * (kn - 1) + k] =
+                                g[(k * rn + r, (k + 1) * rn + s)];
+                        }
+                    }
+                }
+                for h in 0..gn {
+                    for k in 0..kn {
+                        t.cross[((mi * rn + r) * gn + h) * kn + k] = g[(k * rn + r, kn * rn + h)];
+                    }
+                }
+            }
+            for a in 0..gn {
+                for h in 0..gn {
+                    t.glob[(mi * gn + a) * gn + h] = g[(kn * rn + a, kn * rn + h)];
+                }
+            }
+            for c in 0..p {
+                t.xty[mi * p + c] = b[c];
+            }
+            t.yty[mi] = y.dot(&y);
+            t.dense.push(x);
+            t.y.push(y);
+        }
+        t
+    }
+
+    impl Toy {
+        fn blocks(&self) -> Blocks<'_> {
+            Blocks {
+                layout: self.layout,
+                diag: &self.diag,
+                off: &self.off,
+                cross: &self.cross,
+                glob: &self.glob,
+                xty: &self.xty,
+                yty: &self.yty,
+                block_row: None,
+                lowrank: None,
+            }
+        }
+    }
+
+    fn all_columns(layout: &Layout, regs: &[usize], globs: &[usize]) -> Columns {
+        let kr = layout.knots * layout.aero;
+        let mut aero: Vec<usize> = (0..layout.knots)
+            .flat_map(|k| regs.iter().map(move |&r| k * layout.aero + r))
+            .collect();
+        aero.sort_unstable();
+        Columns {
+            aero,
+            global: globs.iter().map(|g| kr + g).collect(),
+        }
+    }
+
+    #[test]
+    fn quadratic_forms_equal_the_dense_squared_error() {
+        let layout = Layout {
+            knots: 6,
+            aero: 3,
+            global: 2,
+        };
+        let t = toy(4, 60, layout, 7);
+        let cols = all_columns(&layout, &[0, 2], &[1]);
+        let p = layout.n_local();
+        let mut rng = Rng(99);
+        let mut theta = vec![0.0; p];
+        for &c in cols.aero.iter().chain(&cols.global) {
+            theta[c] = rng.next();
+        }
+        let ms = [0, 2, 3];
+        let mut out = vec![0.0; 3];
+        quadratic_forms(&t.blocks(), &ms, &theta, &cols, &mut out);
+        let th = DVector::from_vec(theta);
+        for (o, &mi) in out.iter().zip(&ms) {
+            let e = &t.y[mi] - &t.dense[mi] * &th;
+            let want = e.dot(&e) - t.yty[mi];
+            assert!((o - want).abs() <= 1e-10 * t.yty[mi], "{o} vs {want}");
+        }
+    }
+
+    #[test]
+    fn held_out_errors_equal_dense_refits_without_each_fold() {
+        let layout = Layout {
+            knots: 5,
+            aero: 2,
+            global: 2,
+        };
+        let m = 10;
+        let t = toy(m, 40, layout, 3);
+        let p = layout.n_local();
+        let folds: Vec<usize> = (0..m).map(|i| i % 3).collect();
+        let flap: Vec<usize> = (0..m).map(|i| usize::from(i >= 5)).collect();
+        let cols = all_columns(&layout, &[1], &[0, 1]);
+        // penalty: a ridge on the alpha-dependent columns only
+        let ridge = 0.5;
+        let mut tg = Vec::new();
+        let mut tx = Vec::new();
+        for q in 0..3 {
+            for f in 0..2 {
+                let mut g = DMatrix::<f64>::zeros(p, p);
+                let mut b = DVector::<f64>::zeros(p);
+                for i in (0..m).filter(|&i| folds[i] != q && flap[i] == f) {
+                    g += t.dense[i].transpose() * &t.dense[i];
+                    b += t.dense[i].transpose() * &t.y[i];
+                }
+                for c in 0..layout.knots * layout.aero {
+                    g[(c, c)] += ridge;
+                }
+                tg.extend(g.transpose().iter().copied()); // row-major
+                tx.extend(b.iter().copied());
+            }
+        }
+        let (sse, thetas) = held_out(&t.blocks(), &tg, &tx, &folds, &flap, 2, &cols).unwrap();
+        // reference: one dense penalised least squares over both flaps' columns side by side
+        // (the global columns shared), refitted without each fold
+        let kr = layout.knots * layout.aero;
+        let idx: Vec<usize> = cols.aero.iter().chain(&cols.global).copied().collect();
+        for q in 0..3 {
+            let na = cols.aero.len();
+            let n = 2 * na + cols.global.len();
+            let mut a = DMatrix::<f64>::zeros(n, n);
+            let mut b = DVector::<f64>::zeros(n);
+            let place = |f: usize, c: usize| -> usize {
+                if c < kr {
+                    f * na + cols.aero.iter().position(|&x| x == c).unwrap()
+                } else {
+                    2 * na + cols.global.iter().position(|&x| x == c).unwrap()
+                }
+            };
+            for i in (0..m).filter(|&i| folds[i] != q) {
+                let x = &t.dense[i];
+                for (ci, &c) in idx.iter().enumerate() {
+                    let _ = ci;
+                    for &d in &idx {
+                        a[(place(flap[i], c), place(flap[i], d))] += x.column(c).dot(&x.column(d));
+                    }
+                    b[place(flap[i], c)] += x.column(c).dot(&t.y[i]);
+                }
+            }
+            for f in 0..2 {
+                for k in 0..na {
+                    a[(f * na + k, f * na + k)] += ridge;
+                }
+            }
+            let sol = a.lu().solve(&b).unwrap();
+            for i in (0..m).filter(|&i| folds[i] == q) {
+                let mut th = DVector::<f64>::zeros(p);
+                for &c in &idx {
+                    th[c] = sol[place(flap[i], c)];
+                }
+                let e = &t.y[i] - &t.dense[i] * &th;
+                assert!(
+                    (sse[i] - e.dot(&e)).abs() <= 1e-9 * t.yty[i],
+                    "maneuver {i}"
+                );
+                let got = &thetas[(q * 2 + flap[i]) * p..][..p];
+                for c in 0..p {
+                    assert!(
+                        (got[c] - th[c]).abs() <= 1e-8 * (1.0 + th[c].abs()),
+                        "theta {c}"
+                    );
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn profiled_nuisance_is_subtracted_per_owner() {
+        let layout = Layout {
+            knots: 4,
+            aero: 1,
+            global: 1,
+        };
+        let t = toy(3, 30, layout, 11);
+        let p = layout.n_local();
+        let factors: Vec<f64> = (0..p * 3).map(|i| 0.1 * (i as f64 + 1.0)).collect();
+        let owner = [0usize, 2, 2];
+        let mut b = t.blocks();
+        let theta: Vec<f64> = (0..p).map(|i| 0.3 - 0.1 * i as f64).collect();
+        let cols = all_columns(&layout, &[0], &[0]);
+        let mut plain = vec![0.0; 3];
+        quadratic_forms(&b, &[0, 1, 2], &theta, &cols, &mut plain);
+        b.lowrank = Some(LowRank {
+            factors: &factors,
+            owner: &owner,
+        });
+        let mut with = vec![0.0; 3];
+        quadratic_forms(&b, &[0, 1, 2], &theta, &cols, &mut with);
+        let v = |j: usize| -> f64 { (0..p).map(|c| theta[c] * factors[c * 3 + j]).sum() };
+        assert!((plain[0] - v(0).powi(2) - with[0]).abs() < 1e-12);
+        assert_eq!(plain[1], with[1]);
+        assert!((plain[2] - v(1).powi(2) - v(2).powi(2) - with[2]).abs() < 1e-12);
+    }
+
+    #[test]
+    fn singular_block_falls_back_to_the_minimum_norm_solution() {
+        // two identical columns: Cholesky fails, the minimum-norm solution splits evenly
+        let a = [1.0, 1.0, 1.0, 1.0];
+        let x = spd_solve(&a, 2, &[2.0, 2.0], 1);
+        assert!(
+            (x[0] - 1.0).abs() < 1e-12 && (x[1] - 1.0).abs() < 1e-12,
+            "{x:?}"
+        );
+    }
+
+    #[test]
+    fn wrong_sizes_are_refused_by_name() {
+        let layout = Layout {
+            knots: 4,
+            aero: 1,
+            global: 1,
+        };
+        let t = toy(2, 10, layout, 5);
+        let mut b = t.blocks();
+        b.off = &t.off[1..];
+        let err = b.check().unwrap_err().to_string();
+        assert!(err.starts_with("off:"), "{err}");
+    }
+}

@@ -1,0 +1,189 @@
+//! The diagnosis's cross-validated penalised least squares on the hat basis
+//! (`aero_core::hatcv`). Conversion and error mapping only.
+use aero_core::hatcv::{self, Blocks, Columns, Layout, LowRank};
+use aero_core::AeroError;
+use numpy::{IntoPyArray, PyArray1, PyReadonlyArray1, PyReadonlyArrayDyn};
+use pyo3::prelude::*;
+
+use crate::util::detached;
+
+/// A design's block statistics as Python passes them: `(diag, off, cross, glob, xty, yty,
+/// block_rows | None, lowrank | None, lowrank_of | None)`.
+type BlockArgs<'py> = (
+    PyReadonlyArrayDyn<'py, f64>,
+    PyReadonlyArrayDyn<'py, f64>,
+    PyReadonlyArrayDyn<'py, f64>,
+    PyReadonlyArrayDyn<'py, f64>,
+    PyReadonlyArrayDyn<'py, f64>,
+    PyReadonlyArray1<'py, f64>,
+    Option<PyReadonlyArray1<'py, i64>>,
+    Option<PyReadonlyArrayDyn<'py, f64>>,
+    Option<PyReadonlyArray1<'py, i64>>,
+);
+
+/// Indices from int64, refusing negative ones by name.
+fn indices(name: &str, v: &[i64]) -> Result<Vec<usize>, AeroError> {
+    v.iter()
+        .map(|&i| {
+            usize::try_from(i).map_err(|_| AeroError::invalid(name, format!("negative index {i}")))
+        })
+        .collect()
+}
+
+fn slice<'a, T: numpy::Element, D: numpy::ndarray::Dimension>(
+    name: &str,
+    a: &'a numpy::PyReadonlyArray<'_, T, D>,
+) -> PyResult<&'a [T]> {
+    a.as_slice()
+        .map_err(|_| crate::error::to_py(AeroError::invalid(name, "must be a C-contiguous array")))
+}
+
+/// Owned index vectors of a block argument tuple (block rows, lowrank owners).
+struct BlockIndex {
+    rows: Option<Vec<usize>>,
+    owner: Option<Vec<usize>>,
+}
+
+fn block_index(b: &BlockArgs<'_>) -> PyResult<BlockIndex> {
+    let rows = match &b.6 {
+        Some(r) => {
+            Some(indices("block_rows", slice("block_rows", r)?).map_err(crate::error::to_py)?)
+        }
+        None => None,
+    };
+    let owner = match &b.8 {
+        Some(o) => {
+            Some(indices("lowrank_of", slice("lowrank_of", o)?).map_err(crate::error::to_py)?)
+        }
+        None => None,
+    };
+    Ok(BlockIndex { rows, owner })
+}
+
+fn blocks<'a>(
+    b: &'a BlockArgs<'_>,
+    idx: &'a BlockIndex,
+    layout: (usize, usize, usize),
+) -> PyResult<Blocks<'a>> {
+    let lowrank = match (&b.7, &idx.owner) {
+        (Some(f), Some(owner)) => Some(LowRank {
+            factors: slice("lowrank", f)?,
+            owner,
+        }),
+        (None, None) => None,
+        _ => {
+            return Err(crate::error::to_py(AeroError::invalid(
+                "lowrank",
+                "lowrank and lowrank_of come together",
+            )))
+        }
+    };
+    Ok(Blocks {
+        layout: self::layout(layout),
+        diag: slice("diag", &b.0)?,
+        off: slice("off", &b.1)?,
+        cross: slice("cross", &b.2)?,
+        glob: slice("glob", &b.3)?,
+        xty: slice("xty", &b.4)?,
+        yty: slice("yty", &b.5)?,
+        block_row: idx.rows.as_deref(),
+        lowrank,
+    })
+}
+
+fn layout(l: (usize, usize, usize)) -> Layout {
+    Layout {
+        knots: l.0,
+        aero: l.1,
+        global: l.2,
+    }
+}
+
+fn columns(
+    a_cols: &PyReadonlyArray1<'_, i64>,
+    g_cols: &PyReadonlyArray1<'_, i64>,
+) -> PyResult<Columns> {
+    Ok(Columns {
+        aero: indices("aero columns", slice("aero columns", a_cols)?)
+            .map_err(crate::error::to_py)?,
+        global: indices("global columns", slice("global columns", g_cols)?)
+            .map_err(crate::error::to_py)?,
+    })
+}
+
+/// `(sse, thetas)`: held-out squared error per maneuver of the model on `(a_cols, g_cols)`
+/// and each fold's per-flap parameters (flat, folds × flaps × n_local), from the design's
+/// blocks and the folds' penalised training statistics (`aero_core::hatcv::held_out`).
+#[pyfunction]
+#[pyo3(signature = (blocks, layout, train_grams, train_xty, folds, flap, n_flaps, a_cols, g_cols))]
+#[allow(clippy::too_many_arguments)]
+fn hat_held_out<'py>(
+    py: Python<'py>,
+    blocks: BlockArgs<'py>,
+    layout: (usize, usize, usize),
+    train_grams: PyReadonlyArrayDyn<'py, f64>,
+    train_xty: PyReadonlyArrayDyn<'py, f64>,
+    folds: PyReadonlyArray1<'py, i64>,
+    flap: PyReadonlyArray1<'py, i64>,
+    n_flaps: usize,
+    a_cols: PyReadonlyArray1<'py, i64>,
+    g_cols: PyReadonlyArray1<'py, i64>,
+) -> PyResult<(Bound<'py, PyArray1<f64>>, Bound<'py, PyArray1<f64>>)> {
+    let idx = block_index(&blocks)?;
+    let b = self::blocks(&blocks, &idx, layout)?;
+    let cols = columns(&a_cols, &g_cols)?;
+    let folds = indices("folds", slice("folds", &folds)?).map_err(crate::error::to_py)?;
+    let flap = indices("flap", slice("flap", &flap)?).map_err(crate::error::to_py)?;
+    let tg = slice("train_grams", &train_grams)?;
+    let tx = slice("train_xty", &train_xty)?;
+    let (sse, thetas) = detached(py, || {
+        hatcv::held_out(&b, tg, tx, &folds, &flap, n_flaps, &cols)
+    })?;
+    Ok((sse.into_pyarray(py), thetas.into_pyarray(py)))
+}
+
+/// Penalised least squares on `(a_cols, g_cols)` per flap (`aero_core::hatcv::solve_flaps`):
+/// `grams` (flaps × p × p), `xtys` (flaps × p); the parameters flat, flaps × p.
+#[pyfunction]
+fn hat_solve<'py>(
+    py: Python<'py>,
+    grams: PyReadonlyArrayDyn<'py, f64>,
+    xtys: PyReadonlyArrayDyn<'py, f64>,
+    layout: (usize, usize, usize),
+    a_cols: PyReadonlyArray1<'py, i64>,
+    g_cols: PyReadonlyArray1<'py, i64>,
+) -> PyResult<Bound<'py, PyArray1<f64>>> {
+    let cols = columns(&a_cols, &g_cols)?;
+    let g = slice("grams", &grams)?;
+    let x = slice("xtys", &xtys)?;
+    let layout = self::layout(layout);
+    let out = detached(py, || hatcv::solve_flaps(g, x, &layout, &cols))?;
+    Ok(out.into_pyarray(py))
+}
+
+/// `θ'G_mθ − 2θ'b_m` per maneuver of `ms` (`aero_core::hatcv::quadratic_forms_checked`).
+#[pyfunction]
+fn hat_quadratic_forms<'py>(
+    py: Python<'py>,
+    blocks: BlockArgs<'py>,
+    layout: (usize, usize, usize),
+    ms: PyReadonlyArray1<'py, i64>,
+    theta: PyReadonlyArray1<'py, f64>,
+    a_cols: PyReadonlyArray1<'py, i64>,
+    g_cols: PyReadonlyArray1<'py, i64>,
+) -> PyResult<Bound<'py, PyArray1<f64>>> {
+    let idx = block_index(&blocks)?;
+    let b = self::blocks(&blocks, &idx, layout)?;
+    let cols = columns(&a_cols, &g_cols)?;
+    let ms = indices("maneuvers", slice("maneuvers", &ms)?).map_err(crate::error::to_py)?;
+    let theta = slice("theta", &theta)?;
+    let out = detached(py, || hatcv::quadratic_forms_checked(&b, &ms, theta, &cols))?;
+    Ok(out.into_pyarray(py))
+}
+
+pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_function(wrap_pyfunction!(hat_held_out, m)?)?;
+    m.add_function(wrap_pyfunction!(hat_solve, m)?)?;
+    m.add_function(wrap_pyfunction!(hat_quadratic_forms, m)?)?;
+    Ok(())
+}
