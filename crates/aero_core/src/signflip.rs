@@ -153,6 +153,29 @@ pub fn flip_hits(weights: &[f64], w: f64, rng: Pcg64, opts: &FlipOptions) -> (u6
     (hits, draws as u64)
 }
 
+/// One test of [`flip_hits_many`]: the weights, the statistic and the generator.
+#[derive(Clone, Debug)]
+pub struct FlipJob {
+    pub weights: Vec<f64>,
+    pub w: f64,
+    pub rng: Pcg64,
+}
+
+/// [`flip_hits`] of each job, the jobs in parallel (each its own stream: the same counts with
+/// any number of threads).
+pub fn flip_hits_many(jobs: &[FlipJob], opts: &FlipOptions) -> Vec<(u64, u64)> {
+    let one = |j: &FlipJob| flip_hits(&j.weights, j.w, j.rng.clone(), opts);
+    #[cfg(feature = "parallel")]
+    {
+        use rayon::prelude::*;
+        jobs.par_iter().map(one).collect()
+    }
+    #[cfg(not(feature = "parallel"))]
+    {
+        jobs.iter().map(one).collect()
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -225,5 +248,29 @@ mod tests {
         assert_eq!(draws, 10_000);
         let (_, draws) = flip_hits(&weights, 0.0, Pcg64::new(3, 5), &opts);
         assert_eq!(draws, 1000);
+    }
+
+    #[test]
+    fn many_jobs_count_as_each_alone() {
+        let opts = FlipOptions {
+            draws: 500,
+            per_call: 200,
+            tail: 3,
+            min_hits: 20,
+        };
+        let jobs: Vec<FlipJob> = (0..5u32)
+            .map(|k| FlipJob {
+                weights: (1..=(9 + 4 * k)).map(f64::from).collect(),
+                w: f64::from(k) * 7.0,
+                rng: Pcg64::new(
+                    u128::from(k) * 0x9E37_79B9_7F4A_7C15 + 1,
+                    2 * u128::from(k) + 1,
+                ),
+            })
+            .collect();
+        let many = flip_hits_many(&jobs, &opts);
+        for (j, got) in jobs.iter().zip(&many) {
+            assert_eq!(*got, flip_hits(&j.weights, j.w, j.rng.clone(), &opts));
+        }
     }
 }

@@ -919,11 +919,39 @@ def improvement_test(d: FloatArray, n_perm: int, seed: int) -> tuple[float, floa
     tests (:func:`sign_flip_pvalue`, :func:`sign_flip_sum_pvalue`), Bonferroni-combined
     (twice the smaller p). The first has power when many maneuvers improve a little, the
     second when a minority improves a lot. Returns the ``(z, p)`` of the test that decided."""
-    z_r, p_r = sign_flip_pvalue(d, n_perm, seed)
-    z_s, p_s = sign_flip_sum_pvalue(d, n_perm, seed + 1)
-    if p_s < p_r:
-        return z_s, min(1.0, 2.0 * p_s)
-    return z_r, min(1.0, 2.0 * p_r)
+    return improvement_tests([d], n_perm, [seed])[0]
+
+
+def improvement_tests(
+    ds: Sequence[FloatArray], n_perm: int, seeds: Sequence[int]
+) -> list[tuple[float, float]]:
+    """:func:`improvement_test` of each ``ds[i]`` with ``seeds[i]``, the randomization draws
+    of all of them counted at once (in parallel in the engine): the same numbers as one call
+    each."""
+    jobs: list[tuple[FloatArray, float, int]] = []
+    zs: list[tuple[float, float]] = []
+    for d_all, seed in zip(ds, seeds, strict=True):
+        d = np.asarray(d_all, dtype=np.float64)
+        d = d[d != 0.0]
+        if d.size < 2:
+            zs.append((0.0, 0.0))
+            jobs += [(np.zeros(0), 1.0, seed), (np.zeros(0), 1.0, seed + 1)]
+            continue
+        ranks = _abs_ranks(d)
+        w_r = float(np.sum(ranks[d > 0]) - np.sum(ranks[d < 0]))
+        w_s = float(d.sum())
+        sd_s = float(np.sqrt(np.sum(d * d)))
+        zs.append((w_r / float(np.sqrt(np.sum(ranks**2))), w_s / sd_s if sd_s > 0 else 0.0))
+        jobs += [(ranks, w_r, seed), (d, w_s, seed + 1)]
+    ps = _flip_ps(jobs, n_perm)
+    out = []
+    for i, (z_r, z_s) in enumerate(zs):
+        p_r, p_s = ps[2 * i], ps[2 * i + 1]
+        if p_s < p_r:
+            out.append((z_s, min(1.0, 2.0 * p_s)))
+        else:
+            out.append((z_r, min(1.0, 2.0 * p_r)))
+    return out
 
 
 #: Draws added when a sign-flip p-value lands in the far tail (see :func:`_flip_p`).
@@ -987,7 +1015,25 @@ def _flip_p(weights: FloatArray, w: float, n_perm: int, seed: int) -> float:
     own draws, if this numpy draws otherwise). The engine adds each draw's signed weights in
     groups of 8, another order than ``signs @ weights``: the same for integer weights (ranks),
     within rounding otherwise."""
-    weights = np.asarray(weights, dtype=np.float64)
-    count = _engine_hits if _sign_bytes_match() else _numpy_hits
-    hits, draws = count(weights, w, n_perm, seed)
-    return (1.0 + hits) / (draws + 1.0)
+    return _flip_ps([(np.asarray(weights, dtype=np.float64), w, seed)], n_perm)[0]
+
+
+def _flip_ps(jobs: Sequence[tuple[FloatArray, float, int]], n_perm: int) -> list[float]:
+    """:func:`_flip_p` of each ``(weights, w, seed)``; in the engine, all at once. An empty
+    ``weights`` (fewer than two non-zero improvements) gives 1."""
+    live = [i for i, (wt, _, _) in enumerate(jobs) if wt.size]
+    out = [1.0] * len(jobs)
+    if _sign_bytes_match():
+        states = [np.random.default_rng(jobs[i][2]).bit_generator.state["state"] for i in live]
+        counts = _core.sign_flip_hits_many(
+            [np.ascontiguousarray(jobs[i][0], dtype=np.float64) for i in live],
+            [float(jobs[i][1]) for i in live],
+            [int(st["state"]) for st in states],
+            [int(st["inc"]) for st in states],
+            n_perm, _DRAW_CALL, TAIL_DRAWS, _MIN_TAIL_HITS,
+        )  # fmt: skip
+    else:
+        counts = [_numpy_hits(jobs[i][0], jobs[i][1], n_perm, jobs[i][2]) for i in live]
+    for i, (hits, draws) in zip(live, counts, strict=True):
+        out[i] = (1.0 + hits) / (draws + 1.0)
+    return out

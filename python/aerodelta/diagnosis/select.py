@@ -35,6 +35,7 @@ from aerodelta.diagnosis.cv import (
     IntArray,
     heldout_sse,
     improvement_test,
+    improvement_tests,
     local_columns,
     sign_flip_pvalue,
     signed_rank_p,
@@ -234,6 +235,25 @@ def with_tests(
     return st
 
 
+def with_tests_many(
+    steps: Sequence[Step],
+    sse_before: FloatArray,
+    cfg: SelectionConfig,
+    n_tests: int,
+    seeds: Sequence[int],
+) -> None:
+    """:func:`with_tests` of each of ``steps`` (its seed in ``seeds``), the randomization
+    draws of all of them counted at once (:func:`~aerodelta.diagnosis.cv.improvement_tests`):
+    the same numbers as one call each."""
+    ds = [material_change(sse_before, st.sse) for st in steps]
+    for st, d, seed, (z, p) in zip(
+        steps, ds, seeds, improvement_tests(ds, cfg.n_perm, seeds), strict=True
+    ):
+        st.statistic, st.p_value = z, min(1.0, p * n_tests)
+        if st.p_value < cfg.alpha:
+            st.rank_p = min(1.0, signed_rank_p(d, cfg.n_perm, seed + 2) * n_tests)
+
+
 def _passes(st: Step, cfg: SelectionConfig, total0: float) -> bool:
     """The tests and floors an effect must pass to be reported (module doc, 1 and 2)."""
     if not (st.material and st.p_value < cfg.alpha):
@@ -303,11 +323,13 @@ def forward_select(
         n_tests = len(remaining)
         seeds = {c.name: cfg.seed + 7919 * step_i + i for i, c in enumerate(remaining)}
         scores = {
-            c.name: score(
-                design, stats, current, c, sse_cur, cfg, n_tests, seeds[c.name], tests=report
-            )
+            c.name: score(design, stats, current, c, sse_cur, cfg, n_tests, seeds[c.name], False)
             for c in remaining
         }
+        if report:
+            with_tests_many(
+                list(scores.values()), sse_cur, cfg, n_tests, [seeds[n] for n in scores]
+            )
         eligible = [s for s in scores.values() if s.material]
         if not eligible:
             break
