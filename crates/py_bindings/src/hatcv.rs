@@ -1,8 +1,11 @@
 //! The diagnosis's cross-validated penalised least squares on the hat basis
 //! (`aero_core::hatcv`). Conversion and error mapping only.
-use aero_core::hatcv::{self, Blocks, Columns, Layout, LowRank};
+use aero_core::hatcv::{self, Blocks, Columns, GlobalBlock, HatGrid, Layout, LowRank, Rows};
 use aero_core::AeroError;
-use numpy::{IntoPyArray, PyArray1, PyReadonlyArray1, PyReadonlyArrayDyn};
+use numpy::{
+    IntoPyArray, PyArray1, PyReadonlyArray1, PyReadonlyArray2, PyReadonlyArrayDyn,
+    PyUntypedArrayMethods,
+};
 use pyo3::prelude::*;
 
 use crate::util::detached;
@@ -181,9 +184,98 @@ fn hat_quadratic_forms<'py>(
     Ok(out.into_pyarray(py))
 }
 
+/// The global columns as Python passes them: a dense `n × c` block, or one sparse column
+/// `(rows, values)`.
+enum GlobalArg<'py> {
+    Dense(PyReadonlyArray2<'py, f64>),
+    Sparse(Vec<usize>, PyReadonlyArray1<'py, f64>),
+}
+
+type Built<'py> = (
+    Bound<'py, PyArray1<f64>>,
+    Bound<'py, PyArray1<f64>>,
+    Bound<'py, PyArray1<f64>>,
+    Bound<'py, PyArray1<f64>>,
+    Bound<'py, PyArray1<f64>>,
+    Bound<'py, PyArray1<f64>>,
+);
+
+/// `(diag, off, cross, glob, xty, yty)`, flat, C order: the rows reduced to per-maneuver
+/// block statistics on the grid `(k0, step, n)` (`aero_core::hatcv::build_blocks`).
+/// `globals`: dense `n × c` arrays or `(rows, values)` sparse columns, in column order.
+#[pyfunction]
+#[pyo3(signature = (y, maneuver, alpha_deg, aero, globals, grid, n_maneuvers))]
+#[allow(clippy::too_many_arguments)]
+fn hat_build<'py>(
+    py: Python<'py>,
+    y: PyReadonlyArray1<'py, f64>,
+    maneuver: PyReadonlyArray1<'py, i64>,
+    alpha_deg: PyReadonlyArray1<'py, f64>,
+    aero: PyReadonlyArray2<'py, f64>,
+    globals: Vec<Bound<'py, PyAny>>,
+    grid: (f64, f64, usize),
+    n_maneuvers: usize,
+) -> PyResult<Built<'py>> {
+    let mut args = Vec::with_capacity(globals.len());
+    for (b, g) in globals.iter().enumerate() {
+        if let Ok(a) = g.extract::<PyReadonlyArray2<'py, f64>>() {
+            args.push(GlobalArg::Dense(a));
+        } else if let Ok((r, v)) =
+            g.extract::<(PyReadonlyArray1<'py, i64>, PyReadonlyArray1<'py, f64>)>()
+        {
+            let rows = indices(&format!("global block {b} rows"), slice("sparse rows", &r)?)
+                .map_err(crate::error::to_py)?;
+            args.push(GlobalArg::Sparse(rows, v));
+        } else {
+            return Err(crate::error::to_py(AeroError::invalid(
+                format!("global block {b}"),
+                "must be a 2-d float64 array or a (rows, values) pair of 1-d arrays",
+            )));
+        }
+    }
+    let mut blocks = Vec::with_capacity(args.len());
+    for a in &args {
+        blocks.push(match a {
+            GlobalArg::Dense(d) => GlobalBlock::Dense {
+                data: slice("global block", d)?,
+                cols: d.shape()[1],
+            },
+            GlobalArg::Sparse(r, v) => GlobalBlock::Sparse {
+                rows: r,
+                values: slice("sparse values", v)?,
+            },
+        });
+    }
+    let man = indices("maneuver", slice("maneuver", &maneuver)?).map_err(crate::error::to_py)?;
+    let rows = Rows {
+        y: slice("y", &y)?,
+        maneuver: &man,
+        alpha_deg: slice("alpha_deg", &alpha_deg)?,
+        aero: slice("aero", &aero)?,
+        n_aero: aero.shape()[1],
+    };
+    let grid = HatGrid {
+        k0: grid.0,
+        step: grid.1,
+        n: grid.2,
+    };
+    let out = detached(py, || {
+        hatcv::build_blocks(&rows, &blocks, &grid, n_maneuvers)
+    })?;
+    Ok((
+        out.diag.into_pyarray(py),
+        out.off.into_pyarray(py),
+        out.cross.into_pyarray(py),
+        out.glob.into_pyarray(py),
+        out.xty.into_pyarray(py),
+        out.yty.into_pyarray(py),
+    ))
+}
+
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(hat_held_out, m)?)?;
     m.add_function(wrap_pyfunction!(hat_solve, m)?)?;
+    m.add_function(wrap_pyfunction!(hat_build, m)?)?;
     m.add_function(wrap_pyfunction!(hat_quadratic_forms, m)?)?;
     Ok(())
 }

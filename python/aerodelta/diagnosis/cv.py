@@ -25,7 +25,6 @@ on these blocks directly, for all maneuvers of a fold at once.
 from __future__ import annotations
 
 import functools
-import itertools
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field, replace
 from typing import Any
@@ -308,31 +307,6 @@ class SparseColumns:
         return out
 
 
-#: Rows reduced at once by :func:`build_design` (bounds its working memory to about this many
-#: rows of ``2R + Gn + 1`` numbers, whatever the campaign's size).
-CHUNK_ROWS = 32768
-
-#: Lengths to which :func:`build_design` pads the per-(maneuver, knot) segments so that
-#: segments of one padded length are reduced by one batched product (zero rows add nothing).
-_PAD_LENGTHS = np.unique(np.ceil(1.25 ** np.arange(80)).astype(np.int64))
-
-
-def _segment_grams(z: FloatArray, starts: IntArray, lens: IntArray) -> FloatArray:
-    """``Z_s' Z_s`` of each segment ``s`` (rows ``starts[s]`` to ``starts[s] + lens[s]`` of
-    ``z``, whose last row is zeros: the padding), ``(S, P, P)``; segments of one padded
-    length are reduced by one batched product."""
-    pad = _PAD_LENGTHS[np.searchsorted(_PAD_LENGTHS, lens)]
-    p = z.shape[1]
-    out = np.empty((starts.size, p, p))
-    for length in np.unique(pad):
-        segs = np.flatnonzero(pad == length)
-        offs = np.arange(length)
-        rows = np.where(offs < lens[segs, None], starts[segs, None] + offs, z.shape[0] - 1)
-        zb = z[rows]
-        out[segs] = np.matmul(zb.transpose(0, 2, 1), zb)
-    return out
-
-
 def build_design(  # noqa: PLR0917 - the reduction's inputs, all positional by design
     y: FloatArray,
     maneuver: IntArray,
@@ -347,7 +321,8 @@ def build_design(  # noqa: PLR0917 - the reduction's inputs, all positional by d
     n_flaps: int,
 ) -> Design:
     """Reduce the rows to per-maneuver ``G_m``, ``b_m``, ``y_m'y_m`` (block form, see
-    :class:`Design`), :data:`CHUNK_ROWS` rows at a time.
+    :class:`Design`) in the engine (``aero_core::hatcv::build_blocks``: rows grouped by
+    maneuver and knot interval, maneuvers reduced in parallel, no dense design formed).
 
     Parameters
     ----------
@@ -363,87 +338,35 @@ def build_design(  # noqa: PLR0917 - the reduction's inputs, all positional by d
         :class:`SparseColumns`.
     """
     blocks = [glob] if isinstance(glob, np.ndarray) else list(glob)
+    parts: list[Any] = []
+    for b in blocks:
+        if isinstance(b, SparseColumns):
+            parts += [
+                (np.asarray(r, dtype=np.int64), np.ascontiguousarray(v, dtype=np.float64))
+                for r, v in zip(b.rows, b.values, strict=True)
+            ]
+        else:
+            parts.append(np.ascontiguousarray(np.asarray(b, dtype=np.float64).reshape(len(y), -1)))
     r_n, g_n = aero.shape[1], sum(b.shape[1] for b in blocks)
-    k_n = grid.n
-    m_n = n_maneuvers
-    j, w1 = grid.locate(alpha_deg)
-    order = np.lexsort((j, maneuver))
-    m_sorted = maneuver[order]
-    j_sorted = j[order]
-    n = order.size
-    new = np.ones(n, dtype=bool)
-    if n:
-        new[1:] = (np.diff(m_sorted) != 0) | (np.diff(j_sorted) != 0)
-    starts = np.flatnonzero(new)
-    lens = np.diff(np.append(starts, n))
-    seg_m, seg_j = m_sorted[starts], j_sorted[starts]
-    diag = np.zeros((m_n, r_n, r_n, k_n))
-    off = np.zeros((m_n, r_n, r_n, k_n - 1))
-    cross = np.zeros((m_n, r_n, g_n, k_n))
-    gl = np.zeros((m_n, g_n, g_n))
-    xa = np.zeros((m_n, k_n, r_n))
-    xg = np.zeros((m_n, g_n))
-    yty = np.zeros(m_n)
-    i0, i1 = slice(0, r_n), slice(r_n, 2 * r_n)
-    ig, iy = slice(2 * r_n, 2 * r_n + g_n), 2 * r_n + g_n
-    # a sparse block's entries by their position in the sorted rows (``order``)
-    sparse: dict[int, list[tuple[IntArray, FloatArray]]] = {}
-    if any(isinstance(b, SparseColumns) for b in blocks):
-        where = np.empty(n, dtype=np.int64)
-        where[order] = np.arange(n)
-        for bi, blk in enumerate(blocks):
-            if isinstance(blk, SparseColumns):
-                cols = []
-                for r, v in zip(blk.rows, blk.values, strict=True):
-                    pos = where[r]
-                    o = np.argsort(pos, kind="stable")
-                    cols.append((pos[o], v[o]))
-                sparse[bi] = cols
-    # chunks of whole segments of about CHUNK_ROWS rows
-    cut = np.searchsorted(starts, np.arange(CHUNK_ROWS, n, CHUNK_ROWS))
-    bounds = np.unique(np.concatenate([[0], cut, [starts.size]]))
-    for a, b in itertools.pairwise(bounds):
-        lo, hi = int(starts[a]), int(starts[b]) if b < starts.size else n
-        rows = order[lo:hi]
-        x = aero[rows]
-        w1r = w1[rows, None]
-        z = np.empty((rows.size + 1, iy + 1))  # the last row: zeros, the segments' padding
-        z[-1] = 0.0
-        np.multiply(x, 1.0 - w1r, out=z[:-1, i0])
-        np.multiply(x, w1r, out=z[:-1, i1])
-        col = 2 * r_n
-        for bi, blk in enumerate(blocks):
-            if isinstance(blk, SparseColumns):
-                z[:-1, col : col + blk.shape[1]] = 0.0
-                for jj, (pos, v) in enumerate(sparse[bi]):
-                    i, e = np.searchsorted(pos, [lo, hi])
-                    z[pos[i:e] - lo, col + jj] = v[i:e]
-            else:
-                z[:-1, col : col + blk.shape[1]] = blk[rows]
-            col += blk.shape[1]
-        z[:-1, iy] = y[rows]
-        s = _segment_grams(z, starts[a:b] - lo, lens[a:b])
-        m, k = seg_m[a:b], seg_j[a:b]
-        # (m, k) is one segment: no index repeats within one assignment
-        diag[m, :, :, k] += s[:, i0, i0]
-        diag[m, :, :, k + 1] += s[:, i1, i1]
-        off[m, :, :, k] += s[:, i0, i1]
-        cross[m, :, :, k] += s[:, i0, ig]
-        cross[m, :, :, k + 1] += s[:, i1, ig]
-        xa[m, k] += s[:, i0, iy]
-        xa[m, k + 1] += s[:, i1, iy]
-        np.add.at(gl, m, s[:, ig, ig])
-        np.add.at(xg, m, s[:, ig, iy])
-        np.add.at(yty, m, s[:, iy, iy])
+    k_n, m_n = grid.n, n_maneuvers
+    maneuver = np.asarray(maneuver, dtype=np.int64)
+    diag, off, cross, gl, xty, yty = _core.hat_build(
+        np.ascontiguousarray(y, dtype=np.float64),
+        maneuver,
+        np.ascontiguousarray(alpha_deg, dtype=np.float64),
+        np.ascontiguousarray(aero, dtype=np.float64),
+        parts,
+        (float(grid.k0), float(grid.step), int(k_n)),
+        int(m_n),
+    )
     man_flap = np.zeros(m_n, dtype=np.int64)
-    first = np.searchsorted(m_sorted, np.arange(m_n))
-    has = np.bincount(m_sorted, minlength=m_n)[:m_n] > 0
-    man_flap[has] = flap[order[first[has]]]
+    man_flap[maneuver] = flap  # a maneuver has one flap
     n_rows = np.bincount(maneuver, minlength=m_n)[:m_n].astype(np.int64)
-    xty = np.concatenate([xa.reshape(m_n, k_n * r_n), xg], axis=1)
     return Design(
-        grid, n_flaps, list(aero_names), list(global_names), man_flap, diag, off, cross, gl,
-        xty, yty, n_rows,
+        grid, n_flaps, list(aero_names), list(global_names), man_flap,
+        diag.reshape(m_n, r_n, r_n, k_n), off.reshape(m_n, r_n, r_n, k_n - 1),
+        cross.reshape(m_n, r_n, g_n, k_n), gl.reshape(m_n, g_n, g_n),
+        xty.reshape(m_n, k_n * r_n + g_n), yty, n_rows,
     )  # fmt: skip
 
 

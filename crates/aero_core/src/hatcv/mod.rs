@@ -19,6 +19,10 @@
 //! Per-maneuver nuisance columns profiled out (Frisch-Waugh-Lovell) leave a low-rank term,
 //! `G_m = blocks_m − F_m F_m'` ([`LowRank`]).
 
+mod build;
+
+pub use build::{build_blocks, BlockStats, GlobalBlock, HatGrid, Rows};
+
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::{Mat, Par};
 
