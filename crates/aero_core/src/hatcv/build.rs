@@ -78,7 +78,7 @@ pub struct BlockStats {
 
 fn check(rows: &Rows<'_>, globals: &[GlobalBlock<'_>], grid: &HatGrid, m_n: usize) -> Result<()> {
     let n = rows.y.len();
-    if grid.n < 2 || !(grid.step > 0.0) || !grid.k0.is_finite() {
+    if grid.n < 2 || grid.step.is_nan() || grid.step <= 0.0 || !grid.k0.is_finite() {
         return Err(AeroError::invalid(
             "hat grid",
             "needs at least 2 knots and a positive step",
@@ -424,10 +424,10 @@ mod tests {
                 yy += y[i] * y[i];
             }
             assert!((out.yty[m] - yy).abs() <= 1e-12 * (1.0 + yy));
-            for a in 0..p {
-                assert!((out.xty[m * p + a] - b[a]).abs() <= 1e-12, "xty {m} {a}");
+            for (a, want) in b.iter().enumerate() {
+                assert!((out.xty[m * p + a] - want).abs() <= 1e-12, "xty {m} {a}");
             }
-            // every entry of G through the quadratic form of a unit vector pair
+            // every entry of G, read from its block
             let kr = grid.n * r_n;
             let entry = |a: usize, c: usize| -> f64 {
                 let (ka, ra, kc, rc) = (a / r_n, a % r_n, c / r_n, c % r_n);
