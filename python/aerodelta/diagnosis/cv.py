@@ -20,6 +20,11 @@ maneuver instead of ``(K R + Gn)^2`` (about 150 kB instead of 2.9 MB for C_l on 
 grid). Profiling out per-maneuver nuisance columns (:func:`profile_out`) adds a low-rank
 term, ``G_m = band_m - F_m F_m'``. The quadratic forms of the held-out errors are evaluated
 on these blocks directly, for all maneuvers of a fold at once.
+
+The numerics run in the engine, ``aero_core::hatcv``: the reduction of the rows to the blocks
+(:func:`build_design`), the penalised solves (:func:`solve`), the folds' fits and held-out
+errors (:func:`heldout_sse`) and the quadratic forms (:func:`model_sse`); the sign-flip tests'
+draws in ``aero_core::signflip``. This module holds the layout and drives them.
 """
 
 from __future__ import annotations
