@@ -438,6 +438,74 @@ def sign_flip_hits(
     tail: int,
     min_hits: int,
 ) -> tuple[int, int]: ...
+def sign_flip_hits_many(
+    weights: list[npt.NDArray[np.float64]],
+    ws: list[float],
+    states: list[int],
+    incs: list[int],
+    draws: int,
+    per_call: int,
+    tail: int,
+    min_hits: int,
+) -> list[tuple[int, int]]: ...
+
+# the diagnosis's hat-basis cross-validation (crates/py_bindings/src/hatcv.rs); ``blocks`` is
+# (diag, off, cross, glob, xty, yty, block_rows | None, lowrank | None, lowrank_of | None),
+# ``layout`` (knots, aerodynamic regressors, global regressors)
+_Blocks = tuple[
+    npt.NDArray[np.float64],
+    npt.NDArray[np.float64],
+    npt.NDArray[np.float64],
+    npt.NDArray[np.float64],
+    npt.NDArray[np.float64],
+    npt.NDArray[np.float64],
+    npt.NDArray[np.int64] | None,
+    npt.NDArray[np.float64] | None,
+    npt.NDArray[np.int64] | None,
+]
+
+def hat_held_out(
+    blocks: _Blocks,
+    layout: tuple[int, int, int],
+    train_grams: npt.NDArray[np.float64],
+    train_xty: npt.NDArray[np.float64],
+    folds: npt.NDArray[np.int64],
+    flap: npt.NDArray[np.int64],
+    n_flaps: int,
+    a_cols: npt.NDArray[np.int64],
+    g_cols: npt.NDArray[np.int64],
+) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]: ...
+def hat_solve(
+    grams: npt.NDArray[np.float64],
+    xtys: npt.NDArray[np.float64],
+    layout: tuple[int, int, int],
+    a_cols: npt.NDArray[np.int64],
+    g_cols: npt.NDArray[np.int64],
+) -> npt.NDArray[np.float64]: ...
+def hat_quadratic_forms(
+    blocks: _Blocks,
+    layout: tuple[int, int, int],
+    ms: npt.NDArray[np.int64],
+    theta: npt.NDArray[np.float64],
+    a_cols: npt.NDArray[np.int64],
+    g_cols: npt.NDArray[np.int64],
+) -> npt.NDArray[np.float64]: ...
+def hat_build(
+    y: npt.NDArray[np.float64],
+    maneuver: npt.NDArray[np.int64],
+    alpha_deg: npt.NDArray[np.float64],
+    aero: npt.NDArray[np.float64],
+    globals: list[npt.NDArray[np.float64] | tuple[npt.NDArray[np.int64], npt.NDArray[np.float64]]],
+    grid: tuple[float, float, int],
+    n_maneuvers: int,
+) -> tuple[
+    npt.NDArray[np.float64],
+    npt.NDArray[np.float64],
+    npt.NDArray[np.float64],
+    npt.NDArray[np.float64],
+    npt.NDArray[np.float64],
+    npt.NDArray[np.float64],
+]: ...
 
 # roll-off detection and configurable runtime draws (crates/py_bindings/src/rolloff.rs)
 def rolloff_detect_defaults() -> dict[str, float | bool]: ...
