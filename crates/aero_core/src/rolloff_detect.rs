@@ -21,7 +21,10 @@
 //! onset walks back from the peak to where $|e|$ falls below
 //! `onset_fraction` of the peak. The event is *uncommanded* when the aileron
 //! and every other listed channel stayed within their allowed change over
-//! `quiet_window_s` before the onset. Sign convention: a positive $C_l$
+//! `quiet_window_s` before the onset, and none of them stepped (changed by more than its
+//! allowance within one sample) from the sample before the onset to the one after the peak:
+//! a step input makes a spike of the measured moment, which is a central difference of the
+//! rates and cannot follow a moment that jumps between two samples. Sign convention: a positive $C_l$
 //! rolls right wing down (Etkin), reported as direction `+1` ("right").
 
 use crate::error::{AeroError, Result};
@@ -203,6 +206,15 @@ fn range_over(x: &[f64], lo: usize, hi: usize) -> f64 {
     } else {
         0.0
     }
+}
+
+/// Largest change of `x` between consecutive samples in `lo..=hi` (finite pairs only).
+fn largest_step(x: &[f64], lo: usize, hi: usize) -> f64 {
+    x[lo..=hi]
+        .windows(2)
+        .map(|w| (w[1] - w[0]).abs())
+        .filter(|d| d.is_finite())
+        .fold(0.0, f64::max)
 }
 
 /// Samples around `peak` where `sign * x` stays above `fraction` of the peak.
@@ -430,19 +442,39 @@ pub fn detect(
             rejected = "starts before a full quiet window of data".to_string();
         } else {
             let lo = on - quiet;
+            // through the spike's rise (and the sample after its peak): a step input there
+            // makes a spike of the measured moment (a central difference cannot follow a
+            // moment that jumps between two samples), so a change within one sample larger
+            // than the quiet window's allowance marks it commanded (step 2: "not caused by
+            // another sudden change of state")
+            let rise = (peak_i + 1).min(n - 1).max(on);
             let da_change = range_over(s.da_deg, lo, on);
+            let da_step = largest_step(s.da_deg, on.saturating_sub(1), rise);
             if da_change > cfg.max_aileron_change_deg {
                 rejected = format!(
                     "aileron moved {da_change:.2} deg in the {} s before onset (allowed {}): commanded",
                     cfg.quiet_window_s, cfg.max_aileron_change_deg
                 );
+            } else if da_step > cfg.max_aileron_change_deg {
+                rejected = format!(
+                    "aileron stepped {da_step:.2} deg within one sample during the spike (allowed {}): commanded",
+                    cfg.max_aileron_change_deg
+                );
             } else {
                 for o in others {
                     let c = range_over(o.values, lo, on);
+                    let st = largest_step(o.values, on.saturating_sub(1), rise);
                     if c > o.max_change {
                         rejected = format!(
                             "{} changed by {c:.3} in the {} s before onset (allowed {}): explained by another input",
                             o.name, cfg.quiet_window_s, o.max_change
+                        );
+                        break;
+                    }
+                    if st > o.max_change {
+                        rejected = format!(
+                            "{} stepped by {st:.3} within one sample during the spike (allowed {}): explained by another input",
+                            o.name, o.max_change
                         );
                         break;
                     }
@@ -532,6 +564,49 @@ mod tests {
             // onset at 20 % of the Gaussian: alpha0 - 0.5*sqrt(2 ln 5) = alpha0 - 0.897
             assert!((e.alpha_onset_deg - (17.0 - 0.897)).abs() < 0.25, "{e:?}");
         }
+    }
+
+    #[test]
+    fn a_step_input_during_the_spike_is_commanded_and_a_rate_limited_reaction_is_not() {
+        // the spike at 17 deg: alpha 17 at t = 24 s, sample 1200
+        let (t, alpha, cl, mut da) = record(17.0, 0.015, 0.0005, 4);
+        let peak = 1200;
+        // (a) a 10-deg aileron step between the samples just before the peak (the DHC-6's
+        // doublets in JSBSim: a surface jump within one 20-ms frame)
+        for v in &mut da[peak..] {
+            *v += 10.0;
+        }
+        let sig = RecordSignals {
+            t: &t,
+            alpha_deg: &alpha,
+            cl_residual: &cl,
+            da_deg: &da,
+        };
+        let ev = detect(&sig, &[], &DetectConfig::default()).expect("runs");
+        assert!(ev.iter().all(|e| !e.rejected.is_empty()), "{ev:?}");
+        assert!(
+            ev.iter().any(|e| e.rejected.contains("stepped 10.00 deg")),
+            "{ev:?}"
+        );
+        // (b) the pilot's reaction between the onset (20 % of the peak, 0.9 deg before it at
+        // 0.5 deg/s: sample 1110-1115) and the peak, at the actuator's 60 deg/s (1.2 deg per
+        // sample, 12 deg in all): still an uncommanded roll-off
+        let (_, _, _, mut da) = record(17.0, 0.015, 0.0005, 4);
+        for (k, v) in da[1130..].iter_mut().enumerate() {
+            *v += (1.2 * k as f64).min(12.0);
+        }
+        let sig = RecordSignals {
+            t: &t,
+            alpha_deg: &alpha,
+            cl_residual: &cl,
+            da_deg: &da,
+        };
+        let ev = detect(&sig, &[], &DetectConfig::default()).expect("runs");
+        assert_eq!(
+            ev.iter().filter(|e| e.rejected.is_empty()).count(),
+            1,
+            "{ev:?}"
+        );
     }
 
     #[test]
