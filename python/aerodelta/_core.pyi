@@ -490,6 +490,19 @@ def hat_quadratic_forms(
     a_cols: npt.NDArray[np.int64],
     g_cols: npt.NDArray[np.int64],
 ) -> npt.NDArray[np.float64]: ...
+def hat_fold_sums(
+    blocks: _Blocks,
+    layout: tuple[int, int, int],
+    folds: npt.NDArray[np.int64],
+    flap: npt.NDArray[np.int64],
+    n_folds: int,
+    n_flaps: int,
+) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]: ...
+def hat_gram_sum(
+    blocks: _Blocks,
+    layout: tuple[int, int, int],
+    ms: npt.NDArray[np.int64],
+) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]: ...
 def hat_build(
     y: npt.NDArray[np.float64],
     maneuver: npt.NDArray[np.int64],

@@ -272,10 +272,49 @@ fn hat_build<'py>(
     ))
 }
 
+/// `(G, b)` flat: per fold and flap the sums of its maneuvers' Gram matrices and `X'y`
+/// (`aero_core::hatcv::fold_sums`), folds × flaps × p × p and folds × flaps × p.
+#[pyfunction]
+#[pyo3(signature = (blocks, layout, folds, flap, n_folds, n_flaps))]
+fn hat_fold_sums<'py>(
+    py: Python<'py>,
+    blocks: BlockArgs<'py>,
+    layout: (usize, usize, usize),
+    folds: PyReadonlyArray1<'py, i64>,
+    flap: PyReadonlyArray1<'py, i64>,
+    n_folds: usize,
+    n_flaps: usize,
+) -> PyResult<(Bound<'py, PyArray1<f64>>, Bound<'py, PyArray1<f64>>)> {
+    let idx = block_index(&blocks)?;
+    let b = self::blocks(&blocks, &idx, layout)?;
+    let folds = indices("folds", slice("folds", &folds)?).map_err(crate::error::to_py)?;
+    let flap = indices("flap", slice("flap", &flap)?).map_err(crate::error::to_py)?;
+    let (g, x) = detached(py, || hatcv::fold_sums(&b, &folds, &flap, n_folds, n_flaps))?;
+    Ok((g.into_pyarray(py), x.into_pyarray(py)))
+}
+
+/// `(G, b)` flat: the sums of the maneuvers `ms`' Gram matrices and `X'y`
+/// (`aero_core::hatcv::gram_sum`), p × p and p.
+#[pyfunction]
+fn hat_gram_sum<'py>(
+    py: Python<'py>,
+    blocks: BlockArgs<'py>,
+    layout: (usize, usize, usize),
+    ms: PyReadonlyArray1<'py, i64>,
+) -> PyResult<(Bound<'py, PyArray1<f64>>, Bound<'py, PyArray1<f64>>)> {
+    let idx = block_index(&blocks)?;
+    let b = self::blocks(&blocks, &idx, layout)?;
+    let ms = indices("maneuvers", slice("maneuvers", &ms)?).map_err(crate::error::to_py)?;
+    let (g, x) = detached(py, || hatcv::gram_sum_checked(&b, &ms))?;
+    Ok((g.into_pyarray(py), x.into_pyarray(py)))
+}
+
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(hat_held_out, m)?)?;
     m.add_function(wrap_pyfunction!(hat_solve, m)?)?;
     m.add_function(wrap_pyfunction!(hat_build, m)?)?;
+    m.add_function(wrap_pyfunction!(hat_fold_sums, m)?)?;
+    m.add_function(wrap_pyfunction!(hat_gram_sum, m)?)?;
     m.add_function(wrap_pyfunction!(hat_quadratic_forms, m)?)?;
     Ok(())
 }

@@ -146,32 +146,12 @@ class Design:
         return int(own)
 
     def gram_sum(self, maneuvers: IntArray) -> FloatArray:
-        """``sum_m G_m`` over ``maneuvers`` (indices), dense on the local layout."""
-        idx = np.asarray(maneuvers, dtype=np.int64)
-        k_n, r_n, g_n = self.grid.n, len(self.aero_names), len(self.global_names)
-        kr = k_n * r_n
-        p = kr + g_n
-        out = np.zeros((p, p))
-        if idx.size == 0:
-            return out
-        rows = self.block_index(idx)
-        d = self.diag[rows].sum(axis=0)
-        o = self.off[rows].sum(axis=0)
-        c = self.cross[rows].sum(axis=0)
-        a4 = np.zeros((k_n, r_n, k_n, r_n))
-        kk = np.arange(k_n)
-        a4[kk, :, kk, :] = d.transpose(2, 0, 1)
-        a4[kk[:-1], :, kk[1:], :] = o.transpose(2, 0, 1)
-        a4[kk[1:], :, kk[:-1], :] = o.transpose(2, 1, 0)
-        out[:kr, :kr] = a4.reshape(kr, kr)
-        cc = c.transpose(2, 0, 1).reshape(kr, g_n)
-        out[:kr, kr:] = cc
-        out[kr:, :kr] = cc.T
-        out[kr:, kr:] = self.glob[rows].sum(axis=0)
-        if self.lowrank is not None and self.lowrank_of is not None:
-            f = self.lowrank[:, np.isin(self.lowrank_of, idx)]
-            out -= f @ f.T
-        return out
+        """``sum_m G_m`` over ``maneuvers`` (indices), dense on the local layout
+        (``aero_core::hatcv::gram_sum``)."""
+        g, _ = _core.hat_gram_sum(
+            _block_args(self), _layout(self), np.asarray(maneuvers, dtype=np.int64).ravel()
+        )
+        return g.reshape(self.n_local, self.n_local)
 
     def dense_gram(self, m: int) -> FloatArray:
         """``G_m`` written out on the local layout (``n_local x n_local``)."""
@@ -537,18 +517,16 @@ def fold_stats(design: Design, folds: IntArray) -> FoldStats:
     """Sum the maneuvers' statistics per fold and flap."""
     n_q = int(folds.max()) + 1 if folds.size else 1
     n_f, p = design.n_flaps, design.n_local
-    g = np.zeros((n_q, n_f, p, p))
-    x = np.zeros((n_q, n_f, p))
     members = [
         [np.flatnonzero((folds == q) & (design.man_flap == f)) for f in range(n_f)]
         for q in range(n_q)
     ]
-    for q in range(n_q):
-        for f in range(n_f):
-            idx = members[q][f]
-            if idx.size:
-                g[q, f] = design.gram_sum(idx)
-                x[q, f] = design.xty[idx].sum(axis=0)
+    g_flat, x_flat = _core.hat_fold_sums(
+        _block_args(design), _layout(design), np.asarray(folds, dtype=np.int64),
+        np.asarray(design.man_flap, dtype=np.int64), n_q, n_f,
+    )  # fmt: skip
+    g = g_flat.reshape(n_q, n_f, p, p)
+    x = x_flat.reshape(n_q, n_f, p)
     pen = np.stack(penalty(design)) if n_f else np.zeros((0, p, p))
     tg = g.sum(axis=0)
     tx = x.sum(axis=0)

@@ -277,6 +277,134 @@ pub fn quadratic_forms(
     }
 }
 
+/// `Σ_m G_m` and `Σ_m b_m` over the maneuvers `ms`, dense on the local layout (`p × p`
+/// row-major, `p`), the profiled-out `F_m F_m'` subtracted.
+pub fn gram_sum(blocks: &Blocks<'_>, ms: &[usize]) -> (Vec<f64>, Vec<f64>) {
+    let Layout {
+        knots: kn,
+        aero: rn,
+        global: gn,
+    } = blocks.layout;
+    let p = blocks.layout.n_local();
+    let kr = kn * rn;
+    let mut g = vec![0.0; p * p];
+    let mut x = vec![0.0; p];
+    for &m in ms {
+        let b = blocks.block_row.map_or(m, |rows| rows[m]);
+        for r in 0..rn {
+            for q in 0..rn {
+                let d = &blocks.diag[((b * rn + r) * rn + q) * kn..][..kn];
+                for (k, v) in d.iter().enumerate() {
+                    g[(k * rn + r) * p + k * rn + q] += v;
+                }
+                let o = &blocks.off[((b * rn + r) * rn + q) * (kn - 1)..][..kn - 1];
+                for (k, v) in o.iter().enumerate() {
+                    g[(k * rn + r) * p + (k + 1) * rn + q] += v;
+                    g[((k + 1) * rn + q) * p + k * rn + r] += v;
+                }
+            }
+            for h in 0..gn {
+                let c = &blocks.cross[((b * rn + r) * gn + h) * kn..][..kn];
+                for (k, v) in c.iter().enumerate() {
+                    g[(k * rn + r) * p + kr + h] += v;
+                    g[(kr + h) * p + k * rn + r] += v;
+                }
+            }
+        }
+        for a in 0..gn {
+            for h in 0..gn {
+                g[(kr + a) * p + kr + h] += blocks.glob[(b * gn + a) * gn + h];
+            }
+        }
+        for (xv, bv) in x.iter_mut().zip(&blocks.xty[m * p..(m + 1) * p]) {
+            *xv += bv;
+        }
+        if let Some(lr) = blocks.lowrank {
+            let l = lr.owner.len();
+            let lo = lr.owner.partition_point(|&o| o < m);
+            let hi = lr.owner.partition_point(|&o| o <= m);
+            for j in lo..hi {
+                for a in 0..p {
+                    let fa = lr.factors[a * l + j];
+                    if fa == 0.0 {
+                        continue;
+                    }
+                    for c in 0..p {
+                        g[a * p + c] -= fa * lr.factors[c * l + j];
+                    }
+                }
+            }
+        }
+    }
+    (g, x)
+}
+
+/// [`gram_sum`] checked against the blocks (maneuver indices in range).
+pub fn gram_sum_checked(blocks: &Blocks<'_>, ms: &[usize]) -> Result<(Vec<f64>, Vec<f64>)> {
+    blocks.check()?;
+    if let Some(&bad) = ms.iter().find(|&&m| m >= blocks.n_maneuvers()) {
+        return Err(AeroError::invalid(
+            "maneuvers",
+            format!("index {bad} is past the design"),
+        ));
+    }
+    Ok(gram_sum(blocks, ms))
+}
+
+/// Per fold and flap, [`gram_sum`] of its maneuvers (`folds[m]`, `flap[m]`): `Q × F × p × p`
+/// and `Q × F × p`, the groups summed in parallel (each in maneuver order).
+pub fn fold_sums(
+    blocks: &Blocks<'_>,
+    folds: &[usize],
+    flap: &[usize],
+    n_folds: usize,
+    n_flaps: usize,
+) -> Result<(Vec<f64>, Vec<f64>)> {
+    blocks.check()?;
+    let m = blocks.n_maneuvers();
+    if folds.len() != m || flap.len() != m {
+        return Err(AeroError::invalid(
+            "folds",
+            format!(
+                "fold and flap per maneuver: {} and {} for {m} maneuvers",
+                folds.len(),
+                flap.len()
+            ),
+        ));
+    }
+    if let Some(&bad) = folds.iter().find(|&&q| q >= n_folds) {
+        return Err(AeroError::invalid(
+            "folds",
+            format!("fold {bad} of {n_folds}"),
+        ));
+    }
+    if let Some(&bad) = flap.iter().find(|&&f| f >= n_flaps) {
+        return Err(AeroError::invalid(
+            "flap",
+            format!("flap {bad} of {n_flaps}"),
+        ));
+    }
+    let group = |i: usize| -> (Vec<f64>, Vec<f64>) {
+        let (q, f) = (i / n_flaps, i % n_flaps);
+        let ms: Vec<usize> = (0..m).filter(|&k| folds[k] == q && flap[k] == f).collect();
+        gram_sum(blocks, &ms)
+    };
+    #[cfg(feature = "parallel")]
+    let parts: Vec<_> = {
+        use rayon::prelude::*;
+        (0..n_folds * n_flaps).into_par_iter().map(group).collect()
+    };
+    #[cfg(not(feature = "parallel"))]
+    let parts: Vec<_> = (0..n_folds * n_flaps).map(group).collect();
+    let mut g = Vec::with_capacity(parts.len() * blocks.layout.n_local().pow(2));
+    let mut x = Vec::with_capacity(parts.len() * blocks.layout.n_local());
+    for (gi, xi) in parts {
+        g.extend(gi);
+        x.extend(xi);
+    }
+    Ok((g, x))
+}
+
 /// Numpy's `lstsq` with its default cutoff: the minimum-norm least-squares solution of
 /// `a x = b` (`n × n`, row-major) over the singular values above `ε·n·σ_max`.
 fn lstsq(a: &[f64], n: usize, b: &[f64], nrhs: usize) -> Vec<f64> {
@@ -873,6 +1001,54 @@ mod tests {
         assert!((plain[0] - v(0).powi(2) - with[0]).abs() < 1e-12);
         assert_eq!(plain[1], with[1]);
         assert!((plain[2] - v(1).powi(2) - v(2).powi(2) - with[2]).abs() < 1e-12);
+    }
+
+    #[test]
+    fn fold_sums_are_the_dense_gram_matrices_of_each_fold_and_flap() {
+        let layout = Layout {
+            knots: 5,
+            aero: 2,
+            global: 2,
+        };
+        let m = 7;
+        let t = toy(m, 30, layout, 17);
+        let p = layout.n_local();
+        let folds: Vec<usize> = (0..m).map(|i| i % 2).collect();
+        let flap: Vec<usize> = (0..m).map(|i| usize::from(i >= 4)).collect();
+        let factors: Vec<f64> = (0..p * 2).map(|i| 0.01 * (i as f64 - 7.0)).collect();
+        let owner = [1usize, 5];
+        let mut b = t.blocks();
+        b.lowrank = Some(LowRank {
+            factors: &factors,
+            owner: &owner,
+        });
+        let (g, x) = fold_sums(&b, &folds, &flap, 2, 2).unwrap();
+        for q in 0..2 {
+            for f in 0..2 {
+                let mut want = DMatrix::<f64>::zeros(p, p);
+                let mut wx = DVector::<f64>::zeros(p);
+                for i in (0..m).filter(|&i| folds[i] == q && flap[i] == f) {
+                    want += t.dense[i].transpose() * &t.dense[i];
+                    wx += t.dense[i].transpose() * &t.y[i];
+                    for (j, &o) in owner.iter().enumerate() {
+                        if o == i {
+                            let fj = DVector::from_fn(p, |a, _| factors[a * 2 + j]);
+                            want -= &fj * fj.transpose();
+                        }
+                    }
+                }
+                let gi = &g[(q * 2 + f) * p * p..][..p * p];
+                for a in 0..p {
+                    assert!((x[(q * 2 + f) * p + a] - wx[a]).abs() < 1e-10);
+                    for c in 0..p {
+                        assert!(
+                            (gi[a * p + c] - want[(a, c)]).abs() < 1e-10,
+                            "{q} {f} {a} {c}"
+                        );
+                    }
+                }
+            }
+        }
     }
 
     #[test]
