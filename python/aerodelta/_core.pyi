@@ -503,6 +503,16 @@ def hat_gram_sum(
     layout: tuple[int, int, int],
     ms: npt.NDArray[np.int64],
 ) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]: ...
+def hat_profile_out(
+    blocks: _Blocks,
+    layout: tuple[int, int, int],
+    n_nuisance: int,
+) -> tuple[
+    npt.NDArray[np.float64],
+    npt.NDArray[np.float64],
+    npt.NDArray[np.float64],
+    npt.NDArray[np.int64],
+]: ...
 def hat_build(
     y: npt.NDArray[np.float64],
     maneuver: npt.NDArray[np.int64],

@@ -309,12 +309,44 @@ fn hat_gram_sum<'py>(
     Ok((g.into_pyarray(py), x.into_pyarray(py)))
 }
 
+/// `(xty, yty, factors, owner)`: the last `n_nuisance` global columns profiled out per
+/// maneuver (`aero_core::hatcv::profile_out`); `xty` flat M × p_keep, `factors` flat
+/// p_keep × L, `owner` the maneuver of each factor column.
+#[pyfunction]
+fn hat_profile_out<'py>(
+    py: Python<'py>,
+    blocks: BlockArgs<'py>,
+    layout: (usize, usize, usize),
+    n_nuisance: usize,
+) -> PyResult<(
+    Bound<'py, PyArray1<f64>>,
+    Bound<'py, PyArray1<f64>>,
+    Bound<'py, PyArray1<f64>>,
+    Bound<'py, PyArray1<i64>>,
+)> {
+    let idx = block_index(&blocks)?;
+    let b = self::blocks(&blocks, &idx, layout)?;
+    let pr = detached(py, || hatcv::profile_out(&b, n_nuisance))?;
+    let owner: Vec<i64> = pr
+        .owner
+        .iter()
+        .map(|&o| i64::try_from(o).unwrap_or(i64::MAX))
+        .collect();
+    Ok((
+        pr.xty.into_pyarray(py),
+        pr.yty.into_pyarray(py),
+        pr.factors.into_pyarray(py),
+        owner.into_pyarray(py),
+    ))
+}
+
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(hat_held_out, m)?)?;
     m.add_function(wrap_pyfunction!(hat_solve, m)?)?;
     m.add_function(wrap_pyfunction!(hat_build, m)?)?;
     m.add_function(wrap_pyfunction!(hat_fold_sums, m)?)?;
     m.add_function(wrap_pyfunction!(hat_gram_sum, m)?)?;
+    m.add_function(wrap_pyfunction!(hat_profile_out, m)?)?;
     m.add_function(wrap_pyfunction!(hat_quadratic_forms, m)?)?;
     Ok(())
 }

@@ -367,7 +367,8 @@ def profile_out(design: Design, n_nuisance: int) -> Design:
 
     ``G_DN G_NN^+ G_ND`` is kept as ``F F'`` with ``F = G_DN V L^{-1/2}`` (``V L V'`` the
     eigendecomposition of ``G_NN`` over the eigenvalues ``G_NN^+`` keeps: those above
-    ``1e-10`` of the largest; a Gram matrix has no negative ones beyond rounding).
+    ``1e-10`` of the largest; a Gram matrix has no negative ones beyond rounding). Computed in
+    the engine (``aero_core::hatcv::profile_out``).
     """
     if n_nuisance <= 0:
         return design
@@ -375,37 +376,14 @@ def profile_out(design: Design, n_nuisance: int) -> Design:
         raise ValueError("profile_out: this design's nuisance columns were profiled out already")
     design = design.owning()
     k_n, r_n = design.grid.n, len(design.aero_names)
-    kr = k_n * r_n
     g_keep = len(design.global_names) - n_nuisance
-    p_keep = kr + g_keep
-    xty = design.xty[:, :p_keep].copy()
-    yty = design.yty.copy()
-    factors: dict[int, FloatArray] = {}
-    for m in np.flatnonzero(np.any(design.glob[:, g_keep:, g_keep:] != 0.0, axis=(1, 2))):
-        g_nn = design.glob[m, g_keep:, g_keep:]
-        live = np.diag(g_nn) > 0.0
-        if not live.any():
-            continue
-        g_dn = np.vstack(
-            [
-                design.cross[m][:, g_keep:, :].transpose(2, 0, 1).reshape(kr, n_nuisance),
-                design.glob[m, :g_keep, g_keep:],
-            ]
-        )[:, live]
-        g_nn_l = g_nn[np.ix_(live, live)]
-        inv = np.linalg.pinv(g_nn_l, rcond=1e-10, hermitian=True)
-        b_n = design.xty[m, p_keep:][live]
-        xty[m] = design.xty[m, :p_keep] - g_dn @ (inv @ b_n)
-        yty[m] = max(float(design.yty[m] - b_n @ inv @ b_n), 0.0)
-        lam, vec = np.linalg.eigh(g_nn_l)
-        keep = lam > 1e-10 * float(np.abs(lam).max())
-        factors[int(m)] = g_dn @ (vec[:, keep] / np.sqrt(lam[keep]))
+    p_keep = k_n * r_n + g_keep
+    xty_f, yty, fac, owner = _core.hat_profile_out(_block_args(design), _layout(design), n_nuisance)
+    xty = xty_f.reshape(design.n_maneuvers, p_keep)
     lowrank, lowrank_of = None, None
-    if factors:
-        lowrank = np.hstack([factors[m] for m in sorted(factors)])
-        lowrank_of = np.concatenate(
-            [np.full(factors[m].shape[1], m, dtype=np.int64) for m in sorted(factors)]
-        )
+    if owner.size:
+        lowrank = fac.reshape(p_keep, owner.size)
+        lowrank_of = owner
     return Design(
         design.grid,
         design.n_flaps,

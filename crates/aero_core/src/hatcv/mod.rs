@@ -20,8 +20,10 @@
 //! `G_m = blocks_m − F_m F_m'` ([`LowRank`]).
 
 mod build;
+mod profile;
 
 pub use build::{build_blocks, BlockStats, GlobalBlock, HatGrid, Rows};
+pub use profile::{profile_out, Profiled};
 
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::{Mat, Par};
