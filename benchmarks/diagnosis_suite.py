@@ -110,7 +110,10 @@ def main() -> int:
     kinds = {e["name"]: e["kind"] for e in effect_library()}
 
     def part(effects: dict[str, float], seed: int) -> str:
-        if not effects or seed >= 9000:
+        # the nulls: nothing withheld, or the 4 ms skew (0.1 of its design size; the singles
+        # take 1, 0.5 and 0.25). Until session 16 this read "seed >= 9000", which put every
+        # case of seed sets 9 and up among the nulls for --only
+        if not effects or effects == {"time_skew": 0.1}:
             return "nulls"
         if len(effects) > 1:
             return "multi"
