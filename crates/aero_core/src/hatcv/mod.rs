@@ -21,12 +21,13 @@
 
 mod build;
 mod profile;
+mod solve;
+mod sums;
 
 pub use build::{build_blocks, BlockStats, GlobalBlock, HatGrid, Rows};
 pub use profile::{profile_out, Profiled};
-
-use faer::dyn_stack::{MemBuffer, MemStack};
-use faer::{Mat, Par};
+pub use solve::{penalised_solve, solve_flaps};
+pub use sums::{fold_sums, gram_sum, gram_sum_checked};
 
 use crate::error::{AeroError, Result};
 
@@ -203,6 +204,39 @@ impl Columns {
     }
 }
 
+/// Each of `m` maneuvers has a fold below `n_folds` and a flap below `n_flaps`.
+pub(crate) fn check_folds(
+    m: usize,
+    folds: &[usize],
+    flap: &[usize],
+    n_folds: usize,
+    n_flaps: usize,
+) -> Result<()> {
+    if folds.len() != m || flap.len() != m {
+        return Err(AeroError::invalid(
+            "folds",
+            format!(
+                "fold and flap per maneuver: {} and {} for {m} maneuvers",
+                folds.len(),
+                flap.len()
+            ),
+        ));
+    }
+    if let Some(&bad) = folds.iter().find(|&&q| q >= n_folds) {
+        return Err(AeroError::invalid(
+            "folds",
+            format!("fold {bad} of {n_folds}"),
+        ));
+    }
+    if let Some(&bad) = flap.iter().find(|&&f| f >= n_flaps) {
+        return Err(AeroError::invalid(
+            "flap",
+            format!("flap {bad} of {n_flaps}"),
+        ));
+    }
+    Ok(())
+}
+
 /// `θ'G_mθ − 2θ'b_m` for each maneuver of `ms` (its flap's local `θ`, zero off `cols`), from
 /// the blocks; into `out` (one per maneuver of `ms`). Per-maneuver nuisance profiled out
 /// subtracts `(θ'F_m)²` per column of `F_m`.
@@ -279,337 +313,6 @@ pub fn quadratic_forms(
     }
 }
 
-/// `Σ_m G_m` and `Σ_m b_m` over the maneuvers `ms`, dense on the local layout (`p × p`
-/// row-major, `p`), the profiled-out `F_m F_m'` subtracted.
-pub fn gram_sum(blocks: &Blocks<'_>, ms: &[usize]) -> (Vec<f64>, Vec<f64>) {
-    let Layout {
-        knots: kn,
-        aero: rn,
-        global: gn,
-    } = blocks.layout;
-    let p = blocks.layout.n_local();
-    let kr = kn * rn;
-    let mut g = vec![0.0; p * p];
-    let mut x = vec![0.0; p];
-    for &m in ms {
-        let b = blocks.block_row.map_or(m, |rows| rows[m]);
-        for r in 0..rn {
-            for q in 0..rn {
-                let d = &blocks.diag[((b * rn + r) * rn + q) * kn..][..kn];
-                for (k, v) in d.iter().enumerate() {
-                    g[(k * rn + r) * p + k * rn + q] += v;
-                }
-                let o = &blocks.off[((b * rn + r) * rn + q) * (kn - 1)..][..kn - 1];
-                for (k, v) in o.iter().enumerate() {
-                    g[(k * rn + r) * p + (k + 1) * rn + q] += v;
-                    g[((k + 1) * rn + q) * p + k * rn + r] += v;
-                }
-            }
-            for h in 0..gn {
-                let c = &blocks.cross[((b * rn + r) * gn + h) * kn..][..kn];
-                for (k, v) in c.iter().enumerate() {
-                    g[(k * rn + r) * p + kr + h] += v;
-                    g[(kr + h) * p + k * rn + r] += v;
-                }
-            }
-        }
-        for a in 0..gn {
-            for h in 0..gn {
-                g[(kr + a) * p + kr + h] += blocks.glob[(b * gn + a) * gn + h];
-            }
-        }
-        for (xv, bv) in x.iter_mut().zip(&blocks.xty[m * p..(m + 1) * p]) {
-            *xv += bv;
-        }
-        if let Some(lr) = blocks.lowrank {
-            let l = lr.owner.len();
-            let lo = lr.owner.partition_point(|&o| o < m);
-            let hi = lr.owner.partition_point(|&o| o <= m);
-            for j in lo..hi {
-                for a in 0..p {
-                    let fa = lr.factors[a * l + j];
-                    if fa == 0.0 {
-                        continue;
-                    }
-                    for c in 0..p {
-                        g[a * p + c] -= fa * lr.factors[c * l + j];
-                    }
-                }
-            }
-        }
-    }
-    (g, x)
-}
-
-/// [`gram_sum`] checked against the blocks (maneuver indices in range).
-pub fn gram_sum_checked(blocks: &Blocks<'_>, ms: &[usize]) -> Result<(Vec<f64>, Vec<f64>)> {
-    blocks.check()?;
-    if let Some(&bad) = ms.iter().find(|&&m| m >= blocks.n_maneuvers()) {
-        return Err(AeroError::invalid(
-            "maneuvers",
-            format!("index {bad} is past the design"),
-        ));
-    }
-    Ok(gram_sum(blocks, ms))
-}
-
-/// Per fold and flap, [`gram_sum`] of its maneuvers (`folds[m]`, `flap[m]`): `Q × F × p × p`
-/// and `Q × F × p`, the groups summed in parallel (each in maneuver order).
-pub fn fold_sums(
-    blocks: &Blocks<'_>,
-    folds: &[usize],
-    flap: &[usize],
-    n_folds: usize,
-    n_flaps: usize,
-) -> Result<(Vec<f64>, Vec<f64>)> {
-    blocks.check()?;
-    let m = blocks.n_maneuvers();
-    if folds.len() != m || flap.len() != m {
-        return Err(AeroError::invalid(
-            "folds",
-            format!(
-                "fold and flap per maneuver: {} and {} for {m} maneuvers",
-                folds.len(),
-                flap.len()
-            ),
-        ));
-    }
-    if let Some(&bad) = folds.iter().find(|&&q| q >= n_folds) {
-        return Err(AeroError::invalid(
-            "folds",
-            format!("fold {bad} of {n_folds}"),
-        ));
-    }
-    if let Some(&bad) = flap.iter().find(|&&f| f >= n_flaps) {
-        return Err(AeroError::invalid(
-            "flap",
-            format!("flap {bad} of {n_flaps}"),
-        ));
-    }
-    let group = |i: usize| -> (Vec<f64>, Vec<f64>) {
-        let (q, f) = (i / n_flaps, i % n_flaps);
-        let ms: Vec<usize> = (0..m).filter(|&k| folds[k] == q && flap[k] == f).collect();
-        gram_sum(blocks, &ms)
-    };
-    #[cfg(feature = "parallel")]
-    let parts: Vec<_> = {
-        use rayon::prelude::*;
-        (0..n_folds * n_flaps).into_par_iter().map(group).collect()
-    };
-    #[cfg(not(feature = "parallel"))]
-    let parts: Vec<_> = (0..n_folds * n_flaps).map(group).collect();
-    let mut g = Vec::with_capacity(parts.len() * blocks.layout.n_local().pow(2));
-    let mut x = Vec::with_capacity(parts.len() * blocks.layout.n_local());
-    for (gi, xi) in parts {
-        g.extend(gi);
-        x.extend(xi);
-    }
-    Ok((g, x))
-}
-
-/// Numpy's `lstsq` with its default cutoff: the minimum-norm least-squares solution of
-/// `a x = b` (`n × n`, row-major) over the singular values above `ε·n·σ_max`.
-fn lstsq(a: &[f64], n: usize, b: &[f64], nrhs: usize) -> Vec<f64> {
-    let am = Mat::from_fn(n, n, |i, j| a[i * n + j]);
-    let mut x = vec![0.0; n * nrhs];
-    let Ok(svd) = am.thin_svd() else {
-        return x;
-    };
-    let (u, s, v) = (svd.U(), svd.S(), svd.V());
-    let smax = (0..n).map(|i| s[i]).fold(0.0_f64, f64::max);
-    let cut = f64::EPSILON * n as f64 * smax;
-    for i in 0..n {
-        let si = s[i];
-        if si <= cut || si == 0.0 {
-            continue;
-        }
-        for c in 0..nrhs {
-            let ub: f64 = (0..n).map(|r| u[(r, i)] * b[r * nrhs + c]).sum::<f64>() / si;
-            for r in 0..n {
-                x[r * nrhs + c] += v[(r, i)] * ub;
-            }
-        }
-    }
-    x
-}
-
-/// Solve `a x = b` (`a` symmetric positive definite, `n × n` row-major; `b` `n × nrhs`
-/// row-major) by Cholesky; the minimum-norm least-squares solution ([`lstsq`]) when the
-/// factorisation meets a non-positive pivot.
-fn spd_solve(a: &[f64], n: usize, b: &[f64], nrhs: usize) -> Vec<f64> {
-    let mut l = Mat::from_fn(n, n, |i, j| a[i * n + j]);
-    let mut mem = MemBuffer::new(
-        faer::linalg::cholesky::llt::factor::cholesky_in_place_scratch::<f64>(
-            n,
-            Par::Seq,
-            Default::default(),
-        ),
-    );
-    let factored = faer::linalg::cholesky::llt::factor::cholesky_in_place(
-        l.as_mut(),
-        Default::default(),
-        Par::Seq,
-        MemStack::new(&mut mem),
-        Default::default(),
-    );
-    if factored.is_err() {
-        return lstsq(a, n, b, nrhs);
-    }
-    let mut rhs = Mat::from_fn(n, nrhs, |i, c| b[i * nrhs + c]);
-    faer::linalg::cholesky::llt::solve::solve_in_place(
-        l.as_ref(),
-        rhs.as_mut(),
-        Par::Seq,
-        MemStack::new(&mut MemBuffer::new(faer::dyn_stack::StackReq::EMPTY)),
-    );
-    let x: Vec<f64> = (0..n * nrhs).map(|i| rhs[(i / nrhs, i % nrhs)]).collect();
-    if x.iter().all(|v| v.is_finite()) {
-        x
-    } else {
-        lstsq(a, n, b, nrhs)
-    }
-}
-
-/// Penalised least squares on the columns `cols`, per flap the local parameter vector
-/// (zero off `cols`). `grams[f]` (`n_local × n_local`, row-major, the penalty included) and
-/// `xtys[f]` are flap `f`'s normal equations.
-///
-/// The flaps' alpha-dependent blocks are independent given the global parameters, so the
-/// system is solved by the Schur complement of the global block: per flap
-/// `A_f⁻¹ [b_f, C_f]` (Cholesky), then `S = Σ_f (G_gg,f − C_f'A_f⁻¹C_f)` solved in least
-/// squares for the shared global parameters. An alpha-dependent column whose diagonal is
-/// under `1e-12` of the block's largest (a knot no data reach) stays at zero, and so does a
-/// global one whose Schur diagonal is.
-pub fn penalised_solve(
-    grams: &[&[f64]],
-    xtys: &[&[f64]],
-    p: usize,
-    cols: &Columns,
-) -> Vec<Vec<f64>> {
-    let ng = cols.global.len();
-    let mut s_mat = vec![0.0; ng * ng];
-    let mut s_rhs = vec![0.0; ng];
-    let mut parts: Vec<(Vec<usize>, Vec<f64>)> = Vec::with_capacity(grams.len());
-    for (gm, xv) in grams.iter().zip(xtys) {
-        let dmax = cols
-            .aero
-            .iter()
-            .map(|&c| gm[c * p + c])
-            .fold(0.0_f64, f64::max);
-        let tol = 1e-12 * dmax.max(1e-300);
-        let ac: Vec<usize> = cols
-            .aero
-            .iter()
-            .copied()
-            .filter(|&c| gm[c * p + c] > tol)
-            .collect();
-        for (i, &gi) in cols.global.iter().enumerate() {
-            for (j, &gj) in cols.global.iter().enumerate() {
-                s_mat[i * ng + j] += gm[gi * p + gj];
-            }
-            s_rhs[i] += xv[gi];
-        }
-        let na = ac.len();
-        let sol = if na > 0 {
-            let a: Vec<f64> = ac
-                .iter()
-                .flat_map(|&i| ac.iter().map(move |&j| gm[i * p + j]))
-                .collect();
-            let w = ng + 1;
-            let mut rhs = vec![0.0; na * w];
-            for (i, &ci) in ac.iter().enumerate() {
-                rhs[i * w] = xv[ci];
-                for (j, &gj) in cols.global.iter().enumerate() {
-                    rhs[i * w + 1 + j] = gm[ci * p + gj];
-                }
-            }
-            let sol = spd_solve(&a, na, &rhs, w);
-            // S -= C' A⁻¹ C, s -= C' A⁻¹ b
-            for (i, &gi) in cols.global.iter().enumerate() {
-                let mut sr = 0.0;
-                for (r, &cr) in ac.iter().enumerate() {
-                    sr += gm[cr * p + gi] * sol[r * w];
-                }
-                s_rhs[i] -= sr;
-                for j in 0..ng {
-                    let mut sm = 0.0;
-                    for (r, &cr) in ac.iter().enumerate() {
-                        sm += gm[cr * p + gi] * sol[r * w + 1 + j];
-                    }
-                    s_mat[i * ng + j] -= sm;
-                }
-            }
-            sol
-        } else {
-            Vec::new()
-        };
-        parts.push((ac, sol));
-    }
-    let mut th_g = vec![0.0; ng];
-    if ng > 0 {
-        let dmax = (0..ng)
-            .map(|i| s_mat[i * ng + i].abs())
-            .fold(0.0_f64, f64::max);
-        let live: Vec<usize> = (0..ng)
-            .filter(|&i| s_mat[i * ng + i] > 1e-12 * dmax.max(1e-300))
-            .collect();
-        if !live.is_empty() {
-            let nl = live.len();
-            let sm: Vec<f64> = live
-                .iter()
-                .flat_map(|&i| live.iter().map(move |&j| (i, j)))
-                .map(|(i, j)| s_mat[i * ng + j])
-                .collect();
-            let sr: Vec<f64> = live.iter().map(|&i| s_rhs[i]).collect();
-            let x = lstsq(&sm, nl, &sr, 1);
-            for (k, &i) in live.iter().enumerate() {
-                th_g[i] = x[k];
-            }
-        }
-    }
-    parts
-        .into_iter()
-        .map(|(ac, sol)| {
-            let mut th = vec![0.0; p];
-            let w = ng + 1;
-            for (i, &c) in ac.iter().enumerate() {
-                let corr: f64 = (0..ng).map(|j| sol[i * w + 1 + j] * th_g[j]).sum();
-                th[c] = sol[i * w] - corr;
-            }
-            for (j, &c) in cols.global.iter().enumerate() {
-                th[c] = th_g[j];
-            }
-            th
-        })
-        .collect()
-}
-
-/// [`penalised_solve`] on flat arrays, checked: `grams` (`F × p × p`) and `xtys` (`F × p`)
-/// row-major with `p` the layout's `n_local`; the parameters flat, `F × p`.
-pub fn solve_flaps(
-    grams: &[f64],
-    xtys: &[f64],
-    layout: &Layout,
-    cols: &Columns,
-) -> Result<Vec<f64>> {
-    let p = layout.n_local();
-    cols.check(layout)?;
-    if p == 0 || xtys.len() % p != 0 || grams.len() != xtys.len() * p {
-        return Err(AeroError::invalid(
-            "grams",
-            format!(
-                "{} and {} numbers are not flaps x {p} x {p} and flaps x {p}",
-                grams.len(),
-                xtys.len()
-            ),
-        ));
-    }
-    let nf = xtys.len() / p;
-    let gs: Vec<&[f64]> = (0..nf).map(|f| &grams[f * p * p..][..p * p]).collect();
-    let xs: Vec<&[f64]> = (0..nf).map(|f| &xtys[f * p..][..p]).collect();
-    Ok(penalised_solve(&gs, &xs, p, cols).concat())
-}
-
 /// [`quadratic_forms`] checked against the blocks' layout: one value per maneuver of `ms`.
 pub fn quadratic_forms_checked(
     blocks: &Blocks<'_>,
@@ -661,16 +364,6 @@ pub fn held_out(
     cols.check(&blocks.layout)?;
     let m = blocks.n_maneuvers();
     let p = blocks.layout.n_local();
-    if folds.len() != m || flap.len() != m {
-        return Err(AeroError::invalid(
-            "folds",
-            format!(
-                "fold and flap per maneuver: {} and {} for {m} maneuvers",
-                folds.len(),
-                flap.len()
-            ),
-        ));
-    }
     if n_flaps == 0 || train_xty.len() % (n_flaps * p) != 0 {
         return Err(AeroError::invalid(
             "train_xty",
@@ -687,18 +380,7 @@ pub fn held_out(
             ),
         ));
     }
-    if let Some(&bad) = folds.iter().find(|&&q| q >= nq) {
-        return Err(AeroError::invalid(
-            "folds",
-            format!("fold {bad} has no training statistics"),
-        ));
-    }
-    if let Some(&bad) = flap.iter().find(|&&f| f >= n_flaps) {
-        return Err(AeroError::invalid(
-            "flap",
-            format!("flap {bad} of {n_flaps}"),
-        ));
-    }
+    check_folds(m, folds, flap, nq, n_flaps)?;
     let fold_fit = |q: usize| -> (Vec<(usize, f64)>, Vec<Vec<f64>>) {
         let grams: Vec<&[f64]> = (0..n_flaps)
             .map(|f| &train_grams[(q * n_flaps + f) * p * p..][..p * p])
@@ -1057,7 +739,7 @@ mod tests {
     fn singular_block_falls_back_to_the_minimum_norm_solution() {
         // two identical columns: Cholesky fails, the minimum-norm solution splits evenly
         let a = [1.0, 1.0, 1.0, 1.0];
-        let x = spd_solve(&a, 2, &[2.0, 2.0], 1);
+        let x = solve::spd_solve(&a, 2, &[2.0, 2.0], 1);
         assert!(
             (x[0] - 1.0).abs() < 1e-12 && (x[1] - 1.0).abs() < 1e-12,
             "{x:?}"
