@@ -24,6 +24,17 @@ type BlockArgs<'py> = (
     Option<PyReadonlyArray1<'py, i64>>,
 );
 
+/// Two float arrays returned together.
+type Pair<'py> = (Bound<'py, PyArray1<f64>>, Bound<'py, PyArray1<f64>>);
+
+/// `hat_profile_out`'s `(xty, yty, factors, owner)`.
+type ProfiledArrays<'py> = (
+    Bound<'py, PyArray1<f64>>,
+    Bound<'py, PyArray1<f64>>,
+    Bound<'py, PyArray1<f64>>,
+    Bound<'py, PyArray1<i64>>,
+);
+
 /// Indices from int64, refusing negative ones by name.
 fn indices(name: &str, v: &[i64]) -> Result<Vec<usize>, AeroError> {
     v.iter()
@@ -131,7 +142,7 @@ fn hat_held_out<'py>(
     n_flaps: usize,
     a_cols: PyReadonlyArray1<'py, i64>,
     g_cols: PyReadonlyArray1<'py, i64>,
-) -> PyResult<(Bound<'py, PyArray1<f64>>, Bound<'py, PyArray1<f64>>)> {
+) -> PyResult<Pair<'py>> {
     let idx = block_index(&blocks)?;
     let b = self::blocks(&blocks, &idx, layout)?;
     let cols = columns(&a_cols, &g_cols)?;
@@ -284,7 +295,7 @@ fn hat_fold_sums<'py>(
     flap: PyReadonlyArray1<'py, i64>,
     n_folds: usize,
     n_flaps: usize,
-) -> PyResult<(Bound<'py, PyArray1<f64>>, Bound<'py, PyArray1<f64>>)> {
+) -> PyResult<Pair<'py>> {
     let idx = block_index(&blocks)?;
     let b = self::blocks(&blocks, &idx, layout)?;
     let folds = indices("folds", slice("folds", &folds)?).map_err(crate::error::to_py)?;
@@ -301,7 +312,7 @@ fn hat_gram_sum<'py>(
     blocks: BlockArgs<'py>,
     layout: (usize, usize, usize),
     ms: PyReadonlyArray1<'py, i64>,
-) -> PyResult<(Bound<'py, PyArray1<f64>>, Bound<'py, PyArray1<f64>>)> {
+) -> PyResult<Pair<'py>> {
     let idx = block_index(&blocks)?;
     let b = self::blocks(&blocks, &idx, layout)?;
     let ms = indices("maneuvers", slice("maneuvers", &ms)?).map_err(crate::error::to_py)?;
@@ -318,12 +329,7 @@ fn hat_profile_out<'py>(
     blocks: BlockArgs<'py>,
     layout: (usize, usize, usize),
     n_nuisance: usize,
-) -> PyResult<(
-    Bound<'py, PyArray1<f64>>,
-    Bound<'py, PyArray1<f64>>,
-    Bound<'py, PyArray1<f64>>,
-    Bound<'py, PyArray1<i64>>,
-)> {
+) -> PyResult<ProfiledArrays<'py>> {
     let idx = block_index(&blocks)?;
     let b = self::blocks(&blocks, &idx, layout)?;
     let pr = detached(py, || hatcv::profile_out(&b, n_nuisance))?;
