@@ -575,13 +575,6 @@ def solve(
     return _solve_stacked(design, np.stack(list(grams)), np.stack(list(xtys)), cols)
 
 
-def _ix(*index: IntArray) -> tuple[IntArray, ...]:
-    """``np.ix_`` of integer index arrays without its argument checks (called thousands of
-    times on small blocks): each array shaped to broadcast along its own axis."""
-    k = len(index)
-    return tuple(a.reshape((1,) * i + (-1,) + (1,) * (k - 1 - i)) for i, a in enumerate(index))
-
-
 def _quadratic_forms(
     design: Design, ms: IntArray, theta: FloatArray, cols: tuple[IntArray, IntArray]
 ) -> FloatArray:
