@@ -448,7 +448,6 @@ class FoldStats:
     train_xty: FloatArray  # (Q, F, p)
     total_gram: FloatArray  # (F, p, p), penalised
     total_xty: FloatArray  # (F, p)
-    members: list[list[IntArray]] = field(default_factory=list)  # [fold][flap]: maneuvers
     memo: dict[tuple[str, bytes, bytes], tuple[Design, object]] = field(
         default_factory=dict, repr=False, compare=False
     )
@@ -495,10 +494,6 @@ def fold_stats(design: Design, folds: IntArray) -> FoldStats:
     """Sum the maneuvers' statistics per fold and flap."""
     n_q = int(folds.max()) + 1 if folds.size else 1
     n_f, p = design.n_flaps, design.n_local
-    members = [
-        [np.flatnonzero((folds == q) & (design.man_flap == f)) for f in range(n_f)]
-        for q in range(n_q)
-    ]
     g_flat, x_flat = _core.hat_fold_sums(
         _block_args(design), _layout(design), np.asarray(folds, dtype=np.int64),
         np.asarray(design.man_flap, dtype=np.int64), n_q, n_f,
@@ -512,7 +507,7 @@ def fold_stats(design: Design, folds: IntArray) -> FoldStats:
     np.subtract(tg[None], g, out=g)
     g += pen[None]
     np.subtract(tx[None], x, out=x)
-    return FoldStats(folds, g, x, tg + pen, tx, members)
+    return FoldStats(folds, g, x, tg + pen, tx)
 
 
 def local_columns(
@@ -724,16 +719,33 @@ def sign_flip_pvalue(d: FloatArray, n_perm: int, seed: int) -> tuple[float, floa
     zero (or below it: a useless regressor adds variance); ranks keep a few long or noisy
     maneuvers from dominating. Returns ``(z, p)``, ``z`` the statistic's normal score.
     """
-    d = np.asarray(d, dtype=np.float64)
-    d = d[d != 0.0]
-    n = d.size
-    if n < 2:
+    d = _nonzero(d)
+    if d.size < 2:
         return 0.0, 1.0
+    weights, w, z = _rank_statistic(d)
+    return z, _flip_p(weights, w, n_perm, seed)
+
+
+def _nonzero(d: FloatArray) -> FloatArray:
+    """The non-zero improvements (ties with zero carry no sign)."""
+    d = np.asarray(d, dtype=np.float64)
+    return d[d != 0.0]
+
+
+def _rank_statistic(d: FloatArray) -> tuple[FloatArray, float, float]:
+    """``(weights, w, z)`` of the signed-rank test of non-zero ``d``: the ranks of ``|d|``,
+    the signed rank sum and its normal score."""
     ranks = _abs_ranks(d)
     w = float(np.sum(ranks[d > 0]) - np.sum(ranks[d < 0]))
-    sd = float(np.sqrt(np.sum(ranks**2)))
-    p = _flip_p(ranks, w, n_perm, seed)
-    return w / sd, p
+    return ranks, w, w / float(np.sqrt(np.sum(ranks**2)))
+
+
+def _sum_statistic(d: FloatArray) -> tuple[FloatArray, float, float]:
+    """``(weights, w, z)`` of the sum test of non-zero ``d``: ``d`` itself, its sum and the sum
+    over its sign-flip standard deviation ``sqrt(sum d^2)``."""
+    w = float(d.sum())
+    sd = float(np.sqrt(np.sum(d * d)))
+    return d, w, (w / sd if sd > 0 else 0.0)
 
 
 #: Most maneuvers for which :func:`signed_rank_p` computes the exact null distribution (its
@@ -780,15 +792,11 @@ def sign_flip_sum_pvalue(d: FloatArray, n_perm: int, seed: int) -> tuple[float, 
     a gain carried by one or two maneuvers cannot reach a small p. Returns ``(z, p)``, ``z``
     the sum over its sign-flip standard deviation ``sqrt(sum d^2)``.
     """
-    d = np.asarray(d, dtype=np.float64)
-    d = d[d != 0.0]
-    n = d.size
-    if n < 2:
+    d = _nonzero(d)
+    if d.size < 2:
         return 0.0, 1.0
-    w = float(d.sum())
-    sd = float(np.sqrt(np.sum(d * d)))
-    p = _flip_p(d, w, n_perm, seed)
-    return (w / sd if sd > 0 else 0.0), p
+    weights, w, z = _sum_statistic(d)
+    return z, _flip_p(weights, w, n_perm, seed)
 
 
 def improvement_test(d: FloatArray, n_perm: int, seed: int) -> tuple[float, float]:
@@ -808,18 +816,15 @@ def improvement_tests(
     jobs: list[tuple[FloatArray, float, int]] = []
     zs: list[tuple[float, float]] = []
     for d_all, seed in zip(ds, seeds, strict=True):
-        d = np.asarray(d_all, dtype=np.float64)
-        d = d[d != 0.0]
+        d = _nonzero(d_all)
         if d.size < 2:
             zs.append((0.0, 0.0))
             jobs += [(np.zeros(0), 1.0, seed), (np.zeros(0), 1.0, seed + 1)]
             continue
-        ranks = _abs_ranks(d)
-        w_r = float(np.sum(ranks[d > 0]) - np.sum(ranks[d < 0]))
-        w_s = float(d.sum())
-        sd_s = float(np.sqrt(np.sum(d * d)))
-        zs.append((w_r / float(np.sqrt(np.sum(ranks**2))), w_s / sd_s if sd_s > 0 else 0.0))
-        jobs += [(ranks, w_r, seed), (d, w_s, seed + 1)]
+        wt_r, w_r, z_r = _rank_statistic(d)
+        wt_s, w_s, z_s = _sum_statistic(d)
+        zs.append((z_r, z_s))
+        jobs += [(wt_r, w_r, seed), (wt_s, w_s, seed + 1)]
     ps = _flip_ps(jobs, n_perm)
     out = []
     for i, (z_r, z_s) in enumerate(zs):

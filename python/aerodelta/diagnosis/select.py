@@ -34,7 +34,6 @@ from aerodelta.diagnosis.cv import (
     FoldStats,
     IntArray,
     heldout_sse,
-    improvement_test,
     improvement_tests,
     local_columns,
     sign_flip_pvalue,
@@ -226,12 +225,7 @@ def with_tests(
     """``st`` (scored against ``sse_before``) with its randomization tests, Bonferroni-corrected
     over ``n_tests`` candidates: the combined test, and the signed-rank test alone (the
     broad-effect evidence) when the combined one passes."""
-    d = material_change(sse_before, st.sse)
-    st.statistic, p = improvement_test(d, cfg.n_perm, seed)
-    st.p_value = min(1.0, p * n_tests)
-    # the broad-effect test matters only for an effect that passes the main test (_passes)
-    if st.p_value < cfg.alpha:
-        st.rank_p = min(1.0, signed_rank_p(d, cfg.n_perm, seed + 2) * n_tests)
+    with_tests_many([st], sse_before, cfg, n_tests, [seed])
     return st
 
 
@@ -242,9 +236,11 @@ def with_tests_many(
     n_tests: int,
     seeds: Sequence[int],
 ) -> None:
-    """:func:`with_tests` of each of ``steps`` (its seed in ``seeds``), the randomization
-    draws of all of them counted at once (:func:`~aerodelta.diagnosis.cv.improvement_tests`):
-    the same numbers as one call each."""
+    """The randomization tests of each of ``steps`` (its seed in ``seeds``; see
+    :func:`with_tests`), the draws of all of them counted at once
+    (:func:`~aerodelta.diagnosis.cv.improvement_tests`): the same numbers as one call each.
+    The broad-effect test is run only for an effect that passes the main test (:func:`_passes`
+    needs it only then)."""
     ds = [material_change(sse_before, st.sse) for st in steps]
     for st, d, seed, (z, p) in zip(
         steps, ds, seeds, improvement_tests(ds, cfg.n_perm, seeds), strict=True
