@@ -565,20 +565,24 @@ mod tests {
     #[test]
     fn a_step_input_during_the_spike_is_commanded_and_a_rate_limited_reaction_is_not() {
         // the spike at 17 deg: alpha 17 at t = 24 s, sample 1200
-        let (t, alpha, cl, mut da) = record(17.0, 0.015, 0.0005, 4);
-        let peak = 1200;
+        let (t, alpha, cl, da0) = record(17.0, 0.015, 0.0005, 4);
+        let events = |da: &[f64]| {
+            let sig = RecordSignals {
+                t: &t,
+                alpha_deg: &alpha,
+                cl_residual: &cl,
+                da_deg: da,
+            };
+            detect(&sig, &[], &DetectConfig::default()).expect("runs")
+        };
+        let stepped_at = |k: usize| {
+            let mut da = da0.clone();
+            da[k..].iter_mut().for_each(|v| *v += 10.0);
+            da
+        };
         // (a) a 10-deg aileron step between the samples just before the peak (the DHC-6's
         // doublets in JSBSim: a surface jump within one 20-ms frame)
-        for v in &mut da[peak..] {
-            *v += 10.0;
-        }
-        let sig = RecordSignals {
-            t: &t,
-            alpha_deg: &alpha,
-            cl_residual: &cl,
-            da_deg: &da,
-        };
-        let ev = detect(&sig, &[], &DetectConfig::default()).expect("runs");
+        let ev = events(&stepped_at(1200));
         assert!(ev.iter().all(|e| !e.rejected.is_empty()), "{ev:?}");
         assert!(
             ev.iter().any(|e| e.rejected.contains("stepped 10.00 deg")),
@@ -587,32 +591,16 @@ mod tests {
         // (a') the same step 0.2 s after the spike's end (20 % of the peak, 0.9 deg past it
         // at 0.5 deg/s: sample 1290): the zero-phase smoothing of the rates spreads a
         // step's moment spike to both sides, so it is still commanded
-        let (_, _, _, mut da) = record(17.0, 0.015, 0.0005, 4);
-        for v in &mut da[1300..] {
-            *v += 10.0;
-        }
-        let sig = RecordSignals {
-            t: &t,
-            alpha_deg: &alpha,
-            cl_residual: &cl,
-            da_deg: &da,
-        };
-        let ev = detect(&sig, &[], &DetectConfig::default()).expect("runs");
+        let ev = events(&stepped_at(1300));
         assert!(ev.iter().all(|e| !e.rejected.is_empty()), "{ev:?}");
         // (b) the pilot's reaction between the onset (20 % of the peak, 0.9 deg before it at
         // 0.5 deg/s: sample 1110-1115) and the peak, at the actuator's 60 deg/s (1.2 deg per
         // sample, 12 deg in all): still an uncommanded roll-off
-        let (_, _, _, mut da) = record(17.0, 0.015, 0.0005, 4);
+        let mut da = da0.clone();
         for (k, v) in da[1130..].iter_mut().enumerate() {
             *v += (1.2 * k as f64).min(12.0);
         }
-        let sig = RecordSignals {
-            t: &t,
-            alpha_deg: &alpha,
-            cl_residual: &cl,
-            da_deg: &da,
-        };
-        let ev = detect(&sig, &[], &DetectConfig::default()).expect("runs");
+        let ev = events(&da);
         assert_eq!(
             ev.iter().filter(|e| e.rejected.is_empty()).count(),
             1,

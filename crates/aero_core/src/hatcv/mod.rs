@@ -88,7 +88,26 @@ pub struct Columns {
     pub global: Vec<usize>,
 }
 
+impl LowRank<'_> {
+    /// The factor columns of maneuver `m` (the owners are ascending).
+    pub fn columns_of(&self, m: usize) -> std::ops::Range<usize> {
+        self.owner.partition_point(|&o| o < m)..self.owner.partition_point(|&o| o <= m)
+    }
+}
+
+/// The maneuvers of fold `q` at flap `f`, ascending.
+pub(crate) fn members(folds: &[usize], flap: &[usize], q: usize, f: usize) -> Vec<usize> {
+    (0..folds.len())
+        .filter(|&i| folds[i] == q && flap[i] == f)
+        .collect()
+}
+
 impl Blocks<'_> {
+    /// The block row of maneuver `m`.
+    pub fn block_of(&self, m: usize) -> usize {
+        self.block_row.map_or(m, |rows| rows[m])
+    }
+
     /// Maneuvers `M`.
     pub fn n_maneuvers(&self) -> usize {
         self.yty.len()
@@ -266,7 +285,7 @@ pub fn quadratic_forms(
     let gv: Vec<f64> = cols.global.iter().map(|&c| theta[c]).collect();
     let idx: Vec<usize> = cols.aero.iter().chain(&cols.global).copied().collect();
     for (o, &m) in out.iter_mut().zip(ms) {
-        let b = blocks.block_row.map_or(m, |rows| rows[m]);
+        let b = blocks.block_of(m);
         let xrow = &blocks.xty[m * p..(m + 1) * p];
         let lin: f64 = idx.iter().map(|&c| xrow[c] * theta[c]).sum();
         let mut q = -2.0 * lin;
@@ -302,9 +321,7 @@ pub fn quadratic_forms(
         }
         if let Some(lr) = blocks.lowrank {
             let l = lr.owner.len();
-            let lo = lr.owner.partition_point(|&o| o < m);
-            let hi = lr.owner.partition_point(|&o| o <= m);
-            for j in lo..hi {
+            for j in lr.columns_of(m) {
                 let v: f64 = idx.iter().map(|&c| theta[c] * lr.factors[c * l + j]).sum();
                 q -= v * v;
             }
@@ -391,7 +408,7 @@ pub fn held_out(
         let thetas = penalised_solve(&grams, &xtys, p, cols);
         let mut sse = Vec::new();
         for (f, th) in thetas.iter().enumerate() {
-            let ms: Vec<usize> = (0..m).filter(|&i| folds[i] == q && flap[i] == f).collect();
+            let ms = members(folds, flap, q, f);
             if ms.is_empty() {
                 continue;
             }

@@ -1,7 +1,7 @@
 //! Sums of the per-maneuver block Gram matrices, written out dense on the local layout: a
 //! group's `Σ G_m` and `Σ b_m` (the profiled-out `F_m F_m'` subtracted), per fold and flap.
 
-use super::{check_folds, Blocks, Layout};
+use super::{check_folds, members, Blocks, Layout};
 use crate::error::{AeroError, Result};
 
 /// `Σ_m G_m` and `Σ_m b_m` over the maneuvers `ms`, dense on the local layout (`p × p`
@@ -17,7 +17,7 @@ pub fn gram_sum(blocks: &Blocks<'_>, ms: &[usize]) -> (Vec<f64>, Vec<f64>) {
     let mut g = vec![0.0; p * p];
     let mut x = vec![0.0; p];
     for &m in ms {
-        let b = blocks.block_row.map_or(m, |rows| rows[m]);
+        let b = blocks.block_of(m);
         for r in 0..rn {
             for q in 0..rn {
                 let d = &blocks.diag[((b * rn + r) * rn + q) * kn..][..kn];
@@ -48,9 +48,7 @@ pub fn gram_sum(blocks: &Blocks<'_>, ms: &[usize]) -> (Vec<f64>, Vec<f64>) {
         }
         if let Some(lr) = blocks.lowrank {
             let l = lr.owner.len();
-            let lo = lr.owner.partition_point(|&o| o < m);
-            let hi = lr.owner.partition_point(|&o| o <= m);
-            for j in lo..hi {
+            for j in lr.columns_of(m) {
                 for a in 0..p {
                     let fa = lr.factors[a * l + j];
                     if fa == 0.0 {
@@ -92,7 +90,7 @@ pub fn fold_sums(
     check_folds(m, folds, flap, n_folds, n_flaps)?;
     let group = |i: usize| -> (Vec<f64>, Vec<f64>) {
         let (q, f) = (i / n_flaps, i % n_flaps);
-        let ms: Vec<usize> = (0..m).filter(|&k| folds[k] == q && flap[k] == f).collect();
+        let ms = members(folds, flap, q, f);
         gram_sum(blocks, &ms)
     };
     #[cfg(feature = "parallel")]
