@@ -34,6 +34,7 @@ from aerodelta.diagnosis.cv import (
 )
 from aerodelta.diagnosis.data import in_order, load_records, maneuver_codes, sorted_columns
 from aerodelta.diagnosis.flaps import FlapLayout, choose_layout
+from aerodelta.diagnosis.kinds import EntryKinds
 from aerodelta.diagnosis.nested import effect_outer, outer_evaluation, outer_summary
 from aerodelta.diagnosis.regressors import (
     delayed_controls,
@@ -493,6 +494,7 @@ def _diagnose(  # noqa: PLR0917 - the arguments of diagnose(), passed through
             f"cross-validation by maneuver; the data hold {man.height}"
         )
     mcode = maneuver_codes(frame)[1]  # index in ``man`` (sorted by maneuver_id)
+    kinds = EntryKinds.of(man["kind"])  # for the effects' entry-kind check
     flaps = sorted(set(man["flap_deg"].to_list()))
     fidx = np.searchsorted(np.array(flaps), frame["flap_deg"].to_numpy())
     folds_m = _fold_ids(man, cfg.folds, cfg.seed)
@@ -549,7 +551,7 @@ def _diagnose(  # noqa: PLR0917 - the arguments of diagnose(), passed through
             n_dflaps,
         )  # fmt: skip
         stats = fold_stats(design, folds_m)
-        sel = forward_select(design, stats, cands, cfg.selection)
+        sel = forward_select(design, stats, cands, cfg.selection, kinds=kinds)
         if coef == "Cl":
             model = list(sel.nuisance) + [
                 s.candidate for s in sel.selected if s.candidate not in sel.nuisance
@@ -587,7 +589,12 @@ def _diagnose(  # noqa: PLR0917 - the arguments of diagnose(), passed through
                 )  # fmt: skip
                 del nuis
                 stats = fold_stats(design, folds_m)
-                sel = forward_select(design, stats, cands, cfg.selection)
+                sel = forward_select(design, stats, cands, cfg.selection, kinds=kinds)
+        kind_report = sel.kind_check
+        if kind_report is not None and kind_report["rejected"]:
+            # the layout choice and the outer folds select without the rejected effects
+            out = {r["effect"] for r in kind_report["rejected"]}
+            cands = [c for c in cands if c.name not in out]
         flap_rows = dflap
         shared = design  # the outer folds choose the layout on their own inner folds
         layout_report: dict[str, Any] = {"layout": "per_flap" if cfg.per_flap else "shared"}
@@ -605,7 +612,7 @@ def _diagnose(  # noqa: PLR0917 - the arguments of diagnose(), passed through
         del aero_x, glob_x, rows
         outer = None
         if cfg.nested:
-            ev = outer_evaluation(shared, folds_m, cands, cfg.selection, layout)
+            ev = outer_evaluation(shared, folds_m, cands, cfg.selection, layout, kinds=kinds)
             outer = outer_summary(ev, cfg.selection.n_perm, cfg.seed + 17)
             for i, e in enumerate(effects):
                 share, p_out, k = effect_outer(
@@ -638,6 +645,7 @@ def _diagnose(  # noqa: PLR0917 - the arguments of diagnose(), passed through
             "worst_segments": worst_segments(frame, y),
             "effects": effects,
             "flap_curves": layout_report,
+            "entry_kind_check": kind_report,
             "shrink": _shrink_table(y, meas, region_rows, steps_),
         }
         if outer is not None:

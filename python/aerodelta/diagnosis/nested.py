@@ -50,6 +50,7 @@ from aerodelta.diagnosis.cv import (
     total_solve,
 )
 from aerodelta.diagnosis.flaps import FlapLayout, choose_layout, per_flap_design
+from aerodelta.diagnosis.kinds import EntryKinds
 from aerodelta.diagnosis.select import (
     SelectionConfig,
     columns_for,
@@ -116,6 +117,8 @@ def outer_evaluation(
     candidates: Sequence[Candidate],
     cfg: SelectionConfig,
     layout: FlapLayout | None = None,
+    *,
+    kinds: EntryKinds | None = None,
 ) -> OuterEvaluation:
     """Run the selection once per outer fold on the other folds and score the left-out one.
 
@@ -133,6 +136,10 @@ def outer_evaluation(
         Each maneuver's flap, when the full-data diagnosis chooses between one curve for all
         flaps and one per flap (:mod:`aerodelta.diagnosis.flaps`): each outer fold makes that
         choice again on its own inner folds. ``None``: ``design``'s layout, as given.
+    kinds
+        Each maneuver's entry kind, for the lateral asymmetry's consistency check
+        (:mod:`aerodelta.diagnosis.kinds`), which each outer fold's selection makes on its
+        own inner maneuvers. ``None``: no check.
     """
     folds = np.asarray(folds, dtype=np.int64)
     n_q = int(folds.max()) + 1 if folds.size else 0
@@ -155,7 +162,8 @@ def outer_evaluation(
         inner_folds = np.searchsorted(np.unique(folds[inner_idx]), folds[inner_idx])
         stats = fold_stats(inner, inner_folds)
         fold_cfg = replace(cfg, seed=cfg.seed + _FOLD_SEED * (o + 1))
-        sel = forward_select(inner, stats, candidates, fold_cfg, report=False)
+        kc = kinds.subset(inner_idx) if kinds is not None else None
+        sel = forward_select(inner, stats, candidates, fold_cfg, report=False, kinds=kc)
         scored = design
         per_flap = False
         if layout is not None:

@@ -58,6 +58,18 @@ def summary_text(result: dict[str, Any]) -> str:
                 f"the moment of each of the {ro['events_profiled_out']} events (a Gaussian in "
                 "alpha, amplitude free per event) is profiled out of the effect fits"
             )
+        kc = r.get("entry_kind_check") or {}
+        for rej in kc.get("rejected", []):
+            worse = [
+                f"{k} {100 * v['shrink_fraction']:+.1f}% (p = {v['p_worse']:.2g})"
+                for k, v in rej["per_kind"].items()
+                if v["p_worse"] < 1.0
+            ]
+            lines.append(
+                f"  {rej['effect']} rejected: it makes the stalls of some entry kind worse held "
+                "out (" + ", ".join(worse) + "), which an effect of the aircraft cannot; an "
+                "unmodelled effect whose mean depends on how the stall was entered"
+            )
         sig = [e for e in r["effects"] if e["significant"] and e.get("kind") != "stochastic"]
         if not sig:
             lines.append("  no significant unmodelled effect")

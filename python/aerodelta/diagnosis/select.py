@@ -19,12 +19,16 @@ one that lowers the held-out squared gap most is kept if
 Candidates that were significant on their own at the step an effect was chosen, but whose
 held-out error cannot be told apart from the chosen one's (paired sign-flip test over maneuvers,
 ``p > ambiguity_p``) and that add nothing once it is in, are reported as ambiguous with it.
+
+A selected effect must not make the stalls of one entry kind worse (:func:`kind_consistency`,
+:mod:`aerodelta.diagnosis.kinds`); the selection is made again without an effect that does.
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -34,12 +38,14 @@ from aerodelta.diagnosis.cv import (
     FoldStats,
     IntArray,
     heldout_sse,
+    improvement_test,
     improvement_tests,
     local_columns,
     sign_flip_pvalue,
     signed_rank_p,
     total_solve,
 )
+from aerodelta.diagnosis.kinds import EntryKinds
 from aerodelta.diagnosis.vocabulary import Candidate
 
 #: Practical floors of the measurement effects' parameters: below these an effect is
@@ -142,6 +148,9 @@ class Selection:
     sse0: FloatArray
     nuisance: list[Candidate] = field(default_factory=list)  # always in the model
     sse_nuisance: FloatArray | None = None
+    # the entry-kind consistency checks (kind_consistency): the effects checked, and those
+    # rejected, without which this selection was made
+    kind_check: dict[str, Any] | None = None
 
 
 #: Timing candidates kept in every model as nuisance terms: data always carry a small lag
@@ -279,12 +288,59 @@ def _left_out(  # noqa: PLR0917 - internal scoring step
     return st
 
 
-def forward_select(
+#: Seed offset of the entry-kind consistency test (from the selection's seed).
+_KIND_SEED = 4409
+
+
+def kind_consistency(  # noqa: PLR0917 - the selection's state, all needed
+    design: Design,
+    stats: FoldStats,
+    model: Sequence[Candidate],
+    effect: Candidate,
+    kinds: EntryKinds,
+    cfg: SelectionConfig,
+) -> dict[str, Any]:
+    """The entry-kind consistency check of ``effect``, a term of the selected ``model``
+    (timing terms included; :mod:`aerodelta.diagnosis.kinds`): the held-out change each
+    maneuver owes to the effect in the model, tested per entry kind for a worsening
+    (:func:`~aerodelta.diagnosis.cv.improvement_test` of the negated changes over the kind's
+    maneuvers, Bonferroni over the kinds). Rejected when some kind is significantly worse at
+    ``cfg.alpha``.
+
+    Returns, per kind, its maneuvers, the share of the gap's held-out squared error the
+    effect removes in them (negative: adds), the fraction of them it improves and the
+    corrected p-value of the worsening; and ``rejected``."""
+    rest = [c for c in model if c is not effect]
+    sse_m = heldout_sse(design, stats, _cols(design, model))[0]
+    sse_wo = heldout_sse(design, stats, _cols(design, rest))[0] if rest else design.yty
+    d = material_change(sse_wo, sse_m)
+    total0 = float(design.yty.sum())
+    n_k = len(kinds.kinds)
+    per: dict[str, dict[str, float]] = {}
+    worst = 1.0
+    for i, k in enumerate(kinds.kinds):
+        dk = d[kinds.man_kind == i]
+        p = 1.0
+        if np.count_nonzero(dk) > 0:
+            _, p = improvement_test(-dk, cfg.n_perm, cfg.seed + _KIND_SEED + i)
+            p = min(1.0, p * n_k)
+        worst = min(worst, p)
+        per[k] = {
+            "n_maneuvers": int(dk.size),
+            "shrink_fraction": float(dk.sum()) / total0 if total0 > 0 else 0.0,
+            "improved_fraction": float(np.mean(dk > 0)) if dk.size else 0.0,
+            "p_worse": float(p),
+        }
+    return {"effect": effect.name, "per_kind": per, "rejected": bool(worst < cfg.alpha)}
+
+
+def forward_select(  # noqa: PLR0917 - the selection's inputs
     design: Design,
     stats: FoldStats,
     candidates: Sequence[Candidate],
     cfg: SelectionConfig,
     report: bool = True,
+    kinds: EntryKinds | None = None,
 ) -> Selection:
     """Greedy forward selection (see the module doc).
 
@@ -293,7 +349,38 @@ def forward_select(
     the candidate of largest gain only (the one the step keeps or stops at; the same seeds,
     so the same decisions), ambiguous rivals are not looked for, and the unselected
     candidates' scores carry no p-values.
+
+    ``kinds`` (each maneuver's entry kind, :mod:`aerodelta.diagnosis.kinds`) makes every
+    selected effect (the timing terms aside) pass :func:`kind_consistency`; the selection is
+    made again without the effects that fail, until none does, and the checks are kept in
+    :attr:`Selection.kind_check`. ``None``: no check.
     """
+    cands = list(candidates)
+    rejected: list[dict[str, Any]] = []
+    while True:
+        sel = _forward_select(design, stats, cands, cfg, report)
+        if kinds is None:
+            return sel
+        effects = [s.candidate for s in sel.selected if s.candidate not in sel.nuisance]
+        model = [*sel.nuisance, *effects]
+        checks = [kind_consistency(design, stats, model, e, kinds, cfg) for e in effects]
+        failed = [c for c in checks if c["rejected"]]
+        if not failed:  # bounded: each pass removes at least one candidate
+            sel.kind_check = {"checked": [c["effect"] for c in checks], "rejected": rejected}
+            return sel
+        rejected += failed
+        out = {c["effect"] for c in failed}
+        cands = [c for c in cands if c.name not in out]
+
+
+def _forward_select(
+    design: Design,
+    stats: FoldStats,
+    candidates: Sequence[Candidate],
+    cfg: SelectionConfig,
+    report: bool,
+) -> Selection:
+    """:func:`forward_select` without the entry-kind checks."""
     sse0 = design.yty.copy()
     total0 = float(sse0.sum())
     nuis = [c for c in candidates if c.name in NUISANCE]
