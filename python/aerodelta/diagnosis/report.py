@@ -61,14 +61,14 @@ def summary_text(result: dict[str, Any]) -> str:
         kc = r.get("entry_kind_check") or {}
         for rej in kc.get("rejected", []):
             worse = [
-                f"{k} {100 * v['shrink_fraction']:+.1f}% (p = {v['p_worse']:.2g})"
+                f"{k} {100 * v['kind_worse_fraction']:+.1f}% (p = {v['p_worse']:.2g})"
                 for k, v in rej["per_kind"].items()
-                if v["p_worse"] < 1.0
+                if v["p_worse"] < 1.0 and v["kind_worse_fraction"] > 0
             ]
             lines.append(
-                f"  {rej['effect']} rejected: it makes the stalls of some entry kind worse held "
-                "out (" + ", ".join(worse) + "), which an effect of the aircraft cannot; an "
-                "unmodelled effect whose mean depends on how the stall was entered"
+                f"  {rej['effect']} rejected: it makes the held-out gap of some entry kind's "
+                "stalls worse (" + ", ".join(worse) + "), which an effect of the aircraft "
+                "cannot; an unmodelled effect whose mean depends on how the stall was entered"
             )
         sig = [e for e in r["effects"] if e["significant"] and e.get("kind") != "stochastic"]
         if not sig:

@@ -304,12 +304,15 @@ def kind_consistency(  # noqa: PLR0917 - the selection's state, all needed
     (timing terms included; :mod:`aerodelta.diagnosis.kinds`): the held-out change each
     maneuver owes to the effect in the model, tested per entry kind for a worsening
     (:func:`~aerodelta.diagnosis.cv.improvement_test` of the negated changes over the kind's
-    maneuvers, Bonferroni over the kinds). Rejected when some kind is significantly worse at
-    ``cfg.alpha``.
+    maneuvers, Bonferroni over the kinds). Rejected when some kind is worse, significantly at
+    ``cfg.alpha`` and materially: by at least ``cfg.min_shrink`` of that kind's own held-out
+    squared gap (the effect-size floor an effect must clear to be reported, applied to the
+    harm it does).
 
-    Returns, per kind, its maneuvers, the share of the gap's held-out squared error the
-    effect removes in them (negative: adds), the fraction of them it improves and the
-    corrected p-value of the worsening; and ``rejected``."""
+    Returns, per kind, its maneuvers, the fraction by which the effect raises the kind's
+    held-out squared gap (``kind_worse_fraction``, negative: lowers), the share of the whole
+    gap's squared error it removes in the kind, the fraction of the kind's maneuvers it
+    improves and the corrected p-value of the worsening; and ``rejected``."""
     rest = [c for c in model if c is not effect]
     sse_m = heldout_sse(design, stats, _cols(design, model))[0]
     sse_wo = heldout_sse(design, stats, _cols(design, rest))[0] if rest else design.yty
@@ -317,21 +320,24 @@ def kind_consistency(  # noqa: PLR0917 - the selection's state, all needed
     total0 = float(design.yty.sum())
     n_k = len(kinds.kinds)
     per: dict[str, dict[str, float]] = {}
-    worst = 1.0
+    rejected = False
     for i, k in enumerate(kinds.kinds):
         dk = d[kinds.man_kind == i]
         p = 1.0
         if np.count_nonzero(dk) > 0:
             _, p = improvement_test(-dk, cfg.n_perm, cfg.seed + _KIND_SEED + i)
             p = min(1.0, p * n_k)
-        worst = min(worst, p)
+        own = float(sse_wo[kinds.man_kind == i].sum())
+        worse = -float(dk.sum()) / own if own > 0 else 0.0
+        rejected = rejected or (p < cfg.alpha and worse >= cfg.min_shrink)
         per[k] = {
             "n_maneuvers": int(dk.size),
+            "kind_worse_fraction": worse,
             "shrink_fraction": float(dk.sum()) / total0 if total0 > 0 else 0.0,
             "improved_fraction": float(np.mean(dk > 0)) if dk.size else 0.0,
             "p_worse": float(p),
         }
-    return {"effect": effect.name, "per_kind": per, "rejected": bool(worst < cfg.alpha)}
+    return {"effect": effect.name, "per_kind": per, "rejected": rejected}
 
 
 def forward_select(  # noqa: PLR0917 - the selection's inputs
