@@ -20,7 +20,7 @@ from aerodelta.diagnosis import band, cv, select, write_outputs
 from aerodelta.diagnosis.core import DiagnoseConfig
 from aerodelta.diagnosis.kinds import EntryKinds
 from aerodelta.diagnosis.select import SelectionConfig, forward_select
-from aerodelta.diagnosis.stochastic import event_regressors, refine_centres
+from aerodelta.diagnosis.stochastic import event_columns, event_regressors, refine_centres
 from aerodelta.diagnosis.vocabulary import Candidate
 from aerodelta.diagnosis.withheld import score_case
 from aerodelta.exceptions import DataError
@@ -533,6 +533,192 @@ def test_rolloff_nuisance_columns_follow_the_runtime_spike_along_the_record(tmp_
     assert np.median(new_a) < 0.03, np.sort(new_a)
     assert np.mean(new_a < 0.05) >= 0.8, np.sort(new_a)
     assert np.median(old_a) > 5 * np.median(new_a)
+
+
+# The numpy implementation the engine's roll-off event columns replaced
+# (aero_core::rolloff_events), kept here as the reference.
+
+
+def _np_travelled_alpha(alpha, centre):
+    top = np.maximum.accumulate(alpha)
+    return np.where(top >= centre, 2.0 * top - alpha, alpha)
+
+
+def _np_draw_index(a_m, t_m, tp):
+    up = np.flatnonzero((a_m[1:] >= 15.0) & (a_m[:-1] < 15.0)) + 1
+    low = a_m < 15.0 - 2.0
+    start, armed, prev = 0, True, 0
+    for i in up:
+        if t_m[i] > tp:
+            break
+        if not armed and low[prev:i].any():
+            armed = True
+        if armed:
+            start, armed, prev = int(i), False, int(i)
+    return start
+
+
+def _np_spike_columns(a_m, start, ac, sigma_deg, with_u=False):
+    g = np.zeros(a_m.size)
+    ug = np.zeros(a_m.size)
+    u_m = np.zeros(a_m.size)
+    eff = _np_travelled_alpha(a_m[start:], ac)
+    live = ~np.maximum.accumulate(eff >= ac + 4.0 * sigma_deg)
+    u = (eff[live] - ac) / sigma_deg
+    idx = np.flatnonzero(live) + start
+    g[idx] = np.exp(-0.5 * u * u)
+    ug[idx] = u * g[idx]
+    u_m[idx] = u  # not in the numpy code: the test checks u g against the engine's g with it
+    return (g, ug, u_m) if with_u else (g, ug)
+
+
+def _np_by_maneuver(frame):
+    names = sorted(set(frame["maneuver_id"].to_list()))
+    code = np.array([names.index(m) for m in frame["maneuver_id"].to_list()])
+    t = frame["t"].to_numpy()
+    order = np.lexsort((t, code))
+    bounds = np.searchsorted(code[order], np.arange(len(names) + 1))
+    rows = {m: order[bounds[i] : bounds[i + 1]] for i, m in enumerate(names)}
+    return rows, frame["alpha_deg"].to_numpy(), t
+
+
+def _np_event_columns(frame, centres, sigma_deg=0.5):
+    rows_of, alpha, t = _np_by_maneuver(frame)
+    per = {}
+    for m, ac, tp in centres:
+        if m in rows_of:
+            per.setdefault(m, []).append((float(ac), float(tp)))
+    k = max((len(v) for v in per.values()), default=0)
+    rows = [[] for _ in range(2 * k)]
+    vals = [[] for _ in range(2 * k)]
+    u_of = np.zeros((frame.height, k))
+    for m, cs in per.items():
+        r_m = rows_of[m]
+        for j, (ac, tp) in enumerate(sorted(cs, key=lambda x: x[0])):
+            start = _np_draw_index(alpha[r_m], t[r_m], tp)
+            g, ug, u = _np_spike_columns(alpha[r_m], start, ac, sigma_deg, with_u=True)
+            u_of[r_m, j] = u
+            for c, v in ((2 * j, g), (2 * j + 1, ug)):
+                nz = np.flatnonzero(v)
+                rows[c].append(r_m[nz])
+                vals[c].append(v[nz])
+    return [np.concatenate(r) for r in rows], [np.concatenate(v) for v in vals], u_of
+
+
+def _np_refine_centres(frame, residual, centres, sigma_deg=0.5):
+    rows_of, alpha, t = _np_by_maneuver(frame)
+    out = []
+    for m, ac, tp in centres:
+        rows = rows_of.get(m)
+        if rows is None:
+            out.append((m, ac, tp))
+            continue
+        r = residual[rows]
+        start = _np_draw_index(alpha[rows], t[rows], tp)
+        best, best_c = -1.0, ac
+        for dc in (0.0, 0.25, 0.5, 0.75, 1.0, 1.25, 1.5):
+            g, ug = _np_spike_columns(alpha[rows], start, ac + dc, sigma_deg)
+            x = np.column_stack([g, ug])
+            nz = np.flatnonzero(np.any(x != 0.0, axis=1))
+            if nz.size < 3:
+                continue
+            coef, *_ = np.linalg.lstsq(x[nz], r[nz], rcond=None)
+            explained = float(np.sum((x[nz] @ coef) ** 2))
+            if explained > best:
+                best, best_c = explained, ac + dc
+        out.append((m, best_c, tp))
+    return out
+
+
+def _ramps(a0, knots, dt=0.02):
+    """Alpha from ``a0`` through ``(alpha, seconds to reach it)`` knots, one sample per dt."""
+    out, prev = [np.array([a0])], a0
+    for a, dur in knots:
+        n = round(dur / dt)
+        out.append(prev + (a - prev) * np.arange(1, n + 1) / n)
+        prev = a
+    return np.concatenate(out)
+
+
+def test_rolloff_event_columns_and_centres_match_the_numpy_reference():
+    """The engine's event columns and centre search (``aero_core::rolloff_events``) against
+    the numpy code they replaced, on records of five maneuvers whose rows are shuffled: a
+    stall that passes its centre; chatter about 15 deg, then a stall that turns back 0.75 deg
+    before its roll-off's centre (the centre must be found above the peak); two stalls with a
+    recovery below 13 deg between them (re-armed: a second draw); a record that starts above
+    15 deg; a maneuver without an event. The centres are the same; the columns' rows are the
+    same, ``g`` equal to the last bit or one (numpy's vectorised exp and the C library's differ
+    by one ulp on a few per cent of arguments) and ``u g`` exactly ``u`` times the engine's
+    ``g``."""
+    rng = np.random.default_rng(3)
+    alphas = {
+        "m_pass": _ramps(10.0, [(18.6, 4.0), (9.0, 2.0)]),
+        "m_flank": _ramps(12.0, [(15.4, 1.0), (14.3, 0.3), (15.3, 0.3), (16.8, 1.0), (11.0, 1.5)]),
+        "m_twice": _ramps(10.0, [(17.5, 3.0), (11.0, 1.5), (19.2, 3.0), (10.0, 2.0)]),
+        "m_above": _ramps(16.0, [(18.0, 1.0), (12.0, 1.5)]),
+        "m_none": _ramps(5.0, [(12.0, 2.0)]),
+    }
+    parts = []
+    for i, (m, a_m) in enumerate(alphas.items()):
+        t = 100.0 * i + 0.02 * np.arange(a_m.size)
+        wiggle = 0.03 * np.sin(np.arange(a_m.size) * 0.07)
+        parts.append(pl.DataFrame({"maneuver_id": m, "t": t, "alpha_deg": a_m + wiggle}))
+    frame = pl.concat(parts)
+    frame = frame[rng.permutation(frame.height)]  # rows in no order at all
+    a, t, ids = frame["alpha_deg"].to_numpy(), frame["t"].to_numpy(), frame["maneuver_id"]
+
+    def peak(m, t0, t1):
+        on = np.flatnonzero((ids == m).to_numpy() & (t >= t0) & (t <= t1))
+        k = on[np.argmax(a[on])]
+        return float(a[k]), float(t[k])
+
+    (a_p, t_p), (a_f, t_f) = peak("m_pass", 0, 100), peak("m_flank", 100, 200)
+    (a_1, t_1), (a_2, t_2) = peak("m_twice", 200, 203.5), peak("m_twice", 204, 300)
+    a_a, t_a = peak("m_above", 300, 400)
+    centres = [
+        ("m_flank", a_f, t_f),  # the spike's peak alpha; its centre is 0.75 deg above
+        ("m_twice", a_2 - 0.3, t_2),  # the second stall's event first, a lower centre second
+        ("m_pass", a_p - 1.2, t_p - 0.6),
+        ("m_gone", 17.0, 5.0),  # a maneuver the frame does not have
+        ("m_twice", a_1 - 0.2, t_1),
+        ("m_above", a_a, t_a),
+    ]
+    truth = {0: (0.75, 0.02), 1: (0.25, -0.015), 2: (0.0, 0.01), 4: (0.5, 0.012), 5: (0.0, 0.02)}
+    residual = 2e-4 * rng.standard_normal(frame.height)
+    rows_of, _, _ = _np_by_maneuver(frame)
+    for i, (dc, amp) in truth.items():
+        m, ac, tp = centres[i]
+        r = rows_of[m]
+        g, _ = _np_spike_columns(a[r], _np_draw_index(a[r], t[r], tp), ac + dc, 0.5)
+        residual[r] += amp * g
+    ref_centres = _np_refine_centres(frame, residual, centres)
+    got = refine_centres(frame, residual, centres)
+    assert got == ref_centres
+    assert got[0][1] == a_f + 0.75  # the flank-only stall's centre, found above its peak
+    assert got[3] == centres[3]
+    # the re-armed second stall draws at its own crossing, after a recovery below 13 deg
+    r = rows_of["m_twice"]
+    d1, d2 = (_np_draw_index(a[r], t[r], tp) for tp in (t_1, t_2))
+    assert 0 < d1 < d2 and (a[r][d1:d2] < 13.0).any()
+    # the flank-only stall chattered about 15 deg before it: its draw is the first crossing
+    r = rows_of["m_flank"]
+    assert _np_draw_index(a[r], t[r], t_f) == int(np.argmax(a[r] >= 15.0))
+
+    cols = event_columns(frame, got)
+    want_rows, want_vals, u = _np_event_columns(frame, got)
+    assert cols.shape == (frame.height, 4)
+    for j in range(4):
+        np.testing.assert_array_equal(cols.rows[j], want_rows[j])
+        assert cols.rows[j].size > 20
+    for j in (0, 2):
+        np.testing.assert_array_max_ulp(cols.values[j], want_vals[j], maxulp=1)
+    dense = event_regressors(frame, got)
+    want = np.zeros_like(dense)
+    for j in range(4):
+        want[want_rows[j], j] = want_vals[j]
+    np.testing.assert_array_max_ulp(dense[:, 0::2], want[:, 0::2], maxulp=1)
+    np.testing.assert_array_equal(dense[:, 1::2], u * dense[:, 0::2])
+    assert (dense[:, 1::2] != 0).sum() == sum(want_rows[j].size for j in (1, 3))
 
 
 @pytest.mark.parametrize("true_skew", [0.0, 0.02])

@@ -544,6 +544,31 @@ def rolloff_sample_draws(
     config_json: str, flap_deg: float, seed: int, n: int, stream: int = 0
 ) -> dict[str, npt.NDArray[np.float64]]: ...
 
+# roll-off events' nuisance columns and centres for the diagnosis (aero_core::rolloff_events,
+# crates/py_bindings/src/rolloff.rs); rows[bounds[m]:bounds[m + 1]]: maneuver m's rows in time order
+def rolloff_event_defaults() -> dict[str, Any]: ...
+def rolloff_event_columns(
+    rows: npt.NDArray[np.int64],
+    bounds: npt.NDArray[np.int64],
+    alpha_deg: npt.NDArray[np.float64],
+    t: npt.NDArray[np.float64],
+    maneuver: npt.NDArray[np.int64],
+    centre_deg: npt.NDArray[np.float64],
+    t_peak: npt.NDArray[np.float64],
+    sigma_deg: float,
+) -> tuple[list[npt.NDArray[np.int64]], list[npt.NDArray[np.float64]]]: ...
+def rolloff_refine_centres(
+    rows: npt.NDArray[np.int64],
+    bounds: npt.NDArray[np.int64],
+    alpha_deg: npt.NDArray[np.float64],
+    t: npt.NDArray[np.float64],
+    residual: npt.NDArray[np.float64],
+    maneuver: npt.NDArray[np.int64],
+    centre_deg: npt.NDArray[np.float64],
+    t_peak: npt.NDArray[np.float64],
+    sigma_deg: float,
+) -> npt.NDArray[np.float64]: ...
+
 # Monte Carlo of straight stalls (crates/py_bindings/src/rolloff.rs, aero_core::rolloff_mc)
 def rolloff_monte_carlo(
     spec_json: str, threads: int | None = None

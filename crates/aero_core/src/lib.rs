@@ -40,6 +40,8 @@
 //! - [`output_error`]: output-error estimation (Levenberg-Marquardt with sensitivities,
 //!   multi-maneuver, Cramér-Rao bounds with the coloured-residual correction) of the Kirchhoff model;
 //! - [`rolloff_detect`]: detection of uncommanded roll-off events (Section 3.4.3);
+//! - [`rolloff_events`]: the detected events' nuisance columns along the records (the runtime
+//!   model's spike shape, Figure 3.14) and the refinement of their centres, for the diagnosis;
 //! - [`rolloff_mc`]: parallel Monte Carlo of straight stalls with the roll-off,
 //!   per-stall summaries (max bank, onset alpha, DRC peak, FAR 25.203);
 //! - [`fsutil`]: atomic writes;
@@ -65,6 +67,7 @@ pub mod preprocess;
 pub mod regressor;
 pub mod rolloff;
 pub mod rolloff_detect;
+pub mod rolloff_events;
 pub mod rolloff_mc;
 pub mod select;
 pub mod signflip;

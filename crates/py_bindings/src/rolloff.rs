@@ -1,11 +1,13 @@
-//! Roll-off detection (`aero_core::rolloff_detect`) and runtime-model draws
-//! with a given configuration (`aero_core::rolloff`). Conversion and error
-//! mapping only.
-use aero_core::rolloff::{sample_draws, RollOffConfig};
+//! Roll-off detection (`aero_core::rolloff_detect`), runtime-model draws
+//! with a given configuration (`aero_core::rolloff`), and the detected events'
+//! nuisance columns and centres for the diagnosis (`aero_core::rolloff_events`).
+//! Conversion and error mapping only.
+use aero_core::rolloff::{sample_draws, RollOffConfig, SPENT_WIDTHS};
 use aero_core::rolloff_detect::{detect, DetectConfig, QuietChannel, RecordSignals};
+use aero_core::rolloff_events::{self, Event, Records, SpikeShape, CENTRE_SHIFTS_DEG};
 use aero_core::rolloff_mc::{run_monte_carlo, MonteCarloSpec, StallSummary};
 use aero_core::AeroError;
-use numpy::{IntoPyArray, PyReadonlyArray1};
+use numpy::{IntoPyArray, PyArray1, PyReadonlyArray1};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
@@ -220,7 +222,148 @@ fn rolloff_mc_default_spec() -> PyResult<String> {
         .map_err(|e| to_py(AeroError::invalid("Monte Carlo spec", e.to_string())))
 }
 
+/// The runtime model's spike shape the event columns follow and the centre shifts the
+/// refinement tries (`aero_core::rolloff_events`), as a dict.
+#[pyfunction]
+fn rolloff_event_defaults<'py>(py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+    let s = SpikeShape::default();
+    let d = PyDict::new(py);
+    d.set_item("width_deg", s.width_deg)?;
+    d.set_item("rearm_alpha_deg", s.rearm_alpha_deg)?;
+    d.set_item("rearm_hysteresis_deg", s.rearm_hysteresis_deg)?;
+    d.set_item("spent_widths", SPENT_WIDTHS)?;
+    d.set_item("centre_shifts_deg", CENTRE_SHIFTS_DEG.to_vec())?;
+    Ok(d)
+}
+
+/// A contiguous array as a slice, naming the argument otherwise.
+fn slice<'a, T: numpy::Element>(name: &str, a: &'a PyReadonlyArray1<'_, T>) -> PyResult<&'a [T]> {
+    a.as_slice()
+        .map_err(|_| to_py(AeroError::invalid(name, "must be a C-contiguous 1-d array")))
+}
+
+/// Indices from int64, refusing negative ones by name.
+fn indices(name: &str, a: &PyReadonlyArray1<'_, i64>) -> PyResult<Vec<usize>> {
+    slice(name, a)?
+        .iter()
+        .map(|&i| {
+            usize::try_from(i)
+                .map_err(|_| to_py(AeroError::invalid(name, format!("negative index {i}"))))
+        })
+        .collect()
+}
+
+/// The events from three equal-length arrays (maneuver index, centre, peak time).
+fn events(
+    maneuver: &PyReadonlyArray1<'_, i64>,
+    centre_deg: &PyReadonlyArray1<'_, f64>,
+    t_peak: &PyReadonlyArray1<'_, f64>,
+) -> PyResult<Vec<Event>> {
+    let m = indices("maneuver", maneuver)?;
+    let (c, t) = (slice("centre_deg", centre_deg)?, slice("t_peak", t_peak)?);
+    if c.len() != m.len() || t.len() != m.len() {
+        return Err(to_py(AeroError::invalid(
+            "roll-off events",
+            format!(
+                "maneuver, centre_deg and t_peak have {}, {} and {} entries; give one each per event",
+                m.len(),
+                c.len(),
+                t.len()
+            ),
+        )));
+    }
+    Ok(m.iter()
+        .zip(c.iter().zip(t))
+        .map(|(&maneuver, (&centre_deg, &t_peak))| Event {
+            maneuver,
+            centre_deg,
+            t_peak,
+        })
+        .collect())
+}
+
+/// Per-column rows and values of the events' nuisance columns
+/// (`aero_core::rolloff_events::event_columns`). `rows[bounds[m]:bounds[m + 1]]` are
+/// maneuver `m`'s rows in time order; `maneuver` indexes them.
+#[pyfunction]
+#[pyo3(signature = (rows, bounds, alpha_deg, t, maneuver, centre_deg, t_peak, sigma_deg))]
+#[allow(clippy::too_many_arguments, clippy::type_complexity)]
+fn rolloff_event_columns<'py>(
+    py: Python<'py>,
+    rows: PyReadonlyArray1<'py, i64>,
+    bounds: PyReadonlyArray1<'py, i64>,
+    alpha_deg: PyReadonlyArray1<'py, f64>,
+    t: PyReadonlyArray1<'py, f64>,
+    maneuver: PyReadonlyArray1<'py, i64>,
+    centre_deg: PyReadonlyArray1<'py, f64>,
+    t_peak: PyReadonlyArray1<'py, f64>,
+    sigma_deg: f64,
+) -> PyResult<(
+    Vec<Bound<'py, PyArray1<i64>>>,
+    Vec<Bound<'py, PyArray1<f64>>>,
+)> {
+    let (rows, bounds) = (indices("rows", &rows)?, indices("bounds", &bounds)?);
+    let rec = Records {
+        alpha_deg: slice("alpha_deg", &alpha_deg)?,
+        t: slice("t", &t)?,
+        rows: &rows,
+        bounds: &bounds,
+    };
+    let ev = events(&maneuver, &centre_deg, &t_peak)?;
+    let shape = SpikeShape::with_width(sigma_deg);
+    let cols = detached(py, || rolloff_events::event_columns(&rec, &ev, &shape))?;
+    let mut out_rows = Vec::with_capacity(cols.len());
+    let mut out_values = Vec::with_capacity(cols.len());
+    for c in cols {
+        out_rows.push(
+            c.rows
+                .iter()
+                .map(|&r| r as i64)
+                .collect::<Vec<i64>>()
+                .into_pyarray(py),
+        );
+        out_values.push(c.values.into_pyarray(py));
+    }
+    Ok((out_rows, out_values))
+}
+
+/// Each event's refined centre, deg (`aero_core::rolloff_events::refine_centres` over
+/// `CENTRE_SHIFTS_DEG`); the layout as for `rolloff_event_columns`.
+#[pyfunction]
+#[pyo3(signature = (rows, bounds, alpha_deg, t, residual, maneuver, centre_deg, t_peak, sigma_deg))]
+#[allow(clippy::too_many_arguments)]
+fn rolloff_refine_centres<'py>(
+    py: Python<'py>,
+    rows: PyReadonlyArray1<'py, i64>,
+    bounds: PyReadonlyArray1<'py, i64>,
+    alpha_deg: PyReadonlyArray1<'py, f64>,
+    t: PyReadonlyArray1<'py, f64>,
+    residual: PyReadonlyArray1<'py, f64>,
+    maneuver: PyReadonlyArray1<'py, i64>,
+    centre_deg: PyReadonlyArray1<'py, f64>,
+    t_peak: PyReadonlyArray1<'py, f64>,
+    sigma_deg: f64,
+) -> PyResult<Bound<'py, PyArray1<f64>>> {
+    let (rows, bounds) = (indices("rows", &rows)?, indices("bounds", &bounds)?);
+    let rec = Records {
+        alpha_deg: slice("alpha_deg", &alpha_deg)?,
+        t: slice("t", &t)?,
+        rows: &rows,
+        bounds: &bounds,
+    };
+    let residual = slice("residual", &residual)?;
+    let ev = events(&maneuver, &centre_deg, &t_peak)?;
+    let shape = SpikeShape::with_width(sigma_deg);
+    let out = detached(py, || {
+        rolloff_events::refine_centres(&rec, residual, &ev, &CENTRE_SHIFTS_DEG, &shape)
+    })?;
+    Ok(out.into_pyarray(py))
+}
+
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_function(wrap_pyfunction!(rolloff_event_defaults, m)?)?;
+    m.add_function(wrap_pyfunction!(rolloff_event_columns, m)?)?;
+    m.add_function(wrap_pyfunction!(rolloff_refine_centres, m)?)?;
     m.add_function(wrap_pyfunction!(rolloff_monte_carlo, m)?)?;
     m.add_function(wrap_pyfunction!(rolloff_mc_default_spec, m)?)?;
     m.add_function(wrap_pyfunction!(rolloff_detect_defaults, m)?)?;

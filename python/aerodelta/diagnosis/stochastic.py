@@ -12,7 +12,7 @@ maneuvers than the detector's false-event rate explains (a binomial tail test ag
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 import polars as pl
@@ -38,73 +38,57 @@ def _binom_sf(k: int, n: int, p: float) -> float:
     return float(_core.beta_inc_reg(float(k), float(n - k + 1), float(p)))
 
 
-#: Standard deviation in alpha of a roll-off's moment, deg (thesis Figure 3.14 and its text).
-ROLLOFF_SIGMA_DEG = 0.5
+#: The runtime roll-off model's spike shape and the centre search, from the engine
+#: (``aero_core::rolloff_events``, after ``aero_core::rolloff``).
+_ENGINE = _core.rolloff_event_defaults()
+
+#: Standard deviation in alpha of a roll-off's moment, deg (thesis Figure 3.14 and its text;
+#: the runtime model's width).
+ROLLOFF_SIGMA_DEG: float = float(_ENGINE["width_deg"])
+
+#: Centres tried above a spike's peak alpha, deg (:func:`refine_centres`).
+CENTRE_SHIFTS_DEG: tuple[float, ...] = tuple(float(x) for x in _ENGINE["centre_shifts_deg"])
 
 
-#: Re-arm alpha of the runtime roll-off model, deg: a draw is made when alpha crosses it upward
-#: (``aero_core::rolloff``; thesis Section 3.4.3).
-REARM_ALPHA_DEG = 15.0
+class _Layout(NamedTuple):
+    """The records as the engine reads them: per maneuver its rows in time order,
+    ``rows[bounds[i]:bounds[i + 1]]`` for the ``i``-th of ``code`` (maneuver id -> index), and
+    the alpha and time columns."""
 
-#: Re-arm hysteresis of the runtime model, deg (``rearm_hysteresis_deg``, default 2).
-REARM_HYSTERESIS_DEG = 2.0
-
-#: A spike is spent once the alpha travelled past its centre exceeds this many widths
-#: (``aero_core::rolloff::SPENT_WIDTHS``).
-SPENT_WIDTHS = 4.0
-
-
-def travelled_alpha(alpha: np.ndarray, centre: float) -> np.ndarray:
-    """The alpha at which the runtime roll-off model evaluates its Gaussian along one stall,
-    deg (``aero_core::rolloff``): ``alpha`` until the stall has reached the centre, then the
-    alpha travelled since, ``top + (top - alpha)`` with ``top`` the highest alpha so far, so
-    the spike decays when the stall turns back instead of being met a second time."""
-    top = np.maximum.accumulate(alpha)
-    return np.where(top >= centre, 2.0 * top - alpha, alpha)
+    code: dict[str, int]
+    rows: np.ndarray
+    bounds: np.ndarray
+    alpha: np.ndarray
+    t: np.ndarray
 
 
-def draw_index(a_m: np.ndarray, t_m: np.ndarray, tp: float) -> int:
-    """Index of the sample at which the runtime model made the draw met at time ``tp``: the
-    last armed upward crossing of the re-arm alpha before it (the model is armed at first and
-    re-armed only once alpha falls :data:`REARM_HYSTERESIS_DEG` below the re-arm alpha, so
-    gusts around 15 deg do not redraw); 0 when the record starts above it."""
-    up = np.flatnonzero((a_m[1:] >= REARM_ALPHA_DEG) & (a_m[:-1] < REARM_ALPHA_DEG)) + 1
-    low = a_m < REARM_ALPHA_DEG - REARM_HYSTERESIS_DEG
-    start, armed, prev = 0, True, 0
-    for i in up:
-        if t_m[i] > tp:
-            break
-        if not armed and low[prev:i].any():
-            armed = True
-        if armed:
-            start, armed, prev = int(i), False, int(i)
-    return start
-
-
-def _spike_columns(
-    a_m: np.ndarray, start: int, ac: float, sigma_deg: float
-) -> tuple[np.ndarray, np.ndarray]:
-    """The two nuisance columns of one event along one maneuver (rows in time order), the
-    draw at row ``start`` (:func:`draw_index`)."""
-    g = np.zeros(a_m.size)
-    ug = np.zeros(a_m.size)
-    eff = travelled_alpha(a_m[start:], ac)
-    live = ~np.maximum.accumulate(eff >= ac + SPENT_WIDTHS * sigma_deg)
-    u = (eff[live] - ac) / sigma_deg
-    idx = np.flatnonzero(live) + start
-    g[idx] = np.exp(-0.5 * u * u)
-    ug[idx] = u * g[idx]
-    return g, ug
-
-
-def _by_maneuver(frame: pl.DataFrame) -> tuple[dict[str, np.ndarray], np.ndarray, np.ndarray]:
+def _by_maneuver(frame: pl.DataFrame) -> _Layout:
     """Row indices of each maneuver in time order, and the alpha and time columns."""
     names, code = maneuver_codes(frame)
     t = frame["t"].to_numpy() if "t" in frame.columns else np.arange(frame.height, dtype=float)
     order = np.lexsort((t, code))
     bounds = np.searchsorted(code[order], np.arange(len(names) + 1))
-    rows = {m: order[bounds[i] : bounds[i + 1]] for i, m in enumerate(names)}
-    return rows, frame["alpha_deg"].to_numpy(), t
+    return _Layout(
+        {m: i for i, m in enumerate(names)},
+        np.ascontiguousarray(order, dtype=np.int64),
+        np.ascontiguousarray(bounds, dtype=np.int64),
+        np.ascontiguousarray(frame["alpha_deg"].to_numpy(), dtype=np.float64),
+        np.ascontiguousarray(t, dtype=np.float64),
+    )
+
+
+def _events(
+    lay: _Layout, centres: list[tuple[str, float, float]]
+) -> tuple[list[int], np.ndarray, np.ndarray, np.ndarray]:
+    """The events on the layout's maneuvers (the others are left out): their positions in
+    ``centres``, and their maneuver indices, centres and peak times as arrays."""
+    keep = [i for i, (m, _, _) in enumerate(centres) if m in lay.code]
+    return (
+        keep,
+        np.array([lay.code[centres[i][0]] for i in keep], dtype=np.int64),
+        np.array([float(centres[i][1]) for i in keep], dtype=np.float64),
+        np.array([float(centres[i][2]) for i in keep], dtype=np.float64),
+    )
 
 
 def event_regressors(
@@ -113,17 +97,25 @@ def event_regressors(
     sigma_deg: float = ROLLOFF_SIGMA_DEG,
 ) -> np.ndarray:
     """Per-event nuisance columns of the roll-off moment (``n x 2K``, ``K`` the most events of
-    one maneuver): for the ``j``-th event ``(maneuver, alpha_c, t_peak)`` of a maneuver, the
-    Gaussian ``g = exp(-u^2/2)``, ``u = (alpha_e - alpha_c)/sigma``, the runtime model's shape
-    (thesis Section 3.4.3, Figure 3.14), and ``u g``, its derivative in the centre, which
-    absorbs a small error in the centre; zero on the other maneuvers' rows.
+    one maneuver): for the ``j``-th event ``(maneuver, alpha_c, t_peak)`` of a maneuver (by
+    centre), the Gaussian ``g = exp(-u^2/2)``, ``u = (alpha_e - alpha_c)/sigma``, the runtime
+    model's shape (thesis Section 3.4.3, Figure 3.14), and ``u g``, its derivative in the
+    centre, which absorbs a small error in the centre; zero on the other maneuvers' rows.
 
-    ``alpha_e`` follows the runtime model along the record (``aero_core::rolloff``): zero
-    before the draw (the last armed upward crossing of the re-arm alpha before the peak,
-    :func:`draw_index`), the alpha travelled past the centre once the stall has reached it
-    (:func:`travelled_alpha`, so the spike is not met again on the way down), and zero once
-    the spike is spent. Their amplitudes are a random draw per event, so they are profiled out
-    per maneuver (:func:`aerodelta.diagnosis.cv.profile_out`), never predicted.
+    ``alpha_e`` follows the runtime model along the record (``aero_core::rolloff``):
+
+    - zero before the draw: the last armed upward crossing of the re-arm alpha (15 deg) at or
+      before the peak (the model is armed at first and re-armed only once alpha falls the
+      2-deg hysteresis below the re-arm alpha, so gusts around 15 deg do not redraw); the
+      record's first row when it starts above the re-arm alpha;
+    - the flown alpha until the stall has reached the centre, then the alpha travelled since,
+      ``top + (top - alpha)`` with ``top`` the highest alpha since the draw, so the spike
+      decays when the stall turns back instead of being met a second time;
+    - zero once that alpha is four widths past the centre (the spike is spent), and after.
+
+    Their amplitudes are a random draw per event, so they are profiled out per maneuver
+    (:func:`aerodelta.diagnosis.cv.profile_out`), never predicted. The columns are computed by
+    the engine (``aero_core::rolloff_events::event_columns``).
 
     :func:`event_columns` gives the same columns without their zeros."""
     return event_columns(frame, centres, sigma_deg).dense()
@@ -135,33 +127,15 @@ def event_columns(
     sigma_deg: float = ROLLOFF_SIGMA_DEG,
 ) -> SparseColumns:
     """The columns of :func:`event_regressors` as their non-zero entries (a column is zero
-    but on its events' maneuvers, from the draw until the spike is spent)."""
-    rows_of, alpha, t = _by_maneuver(frame)
-    per: dict[str, list[tuple[float, float]]] = {}
-    for m, ac, tp in centres:
-        if m in rows_of:
-            per.setdefault(m, []).append((float(ac), float(tp)))
-    k = max((len(v) for v in per.values()), default=0)
-    rows: list[list[np.ndarray]] = [[] for _ in range(2 * k)]
-    vals: list[list[np.ndarray]] = [[] for _ in range(2 * k)]
-    for m, cs in per.items():
-        r_m = rows_of[m]
-        for j, (ac, tp) in enumerate(sorted(cs, key=lambda x: x[0])):
-            start = draw_index(alpha[r_m], t[r_m], tp)
-            g, ug = _spike_columns(alpha[r_m], start, ac, sigma_deg)
-            for c, v in ((2 * j, g), (2 * j + 1, ug)):
-                nz = np.flatnonzero(v)
-                rows[c].append(r_m[nz])
-                vals[c].append(v[nz])
-    return SparseColumns(
-        frame.height,
-        [np.concatenate(r) if r else np.zeros(0, dtype=np.int64) for r in rows],
-        [np.concatenate(v) if v else np.zeros(0) for v in vals],
+    but on its events' maneuvers, from the draw until the spike is spent): per column the
+    maneuvers in the order of their first event in ``centres``, each's rows in time order.
+    Events on maneuvers the frame does not have are left out."""
+    lay = _by_maneuver(frame)
+    _, code, centre, t_peak = _events(lay, centres)
+    rows, values = _core.rolloff_event_columns(
+        lay.rows, lay.bounds, lay.alpha, lay.t, code, centre, t_peak, float(sigma_deg)
     )
-
-
-#: Centres tried above a spike's peak alpha, deg (:func:`refine_centres`).
-CENTRE_SHIFTS_DEG = (0.0, 0.25, 0.5, 0.75, 1.0, 1.25, 1.5)
+    return SparseColumns(frame.height, rows, values)
 
 
 def refine_centres(
@@ -171,34 +145,28 @@ def refine_centres(
     sigma_deg: float = ROLLOFF_SIGMA_DEG,
 ) -> list[tuple[str, float, float]]:
     """Each event's centre chosen among its peak alpha and up to 1.5 deg above it
-    (:data:`CENTRE_SHIFTS_DEG`) by the residual its two columns leave in its maneuver.
+    (:data:`CENTRE_SHIFTS_DEG`) by the residual its two columns leave in its maneuver: the
+    centre whose columns' least-squares fit explains the most of the residual (sum of squared
+    fitted values on the rows where they are non-zero; the first such centre on a tie; the
+    peak alpha kept when no centre has three such rows). The same draw serves every centre
+    tried. The search runs in the engine (``aero_core::rolloff_events::refine_centres``);
+    events on maneuvers the frame does not have keep their centre.
 
     A stall that turns back before a roll-off's centre meets only its rising flank: the
     spike peaks at the stall's highest alpha, below the centre, and falls off faster in alpha
     than a Gaussian centred at that peak (on a virtual campaign, a flank met 1 deg below the
     centre left 48 % of the spike's RMS with the centre at the peak, none with the centre
     found here). A spike the stall passes peaks at its centre, where the search stays."""
-    rows_of, alpha, t = _by_maneuver(frame)
-    out = []
-    for m, ac, tp in centres:
-        rows = rows_of.get(m)
-        if rows is None:
-            out.append((m, ac, tp))
-            continue
-        r = residual[rows]
-        start = draw_index(alpha[rows], t[rows], tp)  # the same draw for every centre tried
-        best, best_c = -1.0, ac
-        for dc in CENTRE_SHIFTS_DEG:
-            g, ug = _spike_columns(alpha[rows], start, ac + dc, sigma_deg)
-            x = np.column_stack([g, ug])
-            nz = np.flatnonzero(np.any(x != 0.0, axis=1))
-            if nz.size < 3:
-                continue
-            coef, *_ = np.linalg.lstsq(x[nz], r[nz], rcond=None)
-            explained = float(np.sum((x[nz] @ coef) ** 2))
-            if explained > best:
-                best, best_c = explained, ac + dc
-        out.append((m, best_c, tp))
+    lay = _by_maneuver(frame)
+    keep, code, centre, t_peak = _events(lay, centres)
+    refined = _core.rolloff_refine_centres(
+        lay.rows, lay.bounds, lay.alpha, lay.t,
+        np.ascontiguousarray(residual, dtype=np.float64),
+        code, centre, t_peak, float(sigma_deg),
+    )  # fmt: skip
+    out = [(m, ac, tp) for m, ac, tp in centres]
+    for i, c in zip(keep, refined.tolist(), strict=True):
+        out[i] = (centres[i][0], c, centres[i][2])
     return out
 
 
