@@ -168,6 +168,11 @@ def main() -> int:
         f"held-out shrink >= 90 % of the oracle's {pct(s['shrink_ge_90pct_of_oracle'])} of "
         f"{s['shrink_n']} (floor: in >= 90 % of cases)"
     )
+    print(
+        f"effects found only as an ambiguous rival of the effect named: "
+        f"{len(s['found_through_ambiguity'])} ({', '.join(s['found_through_ambiguity'])}); "
+        f"cases reporting an ambiguity: {s['cases_reporting_ambiguity']} of {s['n_cases']}"
+    )
     if s["unmeasurable_singles"]:
         print(
             "singles with no measurable effect on C_l, C_n, C_Y (left out of the rates): "

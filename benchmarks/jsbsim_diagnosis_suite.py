@@ -224,6 +224,13 @@ def summarize(results: list[JsbsimCaseResult]) -> dict[str, Any]:
         "rolloff_called": _rate([r.rolloff_called for r in results]),
         "unmeasurable_singles": unmeasurable,
         "confusion": confusion,
+        # singles whose right top effect was found only as an ambiguous rival of the verdict
+        "top_through_ambiguity": sum(
+            1
+            for r in singles
+            if r.found.get("top") and any(r.verdicts[c] != e for c, e in r.right_top.items())
+        ),
+        "cases_reporting_ambiguity": sum(1 for r in results if r.ambiguous),
         "seconds_median": float(np.median([r.seconds for r in results])) if results else None,
         "seconds_total": float(sum(r.seconds for r in results)),
     }
@@ -266,6 +273,11 @@ def print_table(s: dict[str, Any], aircraft: str, sets: str) -> None:
     print(f"| onset within 2 deg (correct verdicts) | {s['onset_within_2']} | ≥ 90 % |")
     row("held-out shrink ≥ 0.9 of the oracle's (singles)", s["shrink_ge_90pct_of_oracle"], "≥ 90 %")
     print(f"| stochastic roll-off called (JSBSim has none) | {s['rolloff_called']} | |")
+    print(
+        f"singles whose right top effect is named only as an ambiguous rival: "
+        f"{s['top_through_ambiguity']}; cases reporting an ambiguity: "
+        f"{s['cases_reporting_ambiguity']} of {s['n_cases']}"
+    )
     if s["unmeasurable_singles"]:
         print(
             "singles whose listed parts remove < 3 % of every coefficient's gap energy (left "

@@ -319,6 +319,20 @@ def summarize(cases: list[CaseResult]) -> dict[str, Any]:
     onset = [v for c in cases for v in c.onset_error_deg.values()]
     # the oracle of an unlisted effect is not reachable by design: no candidate models it
     shrink = [v for c in cases if c not in unlisted for v in c.shrink_ratio.values()]
+
+    def direct(c: CaseResult, e: str) -> bool:
+        # named itself (the verdict of a single, among the significant of several) on every
+        # coefficient it affects, not only as an ambiguous rival of what was named
+        if len(c.effects) == 1:
+            return all(c.verdicts.get(k) == e for k in c.affected.get(e, []))
+        return all(e in c.significant.get(k, []) for k in c.affected.get(e, []))
+
+    through_ambiguity = [
+        f"{c.settings.get('seed')}:{e}"
+        for c in cases
+        for e, ok in c.found.items()
+        if ok and c.affected.get(e) and not direct(c, e)
+    ]
     return {
         "n_cases": len(cases),
         "singles_found": {k: rate(v) for k, v in by_mag.items()},
@@ -335,6 +349,9 @@ def summarize(cases: list[CaseResult]) -> dict[str, Any]:
         "shrink_n": len(shrink),
         "confusion": confusion,
         "unmeasurable_singles": unmeasurable,
+        # effects counted as found only as an ambiguous rival of what was named
+        "found_through_ambiguity": through_ambiguity,
+        "cases_reporting_ambiguity": sum(1 for c in cases if c.ambiguous),
     }
 
 
