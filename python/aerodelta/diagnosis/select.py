@@ -16,11 +16,10 @@ one that lowers the held-out squared gap most is kept if
    counts only when it is broad: the signed-rank test alone (most maneuvers improve, not a
    few), exact and Bonferroni-corrected, passes at ``alpha * broad_alpha_factor``.
 
-Candidates that were significant on their own at the step an effect was chosen, or that pass
-in its place in the final model, and whose held-out error cannot be told apart from the chosen
-one's (paired sign-flip test over maneuvers, ``p > ambiguity_p``, or a difference under the
-effect-size floor ``min_shrink``; :func:`_indistinct`) and that are not selected themselves,
-are reported as ambiguous with it.
+Candidates that were significant on their own at the step an effect was chosen, whose
+held-out error cannot be told apart from the chosen one's (paired sign-flip test over
+maneuvers, ``p > ambiguity_p``, or a difference under the effect-size floor ``min_shrink``;
+:func:`_indistinct`) and that are not selected themselves, are reported as ambiguous with it.
 
 A selected effect must not make the stalls of one entry kind worse (:func:`kind_consistency`,
 :mod:`aerodelta.diagnosis.kinds`); the selection is made again without an effect that does.
@@ -388,54 +387,16 @@ def _indistinct(
     error is not significantly lower (paired sign-flip test over maneuvers,
     ``p > ambiguity_p``), or lower by less than the effect-size floor (``min_shrink`` of the
     gap's squared error, each maneuver's share capped as in :func:`robust_gain`): a difference
-    too small to report as an effect is too small to choose between two explanations by."""
+    too small to report as an effect is too small to choose between two explanations by.
+    On the virtual aircraft, whose spoilers are slaved to the wheel, a withheld aileron
+    effectiveness loss (with a control lag and a directional-stability loss, development case
+    8505) was named ``spoiler_effect``: the aileron in its place left 0.19 % more of the gap,
+    significant over the maneuvers (p < 0.05) but far under the floor."""
     d = material_change(sse_rival, sse_chosen)
     if robust_gain(d) < cfg.min_shrink * total0:
         return True
     _, p_pair = sign_flip_pvalue(d, cfg.n_perm, seed)
     return p_pair > cfg.ambiguity_p
-
-
-def _final_rivals(  # noqa: PLR0917 - the selection's state, all needed
-    design: Design,
-    stats: FoldStats,
-    candidates: Sequence[Candidate],
-    model: Sequence[Candidate],
-    selected: Sequence[Selected],
-    cfg: SelectionConfig,
-    total0: float,
-) -> None:
-    """Rivals of each selected effect in the final model (added to its ``ambiguous_with``):
-    an unselected candidate that, put in the effect's place with the other effects kept,
-    passes the selection's tests and floor against the model without the effect, and that
-    the data cannot tell from the final model (:func:`_indistinct`). The step-time rivals
-    are judged before the later effects are in: with a control lag withheld with an aileron
-    effectiveness loss on the virtual aircraft (dev case 8505), the wheel-slaved spoilers
-    (two regressors) took the aileron's loss at the first step; once the lag was in, the
-    aileron in their place left 0.19 % more of the gap, a significant but immaterial
-    difference, and it was never compared again."""
-    in_model = {c.name for c in model}
-    others = [c for c in candidates if c.name not in in_model and c.name not in NUISANCE]
-    if not others:
-        return
-    sse_m = heldout_sse(design, stats, _cols(design, model))[0]
-    for k, s in enumerate(selected):
-        if s.candidate.name in NUISANCE:
-            continue
-        rest = [c for c in model if c is not s.candidate]
-        sse_r = heldout_sse(design, stats, _cols(design, rest))[0] if rest else design.yty
-        for j, c in enumerate(others):
-            if c.name in s.ambiguous_with:
-                continue
-            sse_c = heldout_sse(design, stats, _cols(design, [*rest, c]))[0]
-            d = material_change(sse_r, sse_c)
-            if robust_gain(d) < cfg.min_shrink * total0:
-                continue
-            _, p = improvement_test(d, cfg.n_perm, cfg.seed + 61 + 97 * k + j)
-            if min(1.0, p * len(others)) >= cfg.alpha:
-                continue
-            if _indistinct(sse_c, sse_m, cfg, total0, cfg.seed + 67 + 97 * k + j):
-                s.ambiguous_with.append(c.name)
 
 
 def _forward_select(
@@ -530,8 +491,6 @@ def _forward_select(
             else:
                 nuis_scores[c.name] = st
         selected = sorted(kept, key=lambda x: x.rank)
-    if report:
-        _final_rivals(design, stats, candidates, current, selected, cfg, total0)
     # A rival that was itself selected later is not ambiguous: both are real.
     chosen = {s.candidate.name for s in selected}
     for s in selected:
