@@ -854,6 +854,23 @@ def test_a_real_effect_that_barely_touches_other_kinds_is_kept():
     assert all(v["kind_worse_fraction"] < cfg.min_shrink for v in small)  # ...not material
 
 
+def test_rivals_apart_by_less_than_the_effect_size_floor_are_ambiguous():
+    """Two explanations whose held-out errors differ consistently (every maneuver, so the
+    paired test is significant) but by less than ``min_shrink`` of the gap cannot be chosen
+    between: ambiguous. The same consistent difference above the floor is a choice."""
+    cfg = SelectionConfig(n_perm=2000)
+    rng = np.random.default_rng(5)
+    chosen = rng.uniform(0.5, 1.5, 200)
+    total0 = 10.0 * float(chosen.sum())  # the gap: chosen removes 90 % of it
+    tiny = chosen * 1.01  # 0.1 % of the gap, on every maneuver
+    big = chosen * 1.5  # 5 % of the gap, on every maneuver
+    for d in (tiny, big):
+        _, p = cv.sign_flip_pvalue(select.material_change(d, chosen), cfg.n_perm, 1)
+        assert p < cfg.ambiguity_p
+    assert select._indistinct(tiny, chosen, cfg, total0, 1)
+    assert not select._indistinct(big, chosen, cfg, total0, 1)
+
+
 def test_user_effects_refused_in_one_line_and_a_lone_regressor_accepted() -> None:
     """Vocabulary.with_user_effects: an unknown coefficient, a regressor that is not SQL, or a
     value of the wrong type is an InvalidInputError naming the effect; one regressor given as
