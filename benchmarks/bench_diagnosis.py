@@ -154,8 +154,8 @@ def main() -> int:
     n_fits = {"n": 0}
     orig = core.forward_select
 
-    def counting(design, stats, cands, cfg):
-        sel = orig(design, stats, cands, cfg)
+    def counting(design, stats, cands, cfg, **kw):
+        sel = orig(design, stats, cands, cfg, **kw)
         steps = len([s for s in sel.selected if s.candidate.kind != "measurement"]) + 1
         n_fits["n"] += 5 * (len(cands) * steps)
         return sel
