@@ -112,16 +112,35 @@ pub struct ScaleCheck {
     pub per_maneuver: Vec<(f64, f64, Verdict)>,
 }
 
-/// Judge a scale `k` ± `se` over `blocks` blocks against `candidates`.
-pub fn judge(k: f64, se: f64, blocks: usize, candidates: &[f64]) -> Verdict {
+/// One-sided tail of the standard normal beyond [`Z`], `1 - Φ(4)`.
+const Z_TAIL: f64 = 3.167_124_183_311_986e-5;
+
+/// Standard errors by which a scale must lie outside the band to be judged far, when its
+/// cluster-robust standard error rests on `clusters` clusters: the Student t quantile with
+/// `clusters - 1` degrees of freedom at the tail of [`Z`] (the small-sample reference of a
+/// cluster-robust variance, Cameron & Miller 2015, Section VI.C). [`Z`] itself for many
+/// clusters; 7.0 for the 10 blocks of a 30-s maneuver, where a normal critical value of 4
+/// refused a JSBSim DHC-6 maneuver flown in turbulence (lateral specific force barely
+/// excited, the air-data velocity change moved by the gusts: k = -0.92 over its blocks).
+pub fn critical(clusters: usize) -> f64 {
+    if clusters < 2 {
+        return f64::INFINITY;
+    }
+    crate::lsq::stats::student_t_ppf(1.0 - Z_TAIL, (clusters - 1) as f64)
+}
+
+/// Judge a scale `k` ± `se` over `blocks` blocks, its standard error resting on `clusters`
+/// clusters ([`critical`]), against `candidates`.
+pub fn judge(k: f64, se: f64, blocks: usize, clusters: usize, candidates: &[f64]) -> Verdict {
     if !k.is_finite() || !se.is_finite() || blocks < MIN_BLOCKS {
         return Verdict::NotJudged;
     }
+    let z = critical(clusters);
     let far = if k <= 0.0 {
-        -k > Z * se
+        -k > z * se
     } else {
         let lo = BAND.recip();
-        k - Z * se > BAND || k + Z * se < lo
+        k - z * se > BAND || k + z * se < lo
     };
     if !far {
         return Verdict::Plausible;
@@ -219,7 +238,7 @@ fn estimate(
         .iter()
         .map(|idx| {
             let (km, sem, bm) = fit(idx, &|i| p.block[i]);
-            (km, sem, judge(km, sem, bm, candidates))
+            (km, sem, judge(km, sem, bm, bm, candidates))
         })
         .collect();
     ScaleCheck {
@@ -227,7 +246,9 @@ fn estimate(
         k,
         se,
         blocks,
-        verdict: judge(k, se, blocks, candidates),
+        // the campaign's verdict: the larger of two cluster-robust errors, the critical value
+        // of the many blocks (a campaign of two long maneuvers must still be judged)
+        verdict: judge(k, se, blocks, blocks, candidates),
         per_maneuver,
     }
 }
@@ -481,15 +502,37 @@ mod tests {
     use super::*;
 
     #[test]
+    fn critical_value_is_student_t_at_the_tail_of_z() {
+        // scipy.stats.t.ppf(1 - scipy.stats.norm.sf(4), df)
+        for (clusters, want) in [
+            (5, 17.448_227_992_362_295),
+            (10, 6.998_639_109_583_918),
+            (50, 4.375_255_452_275_371),
+            (1001, 4.017_064_306_722_094),
+        ] {
+            let got = critical(clusters);
+            assert!(
+                (got / want - 1.0).abs() < 1e-9,
+                "{clusters}: {got} vs {want}"
+            );
+        }
+        assert!(critical(1).is_infinite());
+    }
+
+    #[test]
     fn judge_bands_and_candidates() {
         let cand = [1.0 / 57.29578, -1.0];
-        assert_eq!(judge(1.1, 0.01, 50, &cand), Verdict::Plausible);
-        assert_eq!(judge(0.0176, 0.0005, 50, &cand), Verdict::Mistake(0));
-        assert_eq!(judge(-0.97, 0.02, 50, &cand), Verdict::Mistake(1));
-        assert_eq!(judge(2.6, 0.05, 50, &cand), Verdict::Far);
+        assert_eq!(judge(1.1, 0.01, 50, 50, &cand), Verdict::Plausible);
+        assert_eq!(judge(0.0176, 0.0005, 50, 50, &cand), Verdict::Mistake(0));
+        assert_eq!(judge(-0.97, 0.02, 50, 50, &cand), Verdict::Mistake(1));
+        assert_eq!(judge(2.6, 0.05, 50, 50, &cand), Verdict::Far);
         // far but uncertain: not judged far
-        assert_eq!(judge(2.0, 0.5, 50, &cand), Verdict::Plausible);
-        assert_eq!(judge(0.0176, 0.0005, 2, &cand), Verdict::NotJudged);
+        assert_eq!(judge(2.0, 0.5, 50, 50, &cand), Verdict::Plausible);
+        assert_eq!(judge(0.0176, 0.0005, 2, 2, &cand), Verdict::NotJudged);
+        // a sign flip 6 standard errors out is a mistake with many clusters, not with the 10
+        // blocks of one short maneuver (t with 9 degrees of freedom)
+        assert_eq!(judge(-0.92, 0.15, 200, 200, &cand), Verdict::Mistake(1));
+        assert_eq!(judge(-0.92, 0.15, 10, 10, &cand), Verdict::Plausible);
     }
 
     /// A pull-up and a decelerating level segment, built from exact kinematics: every scale
