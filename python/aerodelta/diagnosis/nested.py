@@ -137,7 +137,7 @@ def outer_evaluation(
         flaps and one per flap (:mod:`aerodelta.diagnosis.flaps`): each outer fold makes that
         choice again on its own inner folds. ``None``: ``design``'s layout, as given.
     kinds
-        Each maneuver's entry kind, for the lateral asymmetry's consistency check
+        Each maneuver's entry kind, for the effects' entry-kind consistency check
         (:mod:`aerodelta.diagnosis.kinds`), which each outer fold's selection makes on its
         own inner maneuvers. ``None``: no check.
     """
