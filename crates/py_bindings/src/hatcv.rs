@@ -8,7 +8,7 @@ use numpy::{
 };
 use pyo3::prelude::*;
 
-use crate::util::detached;
+use crate::util::{detached, indices, slice};
 
 /// A design's block statistics as Python passes them: `(diag, off, cross, glob, xty, yty,
 /// block_rows | None, lowrank | None, lowrank_of | None)`.
@@ -35,23 +35,6 @@ type ProfiledArrays<'py> = (
     Bound<'py, PyArray1<i64>>,
 );
 
-/// Indices from int64, refusing negative ones by name.
-fn indices(name: &str, v: &[i64]) -> Result<Vec<usize>, AeroError> {
-    v.iter()
-        .map(|&i| {
-            usize::try_from(i).map_err(|_| AeroError::invalid(name, format!("negative index {i}")))
-        })
-        .collect()
-}
-
-fn slice<'a, T: numpy::Element, D: numpy::ndarray::Dimension>(
-    name: &str,
-    a: &'a numpy::PyReadonlyArray<'_, T, D>,
-) -> PyResult<&'a [T]> {
-    a.as_slice()
-        .map_err(|_| crate::error::to_py(AeroError::invalid(name, "must be a C-contiguous array")))
-}
-
 /// Owned index vectors of a block argument tuple (block rows, lowrank owners).
 struct BlockIndex {
     rows: Option<Vec<usize>>,
@@ -60,15 +43,11 @@ struct BlockIndex {
 
 fn block_index(b: &BlockArgs<'_>) -> PyResult<BlockIndex> {
     let rows = match &b.6 {
-        Some(r) => {
-            Some(indices("block_rows", slice("block_rows", r)?).map_err(crate::error::to_py)?)
-        }
+        Some(r) => Some(indices("block_rows", r)?),
         None => None,
     };
     let owner = match &b.8 {
-        Some(o) => {
-            Some(indices("lowrank_of", slice("lowrank_of", o)?).map_err(crate::error::to_py)?)
-        }
+        Some(o) => Some(indices("lowrank_of", o)?),
         None => None,
     };
     Ok(BlockIndex { rows, owner })
@@ -118,10 +97,8 @@ fn columns(
     g_cols: &PyReadonlyArray1<'_, i64>,
 ) -> PyResult<Columns> {
     Ok(Columns {
-        aero: indices("aero columns", slice("aero columns", a_cols)?)
-            .map_err(crate::error::to_py)?,
-        global: indices("global columns", slice("global columns", g_cols)?)
-            .map_err(crate::error::to_py)?,
+        aero: indices("aero columns", a_cols)?,
+        global: indices("global columns", g_cols)?,
     })
 }
 
@@ -146,8 +123,8 @@ fn hat_held_out<'py>(
     let idx = block_index(&blocks)?;
     let b = self::blocks(&blocks, &idx, layout)?;
     let cols = columns(&a_cols, &g_cols)?;
-    let folds = indices("folds", slice("folds", &folds)?).map_err(crate::error::to_py)?;
-    let flap = indices("flap", slice("flap", &flap)?).map_err(crate::error::to_py)?;
+    let folds = indices("folds", &folds)?;
+    let flap = indices("flap", &flap)?;
     let tg = slice("train_grams", &train_grams)?;
     let tx = slice("train_xty", &train_xty)?;
     let (sse, thetas) = detached(py, || {
@@ -189,7 +166,7 @@ fn hat_quadratic_forms<'py>(
     let idx = block_index(&blocks)?;
     let b = self::blocks(&blocks, &idx, layout)?;
     let cols = columns(&a_cols, &g_cols)?;
-    let ms = indices("maneuvers", slice("maneuvers", &ms)?).map_err(crate::error::to_py)?;
+    let ms = indices("maneuvers", &ms)?;
     let theta = slice("theta", &theta)?;
     let out = detached(py, || hatcv::quadratic_forms_checked(&b, &ms, theta, &cols))?;
     Ok(out.into_pyarray(py))
@@ -234,8 +211,7 @@ fn hat_build<'py>(
         } else if let Ok((r, v)) =
             g.extract::<(PyReadonlyArray1<'py, i64>, PyReadonlyArray1<'py, f64>)>()
         {
-            let rows = indices(&format!("global block {b} rows"), slice("sparse rows", &r)?)
-                .map_err(crate::error::to_py)?;
+            let rows = indices(&format!("global block {b} rows"), &r)?;
             args.push(GlobalArg::Sparse(rows, v));
         } else {
             return Err(crate::error::to_py(AeroError::invalid(
@@ -257,7 +233,7 @@ fn hat_build<'py>(
             },
         });
     }
-    let man = indices("maneuver", slice("maneuver", &maneuver)?).map_err(crate::error::to_py)?;
+    let man = indices("maneuver", &maneuver)?;
     let rows = Rows {
         y: slice("y", &y)?,
         maneuver: &man,
@@ -298,8 +274,8 @@ fn hat_fold_sums<'py>(
 ) -> PyResult<Pair<'py>> {
     let idx = block_index(&blocks)?;
     let b = self::blocks(&blocks, &idx, layout)?;
-    let folds = indices("folds", slice("folds", &folds)?).map_err(crate::error::to_py)?;
-    let flap = indices("flap", slice("flap", &flap)?).map_err(crate::error::to_py)?;
+    let folds = indices("folds", &folds)?;
+    let flap = indices("flap", &flap)?;
     let (g, x) = detached(py, || hatcv::fold_sums(&b, &folds, &flap, n_folds, n_flaps))?;
     Ok((g.into_pyarray(py), x.into_pyarray(py)))
 }
@@ -315,7 +291,7 @@ fn hat_gram_sum<'py>(
 ) -> PyResult<Pair<'py>> {
     let idx = block_index(&blocks)?;
     let b = self::blocks(&blocks, &idx, layout)?;
-    let ms = indices("maneuvers", slice("maneuvers", &ms)?).map_err(crate::error::to_py)?;
+    let ms = indices("maneuvers", &ms)?;
     let (g, x) = detached(py, || hatcv::gram_sum_checked(&b, &ms))?;
     Ok((g.into_pyarray(py), x.into_pyarray(py)))
 }

@@ -12,7 +12,7 @@ use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
 use crate::error::to_py;
-use crate::util::detached;
+use crate::util::{detached, indices, slice};
 
 /// The detector's default thresholds as a dict.
 #[pyfunction]
@@ -234,23 +234,6 @@ fn rolloff_event_defaults<'py>(py: Python<'py>) -> PyResult<Bound<'py, PyDict>> 
     d.set_item("spent_widths", SPENT_WIDTHS)?;
     d.set_item("centre_shifts_deg", CENTRE_SHIFTS_DEG.to_vec())?;
     Ok(d)
-}
-
-/// A contiguous array as a slice, naming the argument otherwise.
-fn slice<'a, T: numpy::Element>(name: &str, a: &'a PyReadonlyArray1<'_, T>) -> PyResult<&'a [T]> {
-    a.as_slice()
-        .map_err(|_| to_py(AeroError::invalid(name, "must be a C-contiguous 1-d array")))
-}
-
-/// Indices from int64, refusing negative ones by name.
-fn indices(name: &str, a: &PyReadonlyArray1<'_, i64>) -> PyResult<Vec<usize>> {
-    slice(name, a)?
-        .iter()
-        .map(|&i| {
-            usize::try_from(i)
-                .map_err(|_| to_py(AeroError::invalid(name, format!("negative index {i}"))))
-        })
-        .collect()
 }
 
 /// The events from three equal-length arrays (maneuver index, centre, peak time).

@@ -11,6 +11,30 @@ where
     py.detach(f).map_err(crate::error::to_py)
 }
 
+/// A C-contiguous numpy array as a slice, naming the argument otherwise.
+pub fn slice<'a, T: numpy::Element, D: numpy::ndarray::Dimension>(
+    name: &str,
+    a: &'a numpy::PyReadonlyArray<'_, T, D>,
+) -> PyResult<&'a [T]> {
+    a.as_slice()
+        .map_err(|_| crate::error::to_py(AeroError::invalid(name, "must be a C-contiguous array")))
+}
+
+/// Indices from an int64 array, refusing a non-contiguous array or a negative index by name.
+pub fn indices<D: numpy::ndarray::Dimension>(
+    name: &str,
+    a: &numpy::PyReadonlyArray<'_, i64, D>,
+) -> PyResult<Vec<usize>> {
+    slice(name, a)?
+        .iter()
+        .map(|&i| {
+            usize::try_from(i).map_err(|_| {
+                crate::error::to_py(AeroError::invalid(name, format!("negative index {i}")))
+            })
+        })
+        .collect()
+}
+
 /// Parse a string option into a core enum, naming the argument on error.
 pub fn parse_opt<T>(arg: &str, value: &str) -> PyResult<T>
 where
