@@ -323,12 +323,13 @@ def kind_consistency(  # noqa: PLR0917 - the selection's state, all needed
     per: dict[str, dict[str, float]] = {}
     rejected = False
     for i, k in enumerate(kinds.kinds):
-        dk = d[kinds.man_kind == i]
+        mask = kinds.man_kind == i
+        dk = d[mask]
         p = 1.0
         if np.count_nonzero(dk) > 0:
             _, p = improvement_test(-dk, cfg.n_perm, cfg.seed + _KIND_SEED + i)
             p = min(1.0, p * n_k)
-        own = float(sse_wo[kinds.man_kind == i].sum())
+        own = float(sse_wo[mask].sum())
         worse = -float(dk.sum()) / own if own > 0 else 0.0
         rejected = rejected or (p < cfg.alpha and worse >= cfg.min_shrink)
         per[k] = {
