@@ -194,6 +194,47 @@ def test_cli(quick_campaign: Path, tmp_path: Path, capsys: pytest.CaptureFixture
     assert code == 1 and err.count("\n") == 1 and "--band 0" in err
 
 
+def test_g_break_reads_lift_not_the_load_factor_s_decay_with_speed() -> None:
+    # an accelerated entry: 2 g at constant lift coefficient while the speed falls 8 kt/s from
+    # 140 kt (closed form n = 2 (V/V0)^2); alpha creeps up. The load factor falls 0.1 g in
+    # about 0.25 s, which the load factor alone calls a g-break, lift per dynamic pressure not
+    t = np.arange(0.0, 6.0, 0.02)
+    v = (140.0 - 8.0 * t) * KT
+    qbar = 0.5 * RHO0 * v**2
+    nz = 2.0 * (v / v[0]) ** 2
+    alpha = 15.0 + 0.2 * t
+    de = np.full_like(t, -8.0)
+    theta = np.full_like(t, 20.0)
+    assert detect_criteria(t, alpha, theta, de, nz=nz)["g_break"] is not None
+    assert detect_criteria(t, alpha, theta, de, nz=nz, qbar=qbar)["g_break"] is None
+    # lift lost at t = 4 s (n 20 % below the constant-C_L value by 4.5 s): a g-break, where
+    # the loss at the current dynamic pressure first reaches 0.1 g (the closed form's time)
+    loss = np.clip((t - 4.0) / 0.5, 0.0, 1.0) * 0.2
+    nz_b = nz * (1.0 - loss)
+    k = detect_criteria(t, alpha, theta, de, nz=nz_b, qbar=qbar)["g_break"]
+    t_expect = t[np.flatnonzero(nz * loss >= 0.1)[0]]
+    assert k is not None and abs(t[k] - t_expect) < 0.1, (t[k], t_expect)
+
+
+def test_entry_deceleration_is_the_eas_slope_before_identification(
+    ingested: pl.DataFrame, table: pl.DataFrame
+) -> None:
+    # recomputed from the records' equivalent airspeed: (V(t_id - 3 s) - V(t_id)) / 3 s
+    for r in table.filter(pl.col("stall_id_by").is_not_null()).head(8).iter_rows(named=True):
+        g = ingested.filter(pl.col("maneuver_id") == r["maneuver_id"]).sort("t")
+        t = g["t"].to_numpy()
+        eas = g["tas_s_mps"].to_numpy() * np.sqrt(g["rho_kgm3"].to_numpy() / RHO0) / KT
+        t1 = r["stall_id_t_s"]
+        want = (np.interp(t1 - 3.0, t, eas) - np.interp(t1, t, eas)) / 3.0
+        assert r["entry_decel_kt_s"] == pytest.approx(want, abs=1e-9)
+    # 1 kt/s wings-level entries and the accelerated ones are told apart at 3 kt/s
+    # (14 CFR 25.201(c): turning-flight stalls up to 3 kt/s)
+    k = table.filter(pl.col("entry_decel_kt_s").is_not_null())
+    assert (k.filter(pl.col("kind") == "straight")["entry_decel_kt_s"] < 3.0).all()
+    acc = k.filter(pl.col("kind") == "accelerated")["entry_decel_kt_s"]
+    assert acc.len() and (acc > 3.0).mean() >= 0.5, acc.to_list()
+
+
 def test_speeds_are_equivalent_airspeed(ingested: pl.DataFrame, table: pl.DataFrame) -> None:
     r = table.filter(pl.col("stall_id_by").is_not_null()).row(0, named=True)
     g = ingested.filter(pl.col("maneuver_id") == r["maneuver_id"])

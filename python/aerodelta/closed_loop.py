@@ -5,12 +5,16 @@ Table A1A (stall-warning, buffet-onset and stall speeds within ±3 kt; ``docs/ev
 (``aero_core::sim::closed_loop``): from the record's first state, a pilot tracks the recorded
 airspeed history (the entry's deceleration) through an alpha loop around the recorded alpha,
 holds the recorded bank and sideslip, sets the recorded thrust, and past the record's stall
-identification keeps decelerating at the entry's rate until the *simulator* stalls; the
+identification keeps pulling at the test pilot's alpha rate until the *simulator* stalls; the
 simulator's pusher (at the aircraft's activation alpha read from the records), stall warning
 (the aircraft's vane threshold read from the records) and buffet model act. The simulated time
 history then goes through the same identification code as the records
 (:func:`aerodelta.stall.stall_identification`), and the three speeds are compared, maneuver by
-maneuver, against ±3 kt.
+maneuver, against ±3 kt. The tolerance applies to the stall-speed test conditions: entries
+decelerating at most :data:`aerodelta.stall.MAX_TEST_DECEL_KT_S` (3 kt/s; 14 CFR 25.201(c) flies
+stalls at 1 kt/s and turning-flight stalls at up to 3 kt/s) over the 3 s before the record's
+stall identification (``test_condition``); faster, accelerated entries are replayed and shown,
+and the evidence pack's verdict counts them apart.
 
 Supported: records flown on the built-in ADX-37 (ingest's ``builtin_simulator`` mark), whose
 qualified model, mass, engines, actuators and pusher aerodelta carries. Other aircraft are
@@ -33,7 +37,12 @@ from aerodelta.buffet import _band, detect_onset
 from aerodelta.campaign import record_state
 from aerodelta.exceptions import DataError, InvalidInputError
 from aerodelta.model import DeltaModel
-from aerodelta.stall import DETERRENT_BUFFET_RMS_G, G0, stall_identification
+from aerodelta.stall import (
+    DETERRENT_BUFFET_RMS_G,
+    G0,
+    MAX_TEST_DECEL_KT_S,
+    stall_identification,
+)
 
 __all__ = [
     "QUANTITIES",
@@ -68,8 +77,11 @@ class ClosedLoopResult:
         One row per maneuver: ``maneuver_id``, ``flap_deg``, ``kind``, ``pusher_armed``,
         ``recognised_by`` (what made the simulated pilot recover: ``pusher``, ``g_break``,
         ``time``), ``alpha_correction_deg`` (the alpha the pilot's speed loop added to the
-        recorded one when it recognised the stall: model minus aircraft), ``stall_id_by`` and
-        ``sim_stall_id_by``; per quantity ``<q>_rec_keas``, ``<q>_sim_keas``, ``<q>_diff_kt``
+        recorded one up to the record's stall identification: model minus aircraft),
+        ``stall_id_by`` and ``sim_stall_id_by``, ``entry_decel_kt_s`` (the record's, kt/s) and
+        ``test_condition`` (the entry decelerates at most ``MAX_TEST_DECEL_KT_S``: a Part 60
+        stall-speed test condition, or its deceleration is unknown); per quantity
+        ``<q>_rec_keas``, ``<q>_sim_keas``, ``<q>_diff_kt``
         (simulator minus aircraft) and ``<q>_status`` (``PASS``, ``FAIL`` or null when the
         record has no value) for ``v_warning``, ``v_buffet_onset``, ``v_stall``.
     runs
@@ -83,13 +95,13 @@ class ClosedLoopResult:
     setup: dict[str, Any] = field(default_factory=dict)
 
     def summary(self) -> pl.DataFrame:
-        """Per flap and quantity: ``n`` compared, ``n_pass``, ``mean_diff_kt``,
-        ``max_abs_diff_kt``."""
+        """Per quantity, flap and ``test_condition``: ``n`` compared, ``n_pass``,
+        ``mean_diff_kt``, ``max_abs_diff_kt``."""
         rows = []
         for key, _, _ in QUANTITIES:
             g = (
                 self.table.filter(pl.col(f"{key}_status").is_not_null())
-                .group_by("flap_deg")
+                .group_by("flap_deg", "test_condition")
                 .agg(
                     pl.len().alias("n"),
                     (pl.col(f"{key}_status") == "PASS").sum().alias("n_pass"),
@@ -101,8 +113,16 @@ class ClosedLoopResult:
             rows.append(g)
         return (
             pl.concat(rows)
-            .select("quantity", "flap_deg", "n", "n_pass", "mean_diff_kt", "max_abs_diff_kt")
-            .sort("quantity", "flap_deg")
+            .select(
+                "quantity",
+                "flap_deg",
+                "test_condition",
+                "n",
+                "n_pass",
+                "mean_diff_kt",
+                "max_abs_diff_kt",
+            )
+            .sort("quantity", "flap_deg", "test_condition", descending=[False, False, True])
         )
 
 
@@ -373,6 +393,9 @@ def closed_loop_replay(
             "alpha_correction_deg": meta[mid]["alpha_correction_deg"],
             "stall_id_by": r["stall_id_by"],
             "sim_stall_id_by": s["stall_id_by"],
+            "entry_decel_kt_s": r["entry_decel_kt_s"],
+            "test_condition": r["entry_decel_kt_s"] is None
+            or r["entry_decel_kt_s"] <= MAX_TEST_DECEL_KT_S,
         }
         for key, col, _ in QUANTITIES:
             a, b = r[col], s[col]
@@ -393,6 +416,8 @@ def closed_loop_replay(
         "alpha_correction_deg": pl.Float64,
         "stall_id_by": pl.Utf8,
         "sim_stall_id_by": pl.Utf8,
+        "entry_decel_kt_s": pl.Float64,
+        "test_condition": pl.Boolean,
     }
     for key, _, _ in QUANTITIES:
         schema |= {

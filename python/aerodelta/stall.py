@@ -20,11 +20,13 @@ Each criterion, as measured here (constants below, times in s, angles in deg):
   that the elevator did not command: at the onset it (smoothed over
   :data:`SMOOTH_S`) lies within :data:`COMMAND_TOL_DEG` of its most nose-up position of the
   preceding :data:`COMMAND_WINDOW_S` (positive elevator is nose down, Etkin);
-- **g-break**: the first sample where the normal load factor n = -a_z,CG / g (smoothed over
-  :data:`SMOOTH_S`) has fallen :data:`G_BREAK_DN` below its maximum of the preceding
-  :data:`G_BREAK_WINDOW_S` in the search window while alpha is no lower than where that maximum
-  was: a sudden loss of lift at constant or rising alpha (a pushover, the pilot's or the
-  pusher's, loses alpha first; a slow decay of n in a decelerating turn is no break);
+- **g-break**: the first sample where the normal load factor n = -a_z,CG / g, per unit dynamic
+  pressure (n / q̄ ∝ C_L; both smoothed over :data:`SMOOTH_S`), has fallen below its maximum of
+  the preceding :data:`G_BREAK_WINDOW_S` in the search window by :data:`G_BREAK_DN` at the
+  current q̄, while alpha is no lower than where that maximum was: a sudden loss of lift at
+  constant or rising alpha (a pushover, the pilot's or the pusher's, loses alpha first; the
+  decay of n with q̄ in a decelerating turn, at constant C_L, is no break: an accelerated entry
+  loses 0.1 g in half a second that way). Without q̄, n itself;
 - **aft stop**: the end of the first :data:`AFT_STOP_HOLD_S` hold of the elevator within
   :data:`AFT_STOP_TOL_DEG` of its aft (most nose-up) stop in which the smoothed pitch attitude
   rose less than :data:`AFT_STOP_PITCH_DEG`; the stop is the one given, else the most nose-up
@@ -88,6 +90,12 @@ AFT_STOP_TOL_DEG = 0.5
 AFT_STOP_HOLD_S = 2.0
 #: Pitch-attitude rise (deg) over the hold below which the pitch "does not increase further".
 AFT_STOP_PITCH_DEG = 0.5
+#: Window before stall identification over which the entry's deceleration is measured, s.
+ENTRY_DECEL_WINDOW_S = 3.0
+#: Fastest entry deceleration of the stall-speed test conditions, kt/s: 14 CFR 25.201(c) flies
+#: stalls at up to 1 kt/s, turning-flight stalls at up to 3 kt/s (accelerated entries are
+#: faster; there a tenth of a second is a knot).
+MAX_TEST_DECEL_KT_S = 3.0
 #: Search window: the run of samples within this many deg of the maneuver's peak alpha.
 SEARCH_BELOW_PEAK_DEG = 3.0
 #: Attachment 7's validity requirement: valid to this many deg beyond stall identification.
@@ -138,6 +146,7 @@ def detect_criteria(
     de_deg: npt.ArrayLike,
     *,
     nz: npt.ArrayLike | None = None,
+    qbar: npt.ArrayLike | None = None,
     pusher: npt.ArrayLike | None = None,
     aft_stop_deg: float | None = None,
     buffet_rms_mps2: npt.ArrayLike | None = None,
@@ -159,6 +168,9 @@ def detect_criteria(
         Elevator, deg (positive nose down, Etkin).
     nz
         Normal load factor, g (``-a_z / g`` at the CG); None: g-break not assessed.
+    qbar
+        Dynamic pressure (any unit; positive): the g-break reads the loss of ``nz / qbar``
+        at the current ``qbar``. None: the loss of ``nz`` itself.
     pusher
         Pusher activation discrete (1 pushing); None: pusher not assessed.
     aft_stop_deg
@@ -218,7 +230,11 @@ def detect_criteria(
         out["g_break"] = None
     else:
         ns = _centred_mean(np.asarray(nz, dtype=np.float64), w_s)
-        run = np.where(win, ns, -np.inf)
+        # the load factor at the current dynamic pressure of each earlier sample's lift
+        # coefficient: n_j q̄_k / q̄_j
+        qs = np.ones(n) if qbar is None else _centred_mean(np.asarray(qbar, dtype=np.float64), w_s)
+        cs = ns / qs
+        run = np.where(win, cs, -np.inf)
         # the maximum of the preceding G_BREAK_WINDOW_S (inside the search window) and where it
         # was: lift lost at no lower alpha is a stall, a pushover (the pilot's or the pusher's)
         # loses alpha first
@@ -227,7 +243,7 @@ def detect_criteria(
             np.concatenate((np.full(w_g - 1, -np.inf), run)), w_g
         )
         at_max = np.maximum(idx - (w_g - 1) + np.argmax(pad, axis=1), 0)
-        lost = (run[at_max] - ns >= G_BREAK_DN) & (a >= a[at_max])
+        lost = ((run[at_max] - cs) * qs >= G_BREAK_DN) & (a >= a[at_max])
         out["g_break"] = _first(win & lost)
     if buffet_rms_mps2 is None:
         out["buffet"] = None
@@ -243,6 +259,15 @@ def detect_criteria(
     flat = th_s - th_s[start] < AFT_STOP_PITCH_DEG
     out["aft_stop"] = _first(win & long_enough & flat)
     return out
+
+
+def _entry_decel(t: FloatArray, eas_kt: FloatArray, t_end: float) -> float | None:
+    """Mean deceleration (kt/s) of the equivalent airspeed over the
+    :data:`ENTRY_DECEL_WINDOW_S` up to ``t_end``; None when the record starts later."""
+    t0 = t_end - ENTRY_DECEL_WINDOW_S
+    if t.size < 2 or t0 < float(t[0]) - 1e-9:
+        return None
+    return float(np.interp(t0, t, eas_kt) - np.interp(t_end, t, eas_kt)) / ENTRY_DECEL_WINDOW_S
 
 
 def _eas_kt(tas: FloatArray, rho: FloatArray) -> FloatArray:
@@ -321,8 +346,11 @@ def stall_identification(
         ``v_warning_keas`` (equivalent airspeed at the warning onset, kt), ``v_stall_keas`` (at
         stall identification, kt), ``v_min_keas`` (minimum from the start to the identification,
         or to the peak alpha when none, kt), ``v_stall_ktas`` (true airspeed at identification),
-        ``alpha_peak_deg`` and ``not_assessed`` (the criteria the record could not assess, and
-        why). Alphas are at the CG (``alpha_cg_deg``) when the data have it.
+        ``entry_decel_kt_s`` (the entry's mean EAS deceleration over the
+        :data:`ENTRY_DECEL_WINDOW_S` before the identification, or the peak alpha when none;
+        null when the record starts later), ``alpha_peak_deg`` and ``not_assessed`` (the
+        criteria the record could not assess, and why). Alphas are at the CG
+        (``alpha_cg_deg``) when the data have it.
 
     Raises
     ------
@@ -394,6 +422,7 @@ _SCHEMA: dict[str, Any] = {
     "v_stall_keas": pl.Float64,
     "v_min_keas": pl.Float64,
     "v_stall_ktas": pl.Float64,
+    "entry_decel_kt_s": pl.Float64,
     "alpha_peak_deg": pl.Float64,
     "not_assessed": pl.Utf8,
 }
@@ -428,6 +457,7 @@ def _one(
         col("theta_deg"),
         col("de_deg"),
         nz=nz,
+        qbar=0.5 * col("rho_kgm3") * col(vcol) ** 2,
         pusher=col("pusher_active") if has_push else None,
         aft_stop_deg=aft_stop_deg,
         buffet_rms_mps2=rms,
@@ -453,6 +483,7 @@ def _one(
         val(eas, k_id),
         float(np.min(eas[: k_end + 1])),
         None if k_id is None else float(col(vcol)[k_id] / KT),
+        _entry_decel(t, eas, float(t[k_end])),
         float(a[found["peak"]]),
         note,
     ]
@@ -652,6 +683,7 @@ def virtual_truth(campaign: str | Path, table: pl.DataFrame) -> pl.DataFrame:
             tr["theta_true_deg"].to_numpy(),
             tr["de_true_deg"].to_numpy(),
             nz=tr["nz_true"].to_numpy(),
+            qbar=0.5 * rec["rho_kgm3"].to_numpy() * tr["tas_true_mps"].to_numpy() ** 2,
             # the buffet the accelerometers felt, without the sensor noise and rigid-body motion
             buffet_rms_mps2=buffet_rms(t, tr["buffet_az_true_mps2"].to_numpy())
             if "buffet_az_true_mps2" in tr.columns

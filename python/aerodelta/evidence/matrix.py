@@ -25,6 +25,7 @@ from aerodelta.model import DeltaModel
 from aerodelta.stall import (
     CRITERIA,
     G0,
+    MAX_TEST_DECEL_KT_S,
     MIN_MANEUVERS_COVERING,
     VALIDITY_MARGIN_DEG,
     stall_identification,
@@ -378,10 +379,26 @@ def _speed_rows(
             )
             per = {f: f"{k} maneuvers, mean {_fmt(v)} kt" for f, (k, v) in per_rec.items()}
         else:
-            cmp = lt.filter(pl.col(f"{key}_status").is_not_null())
+            replayed = lt.filter(pl.col(f"{key}_status").is_not_null())
+            # the tolerance applies to the stall-speed test conditions (14 CFR 25.201(c):
+            # entries up to 3 kt/s); faster entries are counted apart
+            cmp = replayed.filter(pl.col("test_condition"))
+            fast = replayed.filter(~pl.col("test_condition"))
             n_pass = int((cmp[f"{key}_status"] == "PASS").sum())
             status = PASS if n_pass == cmp.height else FAIL
-            data_text += f"; {cmp.height} replayed in closed loop with the extended model"
+            if not cmp.height:
+                status = NOT_ASSESSED + (
+                    f"no replayed entry within the stall-speed test conditions (at most "
+                    f"{MAX_TEST_DECEL_KT_S:g} kt/s, 14 CFR 25.201(c))"
+                )
+            data_text += f"; {replayed.height} replayed in closed loop with the extended model"
+            if fast.height:
+                n_fast = int((fast[f"{key}_status"] == "PASS").sum())
+                data_text += (
+                    f"; {fast.height} entering faster than {MAX_TEST_DECEL_KT_S:g} kt/s "
+                    f"(accelerated; outside the 14 CFR 25.201(c) stall-speed test conditions) "
+                    f"shown, not judged: {n_fast} of them within ±{SPEED_TOLERANCE_KT:g} kt"
+                )
             per = {}
             for r in (
                 cmp.group_by("flap_deg")

@@ -18,13 +18,21 @@
 //!   the objective test measures. Ailerons and rudder add to the recorded deflections a bank
 //!   (PD) and sideslip (P, yaw-rate damping) hold on the recorded bank and sideslip; spoilers
 //!   are the recorded ones; each engine gives the recorded thrust (`C_T q̄ S` of the record).
-//!   Past the record's stall identification (`t_id_s`) the recorded values are held at it and
-//!   the airspeed reference keeps falling at the entry's rate (measured over the
-//!   [`DECEL_WINDOW_S`] before, at least [`MIN_DECEL_MPS2`]): a model that stalls later than
-//!   the aircraft is flown on into its own stall, not stopped at the aircraft's.
+//!   Past the record's stall identification (`t_id_s`) the recorded values are held at it, the
+//!   speed loop's correction is held, and the pilot goes on pulling at the test pilot's alpha
+//!   rate into the identification (the recorded mean alpha rate from [`PULL_WINDOW_S`] before
+//!   it to the peak, at least [`MIN_PULL_DPS`]) from where the reference was: a model that
+//!   stalls later than the aircraft is flown on into its own stall, not stopped at the
+//!   aircraft's. (Continuing the entry's *deceleration* instead, as the first version did,
+//!   unloaded accelerated entries: at 5-8 kt/s the reference's rate jumps at the
+//!   identification, the speed loop's rate term kicks alpha down by degrees, and the aircraft
+//!   flew on 20-27 kt below the record's stall.)
 //! - **Stall cues**: the simulator's pusher (fired at the aircraft's activation alpha), a
-//!   g-break (the load factor [`G_BREAK_DN`] below its maximum of the last
-//!   [`G_BREAK_WINDOW_S`] at no lower alpha, with the warning on), a deterrent buffet (the
+//!   g-break (lift lost at no lower alpha with the warning on: the load factor per unit
+//!   dynamic pressure, `n / q̄` ∝ C_L, below its maximum of the last [`G_BREAK_WINDOW_S`] by
+//!   [`G_BREAK_DN`] at the current `q̄`, as `aerodelta.stall` reads the records; a decelerating
+//!   turn's load factor falls with `q̄` at constant C_L, which is no break), a deterrent buffet
+//!   (the
 //!   simulator's buffet schedule at the given level), or [`MAX_EXTEND_S`] past the record's
 //!   identification.
 //! - **Recovery**: [`REACTION_S`] after the pusher (the pilot lets it push; unless the record
@@ -111,18 +119,13 @@ pub const SPEED_SMOOTH_S: f64 = 2.0;
 pub const TRACK_SMOOTH_S: f64 = 0.6;
 /// Time constant of the low-pass on the simulator's airspeed rate in the speed loop, s.
 const RATE_TAU_S: f64 = 1.0;
-/// Window before the record's stall identification over which the entry's deceleration is
-/// measured, s.
-pub const DECEL_WINDOW_S: f64 = 8.0;
-/// Least deceleration the pilot keeps past the record's identification, m/s² (≈ 0.5 kt/s).
-pub const MIN_DECEL_MPS2: f64 = 0.25;
-/// Longest the pilot keeps decelerating past the record's identification without a stall
-/// cue, s.
+/// Longest the pilot keeps pulling past the record's identification without a stall cue, s.
 pub const MAX_EXTEND_S: f64 = 15.0;
 /// Window before the record's stall identification over which the test pilot's pull (mean
-/// alpha rate to the peak alpha) is measured, s.
+/// alpha rate to the peak alpha, flown on past the identification and past a stall cue) is
+/// measured, s.
 pub const PULL_WINDOW_S: f64 = 2.0;
-/// Least pull past a stall cue, deg/s.
+/// Least pull past the record's identification and past a stall cue, deg/s.
 pub const MIN_PULL_DPS: f64 = 0.5;
 /// Least time the pilot pulls on past a g-break or deterrent buffet before recovering, s.
 pub const MIN_DEPTH_S: f64 = 0.3;
@@ -130,7 +133,8 @@ pub const MIN_DEPTH_S: f64 = 0.3;
 pub const REACTION_S: f64 = 0.3;
 /// Simulated time after recognition, s (the recovery takes alpha out of the stall).
 pub const RECOVERY_S: f64 = 4.0;
-/// Load-factor loss of the online g-break, g (as `aerodelta.stall.G_BREAK_DN`).
+/// Load-factor loss of the online g-break at the current dynamic pressure, g (as
+/// `aerodelta.stall.G_BREAK_DN`).
 pub const G_BREAK_DN: f64 = 0.1;
 /// Look-back of the online g-break, s (as `aerodelta.stall.G_BREAK_WINDOW_S`).
 pub const G_BREAK_WINDOW_S: f64 = 2.0;
@@ -406,17 +410,8 @@ pub fn fly_closed_loop<M: AeroModel + ?Sized>(
         eas_rate,
         thrust,
     };
-    // the entry's deceleration before the record's identification, continued past it
-    let v_id = tr.at(&tr.eas, t_id);
-    let t_b = (t_id - DECEL_WINDOW_S).max(t[0]);
-    let decel = if t_id - t_b > 1.0 {
-        (tr.at(&tr.eas, t_b) - v_id) / (t_id - t_b)
-    } else {
-        0.0
-    }
-    .max(MIN_DECEL_MPS2);
-    // the test pilot's pull past the identification (recorded mean alpha rate to the peak)
-    // and how long it lasted
+    // the test pilot's pull into and past the identification (recorded mean alpha rate to the
+    // peak) and how long it lasted
     let depth = (t_peak - t_id).max(MIN_DEPTH_S);
     let t_pull = (t_id - PULL_WINDOW_S).max(t[0]);
     let pull = if t_peak - t_pull > 0.5 {
@@ -472,10 +467,13 @@ pub fn fly_closed_loop<M: AeroModel + ?Sized>(
     let mut eas_rate_lp = 0.0f64;
     let mut recognised: Option<(f64, &'static str)> = None;
     let mut recover_at = f64::INFINITY;
-    let mut nz_hist: Vec<(f64, f64, f64)> = Vec::new(); // (t, nz, alpha deg)
+    let mut nz_hist: Vec<(f64, f64, f64)> = Vec::new(); // (t, nz / q̄, alpha deg)
     let mut cols: Vec<Vec<f64>> = (0..OUTPUT_COLUMNS.len()).map(|_| Vec::new()).collect();
     let mut warn_on = false;
     let mut alpha_at_cue = 0.0f64;
+    // the entry's last reference before the record's identification, pulled on from there
+    let mut alpha_ref_prev = 0.0f64;
+    let mut alpha_ref_id: Option<f64> = None;
     let t_stop_max = t_id + MAX_EXTEND_S + depth + REACTION_S + RECOVERY_S;
     let mut step = 0usize;
     loop {
@@ -505,28 +503,26 @@ pub fn fly_closed_loop<M: AeroModel + ?Sized>(
                 warn_on = false;
             }
         }
-        // the pilot: the speed loop sets the alpha correction in the entry, then holds it
+        // the pilot: the speed loop sets the alpha correction up to the record's
+        // identification, then holds it
         let eas_sim = ad.tas * (ad.rho / 1.225).sqrt();
         if let Some(p) = prev_eas {
             eas_rate_lp += dt / (RATE_TAU_S + dt) * ((eas_sim - p) / dt - eas_rate_lp);
         }
         prev_eas = Some(eas_sim);
-        if entry {
-            let (v_ref, vdot_ref) = if tn <= t_id {
-                (tr.at(&tr.eas, tn), tr.at(&tr.eas_rate, tn))
-            } else {
-                (v_id - decel * (tn - t_id), -decel)
-            };
-            let e = eas_sim - v_ref;
-            let edot = eas_rate_lp - vdot_ref;
+        if entry && tn <= t_id {
+            let e = eas_sim - tr.at(&tr.eas, tn);
+            let edot = eas_rate_lp - tr.at(&tr.eas_rate, tn);
             int_v = (int_v + e * dt).clamp(-ALPHA_C_MAX / K_I, ALPHA_C_MAX / K_I);
             alpha_c = (K_V * e + K_D * edot + K_I * int_v).clamp(-ALPHA_C_MAX, ALPHA_C_MAX);
         }
         let alpha_ref = match recognised {
             _ if recovering => d(RECOVERY_ALPHA_DEG),
             Some((tc, _)) => alpha_at_cue + pull * (tn - tc),
-            None => d(tr.col("alpha_deg", tq)) + alpha_c,
+            None if tn <= t_id => d(tr.col("alpha_deg", tn)) + alpha_c,
+            None => *alpha_ref_id.get_or_insert(alpha_ref_prev) + pull * (tn - t_id),
         };
+        alpha_ref_prev = alpha_ref;
         let q_ref = if recovering || !entry || tn > t_id {
             0.0
         } else {
@@ -571,7 +567,10 @@ pub fn fly_closed_loop<M: AeroModel + ?Sized>(
         // recognition: the simulator's stall cues (its pusher, a g-break with the warning on,
         // a deterrent buffet), or the time limit
         if recognised.is_none() && step > 0 {
-            nz_hist.push((tn, nz, alpha_deg));
+            // n / q̄ (per Pa): the lift coefficient up to the constant W / S
+            let qbar = 0.5 * ad.rho * ad.tas * ad.tas;
+            let c_now = nz / qbar;
+            nz_hist.push((tn, c_now, alpha_deg));
             let start = nz_hist.partition_point(|h| h.0 < tn - G_BREAK_WINDOW_S);
             let (mut best, mut a_best) = (f64::NEG_INFINITY, 0.0);
             for h in &nz_hist[start..] {
@@ -587,7 +586,7 @@ pub fn fly_closed_loop<M: AeroModel + ?Sized>(
             };
             recognised = if fired && !opts.resist_pusher {
                 Some((tn, "pusher"))
-            } else if warning_ok && best - nz >= G_BREAK_DN && alpha_deg >= a_best {
+            } else if warning_ok && (best - c_now) * qbar >= G_BREAK_DN && alpha_deg >= a_best {
                 Some((tn, "g_break"))
             } else if deterrent {
                 Some((tn, "buffet"))
