@@ -87,7 +87,9 @@ class ClosedLoopResult:
     runs
         The simulated time histories by maneuver (the columns the identification reads).
     setup
-        The warning and pusher thresholds per flap (deg), the model, the buffet model.
+        The warning and pusher thresholds per flap (deg), the model, the flaps flying the
+        Kirchhoff stall given (``kirchhoff_flaps``) and those flying the one ``model`` stores
+        (``model_kirchhoff_flaps``), the buffet model.
     """
 
     table: pl.DataFrame
@@ -236,7 +238,8 @@ def closed_loop_replay(
         Per flap (deg), the Kirchhoff stall parameters (by name, engine units, or in
         ``_core.kirchhoff_param_names()`` order) replacing the qualified static C_L, C_m
         curves (e.g. :func:`aerodelta.longitudinal.fit_kirchhoff`'s); a flap absent flies the
-        static curves.
+        stall ``model`` stores for it (:meth:`DeltaModel.with_longitudinal`, when fitted with
+        ``known="adx37"``), else the static curves.
     truth_effects
         Effects of the virtual aircraft's truth (names or name -> magnitude); only without
         ``model``.
@@ -432,6 +435,10 @@ def closed_loop_replay(
         "model": "extended (qualified + fitted Δ)" if model is not None else (
             "truth effects" if truth_effects else "qualified"),
         "kirchhoff_flaps": sorted(f for f, v in kp.items() if v is not None),
+        "model_kirchhoff_flaps": sorted(
+            f for f in (model.kirchhoff or {})
+            if f not in kp and f in {float(x) for x in sim_all["flap_deg"].unique()}
+        ) if model is not None and model.kirchhoff_known == "adx37" else [],
         "buffet_model": buffet_model is not None,
     }  # fmt: skip
     return ClosedLoopResult(table=pl.DataFrame(rows, schema=schema), runs=runs, setup=setup)

@@ -380,10 +380,13 @@ class FlapFit:
 
 @dataclass(frozen=True)
 class KirchhoffResult:
-    """What :func:`fit_kirchhoff` returns: one :class:`FlapFit` per flap setting."""
+    """What :func:`fit_kirchhoff` returns: one :class:`FlapFit` per flap setting, whether
+    C_m was fitted, and ``known`` (the terms taken off the measured coefficients: ``adx37`` or
+    ``none``)."""
 
     fits: dict[float, FlapFit]
     fit_cm: bool
+    known: str = "adx37"
 
     @property
     def notes(self) -> dict[float, str]:
@@ -649,7 +652,7 @@ def fit_kirchhoff(
             note=note,
             tau_free=tau_free,
         )
-    return KirchhoffResult(fits=fits, fit_cm=fit_cm)
+    return KirchhoffResult(fits=fits, fit_cm=fit_cm, known=known)
 
 
 def _engine(  # noqa: PLR0917

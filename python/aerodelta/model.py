@@ -190,6 +190,55 @@ class DeltaModel:
             )
         return pl.Series("in_envelope", out)
 
+    @property
+    def kirchhoff(self) -> dict[float, dict[str, float]] | None:
+        """The longitudinal stall stored with the model: per flap (deg), the Kirchhoff
+        parameters by name (``aerodelta.longitudinal.PARAMS``; engine units s, rad, 1/rad);
+        ``None`` for a model without one. :attr:`kirchhoff_known` says what the fit took off
+        the measured coefficients."""
+        lon = self.to_spec().get("longitudinal")
+        if lon is None:
+            return None
+        return {float(f["flap_deg"]): dict(f["params"]) for f in lon["flaps"]}
+
+    @property
+    def kirchhoff_known(self) -> str | None:
+        """``adx37`` (the stall replaces the built-in aircraft's qualified static C_L, C_m
+        curves), ``none`` (the curves are the whole measured coefficients) or ``None`` without
+        a stored stall."""
+        lon = self.to_spec().get("longitudinal")
+        return None if lon is None else str(lon["known"])
+
+    def with_longitudinal(self, result: Any) -> DeltaModel:
+        """A copy of the model carrying the Kirchhoff stall of
+        :func:`aerodelta.longitudinal.fit_kirchhoff` (every flap fitted, with its note), so a
+        simulator that loads the model (``aero_core``'s closed-loop replays, the evidence
+        pack) flies the identified lift and pitch break. A stall already stored is replaced.
+
+        Raises
+        ------
+        InvalidInputError
+            When the fit left C_m out (``fit_cm=False``: a simulator flies both curves) or
+            fitted no flap.
+        """
+        if not result.fit_cm:
+            raise InvalidInputError(
+                "with_longitudinal: the Kirchhoff fit left C_m out (fit_cm=False); fit both "
+                "curves to store the stall a simulator flies"
+            )
+        if not result.fits:
+            raise InvalidInputError("with_longitudinal: the Kirchhoff fit has no flap")
+        spec = self.to_spec()
+        spec["longitudinal"] = {
+            "model": "kirchhoff",
+            "known": result.known,
+            "flaps": [
+                {"flap_deg": float(f), "params": dict(ff.params), "note": ff.note}
+                for f, ff in sorted(result.fits.items())
+            ],
+        }
+        return DeltaModel.from_spec(spec, "model with its longitudinal stall")
+
     def __repr__(self) -> str:
         return f"DeltaModel({', '.join(self.coefficients)})"
 

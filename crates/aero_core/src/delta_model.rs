@@ -24,7 +24,9 @@ use serde::{Deserialize, Serialize};
 
 use crate::envelope::{Envelope, EnvelopeSpec};
 use crate::error::{AeroError, Result, ResultExt};
+use crate::kirchhoff::KirchhoffParams;
 use crate::regressor::{BoundExpr, Expr};
+use crate::stall_spec::LongitudinalSpec;
 use crate::table::{Axis, Table};
 use crate::text::{one_line, shown};
 
@@ -93,6 +95,9 @@ pub struct DeltaModelSpec {
     /// The flight data's α/β coverage per flap ([`crate::envelope`]), when the fit wrote it.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub envelope: Option<EnvelopeSpec>,
+    /// The longitudinal stall identified per flap ([`crate::stall_spec`]), when stored.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub longitudinal: Option<LongitudinalSpec>,
 }
 
 fn default_alpha() -> String {
@@ -123,6 +128,7 @@ pub struct DeltaModel {
     spec: DeltaModelSpec,
     coefficients: Vec<Coefficient>,
     envelope: Option<Envelope>,
+    kirchhoff: Vec<(f64, KirchhoffParams)>,
 }
 
 /// Linear blending weight of Eq. 3.12.
@@ -239,11 +245,29 @@ impl DeltaModel {
             });
         }
         let envelope = spec.envelope.clone().map(Envelope::new).transpose()?;
+        let kirchhoff = spec
+            .longitudinal
+            .as_ref()
+            .map(LongitudinalSpec::compile)
+            .transpose()?
+            .unwrap_or_default();
         Ok(DeltaModel {
             spec,
             coefficients,
             envelope,
+            kirchhoff,
         })
+    }
+
+    /// The stored Kirchhoff stall parameters of a flap setting (deg, exact), with the basis of
+    /// their known terms ([`LongitudinalSpec::known`]); `None` when the model carries none for
+    /// it.
+    pub fn kirchhoff(&self, flap_deg: f64) -> Option<(&KirchhoffParams, &str)> {
+        let known = self.spec.longitudinal.as_ref()?.known.as_str();
+        self.kirchhoff
+            .iter()
+            .find(|(f, _)| *f == flap_deg)
+            .map(|(_, p)| (p, known))
     }
 
     /// Whether the state (flap, α, β in deg) lies inside the validated envelope of the flight
@@ -562,7 +586,40 @@ mod tests {
             provenance: serde_json::json!({"test": true}),
             rolloff: None,
             envelope: None,
+            longitudinal: None,
         }
+    }
+
+    #[test]
+    fn a_stored_kirchhoff_stall_survives_the_file_and_is_checked_on_load() {
+        let p = crate::kirchhoff::KirchhoffParams {
+            tau1: 0.2,
+            tau2: 0.05,
+            alpha_star: 0.3,
+            a1: 25.0,
+            cl_alpha: 5.2,
+            alpha0: -0.05,
+            cm0: 0.05,
+            cm_alpha: -0.75,
+            cm_x: -0.15,
+        };
+        let m = DeltaModel::new(spec()).unwrap();
+        assert!(m.kirchhoff(0.0).is_none());
+        let mut s = spec();
+        s.longitudinal = Some(LongitudinalSpec::from_params(
+            "adx37",
+            &[(10.0, p, "note".into())],
+        ));
+        let m = DeltaModel::from_json(&DeltaModel::new(s.clone()).unwrap().to_json().unwrap(), "m")
+            .unwrap();
+        assert_eq!(m.kirchhoff(10.0), Some((&p, "adx37")));
+        assert!(m.kirchhoff(0.0).is_none());
+        assert_eq!(m.spec(), &s);
+        if let Some(l) = s.longitudinal.as_mut() {
+            l.flaps[0].params.insert("a1".into(), 0.0);
+        }
+        let msg = DeltaModel::new(s).unwrap_err().to_string();
+        assert!(msg.contains("flap 10") && msg.contains("a1"), "{msg}");
     }
 
     #[test]

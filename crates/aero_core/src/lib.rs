@@ -73,6 +73,7 @@ pub mod select;
 pub mod signflip;
 pub mod sim;
 pub mod spline;
+pub mod stall_spec;
 pub mod table;
 mod text;
 

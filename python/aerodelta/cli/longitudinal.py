@@ -8,6 +8,10 @@ that table as CSV. The built-in aircraft's qualified control, rate and thrust te
 off the measured coefficients (--known adx37, the default); --known none fits them as measured.
 A flap whose records show no separation lag (static aerodynamics) is reported with tau1, tau2
 held at the engine's lower bounds and a "not identified" note after the table.
+
+--model M.json --out-model OUT.json writes a copy of the Δ model M carrying the fitted stall
+(every flap, with its note), so a simulator that loads OUT flies the identified lift and pitch
+break; M itself is not touched.
 """
 
 from __future__ import annotations
@@ -16,11 +20,13 @@ import argparse
 import json
 import math
 import sys
+from pathlib import Path
 
 from aerodelta._fsutil import write_atomic
 from aerodelta.cli._data import (
     add_data_arguments,
     check_outputs,
+    load_model,
     load_records,
     output_file,
     resolve_data,
@@ -38,6 +44,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--known", choices=("adx37", "none"), default="adx37")
     parser.add_argument("--max-iter", type=int, default=60, metavar="N")
     parser.add_argument("--out", metavar="FILE", help="write the parameter table as CSV")
+    parser.add_argument(
+        "--model", metavar="FILE", help="Δ model to carry the stall (with --out-model)"
+    )
+    parser.add_argument(
+        "--out-model", metavar="FILE", help="write the --model copy with the stall here"
+    )
     parser.add_argument("--format", choices=("table", "json"), default="table")
     parser.add_argument("--no-progress", action="store_true", help="no progress bars")
 
@@ -60,9 +72,22 @@ def run(args: argparse.Namespace) -> int:
         raise InvalidInputError(f"--max-iter {args.max_iter}: give at least 1")
     flaps = _flaps(args.flaps)
     out = output_file(args.out, "--out", "kirchhoff.csv") if args.out else None
+    if (args.model is None) != (args.out_model is None):
+        raise InvalidInputError(
+            "--model and --out-model go together: the Δ model to copy and where to write the "
+            "copy carrying the stall"
+        )
+    if args.out_model is not None and args.no_cm:
+        raise InvalidInputError(
+            "--out-model with --no-cm: a simulator flies both curves; fit C_m too"
+        )
+    out_model = output_file(args.out_model, "--out-model") if args.out_model else None
+    base_model = load_model(args.model) if args.model is not None else None
     src = resolve_data(args)
     if out is not None:
         check_outputs(src, "--out", files=[out])
+    if out_model is not None:
+        check_outputs(src, "--out-model", files=[out_model], inputs=[Path(args.model)])
     data = model_frame(load_records(src, progress=not args.no_progress))
     res = fit_kirchhoff(
         data, flaps=flaps, fit_cm=not args.no_cm, known=args.known, max_iter=args.max_iter
@@ -71,6 +96,9 @@ def run(args: argparse.Namespace) -> int:
     if out is not None:
         out.parent.mkdir(parents=True, exist_ok=True)
         write_atomic(out, table.write_csv)
+    if out_model is not None and base_model is not None:
+        out_model.parent.mkdir(parents=True, exist_ok=True)
+        base_model.with_longitudinal(res).save(out_model)
     if args.format == "json":
         print(json.dumps(table.to_dicts(), indent=2, allow_nan=True))
         for flap, note in res.notes.items():  # stdout stays the JSON table
@@ -93,5 +121,7 @@ def run(args: argparse.Namespace) -> int:
             print(f"flap {flap:g}: {note}")
         if out is not None:
             print(f"wrote {out}")
+        if out_model is not None:
+            print(f"wrote {out_model} (the Δ model with the stall of {len(res.fits)} flap(s))")
     sys.stdout.flush()
     return 0

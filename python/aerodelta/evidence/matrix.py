@@ -298,11 +298,16 @@ def _replay(
             "no fitted Δ model given (--model model.json): the closed-loop replay flies the "
             "extended model"
         )
+    # the stall the model carries flies where it has one (what the simulator will fly), the
+    # pack's own fit elsewhere
+    kp = fits.params()
+    if model.kirchhoff_known == "adx37":
+        kp = {f: p for f, p in kp.items() if f not in (model.kirchhoff or {})}
     try:
         res = closed_loop_replay(
             data,
             model=model,
-            kirchhoff=fits.params(),
+            kirchhoff=kp,
             buffet_model=buffet_model,
             aft_stop_deg=aft_stop_deg,
             table=table,

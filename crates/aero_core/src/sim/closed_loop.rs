@@ -678,7 +678,9 @@ pub enum ReplayModel<'a> {
     Extended {
         /// The fitted Δ model.
         delta: &'a DeltaModel,
-        /// Kirchhoff parameters of this flap, when fitted.
+        /// Kirchhoff parameters of this flap; None: the stall the Δ model stores for the flap
+        /// ([`DeltaModel::kirchhoff`]) when fitted on the ADX-37's known terms, else the
+        /// qualified static curves.
         kirchhoff: Option<KirchhoffParams>,
     },
     /// A truth model of the virtual aircraft: the qualified model with these effects and
@@ -716,8 +718,16 @@ pub fn closed_loop_adx37(
     let stall = |p: Option<KirchhoffParams>| p.map(|p| KirchhoffStall::new(qual, p)).transpose();
     match model {
         ReplayModel::Extended { delta, kirchhoff } => {
+            // the stall given, else the one the model carries for this flap when it was fitted
+            // on the ADX-37's known terms (it then replaces the qualified static curves)
+            let k = kirchhoff.or_else(|| {
+                delta
+                    .kirchhoff(opts.flap_deg)
+                    .filter(|(_, known)| *known == "adx37")
+                    .map(|(p, _)| *p)
+            });
             let base = TruthAero::new(slice(qual, opts.flap_deg)?, Vec::new(), None)
-                .with_kirchhoff(stall(*kirchhoff)?);
+                .with_kirchhoff(stall(k)?);
             let mut m = ExtendedAero::new(base, delta)?;
             fly_closed_loop(&mut m, &ac, record, x0, opts)
         }

@@ -2169,6 +2169,7 @@ pub fn model_seed() -> Vec<u8> {
         }),
         rolloff: Some(serde_json::json!({"enabled": true, "sigma_deg": [0.5, 0.7], "seed": 7})),
         envelope: None,
+        longitudinal: None,
     };
     DeltaModel::new(spec)
         .expect("the seed model is valid")

@@ -1,0 +1,170 @@
+//! The longitudinal stall a Δ model carries: the Kirchhoff flow-separation model
+//! ([`crate::kirchhoff`]; Fischenberg, AIAA 95-3438, 1995) identified per flap by output error,
+//! stored in the model file beside the lateral Δ tables so a simulator that loads the model
+//! flies the identified lift break and pitch break (issue 20, item 2).
+//!
+//! The parameters are those of [`crate::kirchhoff::PARAM_NAMES`] in the engine's units
+//! (s, rad, 1/rad). `known` says what the fit took off the measured coefficients before
+//! fitting the static curves: `adx37` (the built-in aircraft's qualified control, rate and
+//! thrust terms; the curves then replace its qualified `C_L`, `C_m` basic curves) or `none`
+//! (the curves are the whole measured coefficients of the fitted records).
+
+use std::collections::BTreeMap;
+
+use serde::{Deserialize, Serialize};
+
+use crate::error::{AeroError, Result, ResultExt};
+use crate::kirchhoff::{KirchhoffParams, N_PARAMS, PARAM_NAMES};
+
+/// The stored longitudinal stall.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LongitudinalSpec {
+    /// The stall model: `kirchhoff`.
+    pub model: String,
+    /// What the fit took off the measured coefficients: `adx37` or `none` (module docs).
+    pub known: String,
+    /// One entry per flap setting fitted.
+    pub flaps: Vec<KirchhoffFlap>,
+}
+
+/// The Kirchhoff parameters of one flap setting.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct KirchhoffFlap {
+    /// Flap setting, deg.
+    pub flap_deg: f64,
+    /// Parameter name ([`PARAM_NAMES`]) -> value, engine units.
+    pub params: BTreeMap<String, f64>,
+    /// The fit's note (e.g. lags not identified on static data), empty when none.
+    #[serde(default, skip_serializing_if = "String::is_empty")]
+    pub note: String,
+}
+
+/// Known-term bases a stored stall may declare.
+pub const KNOWN: [&str; 2] = ["adx37", "none"];
+
+impl LongitudinalSpec {
+    /// Validate and return `(flap_deg, parameters)` per flap, in the stored order.
+    ///
+    /// # Errors
+    /// [`AeroError::InvalidInput`] naming the flap and the parameter: an unknown model or
+    /// known-term basis, a repeated or non-finite flap, a missing or unknown parameter, values
+    /// the model cannot run with ([`KirchhoffParams::check`]).
+    pub fn compile(&self) -> Result<Vec<(f64, KirchhoffParams)>> {
+        if self.model != "kirchhoff" {
+            return Err(AeroError::invalid(
+                "model longitudinal.model",
+                format!("is '{}'; this library reads 'kirchhoff'", self.model),
+            ));
+        }
+        if !KNOWN.contains(&self.known.as_str()) {
+            return Err(AeroError::invalid(
+                "model longitudinal.known",
+                format!("is '{}'; give 'adx37' or 'none'", self.known),
+            ));
+        }
+        let mut out: Vec<(f64, KirchhoffParams)> = Vec::with_capacity(self.flaps.len());
+        for f in &self.flaps {
+            let place = format!("model longitudinal, flap {}", f.flap_deg);
+            if !f.flap_deg.is_finite() {
+                return Err(AeroError::invalid(place, "flap_deg is not finite"));
+            }
+            if out.iter().any(|(g, _)| *g == f.flap_deg) {
+                return Err(AeroError::invalid(
+                    place,
+                    "appears twice; give each flap once",
+                ));
+            }
+            if let Some(extra) = f.params.keys().find(|k| !PARAM_NAMES.contains(&k.as_str())) {
+                return Err(AeroError::invalid(
+                    place,
+                    format!(
+                        "unknown parameter '{extra}'; the parameters are {}",
+                        PARAM_NAMES.join(", ")
+                    ),
+                ));
+            }
+            let mut v = [0.0; N_PARAMS];
+            for (slot, name) in v.iter_mut().zip(PARAM_NAMES) {
+                *slot = *f.params.get(name).ok_or_else(|| {
+                    AeroError::invalid(place.clone(), format!("lacks parameter {name}"))
+                })?;
+            }
+            let p = KirchhoffParams::from_array(&v);
+            p.check().context(place)?;
+            out.push((f.flap_deg, p));
+        }
+        Ok(out)
+    }
+
+    /// A spec from fitted parameters per flap (`known` as in the module docs).
+    pub fn from_params(known: &str, flaps: &[(f64, KirchhoffParams, String)]) -> Self {
+        LongitudinalSpec {
+            model: "kirchhoff".into(),
+            known: known.into(),
+            flaps: flaps
+                .iter()
+                .map(|(f, p, note)| KirchhoffFlap {
+                    flap_deg: *f,
+                    params: PARAM_NAMES
+                        .iter()
+                        .zip(p.to_array())
+                        .map(|(n, v)| ((*n).to_string(), v))
+                        .collect(),
+                    note: note.clone(),
+                })
+                .collect(),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn params() -> KirchhoffParams {
+        KirchhoffParams {
+            tau1: 0.2,
+            tau2: 0.05,
+            alpha_star: 0.3,
+            a1: 25.0,
+            cl_alpha: 5.2,
+            alpha0: -0.05,
+            cm0: 0.05,
+            cm_alpha: -0.75,
+            cm_x: -0.15,
+        }
+    }
+
+    #[test]
+    fn round_trips_and_refuses_what_it_cannot_fly() {
+        let spec = LongitudinalSpec::from_params("adx37", &[(0.0, params(), String::new())]);
+        let text = serde_json::to_string(&spec).unwrap();
+        let back: LongitudinalSpec = serde_json::from_str(&text).unwrap();
+        assert_eq!(back.compile().unwrap(), vec![(0.0, params())]);
+        let msg = |s: &LongitudinalSpec| s.compile().unwrap_err().to_string();
+        let mut bad = spec.clone();
+        bad.flaps[0].params.remove("tau2");
+        assert!(msg(&bad).contains("flap 0") && msg(&bad).contains("lacks parameter tau2"));
+        let mut bad = spec.clone();
+        bad.flaps[0].params.insert("tau3".into(), 1.0);
+        assert!(msg(&bad).contains("unknown parameter 'tau3'"));
+        let mut bad = spec.clone();
+        bad.flaps[0].params.insert("tau1".into(), -0.1);
+        assert!(
+            msg(&bad).contains("flap 0") && msg(&bad).contains("tau1"),
+            "{}",
+            msg(&bad)
+        );
+        let mut bad = spec.clone();
+        bad.flaps.push(bad.flaps[0].clone());
+        assert!(msg(&bad).contains("appears twice"));
+        let mut bad = spec.clone();
+        bad.known = "f16".into();
+        assert!(msg(&bad).contains("'adx37' or 'none'"));
+        let mut bad = spec;
+        bad.model = "goman".into();
+        assert!(msg(&bad).contains("reads 'kirchhoff'"));
+    }
+}

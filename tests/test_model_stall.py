@@ -1,0 +1,118 @@
+"""The Kirchhoff stall stored with the Δ model (``DeltaModel.with_longitudinal``,
+``aero_core::stall_spec``; issue 20 item 2: the extended model carries the stall).
+
+References: the output-error fit itself (its parameters must come back bit for bit from the
+file) and the closed-loop replay given those parameters explicitly (the replay of the model
+carrying them must be the same flight, sample for sample), on the quick stall campaign of seed
+41 (buffet and the Kirchhoff stall on).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from pathlib import Path
+from typing import Any
+
+import polars as pl
+import pytest
+
+import aerodelta as ad
+from aerodelta.cli import main
+from aerodelta.closed_loop import closed_loop_replay
+from aerodelta.exceptions import InvalidInputError
+from aerodelta.fit import model_frame
+from aerodelta.longitudinal import PARAMS, fit_kirchhoff
+from aerodelta.model import DeltaModel
+
+
+@pytest.fixture(scope="module")
+def fitted(stall_campaign: Path, tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
+    data = ad.ingest(stall_campaign, compat=False, progress=False).data
+    root = tmp_path_factory.mktemp("stallmodel")
+    model = ad.fit(data).model
+    model.save(root / "model.json")
+    stall = fit_kirchhoff(model_frame(data), flaps=[0.0, 15.0], known="adx37")
+    return {"data": data, "model": model, "stall": stall, "root": root}
+
+
+def test_the_stall_survives_the_file_bit_for_bit(fitted: dict[str, Any]) -> None:
+    model, stall = fitted["model"], fitted["stall"]
+    assert model.kirchhoff is None and model.kirchhoff_known is None
+    m2 = model.with_longitudinal(stall)
+    path = fitted["root"] / "with_stall.json"
+    m2.save(path)
+    back = DeltaModel.load(path)
+    assert back.kirchhoff_known == "adx37"
+    k = back.kirchhoff
+    assert k is not None and sorted(k) == [0.0, 15.0]
+    for f in (0.0, 15.0):
+        assert set(k[f]) == set(PARAMS)
+        assert all(k[f][n] == stall[f].params[n] for n in PARAMS)  # exact, not approximate
+    # the lateral Δ is untouched
+    spec, spec2 = model.to_spec(), back.to_spec()
+    assert spec2.pop("longitudinal")["model"] == "kirchhoff"
+    assert spec2 == spec
+
+
+def test_the_replay_flies_the_stored_stall(fitted: dict[str, Any]) -> None:
+    data, model, stall = fitted["data"], fitted["model"], fitted["stall"]
+    ids = (
+        data.filter(pl.col("flap_deg").is_in([0.0, 15.0]) & (pl.col("kind") == "straight"))[
+            "maneuver_id"
+        ]
+        .unique()
+        .sort()
+        .to_list()
+    )
+    given = closed_loop_replay(
+        data,
+        model=model,
+        kirchhoff={f: stall[f].params for f in (0.0, 15.0)},
+        maneuvers=ids,
+    )
+    stored = closed_loop_replay(data, model=model.with_longitudinal(stall), maneuvers=ids)
+    static = closed_loop_replay(data, model=model, maneuvers=ids)
+    assert stored.setup["model_kirchhoff_flaps"] == [0.0, 15.0]
+    assert given.setup["kirchhoff_flaps"] == [0.0, 15.0]
+    for mid in ids:
+        assert stored.runs[mid].equals(given.runs[mid]), mid
+    # without the stall the qualified static curves fly: another flight
+    assert any(not static.runs[m].equals(given.runs[m]) for m in ids)
+
+
+def test_refusals(fitted: dict[str, Any], tmp_path: Path) -> None:
+    data, model = fitted["data"], fitted["model"]
+    lift_only = fit_kirchhoff(model_frame(data), flaps=[0.0], fit_cm=False)
+    with pytest.raises(InvalidInputError, match="fit_cm=False"):
+        model.with_longitudinal(lift_only)
+    spec = model.with_longitudinal(fitted["stall"]).to_spec()
+    del spec["longitudinal"]["flaps"][0]["params"]["tau1"]
+    with pytest.raises(ad.AerodeltaError, match=r"flap 0.*lacks parameter tau1"):
+        DeltaModel.from_spec(spec)
+
+
+def test_cli_writes_a_copy_and_leaves_the_model_alone(
+    fitted: dict[str, Any], stall_campaign: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    src = fitted["root"] / "model.json"
+    before = hashlib.sha256(src.read_bytes()).hexdigest()
+    out = tmp_path / "out" / "model_stall.json"
+    argv = ["longitudinal", str(stall_campaign), "--flaps", "0,15", "--no-progress"]
+    assert main([*argv, "--model", str(src), "--out-model", str(out)]) == 0
+    assert f"wrote {out}" in capsys.readouterr().out
+    assert hashlib.sha256(src.read_bytes()).hexdigest() == before
+    got = DeltaModel.load(out).kirchhoff
+    assert got is not None
+    for f in (0.0, 15.0):
+        assert got[f] == pytest.approx(fitted["stall"][f].params, rel=0, abs=0)
+    # one clear line for a half-given pair, an overwrite of the input, a lift-only fit
+    for extra, text in (
+        (["--model", str(src)], "--model and --out-model go together"),
+        (["--model", str(src), "--out-model", str(src)], "--out-model"),
+        (["--model", str(src), "--out-model", str(out), "--no-cm"], "fit C_m too"),
+    ):
+        assert main([*argv, *extra]) != 0
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and text in err[0], err
+    assert json.loads(out.read_text())["longitudinal"]["known"] == "adx37"
