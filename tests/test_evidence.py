@@ -204,6 +204,38 @@ def test_entries_match_the_records_at_stall_identification(pack: dict[str, Any])
     assert _status(page, "entries") == ("PASS" if min(wl, turn, power) > 0 else "FAIL")
 
 
+def test_mach_row_is_the_isa_mach_at_stall_identification(pack: dict[str, Any]) -> None:
+    # the virtual campaign flies an ISA day (its density is the ISA density of its altitude,
+    # checked here), so the Mach number at stall identification is V / sqrt(1.4 R T_ISA(h)),
+    # T_ISA = 288.15 - 0.0065 h (ICAO Doc 7488), recomputed from the records
+    data: pl.DataFrame = pack["data"]
+    table = ad.stall_identification(data).filter(pl.col("stall_id_t_s").is_not_null())
+    want: dict[float, list[float]] = {}
+    for r in table.iter_rows(named=True):
+        g = data.filter(pl.col("maneuver_id") == r["maneuver_id"])
+        k = int(np.argmin(np.abs(g["t"].to_numpy() - r["stall_id_t_s"])))
+        h, v, rho = float(g["h_m"][k]), float(g["tas_mps"][k]), float(g["rho_kgm3"][k])
+        t_isa = 288.15 - 0.0065 * h
+        assert rho == pytest.approx(1.225 * (t_isa / 288.15) ** 4.2559, rel=0.01)
+        want.setdefault(float(r["flap_deg"]), []).append(v / math.sqrt(1.4 * 287.05287 * t_isa))
+    page: _Page = pack["page"]
+    assert _status(page, "mach") == "shown"
+    assert "ISA at the recorded altitude (h_m)" in page.rows["mach"]["cells"][3]
+    detail = page.rows["mach"]["cells"][1]
+    got = {
+        float(m[0]): (float(m[1]), float(m[2]), int(m[3]))
+        for m in re.findall(r"flap (\d+): Mach ([\d.]+)-([\d.]+) \((\d+) stalls\)", detail)
+    }
+    assert sorted(got) == sorted(want)
+    for f, (lo, hi, n) in got.items():
+        assert n == len(want[f])
+        assert lo == pytest.approx(min(want[f]), abs=6e-4) and hi == pytest.approx(
+            max(want[f]), abs=6e-4
+        )
+    soc = (pack["out"] / "evidence.html").read_text(encoding="utf-8")
+    assert "The stall data cover Mach " in soc
+
+
 def test_kirchhoff_row_against_the_truth(pack: dict[str, Any]) -> None:
     page: _Page = pack["page"]
     assert _status(page, "longitudinal") == "shown"

@@ -310,6 +310,23 @@ def entries(*, table: pl.DataFrame, power_on_ct: float) -> Figure:
     return fig
 
 
+def mach(*, table: pl.DataFrame, flaps: Sequence[float]) -> Figure:
+    """Per identified stall: the Mach number at stall identification against the flap setting,
+    coloured by maneuver kind."""
+    fig, ax = new_figure(1, 1, width=6.5, height=3.2)
+    a = ax[0, 0]
+    x = _positions(table, flaps)
+    kinds = table["kind"].to_list()
+    m_id = table["mach_id"].to_numpy().astype(float)
+    for kind in dict.fromkeys(kinds):
+        k = np.array([c == kind for c in kinds])
+        a.plot(x[k], m_id[k], "o", ms=5, color=_kind_color(kind), label=kind)
+    _flap_axis(a, flaps)
+    a.set_ylabel("Mach at stall identification [-]")
+    _legend(a, loc="best")
+    return fig
+
+
 def lateral(*, panels: Sequence[Mapping[str, Any]]) -> Figure:
     """Fitted Δ parameters against alpha (one panel each: ``name``; per flap ``series`` with
     the model table ``grid``/``table`` and the per-bin ``c``, ``est``, ``lo``, ``hi`` 95 %

@@ -207,12 +207,37 @@ def assess(
     _lateral_row(out, model, params)
     _longitudinal_row(out, fits)
     _prestall_row(out, data, model)
+    _mach_row(out, data, table)
     return out
 
 
+#: ISA sea-level temperature (K), lapse rate (K/m) to the tropopause (m), gas constant of air
+#: (J/(kg K)), ratio of specific heats, ISA sea-level density (kg/m³): ICAO Doc 7488.
+ISA_T0_K, ISA_LAPSE_KPM, ISA_TROPOPAUSE_M = 288.15, 0.0065, 11000.0
+R_AIR, GAMMA, ISA_RHO0 = 287.05287, 1.4, 1.225
+
+
+def static_temperature(data: pl.DataFrame) -> tuple[pl.Expr, str]:
+    """The static air temperature (K) the records give, and where it comes from: the measured
+    ``sat_k``; else the ISA temperature at the recorded altitude ``h_m`` (troposphere lapse,
+    216.65 K above 11 km); else the ISA temperature of the recorded density (the density
+    altitude: ``T = T0 (rho/rho0)^(1/(g/(L R) - 1))``)."""
+    if "sat_k" in data.columns:
+        return pl.col("sat_k").cast(pl.Float64), "the measured static temperature (sat_k)"
+    if "h_m" in data.columns:
+        h = pl.col("h_m").cast(pl.Float64).clip(upper_bound=ISA_TROPOPAUSE_M)
+        return ISA_T0_K - ISA_LAPSE_KPM * h, "ISA at the recorded altitude (h_m)"
+    n = 9.80665 / (ISA_LAPSE_KPM * R_AIR) - 1.0
+    return (
+        ISA_T0_K * (pl.col("rho_kgm3").cast(pl.Float64) / ISA_RHO0) ** (1.0 / n),
+        "ISA at the recorded density (no sat_k or h_m channel)",
+    )
+
+
 def _with_state_at_id(data: pl.DataFrame, table: pl.DataFrame) -> pl.DataFrame:
-    """The table with the bank angle ``phi_id_deg`` and the thrust coefficient ``ct_id`` (sum
-    over the engines) at stall identification (null without one)."""
+    """The table with the bank angle ``phi_id_deg``, the thrust coefficient ``ct_id`` (sum
+    over the engines) and the Mach number ``mach_id`` (:func:`static_temperature`) at stall
+    identification (null without one)."""
     ct = (
         (pl.col("ct_left") + pl.col("ct_right"))
         if {"ct_left", "ct_right"} <= set(data.columns)
@@ -225,6 +250,10 @@ def _with_state_at_id(data: pl.DataFrame, table: pl.DataFrame) -> pl.DataFrame:
         if "phi_deg" in data.columns
         else pl.lit(None, dtype=pl.Float64).alias("phi_id_deg"),
         ct.cast(pl.Float64).alias("ct_id"),
+        (
+            pl.col("tas_mps").cast(pl.Float64)
+            / (GAMMA * R_AIR * static_temperature(data)[0]).sqrt()
+        ).alias("mach_id"),
     )
     return table.join(at, on=["maneuver_id", "stall_id_t_s"], how="left", maintain_order="left")
 
@@ -492,6 +521,46 @@ def _breaks_row(out: Assessment, data: pl.DataFrame, table: pl.DataFrame) -> Non
             "shown (no numeric tolerance)",
             SHOWN if fig else NOT_ASSESSED + "no g-break or pitch break in the records",
             detail,
+        )
+    )
+
+
+def _mach_row(out: Assessment, data: pl.DataFrame, table: pl.DataFrame) -> None:
+    ident = table.filter(pl.col("mach_id").is_not_null())
+    _, source = static_temperature(data)
+    per = {
+        float(f): (int(n), float(lo), float(hi))
+        for f, n, lo, hi in ident.group_by("flap_deg")
+        .agg(pl.len(), pl.col("mach_id").min().alias("lo"), pl.col("mach_id").max().alias("hi"))
+        .sort("flap_deg")
+        .rows()
+    }
+    out.facts["mach"] = {f: (lo, hi) for f, (_, lo, hi) in per.items()}
+    fig = None
+    if ident.height:
+        fig = out.figure(
+            FigureSpec(
+                "fig-mach",
+                "mach",
+                figures.mach,
+                {"table": ident, "flaps": sorted(per)},
+                f"Mach number at stall identification of every identified stall, per flap and "
+                f"maneuver kind (static temperature: {source}).",
+            )
+        )
+    out.rows.append(
+        MatrixRow(
+            "mach",
+            "Mach effects: the Mach range the stall data cover",
+            "Part 60 App. A, Attachment 7 (the stall model covers Mach effects)",
+            f"{ident.height} identified stalls; Mach from the true airspeed and {source}",
+            fig,
+            "shown: the Δ model has no Mach dependence, so it is validated over this range "
+            "only; stalls at other Mach numbers need data there",
+            SHOWN if fig else NOT_ASSESSED + "no stall identified in the records",
+            _flaps_text(
+                {f: f"Mach {lo:.3f}-{hi:.3f} ({n} stalls)" for f, (n, lo, hi) in per.items()}
+            ),
         )
     )
 

@@ -172,6 +172,14 @@ def _soc(out: Assessment, rows: Sequence[MatrixRow], info: Mapping[str, Any]) ->
         else f"no fitted Δ model was given to this pack ({todo}: the model file)"
     )
     val_lines = "".join(f"<li>{esc(v)}</li>" for v in f.get("validity_lines", []))
+    mach = f.get("mach") or {}
+    mach_text = (
+        "Mach "
+        + ", ".join(f"{lo:.3f}-{hi:.3f} at flap {fl:g}" for fl, (lo, hi) in sorted(mach.items()))
+        + " at stall identification"
+        if mach
+        else "no identified stall, so no Mach range"
+    )
     items = [
         f"<p><b>Sponsor:</b> {todo}. <b>FSTD</b> (identification, qualification level, "
         f"manufacturer): {todo}. <b>Aircraft type and configuration data source:</b> {todo}.</p>",
@@ -194,8 +202,9 @@ def _soc(out: Assessment, rows: Sequence[MatrixRow], info: Mapping[str, Any]) ->
         f"{esc(status.get('rolloff', ''))}; g-break and pitch break: "
         f"{esc(status.get('breaks', ''))}; longitudinal stall: "
         f"{esc(status.get('longitudinal', ''))}; stall buffet: "
-        f"{esc(status.get('buffet_onset', ''))}. How the FSTD implements each (and Mach "
-        f"effects, where applicable): {todo}.</li>",
+        f"{esc(status.get('buffet_onset', ''))}. The stall data cover {esc(mach_text)} "
+        "(matrix row Mach effects; the Δ model has no Mach dependence). How the FSTD implements "
+        f"each (and Mach effects beyond that range, where applicable): {todo}.</li>",
         "<li><b>Objective stall tests.</b> The flight-test stall-warning, buffet-onset and stall "
         "speeds are in the pack (matrix rows 2-4) with aerodelta's closed-loop replays of the "
         "stall maneuvers with the extended model against ±3 kt: stall warning "
