@@ -160,6 +160,11 @@ def main() -> int:
         f"of {s['unlisted_n']} (floor <= 5 %)"
     )
     print(
+        f"unlisted effects' gap shown (a significant gap-map cell in the effect's alpha range, "
+        f"per affected coefficient) {pct(s['unlisted_gap_shown'])} of {s['unlisted_gap_n']} "
+        "(floor >= 90 %)"
+    )
+    print(
         f"null cases with a false alarm {pct(s['null_false_alarms'])} of {s['null_n']} "
         "(floor <= 5 %)"
     )

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import polars as pl
@@ -930,3 +931,33 @@ def test_rolloff_search_that_cannot_run_says_why(monkeypatch):
         "coefficients": {c: empty for c in ("Cl", "Cn", "CY")},
     }  # fmt: skip
     assert "  roll-off not searched: x" in summary_text(doc).splitlines()
+
+
+def test_scoring_shows_an_unlisted_gap_only_in_its_alpha_range(tmp_path):
+    # hand-built truth: an unlisted effect (beta_rhat_coupling) moves C_l only between 14 and
+    # 18 deg of alpha; a diagnosis that names nothing and whose gap map has one significant
+    # cell shows the gap when that cell overlaps 14-18 deg, not when it lies at 8-9 deg
+    t = np.arange(0.0, 40.0, 0.05)
+    alpha = 5.0 + 0.5 * t  # 5 to 25 deg
+    contrib = np.where((alpha >= 14.0) & (alpha < 18.0), 0.01, 0.0)
+    truth = tmp_path / "truth"
+    truth.mkdir()
+    pl.DataFrame({"t": t, "dCl_beta_rhat_coupling": contrib}).write_parquet(truth / "m000.parquet")
+    zero = np.zeros_like(t)
+    preds = pl.DataFrame(
+        {"maneuver_id": ["m000"] * t.size, "t": t, "alpha_deg": alpha}
+        | {f"{c}_{k}": zero for c in ("Cl", "Cn", "CY") for k in ("explained", "timing")}
+        | {"Cl_gap": contrib, "Cn_gap": zero + 1e-3, "CY_gap": zero + 1e-3}
+    )
+
+    def diag(lo: float) -> SimpleNamespace:
+        cell = {"significant": True, "alpha_lo_deg": lo, "alpha_hi_deg": lo + 1.0}
+        res = {c: {"verdict": "none", "effects": [], "where": [cell]} for c in ("Cl", "Cn", "CY")}
+        return SimpleNamespace(predictions=preds, result={"coefficients": res})
+
+    shown = score_case(diag(15.0), truth, {"beta_rhat_coupling": 1.0})
+    assert shown.affected == {"beta_rhat_coupling": ["Cl"]}
+    assert shown.gap_shown == {"Cl:beta_rhat_coupling": True}
+    assert score_case(diag(8.0), truth, {"beta_rhat_coupling": 1.0}).gap_shown == {
+        "Cl:beta_rhat_coupling": False
+    }

@@ -23,6 +23,9 @@ never does (it refuses truth paths). Scoring rules:
 - a *false alarm* is a significant deterministic effect on a coefficient no withheld effect
   affects (nulls), or any significant effect of the vocabulary on C_l for an unlisted effect
   (misattribution);
+- an unlisted effect's gap is *shown* on a coefficient it affects when the diagnosis's gap
+  map (``where``) has a significant cell overlapping the effect's true alpha range (issue 17:
+  "gap shown as unexplained in its alpha range");
 - the *onset* error is the distance between the estimated and the true lower end of the alpha
   range, both by the same rule (1-deg bins whose RMS contribution reaches 20 % of the largest);
 - the *shrink ratio* is the held-out shrink achieved over the shrink that subtracting the true
@@ -71,6 +74,8 @@ class CaseResult:
     onset_error_deg: dict[str, float] = field(default_factory=dict)
     shrink_ratio: dict[str, float] = field(default_factory=dict)  # coef -> ours / oracle
     ambiguous: dict[str, list[str]] = field(default_factory=dict)
+    # "coef:effect" of an unlisted effect -> a significant gap-map cell in its alpha range
+    gap_shown: dict[str, bool] = field(default_factory=dict)
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready."""
@@ -166,6 +171,7 @@ def score_case(
     affected: dict[str, list[str]] = {}
     oracle: dict[str, np.ndarray] = {c: np.zeros(j.height) for c in COEFFICIENTS}
     onset_err: dict[str, float] = {}
+    gap_shown: dict[str, bool] = {}
     for e in effects:
         k = kinds.get(e, "measurement")
         if k in ("aerodynamic", "unlisted"):
@@ -179,6 +185,12 @@ def score_case(
                 oracle[c] += contrib
                 if float(np.sum(contrib**2)) >= affect_share * float(np.sum(gap**2)):
                     acts.append(c)
+                    if k == "unlisted":
+                        lo, hi = _alpha_range(j["alpha_deg"].to_numpy(), contrib)
+                        gap_shown[f"{c}:{e}"] = any(
+                            w["significant"] and w["alpha_hi_deg"] > lo and w["alpha_lo_deg"] < hi
+                            for w in res[c]["where"]
+                        )
                     est = next((x for x in res[c]["effects"] if x["effect"] == e), None)
                     if est is not None and est["significant"]:
                         lo_t = _alpha_range(j["alpha_deg"].to_numpy(), contrib)[0]
@@ -240,7 +252,7 @@ def score_case(
             shrink[c] = ours / orc
     return CaseResult(
         dict(effects), {}, verdicts, significant, affected, found, false_alarms, onset_err,
-        shrink, ambiguous,
+        shrink, ambiguous, gap_shown,
     )  # fmt: skip
 
 
@@ -341,6 +353,8 @@ def summarize(cases: list[CaseResult]) -> dict[str, Any]:
         "multi_n": len(multi_found),
         "unlisted_misattributed": rate([bool(c.false_alarms) for c in unlisted]),
         "unlisted_n": len(unlisted),
+        "unlisted_gap_shown": rate([v for c in unlisted for v in c.gap_shown.values()]),
+        "unlisted_gap_n": sum(len(c.gap_shown) for c in unlisted),
         "null_false_alarms": rate([bool(c.false_alarms) for c in nulls]),
         "null_n": len(nulls),
         "onset_within_1p5": rate([v <= 1.5 for v in onset]),
