@@ -961,3 +961,76 @@ def test_scoring_shows_an_unlisted_gap_only_in_its_alpha_range(tmp_path):
     assert score_case(diag(8.0), truth, {"beta_rhat_coupling": 1.0}).gap_shown == {
         "Cl:beta_rhat_coupling": False
     }
+
+
+def test_rolloff_call_counts_the_wings_level_stalls(monkeypatch):
+    """The binomial call (events in more maneuvers than the detector's 10 % false-event rate
+    explains, p < 0.01) counts the wings-level stalls when the records name kinds: events in 7
+    of 20 cross-controlled stalls are no roll-off, the same in 7 of 20 wings-level stalls are
+    (7 is the least count with P(X >= k | 20, 0.1) < 0.01, from scipy's binomial); with no kind
+    column every maneuver counts. Events of every kind are reported."""
+    from scipy.stats import binom  # noqa: PLC0415
+
+    from aerodelta.diagnosis import stochastic  # noqa: PLC0415
+
+    n = 40
+    ids = [f"m{i:02d}" for i in range(40)]
+    frame = pl.DataFrame(
+        {
+            "maneuver_id": [m for m in ids for _ in range(n)],
+            "t": np.tile(np.arange(n) * 0.02, 40),
+            "alpha_deg": np.tile(np.linspace(5, 20, n), 40),
+            "da_deg": np.zeros(40 * n),
+            "Cl_meas": np.zeros(40 * n),
+            "kind": [("straight" if i < 20 else "other") for i in range(40) for _ in range(n)],
+        }
+    )
+
+    def events(with_events: list[str]):
+        def fake(*_a, **_k):
+            k = len(with_events)
+            return pl.DataFrame(
+                {
+                    "maneuver_id": with_events, "accepted": [True] * k,
+                    "alpha_onset_deg": [15.0] * k, "alpha_peak_deg": [15.5] * k,
+                    "t_peak": [0.5] * k, "t_onset": [0.4] * k, "peak": [0.01] * k,
+                }
+            )  # fmt: skip
+
+        return fake
+
+    # the smallest count the call accepts among 20 counted maneuvers (closed form)
+    need = next(k for k in range(21) if binom.sf(k - 1, 20, 0.1) < 0.01)
+    assert need == 7
+    for who, counted in ((ids[20 : 20 + need], False), (ids[:need], True)):
+        monkeypatch.setattr(stochastic, "detect_rolloff", events(who))
+        r = stochastic.rolloff_finding(frame, np.zeros(frame.height))
+        assert r["detected"] is counted, (who, r)
+        assert r["call_kinds"] == ["straight"] and r["call_maneuvers"] == 20
+        assert r["n_maneuvers_with_events"] == need and r["n_searched"] == 40
+    # no kinds named: all 40 maneuvers count (7 of 40 is not enough, 9 is)
+    need40 = next(k for k in range(41) if binom.sf(k - 1, 40, 0.1) < 0.01)
+    monkeypatch.setattr(stochastic, "detect_rolloff", events(ids[20 : 20 + need40]))
+    r = stochastic.rolloff_finding(frame.drop("kind"), np.zeros(frame.height))
+    assert r["detected"] and r["call_kinds"] == [] and r["call_maneuvers"] == 40
+
+
+def test_a_virtual_rolloff_campaign_is_called_stochastic_rolloff(tmp_path, campaigns, diagnoses):
+    # the truth draws a roll-off at every stall (thesis Table 3.2, aero_core::rolloff); the
+    # wings-level stalls the call counts are enough on a 40-maneuver campaign, and the null
+    # campaign of the same size (no roll-off in its truth) is not called
+    d = tmp_path / "campaign"
+    generate_campaign(d, effects="none", seed=7, size="quick", rolloff=True)
+    truth = pl.concat(
+        pl.read_parquet(f, columns=["dCl_stochastic_rolloff"]).with_columns(
+            pl.lit(f.stem).alias("maneuver_id")
+        )
+        for f in sorted((d / "truth").glob("m*.parquet"))
+    )
+    with_spike = truth.filter(pl.col("dCl_stochastic_rolloff").abs() > 1e-4)["maneuver_id"]
+    assert with_spike.n_unique() >= 20
+    res = aerodelta.diagnose(ingest(d, compat=False, progress=False).data).result
+    ro = res["coefficients"]["Cl"]["rolloff"]
+    assert ro["detected"] and res["coefficients"]["Cl"]["verdict"] == "stochastic_rolloff"
+    assert ro["call_kinds"] == ["straight"] and ro["call_maneuvers"] == 10
+    assert not diagnoses["null"].result["coefficients"]["Cl"]["rolloff"]["detected"]

@@ -52,9 +52,16 @@ def summary_text(result: dict[str, Any]) -> str:
         if ro.get("note"):
             lines.append(f"  {ro['note']}")
         if ro.get("detected"):
+            counted = (
+                f"{ro['call_maneuvers_with_events']} of the {ro['call_maneuvers']} "
+                f"{'/'.join(ro['call_kinds'])} stalls counted"
+                if ro.get("call_kinds")
+                else "all kinds counted: the records name no wings-level stall"
+            )
             lines.append(
                 f"  roll-off spikes in {ro['n_maneuvers_with_events']} of {ro['n_searched']} "
-                f"maneuvers (p = {ro['p_value']:.2g}): stochastic, not a deterministic effect; "
+                f"maneuvers ({counted}; p = {ro['p_value']:.2g}): stochastic, not a "
+                "deterministic effect; "
                 f"the moment of each of the {ro['events_profiled_out']} events (a Gaussian in "
                 "alpha, amplitude free per event) is profiled out of the effect fits"
             )

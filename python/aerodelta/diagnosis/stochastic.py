@@ -7,7 +7,14 @@ left after the selected deterministic effects, with the thesis's detection proce
 with its own random amplitude, is then profiled out of its maneuver's data before the
 deterministic effects are selected again. It is reported when events are found in more
 maneuvers than the detector's false-event rate explains (a binomial tail test against the
-10 % false-event allowance of issue 6's checks).
+10 % false-event allowance of issue 6's checks), counted over the wings-level (``straight``)
+stalls when the records carry maneuver kinds: the thesis derives its roll-off statistics from
+wings-level stalls (and :func:`aerodelta.rolloff.detect_rolloff` searches them by default),
+while in turning and cross-controlled stalls the maneuver's own rolling moments (sideslip,
+rates) leave spikes of deterministic origin (on the DHC-6 with its kinked C_lβ withheld,
+gust-driven sideslip left same-sign spikes at the same alpha in its cross-controlled stalls,
+and roll-off was called where JSBSim has none). Events of every kind are reported and, once
+roll-off is called, profiled out.
 """
 
 from __future__ import annotations
@@ -25,6 +32,8 @@ from aerodelta.rolloff import detect_rolloff
 
 #: Per-maneuver false-event rate allowed for the detector (issue 6's checks).
 FALSE_EVENT_RATE = 0.10
+#: Maneuver kinds whose events the roll-off call counts (the thesis's wings-level stalls).
+CALL_KINDS = ("straight",)
 
 
 def _binom_sf(k: int, n: int, p: float) -> float:
@@ -199,8 +208,20 @@ def rolloff_finding(frame: pl.DataFrame, residual: np.ndarray) -> dict[str, Any]
     except AerodeltaError as exc:  # the detector refusing these data; anything else propagates
         return not_searched(str(exc).splitlines()[0] if str(exc) else type(exc).__name__)
     acc = ev.filter(pl.col("accepted")) if ev.height else ev
-    n_man = int(frame["maneuver_id"].n_unique())
-    k = int(acc["maneuver_id"].n_unique()) if acc.height else 0
+    # the call counts the wings-level stalls when the records say which they are
+    call = (
+        frame.filter(pl.col("kind").is_in(list(CALL_KINDS)))["maneuver_id"].unique()
+        if "kind" in frame.columns and frame["kind"].is_in(list(CALL_KINDS)).any()
+        else None
+    )
+    n_all = int(frame["maneuver_id"].n_unique())
+    n_man = n_all if call is None else int(call.len())
+    counted = (
+        acc
+        if call is None or not acc.height
+        else acc.filter(pl.col("maneuver_id").is_in(call.implode()))
+    )
+    k = int(counted["maneuver_id"].n_unique()) if counted.height else 0
     p = _binom_sf(k, n_man, FALSE_EVENT_RATE) if k else 1.0
     detected = bool(k >= 3 and p < 0.01)
     rng = (
@@ -231,8 +252,12 @@ def rolloff_finding(frame: pl.DataFrame, residual: np.ndarray) -> dict[str, Any]
     return {
         "detected": detected,
         "n_events": int(acc.height),
-        "n_maneuvers_with_events": k,
-        "n_searched": n_man,
+        "n_maneuvers_with_events": int(acc["maneuver_id"].n_unique()) if acc.height else 0,
+        "n_searched": n_all,
+        # the call's binomial test: the maneuvers with events among those it counts
+        "call_kinds": list(CALL_KINDS) if call is not None else [],
+        "call_maneuvers_with_events": k,
+        "call_maneuvers": n_man,
         "p_value": p,
         "alpha_range_deg": rng,
         "events": events,
