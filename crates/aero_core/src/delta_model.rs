@@ -592,17 +592,7 @@ mod tests {
 
     #[test]
     fn a_stored_kirchhoff_stall_survives_the_file_and_is_checked_on_load() {
-        let p = crate::kirchhoff::KirchhoffParams {
-            tau1: 0.2,
-            tau2: 0.05,
-            alpha_star: 0.3,
-            a1: 25.0,
-            cl_alpha: 5.2,
-            alpha0: -0.05,
-            cm0: 0.05,
-            cm_alpha: -0.75,
-            cm_x: -0.15,
-        };
+        let p = crate::kirchhoff::tests::truth();
         let m = DeltaModel::new(spec()).unwrap();
         assert!(m.kirchhoff(0.0).is_none());
         let mut s = spec();

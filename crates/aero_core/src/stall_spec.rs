@@ -122,20 +122,7 @@ impl LongitudinalSpec {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    fn params() -> KirchhoffParams {
-        KirchhoffParams {
-            tau1: 0.2,
-            tau2: 0.05,
-            alpha_star: 0.3,
-            a1: 25.0,
-            cl_alpha: 5.2,
-            alpha0: -0.05,
-            cm0: 0.05,
-            cm_alpha: -0.75,
-            cm_x: -0.15,
-        }
-    }
+    use crate::kirchhoff::tests::truth as params;
 
     #[test]
     fn round_trips_and_refuses_what_it_cannot_fly() {
