@@ -197,7 +197,7 @@ def test_cli(quick_campaign: Path, tmp_path: Path, capsys: pytest.CaptureFixture
 def test_g_break_reads_lift_not_the_load_factor_s_decay_with_speed() -> None:
     # an accelerated entry: 2 g at constant lift coefficient while the speed falls 8 kt/s from
     # 140 kt (closed form n = 2 (V/V0)^2); alpha creeps up. The load factor falls 0.1 g in
-    # about 0.25 s, which the load factor alone calls a g-break, lift per dynamic pressure not
+    # under 0.5 s, which the load factor alone calls a g-break, lift per dynamic pressure not
     t = np.arange(0.0, 6.0, 0.02)
     v = (140.0 - 8.0 * t) * KT
     qbar = 0.5 * RHO0 * v**2

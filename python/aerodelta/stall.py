@@ -26,7 +26,7 @@ Each criterion, as measured here (constants below, times in s, angles in deg):
   current q̄, while alpha is no lower than where that maximum was: a sudden loss of lift at
   constant or rising alpha (a pushover, the pilot's or the pusher's, loses alpha first; the
   decay of n with q̄ in a decelerating turn, at constant C_L, is no break: an accelerated entry
-  loses 0.1 g in half a second that way). Without q̄, n itself;
+  loses 0.1 g in under half a second that way). Without q̄, n itself;
 - **aft stop**: the end of the first :data:`AFT_STOP_HOLD_S` hold of the elevator within
   :data:`AFT_STOP_TOL_DEG` of its aft (most nose-up) stop in which the smoothed pitch attitude
   rose less than :data:`AFT_STOP_PITCH_DEG`; the stop is the one given, else the most nose-up

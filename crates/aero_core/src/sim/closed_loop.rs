@@ -32,9 +32,8 @@
 //!   dynamic pressure, `n / q̄` ∝ C_L, below its maximum of the last [`G_BREAK_WINDOW_S`] by
 //!   [`G_BREAK_DN`] at the current `q̄`, as `aerodelta.stall` reads the records; a decelerating
 //!   turn's load factor falls with `q̄` at constant C_L, which is no break), a deterrent buffet
-//!   (the
-//!   simulator's buffet schedule at the given level), or [`MAX_EXTEND_S`] past the record's
-//!   identification.
+//!   (the simulator's buffet schedule at the given level), or [`MAX_EXTEND_S`] past the
+//!   record's identification.
 //! - **Recovery**: [`REACTION_S`] after the pusher (the pilot lets it push; unless the record
 //!   says the pilot resisted it, when the pilot flies on against the push), or, after a g-break
 //!   or buffet, once the pilot has pulled on (at the record's alpha rate into its peak, at least
