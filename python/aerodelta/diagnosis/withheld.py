@@ -82,6 +82,15 @@ class CaseResult:
         return self.__dict__.copy()
 
 
+def _gap_shown(where: list[dict[str, Any]], alpha_range: list[float]) -> bool:
+    """Whether a diagnosis's gap map (``where``) has a significant cell overlapping the alpha
+    range ``[lo, hi]`` (deg): the unexplained gap shown where an out-of-list effect acts."""
+    lo, hi = alpha_range
+    return any(
+        w["significant"] and w["alpha_hi_deg"] > lo and w["alpha_lo_deg"] < hi for w in where
+    )
+
+
 def _kinds() -> dict[str, str]:
     return {e["name"]: e["kind"] for e in effect_library()}
 
@@ -172,6 +181,7 @@ def score_case(
     oracle: dict[str, np.ndarray] = {c: np.zeros(j.height) for c in COEFFICIENTS}
     onset_err: dict[str, float] = {}
     gap_shown: dict[str, bool] = {}
+    alpha = j["alpha_deg"].to_numpy()
     for e in effects:
         k = kinds.get(e, "measurement")
         if k in ("aerodynamic", "unlisted"):
@@ -185,15 +195,12 @@ def score_case(
                 oracle[c] += contrib
                 if float(np.sum(contrib**2)) >= affect_share * float(np.sum(gap**2)):
                     acts.append(c)
+                    rng = _alpha_range(alpha, contrib)
                     if k == "unlisted":
-                        lo, hi = _alpha_range(j["alpha_deg"].to_numpy(), contrib)
-                        gap_shown[f"{c}:{e}"] = any(
-                            w["significant"] and w["alpha_hi_deg"] > lo and w["alpha_lo_deg"] < hi
-                            for w in res[c]["where"]
-                        )
+                        gap_shown[f"{c}:{e}"] = _gap_shown(res[c]["where"], rng)
                     est = next((x for x in res[c]["effects"] if x["effect"] == e), None)
                     if est is not None and est["significant"]:
-                        lo_t = _alpha_range(j["alpha_deg"].to_numpy(), contrib)[0]
+                        lo_t = rng[0]
                         lo_e = est["alpha_range_deg"][0]
                         if lo_e is not None and np.isfinite(lo_t):
                             onset_err[f"{c}:{e}"] = abs(float(lo_e) - lo_t)
@@ -728,15 +735,11 @@ def score_jsbsim_case(
         det, ambiguous, shares, affect_share=affect_share, timing_lag=timing_lag
     )
     alpha = j["alpha_deg"].to_numpy()
-    gap_shown = {}
-    for e in unlisted:
-        for c in affected[e]:
-            lo, hi = _alpha_range(alpha, comps[e][c])
-            cells = [
-                w for w in res[c]["where"] if w["significant"]
-                and w["alpha_hi_deg"] > lo and w["alpha_lo_deg"] < hi
-            ]  # fmt: skip
-            gap_shown[f"{c}:{e}"] = bool(cells)
+    gap_shown = {
+        f"{c}:{e}": _gap_shown(res[c]["where"], _alpha_range(alpha, comps[e][c]))
+        for e in unlisted
+        for c in affected[e]
+    }
     onset_err: dict[str, float] = {}
     for e in listed:
         for c in affected[e]:

@@ -22,6 +22,7 @@ from aerodelta.buffet import compare_frequencies as _compare
 from aerodelta.evidence import figures
 from aerodelta.exceptions import AerodeltaError
 from aerodelta.model import DeltaModel
+from aerodelta.preprocess import GAMMA, R_AIR
 from aerodelta.stall import (
     CRITERIA,
     G0,
@@ -211,10 +212,9 @@ def assess(
     return out
 
 
-#: ISA sea-level temperature (K), lapse rate (K/m) to the tropopause (m), gas constant of air
-#: (J/(kg K)), ratio of specific heats, ISA sea-level density (kg/m³): ICAO Doc 7488.
-ISA_T0_K, ISA_LAPSE_KPM, ISA_TROPOPAUSE_M = 288.15, 0.0065, 11000.0
-R_AIR, GAMMA, ISA_RHO0 = 287.05287, 1.4, 1.225
+#: ISA sea-level temperature (K), lapse rate (K/m) to the tropopause (m), sea-level density
+#: (kg/m³): ICAO Doc 7488 (the gas constant and ratio of specific heats: ingestion's).
+ISA_T0_K, ISA_LAPSE_KPM, ISA_TROPOPAUSE_M, ISA_RHO0 = 288.15, 0.0065, 11000.0, 1.225
 
 
 def static_temperature(data: pl.DataFrame) -> tuple[pl.Expr, str]:
