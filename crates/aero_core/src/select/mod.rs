@@ -1197,6 +1197,7 @@ fn select_impl(
         &folds,
         &fitted,
         &cols,
+        &order,
         opts.min_points_per_param,
         &excitation,
     );

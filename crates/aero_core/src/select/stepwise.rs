@@ -24,7 +24,7 @@
 
 /// Pivot tolerance of [`Factor::probe`], relative to the column's own sum of squares (the
 /// same rule as [`super::solve_subset`]).
-const PIVOT_TOL: f64 = 1e-10;
+pub(super) const PIVOT_TOL: f64 = 1e-10;
 
 /// Cholesky factor of the normal equations of a growing set of columns of an augmented
 /// Gram matrix (`dim × dim`, z last).
@@ -73,21 +73,6 @@ impl<'a> Factor<'a> {
             }
         }
         f
-    }
-
-    /// Estimates (scaled units) of the columns in and the probed column `c` appended:
-    /// with `θ_c = u / √d`, the others are `θ − θ_c L⁻ᵀ w` (one back substitution).
-    pub(super) fn theta_with(&self, theta: &[f64], w: &[f64], d: f64, u: f64, out: &mut Vec<f64>) {
-        let k = self.cols.len();
-        let tc = u / d.sqrt();
-        out.clear();
-        out.extend_from_slice(&w[..k]);
-        // v = L⁻ᵀ w into out[..k], by rows of L (each row read contiguously)
-        self.back_substitute(out);
-        for (o, t) in out.iter_mut().zip(theta) {
-            *o = t - tc * *o;
-        }
-        out.push(tc);
     }
 
     /// `x ← L⁻ᵀ x` (the first `k` entries), sweeping the rows of `L` from the last: row `i`
@@ -153,6 +138,21 @@ impl<'a> Factor<'a> {
     /// The columns in, in order.
     pub(super) fn cols(&self) -> &[usize] {
         &self.cols
+    }
+
+    /// The Gram matrix the factor is of.
+    pub(super) fn gram(&self) -> &'a [f64] {
+        self.g
+    }
+
+    /// Row `i` of the lower factor (`i + 1` entries, the pivot last).
+    pub(super) fn row(&self, i: usize) -> &[f64] {
+        &self.l[i]
+    }
+
+    /// `L⁻¹ X_Sᵀ z`.
+    pub(super) fn y(&self) -> &[f64] {
+        &self.y
     }
 
     pub(super) fn push(&mut self, c: usize, p: Probe) {
