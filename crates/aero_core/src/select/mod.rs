@@ -64,7 +64,9 @@ use crate::partition::partition_alpha;
 use crate::sim::rng::Stream;
 
 mod collinear;
+mod folds;
 mod path;
+use folds::{CvGrams, FoldGrams};
 mod stepwise;
 pub use collinear::{
     collinear_to_prune, fitted_totals, gram_collinearity, BinCollinearity, Pruned,
@@ -83,6 +85,16 @@ pub struct BinStats {
     pub gram: Vec<f64>,
     /// Per maneuver, the column sums of the scaled columns (`dim` each).
     pub sums: Vec<f64>,
+    /// Per maneuver, the lower triangle of its Gram matrix by rows, then its column sums
+    /// ([`packed_width`] each): what [`BinStats::fold_totals`] adds up, contiguously. Filled
+    /// by [`bin_grams`]; when empty, derived from `gram` and `sums`.
+    pub packed: Vec<f64>,
+}
+
+/// Entries of a maneuver's [`BinStats::packed`] statistics for an augmented Gram matrix of
+/// `dim` columns.
+pub fn packed_width(dim: usize) -> usize {
+    dim * (dim + 1) / 2 + dim
 }
 
 /// The sufficient statistics of all bins of a binned fit.
@@ -116,7 +128,17 @@ impl BinStats {
         fold: impl Fn(usize) -> Option<usize>,
         weight: impl Fn(usize) -> f64,
     ) -> Vec<(Vec<f64>, Vec<f64>, f64)> {
-        let mut out = vec![(vec![0.0; dim * dim], vec![0.0; dim], 0.0); folds];
+        let wdt = packed_width(dim);
+        let derived;
+        let packed = if self.packed.len() == self.maneuvers.len() * wdt {
+            &self.packed
+        } else {
+            derived = self.pack(dim);
+            &derived
+        };
+        // the packed sums per fold, maneuvers in order: one contiguous axpy per maneuver
+        let mut acc = vec![0.0; folds * wdt];
+        let mut count = vec![0.0; folds];
         for k in 0..self.maneuvers.len() {
             let Some(f) = fold(k).filter(|&f| f < folds) else {
                 continue;
@@ -125,29 +147,50 @@ impl BinStats {
             if w == 0.0 {
                 continue;
             }
-            let (g, s, n) = &mut out[f];
-            *n += w * self.n[k] as f64;
-            // the lower triangle only (the Gram matrices are symmetric), mirrored below
-            let gk = &self.gram[k * dim * dim..(k + 1) * dim * dim];
-            for i in 0..dim {
-                let r = i * dim..i * dim + i + 1;
-                for (a, b) in g[r.clone()].iter_mut().zip(&gk[r]) {
-                    *a += w * b;
-                }
-            }
-            for (a, b) in s.iter_mut().zip(&self.sums[k * dim..(k + 1) * dim]) {
+            count[f] += w * self.n[k] as f64;
+            for (a, b) in acc[f * wdt..(f + 1) * wdt]
+                .iter_mut()
+                .zip(&packed[k * wdt..(k + 1) * wdt])
+            {
                 *a += w * b;
             }
         }
-        for (g, _, _) in &mut out {
+        acc.chunks_exact(wdt.max(1))
+            .zip(count)
+            .map(|(pk, n)| {
+                let (tri, sums) = pk.split_at(wdt - dim);
+                (unpack_lower(tri, dim), sums.to_vec(), n)
+            })
+            .collect()
+    }
+
+    /// The packed statistics of every maneuver (see [`BinStats::packed`]).
+    fn pack(&self, dim: usize) -> Vec<f64> {
+        let wdt = packed_width(dim);
+        let mut out = Vec::with_capacity(self.maneuvers.len() * wdt);
+        for k in 0..self.maneuvers.len() {
+            let g = &self.gram[k * dim * dim..(k + 1) * dim * dim];
             for i in 0..dim {
-                for j in 0..i {
-                    g[j * dim + i] = g[i * dim + j];
-                }
+                out.extend_from_slice(&g[i * dim..i * dim + i + 1]);
             }
+            out.extend_from_slice(&self.sums[k * dim..(k + 1) * dim]);
         }
         out
     }
+}
+
+/// The symmetric `dim × dim` matrix (row-major) of a lower triangle packed by rows.
+fn unpack_lower(tri: &[f64], dim: usize) -> Vec<f64> {
+    let mut g = vec![0.0; dim * dim];
+    let mut at = 0;
+    for i in 0..dim {
+        for j in 0..=i {
+            g[i * dim + j] = tri[at];
+            g[j * dim + i] = tri[at];
+            at += 1;
+        }
+    }
+    g
 }
 
 /// Accumulate the per-(bin, maneuver) augmented Gram matrices of `design`
@@ -226,6 +269,7 @@ pub fn bin_grams(design: &Design, z: &[f64], members: &[Vec<usize>], maneuver: &
                 }
             }
         }
+        st.packed = st.pack(dim);
         st
     };
     #[cfg(feature = "parallel")]
@@ -672,9 +716,6 @@ fn fold_of(maneuver: &[u64], folds: usize, seed: u64) -> std::collections::HashM
         .collect()
 }
 
-/// Per bin and fold: the fold's Gram matrix, column sums and sample count.
-type FoldGrams = Vec<Vec<(Vec<f64>, Vec<f64>, f64)>>;
-
 /// What a training fit may use: the flap-wide standard deviation of each
 /// (scaled) column, which columns are constant, and the low-excitation
 /// threshold of [`crate::identify::IdentifyOptions::min_excitation`].
@@ -750,21 +791,19 @@ fn cv_score_per_fold<'c>(
     label: &[usize],
 ) -> CvScore {
     let dim = grams.dim;
-    let nf = folds.first().map_or(0, Vec::len);
+    let nf = folds.folds();
     let mut acc = CvAccum::new(nf);
     // buffers reused over the bins and folds (the path search calls this thousands of times)
     let (mut used, mut work, mut th) = (Vec::new(), Vec::new(), Vec::new());
-    for (b, fg) in folds.iter().enumerate() {
-        if !fitted[b] {
-            continue;
-        }
-        for (f, (gf, _, nfold)) in fg.iter().enumerate() {
-            if *nfold == 0.0 {
+    for (b, _) in fitted.iter().enumerate().filter(|(_, &ok)| ok) {
+        for f in 0..nf {
+            let (gf, _, nfold) = folds.get(b, f);
+            if nfold == 0.0 {
                 continue;
             }
-            let (train, strain, ntrain) = &trains[b][f];
-            excitation.excited(train, strain, *ntrain, dim, cols_of(f), &mut used);
-            let fit = if *ntrain >= (min_points * used.len().max(1)) as f64 {
+            let (train, strain, ntrain) = trains.get(b, f);
+            excitation.excited(train, strain, ntrain, dim, cols_of(f), &mut used);
+            let fit = if ntrain >= (min_points * used.len().max(1)) as f64 {
                 solve_subset_into(train, dim, &used, &mut work, &mut th)
             } else {
                 None
@@ -773,7 +812,7 @@ fn cv_score_per_fold<'c>(
                 Some(_) => held_out(gf, dim, &used, &th),
                 None => zero_prediction(gf, dim),
             };
-            acc.add(f, e, z2, y2, *nfold);
+            acc.add(f, e, z2, y2, nfold);
         }
     }
     acc.finish(grams.scale[dim - 1].powi(2), label)
@@ -1023,30 +1062,13 @@ fn select_impl(
     // per bin and fold, the fold's Gram matrix (every maneuver is in one fold), in one pass
     // over the maneuvers; a bin's total is the sum of its folds
     let fold_map = fold_of(maneuver, opts.folds, opts.seed);
-    let folds: FoldGrams = grams
-        .bins
-        .iter()
-        .map(|bs| {
-            bs.fold_totals(
-                dim,
-                opts.folds,
-                |k| fold_map.get(&bs.maneuvers[k]).copied(),
-                |k| weight(&bs.maneuvers[k]),
-            )
-        })
-        .collect();
-    let totals: Vec<(Vec<f64>, Vec<f64>, f64)> = folds
-        .iter()
-        .map(|fg| {
-            let (mut g, mut s, mut n) = (vec![0.0; dim * dim], vec![0.0; dim], 0.0);
-            for (gf, sf, nf) in fg {
-                g.iter_mut().zip(gf).for_each(|(a, b)| *a += b);
-                s.iter_mut().zip(sf).for_each(|(a, b)| *a += b);
-                n += nf;
-            }
-            (g, s, n)
-        })
-        .collect();
+    let cv = CvGrams::new(
+        grams,
+        opts.folds,
+        |b, k| fold_map.get(&grams.bins[b].maneuvers[k]).copied(),
+        |b, k| weight(&grams.bins[b].maneuvers[k]),
+    );
+    let (folds, trains) = (&cv.folds, &cv.trains);
     if kappa.is_some_and(|k| k.len() != nb) {
         return Err(AeroError::invalid(
             "structure selection, kappa",
@@ -1073,7 +1095,8 @@ fn select_impl(
     let mut partial_f = vec![vec![f64::NAN; p]; nb];
     let mut correlation = vec![vec![f64::NAN; p]; nb];
     for b in 0..nb {
-        let (g, s, n) = &totals[b];
+        let (g, s, n) = cv.totals.get(b, 0);
+        let n = &n;
         if *n > 1.0 {
             let zc = dim - 1;
             let vz = g[zc * dim + zc] - s[zc] * s[zc] / n;
@@ -1129,7 +1152,8 @@ fn select_impl(
     order.sort_by(|a, b| count[*b].cmp(&count[*a]).then(a.cmp(b)));
     // flap-wide standard deviations of the scaled columns (sum over the bins)
     let (mut gf, mut sf, mut nf) = (vec![0.0; dim * dim], vec![0.0; dim], 0.0);
-    for (g, s, c) in &totals {
+    for b in 0..nb {
+        let (g, s, c) = cv.totals.get(b, 0);
         gf.iter_mut().zip(g).for_each(|(a, b)| *a += b);
         sf.iter_mut().zip(s).for_each(|(a, b)| *a += b);
         nf += c;
@@ -1155,27 +1179,11 @@ fn select_impl(
         constant: &constant,
         min: opts.min_excitation,
     };
-    // per bin and fold, the training Gram matrix (all but the fold), once for every score
-    let trains: FoldGrams = folds
-        .iter()
-        .zip(&totals)
-        .map(|(fg, (gt, st, nt))| {
-            fg.iter()
-                .map(|(gf, sf, nf)| {
-                    (
-                        gt.iter().zip(gf).map(|(a, b)| a - b).collect(),
-                        st.iter().zip(sf).map(|(a, b)| a - b).collect(),
-                        nt - nf,
-                    )
-                })
-                .collect()
-        })
-        .collect();
     let score = |cols: &[usize]| {
         cv_score(
             grams,
-            &trains,
-            &folds,
+            trains,
+            folds,
             &fitted,
             cols,
             opts.min_points_per_param,
@@ -1193,8 +1201,8 @@ fn select_impl(
     let mut left = order.clone();
     let mut scorer = path::PathScorer::new(
         grams,
-        &trains,
-        &folds,
+        trains,
+        folds,
         &fitted,
         &cols,
         &order,
@@ -1318,8 +1326,8 @@ fn select_impl(
         let per_fold: Vec<Vec<usize>> = (0..opts.folds).map(select_fold).collect::<Result<_>>()?;
         let outer = cv_score_per_fold(
             grams,
-            &trains,
-            &folds,
+            trains,
+            folds,
             &fitted,
             &|f| &per_fold[f],
             opts.min_points_per_param,

@@ -29,11 +29,11 @@
 //! per candidate and step, refactoring `O(k³)`. The scores are those of `super::cv_score`
 //! to rounding (checked in the test builds).
 
-use super::stepwise::{Factor, Probe, PIVOT_TOL};
+use super::stepwise::PIVOT_TOL;
 use super::{zero_prediction, BinGrams, CvAccum, CvScore, Excitation, FoldGrams};
 
 /// What one candidate carries along the path in one bin and fold: the length of its `w` and
-/// `r` (kept in [`Cell::vecs`]) and their sums.
+/// `r` and their products.
 #[derive(Clone, Copy, Default)]
 struct Cand {
     len: usize,
@@ -47,102 +47,240 @@ struct Cand {
     yr: f64,
 }
 
-/// The path's quantities of one bin and fold a candidate is extended against.
-struct Along<'a> {
-    factor: &'a Factor<'a>,
-    fold: &'a [f64],
-    dim: usize,
-    qa: &'a [f64],
-    /// `M`, lower triangle packed by rows (row `i` at `i(i+1)/2`, `i + 1` entries).
-    m: &'a [f64],
-    /// Per row `i` of `M`, `M[i, ..i]·y[..i]`.
-    mdy: &'a [f64],
-}
-
-impl Cand {
-    /// Extends the carried sums of column `c` by the factor's rows added since the last call;
-    /// `w` and `r` are the candidate's vectors (room for every row of the path).
-    fn extend(&mut self, c: usize, at: &Along<'_>, w: &mut [f64], r: &mut [f64]) {
-        let (fa, dim) = (at.factor, at.dim);
-        let g = fa.gram();
-        let y = fa.y();
-        let cols = fa.cols();
-        for i in self.len.min(cols.len())..cols.len() {
-            let row = fa.row(i);
-            let s = cols[i];
-            let (mut sw, mut sr) = (g[s * dim + c], at.fold[s * dim + c]);
-            for ((l, a), b) in row[..i].iter().zip(&w[..i]).zip(&r[..i]) {
-                sw -= l * a;
-                sr -= l * b;
-            }
-            let (om, rr) = (sw / row[i], sr / row[i]);
-            let mrow = &at.m[i * (i + 1) / 2..(i + 1) * (i + 2) / 2];
-            let mw: f64 = mrow[..i].iter().zip(&w[..i]).map(|(a, b)| a * b).sum();
-            self.wmw += 2.0 * om * mw + om * om * mrow[i];
-            self.wmy += om * at.mdy[i] + mw * y[i] + om * mrow[i] * y[i];
-            self.ww += om * om;
-            self.wy += om * y[i];
-            self.wqa += om * at.qa[i];
-            self.wr += om * rr;
-            self.yr += y[i] * rr;
-            w[i] = om;
-            r[i] = rr;
-        }
-        self.len = self.len.max(cols.len());
-    }
-
-    /// Pivot `d` and new entry `u` of `y` for the column `c` (the rule of
-    /// `Factor::probe_cached`); `None` when `c` is (numerically) dependent on the path.
-    fn pivot(&self, g: &[f64], dim: usize, c: usize) -> Option<(f64, f64)> {
-        let gcc = g[c * dim + c];
-        let d = gcc - self.ww;
-        if d.is_nan() || gcc <= 0.0 || d <= PIVOT_TOL * gcc {
-            return None;
-        }
-        let u = (g[c * dim + dim - 1] - self.wy) / d.sqrt();
-        u.is_finite().then_some((d, u))
-    }
-}
-
-/// One bin and fold of the path.
+/// One bin and fold of the path; its vectors live in the scorer's arenas.
 struct Cell<'g> {
-    /// Held-out Gram matrix and samples.
+    /// Held-out and training Gram matrices (augmented, `dim × dim`) and samples.
     fold: &'g [f64],
+    train: &'g [f64],
     n_fold: f64,
     n_train: f64,
-    /// Per pool column: excited in this training set.
-    excited: Vec<bool>,
-    /// Factor of the path's excited columns; `None` once one of them was dependent on the
-    /// earlier ones (every extension is then singular too, and the bin predicts zero).
-    factor: Option<Factor<'g>>,
-    /// Per slot (a column that may join the path, [`PathScorer::slot`]), its carried sums.
-    cand: Vec<Cand>,
-    /// Per slot, its `w` then its `r`, `kmax` entries each.
-    vecs: Vec<f64>,
+    /// Fold index.
+    f: usize,
+    /// Columns in the factor (the path's excited columns).
+    k: usize,
+    /// A path column was dependent on the earlier ones: every extension is singular too,
+    /// and the bin predicts zero.
+    dead: bool,
     /// The held-out sums of the path itself.
     base: (f64, f64, f64),
     /// The path's `θᵀa = yᵀq_a` and `θᵀFθ = yᵀMy`, unclamped.
     cross: f64,
     yy: f64,
-    /// `q_a = L⁻¹ a` and, per row `i` of `M`, `M[i, ..i]·y[..i]`.
-    qa: Vec<f64>,
-    mdy: Vec<f64>,
-    /// `M = L⁻¹ F L⁻ᵀ`, lower triangle packed by rows.
-    m: Vec<f64>,
+}
+
+/// A cell's vectors: per slot (a column that may join the path, [`PathScorer::slot`]) its
+/// `w` and `r`; the factor `L` and `M = L⁻¹ F L⁻ᵀ` (lower triangles packed by rows, row `i`
+/// at `i(i+1)/2`); `y`, `q_a` and, per row `i` of `M`, `M[i, ..i]·y[..i]`; the factor's
+/// columns and the slots' products.
+struct Parts<'a> {
+    w: &'a mut [f64],
+    r: &'a mut [f64],
+    l: &'a mut [f64],
+    m: &'a mut [f64],
+    y: &'a mut [f64],
+    qa: &'a mut [f64],
+    mdy: &'a mut [f64],
+    cols: &'a mut [usize],
+    cand: &'a mut [Cand],
+}
+
+/// Entries of one cell's block of [`PathScorer::store`].
+fn block(kmax: usize) -> usize {
+    2 * kmax * kmax + kmax * (kmax + 1) + 3 * kmax
+}
+
+impl<'a> Parts<'a> {
+    fn of(blk: &'a mut [f64], cols: &'a mut [usize], cand: &'a mut [Cand], kmax: usize) -> Self {
+        let tri = kmax * (kmax + 1) / 2;
+        let (w, rest) = blk.split_at_mut(kmax * kmax);
+        let (r, rest) = rest.split_at_mut(kmax * kmax);
+        let (l, rest) = rest.split_at_mut(tri);
+        let (m, rest) = rest.split_at_mut(tri);
+        let (y, rest) = rest.split_at_mut(kmax);
+        let (qa, mdy) = rest.split_at_mut(kmax);
+        Parts {
+            w,
+            r,
+            l,
+            m,
+            y,
+            qa,
+            mdy,
+            cols,
+            cand,
+        }
+    }
+}
+
+/// Row `i` of a lower triangle packed by rows.
+fn row(t: &[f64], i: usize) -> &[f64] {
+    &t[i * (i + 1) / 2..(i + 1) * (i + 2) / 2]
+}
+
+impl Cell<'_> {
+    /// Extends the products of column `c` (in `slot`) by the factor's rows added since its
+    /// last extension: `O(k)` per row.
+    fn extend(&self, pt: &mut Parts<'_>, c: usize, slot: usize, kmax: usize, dim: usize) {
+        let cd = &mut pt.cand[slot];
+        let w = &mut pt.w[slot * kmax..(slot + 1) * kmax];
+        let r = &mut pt.r[slot * kmax..(slot + 1) * kmax];
+        for i in cd.len.min(self.k)..self.k {
+            let li = row(pt.l, i);
+            let s = pt.cols[i];
+            let (mut sw, mut sr) = (self.train[s * dim + c], self.fold[s * dim + c]);
+            for ((l, a), b) in li[..i].iter().zip(&w[..i]).zip(&r[..i]) {
+                sw -= l * a;
+                sr -= l * b;
+            }
+            let (om, rr) = (sw / li[i], sr / li[i]);
+            let mi = row(pt.m, i);
+            let mw: f64 = mi[..i].iter().zip(&w[..i]).map(|(a, b)| a * b).sum();
+            let yi = pt.y[i];
+            cd.wmw += 2.0 * om * mw + om * om * mi[i];
+            cd.wmy += om * pt.mdy[i] + mw * yi + om * mi[i] * yi;
+            cd.ww += om * om;
+            cd.wy += om * yi;
+            cd.wqa += om * pt.qa[i];
+            cd.wr += om * rr;
+            cd.yr += yi * rr;
+            w[i] = om;
+            r[i] = rr;
+        }
+        cd.len = cd.len.max(self.k);
+    }
+
+    /// Pivot `d` and new entry `u` of `y` for column `c` given its products (the rule of
+    /// `Factor::probe_cached`); `None` when `c` is (numerically) dependent on the path.
+    fn pivot(&self, cd: &Cand, c: usize, dim: usize) -> Option<(f64, f64)> {
+        let gcc = self.train[c * dim + c];
+        let d = gcc - cd.ww;
+        if d.is_nan() || gcc <= 0.0 || d <= PIVOT_TOL * gcc {
+            return None;
+        }
+        let u = (self.train[c * dim + dim - 1] - cd.wy) / d.sqrt();
+        u.is_finite().then_some((d, u))
+    }
+
+    /// Held-out sums `(Σ(z−ẑ)², Σz², Σẑ²)` of the training fit of the path's columns and `c`
+    /// (see the module doc); the fold predicts zero when `c` depends on the path or a sum is
+    /// not finite.
+    fn score(
+        &self,
+        pt: &mut Parts<'_>,
+        c: usize,
+        slot: usize,
+        kmax: usize,
+        dim: usize,
+    ) -> (f64, f64, f64) {
+        let fold = self.fold;
+        if self.dead {
+            return zero_prediction(fold, dim);
+        }
+        self.extend(pt, c, slot, kmax, dim);
+        let cd = pt.cand[slot];
+        let Some((d, u)) = self.pivot(&cd, c, dim) else {
+            return zero_prediction(fold, dim);
+        };
+        let tc = u / d.sqrt();
+        let zz = fold[dim * dim - 1];
+        let cross = self.cross - tc * cd.wqa + tc * fold[c * dim + dim - 1];
+        let yy = self.yy - 2.0 * tc * cd.wmy + tc * tc * cd.wmw + 2.0 * tc * cd.yr
+            - 2.0 * tc * tc * cd.wr
+            + tc * tc * fold[c * dim + c];
+        let sse = zz - 2.0 * cross + yy;
+        if tc.is_finite() && sse.is_finite() && yy.is_finite() {
+            (sse.max(0.0), zz, yy.max(0.0))
+        } else {
+            zero_prediction(fold, dim)
+        }
+    }
+
+    /// Column `c` (in `slot`) joins the factor (the caller checked that this training set
+    /// excites it): new rows of `L` and `M`, new entries of `y`, `q_a` and the path's sums.
+    fn push(&mut self, pt: &mut Parts<'_>, c: usize, slot: usize, kmax: usize, dim: usize) {
+        if self.dead {
+            return;
+        }
+        self.extend(pt, c, slot, kmax, dim);
+        let cd = pt.cand[slot];
+        let Some((d, u)) = self.pivot(&cd, c, dim) else {
+            self.dead = true;
+            return;
+        };
+        let (k, lam) = (self.k, d.sqrt());
+        let w = &pt.w[slot * kmax..slot * kmax + k];
+        let r = &pt.r[slot * kmax..slot * kmax + k];
+        // L's new row: [w, √d]
+        let at = k * (k + 1) / 2;
+        pt.l[at..at + k].copy_from_slice(w);
+        pt.l[at + k] = lam;
+        // M's new row: (r_c − M w_c) / λ, and its diagonal (wᵀMw − 2wᵀr + γ) / d
+        let (done, new) = pt.m.split_at_mut(at);
+        let new = &mut new[..=k];
+        new[..k].copy_from_slice(r);
+        for i in 0..k {
+            let mi = row(done, i);
+            let mut acc = mi[i] * w[i];
+            for j in 0..i {
+                acc += mi[j] * w[j];
+                new[j] -= mi[j] * w[i];
+            }
+            new[i] -= acc;
+        }
+        for v in &mut new[..k] {
+            *v /= lam;
+        }
+        new[k] = (cd.wmw - 2.0 * cd.wr + self.fold[c * dim + c]) / d;
+        let dy: f64 = new[..k].iter().zip(&pt.y[..k]).map(|(a, b)| a * b).sum();
+        let mu = new[k];
+        pt.mdy[k] = dy;
+        let qa = (self.fold[c * dim + dim - 1] - cd.wqa) / lam;
+        pt.qa[k] = qa;
+        pt.y[k] = u;
+        pt.cols[k] = c;
+        self.k = k + 1;
+        // the path's own sums with y's new entry u: yᵀq_a and yᵀMy
+        self.cross += u * qa;
+        self.yy += 2.0 * u * dy + mu * u * u;
+    }
+
+    /// Held-out sums of the path itself.
+    fn refresh(&mut self, dim: usize, min_points: usize) {
+        let fold = self.fold;
+        let zz = fold[dim * dim - 1];
+        let sse = zz - 2.0 * self.cross + self.yy;
+        self.base = if !self.dead
+            && self.n_train >= (min_points * self.k.max(1)) as f64
+            && sse.is_finite()
+            && self.yy.is_finite()
+        {
+            (sse.max(0.0), zz, self.yy.max(0.0))
+        } else {
+            zero_prediction(fold, dim)
+        };
+    }
 }
 
 /// The path's cells and the rules of a training fit.
 pub(super) struct PathScorer<'g> {
-    cells: Vec<(usize, Cell<'g>)>,
+    cells: Vec<Cell<'g>>,
     dim: usize,
+    p: usize,
     nf: usize,
     min_points: usize,
     s2: f64,
     path: Vec<usize>,
-    /// Per pool column, its slot in the cells' carried sums (`usize::MAX`: never on the path).
+    /// Per pool column, its slot in the cells' vectors (`usize::MAX`: never on the path).
     slot: Vec<usize>,
     /// Slots: the columns that may join the path.
     kmax: usize,
+    /// Per cell and pool column: excited in the cell's training set.
+    excited: Vec<bool>,
+    /// Per cell, [`block`] entries (see [`Parts`]).
+    store: Vec<f64>,
+    /// Per cell, the factor's columns (`kmax`) and the slots' products (`kmax`).
+    cols: Vec<usize>,
+    cand: Vec<Cand>,
 }
 
 impl<'g> PathScorer<'g> {
@@ -161,7 +299,7 @@ impl<'g> PathScorer<'g> {
     ) -> Self {
         let dim = grams.dim;
         let p = dim - 1;
-        let nf = folds.first().map_or(0, Vec::len);
+        let nf = folds.folds();
         let all: Vec<usize> = (0..p).collect();
         let mut slot = vec![usize::MAX; p];
         let mut kmax = 0;
@@ -171,72 +309,96 @@ impl<'g> PathScorer<'g> {
                 kmax += 1;
             }
         }
-        let mut scorer = PathScorer {
-            cells: Vec::new(),
-            dim,
-            nf,
-            min_points,
-            s2: grams.scale[dim - 1].powi(2),
-            path: start.to_vec(),
-            slot,
-            kmax,
-        };
+        let mut cells = Vec::new();
+        let mut excited = Vec::new();
         let mut used = Vec::new();
-        for (b, fg) in folds.iter().enumerate() {
-            if !fitted[b] {
-                continue;
-            }
-            for (f, (gf, _, nfold)) in fg.iter().enumerate() {
-                if *nfold == 0.0 {
+        for (b, _) in fitted.iter().enumerate().filter(|(_, &ok)| ok) {
+            for f in 0..nf {
+                let (gf, _, nfold) = folds.get(b, f);
+                if nfold == 0.0 {
                     continue;
                 }
-                let (train, strain, ntrain) = &trains[b][f];
-                excitation.excited(train, strain, *ntrain, dim, &all, &mut used);
-                let mut excited = vec![false; p];
+                let (train, strain, ntrain) = trains.get(b, f);
+                excitation.excited(train, strain, ntrain, dim, &all, &mut used);
+                let at = excited.len();
+                excited.resize(at + p, false);
                 for &j in &used {
-                    excited[j] = true;
+                    excited[at + j] = true;
                 }
-                let mut cell = Cell {
+                cells.push(Cell {
                     fold: gf,
-                    n_fold: *nfold,
-                    n_train: *ntrain,
-                    excited,
-                    factor: Some(Factor::new(train, dim)),
-                    cand: vec![Cand::default(); kmax],
-                    vecs: vec![0.0; 2 * kmax * kmax],
+                    train,
+                    n_fold: nfold,
+                    n_train: ntrain,
+                    f,
+                    k: 0,
+                    dead: false,
                     base: (0.0, 0.0, 0.0),
                     cross: 0.0,
                     yy: 0.0,
-                    qa: Vec::with_capacity(kmax),
-                    mdy: Vec::with_capacity(kmax),
-                    m: Vec::with_capacity(kmax * (kmax + 1) / 2),
-                };
-                for &c in start {
-                    cell.push(c, scorer.slot[c], kmax, dim);
-                }
-                cell.refresh(dim, min_points);
-                scorer.cells.push((f, cell));
+                });
             }
         }
+        let n = cells.len();
+        let mut scorer = PathScorer {
+            cells,
+            dim,
+            p,
+            nf,
+            min_points,
+            s2: grams.scale[dim - 1].powi(2),
+            path: Vec::new(),
+            slot,
+            kmax,
+            excited,
+            store: vec![0.0; n * block(kmax)],
+            cols: vec![0; n * kmax],
+            cand: vec![Cand::default(); n * kmax],
+        };
+        for &c in start {
+            scorer.add(c);
+        }
+        if start.is_empty() {
+            scorer.refresh_all();
+        }
         scorer
+    }
+
+    /// Every cell's held-out sums of the path.
+    fn refresh_all(&mut self) {
+        let (dim, min_points) = (self.dim, self.min_points);
+        for cell in &mut self.cells {
+            cell.refresh(dim, min_points);
+        }
     }
 
     /// Scores of `path + [c]` for each `c` of `cands` (columns of `later`).
     pub(super) fn scores(&mut self, cands: &[usize]) -> Vec<CvScore> {
         let mut accs = vec![CvAccum::new(self.nf); cands.len()];
-        let (dim, min_points, kmax) = (self.dim, self.min_points, self.kmax);
-        for (f, cell) in &mut self.cells {
-            let k = cell.factor.as_ref().map_or(0, |fa| fa.cols().len());
-            let enough = cell.n_train >= (min_points * (k + 1).max(1)) as f64;
+        let (dim, p, min_points, kmax) = (self.dim, self.p, self.min_points, self.kmax);
+        let blocks = self.store.chunks_mut(block(kmax).max(1));
+        let cols = self.cols.chunks_mut(kmax.max(1));
+        let cand = self.cand.chunks_mut(kmax.max(1));
+        let excited = self.excited.chunks(p.max(1));
+        for ((((cell, blk), cl), cd), ex) in self
+            .cells
+            .iter()
+            .zip(blocks)
+            .zip(cols)
+            .zip(cand)
+            .zip(excited)
+        {
+            let mut pt = Parts::of(blk, cl, cd, kmax);
+            let enough = cell.n_train >= (min_points * (cell.k + 1).max(1)) as f64;
             for (i, &c) in cands.iter().enumerate() {
-                let sums = if !cell.excited[c] {
+                let sums = if !ex[c] {
                     cell.base
                 } else if enough {
-                    cell.score(c, self.slot[c], kmax, dim)
+                    cell.score(&mut pt, c, self.slot[c], kmax, dim)
                 } else {
                     zero_prediction(cell.fold, dim)
                 };
-                accs[i].add(*f, sums.0, sums.1, sums.2, cell.n_fold);
+                accs[i].add(cell.f, sums.0, sums.1, sums.2, cell.n_fold);
             }
         }
         cands
@@ -250,141 +412,28 @@ impl<'g> PathScorer<'g> {
             .collect()
     }
 
-    /// The path takes column `c` (a column of `later`).
+    /// The path takes column `c` (a column of `start` or `later`).
     pub(super) fn add(&mut self, c: usize) {
         self.path.push(c);
-        let (dim, min_points, kmax) = (self.dim, self.min_points, self.kmax);
+        let (dim, p, min_points, kmax) = (self.dim, self.p, self.min_points, self.kmax);
         let slot = self.slot[c];
-        for (_, cell) in &mut self.cells {
-            cell.push(c, slot, kmax, dim);
+        let blocks = self.store.chunks_mut(block(kmax).max(1));
+        let cols = self.cols.chunks_mut(kmax.max(1));
+        let cand = self.cand.chunks_mut(kmax.max(1));
+        let excited = self.excited.chunks(p.max(1));
+        for ((((cell, blk), cl), cd), ex) in self
+            .cells
+            .iter_mut()
+            .zip(blocks)
+            .zip(cols)
+            .zip(cand)
+            .zip(excited)
+        {
+            if ex[c] {
+                let mut pt = Parts::of(blk, cl, cd, kmax);
+                cell.push(&mut pt, c, slot, kmax, dim);
+            }
             cell.refresh(dim, min_points);
         }
-    }
-}
-
-impl Cell<'_> {
-    /// The carried sums of column `c` in `slot`, extended to the factor's current rows, and
-    /// its `w` and `r`; `None` without a factor.
-    fn extend(&mut self, c: usize, slot: usize, kmax: usize, dim: usize) -> Option<()> {
-        let fa = self.factor.as_ref()?;
-        let at = Along {
-            factor: fa,
-            fold: self.fold,
-            dim,
-            qa: &self.qa,
-            m: &self.m,
-            mdy: &self.mdy,
-        };
-        let (w, r) = self.vecs[2 * slot * kmax..2 * (slot + 1) * kmax].split_at_mut(kmax);
-        self.cand[slot].extend(c, &at, w, r);
-        Some(())
-    }
-
-    /// Held-out sums `(Σ(z−ẑ)², Σz², Σẑ²)` of the training fit of the path's columns and `c`
-    /// (see the module doc); the fold predicts zero when `c` depends on the path or an
-    /// estimate is not finite.
-    fn score(&mut self, c: usize, slot: usize, kmax: usize, dim: usize) -> (f64, f64, f64) {
-        let fold = self.fold;
-        if self.extend(c, slot, kmax, dim).is_none() {
-            return zero_prediction(fold, dim);
-        }
-        let Some(fa) = self.factor.as_ref() else {
-            return zero_prediction(fold, dim);
-        };
-        let cd = self.cand[slot];
-        let Some((d, u)) = cd.pivot(fa.gram(), dim, c) else {
-            return zero_prediction(fold, dim);
-        };
-        let tc = u / d.sqrt();
-        let zz = fold[dim * dim - 1];
-        let cross = self.cross - tc * cd.wqa + tc * fold[c * dim + dim - 1];
-        let yy = self.yy - 2.0 * tc * cd.wmy + tc * tc * cd.wmw + 2.0 * tc * cd.yr
-            - 2.0 * tc * tc * cd.wr
-            + tc * tc * fold[c * dim + c];
-        let sse = zz - 2.0 * cross + yy;
-        if tc.is_finite() && sse.is_finite() && yy.is_finite() {
-            (sse.max(0.0), zz, yy.max(0.0))
-        } else {
-            zero_prediction(fold, dim)
-        }
-    }
-
-    /// Column `c` (in `slot`) joins the path: into the factor when this training set excites
-    /// it, with the new row of `M` and entry of `q_a`.
-    fn push(&mut self, c: usize, slot: usize, kmax: usize, dim: usize) {
-        if !self.excited[c] || self.extend(c, slot, kmax, dim).is_none() {
-            return;
-        }
-        let Some(fa) = self.factor.as_ref() else {
-            return;
-        };
-        let cd = self.cand[slot];
-        let Some((d, u)) = cd.pivot(fa.gram(), dim, c) else {
-            self.factor = None;
-            return;
-        };
-        let fold = self.fold;
-        let lam = d.sqrt();
-        let k = fa.cols().len();
-        let base = 2 * slot * kmax;
-        let (w, r) = (
-            &self.vecs[base..base + k],
-            &self.vecs[base + kmax..base + kmax + k],
-        );
-        // new row of M: (r_c − M w_c) / λ, and its diagonal (wᵀMw − 2wᵀr + γ) / d
-        let mut mw = vec![0.0; k];
-        for i in 0..k {
-            let row = &self.m[i * (i + 1) / 2..(i + 1) * (i + 2) / 2];
-            for j in 0..i {
-                mw[i] += row[j] * w[j];
-                mw[j] += row[j] * w[i];
-            }
-            mw[i] += row[i] * w[i];
-        }
-        let mu = (cd.wmw - 2.0 * cd.wr + fold[c * dim + c]) / d;
-        let y = fa.y();
-        let mut dy = 0.0;
-        for ((a, b), yj) in r.iter().zip(&mw).zip(y) {
-            let mk = (a - b) / lam;
-            self.m.push(mk);
-            dy += mk * yj;
-        }
-        self.m.push(mu);
-        self.mdy.push(dy);
-        let qa = (fold[c * dim + dim - 1] - cd.wqa) / lam;
-        self.qa.push(qa);
-        // the path's own sums with y's new entry u: yᵀq_a and yᵀMy
-        self.cross += u * qa;
-        self.yy += 2.0 * u * dy + mu * u * u;
-        let probe = Probe {
-            w: w.to_vec(),
-            d,
-            u,
-        };
-        if let Some(fa) = &mut self.factor {
-            fa.push(c, probe);
-        }
-    }
-
-    /// Held-out sums of the path itself.
-    fn refresh(&mut self, dim: usize, min_points: usize) {
-        let fold = self.fold;
-        let k = match &self.factor {
-            Some(fa) => fa.cols().len(),
-            None => {
-                self.base = zero_prediction(fold, dim);
-                return;
-            }
-        };
-        let zz = fold[dim * dim - 1];
-        let sse = zz - 2.0 * self.cross + self.yy;
-        self.base = if self.n_train >= (min_points * k.max(1)) as f64
-            && sse.is_finite()
-            && self.yy.is_finite()
-        {
-            (sse.max(0.0), zz, self.yy.max(0.0))
-        } else {
-            zero_prediction(fold, dim)
-        };
     }
 }

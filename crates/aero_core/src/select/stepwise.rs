@@ -140,21 +140,6 @@ impl<'a> Factor<'a> {
         &self.cols
     }
 
-    /// The Gram matrix the factor is of.
-    pub(super) fn gram(&self) -> &'a [f64] {
-        self.g
-    }
-
-    /// Row `i` of the lower factor (`i + 1` entries, the pivot last).
-    pub(super) fn row(&self, i: usize) -> &[f64] {
-        &self.l[i]
-    }
-
-    /// `L⁻¹ X_Sᵀ z`.
-    pub(super) fn y(&self) -> &[f64] {
-        &self.y
-    }
-
     pub(super) fn push(&mut self, c: usize, p: Probe) {
         self.sse = self.sse_with(&p);
         let mut row = p.w;

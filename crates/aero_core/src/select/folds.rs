@@ -1,0 +1,139 @@
+//! Per-bin, per-fold sufficient statistics of the cross-validation: each fold's Gram matrix,
+//! the bin's total and each fold's training complement (total minus fold), in flat arrays.
+//!
+//! A fold's statistics are the weighted sum of its maneuvers' packed statistics
+//! ([`super::BinStats::packed`]: lower triangle and column sums, one contiguous run per
+//! maneuver), the total the sum of the folds and a training set the total minus its fold;
+//! each is summed packed and unpacked once into its full symmetric matrix.
+
+use super::{packed_width, BinGrams};
+
+/// Gram matrices (`dim × dim`, row-major), column sums and sample counts per bin and fold.
+pub(super) struct FoldGrams {
+    dim: usize,
+    folds: usize,
+    g: Vec<f64>,
+    s: Vec<f64>,
+    n: Vec<f64>,
+}
+
+/// The folds', the totals' (one "fold" per bin) and the training sets' statistics.
+pub(super) struct CvGrams {
+    pub(super) folds: FoldGrams,
+    pub(super) totals: FoldGrams,
+    pub(super) trains: FoldGrams,
+}
+
+impl FoldGrams {
+    fn zeros(dim: usize, bins: usize, folds: usize) -> Self {
+        FoldGrams {
+            dim,
+            folds,
+            g: vec![0.0; bins * folds * dim * dim],
+            s: vec![0.0; bins * folds * dim],
+            n: vec![0.0; bins * folds],
+        }
+    }
+
+    /// Folds per bin.
+    pub(super) fn folds(&self) -> usize {
+        self.folds
+    }
+
+    /// Gram matrix, column sums and samples of bin `b`, fold `f`.
+    pub(super) fn get(&self, b: usize, f: usize) -> (&[f64], &[f64], f64) {
+        let (dim, i) = (self.dim, b * self.folds + f);
+        (
+            &self.g[i * dim * dim..(i + 1) * dim * dim],
+            &self.s[i * dim..(i + 1) * dim],
+            self.n[i],
+        )
+    }
+
+    /// Writes packed statistics `pk` (lower triangle, then sums) with `n` samples to bin `b`,
+    /// fold `f`.
+    fn set(&mut self, b: usize, f: usize, pk: &[f64], n: f64) {
+        let (dim, i) = (self.dim, b * self.folds + f);
+        let (tri, sums) = pk.split_at(pk.len() - dim);
+        let g = &mut self.g[i * dim * dim..(i + 1) * dim * dim];
+        let mut at = 0;
+        for r in 0..dim {
+            for c in 0..=r {
+                g[r * dim + c] = tri[at];
+                g[c * dim + r] = tri[at];
+                at += 1;
+            }
+        }
+        self.s[i * dim..(i + 1) * dim].copy_from_slice(sums);
+        self.n[i] = n;
+    }
+}
+
+impl CvGrams {
+    /// The statistics of `grams`' bins for `folds` folds: the `k`-th maneuver of bin `b` goes
+    /// to fold `fold(b, k)` (none: to no fold) with weight `weight(b, k)` (0: left out).
+    /// Sums run over the maneuvers in order, then over the folds in order.
+    pub(super) fn new(
+        grams: &BinGrams,
+        folds: usize,
+        fold: impl Fn(usize, usize) -> Option<usize>,
+        weight: impl Fn(usize, usize) -> f64,
+    ) -> Self {
+        let dim = grams.dim;
+        let nb = grams.bins.len();
+        let wdt = packed_width(dim);
+        let mut out = CvGrams {
+            folds: FoldGrams::zeros(dim, nb, folds),
+            totals: FoldGrams::zeros(dim, nb, 1),
+            trains: FoldGrams::zeros(dim, nb, folds),
+        };
+        let mut acc = vec![0.0; folds * wdt];
+        let mut count = vec![0.0; folds];
+        let mut total = vec![0.0; wdt];
+        let mut train = vec![0.0; wdt];
+        for (b, bs) in grams.bins.iter().enumerate() {
+            acc.iter_mut().for_each(|v| *v = 0.0);
+            count.iter_mut().for_each(|v| *v = 0.0);
+            let derived;
+            let packed = if bs.packed.len() == bs.maneuvers.len() * wdt {
+                &bs.packed
+            } else {
+                derived = bs.pack(dim);
+                &derived
+            };
+            for k in 0..bs.maneuvers.len() {
+                let Some(f) = fold(b, k).filter(|&f| f < folds) else {
+                    continue;
+                };
+                let w = weight(b, k);
+                if w == 0.0 {
+                    continue;
+                }
+                count[f] += w * bs.n[k] as f64;
+                for (a, v) in acc[f * wdt..(f + 1) * wdt]
+                    .iter_mut()
+                    .zip(&packed[k * wdt..(k + 1) * wdt])
+                {
+                    *a += w * v;
+                }
+            }
+            total.iter_mut().for_each(|v| *v = 0.0);
+            let mut n_total = 0.0;
+            for f in 0..folds {
+                let pk = &acc[f * wdt..(f + 1) * wdt];
+                total.iter_mut().zip(pk).for_each(|(a, v)| *a += v);
+                n_total += count[f];
+                out.folds.set(b, f, pk, count[f]);
+            }
+            out.totals.set(b, 0, &total, n_total);
+            for f in 0..folds {
+                let pk = &acc[f * wdt..(f + 1) * wdt];
+                for ((t, a), v) in train.iter_mut().zip(&total).zip(pk) {
+                    *t = a - v;
+                }
+                out.trains.set(b, f, &train, n_total - count[f]);
+            }
+        }
+        out
+    }
+}
