@@ -437,3 +437,137 @@ impl<'g> PathScorer<'g> {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::super::{cv_score, BinStats, CvGrams};
+    use super::*;
+    use crate::sim::rng::Stream;
+
+    /// Per-maneuver statistics of rows `[x_0..x_{p-1}, z]` (already scaled).
+    fn stats(rows_of: &[Vec<Vec<f64>>], dim: usize) -> BinStats {
+        let mut st = BinStats::default();
+        for (m, rows) in rows_of.iter().enumerate() {
+            st.maneuvers.push(m as u64);
+            st.n.push(rows.len());
+            let mut g = vec![0.0; dim * dim];
+            let mut s = vec![0.0; dim];
+            for r in rows {
+                for a in 0..dim {
+                    s[a] += r[a];
+                    for b in 0..dim {
+                        g[a * dim + b] += r[a] * r[b];
+                    }
+                }
+            }
+            st.gram.extend(g);
+            st.sums.extend(s);
+        }
+        st.packed = st.pack(dim);
+        st
+    }
+
+    /// Along a path through every candidate, the carried-product scores equal a refit's
+    /// (`cv_score`) in bins with a dependent column (the cell dies), a column that never
+    /// moves (not excited), too few rows for the longer fits, and bootstrap-like weights
+    /// (0, 1 and 2).
+    #[test]
+    fn carried_scores_equal_the_refit_along_the_path() {
+        let mut rng = Stream::new(11, 3);
+        let (p, nm, folds) = (6usize, 12usize, 3usize);
+        let dim = p + 1;
+        let mut bins = Vec::new();
+        for kind in 0..4 {
+            let per = if kind == 3 { 3 } else { 25 };
+            let rows_of: Vec<Vec<Vec<f64>>> = (0..nm)
+                .map(|_| {
+                    (0..per)
+                        .map(|_| {
+                            let mut x: Vec<f64> = (0..p).map(|_| rng.normal()).collect();
+                            x[0] = 1.0;
+                            if kind == 1 {
+                                x[3] = 2.0 * x[1] - x[2];
+                            }
+                            if kind == 2 {
+                                x[2] = 0.0;
+                            }
+                            let z = 0.3 + 0.5 * x[1] - 0.2 * x[4] + 0.3 * rng.normal();
+                            x.push(z);
+                            x
+                        })
+                        .collect()
+                })
+                .collect();
+            bins.push(stats(&rows_of, dim));
+        }
+        let grams = BinGrams {
+            dim,
+            scale: vec![1.0; dim],
+            bins,
+        };
+        let weight = |k: usize| [0.0, 1.0, 2.0, 1.0][k % 4];
+        let cv = CvGrams::new(&grams, folds, |_, k| Some(k % folds), |_, k| weight(k));
+        let fitted = vec![true; grams.bins.len()];
+        let flap_sd = vec![1.0; p];
+        let constant: Vec<bool> = (0..p).map(|j| j == 0).collect();
+        let excitation = Excitation {
+            flap_sd: &flap_sd,
+            constant: &constant,
+            min: 0.05,
+        };
+        let (start, later) = (vec![0usize], vec![1usize, 2, 3, 4, 5]);
+        let min_points = 4;
+        let mut scorer = PathScorer::new(
+            &grams,
+            &cv.trains,
+            &cv.folds,
+            &fitted,
+            &start,
+            &later,
+            min_points,
+            &excitation,
+        );
+        let mut path = start.clone();
+        let mut left = later.clone();
+        let close = |a: f64, b: f64| {
+            (a.is_nan() && b.is_nan()) || (a - b).abs() <= 1e-9 * a.abs().max(b.abs())
+        };
+        let mut dead_seen = false;
+        while !left.is_empty() {
+            let scores = scorer.scores(&left);
+            for (s, &c) in scores.iter().zip(&left) {
+                let mut cols = path.clone();
+                cols.push(c);
+                let r = cv_score(
+                    &grams,
+                    &cv.trains,
+                    &cv.folds,
+                    &fitted,
+                    &cols,
+                    min_points,
+                    &excitation,
+                );
+                assert!(
+                    close(s.mse, r.mse) && close(s.tic, r.tic),
+                    "{cols:?}: {s:?} vs {r:?}"
+                );
+                assert_eq!(s.columns, r.columns);
+                for (a, b) in s.fold_mse.iter().zip(&r.fold_mse) {
+                    assert!(close(*a, *b), "{cols:?}: fold {a} vs {b}");
+                }
+            }
+            // take the candidates in pool order, so that 1, 2 and 3 (dependent in bin 1) join
+            let c = left.remove(0);
+            scorer.add(c);
+            path.push(c);
+            dead_seen |= scorer.cells.iter().any(|cell| cell.dead);
+        }
+        assert!(dead_seen, "the dependent column should end a cell's factor");
+        // the column that never moves was left out of bin 2's cells
+        assert!(scorer
+            .cells
+            .iter()
+            .zip(scorer.excited.chunks(p))
+            .any(|(_, ex)| !ex[2]));
+    }
+}
