@@ -94,29 +94,14 @@ impl CvGrams {
         for (b, bs) in grams.bins.iter().enumerate() {
             acc.iter_mut().for_each(|v| *v = 0.0);
             count.iter_mut().for_each(|v| *v = 0.0);
-            let derived;
-            let packed = if bs.packed.len() == bs.maneuvers.len() * wdt {
-                &bs.packed
-            } else {
-                derived = bs.pack(dim);
-                &derived
-            };
-            for k in 0..bs.maneuvers.len() {
-                let Some(f) = fold(b, k).filter(|&f| f < folds) else {
-                    continue;
-                };
-                let w = weight(b, k);
-                if w == 0.0 {
-                    continue;
-                }
-                count[f] += w * bs.n[k] as f64;
-                for (a, v) in acc[f * wdt..(f + 1) * wdt]
-                    .iter_mut()
-                    .zip(&packed[k * wdt..(k + 1) * wdt])
-                {
-                    *a += w * v;
-                }
-            }
+            bs.add_packed(
+                dim,
+                folds,
+                |k| fold(b, k),
+                |k| weight(b, k),
+                &mut acc,
+                &mut count,
+            );
             total.iter_mut().for_each(|v| *v = 0.0);
             let mut n_total = 0.0;
             for f in 0..folds {

@@ -129,6 +129,32 @@ impl BinStats {
         weight: impl Fn(usize) -> f64,
     ) -> Vec<(Vec<f64>, Vec<f64>, f64)> {
         let wdt = packed_width(dim);
+        let mut acc = vec![0.0; folds * wdt];
+        let mut count = vec![0.0; folds];
+        self.add_packed(dim, folds, fold, weight, &mut acc, &mut count);
+        acc.chunks_exact(wdt.max(1))
+            .zip(count)
+            .map(|(pk, n)| {
+                let (tri, sums) = pk.split_at(wdt - dim);
+                (unpack_lower(tri, dim), sums.to_vec(), n)
+            })
+            .collect()
+    }
+
+    /// Adds `weight(k)` times the k-th maneuver's packed statistics ([`BinStats::packed`]) to
+    /// fold `fold(k)`'s run of `acc` (`folds` runs of [`packed_width`]) and its samples to
+    /// `count[fold(k)]`, maneuvers in order (one contiguous axpy each); a zero weight or no
+    /// fold adds nothing.
+    pub fn add_packed(
+        &self,
+        dim: usize,
+        folds: usize,
+        fold: impl Fn(usize) -> Option<usize>,
+        weight: impl Fn(usize) -> f64,
+        acc: &mut [f64],
+        count: &mut [f64],
+    ) {
+        let wdt = packed_width(dim);
         let derived;
         let packed = if self.packed.len() == self.maneuvers.len() * wdt {
             &self.packed
@@ -136,9 +162,6 @@ impl BinStats {
             derived = self.pack(dim);
             &derived
         };
-        // the packed sums per fold, maneuvers in order: one contiguous axpy per maneuver
-        let mut acc = vec![0.0; folds * wdt];
-        let mut count = vec![0.0; folds];
         for k in 0..self.maneuvers.len() {
             let Some(f) = fold(k).filter(|&f| f < folds) else {
                 continue;
@@ -155,17 +178,10 @@ impl BinStats {
                 *a += w * b;
             }
         }
-        acc.chunks_exact(wdt.max(1))
-            .zip(count)
-            .map(|(pk, n)| {
-                let (tri, sums) = pk.split_at(wdt - dim);
-                (unpack_lower(tri, dim), sums.to_vec(), n)
-            })
-            .collect()
     }
 
     /// The packed statistics of every maneuver (see [`BinStats::packed`]).
-    fn pack(&self, dim: usize) -> Vec<f64> {
+    pub(crate) fn pack(&self, dim: usize) -> Vec<f64> {
         let wdt = packed_width(dim);
         let mut out = Vec::with_capacity(self.maneuvers.len() * wdt);
         for k in 0..self.maneuvers.len() {

@@ -372,35 +372,43 @@ impl<'g> PathScorer<'g> {
         }
     }
 
-    /// Scores of `path + [c]` for each `c` of `cands` (columns of `later`).
-    pub(super) fn scores(&mut self, cands: &[usize]) -> Vec<CvScore> {
-        let mut accs = vec![CvAccum::new(self.nf); cands.len()];
-        let (dim, p, min_points, kmax) = (self.dim, self.p, self.min_points, self.kmax);
+    /// Calls `f` with every cell, its vectors and its excited columns.
+    fn each_cell(&mut self, mut f: impl FnMut(&mut Cell<'g>, &mut Parts<'_>, &[bool])) {
+        let (p, kmax) = (self.p, self.kmax);
         let blocks = self.store.chunks_mut(block(kmax).max(1));
         let cols = self.cols.chunks_mut(kmax.max(1));
         let cand = self.cand.chunks_mut(kmax.max(1));
         let excited = self.excited.chunks(p.max(1));
         for ((((cell, blk), cl), cd), ex) in self
             .cells
-            .iter()
+            .iter_mut()
             .zip(blocks)
             .zip(cols)
             .zip(cand)
             .zip(excited)
         {
-            let mut pt = Parts::of(blk, cl, cd, kmax);
+            f(cell, &mut Parts::of(blk, cl, cd, kmax), ex);
+        }
+    }
+
+    /// Scores of `path + [c]` for each `c` of `cands` (columns of `later`).
+    pub(super) fn scores(&mut self, cands: &[usize]) -> Vec<CvScore> {
+        let mut accs = vec![CvAccum::new(self.nf); cands.len()];
+        let (dim, min_points, kmax) = (self.dim, self.min_points, self.kmax);
+        let slots: Vec<usize> = cands.iter().map(|&c| self.slot[c]).collect();
+        self.each_cell(|cell, pt, ex| {
             let enough = cell.n_train >= (min_points * (cell.k + 1).max(1)) as f64;
-            for (i, &c) in cands.iter().enumerate() {
+            for (i, (&c, &sl)) in cands.iter().zip(&slots).enumerate() {
                 let sums = if !ex[c] {
                     cell.base
                 } else if enough {
-                    cell.score(&mut pt, c, self.slot[c], kmax, dim)
+                    cell.score(pt, c, sl, kmax, dim)
                 } else {
                     zero_prediction(cell.fold, dim)
                 };
                 accs[i].add(cell.f, sums.0, sums.1, sums.2, cell.n_fold);
             }
-        }
+        });
         cands
             .iter()
             .zip(&accs)
@@ -415,26 +423,14 @@ impl<'g> PathScorer<'g> {
     /// The path takes column `c` (a column of `start` or `later`).
     pub(super) fn add(&mut self, c: usize) {
         self.path.push(c);
-        let (dim, p, min_points, kmax) = (self.dim, self.p, self.min_points, self.kmax);
+        let (dim, min_points, kmax) = (self.dim, self.min_points, self.kmax);
         let slot = self.slot[c];
-        let blocks = self.store.chunks_mut(block(kmax).max(1));
-        let cols = self.cols.chunks_mut(kmax.max(1));
-        let cand = self.cand.chunks_mut(kmax.max(1));
-        let excited = self.excited.chunks(p.max(1));
-        for ((((cell, blk), cl), cd), ex) in self
-            .cells
-            .iter_mut()
-            .zip(blocks)
-            .zip(cols)
-            .zip(cand)
-            .zip(excited)
-        {
+        self.each_cell(|cell, pt, ex| {
             if ex[c] {
-                let mut pt = Parts::of(blk, cl, cd, kmax);
-                cell.push(&mut pt, c, slot, kmax, dim);
+                cell.push(pt, c, slot, kmax, dim);
             }
             cell.refresh(dim, min_points);
-        }
+        });
     }
 }
 
