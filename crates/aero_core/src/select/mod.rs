@@ -1112,8 +1112,7 @@ fn select_impl(
     let mut correlation = vec![vec![f64::NAN; p]; nb];
     for b in 0..nb {
         let (g, s, n) = cv.totals.get(b, 0);
-        let n = &n;
-        if *n > 1.0 {
+        if n > 1.0 {
             let zc = dim - 1;
             let vz = g[zc * dim + zc] - s[zc] * s[zc] / n;
             for j in 0..p {
@@ -1141,7 +1140,7 @@ fn select_impl(
                 let (sel, f) = stepwise(
                     g,
                     dim,
-                    *n,
+                    n,
                     &opts.forced,
                     &candidates,
                     kappa[b],
@@ -1152,7 +1151,7 @@ fn select_impl(
                 partial_f[b] = f;
                 sel
             }
-            Method::Mof => mof_pse(g, dim, *n, &opts.forced, &candidates, kappa[b]),
+            Method::Mof => mof_pse(g, dim, n, &opts.forced, &candidates, kappa[b]),
         };
         for c in sel {
             selected[b][c] = true;
