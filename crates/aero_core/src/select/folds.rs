@@ -6,7 +6,7 @@
 //! maneuver), the total the sum of the folds and a training set the total minus its fold;
 //! each is summed packed and unpacked once into its full symmetric matrix.
 
-use super::{packed_width, BinGrams};
+use super::{packed_width, unpack_lower_into, BinGrams};
 
 /// Gram matrices (`dim × dim`, row-major), column sums and sample counts per bin and fold.
 pub(super) struct FoldGrams {
@@ -55,15 +55,7 @@ impl FoldGrams {
     fn set(&mut self, b: usize, f: usize, pk: &[f64], n: f64) {
         let (dim, i) = (self.dim, b * self.folds + f);
         let (tri, sums) = pk.split_at(pk.len() - dim);
-        let g = &mut self.g[i * dim * dim..(i + 1) * dim * dim];
-        let mut at = 0;
-        for r in 0..dim {
-            for c in 0..=r {
-                g[r * dim + c] = tri[at];
-                g[c * dim + r] = tri[at];
-                at += 1;
-            }
-        }
+        unpack_lower_into(tri, dim, &mut self.g[i * dim * dim..(i + 1) * dim * dim]);
         self.s[i * dim..(i + 1) * dim].copy_from_slice(sums);
         self.n[i] = n;
     }

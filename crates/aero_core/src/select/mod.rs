@@ -80,14 +80,9 @@ pub struct BinStats {
     pub maneuvers: Vec<u64>,
     /// Samples per maneuver.
     pub n: Vec<usize>,
-    /// Per maneuver, the `dim × dim` augmented Gram matrix of the scaled
-    /// columns (the last column is z), row-major, concatenated.
-    pub gram: Vec<f64>,
-    /// Per maneuver, the column sums of the scaled columns (`dim` each).
-    pub sums: Vec<f64>,
-    /// Per maneuver, the lower triangle of its Gram matrix by rows, then its column sums
-    /// ([`packed_width`] each): what [`BinStats::fold_totals`] adds up, contiguously. Filled
-    /// by [`bin_grams`]; when empty, derived from `gram` and `sums`.
+    /// Per maneuver, the lower triangle by rows of the augmented Gram matrix of the scaled
+    /// columns (the last column is z), then the column sums ([`packed_width`] entries each,
+    /// concatenated): what [`BinStats::fold_totals`] adds up, contiguously.
     pub packed: Vec<f64>,
 }
 
@@ -154,14 +149,7 @@ impl BinStats {
         acc: &mut [f64],
         count: &mut [f64],
     ) {
-        let wdt = packed_width(dim);
-        let derived;
-        let packed = if self.packed.len() == self.maneuvers.len() * wdt {
-            &self.packed
-        } else {
-            derived = self.pack(dim);
-            &derived
-        };
+        let (wdt, packed) = (packed_width(dim), &self.packed);
         for k in 0..self.maneuvers.len() {
             let Some(f) = fold(k).filter(|&f| f < folds) else {
                 continue;
@@ -179,25 +167,17 @@ impl BinStats {
             }
         }
     }
-
-    /// The packed statistics of every maneuver (see [`BinStats::packed`]).
-    pub(crate) fn pack(&self, dim: usize) -> Vec<f64> {
-        let wdt = packed_width(dim);
-        let mut out = Vec::with_capacity(self.maneuvers.len() * wdt);
-        for k in 0..self.maneuvers.len() {
-            let g = &self.gram[k * dim * dim..(k + 1) * dim * dim];
-            for i in 0..dim {
-                out.extend_from_slice(&g[i * dim..i * dim + i + 1]);
-            }
-            out.extend_from_slice(&self.sums[k * dim..(k + 1) * dim]);
-        }
-        out
-    }
 }
 
 /// The symmetric `dim × dim` matrix (row-major) of a lower triangle packed by rows.
 fn unpack_lower(tri: &[f64], dim: usize) -> Vec<f64> {
     let mut g = vec![0.0; dim * dim];
+    unpack_lower_into(tri, dim, &mut g);
+    g
+}
+
+/// [`unpack_lower`] into `g` (`dim × dim`, every entry written).
+fn unpack_lower_into(tri: &[f64], dim: usize, g: &mut [f64]) {
     let mut at = 0;
     for i in 0..dim {
         for j in 0..=i {
@@ -206,7 +186,6 @@ fn unpack_lower(tri: &[f64], dim: usize) -> Vec<f64> {
             at += 1;
         }
     }
-    g
 }
 
 /// Accumulate the per-(bin, maneuver) augmented Gram matrices of `design`
@@ -247,6 +226,7 @@ pub fn bin_grams(design: &Design, z: &[f64], members: &[Vec<usize>], maneuver: &
             }
         })
         .collect();
+    let wdt = packed_width(dim);
     let work = |rows: &Vec<usize>| -> BinStats {
         let mut order: Vec<usize> = rows.iter().copied().filter(|&r| row_ok(r)).collect();
         order.sort_by_key(|&r| maneuver[r]);
@@ -257,8 +237,7 @@ pub fn bin_grams(design: &Design, z: &[f64], members: &[Vec<usize>], maneuver: &
             if st.maneuvers.last() != Some(&m) {
                 st.maneuvers.push(m);
                 st.n.push(0);
-                st.gram.extend(std::iter::repeat_n(0.0, dim * dim));
-                st.sums.extend(std::iter::repeat_n(0.0, dim));
+                st.packed.extend(std::iter::repeat_n(0.0, wdt));
             }
             let k = st.maneuvers.len() - 1;
             st.n[k] += 1;
@@ -266,26 +245,20 @@ pub fn bin_grams(design: &Design, z: &[f64], members: &[Vec<usize>], maneuver: &
                 v[j] = design.values[r * p + j] / scale[j];
             }
             v[p] = z[r] / scale[p];
-            let g = &mut st.gram[k * dim * dim..(k + 1) * dim * dim];
+            // the lower triangle by rows, then the sums
+            let (tri, sums) = st.packed[k * wdt..(k + 1) * wdt].split_at_mut(wdt - dim);
+            let mut at = 0;
             for a in 0..dim {
                 let va = v[a];
-                for b in a..dim {
-                    g[a * dim + b] += va * v[b];
+                for (t, vb) in tri[at..=at + a].iter_mut().zip(&v[..=a]) {
+                    *t += va * vb;
                 }
+                at += a + 1;
             }
-            for (s, x) in st.sums[k * dim..(k + 1) * dim].iter_mut().zip(&v) {
+            for (s, x) in sums.iter_mut().zip(&v) {
                 *s += x;
             }
         }
-        for k in 0..st.maneuvers.len() {
-            let g = &mut st.gram[k * dim * dim..(k + 1) * dim * dim];
-            for a in 0..dim {
-                for b in 0..a {
-                    g[a * dim + b] = g[b * dim + a];
-                }
-            }
-        }
-        st.packed = st.pack(dim);
         st
     };
     #[cfg(feature = "parallel")]

@@ -446,20 +446,15 @@ mod tests {
         for (m, rows) in rows_of.iter().enumerate() {
             st.maneuvers.push(m as u64);
             st.n.push(rows.len());
-            let mut g = vec![0.0; dim * dim];
-            let mut s = vec![0.0; dim];
-            for r in rows {
-                for a in 0..dim {
-                    s[a] += r[a];
-                    for b in 0..dim {
-                        g[a * dim + b] += r[a] * r[b];
-                    }
+            for a in 0..dim {
+                for b in 0..=a {
+                    st.packed.push(rows.iter().map(|r| r[a] * r[b]).sum());
                 }
             }
-            st.gram.extend(g);
-            st.sums.extend(s);
+            for a in 0..dim {
+                st.packed.push(rows.iter().map(|r| r[a]).sum());
+            }
         }
-        st.packed = st.pack(dim);
         st
     }
 
