@@ -22,7 +22,7 @@ from aerodelta.report import ReportResult, build_report
 from aerodelta.report import diagnosis as diag
 from aerodelta.report.context import ReportContext
 from aerodelta.report.effects import derivative
-from aerodelta.report.envelope import LEVELS, classify
+from aerodelta.report.envelope import LEVELS, classify, identified_by_alpha
 from aerodelta.report.replay import divergence, states_frame
 
 SECTIONS = ("timehistory", "effects", "params", "replay", "rolloff", "envelope", "diagnosis")
@@ -254,3 +254,30 @@ def test_a_model_without_provenance_still_builds_its_context() -> None:
     bare = DeltaModel.from_spec(spec)
     ctx = build_context(bare, data, held_out=held, qualified="adx37")
     assert ctx.stall_alpha_deg == {}
+
+
+def test_envelope_pools_each_coefficients_own_bin_in_any_row_order() -> None:
+    """The coefficients' bins need not share edges: at each alpha every coefficient adds the
+    parameters of its own bin containing it (closed form below), whatever the row order
+    (the bins used to be written one over another in the order of a hash grouping)."""
+    rows = [
+        # coefficient, lo, hi, identifiable flags of the bin's parameters
+        ("Cl", 0.0, 4.0, [True, True, False]),
+        ("Cl", 4.0, 8.0, [False, False]),
+        ("Cn", 0.0, 2.0, [True]),
+        ("Cn", 2.0, 8.0, [True, True, True, False]),
+        ("CY", 0.0, 4.0, [False]),
+        ("CY", 4.0, 6.0, [True, True]),
+    ]
+    keys = ("coefficient", "flap_deg", "alpha_lo_deg", "alpha_hi_deg", "identifiable")
+    records = [(c, 5.0, lo, hi, f) for c, lo, hi, flags in rows for f in flags]
+    records.append(("Cl", 0.0, 0.0, 9.0, False))  # another flap: not counted
+    params = pl.DataFrame([dict(zip(keys, r, strict=True)) for r in records])
+    alpha = np.array([1.0, 3.0, 5.0, 7.0, 9.0])
+    want = [(2 + 1 + 0) / 5, (2 + 3 + 0) / 8, (0 + 3 + 2) / 8, (0 + 3) / 6, np.nan]
+    for seed in range(5):
+        shuffled = params.sample(fraction=1.0, shuffle=True, seed=seed)
+        got = identified_by_alpha(shuffled, 5.0, alpha)
+        np.testing.assert_array_equal(got, want)
+    assert np.isnan(identified_by_alpha(None, 5.0, alpha)).all()
+    assert np.isnan(identified_by_alpha(params, 10.0, alpha)).all()

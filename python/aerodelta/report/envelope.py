@@ -30,18 +30,32 @@ BETA_LIMIT_DEG = 15.0
 
 
 def identified_by_alpha(params: pl.DataFrame | None, flap: float, alpha: np.ndarray) -> np.ndarray:
-    """Share of Δ parameters identified in the fit bin containing each alpha (NaN: no bin)."""
+    """Share of Δ parameters identified at each alpha (deg), pooled over the coefficients:
+    every coefficient contributes the parameters of its own fit bin containing that alpha
+    (the coefficients' bins need not share edges). NaN where no coefficient has a bin.
+
+    Counts are summed, so the result does not depend on the row order of ``params``.
+    """
     out = np.full(alpha.shape, np.nan)
     if params is None:
         return out
     g = (
         params.filter(pl.col("flap_deg") == flap)
-        .group_by(["alpha_lo_deg", "alpha_hi_deg"])
-        .agg(pl.col("identifiable").mean().alias("f"))
-        .sort("alpha_lo_deg")
+        .group_by(["coefficient", "alpha_lo_deg", "alpha_hi_deg"])
+        .agg(
+            pl.col("identifiable").cast(pl.Float64).sum().alias("ident"),
+            pl.col("identifiable").count().cast(pl.Float64).alias("total"),
+        )
     )
-    for lo, hi, f in g.iter_rows():
-        out[(alpha >= lo) & (alpha < hi)] = f
+    if g.height == 0:
+        return out
+    lo = g["alpha_lo_deg"].to_numpy()[:, None]
+    hi = g["alpha_hi_deg"].to_numpy()[:, None]
+    inside = ((alpha[None, :] >= lo) & (alpha[None, :] < hi)).astype(float)
+    total = g["total"].to_numpy() @ inside
+    ident = g["ident"].to_numpy() @ inside
+    has = total > 0
+    out[has] = ident[has] / total[has]
     return out
 
 
