@@ -404,23 +404,42 @@ fn fit_one_bin(
     )
 }
 
-/// Identify the Δ parameters bin by bin.
-///
-/// `z` is the qualified-model error (Eq. 3.5), `alpha_deg` the angle of
-/// attack and `maneuver` an integer id per row (for the maneuvers-per-bin
-/// rule and the consistency of the coloured-residual correction).
+/// The alpha bins of a design and the rows in each (the partition of
+/// [`partition_alpha`], which depends on the number of columns through the
+/// points-per-parameter rule), with the data requirement every bin must meet
+/// before it is fitted.
+#[derive(Debug, Clone)]
+pub struct BinPlan {
+    /// The partition.
+    pub partition: AlphaBins,
+    /// Rows of each bin, in input order.
+    pub members: Vec<Vec<usize>>,
+    /// Distinct maneuvers of each bin, sorted.
+    pub maneuvers: Vec<Vec<u64>>,
+    /// Points a bin needs (`min_points_per_param` × columns).
+    pub required: usize,
+    /// Maneuvers a bin needs.
+    pub min_maneuvers: usize,
+}
+
+impl BinPlan {
+    /// Whether bin `b` has the points and maneuvers to be fitted.
+    pub fn enough_data(&self, b: usize) -> bool {
+        self.members[b].len() >= self.required && self.maneuvers[b].len() >= self.min_maneuvers
+    }
+}
+
+/// The bins [`fit_bins`] fits for `design` (same checks, same partition).
 ///
 /// # Errors
-/// [`AeroError::InvalidInput`] when lengths differ or the data are empty;
-/// partition errors. A bin that cannot be fitted is reported in its
-/// [`BinFit::note`], not as an error.
-pub fn fit_bins(
+/// As [`fit_bins`].
+pub fn plan_bins(
     design: &Design,
     z: &[f64],
     alpha_deg: &[f64],
     maneuver: &[u64],
     opts: &IdentifyOptions,
-) -> Result<BinnedFit> {
+) -> Result<BinPlan> {
     let n = design.nrows;
     for (what, len) in [
         ("z", z.len()),
@@ -443,16 +462,53 @@ pub fn fit_bins(
             members[b as usize].push(r);
         }
     }
+    let maneuvers = members
+        .iter()
+        .map(|rows| {
+            let mut m: Vec<u64> = rows.iter().map(|&r| maneuver[r]).collect();
+            m.sort_unstable();
+            m.dedup();
+            m
+        })
+        .collect();
+    Ok(BinPlan {
+        partition,
+        members,
+        maneuvers,
+        required: opts.partition.min_points_per_param * p,
+        min_maneuvers: opts.partition.min_maneuvers.max(1),
+    })
+}
+
+/// Identify the Δ parameters bin by bin.
+///
+/// `z` is the qualified-model error (Eq. 3.5), `alpha_deg` the angle of
+/// attack and `maneuver` an integer id per row (for the maneuvers-per-bin
+/// rule and the consistency of the coloured-residual correction).
+///
+/// # Errors
+/// [`AeroError::InvalidInput`] when lengths differ or the data are empty;
+/// partition errors. A bin that cannot be fitted is reported in its
+/// [`BinFit::note`], not as an error.
+pub fn fit_bins(
+    design: &Design,
+    z: &[f64],
+    alpha_deg: &[f64],
+    maneuver: &[u64],
+    opts: &IdentifyOptions,
+) -> Result<BinnedFit> {
+    let plan = plan_bins(design, z, alpha_deg, maneuver, opts)?;
+    let n = design.nrows;
+    let p = design.ncols();
+    let nb = plan.members.len();
     let flap_std: Vec<f64> = (0..p).map(|j| design.column_std(j, 0..n)).collect();
     let floor = noise_floor(design, maneuver);
     let const_col: Vec<bool> = design.exprs.iter().map(Expr::is_constant).collect();
-    let required = opts.partition.min_points_per_param * p;
+    let (required, min_maneuvers) = (plan.required, plan.min_maneuvers);
 
     let work = |b: usize| -> BinFit {
-        let rows = &members[b];
-        let mut maneuvers: Vec<u64> = rows.iter().map(|&r| maneuver[r]).collect();
-        maneuvers.sort_unstable();
-        maneuvers.dedup();
+        let rows = &plan.members[b];
+        let maneuvers = &plan.maneuvers[b];
         let in_bin_std: Vec<f64> = (0..p)
             .map(|j| design.column_std(j, rows.iter().copied()))
             .collect();
@@ -470,19 +526,19 @@ pub fn fit_bins(
         // a constant regressor's floor is zero: infinite
         let excitation_snr: Vec<f64> = (0..p).map(|j| snr(in_bin_std[j], floor[j])).collect();
         let mut bin = BinFit::unfitted(
-            (partition.edges[b], partition.edges[b + 1]),
+            (plan.partition.edges[b], plan.partition.edges[b + 1]),
             rows.len(),
             maneuvers.len(),
             excitation,
             excitation_snr,
         );
-        if rows.len() < required || maneuvers.len() < opts.partition.min_maneuvers.max(1) {
+        if !plan.enough_data(b) {
             bin.note = format!(
                 "too little data: {} points from {} maneuvers, {} points and {} maneuvers required",
                 rows.len(),
                 maneuvers.len(),
                 required,
-                opts.partition.min_maneuvers.max(1)
+                min_maneuvers
             );
             bin.notes = vec!["bin not fitted: too little data".into(); p];
             return bin;
@@ -581,7 +637,7 @@ pub fn fit_bins(
         names: design.names.clone(),
         bins,
         consistency,
-        partition,
+        partition: plan.partition,
     })
 }
 

@@ -21,7 +21,7 @@
 use super::stepwise::Factor;
 use super::{median, BinGrams};
 use crate::identify::estimate_correlations;
-use crate::identify::BinnedFit;
+use crate::identify::{BinPlan, BinnedFit};
 
 /// A term left out of a flap's structure.
 #[derive(Debug, Clone, PartialEq)]
@@ -56,6 +56,23 @@ pub fn fitted_totals(grams: &BinGrams, fit: &BinnedFit) -> Vec<(Vec<f64>, f64)> 
             let (g, _, n) = bs.total(grams.dim, None);
             (g, n)
         })
+        .collect()
+}
+
+/// [`fitted_totals`] before any fit: the bins of `plan` with enough data
+/// ([`BinPlan::enough_data`]) and more finite rows than columns, the bins the fit of the
+/// same design fits (its least squares fails only on fewer usable rows, or an SVD that
+/// does not converge).
+pub fn planned_totals(grams: &BinGrams, plan: &BinPlan) -> Vec<(Vec<f64>, f64)> {
+    let p = grams.dim - 1;
+    grams
+        .bins
+        .iter()
+        .enumerate()
+        .filter(|(b, _)| plan.enough_data(*b))
+        .map(|(_, bs)| bs.total(grams.dim, None))
+        .filter(|(_, _, n)| *n > p as f64)
+        .map(|(g, _, n)| (g, n))
         .collect()
 }
 

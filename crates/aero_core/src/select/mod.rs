@@ -57,8 +57,8 @@
 use crate::bootstrap::{bootstrap_smoothed, Bootstrap, BootstrapOptions, Reselect};
 use crate::error::{AeroError, Result, ResultExt};
 use crate::identify::{
-    adjacent_consistency, fit_bins, low_excitation, noise_floor, smooth_parameters, snr, BinFit,
-    BinnedFit, Design, IdentifyOptions, SmoothOptions, SmoothedParameter,
+    adjacent_consistency, fit_bins, low_excitation, noise_floor, plan_bins, smooth_parameters, snr,
+    BinFit, BinnedFit, Design, IdentifyOptions, SmoothOptions, SmoothedParameter,
 };
 use crate::partition::partition_alpha;
 use crate::sim::rng::Stream;
@@ -69,7 +69,7 @@ mod path;
 use folds::{CvGrams, FoldGrams};
 mod stepwise;
 pub use collinear::{
-    collinear_to_prune, fitted_totals, gram_collinearity, BinCollinearity, Pruned,
+    collinear_to_prune, fitted_totals, gram_collinearity, planned_totals, BinCollinearity, Pruned,
 };
 pub use stepwise::stepwise;
 
@@ -1586,12 +1586,12 @@ pub fn identify_flap(
         }
     };
     let design0 = subset(&chosen);
-    let fit0 = fit_bins(&design0, z, alpha_deg, maneuver, identify)?;
-    let (design, fit) = if identify.prune_collinear && identify.max_vif.is_finite() {
-        // decide on the first fit's bins from their Gram matrices (one factor per bin and
-        // step), then fit the final structure once
-        let grams = bin_grams(&design0, z, &bin_members(&fit0), maneuver);
-        let totals = fitted_totals(&grams, &fit0);
+    let design = if identify.prune_collinear && identify.max_vif.is_finite() {
+        // decide from the Gram matrices of the bins the structure would be fitted in (one
+        // factor per bin and step), then fit the final structure once
+        let plan = plan_bins(&design0, z, alpha_deg, maneuver, identify)?;
+        let grams = bin_grams(&design0, z, &plan.members, maneuver);
+        let totals = planned_totals(&grams, &plan);
         let constant0: Vec<bool> = design0.exprs.iter().map(|e| e.is_constant()).collect();
         let mut keep: Vec<usize> = (0..design0.ncols()).collect();
         loop {
@@ -1611,16 +1611,15 @@ pub fn identify_flap(
             }
         }
         if pruned.is_empty() {
-            (design0, fit0)
+            design0
         } else {
             chosen = keep.iter().map(|&j| chosen[j]).collect();
-            let design = subset(&chosen);
-            let fit = fit_bins(&design, z, alpha_deg, maneuver, identify)?;
-            (design, fit)
+            subset(&chosen)
         }
     } else {
-        (design0, fit0)
+        design0
     };
+    let fit = fit_bins(&design, z, alpha_deg, maneuver, identify)?;
     let smoothed = smooth_parameters(&fit, smooth)?;
     let bootstrap = match boot {
         Some(bo) => {
@@ -1915,6 +1914,29 @@ pub(crate) mod tests {
                 assert_eq!(t.partner[j], b.most_correlated[j]);
             }
         }
+    }
+
+    #[test]
+    fn planned_totals_are_the_totals_of_the_bins_the_fit_fits() {
+        // the collinearity rule decides before the fit: it must see the bins the fit fits,
+        // not one with enough rows but too few finite ones (the fit fails there; the data
+        // rule itself is `BinPlan::enough_data` in both)
+        let (design, mut z, alpha, man) = geared(20_000, 4);
+        let opts = iid_identify();
+        let plan = plan_bins(&design, &z, &alpha, &man, &opts).expect("plan");
+        let b = (0..plan.members.len())
+            .find(|&b| plan.enough_data(b))
+            .expect("a bin with data");
+        for &r in &plan.members[b][3..] {
+            z[r] = f64::NAN;
+        }
+        let fit = fit_bins(&design, &z, &alpha, &man, &opts).expect("fit");
+        assert!(fit.bins[b].note.starts_with("not fitted"), "{}", fit.bins[b].note);
+        let grams = bin_grams(&design, &z, &plan.members, &man);
+        assert_eq!(bin_members(&fit), plan.members);
+        let want = fitted_totals(&grams, &fit);
+        assert!(want.len() >= 2);
+        assert_eq!(planned_totals(&grams, &plan), want);
     }
 
     #[test]
