@@ -163,3 +163,51 @@ def test_withheld_case_shrink_ratio_in_coefficient_order_for_any_hash_seed() -> 
         )
         seen.add(out.stdout.strip().splitlines()[-1])
     assert seen == {'["Cl", "Cn", "CY"]'}
+
+
+_BIN_MEANS = textwrap.dedent(
+    """
+    import hashlib
+    import numpy as np
+    from aerodelta.diagnosis.core import _bin_means
+
+    rng = np.random.default_rng(0)
+    n = 300_000
+    alpha = rng.uniform(0.0, 20.0, n)
+    value = rng.standard_normal(n) ** 2 * 10.0 ** rng.integers(-6, 6, n)
+    for _ in range(4):
+        b, m = _bin_means(alpha, value)
+        print(hashlib.sha256(b.tobytes() + m.tobytes()).hexdigest())
+    """
+)
+
+
+def test_diagnosis_bin_means_are_the_same_bytes_for_any_polars_thread_count() -> None:
+    # a polars group_by mean of floats splits its sums over the thread pool: the per-bin
+    # means (hence an effect's alpha range in diagnosis.json) changed with the thread count
+    # and from one call to the next
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join(p for p in sys.path if p))
+    seen = set()
+    for threads in (1, 2, 3):
+        env["POLARS_MAX_THREADS"] = str(threads)
+        out = subprocess.run(
+            [sys.executable, "-c", _BIN_MEANS], env=env, capture_output=True, text=True, check=True
+        )
+        seen |= set(out.stdout.split())
+    assert len(seen) == 1
+
+
+def test_diagnosis_bin_means_are_the_per_bin_means() -> None:
+    from aerodelta.diagnosis.core import _bin_means  # noqa: PLC0415
+
+    rng = np.random.default_rng(1)
+    alpha = rng.uniform(-2.0, 6.0, 500)
+    value = rng.standard_normal(500)
+    alpha[:30] = 5.5  # bin 5 holds at least 30 points; bins with fewer than 20 are left out
+    bins, means = _bin_means(alpha, value)
+    floor = np.floor(alpha)
+    want = [b for b in np.unique(floor) if np.count_nonzero(floor == b) >= 20]
+    np.testing.assert_array_equal(bins, want)
+    np.testing.assert_allclose(
+        means, [value[floor == b].mean() for b in want], rtol=1e-12, atol=1e-15
+    )
