@@ -263,11 +263,17 @@ def binned_static_curve(
             "Cm": cm,
         }
     ).filter(pl.col("CL").is_finite() & pl.col("bin").is_finite())
-    per = f.group_by("flap_deg", "bin", "maneuver_id").agg(
-        pl.len().alias("n_m"),
-        pl.col("alpha").mean().alias("alpha_m"),
-        pl.col("CL").mean().alias("CL_m"),
-        pl.col("Cm").mean().alias("Cm_m"),
+    # sorted: the sums over a bin's maneuvers below run in maneuver order (in the hash
+    # grouping's random order they changed in the last digits from run to run)
+    per = (
+        f.group_by("flap_deg", "bin", "maneuver_id")
+        .agg(
+            pl.len().alias("n_m"),
+            pl.col("alpha").mean().alias("alpha_m"),
+            pl.col("CL").mean().alias("CL_m"),
+            pl.col("Cm").mean().alias("Cm_m"),
+        )
+        .sort("flap_deg", "bin", "maneuver_id")
     )
     per = per.with_columns(
         (pl.col("n_m") * pl.col(f"{c}_m")).sum().over("flap_deg", "bin").alias(f"_s{c}")

@@ -247,7 +247,9 @@ def score_case(
             if wrong and (c not in touched or any(kinds.get(e) == "unlisted" for e in effects)):
                 false_alarms.append(f"{c}:{x['effect']}")
     shrink = {}
-    for c in touched:
+    # in COEFFICIENTS order: a set of strings iterates in a per-process (hash seed) order,
+    # which the case's JSON (to_dict) would show
+    for c in (c for c in COEFFICIENTS if c in touched):
         if not np.any(oracle[c]):
             continue
         # both shrinks from the timing-aligned gap (the timing nuisance is in every model)
@@ -750,7 +752,9 @@ def score_jsbsim_case(
                 if lo_e is not None and np.isfinite(lo_t):
                     onset_err[f"{c}:{e}"] = abs(float(lo_e) - lo_t)
     shrink = {}
-    for c in touched:
+    # in COEFFICIENTS order: a set of strings iterates in a per-process (hash seed) order,
+    # which the case's JSON (to_dict) would show
+    for c in (c for c in COEFFICIENTS if c in touched):
         orc_c = sum((comps[e][c] for e in listed if c in comps[e]), np.zeros(j.height))
         if not np.any(orc_c):
             continue

@@ -165,7 +165,8 @@ def section(ctx: ReportContext, sink: FigureSink) -> Section:
         if g.height:
             sec.body.append(f"<h3>Δ{coef}</h3>")
             sec.body.append(_param_figure(ctx, sink, coef, g=g, tables=tables))
-    counts = ctx.data.group_by("flap_deg").len().sort("len", descending=True)
+    # the flap with the most samples; equal counts: the lowest flap (not the hash order)
+    counts = ctx.data.group_by("flap_deg").len().sort(["len", "flap_deg"], descending=[True, False])
     if counts.height:
         flap = float(counts["flap_deg"][0])
         sec.body.append("<h3>Error against regressor in chosen bins</h3>")
