@@ -49,7 +49,7 @@
 //! parameters that load on that direction get NaN with a note, never a
 //! standard error that pretends the maneuver carried no information.
 
-use nalgebra::{DMatrix, DVector, SymmetricEigen};
+use nalgebra::{DMatrix, SymmetricEigen};
 
 /// Leverage above which a cluster determines a direction alone.
 const LEVERAGE_ONE: f64 = 1.0 - 1e-8;
@@ -72,23 +72,6 @@ pub struct ClusterCov {
     pub notes: Vec<String>,
 }
 
-/// Per-cluster eigen-decomposition of `W_g` and the projected score `Q_gᵀe_g`.
-struct Cluster {
-    vecs: DMatrix<f64>,
-    vals: Vec<f64>,
-    score: DVector<f64>,
-}
-
-/// `Σ_k v_k h(λ_k) v_kᵀ y` for a cluster's eigen-pairs.
-fn apply(c: &Cluster, h: impl Fn(f64) -> f64, y: &DVector<f64>) -> DVector<f64> {
-    let coef = c.vecs.tr_mul(y);
-    let mut out = DVector::zeros(y.len());
-    for (k, &l) in c.vals.iter().enumerate() {
-        out.axpy(h(l) * coef[k], &c.vecs.column(k), 1.0);
-    }
-    out
-}
-
 /// `(1 − λ)^(−1/2)`, zero on a degenerate direction (its residual is zero).
 fn f_cr2(l: f64) -> f64 {
     if l < LEVERAGE_ONE {
@@ -98,12 +81,27 @@ fn f_cr2(l: f64) -> f64 {
     }
 }
 
+/// Per-parameter sums of the Bell-McCaffrey dof over the clusters (module doc):
+/// `Σλ = Σ_g d_g − |t_g|²`, and the three parts of `Σλ²`.
+struct DofSums {
+    tr: Vec<f64>,
+    sum_d2: Vec<f64>,
+    cross: Vec<f64>,
+    /// `Σ_g t_g t_gᵀ` per parameter, `k × k` each.
+    tt: Vec<f64>,
+}
+
 /// CR2 covariance and Bell-McCaffrey dof.
 ///
 /// `w` holds the `n_clusters` Gram matrices `W_g = Q_gᵀQ_g` (`k × k`
 /// row-major each, one after the other; `Q = X B`), `s` the scores `Q_gᵀe_g`
 /// (`k` each), `b` the `p × k` factor with `B Bᵀ = (XᵀX)⁻¹` (row-major).
 /// With fewer than 2 clusters `w` and `s` are not read.
+///
+/// One pass over the clusters, every parameter at once: per cluster the
+/// eigen-pairs `V, λ` of `W_g`, `C = VᵀBᵀ` (`k × p`), the adjusted score
+/// `u_g = V f(λ) Vᵀ s_g` and, per parameter `j`, `d = Σ_a λ_a/(1 − λ_a) C_aj²`
+/// and `t = V (λ f(λ) ∘ C_·j)`.
 pub(crate) fn cr2(
     w: &[f64],
     s: &[f64],
@@ -124,45 +122,96 @@ pub(crate) fn cr2(
     }
     assert_eq!(w.len(), n_clusters * k * k, "cluster Gram matrices");
     assert_eq!(s.len(), n_clusters * k, "cluster scores");
-    let clusters: Vec<Cluster> = w
-        .chunks_exact(k * k)
-        .zip(s.chunks_exact(k))
-        .map(|(wg, sg)| {
-            // Symmetric by construction up to round-off: take the lower triangle.
-            let wg = DMatrix::from_fn(k, k, |a, c| wg[a.max(c) * k + a.min(c)]);
-            let score = DVector::from_column_slice(sg);
-            let eig = SymmetricEigen::new(wg);
-            Cluster {
-                vecs: eig.eigenvectors,
-                vals: eig.eigenvalues.iter().copied().collect(),
-                score,
-            }
-        })
+    assert_eq!(b.len(), p * k, "factor B");
+    // |w_j|² of each parameter's row of B
+    let wn: Vec<f64> = (0..p)
+        .map(|j| b[j * k..(j + 1) * k].iter().map(|v| v * v).sum())
         .collect();
-    // Meat in q coordinates.
-    let mut meat = DMatrix::<f64>::zeros(k, k);
-    for c in &clusters {
-        let u = apply(c, f_cr2, &c.score);
-        meat.ger(1.0, &u, &u, 1.0);
+    let mut meat = vec![0.0; k * k];
+    let mut degenerate = vec![false; p];
+    let mut sums = DofSums {
+        tr: vec![0.0; p],
+        sum_d2: vec![0.0; p],
+        cross: vec![0.0; p],
+        tt: vec![0.0; p * k * k],
+    };
+    // per-cluster work space
+    let mut c = vec![0.0; k * p];
+    let mut u = vec![0.0; k];
+    let mut t = vec![0.0; k];
+    for (wg, sg) in w.chunks_exact(k * k).zip(s.chunks_exact(k)) {
+        // symmetric by construction up to round-off: take the lower triangle
+        let eig = SymmetricEigen::new(DMatrix::from_fn(k, k, |a, e| wg[a.max(e) * k + a.min(e)]));
+        let vecs = eig.eigenvectors.as_slice(); // column-major: V[i, a] = vecs[a * k + i]
+        let vals = eig.eigenvalues.as_slice();
+        // meat: u = V f(λ) Vᵀ s
+        u.iter_mut().for_each(|x| *x = 0.0);
+        for (a, &l) in vals.iter().enumerate() {
+            let col = &vecs[a * k..(a + 1) * k];
+            let proj: f64 = col.iter().zip(sg).map(|(v, x)| v * x).sum();
+            let h = f_cr2(l) * proj;
+            u.iter_mut().zip(col).for_each(|(x, v)| *x += h * v);
+        }
+        for i in 0..k {
+            for e in 0..k {
+                meat[i * k + e] += u[i] * u[e];
+            }
+        }
+        // C = Vᵀ Bᵀ
+        for a in 0..k {
+            let col = &vecs[a * k..(a + 1) * k];
+            for j in 0..p {
+                c[a * p + j] = col
+                    .iter()
+                    .zip(&b[j * k..(j + 1) * k])
+                    .map(|(v, x)| v * x)
+                    .sum();
+            }
+        }
+        for j in 0..p {
+            let mut d = 0.0;
+            t.iter_mut().for_each(|x| *x = 0.0);
+            for (a, &l) in vals.iter().enumerate() {
+                let cj = c[a * p + j];
+                if l >= LEVERAGE_ONE {
+                    // does parameter j load on a direction this cluster determines?
+                    degenerate[j] |= cj * cj > DEGENERATE_SHARE * wn[j];
+                    continue;
+                }
+                d += l / (1.0 - l.max(0.0)) * cj * cj;
+                let h = l.max(0.0) * f_cr2(l) * cj;
+                t.iter_mut()
+                    .zip(&vecs[a * k..(a + 1) * k])
+                    .for_each(|(x, v)| *x += h * v);
+            }
+            let t2: f64 = t.iter().map(|x| x * x).sum();
+            sums.tr[j] += d - t2;
+            sums.sum_d2[j] += d * d;
+            sums.cross[j] += d * t2;
+            let tt = &mut sums.tt[j * k * k..(j + 1) * k * k];
+            for i in 0..k {
+                for e in 0..k {
+                    tt[i * k + e] += t[i] * t[e];
+                }
+            }
+        }
     }
-    let bm = DMatrix::from_row_slice(p, k, b);
-    let cov_m = &bm * &meat * bm.transpose();
+    // V = B meat Bᵀ
+    let mut bm = vec![0.0; p * k];
+    for j in 0..p {
+        for e in 0..k {
+            bm[j * k + e] = (0..k).map(|i| b[j * k + i] * meat[i * k + e]).sum();
+        }
+    }
+    let cov_m = |i: usize, j: usize| -> f64 { (0..k).map(|e| bm[i * k + e] * b[j * k + e]).sum() };
     let mut cov: Vec<f64> = (0..p * p)
-        .map(|ij| 0.5 * (cov_m[(ij / p, ij % p)] + cov_m[(ij % p, ij / p)]))
+        .map(|ij| 0.5 * (cov_m(ij / p, ij % p) + cov_m(ij % p, ij / p)))
         .collect();
     let mut std_err = vec![f64::NAN; p];
     let mut dof = vec![f64::NAN; p];
     let mut notes = vec![String::new(); p];
     for j in 0..p {
-        let wj = DVector::from_iterator(k, (0..k).map(|a| b[j * k + a]));
-        let wn = wj.norm_squared();
-        // Does parameter j load on a direction one cluster determines?
-        let degenerate = clusters.iter().any(|c| {
-            c.vals.iter().enumerate().any(|(a, &l)| {
-                l >= LEVERAGE_ONE && c.vecs.column(a).dot(&wj).powi(2) > DEGENERATE_SHARE * wn
-            })
-        });
-        if degenerate || wn == 0.0 {
+        if degenerate[j] || wn[j] == 0.0 {
             notes[j] = "cluster-robust error undefined: one maneuver alone determines \
                         this parameter"
                 .into();
@@ -177,35 +226,13 @@ pub(crate) fn cr2(
         }
         std_err[j] = var.sqrt();
         // Bell-McCaffrey dof under the working model of iid errors.
-        let mut tr = 0.0;
-        let mut sum_d2 = 0.0;
-        let mut cross = 0.0;
-        let mut tt = DMatrix::<f64>::zeros(k, k);
-        for c in &clusters {
-            let d = {
-                let coef = c.vecs.tr_mul(&wj);
-                c.vals
-                    .iter()
-                    .zip(coef.iter())
-                    .map(|(&l, &v)| {
-                        if l < LEVERAGE_ONE {
-                            l / (1.0 - l.max(0.0)) * v * v
-                        } else {
-                            0.0
-                        }
-                    })
-                    .sum::<f64>()
-            };
-            let t = apply(c, |l| l.max(0.0) * f_cr2(l), &wj);
-            let t2 = t.norm_squared();
-            tr += d - t2;
-            sum_d2 += d * d;
-            cross += d * t2;
-            tt.ger(1.0, &t, &t, 1.0);
-        }
-        let frob2 = sum_d2 - 2.0 * cross + tt.norm_squared();
+        let tt2: f64 = sums.tt[j * k * k..(j + 1) * k * k]
+            .iter()
+            .map(|x| x * x)
+            .sum();
+        let frob2 = sums.sum_d2[j] - 2.0 * sums.cross[j] + tt2;
         dof[j] = if frob2 > 0.0 {
-            tr * tr / frob2
+            sums.tr[j] * sums.tr[j] / frob2
         } else {
             f64::NAN
         };
@@ -232,6 +259,7 @@ mod tests {
     use super::super::{ols_rows_clustered, OlsOptions};
     use super::*;
     use crate::lsq::stats::student_t_ppf;
+    use nalgebra::DVector;
     use rand_chacha::ChaCha8Rng;
     use rand_core::{Rng, SeedableRng};
 

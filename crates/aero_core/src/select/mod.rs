@@ -1931,7 +1931,11 @@ pub(crate) mod tests {
             z[r] = f64::NAN;
         }
         let fit = fit_bins(&design, &z, &alpha, &man, &opts).expect("fit");
-        assert!(fit.bins[b].note.starts_with("not fitted"), "{}", fit.bins[b].note);
+        assert!(
+            fit.bins[b].note.starts_with("not fitted"),
+            "{}",
+            fit.bins[b].note
+        );
         let grams = bin_grams(&design, &z, &plan.members, &man);
         assert_eq!(bin_members(&fit), plan.members);
         let want = fitted_totals(&grams, &fit);
