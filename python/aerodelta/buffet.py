@@ -58,6 +58,7 @@ import numpy as np
 import numpy.typing as npt
 import polars as pl
 
+from aerodelta._groups import group_agg
 from aerodelta.exceptions import DataError
 
 FloatArray = npt.NDArray[np.float64]
@@ -613,15 +614,20 @@ def buffet_identification(data: pl.DataFrame | Any) -> BuffetResult:
     frequencies = pl.DataFrame(freq_rows, schema=freq_schema)
     spec_schema = {k: freq_schema[k] for k in ("flap_deg", "axis", "freq_hz", "psd_m2s4_hz")}
     spectra = pl.concat(spec_parts) if spec_parts else pl.DataFrame(schema=spec_schema)
+    # float means summed in row order (_groups: a polars group-by mean splits its sums over
+    # the thread pool, and the last digits followed the thread count)
     per_flap = (
-        onsets.group_by("flap_deg")
-        .agg(
-            pl.len().alias("n_maneuvers"),
-            pl.col("buffet_onset_alpha_deg").is_not_null().sum().alias("n_buffet"),
-            pl.col("buffet_onset_alpha_deg").median().alias("onset_alpha_deg"),
-            pl.col("buffet_onset_alpha_deg").min().alias("onset_alpha_min_deg"),
-            pl.col("buffet_onset_alpha_deg").max().alias("onset_alpha_max_deg"),
-            pl.col("v_buffet_onset_keas").mean().alias("v_buffet_onset_mean_keas"),
+        group_agg(
+            onsets,
+            ["flap_deg"],
+            {"v_buffet_onset_mean_keas": ("v_buffet_onset_keas", "mean")},
+            exact=[
+                pl.len().alias("n_maneuvers"),
+                pl.col("buffet_onset_alpha_deg").is_not_null().sum().alias("n_buffet"),
+                pl.col("buffet_onset_alpha_deg").median().alias("onset_alpha_deg"),
+                pl.col("buffet_onset_alpha_deg").min().alias("onset_alpha_min_deg"),
+                pl.col("buffet_onset_alpha_deg").max().alias("onset_alpha_max_deg"),
+            ],
         )
         .join(
             pl.DataFrame(
@@ -642,14 +648,17 @@ def buffet_identification(data: pl.DataFrame | Any) -> BuffetResult:
         .sort("flap_deg")
     )
     amplitude = (
-        pl.concat(amp_parts)
-        .group_by("flap_deg", "alpha_lo_deg")
-        .agg(
-            pl.len().alias("n_samples"),
-            pl.col("z2").mean().sqrt().alias("nz_rms_mps2"),
-            pl.col("y2").mean().sqrt().alias("ny_rms_mps2"),
+        group_agg(
+            pl.concat(amp_parts),
+            ["flap_deg", "alpha_lo_deg"],
+            {"nz_rms_mps2": ("z2", "mean"), "ny_rms_mps2": ("y2", "mean")},
+            exact=[pl.len().alias("n_samples")],
         )
-        .with_columns((pl.col("alpha_lo_deg") + AMPLITUDE_BAND_DEG).alias("alpha_hi_deg"))
+        .with_columns(
+            pl.col("nz_rms_mps2").sqrt(),
+            pl.col("ny_rms_mps2").sqrt(),
+            (pl.col("alpha_lo_deg") + AMPLITUDE_BAND_DEG).alias("alpha_hi_deg"),
+        )
         .select(
             "flap_deg", "alpha_lo_deg", "alpha_hi_deg", "n_samples", "nz_rms_mps2", "ny_rms_mps2"
         )

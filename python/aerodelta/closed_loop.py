@@ -33,6 +33,7 @@ import numpy as np
 import polars as pl
 
 from aerodelta import _core
+from aerodelta._groups import group_agg
 from aerodelta.buffet import _band, detect_onset
 from aerodelta.campaign import record_state
 from aerodelta.exceptions import DataError, InvalidInputError
@@ -101,17 +102,18 @@ class ClosedLoopResult:
         ``mean_diff_kt``, ``max_abs_diff_kt``."""
         rows = []
         for key, _, _ in QUANTITIES:
-            g = (
-                self.table.filter(pl.col(f"{key}_status").is_not_null())
-                .group_by("flap_deg", "test_condition")
-                .agg(
+            # the mean summed in row order (_groups: a polars group-by mean splits its sums
+            # over the thread pool)
+            g = group_agg(
+                self.table.filter(pl.col(f"{key}_status").is_not_null()),
+                ["flap_deg", "test_condition"],
+                {"mean_diff_kt": (f"{key}_diff_kt", "mean")},
+                exact=[
                     pl.len().alias("n"),
                     (pl.col(f"{key}_status") == "PASS").sum().alias("n_pass"),
-                    pl.col(f"{key}_diff_kt").mean().alias("mean_diff_kt"),
                     pl.col(f"{key}_diff_kt").abs().max().alias("max_abs_diff_kt"),
-                )
-                .with_columns(pl.lit(key).alias("quantity"))
-            )
+                ],
+            ).with_columns(pl.lit(key).alias("quantity"))
             rows.append(g)
         return (
             pl.concat(rows)

@@ -33,6 +33,7 @@ from tqdm import tqdm
 
 from aerodelta import _core
 from aerodelta._core import __version__
+from aerodelta._groups import group_agg
 from aerodelta._threads import engine_threads
 from aerodelta._toml import read_toml
 from aerodelta.exceptions import DataError, InvalidInputError
@@ -606,10 +607,10 @@ def stall_alpha(data: pl.DataFrame, bin_deg: float = 0.5, min_points: int = 50) 
         cx = cx - np.where(np.isfinite(ct), ct, 0.0)
     cl = -data["CZ_meas"].to_numpy() * np.cos(a) + cx * np.sin(a)
     df = pl.DataFrame({"b": np.floor(data["alpha_deg"].to_numpy() / bin_deg), "cl": cl})
+    # the bins' means summed in row order (_groups: a polars group-by mean splits its sums
+    # over the thread pool, and a near tie could go either way with the thread count)
     g = (
-        df.drop_nans()
-        .group_by("b")
-        .agg(pl.col("cl").mean().alias("cl"), pl.len().alias("n"))
+        group_agg(df.drop_nans(), ["b"], {"cl": ("cl", "mean")}, exact=[pl.len().alias("n")])
         .filter(pl.col("n") >= min_points)
         # equal means: the lowest bin (the hash grouping leaves the tie order random)
         .sort(["cl", "b"], descending=[True, False])

@@ -31,6 +31,7 @@ import numpy.typing as npt
 import polars as pl
 
 from aerodelta import _core
+from aerodelta._groups import Groups, group_agg
 from aerodelta.exceptions import AerodeltaError, DataError, InvalidInputError, NoConvergenceError
 
 FloatArray = npt.NDArray[np.float64]
@@ -264,37 +265,42 @@ def binned_static_curve(
         }
     ).filter(pl.col("CL").is_finite() & pl.col("bin").is_finite())
     # sorted: the sums over a bin's maneuvers below run in maneuver order (in the hash
-    # grouping's random order they changed in the last digits from run to run)
-    per = (
-        f.group_by("flap_deg", "bin", "maneuver_id")
-        .agg(
-            pl.len().alias("n_m"),
-            pl.col("alpha").mean().alias("alpha_m"),
-            pl.col("CL").mean().alias("CL_m"),
-            pl.col("Cm").mean().alias("Cm_m"),
-        )
-        .sort("flap_deg", "bin", "maneuver_id")
-    )
+    # grouping's random order they changed in the last digits from run to run); every float
+    # sum (the maneuvers' means, the bin's n-weighted sums) in row order (_groups: a polars
+    # group-by or window sum splits its float sums over the thread pool)
+    per = group_agg(
+        f,
+        ["flap_deg", "bin", "maneuver_id"],
+        {"alpha_m": ("alpha", "mean"), "CL_m": ("CL", "mean"), "Cm_m": ("Cm", "mean")},
+        exact=[pl.len().alias("n_m")],
+    ).sort("flap_deg", "bin", "maneuver_id")
+    bins = Groups.of(per, ["flap_deg", "bin"])
+    weighted = per.select((pl.col("n_m") * pl.col(f"{c}_m")).alias(c) for c in ("CL", "Cm"))
     per = per.with_columns(
-        (pl.col("n_m") * pl.col(f"{c}_m")).sum().over("flap_deg", "bin").alias(f"_s{c}")
-        for c in ("CL", "Cm")
-    ).with_columns(pl.col("n_m").sum().over("flap_deg", "bin").alias("n"))
+        *(bins.over(weighted[c], "sum").alias(f"_s{c}") for c in ("CL", "Cm")),
+        pl.col("n_m").sum().over("flap_deg", "bin").alias("n"),  # integers: exact
+    )
     per = per.with_columns((pl.col(f"_s{c}") / pl.col("n")).alias(c) for c in ("CL", "Cm"))
+    per = per.with_columns(
+        (pl.col("n_m") * pl.col("alpha_m")).alias("_a"),
+        *(
+            ((pl.col("n_m") * (pl.col(f"{c}_m") - pl.col(c))) ** 2).alias(f"_d{c}")
+            for c in ("CL", "Cm")
+        ),
+    )
     out = (
-        per.group_by("flap_deg", "bin")
-        .agg(
-            pl.col("n").first(),
-            pl.len().alias("n_maneuvers"),
-            ((pl.col("n_m") * pl.col("alpha_m")).sum() / pl.col("n_m").sum()).alias(
-                "alpha_mean_deg"
-            ),
-            pl.col("CL").first(),
-            pl.col("Cm").first(),
-            *(
-                ((pl.col("n_m") * (pl.col(f"{c}_m") - pl.col(c))) ** 2).sum().alias(f"_v{c}")
-                for c in ("CL", "Cm")
-            ),
+        bins.agg(
+            per,
+            {"_sa": ("_a", "sum"), "_vCL": ("_dCL", "sum"), "_vCm": ("_dCm", "sum")},
+            exact=[
+                pl.col("n").first(),
+                pl.len().alias("n_maneuvers"),
+                pl.col("n_m").sum().alias("_n"),
+                pl.col("CL").first(),
+                pl.col("Cm").first(),
+            ],
         )
+        .with_columns((pl.col("_sa") / pl.col("_n")).alias("alpha_mean_deg"))
         .filter((pl.col("n") >= min_samples) & (pl.col("n_maneuvers") >= min_maneuvers))
         .with_columns(
             (

@@ -56,6 +56,7 @@ import numpy as np
 import numpy.typing as npt
 import polars as pl
 
+from aerodelta._groups import Agg, group_agg
 from aerodelta.buffet import BAND_HZ, buffet_rms, detect_onset
 from aerodelta.exceptions import DataError
 
@@ -509,21 +510,43 @@ def stall_summary(table: pl.DataFrame) -> pl.DataFrame:
         minus stall speed, kt).
     """
     by = pl.col("stall_id_by")
+    # the means summed in row order (_groups: a polars group-by mean splits its sums over the
+    # thread pool)
+    means: dict[str, tuple[str, Agg]] = {
+        "stall_id_alpha_mean_deg": ("stall_id_alpha_deg", "mean"),
+        "v_warning_mean_keas": ("v_warning_keas", "mean"),
+        "v_stall_mean_keas": ("v_stall_keas", "mean"),
+        "v_min_mean_keas": ("v_min_keas", "mean"),
+        "warning_margin_mean_kt": ("_margin", "mean"),
+    }
     return (
-        table.group_by("flap_deg", "kind")
-        .agg(
-            pl.len().alias("n_maneuvers"),
-            by.is_not_null().sum().alias("n_identified"),
-            *[(by == c).sum().alias(f"by_{c}") for c in CRITERIA],
-            pl.col("stall_id_alpha_deg").mean().alias("stall_id_alpha_mean_deg"),
-            pl.col("stall_id_alpha_deg").min().alias("stall_id_alpha_min_deg"),
-            pl.col("stall_id_alpha_deg").max().alias("stall_id_alpha_max_deg"),
-            pl.col("v_warning_keas").mean().alias("v_warning_mean_keas"),
-            pl.col("v_stall_keas").mean().alias("v_stall_mean_keas"),
-            pl.col("v_min_keas").mean().alias("v_min_mean_keas"),
-            (pl.col("v_warning_keas") - pl.col("v_stall_keas"))
-            .mean()
-            .alias("warning_margin_mean_kt"),
+        group_agg(
+            table.with_columns(
+                (pl.col("v_warning_keas") - pl.col("v_stall_keas")).alias("_margin")
+            ),
+            ["flap_deg", "kind"],
+            means,
+            exact=[
+                pl.len().alias("n_maneuvers"),
+                by.is_not_null().sum().alias("n_identified"),
+                *[(by == c).sum().alias(f"by_{c}") for c in CRITERIA],
+                pl.col("stall_id_alpha_deg").min().alias("stall_id_alpha_min_deg"),
+                pl.col("stall_id_alpha_deg").max().alias("stall_id_alpha_max_deg"),
+            ],
+        )
+        .select(
+            "flap_deg",
+            "kind",
+            "n_maneuvers",
+            "n_identified",
+            *[f"by_{c}" for c in CRITERIA],
+            "stall_id_alpha_mean_deg",
+            "stall_id_alpha_min_deg",
+            "stall_id_alpha_max_deg",
+            "v_warning_mean_keas",
+            "v_stall_mean_keas",
+            "v_min_mean_keas",
+            "warning_margin_mean_kt",
         )
         .sort("flap_deg", "kind")
     )

@@ -14,6 +14,7 @@ import numpy as np
 import polars as pl
 
 from aerodelta._fsutil import write_atomic
+from aerodelta._groups import group_agg
 from aerodelta.campaign import generate_campaign
 from aerodelta.cli._data import check_at_least, created, output_folder
 from aerodelta.diagnosis import diagnose, write_outputs
@@ -170,11 +171,11 @@ def _print_identification(result: object, camp: Path, thesis: object | None = No
         print("no cross-validated selection: too few maneuvers per flap")
         cv = None
     else:
-        cv = (
-            r.cross_validation.group_by(["coefficient", "structure"])  # type: ignore[attr-defined]
-            .agg(pl.col("cv_rms").mean(), pl.col("cv_tic").mean(), pl.col("n_params").mean())
-            .sort(["coefficient", "structure"])
-        )
+        cv = group_agg(  # the means summed in row order (_groups)
+            r.cross_validation,  # type: ignore[attr-defined]
+            ["coefficient", "structure"],
+            {c: (c, "mean") for c in ("cv_rms", "cv_tic", "n_params")},
+        ).sort(["coefficient", "structure"])
     if cv is not None:
         print(
             "cross-validated per-bin Δ fit (mean over flaps): selected vs full pool vs thesis "

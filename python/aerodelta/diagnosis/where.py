@@ -8,6 +8,7 @@ import numpy as np
 import polars as pl
 
 from aerodelta import _core
+from aerodelta._groups import Groups, group_agg
 from aerodelta.exceptions import DataError
 from aerodelta.fit import stall_alpha
 
@@ -121,21 +122,22 @@ def gap_map(
     for f in sorted(set(df["flap"].to_list())):
         pre = df.filter((pl.col("flap") == f) & (pl.col("phase") == "pre_stall"))
         if pre.height >= 20:
-            resid = pre.with_columns((pl.col("g") - pl.col("g").mean().over("m")).alias("r"))
-            floors[f] = float((resid["r"] ** 2).mean())  # type: ignore[operator]
+            # each maneuver's mean and the mean square summed in row order by numpy (a polars
+            # mean over groups splits its sums over the threads; the filtered frame's chunks
+            # can follow the thread count too)
+            resid = (pre["g"] - Groups.of(pre, ["m"]).over(pre["g"], "mean")).to_numpy()
+            floors[f] = float(np.mean(resid * resid))
         else:
             floors[f] = float(np.var(df.filter(pl.col("flap") == f)["g"].to_numpy()))
     # in a fixed order (hash order made the sums below, hence diagnosis.json, differ from run
-    # to run in the last digits)
-    per_m = (
-        df.group_by(["flap", "b", "phase", "m"])
-        .agg(
-            pl.col("g").mean().alias("mean"),
-            (pl.col("g") ** 2).mean().alias("ms"),
-            pl.len().alias("n"),
-        )
-        .sort(["flap", "b", "phase", "m"])
-    )
+    # to run in the last digits), each maneuver's means summed in row order (a polars
+    # group-by mean splits its sums over the thread pool)
+    per_m = group_agg(
+        df.with_columns((pl.col("g") ** 2).alias("g2")),
+        ["flap", "b", "phase", "m"],
+        {"mean": ("g", "mean"), "ms": ("g2", "mean")},
+        exact=[pl.len().alias("n")],
+    ).sort(["flap", "b", "phase", "m"])
     cells = per_m.group_by(["flap", "b", "phase"], maintain_order=True).agg(
         pl.col("mean").alias("means"),
         pl.col("ms").alias("mss"),
@@ -202,16 +204,21 @@ def worst_segments(
             "g2": gap * gap,
         }
     )
+    # mean squares summed in row order (a polars group-by mean splits them over the threads)
     w = (
-        df.group_by(["m", "w"])
-        .agg(
-            pl.col("g2").mean().sqrt().alias("rms"),
-            pl.col("t").min().alias("t0"),
-            pl.col("t").max().alias("t1"),
-            pl.col("a").min().alias("a0"),
-            pl.col("a").max().alias("a1"),
-            pl.len().alias("n"),
+        group_agg(
+            df,
+            ["m", "w"],
+            {"ms": ("g2", "mean")},
+            exact=[
+                pl.col("t").min().alias("t0"),
+                pl.col("t").max().alias("t1"),
+                pl.col("a").min().alias("a0"),
+                pl.col("a").max().alias("a1"),
+                pl.len().alias("n"),
+            ],
         )
+        .with_columns(pl.col("ms").sqrt().alias("rms"))
         .filter(pl.col("n") >= 5)
         .sort(["rms", "m", "w"], descending=[True, False, False])
         .unique("m", keep="first", maintain_order=True)

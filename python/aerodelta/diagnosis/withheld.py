@@ -44,6 +44,7 @@ from typing import Any
 import numpy as np
 import polars as pl
 
+from aerodelta._groups import Groups
 from aerodelta.campaign import effect_library, generate_campaign
 from aerodelta.diagnosis.core import DiagnoseConfig, Diagnosis, _alpha_range, diagnose
 from aerodelta.diagnosis.vocabulary import AERODYNAMIC, COEFFICIENTS
@@ -452,15 +453,14 @@ def _bin_projection(
     """Per flap and 1-deg alpha bin, the least-squares fit of ``c`` on ``[1, x]``: the
     intercept part and the ``x`` part of ``c`` per row (a bin whose ``x`` does not vary gives
     its mean to the intercept)."""
-    df = pl.DataFrame(
-        {"f": flap, "b": np.floor(alpha).astype(np.int64), "x": x, "c": c}
-    ).with_row_index("i")
-    g = df.group_by(["f", "b"]).agg(
-        pl.len().cast(pl.Float64).alias("n"),
-        pl.col("x").sum().alias("sx"),
-        (pl.col("x") ** 2).sum().alias("sxx"),
-        pl.col("c").sum().alias("sc"),
-        (pl.col("x") * pl.col("c")).sum().alias("sxc"),
+    df = pl.DataFrame({"f": flap, "b": np.floor(alpha).astype(np.int64), "x": x, "c": c})
+    # the sums in row order (_groups: a polars group-by splits its float sums over the thread
+    # pool, and the last digits followed the thread count)
+    groups = Groups.of(df, ["f", "b"])
+    g = groups.agg(
+        df.with_columns((pl.col("x") ** 2).alias("xx"), (pl.col("x") * pl.col("c")).alias("xc")),
+        {"sx": ("x", "sum"), "sxx": ("xx", "sum"), "sc": ("c", "sum"), "sxc": ("xc", "sum")},
+        exact=[pl.len().cast(pl.Float64).alias("n")],
     )
     det = pl.col("n") * pl.col("sxx") - pl.col("sx") ** 2
     ok = det > 1e-12 * pl.col("n") * pl.col("sxx").clip(lower_bound=1e-300)
@@ -474,8 +474,8 @@ def _bin_projection(
         .otherwise(0.0)
         .alias("s"),
     )
-    j = df.join(g.select("f", "b", "a", "s"), on=["f", "b"], how="left").sort("i")
-    return j["a"].to_numpy(), (j["s"] * j["x"]).to_numpy()
+    a = g["a"].gather(groups.index)
+    return a.to_numpy(), (g["s"].gather(groups.index) * df["x"]).to_numpy()
 
 
 def jsbsim_components(

@@ -17,6 +17,7 @@ from typing import Any
 import numpy as np
 import polars as pl
 
+from aerodelta._groups import group_agg
 from aerodelta.buffet import FREQ_TOLERANCE_HZ, MIN_SPIKES, buffet_identification
 from aerodelta.buffet import compare_frequencies as _compare
 from aerodelta.evidence import figures
@@ -393,9 +394,12 @@ def _speed_rows(
     for key, col, _ in QUANTITIES:
         per_rec = {
             float(r["flap_deg"]): (r["n"], r["v"])
-            for r in table.group_by("flap_deg")
-            .agg(pl.col(col).is_not_null().sum().alias("n"), pl.col(col).mean().alias("v"))
-            .iter_rows(named=True)
+            for r in group_agg(  # the mean summed in row order (_groups)
+                table,
+                ["flap_deg"],
+                {"v": (col, "mean")},
+                exact=[pl.col(col).is_not_null().sum().alias("n")],
+            ).iter_rows(named=True)
             if r["n"]
         }
         n = int(table[col].is_not_null().sum())
@@ -434,17 +438,17 @@ def _speed_rows(
                     f"shown, not judged: {n_fast} of them within ±{SPEED_TOLERANCE_KT:g} kt"
                 )
             per = {}
-            for r in (
-                cmp.group_by("flap_deg")
-                .agg(
+            for r in group_agg(  # the mean summed in row order (_groups)
+                cmp,
+                ["flap_deg"],
+                {"mean": (f"{key}_diff_kt", "mean")},
+                exact=[
                     pl.len().alias("n"),
                     (pl.col(f"{key}_status") == "PASS").sum().alias("ok"),
-                    pl.col(f"{key}_diff_kt").mean().alias("mean"),
                     pl.col(f"{key}_diff_kt").abs().max().alias("worst"),
                     pl.col(f"{key}_sim_keas").is_null().sum().alias("none"),
-                )
-                .iter_rows(named=True)
-            ):
+                ],
+            ).iter_rows(named=True):
                 per[float(r["flap_deg"])] = (
                     f"{r['ok']} of {r['n']} within ±{SPEED_TOLERANCE_KT:g} kt (simulator minus "
                     f"flight test: mean {_fmt(r['mean'], '+.1f')} kt, largest "

@@ -14,6 +14,7 @@ from typing import Any
 
 import polars as pl
 
+from aerodelta._groups import group_agg
 from aerodelta.plan.matrix import KINDS, Matrix
 
 KEYS: tuple[str, ...] = (
@@ -88,17 +89,38 @@ def param_table(tasks: Sequence[Mapping[str, Any]], matrix: Matrix) -> pl.DataFr
     d = pl.DataFrame(_rows(tasks, "params"), schema=_PARAM_SCHEMA)
     ok = pl.col("identified")
     t = matrix.relative_band_width
+    # float sums in row order (_groups: a polars group-by splits them over the thread pool);
+    # a filter(ok) inside the group is a null outside it (nulls are left out)
     out = (
-        d.group_by(KEYS, maintain_order=True)
-        .agg(
-            pl.len().alias("campaigns"),
-            (ok.sum() / max(n, 1)).alias("p_identified"),
-            pl.col("estimate").filter(ok).std().alias("se_predicted"),
-            pl.col("se").filter(ok).pow(2).mean().sqrt().alias("se_bootstrap"),
-            pl.col("estimate").filter(ok).mean().alias("estimate_mean"),
-            pl.col("band").filter(ok).median().alias("band_width"),
-            pl.col("truth").first(),
-            pl.col("truth_max").first(),
+        group_agg(
+            d.with_columns(
+                pl.when(ok).then(pl.col("estimate")).alias("_est"),
+                pl.when(ok).then(pl.col("se").pow(2)).alias("_se2"),
+            ),
+            KEYS,
+            {
+                "se_predicted": ("_est", "std"),
+                "se_bootstrap": ("_se2", "mean"),
+                "estimate_mean": ("_est", "mean"),
+            },
+            exact=[
+                pl.len().alias("campaigns"),
+                (ok.sum() / max(n, 1)).alias("p_identified"),
+                pl.col("band").filter(ok).median().alias("band_width"),
+                pl.col("truth").first(),
+                pl.col("truth_max").first(),
+            ],
+        )
+        .select(
+            *KEYS,
+            "campaigns",
+            "p_identified",
+            "se_predicted",
+            pl.col("se_bootstrap").sqrt(),
+            "estimate_mean",
+            "band_width",
+            "truth",
+            "truth_max",
         )
         .with_columns(
             (pl.col("estimate_mean") - pl.col("truth")).alias("bias"),
@@ -139,14 +161,12 @@ def coverage_table(tasks: Sequence[Mapping[str, Any]]) -> pl.DataFrame:
     more maneuver of that kind adds there) and the maneuvers flown."""
     d = pl.DataFrame(_rows(tasks, "coverage"), schema=_COVERAGE_SCHEMA)
     keys = ["flap_deg", "kind", "alpha_lo_deg", "alpha_hi_deg"]
-    return (
-        d.group_by(keys, maintain_order=True)
-        .agg(
-            pl.col("maneuvers").first(),
-            (pl.col("samples") / pl.col("maneuvers")).mean().alias("samples_per_maneuver"),
-        )
-        .sort(keys)
-    )
+    return group_agg(
+        d.with_columns((pl.col("samples") / pl.col("maneuvers")).alias("_spm")),
+        keys,
+        {"samples_per_maneuver": ("_spm", "mean")},  # summed in row order (_groups)
+        exact=[pl.col("maneuvers").first()],
+    ).sort(keys)
 
 
 def _label(param: str, regressor: str) -> str:
@@ -228,13 +248,14 @@ def recommendation(
         hard = need.filter(pl.col("need") > MAX_FACTOR * n_flap)
         if fix.height:
             ranges = fix.select("alpha_lo_deg", "alpha_hi_deg").unique()
-            per_kind = (
+            # summed in a fixed row order (_groups; the join's row order is not promised)
+            per_kind = group_agg(
                 coverage.filter(pl.col("flap_deg") == flap)
                 .join(ranges, on=["alpha_lo_deg", "alpha_hi_deg"], how="inner")
-                .group_by("kind")
-                .agg(pl.col("samples_per_maneuver").sum())
-                .sort(["samples_per_maneuver", "kind"], descending=[True, False])
-            )
+                .sort("kind", "alpha_lo_deg", "alpha_hi_deg"),
+                ["kind"],
+                {"samples_per_maneuver": ("samples_per_maneuver", "sum")},
+            ).sort(["samples_per_maneuver", "kind"], descending=[True, False])
             n_need = int(fix["need"].max())  # type: ignore[arg-type]
             what = f"{fix.height} of these"
             if per_kind.height:
