@@ -1576,8 +1576,9 @@ def _time_derivatives(
 def _structure_columns(
     df: pl.DataFrame, coef: str, terms: Sequence[tuple[str, str]], rows: np.ndarray
 ) -> list[np.ndarray]:
-    """Values of the regressors of ``terms`` at every row of ``df`` (the engine evaluates each
-    expression as a Δ-model term with a parameter of 1), for :func:`calibrate_chain`. The
+    """Values of the regressors of ``terms`` at the rows of ``df`` selected by the boolean
+    mask ``rows`` (the engine evaluates each expression as a Δ-model term with a parameter of
+    1), for :func:`calibrate_chain`; one array of ``rows.sum()`` values per kept term. The
     intercept, a regressor whose channels ``df`` lacks and one constant over ``rows`` are
     left out."""
 
@@ -1606,15 +1607,15 @@ def _structure_columns(
     }
     model = _core.DeltaModel.from_json(json.dumps(spec), "chain calibration")
     cols = {
-        name: df[name].cast(pl.Float64).to_numpy()
+        name: np.ascontiguousarray(df[name].cast(pl.Float64).to_numpy()[rows])
         for name in model.input_columns
         if name in df.columns
     }
-    _, _, values = model.eval_columns(coef, cols, df.height)
+    _, _, values = model.eval_columns(coef, cols, int(rows.sum()))
     out = []
     for n, _ in keep:
         v = np.asarray(values[n], dtype=float)
-        sel = v[rows & np.isfinite(v)]
+        sel = v[np.isfinite(v)]
         if sel.size and np.ptp(sel) > 0:
             out.append(v)
     return out
@@ -1686,25 +1687,26 @@ def calibrate_chain(
     for f in flaps:
         alpha_l[flap == f] = _per_flap(cfg.alpha_l_deg, f, "alpha_l_deg")
     trusted = np.isfinite(alpha) & (alpha < alpha_l)
-    for c in coefs:
+
+    def one(c: str) -> tuple[np.ndarray, dict[str, Any]] | str:
+        """Coefficient ``c``: its calibrated values and estimates, or why it is skipped."""
         qc = out[c]
         d1, d2 = _time_derivatives(t, qc, man)
         z = df[f"{c}_meas"].cast(pl.Float64).to_numpy() - qc
         rows = trusted & np.isfinite(z) & np.isfinite(d1) & np.isfinite(d2)
         terms = _structure_columns(df, c, (structures or {}).get(c, []), rows)
-        for col in terms:
-            rows &= np.isfinite(col)
+        if terms:  # the terms' values are at the rows of the mask: drop their non-finite ones
+            finite = np.logical_and.reduce([np.isfinite(col) for col in terms])
+            terms = [col[finite] for col in terms]
+            rows[np.flatnonzero(rows)[~finite]] = False
         groups = np.unique(man[rows])
         if rows.sum() < CHAIN_MIN_SAMPLES or groups.size < cfg.min_maneuvers_identified:
-            cal.skipped[c] = (
+            return (
                 f"{int(rows.sum())} samples of {groups.size} maneuvers below alpha_l "
                 f"({CHAIN_MIN_SAMPLES} samples and {cfg.min_maneuvers_identified} maneuvers "
                 "needed)"
             )
-            continue
-        x = np.column_stack(
-            [np.ones(int(rows.sum())), d1[rows], d2[rows], *[col[rows] for col in terms]]
-        )
+        x = np.column_stack([np.ones(int(rows.sum())), d1[rows], d2[rows], *terms])
         # the engine's least squares (QR, collinearity diagnostics, CR2 errors by maneuver)
         try:
             res = ols(
@@ -1716,21 +1718,33 @@ def calibrate_chain(
             why = ""
         # the derivatives must not be (near) combinations of the other columns
         if res is None or res.rank < x.shape[1] or np.any(res.vif[1:3] > 1e8):
-            cal.skipped[c] = (
+            return (
                 "the qualified model's time derivatives below alpha_l are not independent of "
                 f"the intercept and the structure's regressors{': ' + why if why else ''}"
             )
-            continue
         beta = res.params
-        se = res.std_err_cluster
-        g = int(res.n_groups or groups.size)
         with np.errstate(divide="ignore", invalid="ignore"):
-            tstat = beta / se
-        cal.skew_s[c], cal.curvature_s2[c] = float(beta[1]), float(beta[2])
-        cal.t_skew[c], cal.t_curvature[c] = float(tstat[1]), float(tstat[2])
-        cal.samples[c], cal.maneuvers[c] = int(rows.sum()), g
+            tstat = beta / res.std_err_cluster
+        est = {
+            "skew": float(beta[1]), "curvature": float(beta[2]), "t_skew": float(tstat[1]),
+            "t_curvature": float(tstat[2]), "samples": int(rows.sum()),
+            "maneuvers": int(res.n_groups or groups.size),
+        }  # fmt: skip
         corr = np.where(np.isfinite(d1) & np.isfinite(d2), beta[1] * d1 + beta[2] * d2, 0.0)
-        out[c] = qc + corr
+        return qc + corr, est
+
+    # the coefficients side by side (numpy and the engine release the GIL), results taken in
+    # the order of ``coefs``
+    with ThreadPoolExecutor(max_workers=engine_threads(cap=len(coefs) or 1)) as ex:
+        results = list(ex.map(one, coefs))
+    for c, r in zip(coefs, results, strict=True):
+        if isinstance(r, str):
+            cal.skipped[c] = r
+            continue
+        out[c], est = r
+        cal.skew_s[c], cal.curvature_s2[c] = est["skew"], est["curvature"]
+        cal.t_skew[c], cal.t_curvature[c] = est["t_skew"], est["t_curvature"]
+        cal.samples[c], cal.maneuvers[c] = est["samples"], est["maneuvers"]
     return out, cal
 
 
