@@ -35,10 +35,20 @@
 //! X_gᵀ A_g e_g      → u_g = f(W_g) Q_gᵀ e_g,       f(λ) = (1 − λ)^(−1/2)
 //! V                 = B (Σ_g u_g u_gᵀ) Bᵀ
 //! (GᵀG)_gh          = δ_gh wᵀW_g(I − W_g)⁻¹w − t_gᵀ t_h,   t_g = f(W_g) W_g w,   w = Bᵀℓ
-//! Σλ = tr GᵀG,      Σλ² = Σ_g d_g² − 2 Σ_g d_g |t_g|² + ‖Σ_g t_g t_gᵀ‖²_F
 //! ```
 //!
-//! so the cost is O(N k²) for the cluster Gram matrices plus O(G k³). The
+//! Its diagonal is `wᵀW_g(I − W_g)⁻¹w − |t_g|² = wᵀW_g w = Σ_a λ_a (v_aᵀw)²`
+//! (`λ/(1 − λ) − λ²/(1 − λ) = λ`), so
+//!
+//! ```text
+//! Σλ = tr GᵀG = Σ_g wᵀW_g w,     Σλ² = ‖GᵀG‖²_F = Σ_g (wᵀW_g w)² + Σ_{g≠h} (t_gᵀt_h)²,
+//! ```
+//!
+//! sums of non-negative terms: no cancellation (the expanded form
+//! `Σ d_g² − 2 Σ d_g|t_g|² + ‖Σ t_g t_gᵀ‖²` lost up to 4 of 16 digits of the dof
+//! on bins where one maneuver dominates).
+//!
+//! The cost is O(N k²) for the cluster Gram matrices plus O(G k³ + G² k p). The
 //! Grams are accumulated cluster by cluster (in parallel over clusters, rows
 //! of a cluster in order, so the result does not depend on the number of
 //! threads) by the fit ([`super::ols_rows_clustered`]), which already has
@@ -81,16 +91,6 @@ fn f_cr2(l: f64) -> f64 {
     }
 }
 
-/// Per-parameter sums of the Bell-McCaffrey dof over the clusters (module doc):
-/// `Σλ = Σ_g d_g − |t_g|²`, and the three parts of `Σλ²`.
-struct DofSums {
-    tr: Vec<f64>,
-    sum_d2: Vec<f64>,
-    cross: Vec<f64>,
-    /// `Σ_g t_g t_gᵀ` per parameter, `k × k` each.
-    tt: Vec<f64>,
-}
-
 /// CR2 covariance and Bell-McCaffrey dof.
 ///
 /// `w` holds the `n_clusters` Gram matrices `W_g = Q_gᵀQ_g` (`k × k`
@@ -100,8 +100,8 @@ struct DofSums {
 ///
 /// One pass over the clusters, every parameter at once: per cluster the
 /// eigen-pairs `V, λ` of `W_g`, `C = VᵀBᵀ` (`k × p`), the adjusted score
-/// `u_g = V f(λ) Vᵀ s_g` and, per parameter `j`, `d = Σ_a λ_a/(1 − λ_a) C_aj²`
-/// and `t = V (λ f(λ) ∘ C_·j)`.
+/// `u_g = V f(λ) Vᵀ s_g` and, per parameter `j`, the diagonal term
+/// `Σ_a λ_a C_aj²` and `t = V (λ f(λ) ∘ C_·j)`; then the `t`s' cross products.
 pub(crate) fn cr2(
     w: &[f64],
     s: &[f64],
@@ -129,17 +129,14 @@ pub(crate) fn cr2(
         .collect();
     let mut meat = vec![0.0; k * k];
     let mut degenerate = vec![false; p];
-    let mut sums = DofSums {
-        tr: vec![0.0; p],
-        sum_d2: vec![0.0; p],
-        cross: vec![0.0; p],
-        tt: vec![0.0; p * k * k],
-    };
+    // per parameter and cluster: the diagonal term of GᵀG and t_g (k values)
+    let g_n = n_clusters;
+    let mut diag = vec![0.0; p * g_n];
+    let mut ts = vec![0.0; p * g_n * k];
     // per-cluster work space
     let mut c = vec![0.0; k * p];
     let mut u = vec![0.0; k];
-    let mut t = vec![0.0; k];
-    for (wg, sg) in w.chunks_exact(k * k).zip(s.chunks_exact(k)) {
+    for (g, (wg, sg)) in w.chunks_exact(k * k).zip(s.chunks_exact(k)).enumerate() {
         // symmetric by construction up to round-off: take the lower triangle
         let eig = SymmetricEigen::new(DMatrix::from_fn(k, k, |a, e| wg[a.max(e) * k + a.min(e)]));
         let vecs = eig.eigenvectors.as_slice(); // column-major: V[i, a] = vecs[a * k + i]
@@ -169,8 +166,8 @@ pub(crate) fn cr2(
             }
         }
         for j in 0..p {
-            let mut d = 0.0;
-            t.iter_mut().for_each(|x| *x = 0.0);
+            let mut dg = 0.0;
+            let t = &mut ts[(j * g_n + g) * k..(j * g_n + g + 1) * k];
             for (a, &l) in vals.iter().enumerate() {
                 let cj = c[a * p + j];
                 if l >= LEVERAGE_ONE {
@@ -178,22 +175,13 @@ pub(crate) fn cr2(
                     degenerate[j] |= cj * cj > DEGENERATE_SHARE * wn[j];
                     continue;
                 }
-                d += l / (1.0 - l.max(0.0)) * cj * cj;
+                dg += l * cj * cj;
                 let h = l.max(0.0) * f_cr2(l) * cj;
                 t.iter_mut()
                     .zip(&vecs[a * k..(a + 1) * k])
                     .for_each(|(x, v)| *x += h * v);
             }
-            let t2: f64 = t.iter().map(|x| x * x).sum();
-            sums.tr[j] += d - t2;
-            sums.sum_d2[j] += d * d;
-            sums.cross[j] += d * t2;
-            let tt = &mut sums.tt[j * k * k..(j + 1) * k * k];
-            for i in 0..k {
-                for e in 0..k {
-                    tt[i * k + e] += t[i] * t[e];
-                }
-            }
+            diag[j * g_n + g] = dg;
         }
     }
     // V = B meat Bᵀ
@@ -225,14 +213,25 @@ pub(crate) fn cr2(
             continue;
         }
         std_err[j] = var.sqrt();
-        // Bell-McCaffrey dof under the working model of iid errors.
-        let tt2: f64 = sums.tt[j * k * k..(j + 1) * k * k]
-            .iter()
-            .map(|x| x * x)
-            .sum();
-        let frob2 = sums.sum_d2[j] - 2.0 * sums.cross[j] + tt2;
+        // Bell-McCaffrey dof under the working model of iid errors (module doc)
+        let dj = &diag[j * g_n..(j + 1) * g_n];
+        let tj = &ts[j * g_n * k..(j + 1) * g_n * k];
+        let tr: f64 = dj.iter().sum();
+        let mut off = 0.0;
+        for g in 1..g_n {
+            let tg = &tj[g * k..(g + 1) * k];
+            for h in 0..g {
+                let x: f64 = tg
+                    .iter()
+                    .zip(&tj[h * k..(h + 1) * k])
+                    .map(|(a, b)| a * b)
+                    .sum();
+                off += x * x;
+            }
+        }
+        let frob2 = dj.iter().map(|d| d * d).sum::<f64>() + 2.0 * off;
         dof[j] = if frob2 > 0.0 {
-            sums.tr[j] * sums.tr[j] / frob2
+            tr * tr / frob2
         } else {
             f64::NAN
         };
@@ -386,6 +385,37 @@ mod tests {
                 "dof {j} = {}",
                 c.dof[j]
             );
+        }
+    }
+
+    /// One maneuver carries almost all of a regressor's excitation (its leverage in that
+    /// direction is near 1): the dof, near 1, still equal the textbook's to 1e-7. The
+    /// expanded `Σd² − 2Σd|t|² + ‖Σttᵀ‖²` form cancelled there.
+    #[test]
+    fn dof_hold_when_one_maneuver_dominates_a_regressor() {
+        let mut rng = ChaCha8Rng::seed_from_u64(5);
+        let (mut x, z, g) = bin_data(&mut rng, 6, 0.5, &[0.3, -1.0, 2.0]);
+        let n = z.len();
+        // the second regressor moves by 1e-4 of its size outside the first maneuver
+        for r in 0..n {
+            if g[r] != g[0] {
+                x[r * 3 + 1] *= 1e-4;
+            }
+        }
+        let rows: Vec<usize> = (0..n).collect();
+        let f = ols_rows_clustered(&x, n, 3, &z, &rows, &g, &OlsOptions::default()).unwrap();
+        let c = f.cluster.unwrap();
+        let mut uniq = g.clone();
+        uniq.dedup();
+        let gi: Vec<usize> = g
+            .iter()
+            .map(|v| uniq.iter().position(|u| u == v).unwrap())
+            .collect();
+        let xm = DMatrix::from_row_slice(n, 3, &x);
+        let (_, dof) = brute(&xm, &DVector::from_column_slice(&z), &gi, uniq.len());
+        assert!(dof[1] < 1.5, "the dominated parameter's dof {}", dof[1]);
+        for (j, (got, want)) in c.dof.iter().zip(&dof).enumerate() {
+            assert!((got - want).abs() <= 1e-7 * want, "dof {j}: {got} {want}");
         }
     }
 
