@@ -2,7 +2,7 @@
 //! prediction $C_{i,qualified}$ of thesis Eq. 3.5 at the *measured* states,
 //! exactly what a black-box simulator supplies as `Cl_sim`, `Cn_sim`, `CY_sim`.
 
-use crate::aircraft::qualified::{coef_index, Coef, QualifiedModel};
+use crate::aircraft::qualified::{coef_index, Coef, FlapModel, QualifiedModel};
 use crate::error::{AeroError, Result};
 use crate::sim::aero::{AeroInput, Controls};
 
@@ -54,8 +54,19 @@ pub struct RecordColumns<'a> {
 pub fn qualified_lateral(model: &QualifiedModel, c: &RecordColumns<'_>) -> Result<[Vec<f64>; 3]> {
     check_lengths(c)?;
     let lateral = model.resolve(|c| matches!(c, Coef::Cl | Coef::Cn | Coef::CY));
+    // the model sliced at each flap setting of the records (a flight test flies a handful):
+    // the general path's values to round-off (`sliced_model_equals_table_walk`), one alpha
+    // search per row instead of one per table; other flap values take the general path
+    let sliced: Vec<(f64, FlapModel)> = flap_settings(c.flap_deg, MAX_SLICED_FLAPS)
+        .into_iter()
+        .map(|f| model.at_flap(f).map(|m| (f, m)))
+        .collect::<Result<_>>()?;
     let row = |i: usize| -> [f64; 3] {
-        let v = model.evaluate_resolved(&lateral, &input_at(c, i));
+        let s = input_at(c, i);
+        let v = match sliced.iter().find(|(f, _)| *f == s.flap_deg) {
+            Some((_, m)) => m.evaluate(&s),
+            None => model.evaluate_resolved(&lateral, &s),
+        };
         [
             v[coef_index(Coef::Cl)],
             v[coef_index(Coef::Cn)],
@@ -150,6 +161,29 @@ fn input_at(c: &RecordColumns<'_>, i: usize) -> AeroInput {
 }
 
 /// `row(i)` for every row (in parallel with the `parallel` feature), as columns.
+/// Flap settings sliced by [`qualified_lateral`] at most.
+const MAX_SLICED_FLAPS: usize = 16;
+
+/// The distinct finite values of `flap` in order of appearance, or none when there are more
+/// than `max` (a continuous flap channel: the general path then serves every row).
+fn flap_settings(flap: &[f64], max: usize) -> Vec<f64> {
+    let mut seen: Vec<f64> = Vec::new();
+    let mut last = f64::NAN;
+    for &f in flap {
+        // rows come in runs of one setting
+        if f == last || !f.is_finite() || seen.contains(&f) {
+            last = f;
+            continue;
+        }
+        last = f;
+        if seen.len() == max {
+            return Vec::new();
+        }
+        seen.push(f);
+    }
+    seen
+}
+
 fn by_rows<const K: usize>(
     n: usize,
     row: impl Fn(usize) -> [f64; K] + Sync + Send,
@@ -265,5 +299,72 @@ mod tests {
             .unwrap_err()
             .to_string()
             .contains("tas_mps"));
+    }
+
+    /// Records at a few flap settings (sliced) and at many (a continuous flap channel, the
+    /// general path), with a NaN flap: every row equals the general path's evaluation.
+    #[test]
+    fn sliced_rows_equal_the_table_walk_at_any_flap() {
+        let q = QualifiedModel::adx37(&adx37()).expect("model");
+        let lateral = q.resolve(|c| matches!(c, Coef::Cl | Coef::Cn | Coef::CY));
+        let n = 120;
+        let v = |f: &dyn Fn(f64) -> f64| -> Vec<f64> { (0..n).map(|i| f(i as f64)).collect() };
+        let (alpha, beta, p, qh, r) = (
+            v(&|i| -18.0 + 0.5 * i),
+            v(&|i| 8.0 * (0.1 * i).sin()),
+            v(&|i| 0.02 * (0.3 * i).cos()),
+            v(&|_| 0.004),
+            v(&|i| -0.01 * (0.2 * i).sin()),
+        );
+        let (ad, bd, da, de, dr) = (
+            v(&|i| (0.05 * i).sin()),
+            v(&|i| (0.07 * i).cos()),
+            v(&|i| 25.0 * (0.2 * i).sin()),
+            v(&|_| -2.0),
+            v(&|i| 28.0 * (0.13 * i).cos()),
+        );
+        let (dsl, dsr, ctl, ctr, tas) = (
+            v(&|i| (40.0 * (0.17 * i).sin()).max(0.0)),
+            v(&|i| (40.0 * (0.19 * i).cos()).max(0.0)),
+            v(&|_| 0.1),
+            v(&|_| 0.05),
+            v(&|i| 55.0 + 0.1 * i),
+        );
+        let few = v(&|i| [0.0, 10.0, 35.0][(i as usize / 7) % 3]);
+        let mut few_nan = few.clone();
+        few_nan[5] = f64::NAN;
+        let many = v(&|i| 0.3 * i);
+        for flap in [&few, &few_nan, &many] {
+            let cols = RecordColumns {
+                alpha_deg: &alpha,
+                beta_deg: &beta,
+                phat: &p,
+                qhat: &qh,
+                rhat: &r,
+                alphadot_dps: &ad,
+                betadot_dps: &bd,
+                da_deg: &da,
+                de_deg: &de,
+                dr_deg: &dr,
+                dsl_deg: &dsl,
+                dsr_deg: &dsr,
+                flap_deg: flap,
+                ct_left: &ctl,
+                ct_right: &ctr,
+                tas_mps: &tas,
+            };
+            let got = qualified_lateral(&q, &cols).expect("evaluates");
+            for i in 0..n {
+                let w = q.evaluate_resolved(&lateral, &input_at(&cols, i));
+                for (k, c) in [Coef::Cl, Coef::Cn, Coef::CY].into_iter().enumerate() {
+                    let want = w[coef_index(c)];
+                    let ok =
+                        (got[k][i] - want).abs() < 1e-12 || (got[k][i].is_nan() && want.is_nan());
+                    assert!(ok, "row {i} flap {}: {} vs {want}", flap[i], got[k][i]);
+                }
+            }
+        }
+        assert_eq!(flap_settings(&few_nan, 16), vec![0.0, 10.0, 35.0]);
+        assert!(flap_settings(&many, 16).is_empty());
     }
 }
