@@ -203,6 +203,30 @@ mod tests {
     use super::*;
     use crate::aircraft::turboprop::adx37;
 
+    /// Record columns in the order of the struct's fields.
+    fn columns(c: [&[f64]; 16]) -> RecordColumns<'_> {
+        let [alpha_deg, beta_deg, phat, qhat, rhat, alphadot_dps, betadot_dps, da_deg, de_deg, dr_deg, dsl_deg, dsr_deg, flap_deg, ct_left, ct_right, tas_mps] =
+            c;
+        RecordColumns {
+            alpha_deg,
+            beta_deg,
+            phat,
+            qhat,
+            rhat,
+            alphadot_dps,
+            betadot_dps,
+            da_deg,
+            de_deg,
+            dr_deg,
+            dsl_deg,
+            dsr_deg,
+            flap_deg,
+            ct_left,
+            ct_right,
+            tas_mps,
+        }
+    }
+
     #[test]
     fn rows_equal_single_point_evaluation() {
         let q = QualifiedModel::adx37(&adx37()).expect("model");
@@ -230,24 +254,10 @@ mod tests {
             v(0.12, 0.0),
             v(60.0, 0.1),
         );
-        let cols = RecordColumns {
-            alpha_deg: &alpha,
-            beta_deg: &beta,
-            phat: &p,
-            qhat: &qh,
-            rhat: &r,
-            alphadot_dps: &ad,
-            betadot_dps: &bd,
-            da_deg: &da,
-            de_deg: &de,
-            dr_deg: &dr,
-            dsl_deg: &dsl,
-            dsr_deg: &dsr,
-            flap_deg: &flap,
-            ct_left: &ctl,
-            ct_right: &ctr,
-            tas_mps: &tas,
-        };
+        let cols = columns([
+            &alpha, &beta, &p, &qh, &r, &ad, &bd, &da, &de, &dr, &dsl, &dsr, &flap, &ctl, &ctr,
+            &tas,
+        ]);
         let [cl, cn, cy] = qualified_lateral(&q, &cols).expect("evaluates");
         let fm = q.at_flap(10.0).expect("slice");
         for i in 0..n {
@@ -335,24 +345,10 @@ mod tests {
         few_nan[5] = f64::NAN;
         let many = v(&|i| 0.3 * i);
         for flap in [&few, &few_nan, &many] {
-            let cols = RecordColumns {
-                alpha_deg: &alpha,
-                beta_deg: &beta,
-                phat: &p,
-                qhat: &qh,
-                rhat: &r,
-                alphadot_dps: &ad,
-                betadot_dps: &bd,
-                da_deg: &da,
-                de_deg: &de,
-                dr_deg: &dr,
-                dsl_deg: &dsl,
-                dsr_deg: &dsr,
-                flap_deg: flap,
-                ct_left: &ctl,
-                ct_right: &ctr,
-                tas_mps: &tas,
-            };
+            let cols = columns([
+                &alpha, &beta, &p, &qh, &r, &ad, &bd, &da, &de, &dr, &dsl, &dsr, flap, &ctl, &ctr,
+                &tas,
+            ]);
             let got = qualified_lateral(&q, &cols).expect("evaluates");
             for i in 0..n {
                 let w = q.evaluate_resolved(&lateral, &input_at(&cols, i));

@@ -349,23 +349,28 @@ mod tests {
         (x, z, g)
     }
 
-    #[test]
-    fn equals_the_textbook_cr2_and_bell_mccaffrey_dof() {
-        let mut rng = ChaCha8Rng::seed_from_u64(11);
-        let (x, z, g) = bin_data(&mut rng, 6, 0.8, &[0.3, -1.0, 2.0]);
+    /// The engine's cluster-robust fit of three columns (rows of `x`, clusters `g` in runs)
+    /// and the textbook's standard errors and dof for it.
+    fn fit_and_brute(x: &[f64], z: &[f64], g: &[u64]) -> (ClusterCov, Vec<f64>, Vec<f64>) {
         let n = z.len();
         let rows: Vec<usize> = (0..n).collect();
-        let f = ols_rows_clustered(&x, n, 3, &z, &rows, &g, &OlsOptions::default()).unwrap();
-        let c = f.cluster.unwrap();
-        let xm = DMatrix::from_row_slice(n, 3, &x);
-        let zv = DVector::from_column_slice(&z);
-        let mut uniq = g.clone();
+        let f = ols_rows_clustered(x, n, 3, z, &rows, g, &OlsOptions::default()).unwrap();
+        let mut uniq = g.to_vec();
         uniq.dedup();
         let gi: Vec<usize> = g
             .iter()
             .map(|v| uniq.iter().position(|u| u == v).unwrap())
             .collect();
-        let (se, dof) = brute(&xm, &zv, &gi, uniq.len());
+        let xm = DMatrix::from_row_slice(n, 3, x);
+        let (se, dof) = brute(&xm, &DVector::from_column_slice(z), &gi, uniq.len());
+        (f.cluster.unwrap(), se, dof)
+    }
+
+    #[test]
+    fn equals_the_textbook_cr2_and_bell_mccaffrey_dof() {
+        let mut rng = ChaCha8Rng::seed_from_u64(11);
+        let (x, z, g) = bin_data(&mut rng, 6, 0.8, &[0.3, -1.0, 2.0]);
+        let (c, se, dof) = fit_and_brute(&x, &z, &g);
         assert_eq!(c.n_clusters, 6);
         for j in 0..3 {
             assert!(
@@ -402,17 +407,7 @@ mod tests {
                 x[r * 3 + 1] *= 1e-4;
             }
         }
-        let rows: Vec<usize> = (0..n).collect();
-        let f = ols_rows_clustered(&x, n, 3, &z, &rows, &g, &OlsOptions::default()).unwrap();
-        let c = f.cluster.unwrap();
-        let mut uniq = g.clone();
-        uniq.dedup();
-        let gi: Vec<usize> = g
-            .iter()
-            .map(|v| uniq.iter().position(|u| u == v).unwrap())
-            .collect();
-        let xm = DMatrix::from_row_slice(n, 3, &x);
-        let (_, dof) = brute(&xm, &DVector::from_column_slice(&z), &gi, uniq.len());
+        let (c, _, dof) = fit_and_brute(&x, &z, &g);
         assert!(dof[1] < 1.5, "the dominated parameter's dof {}", dof[1]);
         for (j, (got, want)) in c.dof.iter().zip(&dof).enumerate() {
             assert!((got - want).abs() <= 1e-7 * want, "dof {j}: {got} {want}");
