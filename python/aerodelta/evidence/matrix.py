@@ -479,7 +479,7 @@ def _windows(
         return []
     w = (
         data.select(pl.col("maneuver_id").cast(pl.Utf8), "t", value.alias("y"))
-        .join(ev, on="maneuver_id")
+        .join(ev, on="maneuver_id", maintain_order="left")
         .with_columns((pl.col("t") - pl.col(tcol)).alias("dt"))
         .filter(pl.col("dt").abs() <= BREAK_WINDOW_S)
     )
@@ -592,7 +592,11 @@ def _rolloff_row(out: Assessment, data: pl.DataFrame, table: pl.DataFrame) -> No
         return
     win = (
         data.select(pl.col("maneuver_id").cast(pl.Utf8), "t", "phi_deg")
-        .join(wl.select("maneuver_id", "stall_id_t_s", "phi_id_deg"), on="maneuver_id")
+        .join(
+            wl.select("maneuver_id", "stall_id_t_s", "phi_id_deg"),
+            on="maneuver_id",
+            maintain_order="left",
+        )
         .with_columns((pl.col("t") - pl.col("stall_id_t_s")).alias("dt"))
     )
     bank = (
@@ -609,9 +613,9 @@ def _rolloff_row(out: Assessment, data: pl.DataFrame, table: pl.DataFrame) -> No
     events: dict[str, np.ndarray] = {}
     n_all = 0
     if ev is not None and ev.height:
-        rel = ev.join(wl.select("maneuver_id", "stall_id_t_s"), on="maneuver_id").with_columns(
-            (pl.col("t_onset") - pl.col("stall_id_t_s")).alias("dt")
-        )
+        rel = ev.join(
+            wl.select("maneuver_id", "stall_id_t_s"), on="maneuver_id", maintain_order="left"
+        ).with_columns((pl.col("t_onset") - pl.col("stall_id_t_s")).alias("dt"))
         events = {
             str(m): g["dt"].to_numpy()
             for (m,), g in rel.filter(
@@ -632,7 +636,7 @@ def _rolloff_row(out: Assessment, data: pl.DataFrame, table: pl.DataFrame) -> No
         for (m,), g in shown.partition_by("maneuver_id", as_dict=True, maintain_order=True).items()
     ]
     out.tables["rolloff"] = wl.select("maneuver_id", "flap_deg", "stall_id_t_s").join(
-        bank, on="maneuver_id", how="left"
+        bank, on="maneuver_id", how="left", maintain_order="left"
     )
     fig = out.figure(
         FigureSpec(
