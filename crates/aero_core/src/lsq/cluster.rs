@@ -91,6 +91,83 @@ fn f_cr2(l: f64) -> f64 {
     }
 }
 
+/// Clusters up to which [`Cross`] keeps every `t` and takes every pair (`O(G² k)`); above,
+/// running sums (`O(G k²)`, memory `k²` per parameter: one cluster per row, HC2, has as many
+/// clusters as rows).
+const PAIRWISE_MAX: usize = 256;
+
+/// `Σ_{h<g} (t_gᵀt_h)²` per parameter, fed one cluster's `t` (`k` values) at a time.
+/// Pairwise, each pair's product is squared (no cancellation); with running sums,
+/// `Σ_g t_gᵀ S_g t_g` with `S_g = Σ_{h<g} t_h t_hᵀ`, which only adds.
+enum Cross {
+    /// The `t`s, `[(j · G + g) · k + i]`.
+    Pairs { t: Vec<f64>, g_n: usize, k: usize },
+    /// Per parameter the running `S` (`k × k`) and the sum so far.
+    Running {
+        run: Vec<f64>,
+        total: Vec<f64>,
+        k: usize,
+    },
+}
+
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    a.iter().zip(b).map(|(x, y)| x * y).sum()
+}
+
+impl Cross {
+    fn new(p: usize, g_n: usize, k: usize, pairwise: bool) -> Self {
+        if pairwise {
+            Cross::Pairs {
+                t: vec![0.0; p * g_n * k],
+                g_n,
+                k,
+            }
+        } else {
+            Cross::Running {
+                run: vec![0.0; p * k * k],
+                total: vec![0.0; p],
+                k,
+            }
+        }
+    }
+
+    /// Cluster `g`'s `t` for parameter `j` (clusters in order).
+    fn add(&mut self, j: usize, g: usize, tg: &[f64]) {
+        match self {
+            Cross::Pairs { t, g_n, k } => {
+                let at = (j * *g_n + g) * *k;
+                t[at..at + *k].copy_from_slice(tg);
+            }
+            Cross::Running { run, total, k } => {
+                let k = *k;
+                let s = &mut run[j * k * k..(j + 1) * k * k];
+                total[j] += (0..k)
+                    .map(|i| tg[i] * dot(&s[i * k..(i + 1) * k], tg))
+                    .sum::<f64>();
+                for i in 0..k {
+                    for (r, te) in s[i * k..(i + 1) * k].iter_mut().zip(tg) {
+                        *r += tg[i] * te;
+                    }
+                }
+            }
+        }
+    }
+
+    /// `Σ_{h<g} (t_gᵀt_h)²` of parameter `j`.
+    fn sum(&self, j: usize) -> f64 {
+        match self {
+            Cross::Pairs { t, g_n, k } => {
+                let (g_n, k) = (*g_n, *k);
+                let v = |g: usize| &t[(j * g_n + g) * k..(j * g_n + g + 1) * k];
+                (1..g_n)
+                    .map(|g| (0..g).map(|h| dot(v(g), v(h)).powi(2)).sum::<f64>())
+                    .sum()
+            }
+            Cross::Running { total, .. } => total[j].max(0.0),
+        }
+    }
+}
+
 /// CR2 covariance and Bell-McCaffrey dof.
 ///
 /// `w` holds the `n_clusters` Gram matrices `W_g = Q_gᵀQ_g` (`k × k`
@@ -132,7 +209,8 @@ pub(crate) fn cr2(
     // per parameter and cluster: the diagonal term of GᵀG and t_g (k values)
     let g_n = n_clusters;
     let mut diag = vec![0.0; p * g_n];
-    let mut ts = vec![0.0; p * g_n * k];
+    let mut cross = Cross::new(p, g_n, k, g_n <= PAIRWISE_MAX);
+    let mut t = vec![0.0; k];
     // per-cluster work space
     let mut c = vec![0.0; k * p];
     let mut u = vec![0.0; k];
@@ -167,7 +245,7 @@ pub(crate) fn cr2(
         }
         for j in 0..p {
             let mut dg = 0.0;
-            let t = &mut ts[(j * g_n + g) * k..(j * g_n + g + 1) * k];
+            t.iter_mut().for_each(|x| *x = 0.0);
             for (a, &l) in vals.iter().enumerate() {
                 let cj = c[a * p + j];
                 if l >= LEVERAGE_ONE {
@@ -182,6 +260,7 @@ pub(crate) fn cr2(
                     .for_each(|(x, v)| *x += h * v);
             }
             diag[j * g_n + g] = dg;
+            cross.add(j, g, &t);
         }
     }
     // V = B meat Bᵀ
@@ -215,20 +294,8 @@ pub(crate) fn cr2(
         std_err[j] = var.sqrt();
         // Bell-McCaffrey dof under the working model of iid errors (module doc)
         let dj = &diag[j * g_n..(j + 1) * g_n];
-        let tj = &ts[j * g_n * k..(j + 1) * g_n * k];
         let tr: f64 = dj.iter().sum();
-        let mut off = 0.0;
-        for g in 1..g_n {
-            let tg = &tj[g * k..(g + 1) * k];
-            for h in 0..g {
-                let x: f64 = tg
-                    .iter()
-                    .zip(&tj[h * k..(h + 1) * k])
-                    .map(|(a, b)| a * b)
-                    .sum();
-                off += x * x;
-            }
-        }
+        let off = cross.sum(j);
         let frob2 = dj.iter().map(|d| d * d).sum::<f64>() + 2.0 * off;
         dof[j] = if frob2 > 0.0 {
             tr * tr / frob2
@@ -411,6 +478,60 @@ mod tests {
         assert!(dof[1] < 1.5, "the dominated parameter's dof {}", dof[1]);
         for (j, (got, want)) in c.dof.iter().zip(&dof).enumerate() {
             assert!((got - want).abs() <= 1e-7 * want, "dof {j}: {got} {want}");
+        }
+    }
+
+    /// The two ways of `Σ_{h<g} (t_gᵀt_h)²` agree with the pairs summed directly (every
+    /// pair kept; running sums, for many clusters), and with one cluster per row (HC2-like,
+    /// more clusters than `PAIRWISE_MAX`) the dof still equal the textbook's.
+    #[test]
+    fn cross_squares_by_pairs_and_by_running_sums_agree() {
+        let mut rng = ChaCha8Rng::seed_from_u64(9);
+        for (g_n, k, big) in [(300, 5, 1.0), (400, 3, 1e3)] {
+            let mut t: Vec<f64> = (0..g_n * k).map(|_| normal(&mut rng)).collect();
+            t[..k].iter_mut().for_each(|v| *v *= big); // one cluster far larger
+            let pairs: f64 = (1..g_n)
+                .map(|g| {
+                    (0..g)
+                        .map(|h| {
+                            (0..k)
+                                .map(|i| t[g * k + i] * t[h * k + i])
+                                .sum::<f64>()
+                                .powi(2)
+                        })
+                        .sum::<f64>()
+                })
+                .sum();
+            for pairwise in [true, false] {
+                let mut cr = Cross::new(1, g_n, k, pairwise);
+                for g in 0..g_n {
+                    cr.add(0, g, &t[g * k..(g + 1) * k]);
+                }
+                let got = cr.sum(0);
+                assert!(
+                    (got - pairs).abs() <= 1e-10 * pairs,
+                    "{pairwise}: {got} {pairs}"
+                );
+            }
+        }
+        // one row per cluster, 320 clusters
+        let (mut x, mut z, mut g) = (Vec::new(), Vec::new(), Vec::new());
+        for c in 0..320u64 {
+            let (a, b) = (normal(&mut rng), normal(&mut rng));
+            x.extend_from_slice(&[1.0, a, 0.5 * b]);
+            z.push(0.3 - a + 2.0 * b + 0.2 * normal(&mut rng));
+            g.push(c);
+        }
+        let (c, se, dof) = fit_and_brute(&x, &z, &g);
+        assert_eq!(c.n_clusters, 320);
+        for j in 0..3 {
+            assert!((c.std_err[j] - se[j]).abs() <= 1e-9 * se[j]);
+            assert!(
+                (c.dof[j] - dof[j]).abs() <= 1e-7 * dof[j],
+                "{} {}",
+                c.dof[j],
+                dof[j]
+            );
         }
     }
 
