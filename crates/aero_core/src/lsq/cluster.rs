@@ -45,10 +45,12 @@
 //! ```
 //!
 //! sums of non-negative terms: no cancellation (the expanded form
-//! `Σ d_g² − 2 Σ d_g|t_g|² + ‖Σ t_g t_gᵀ‖²` lost up to 4 of 16 digits of the dof
-//! on bins where one maneuver dominates).
+//! `Σ d_g² − 2 Σ d_g|t_g|² + ‖Σ t_g t_gᵀ‖²` gave dof 1.139 for the textbook's 1.126
+//! when one maneuver carries a regressor's excitation:
+//! `dof_hold_when_one_maneuver_dominates_a_regressor`).
 //!
-//! The cost is O(N k²) for the cluster Gram matrices plus O(G k³ + G² k p). The
+//! The cost is O(N k²) for the cluster Gram matrices plus O(G k³ + G k² p) (the cross
+//! terms pairwise, O(G² k p), up to 256 clusters). The
 //! Grams are accumulated cluster by cluster (in parallel over clusters, rows
 //! of a cluster in order, so the result does not depend on the number of
 //! threads) by the fit ([`super::ols_rows_clustered`]), which already has
