@@ -498,6 +498,23 @@ pub fn fit_bins(
     opts: &IdentifyOptions,
 ) -> Result<BinnedFit> {
     let plan = plan_bins(design, z, alpha_deg, maneuver, opts)?;
+    Ok(fit_planned(design, z, maneuver, plan, opts))
+}
+
+/// [`fit_bins`] in the bins of `plan`, which [`plan_bins`] made for this `design`, `z`,
+/// `maneuver` and `opts` (its checks passed): a caller that planned the bins already does
+/// not partition again.
+pub(crate) fn fit_planned(
+    design: &Design,
+    z: &[f64],
+    maneuver: &[u64],
+    plan: BinPlan,
+    opts: &IdentifyOptions,
+) -> BinnedFit {
+    debug_assert_eq!(
+        plan.required,
+        opts.partition.min_points_per_param * design.ncols()
+    );
     let n = design.nrows;
     let p = design.ncols();
     let nb = plan.members.len();
@@ -633,12 +650,12 @@ pub fn fit_bins(
     let bins: Vec<BinFit> = (0..nb).map(work).collect();
 
     let consistency = (0..p).map(|j| adjacent_consistency(&bins, j)).collect();
-    Ok(BinnedFit {
+    BinnedFit {
         names: design.names.clone(),
         bins,
         consistency,
         partition: plan.partition,
-    })
+    }
 }
 
 /// `|ρ_jk|` of parameter `j`'s estimate with every other non-constant parameter `k`

@@ -57,8 +57,9 @@
 use crate::bootstrap::{bootstrap_smoothed, Bootstrap, BootstrapOptions, Reselect};
 use crate::error::{AeroError, Result, ResultExt};
 use crate::identify::{
-    adjacent_consistency, fit_bins, low_excitation, noise_floor, plan_bins, smooth_parameters, snr,
-    BinFit, BinnedFit, Design, IdentifyOptions, SmoothOptions, SmoothedParameter,
+    adjacent_consistency, fit_bins, fit_planned, low_excitation, noise_floor, plan_bins,
+    smooth_parameters, snr, BinFit, BinnedFit, Design, IdentifyOptions, SmoothOptions,
+    SmoothedParameter,
 };
 use crate::partition::partition_alpha;
 use crate::sim::rng::Stream;
@@ -1586,7 +1587,7 @@ pub fn identify_flap(
         }
     };
     let design0 = subset(&chosen);
-    let design = if identify.prune_collinear && identify.max_vif.is_finite() {
+    let (fit, design) = if identify.prune_collinear && identify.max_vif.is_finite() {
         // decide from the Gram matrices of the bins the structure would be fitted in (one
         // factor per bin and step), then fit the final structure once
         let plan = plan_bins(&design0, z, alpha_deg, maneuver, identify)?;
@@ -1611,15 +1612,20 @@ pub fn identify_flap(
             }
         }
         if pruned.is_empty() {
-            design0
+            // the planned bins are the structure's: no second partition
+            (fit_planned(&design0, z, maneuver, plan, identify), design0)
         } else {
+            // fewer columns: the points-per-parameter rule may bin differently
             chosen = keep.iter().map(|&j| chosen[j]).collect();
-            subset(&chosen)
+            let design = subset(&chosen);
+            (fit_bins(&design, z, alpha_deg, maneuver, identify)?, design)
         }
     } else {
-        design0
+        (
+            fit_bins(&design0, z, alpha_deg, maneuver, identify)?,
+            design0,
+        )
     };
-    let fit = fit_bins(&design, z, alpha_deg, maneuver, identify)?;
     let smoothed = smooth_parameters(&fit, smooth)?;
     let bootstrap = match boot {
         Some(bo) => {
