@@ -204,14 +204,14 @@ pub(crate) fn cr2(
     assert_eq!(b.len(), p * k, "factor B");
     // |w_j|² of each parameter's row of B
     let wn: Vec<f64> = (0..p)
-        .map(|j| b[j * k..(j + 1) * k].iter().map(|v| v * v).sum())
+        .map(|j| dot(&b[j * k..(j + 1) * k], &b[j * k..(j + 1) * k]))
         .collect();
     let mut meat = vec![0.0; k * k];
     let mut degenerate = vec![false; p];
-    // per parameter and cluster: the diagonal term of GᵀG and t_g (k values)
-    let g_n = n_clusters;
-    let mut diag = vec![0.0; p * g_n];
-    let mut cross = Cross::new(p, g_n, k, g_n <= PAIRWISE_MAX);
+    // per parameter: the sums over the clusters of GᵀG's diagonal terms and of their
+    // squares, and the t_g's cross terms
+    let (mut tr, mut diag2) = (vec![0.0; p], vec![0.0; p]);
+    let mut cross = Cross::new(p, n_clusters, k, n_clusters <= PAIRWISE_MAX);
     let mut t = vec![0.0; k];
     // per-cluster work space
     let mut c = vec![0.0; k * p];
@@ -225,8 +225,7 @@ pub(crate) fn cr2(
         u.iter_mut().for_each(|x| *x = 0.0);
         for (a, &l) in vals.iter().enumerate() {
             let col = &vecs[a * k..(a + 1) * k];
-            let proj: f64 = col.iter().zip(sg).map(|(v, x)| v * x).sum();
-            let h = f_cr2(l) * proj;
+            let h = f_cr2(l) * dot(col, sg);
             u.iter_mut().zip(col).for_each(|(x, v)| *x += h * v);
         }
         for i in 0..k {
@@ -238,11 +237,7 @@ pub(crate) fn cr2(
         for a in 0..k {
             let col = &vecs[a * k..(a + 1) * k];
             for j in 0..p {
-                c[a * p + j] = col
-                    .iter()
-                    .zip(&b[j * k..(j + 1) * k])
-                    .map(|(v, x)| v * x)
-                    .sum();
+                c[a * p + j] = dot(col, &b[j * k..(j + 1) * k]);
             }
         }
         for j in 0..p {
@@ -261,7 +256,8 @@ pub(crate) fn cr2(
                     .zip(&vecs[a * k..(a + 1) * k])
                     .for_each(|(x, v)| *x += h * v);
             }
-            diag[j * g_n + g] = dg;
+            tr[j] += dg;
+            diag2[j] += dg * dg;
             cross.add(j, g, &t);
         }
     }
@@ -295,12 +291,9 @@ pub(crate) fn cr2(
         }
         std_err[j] = var.sqrt();
         // Bell-McCaffrey dof under the working model of iid errors (module doc)
-        let dj = &diag[j * g_n..(j + 1) * g_n];
-        let tr: f64 = dj.iter().sum();
-        let off = cross.sum(j);
-        let frob2 = dj.iter().map(|d| d * d).sum::<f64>() + 2.0 * off;
+        let frob2 = diag2[j] + 2.0 * cross.sum(j);
         dof[j] = if frob2 > 0.0 {
-            tr * tr / frob2
+            tr[j] * tr[j] / frob2
         } else {
             f64::NAN
         };
