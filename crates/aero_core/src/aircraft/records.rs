@@ -160,7 +160,6 @@ fn input_at(c: &RecordColumns<'_>, i: usize) -> AeroInput {
     }
 }
 
-/// `row(i)` for every row (in parallel with the `parallel` feature), as columns.
 /// Flap settings sliced by [`qualified_lateral`] at most.
 const MAX_SLICED_FLAPS: usize = 16;
 
@@ -171,11 +170,13 @@ fn flap_settings(flap: &[f64], max: usize) -> Vec<f64> {
     let mut last = f64::NAN;
     for &f in flap {
         // rows come in runs of one setting
-        if f == last || !f.is_finite() || seen.contains(&f) {
-            last = f;
+        if f == last {
             continue;
         }
         last = f;
+        if !f.is_finite() || seen.contains(&f) {
+            continue;
+        }
         if seen.len() == max {
             return Vec::new();
         }
@@ -184,6 +185,7 @@ fn flap_settings(flap: &[f64], max: usize) -> Vec<f64> {
     seen
 }
 
+/// `row(i)` for every row (in parallel with the `parallel` feature), as columns.
 fn by_rows<const K: usize>(
     n: usize,
     row: impl Fn(usize) -> [f64; K] + Sync + Send,
