@@ -1688,8 +1688,9 @@ def calibrate_chain(
         alpha_l[flap == f] = _per_flap(cfg.alpha_l_deg, f, "alpha_l_deg")
     trusted = np.isfinite(alpha) & (alpha < alpha_l)
 
-    def one(c: str) -> tuple[np.ndarray, dict[str, Any]] | str:
-        """Coefficient ``c``: its calibrated values and estimates, or why it is skipped."""
+    def one(c: str) -> tuple[np.ndarray, tuple[float, float, float, float, int, int]] | str:
+        """Coefficient ``c``: its calibrated values and (τ, κ, their t, samples, maneuvers),
+        or why it is skipped."""
         qc = out[c]
         d1, d2 = _time_derivatives(t, qc, man)
         z = df[f"{c}_meas"].cast(pl.Float64).to_numpy() - qc
@@ -1725,11 +1726,10 @@ def calibrate_chain(
         beta = res.params
         with np.errstate(divide="ignore", invalid="ignore"):
             tstat = beta / res.std_err_cluster
-        est = {
-            "skew": float(beta[1]), "curvature": float(beta[2]), "t_skew": float(tstat[1]),
-            "t_curvature": float(tstat[2]), "samples": int(rows.sum()),
-            "maneuvers": int(res.n_groups or groups.size),
-        }  # fmt: skip
+        est = (
+            float(beta[1]), float(beta[2]), float(tstat[1]), float(tstat[2]), int(rows.sum()),
+            int(res.n_groups or groups.size),
+        )  # fmt: skip
         corr = np.where(np.isfinite(d1) & np.isfinite(d2), beta[1] * d1 + beta[2] * d2, 0.0)
         return qc + corr, est
 
@@ -1741,10 +1741,10 @@ def calibrate_chain(
         if isinstance(r, str):
             cal.skipped[c] = r
             continue
-        out[c], est = r
-        cal.skew_s[c], cal.curvature_s2[c] = est["skew"], est["curvature"]
-        cal.t_skew[c], cal.t_curvature[c] = est["t_skew"], est["t_curvature"]
-        cal.samples[c], cal.maneuvers[c] = est["samples"], est["maneuvers"]
+        out[c], (
+            cal.skew_s[c], cal.curvature_s2[c], cal.t_skew[c], cal.t_curvature[c],
+            cal.samples[c], cal.maneuvers[c],
+        ) = r  # fmt: skip
     return out, cal
 
 
