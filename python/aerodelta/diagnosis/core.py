@@ -19,6 +19,7 @@ from threadpoolctl import threadpool_limits
 from tqdm import tqdm
 
 from aerodelta._core import __version__
+from aerodelta._groups import group_agg
 from aerodelta.diagnosis.band import BAND_CHANNEL, band_cutoffs, band_match
 from aerodelta.diagnosis.cv import (
     Design,
@@ -218,15 +219,16 @@ def _run_around_peak(bins: np.ndarray, level: np.ndarray, threshold: float) -> l
 
 
 def _bin_means(alpha: np.ndarray, value: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Per 1-deg alpha bin with 20 points or more: the bins and the mean of ``value``.
-
-    Summed by numpy in row order: a polars group-by mean of floats splits its sums by the
-    thread pool (the last digits changed with the thread count, and between calls)."""
-    bins, inverse = np.unique(np.floor(alpha).astype(np.int64), return_inverse=True)
-    n = np.bincount(inverse, minlength=bins.size)
-    total = np.bincount(inverse, weights=np.asarray(value, dtype=np.float64), minlength=bins.size)
-    keep = n >= 20
-    return bins[keep], total[keep] / n[keep]
+    """Per 1-deg alpha bin with 20 points or more: the bins and the mean of ``value``, summed
+    in row order (:mod:`aerodelta._groups`: a polars group-by mean splits its sums over the
+    thread pool, and the last digits changed with the thread count and between calls)."""
+    g = group_agg(
+        pl.DataFrame({"b": np.floor(alpha).astype(np.int64), "v": value}),
+        ["b"],
+        {"v": ("v", "mean")},
+        exact=[pl.len().alias("n")],
+    ).filter(pl.col("n") >= 20)
+    return g["b"].to_numpy(), g["v"].to_numpy()
 
 
 def _alpha_range(alpha: np.ndarray, contrib: np.ndarray, frac: float = 0.2) -> list[float]:
