@@ -3,7 +3,9 @@ shared by the report tests (tests/test_report.py, tests/test_report_browser.py).
 
 from __future__ import annotations
 
+import atexit
 import functools
+import shutil
 import tempfile
 from pathlib import Path
 from typing import Any
@@ -23,6 +25,7 @@ def quick_fit() -> tuple[Path, pl.DataFrame, FitResult, list[str]]:
     The model is saved as ``folder/model.json`` with its per-bin estimates beside it.
     """
     root = Path(tempfile.mkdtemp(prefix="aerodelta-report-"))
+    atexit.register(shutil.rmtree, root, ignore_errors=True)
     generate_campaign(root / "campaign", seed=3, size="quick")
     data = ingest(root / "campaign", compat=False).data
     ids = data["maneuver_id"].unique().sort().to_list()

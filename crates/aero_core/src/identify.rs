@@ -133,10 +133,11 @@ impl Design {
             names.push(name.clone());
             exprs.push(e);
         }
+        // row-major, written row by row (the columns are read as p sequential streams)
         let mut values = vec![0.0; n * p];
-        for (j, col) in cols.iter().enumerate() {
-            for (i, v) in col.iter().enumerate() {
-                values[i * p + j] = *v;
+        for (i, row) in values.chunks_exact_mut(p).enumerate() {
+            for (v, col) in row.iter_mut().zip(&cols) {
+                *v = col[i];
             }
         }
         Ok(Design {
@@ -152,23 +153,30 @@ impl Design {
         self.names.len()
     }
 
-    fn column_std(&self, j: usize, rows: impl Iterator<Item = usize>) -> f64 {
+    /// The sample standard deviation of every column over `rows` (non-finite values
+    /// skipped), in one pass over the rows: Welford's update per column, in row order.
+    fn column_stds(&self, rows: impl Iterator<Item = usize>) -> Vec<f64> {
         let p = self.ncols();
-        let (mut n, mut mean, mut m2) = (0.0f64, 0.0f64, 0.0f64);
+        let mut acc = vec![(0.0f64, 0.0f64, 0.0f64); p];
         for r in rows {
-            let v = self.values[r * p + j];
-            if v.is_finite() {
-                n += 1.0;
-                let d = v - mean;
-                mean += d / n;
-                m2 += d * (v - mean);
+            for ((n, mean, m2), &v) in acc.iter_mut().zip(&self.values[r * p..(r + 1) * p]) {
+                if v.is_finite() {
+                    *n += 1.0;
+                    let d = v - *mean;
+                    *mean += d / *n;
+                    *m2 += d * (v - *mean);
+                }
             }
         }
-        if n > 1.0 {
-            (m2 / (n - 1.0)).sqrt()
-        } else {
-            0.0
-        }
+        acc.iter()
+            .map(|&(n, _, m2)| {
+                if n > 1.0 {
+                    (m2 / (n - 1.0)).sqrt()
+                } else {
+                    0.0
+                }
+            })
+            .collect()
     }
 }
 
@@ -321,29 +329,32 @@ pub struct BinnedFit {
 pub fn noise_floor(design: &Design, maneuver: &[u64]) -> Vec<f64> {
     let p = design.ncols();
     let n = design.nrows.min(maneuver.len());
-    let mut d2 = Vec::with_capacity(n / 2);
-    (0..p)
-        .map(|j| {
-            if design.exprs[j].is_constant() {
-                return 0.0;
-            }
-            d2.clear();
-            let x = |i: usize| design.values[i * p + j];
-            let mut i = 1;
-            while i + 1 < n {
-                if maneuver[i - 1] == maneuver[i] && maneuver[i] == maneuver[i + 1] {
-                    let v = (x(i - 1) - 2.0 * x(i) + x(i + 1)).abs();
-                    if v.is_finite() {
-                        d2.push(v);
-                    }
+    let constant: Vec<bool> = design.exprs.iter().map(Expr::is_constant).collect();
+    // one pass over the triples, row-major (every column's differences in row order)
+    let mut d2: Vec<Vec<f64>> = (0..p)
+        .map(|j| Vec::with_capacity(if constant[j] { 0 } else { n / 2 }))
+        .collect();
+    let row = |i: usize| &design.values[i * p..(i + 1) * p];
+    let mut i = 1;
+    while i + 1 < n {
+        if maneuver[i - 1] == maneuver[i] && maneuver[i] == maneuver[i + 1] {
+            let (a, b, c) = (row(i - 1), row(i), row(i + 1));
+            for j in 0..p {
+                let v = (a[j] - 2.0 * b[j] + c[j]).abs();
+                if !constant[j] && v.is_finite() {
+                    d2[j].push(v);
                 }
-                i += 2;
             }
-            if d2.is_empty() {
+        }
+        i += 2;
+    }
+    d2.iter_mut()
+        .map(|d| {
+            if d.is_empty() {
                 return 0.0;
             }
-            let mid = d2.len() / 2;
-            let (_, m, _) = d2.select_nth_unstable_by(mid, f64::total_cmp);
+            let mid = d.len() / 2;
+            let (_, m, _) = d.select_nth_unstable_by(mid, f64::total_cmp);
             1.4826 * *m / 6f64.sqrt()
         })
         .collect()
@@ -518,7 +529,7 @@ pub(crate) fn fit_planned(
     let n = design.nrows;
     let p = design.ncols();
     let nb = plan.members.len();
-    let flap_std: Vec<f64> = (0..p).map(|j| design.column_std(j, 0..n)).collect();
+    let flap_std = design.column_stds(0..n);
     let floor = noise_floor(design, maneuver);
     let const_col: Vec<bool> = design.exprs.iter().map(Expr::is_constant).collect();
     let (required, min_maneuvers) = (plan.required, plan.min_maneuvers);
@@ -526,9 +537,7 @@ pub(crate) fn fit_planned(
     let work = |b: usize| -> BinFit {
         let rows = &plan.members[b];
         let maneuvers = &plan.maneuvers[b];
-        let in_bin_std: Vec<f64> = (0..p)
-            .map(|j| design.column_std(j, rows.iter().copied()))
-            .collect();
+        let in_bin_std = design.column_stds(rows.iter().copied());
         let excitation: Vec<f64> = (0..p)
             .map(|j| {
                 if const_col[j] {

@@ -195,12 +195,16 @@ fn unpack_lower_into(tri: &[f64], dim: usize, g: &mut [f64]) {
 pub fn bin_grams(design: &Design, z: &[f64], members: &[Vec<usize>], maneuver: &[u64]) -> BinGrams {
     let p = design.ncols();
     let dim = p + 1;
-    let row_ok = |r: usize| {
-        z[r].is_finite()
-            && design.values[r * p..(r + 1) * p]
-                .iter()
-                .all(|v| v.is_finite())
-    };
+    // rows with every regressor and z finite, decided once
+    let ok: Vec<bool> = (0..design.nrows.min(z.len()))
+        .map(|r| {
+            z[r].is_finite()
+                && design.values[r * p..(r + 1) * p]
+                    .iter()
+                    .all(|v| v.is_finite())
+        })
+        .collect();
+    let row_ok = |r: usize| ok[r];
     // column scales over every binned row
     let mut ss = vec![0.0; dim];
     let mut cnt = 0.0f64;
@@ -616,8 +620,9 @@ pub fn bin_kappa(fit: &BinnedFit, b: usize) -> f64 {
 pub const KAPPA_MAX_LAG: usize = 50;
 
 /// Variance inflation from the residuals of one bin's fit (see the module
-/// doc): `rows` in time order within each maneuver, `theta` the bin's
-/// estimates. Lags only pair consecutive rows of the same maneuver.
+/// doc): `rows` increasing (time order within each maneuver), `theta` the bin's
+/// estimates. Lags pair rows within one run of consecutive rows of the same maneuver;
+/// each lag's autocovariance is summed run by run, in row order.
 pub fn residual_kappa(
     design: &Design,
     z: &[f64],
@@ -636,35 +641,50 @@ pub fn residual_kappa(
             z[i] - x.iter().zip(theta).map(|(a, b)| a * b).sum::<f64>()
         })
         .collect();
-    let ok: Vec<bool> = r.iter().map(|v| v.is_finite()).collect();
     let mean = {
         let (s, c) = r
             .iter()
-            .zip(&ok)
-            .filter(|(_, o)| **o)
-            .fold((0.0, 0.0), |(s, c), (v, _)| (s + v, c + 1.0));
+            .filter(|v| v.is_finite())
+            .fold((0.0, 0.0), |(s, c), v| (s + v, c + 1.0));
         if c > 0.0 {
             s / c
         } else {
             return 1.0;
         }
     };
+    // centred residuals, zero where not finite (such a row adds nothing to any lag)
+    let d: Vec<f64> = r
+        .iter()
+        .map(|v| if v.is_finite() { v - mean } else { 0.0 })
+        .collect();
     let g0: f64 = r
         .iter()
-        .zip(&ok)
-        .filter(|(_, o)| **o)
-        .map(|(v, _)| (v - mean).powi(2))
+        .filter(|v| v.is_finite())
+        .map(|v| (v - mean).powi(2))
         .sum();
     if g0 <= 0.0 {
         return 1.0;
     }
+    // runs of consecutive rows of one maneuver: [start, end) in positions of `rows`
+    let mut runs = Vec::new();
+    let mut start = 0;
+    for m in 1..=rows.len() {
+        if m == rows.len()
+            || rows[m] != rows[m - 1] + 1
+            || maneuver[rows[m]] != maneuver[rows[m - 1]]
+        {
+            runs.push((start, m));
+            start = m;
+        }
+    }
     let mut k_sum = 0.0;
     for k in 1..=KAPPA_MAX_LAG.min(rows.len().saturating_sub(1)) {
         let mut g = 0.0;
-        for m in 0..rows.len() - k {
-            let (a, b) = (rows[m], rows[m + k]);
-            if b == a + k && maneuver[a] == maneuver[b] && ok[m] && ok[m + k] {
-                g += (r[m] - mean) * (r[m + k] - mean);
+        for &(a, b) in &runs {
+            if b - a > k {
+                for (x, y) in d[a..b - k].iter().zip(&d[a + k..b]) {
+                    g += x * y;
+                }
             }
         }
         k_sum += (1.0 - k as f64 / (KAPPA_MAX_LAG as f64 + 1.0)) * g / g0;
@@ -1065,21 +1085,26 @@ fn select_impl(
             format!("has {} values for {nb} bins", kappa.map_or(0, <[f64]>::len)),
         ));
     }
-    let kappa: Vec<f64> = (0..nb)
-        .map(|b| {
-            if let Some(k) = kappa {
-                return k[b];
-            }
-            let bin = &pool_fit.bins[b];
-            if bin.std_err_colored.iter().any(|v| v.is_finite()) {
-                bin_kappa(pool_fit, b)
-            } else if fitted[b] {
-                residual_kappa(design, z, maneuver, &members[b], &bin.params)
-            } else {
-                1.0
-            }
-        })
-        .collect();
+    let kappa_of = |b: usize| {
+        if let Some(k) = kappa {
+            return k[b];
+        }
+        let bin = &pool_fit.bins[b];
+        if bin.std_err_colored.iter().any(|v| v.is_finite()) {
+            bin_kappa(pool_fit, b)
+        } else if fitted[b] {
+            residual_kappa(design, z, maneuver, &members[b], &bin.params)
+        } else {
+            1.0
+        }
+    };
+    #[cfg(feature = "parallel")]
+    let kappa: Vec<f64> = {
+        use rayon::prelude::*;
+        (0..nb).into_par_iter().map(kappa_of).collect()
+    };
+    #[cfg(not(feature = "parallel"))]
+    let kappa: Vec<f64> = (0..nb).map(kappa_of).collect();
 
     let mut selected = vec![vec![false; p]; nb];
     let mut partial_f = vec![vec![f64::NAN; p]; nb];
@@ -1732,6 +1757,45 @@ pub(crate) mod tests {
         assert!((kw - 1.0).abs() < 0.3, "{kw}");
         // the Bartlett window and the 50-lag truncation shrink 19 somewhat
         assert!(ka > 8.0 && ka < 19.0, "{ka}");
+    }
+
+    #[test]
+    fn residual_kappa_pairs_rows_within_runs_of_one_maneuver_only() {
+        // a bin's rows: three maneuvers, a gap inside the second, a NaN residual; the
+        // Bartlett-weighted autocorrelation written out pair by pair
+        let n = 900;
+        let mut rng = Stream::new(8, 3);
+        let mut z = vec![0.0; n];
+        for i in 1..n {
+            z[i] = 0.7 * z[i - 1] + rng.normal();
+        }
+        z[450] = f64::NAN;
+        let man: Vec<u64> = (0..n).map(|i| (i / 300) as u64).collect();
+        let rows: Vec<usize> = (0..n).filter(|i| !(380..395).contains(i)).collect();
+        let ones = vec![1.0; n];
+        let lookup = |c: &str| -> Option<&[f64]> { (c == "one").then_some(&ones[..]) };
+        let design = Design::build(&[("b".into(), "one".into())], &lookup, n).expect("design");
+        let theta = [0.2];
+        let r: Vec<f64> = rows.iter().map(|&i| z[i] - 0.2).collect();
+        let fin: Vec<f64> = r.iter().copied().filter(|v| v.is_finite()).collect();
+        let mean = fin.iter().sum::<f64>() / fin.len() as f64;
+        let g0: f64 = fin.iter().map(|v| (v - mean).powi(2)).sum();
+        let mut k_sum = 0.0;
+        for k in 1..=KAPPA_MAX_LAG {
+            let mut g = 0.0;
+            for m in 0..rows.len() - k {
+                let (a, b) = (rows[m], rows[m + k]);
+                let same = (a..=b).all(|i| man[i] == man[a]);
+                if b == a + k && same && r[m].is_finite() && r[m + k].is_finite() {
+                    g += (r[m] - mean) * (r[m + k] - mean);
+                }
+            }
+            k_sum += (1.0 - k as f64 / (KAPPA_MAX_LAG as f64 + 1.0)) * g / g0;
+        }
+        let want = (1.0 + 2.0 * k_sum).max(1.0);
+        let got = residual_kappa(&design, &z, &man, &rows, &theta);
+        assert!((got - want).abs() < 1e-12 * want, "{got} {want}");
+        assert!(want > 3.0, "{want}");
     }
 
     #[test]
