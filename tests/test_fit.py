@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import hashlib
 import shutil
 from pathlib import Path
 
@@ -11,7 +12,7 @@ import pytest
 
 import aerodelta as ad
 from aerodelta.exceptions import DataError
-from aerodelta.fit import DEFAULT_STRUCTURES, model_frame, stall_alpha
+from aerodelta.fit import DEFAULT_STRUCTURES, _data_hash, model_frame, stall_alpha
 
 
 @pytest.fixture(scope="module")
@@ -69,6 +70,31 @@ def test_model_round_trip(result: ad.FitResult, split: tuple, tmp_path: Path) ->
         np.testing.assert_array_equal(a[c].to_numpy(), b[c].to_numpy())
     prov = back.to_spec()["provenance"]
     assert prov["library"].startswith("aerodelta ") and len(prov["data_sha256"]) == 64
+
+
+def test_data_fingerprint_is_the_sha256_of_the_documented_bytes() -> None:
+    """The provenance hash (``data_sha256``) written out by hand with hashlib: shape, then per
+    column in name order its name and its float64 bytes (nulls as NaN), or its text joined
+    by U+001F (nulls as "None", booleans as Python prints them)."""
+    df = pl.DataFrame(
+        {
+            "b_f64": [1.5, None, -0.0],
+            "a_i32": pl.Series([3, None, 7], dtype=pl.Int32),
+            "c_f32": pl.Series([0.1, 2.0, None], dtype=pl.Float32),
+            "d_id": ["m1", None, "m2"],
+            "e_flag": [True, None, False],
+            "f_enum": pl.Series(["x", "y", "x"], dtype=pl.Enum(["x", "y"])),
+        }
+    )
+    h = hashlib.sha256(str(df.shape).encode())
+    for name in sorted(df.columns):
+        h.update(name.encode())
+        values = df[name].to_list()
+        if df[name].dtype.is_numeric():
+            h.update(np.array([np.nan if v is None else v for v in values], dtype=float).tobytes())
+        else:
+            h.update("\x1f".join("None" if v is None else str(v) for v in values).encode())
+    assert _data_hash(df) == h.hexdigest()
 
 
 def test_fit_never_needs_the_truth_files(campaign: Path, tmp_path: Path) -> None:

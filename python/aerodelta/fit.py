@@ -33,7 +33,6 @@ from tqdm import tqdm
 
 from aerodelta import _core
 from aerodelta._core import __version__
-from aerodelta._groups import group_agg
 from aerodelta._threads import engine_threads
 from aerodelta._toml import read_toml
 from aerodelta.exceptions import DataError, InvalidInputError
@@ -606,18 +605,24 @@ def stall_alpha(data: pl.DataFrame, bin_deg: float = 0.5, min_points: int = 50) 
         ct = (data["ct_left"].cast(pl.Float64) + data["ct_right"].cast(pl.Float64)).to_numpy()
         cx = cx - np.where(np.isfinite(ct), ct, 0.0)
     cl = -data["CZ_meas"].to_numpy() * np.cos(a) + cx * np.sin(a)
-    df = pl.DataFrame({"b": np.floor(data["alpha_deg"].to_numpy() / bin_deg), "cl": cl})
-    # the bins' means summed in row order (_groups: a polars group-by mean splits its sums
-    # over the thread pool, and a near tie could go either way with the thread count)
-    g = (
-        group_agg(df.drop_nans(), ["b"], {"cl": ("cl", "mean")}, exact=[pl.len().alias("n")])
-        .filter(pl.col("n") >= min_points)
-        # equal means: the lowest bin (the hash grouping leaves the tie order random)
-        .sort(["cl", "b"], descending=[True, False])
-    )
-    if g.height == 0:
+    b = np.floor(data["alpha_deg"].cast(pl.Float64).to_numpy() / bin_deg)
+    ok = np.isfinite(b) & ~np.isnan(cl)
+    if not ok.any():
         raise DataError("cannot detect the stall alpha: no alpha bin holds enough points")
-    return float((g["b"][0] + 0.5) * bin_deg)
+    # the bins' means summed in row order with np.bincount over integer bin numbers (a
+    # polars group-by mean splits its sums over the thread pool, and a near tie could go
+    # either way with the thread count)
+    bins = b[ok].astype(np.int64)
+    lo = int(bins.min())
+    n = np.bincount(bins - lo)
+    total = np.bincount(bins - lo, weights=cl[ok])
+    with np.errstate(invalid="ignore", divide="ignore"):
+        mean = np.where(n >= min_points, total / n, np.nan)
+    if np.isnan(mean).all():
+        raise DataError("cannot detect the stall alpha: no alpha bin holds enough points")
+    # the largest mean; equal means: the lowest bin (argmax takes the first)
+    best = int(np.argmax(np.where(np.isnan(mean), -np.inf, mean)))
+    return float((lo + best + 0.5) * bin_deg)
 
 
 @dataclass(frozen=True)
@@ -1535,24 +1540,28 @@ class ChainCalibration:
         )
 
 
-def _time_derivatives(
-    t: np.ndarray, y: np.ndarray, maneuver: np.ndarray
-) -> tuple[np.ndarray, np.ndarray]:
-    """First and second time derivatives of ``y`` by three-point differences on the sample
-    times ``t`` (s; unequal spacing allowed), within each maneuver's contiguous samples (rows
-    in time order, as ingested). NaN at a maneuver's ends, across a gap (a spacing over 1.5 x
-    the median) and where a neighbour is not finite."""
-    n = t.size
-    d1 = np.full(n, np.nan)
-    d2 = np.full(n, np.nan)
-    if n < 3:
-        return d1, d2
+@dataclass(frozen=True)
+class _Stencil:
+    """Three-point difference weights on the sample times of :func:`_time_derivatives`:
+    ``ok`` marks the interior samples with both neighbours usable; the spacings ``hm``, ``hp``
+    (s) to the previous and next sample."""
+
+    ok: np.ndarray
+    hm: np.ndarray
+    hp: np.ndarray
+
+
+def _stencil(t: np.ndarray, maneuver: np.ndarray) -> _Stencil | None:
+    """The difference stencil of :func:`_time_derivatives` (``None``: no usable spacing),
+    shared by every signal sampled at ``t``."""
+    if t.size < 3:
+        return None
     hm = t[1:-1] - t[:-2]
     hp = t[2:] - t[1:-1]
     steps = np.diff(t)[maneuver[1:] == maneuver[:-1]]
     steps = steps[np.isfinite(steps) & (steps > 0)]
     if steps.size == 0:
-        return d1, d2
+        return None
     gap = 1.5 * float(np.median(steps))
     ok = (
         (maneuver[:-2] == maneuver[1:-1])
@@ -1562,14 +1571,32 @@ def _time_derivatives(
         & (hm <= gap)
         & (hp <= gap)
     )
+    return _Stencil(ok, hm, hp)
+
+
+def _time_derivatives(
+    t: np.ndarray, y: np.ndarray, maneuver: np.ndarray, stencil: _Stencil | None = None
+) -> tuple[np.ndarray, np.ndarray]:
+    """First and second time derivatives of ``y`` by three-point differences on the sample
+    times ``t`` (s; unequal spacing allowed), within each maneuver's contiguous samples (rows
+    in time order, as ingested). NaN at a maneuver's ends, across a gap (a spacing over 1.5 x
+    the median) and where a neighbour is not finite. ``stencil``: :func:`_stencil` of ``t``
+    and ``maneuver``, when computed already."""
+    n = t.size
+    d1 = np.full(n, np.nan)
+    d2 = np.full(n, np.nan)
+    st = stencil if stencil is not None else _stencil(t, maneuver)
+    if st is None:
+        return d1, d2
+    hm, hp = st.hm, st.hp
     ym, y0, yp = y[:-2], y[1:-1], y[2:]
     with np.errstate(invalid="ignore", divide="ignore"):
         sp = (yp - y0) / hp
         sm = (y0 - ym) / hm
         first = (sp * hm + sm * hp) / (hm + hp)
         second = 2.0 * (sp - sm) / (hm + hp)
-    d1[1:-1] = np.where(ok, first, np.nan)
-    d2[1:-1] = np.where(ok, second, np.nan)
+    d1[1:-1] = np.where(st.ok, first, np.nan)
+    d2[1:-1] = np.where(st.ok, second, np.nan)
     return d1, d2
 
 
@@ -1687,12 +1714,13 @@ def calibrate_chain(
     for f in flaps:
         alpha_l[flap == f] = _per_flap(cfg.alpha_l_deg, f, "alpha_l_deg")
     trusted = np.isfinite(alpha) & (alpha < alpha_l)
+    stencil = _stencil(t, man)
 
     def one(c: str) -> tuple[np.ndarray, tuple[float, float, float, float, int, int]] | str:
         """Coefficient ``c``: its calibrated values and (τ, κ, their t, samples, maneuvers),
         or why it is skipped."""
         qc = out[c]
-        d1, d2 = _time_derivatives(t, qc, man)
+        d1, d2 = _time_derivatives(t, qc, man, stencil)
         z = df[f"{c}_meas"].cast(pl.Float64).to_numpy() - qc
         rows = trusted & np.isfinite(z) & np.isfinite(d1) & np.isfinite(d2)
         terms = _structure_columns(df, c, (structures or {}).get(c, []), rows)
@@ -1931,13 +1959,20 @@ def fit(
         for f, n in df.group_by("flap_deg").agg(pl.col("maneuver_id").n_unique()).iter_rows()
         if f is not None
     }
-    parts = {float(k[0]): v for k, v in df.partition_by("flap_deg", as_dict=True).items()}
-    for flap in flaps:
-        stall[flap] = float(cfg.stall_alpha_deg.get(flap, stall_alpha(parts[flap])))
     # the columns any regressor can read (names appearing in its expression), and the fit's own
     exprs = [e for c in coefs for _, e in [*cfg.structures[c], *pools.get(c, [])]]
     wanted = {"alpha_deg", "t", *(f"{c}_{k}" for c in coefs for k in ("meas", "qual"))}
     wanted |= {c for c in df.columns if any(c in e for e in exprs)}
+    # per flap, those and what stall_alpha reads (the other columns are not copied)
+    keep = wanted | {"flap_deg", "maneuver_id", "CX_meas", "CZ_meas", "ct_left", "ct_right"}
+    parts = {
+        float(k[0]): v
+        for k, v in df.select([c for c in df.columns if c in keep])
+        .partition_by("flap_deg", as_dict=True)
+        .items()
+    }
+    for flap in flaps:
+        stall[flap] = float(cfg.stall_alpha_deg.get(flap, stall_alpha(parts[flap])))
     with ThreadPoolExecutor(max_workers=engine_threads(cap=4)) as ex:
         # the provenance hash (hashlib releases the GIL) beside the engine's fits
         data_hash = ex.submit(_data_hash, data)
@@ -2006,11 +2041,17 @@ def _data_hash(data: pl.DataFrame) -> str:
         h.update(c.encode())
         s = data[c]
         if s.dtype.is_numeric():
-            h.update(
-                np.ascontiguousarray(s.cast(pl.Float64).fill_null(np.nan).to_numpy()).tobytes()
-            )
+            # float64 bytes, nulls as NaN; hashed from the array's buffer (no copy to bytes)
+            if s.dtype != pl.Float64:
+                s = s.cast(pl.Float64)
+            if s.null_count():
+                s = s.fill_null(np.nan)
+            h.update(np.ascontiguousarray(s.to_numpy()))
         elif s.dtype in (pl.Utf8, pl.Categorical) or isinstance(s.dtype, pl.Enum):  # fast path
             h.update(s.cast(pl.Utf8).fill_null("None").str.join("\x1f")[0].encode())
+        elif s.dtype == pl.Boolean:  # the text of str(bool), as below, without a Python list
+            text = s.replace_strict({True: "True", False: "False"}, return_dtype=pl.Utf8)
+            h.update(text.fill_null("None").str.join("\x1f")[0].encode())
         else:
             h.update("\x1f".join(map(str, s.to_list())).encode())
     return h.hexdigest()
