@@ -189,6 +189,61 @@ fn unpack_lower_into(tri: &[f64], dim: usize, g: &mut [f64]) {
     }
 }
 
+/// Add `Σ_r x_r x_rᵀ` over the rows of `rows` (row-major, `dim` wide) to the lower triangle
+/// `tri` (packed by rows). Each entry is summed over the rows in their order, a few entries
+/// of a row of the triangle at a time held in registers: the same sums, in the same order,
+/// as adding one row's outer product after another.
+fn gram_lower_add(rows: &[f64], dim: usize, tri: &mut [f64]) {
+    let mut at = 0;
+    for a in 0..dim {
+        let len = a + 1;
+        let mut b0 = 0;
+        while b0 < len {
+            // the widest kernel that stays inside the row; entries past the triangle's row
+            // (b > a) are computed and not stored
+            let w = len - b0;
+            let done = if b0 + 8 <= dim {
+                gram_entries::<8>(rows, dim, a, b0, &mut tri[at + b0..at + len])
+            } else if b0 + 4 <= dim {
+                gram_entries::<4>(rows, dim, a, b0, &mut tri[at + b0..at + len])
+            } else if b0 + 2 <= dim {
+                gram_entries::<2>(rows, dim, a, b0, &mut tri[at + b0..at + len])
+            } else {
+                gram_entries::<1>(rows, dim, a, b0, &mut tri[at + b0..at + len])
+            };
+            debug_assert!(done >= 1 && done <= w);
+            b0 += done;
+        }
+        at += len;
+    }
+}
+
+/// `out[k] += Σ_r x_r[a] x_r[b0 + k]` for `k < min(W, out.len())`, summed over the rows in
+/// order in `W` registers (`b0 + W <= dim`); returns how many entries were written.
+#[inline(always)]
+fn gram_entries<const W: usize>(
+    rows: &[f64],
+    dim: usize,
+    a: usize,
+    b0: usize,
+    out: &mut [f64],
+) -> usize {
+    let w = W.min(out.len());
+    let mut acc = [0.0f64; W];
+    acc[..w].copy_from_slice(&out[..w]);
+    for row in rows.chunks_exact(dim) {
+        let xa = row[a];
+        let xb: &[f64; W] = row[b0..b0 + W]
+            .try_into()
+            .expect("W columns inside the row");
+        for k in 0..W {
+            acc[k] += xa * xb[k];
+        }
+    }
+    out[..w].copy_from_slice(&acc[..w]);
+    w
+}
+
 /// Accumulate the per-(bin, maneuver) augmented Gram matrices of `design`
 /// and `z` over the bins' rows (`members[b]`: row indices of bin b). Rows with
 /// a non-finite regressor or z are skipped (as the per-bin fit drops them).
@@ -236,32 +291,25 @@ pub fn bin_grams(design: &Design, z: &[f64], members: &[Vec<usize>], maneuver: &
         let mut order: Vec<usize> = rows.iter().copied().filter(|&r| row_ok(r)).collect();
         order.sort_by_key(|&r| maneuver[r]);
         let mut st = BinStats::default();
-        let mut v = vec![0.0; dim];
-        for r in order {
-            let m = maneuver[r];
-            if st.maneuvers.last() != Some(&m) {
-                st.maneuvers.push(m);
-                st.n.push(0);
-                st.packed.extend(std::iter::repeat_n(0.0, wdt));
+        // one maneuver's scaled rows (row-major, `dim` wide) at a time
+        let mut buf: Vec<f64> = Vec::new();
+        for group in order.chunk_by(|&a, &b| maneuver[a] == maneuver[b]) {
+            buf.clear();
+            for &r in group {
+                let x = &design.values[r * p..(r + 1) * p];
+                buf.extend(x.iter().zip(&scale).map(|(v, s)| v / s));
+                buf.push(z[r] / scale[p]);
             }
-            let k = st.maneuvers.len() - 1;
-            st.n[k] += 1;
-            for j in 0..p {
-                v[j] = design.values[r * p + j] / scale[j];
-            }
-            v[p] = z[r] / scale[p];
-            // the lower triangle by rows, then the sums
-            let (tri, sums) = st.packed[k * wdt..(k + 1) * wdt].split_at_mut(wdt - dim);
-            let mut at = 0;
-            for a in 0..dim {
-                let va = v[a];
-                for (t, vb) in tri[at..=at + a].iter_mut().zip(&v[..=a]) {
-                    *t += va * vb;
+            st.maneuvers.push(maneuver[group[0]]);
+            st.n.push(group.len());
+            let at = st.packed.len();
+            st.packed.extend(std::iter::repeat_n(0.0, wdt));
+            let (tri, sums) = st.packed[at..].split_at_mut(wdt - dim);
+            gram_lower_add(&buf, dim, tri);
+            for row in buf.chunks_exact(dim) {
+                for (s, x) in sums.iter_mut().zip(row) {
+                    *s += x;
                 }
-                at += a + 1;
-            }
-            for (s, x) in sums.iter_mut().zip(&v) {
-                *s += x;
             }
         }
         st
@@ -1757,6 +1805,35 @@ pub(crate) mod tests {
         assert!((kw - 1.0).abs() < 0.3, "{kw}");
         // the Bartlett window and the 50-lag truncation shrink 19 somewhat
         assert!(ka > 8.0 && ka < 19.0, "{ka}");
+    }
+
+    #[test]
+    fn gram_triangle_is_the_sum_of_the_rows_outer_products_bit_for_bit() {
+        // every width the kernels take (dim 1 to 21), from a non-zero start: each entry is
+        // the running sum of x_a x_b over the rows, in row order
+        let mut rng = Stream::new(11, 4);
+        for dim in 1..=21 {
+            let m = 7;
+            let rows: Vec<f64> = (0..m * dim).map(|_| rng.normal()).collect();
+            let start: Vec<f64> = (0..dim * (dim + 1) / 2).map(|_| rng.normal()).collect();
+            let mut want = start.clone();
+            for row in rows.chunks_exact(dim) {
+                let mut at = 0;
+                for a in 0..dim {
+                    for b in 0..=a {
+                        want[at] += row[a] * row[b];
+                        at += 1;
+                    }
+                }
+            }
+            let mut got = start.clone();
+            gram_lower_add(&rows, dim, &mut got);
+            assert_eq!(
+                got.iter().map(|v| v.to_bits()).collect::<Vec<_>>(),
+                want.iter().map(|v| v.to_bits()).collect::<Vec<_>>(),
+                "dim {dim}"
+            );
+        }
     }
 
     #[test]
