@@ -233,11 +233,10 @@ fn gram_entries<const W: usize>(
     acc[..w].copy_from_slice(&out[..w]);
     for row in rows.chunks_exact(dim) {
         let xa = row[a];
-        let xb: &[f64; W] = row[b0..b0 + W]
-            .try_into()
-            .expect("W columns inside the row");
-        for k in 0..W {
-            acc[k] += xa * xb[k];
+        if let Ok(xb) = <&[f64; W]>::try_from(&row[b0..b0 + W]) {
+            for k in 0..W {
+                acc[k] += xa * xb[k];
+            }
         }
     }
     out[..w].copy_from_slice(&acc[..w]);
