@@ -390,6 +390,65 @@ pub fn solve_subset_into(
     th.iter().all(|v| v.is_finite()).then_some(sse)
 }
 
+/// The columns `0..p` of the augmented Gram matrix `g` kept in order when each is tried
+/// after the kept ones and left out where [`solve_subset`] of the kept ones and it fails (a
+/// Cholesky pivot below `1e-10` of its diagonal, or estimates not finite). The factor is
+/// grown a row per column: the rows of a Cholesky factor of the first `k` columns are those of
+/// the first `k` rows of any longer one, so each trial costs `O(k²)`, not a factorization, and
+/// decides as the trial factorization does, to the bit.
+fn independent_columns(g: &[f64], dim: usize, p: usize) -> Vec<usize> {
+    let zc = dim - 1;
+    let mut cols: Vec<usize> = Vec::with_capacity(p);
+    // rows of L with stride p, the forward solution y and the estimates th
+    let mut l = vec![0.0; p * p];
+    let (mut y, mut th) = (vec![0.0; p], vec![0.0; p]);
+    for c in 0..p {
+        let i = cols.len();
+        // row i of L for the columns cols + [c]
+        let col = |j: usize| if j == i { c } else { cols[j] };
+        let mut ok = true;
+        for j in 0..=i {
+            let mut s = g[c * dim + col(j)];
+            for m in 0..j {
+                s -= l[i * p + m] * l[j * p + m];
+            }
+            if i == j {
+                let d = g[c * dim + c];
+                if s.is_nan() || s <= 1e-10 * d || d <= 0.0 {
+                    ok = false;
+                    break;
+                }
+                l[i * p + i] = s.sqrt();
+            } else {
+                l[i * p + j] = s / l[j * p + j];
+            }
+        }
+        if !ok {
+            continue;
+        }
+        // the solution with the new column: every estimate finite
+        let k = i + 1;
+        for r in 0..k {
+            let mut s = g[col(r) * dim + zc];
+            for m in 0..r {
+                s -= l[r * p + m] * y[m];
+            }
+            y[r] = s / l[r * p + r];
+        }
+        for r in (0..k).rev() {
+            let mut s = y[r];
+            for m in r + 1..k {
+                s -= l[m * p + r] * th[m];
+            }
+            th[r] = s / l[r * p + r];
+        }
+        if th[..k].iter().all(|v| v.is_finite()) {
+            cols.push(c);
+        }
+    }
+    cols
+}
+
 /// Held-out sums of a fit `theta` on `cols` against another augmented Gram
 /// matrix: `(Σ(z-ẑ)², Σz², Σẑ²)` in scaled units.
 pub fn held_out(g: &[f64], dim: usize, cols: &[usize], theta: &[f64]) -> (f64, f64, f64) {
@@ -1530,13 +1589,7 @@ pub fn pool_bins_grams(
                 bin.notes = vec!["bin not fitted: too little data".into(); p];
                 return bin;
             }
-            let mut cols: Vec<usize> = Vec::new();
-            for j in 0..p {
-                cols.push(j);
-                if solve_subset(g, dim, &cols).is_none() {
-                    cols.pop();
-                }
-            }
+            let cols = independent_columns(g, dim, p);
             if let Some((th, sse)) = solve_subset(g, dim, &cols) {
                 bin.params = vec![0.0; p];
                 for (i, &j) in cols.iter().enumerate() {
@@ -1804,6 +1857,44 @@ pub(crate) mod tests {
         assert!((kw - 1.0).abs() < 0.3, "{kw}");
         // the Bartlett window and the 50-lag truncation shrink 19 somewhat
         assert!(ka > 8.0 && ka < 19.0, "{ka}");
+    }
+
+    #[test]
+    fn independent_columns_keep_what_refactoring_each_trial_keeps() {
+        // columns: x0, x1, x0 + x1 (dependent), a zero column, x2, 1e-7 x0 + x3 (kept), and
+        // x1 - x2 (dependent); the trial-by-trial factorizations decide the reference
+        let n = 400;
+        let mut rng = Stream::new(21, 1);
+        let x: Vec<Vec<f64>> = (0..4)
+            .map(|_| (0..n).map(|_| rng.normal()).collect())
+            .collect();
+        let cols: Vec<Vec<f64>> = vec![
+            x[0].clone(),
+            x[1].clone(),
+            (0..n).map(|i| x[0][i] + x[1][i]).collect(),
+            vec![0.0; n],
+            x[2].clone(),
+            (0..n).map(|i| 1e-7 * x[0][i] + x[3][i]).collect(),
+            (0..n).map(|i| x[1][i] - x[2][i]).collect(),
+        ];
+        let z: Vec<f64> = (0..n)
+            .map(|i| x[0][i] - 2.0 * x[2][i] + rng.normal())
+            .collect();
+        let p = cols.len();
+        let dim = p + 1;
+        let v = |c: usize, i: usize| if c < p { cols[c][i] } else { z[i] };
+        let g: Vec<f64> = (0..dim * dim)
+            .map(|ab| (0..n).map(|i| v(ab / dim, i) * v(ab % dim, i)).sum())
+            .collect();
+        let mut want: Vec<usize> = Vec::new();
+        for j in 0..p {
+            want.push(j);
+            if solve_subset(&g, dim, &want).is_none() {
+                want.pop();
+            }
+        }
+        assert_eq!(independent_columns(&g, dim, p), want);
+        assert_eq!(want, vec![0, 1, 4, 5]);
     }
 
     #[test]
