@@ -289,7 +289,13 @@ pub fn bin_grams(design: &Design, z: &[f64], members: &[Vec<usize>], maneuver: &
     let work = |rows: &Vec<usize>| -> BinStats {
         let mut order: Vec<usize> = rows.iter().copied().filter(|&r| row_ok(r)).collect();
         order.sort_by_key(|&r| maneuver[r]);
-        let mut st = BinStats::default();
+        // sized once: one run of packed statistics per maneuver
+        let groups = order.chunk_by(|&a, &b| maneuver[a] == maneuver[b]).count();
+        let mut st = BinStats {
+            maneuvers: Vec::with_capacity(groups),
+            n: Vec::with_capacity(groups),
+            packed: Vec::with_capacity(groups * wdt),
+        };
         // one maneuver's scaled rows (row-major, `dim` wide) at a time
         let mut buf: Vec<f64> = Vec::new();
         for group in order.chunk_by(|&a, &b| maneuver[a] == maneuver[b]) {
