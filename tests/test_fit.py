@@ -222,6 +222,21 @@ def test_a_setting_of_the_wrong_type_is_refused_in_one_line(
             ad.FitConfig.from_toml(p)
 
 
+def test_stall_alpha_reads_past_wild_and_missing_alphas() -> None:
+    """C_L = 1.5 - 0.004 (alpha - 16)^2 peaks at 16 deg; rows at 1e12 deg (a bin far from the
+    others, too few points to count) or with no alpha do not move the 0.5-deg bin found."""
+    alpha = np.repeat(np.arange(8.0, 24.0, 0.01), 3)
+    a = np.radians(alpha)
+    cl = 1.5 - 0.004 * (alpha - 16.0) ** 2
+    d = pl.DataFrame({"alpha_deg": alpha, "CZ_meas": -cl * np.cos(a), "CX_meas": cl * np.sin(a)})
+    wild = pl.DataFrame(
+        {"alpha_deg": [1e12, None, np.nan], "CZ_meas": [-9.0, -9.0, -9.0], "CX_meas": [0.0] * 3}
+    )
+    plain = stall_alpha(d)
+    assert abs(plain - 16.0) <= 0.25
+    assert stall_alpha(pl.concat([wild, d])) == plain
+
+
 def test_stall_alpha_is_the_wings_not_the_thrusts() -> None:
     """Closed form: an aerodynamic C_L peaking at 16 deg, a thrust coefficient 0.6 along body
     x. The total body force's lift-wise component C_L + C_T sin(alpha) peaks ~1.2 deg later;

@@ -612,17 +612,22 @@ def stall_alpha(data: pl.DataFrame, bin_deg: float = 0.5, min_points: int = 50) 
     # the bins' means summed in row order with np.bincount over integer bin numbers (a
     # polars group-by mean splits its sums over the thread pool, and a near tie could go
     # either way with the thread count)
-    bins = b[ok].astype(np.int64)
-    lo = int(bins.min())
-    n = np.bincount(bins - lo)
-    total = np.bincount(bins - lo, weights=cl[ok])
+    bins = b[ok]
+    lo = float(bins.min())
+    if float(bins.max()) - lo <= 100_000:  # the bin numbers as offsets from the lowest
+        idx = (bins - lo).astype(np.int64)
+        keys = lo + np.arange(int(idx.max()) + 1, dtype=float)
+    else:  # a wild alpha: only the bins present
+        keys, idx = np.unique(bins, return_inverse=True)
+    n = np.bincount(idx)
+    total = np.bincount(idx, weights=cl[ok])
     with np.errstate(invalid="ignore", divide="ignore"):
         mean = np.where(n >= min_points, total / n, np.nan)
     if np.isnan(mean).all():
         raise DataError("cannot detect the stall alpha: no alpha bin holds enough points")
     # the largest mean; equal means: the lowest bin (argmax takes the first)
     best = int(np.argmax(np.where(np.isnan(mean), -np.inf, mean)))
-    return float((lo + best + 0.5) * bin_deg)
+    return float((keys[best] + 0.5) * bin_deg)
 
 
 @dataclass(frozen=True)
