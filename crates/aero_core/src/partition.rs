@@ -243,11 +243,16 @@ pub fn partition_alpha(
         ));
     }
     let mut sets: Option<Vec<Vec<u64>>> = maneuver_id.map(|ids| {
-        let mut pairs: Vec<(usize, u64)> = fine_index
-            .iter()
-            .zip(ids)
-            .filter_map(|(b, &id)| b.map(|b| (b, id)))
-            .collect();
+        // consecutive samples mostly share their (fine bin, maneuver): repeats dropped before
+        // the sort
+        let mut pairs: Vec<(usize, u64)> = Vec::new();
+        for (b, &id) in fine_index.iter().zip(ids) {
+            if let Some(b) = *b {
+                if pairs.last() != Some(&(b, id)) {
+                    pairs.push((b, id));
+                }
+            }
+        }
         pairs.sort_unstable();
         pairs.dedup();
         let mut sets = vec![Vec::new(); nfine];
