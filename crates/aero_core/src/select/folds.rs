@@ -9,6 +9,7 @@
 use super::{packed_width, unpack_lower_into, BinGrams};
 
 /// Gram matrices (`dim × dim`, row-major), column sums and sample counts per bin and fold.
+#[derive(Clone)]
 pub(super) struct FoldGrams {
     dim: usize,
     folds: usize,
@@ -112,5 +113,65 @@ impl CvGrams {
             }
         }
         out
+    }
+
+    /// These statistics with fold `out`'s maneuvers given weight 0, as [`CvGrams::new`] would
+    /// sum them (the nested cross-validation's selection on the other folds): the other
+    /// folds' sums are unchanged, fold `out`'s are zero, and the totals and training sets are
+    /// summed again in fold order, elementwise as `new` sums the packed entries, so the
+    /// result is the same to the bit without a second pass over the maneuvers.
+    pub(super) fn without_fold(&self, out: usize) -> Self {
+        let (dim, nf) = (self.folds.dim, self.folds.folds);
+        let nb = self.totals.n.len();
+        let (d2, mut folds) = (dim * dim, self.folds.clone());
+        for b in 0..nb {
+            let i = b * nf + out;
+            folds.g[i * d2..(i + 1) * d2].fill(0.0);
+            folds.s[i * dim..(i + 1) * dim].fill(0.0);
+            folds.n[i] = 0.0;
+        }
+        let mut totals = FoldGrams::zeros(dim, nb, 1);
+        let mut trains = FoldGrams::zeros(dim, nb, nf);
+        for b in 0..nb {
+            let (tg, ts) = (
+                &mut totals.g[b * d2..(b + 1) * d2],
+                &mut totals.s[b * dim..(b + 1) * dim],
+            );
+            let mut n_total = 0.0;
+            for f in 0..nf {
+                let i = b * nf + f;
+                tg.iter_mut()
+                    .zip(&folds.g[i * d2..(i + 1) * d2])
+                    .for_each(|(a, v)| *a += v);
+                ts.iter_mut()
+                    .zip(&folds.s[i * dim..(i + 1) * dim])
+                    .for_each(|(a, v)| *a += v);
+                n_total += folds.n[i];
+            }
+            totals.n[b] = n_total;
+            for f in 0..nf {
+                let i = b * nf + f;
+                for ((t, a), v) in trains.g[i * d2..(i + 1) * d2]
+                    .iter_mut()
+                    .zip(&*tg)
+                    .zip(&folds.g[i * d2..(i + 1) * d2])
+                {
+                    *t = a - v;
+                }
+                for ((t, a), v) in trains.s[i * dim..(i + 1) * dim]
+                    .iter_mut()
+                    .zip(&*ts)
+                    .zip(&folds.s[i * dim..(i + 1) * dim])
+                {
+                    *t = a - v;
+                }
+                trains.n[i] = n_total - folds.n[i];
+            }
+        }
+        CvGrams {
+            folds,
+            totals,
+            trains,
+        }
     }
 }

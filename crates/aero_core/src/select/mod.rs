@@ -1116,7 +1116,7 @@ pub fn select_weighted(
     kappa: Option<&[f64]>,
 ) -> Result<Selection> {
     select_impl(
-        design, z, maneuver, pool_fit, grams, opts, weights, kappa, true,
+        design, z, maneuver, pool_fit, grams, opts, weights, kappa, true, None,
     )
 }
 
@@ -1144,13 +1144,15 @@ pub fn select_chosen(
         ..opts.clone()
     };
     select_impl(
-        design, z, maneuver, pool_fit, grams, &so, weights, kappa, false,
+        design, z, maneuver, pool_fit, grams, &so, weights, kappa, false, None,
     )
     .map(|s| s.chosen)
 }
 
 /// [`select_weighted`]; with `report` false, the reporting scores (`full`, `extra`,
-/// `pruned`) are not computed and left as [`CvScore::not_computed`].
+/// `pruned`) are not computed and left as [`CvScore::not_computed`]. `given`: the
+/// cross-validation's statistics for these `weights` when the caller has them
+/// ([`CvGrams::without_fold`]), else they are summed here.
 #[allow(clippy::too_many_arguments)]
 fn select_impl(
     design: &Design,
@@ -1162,6 +1164,7 @@ fn select_impl(
     weights: Option<&std::collections::HashMap<u64, f64>>,
     kappa: Option<&[f64]>,
     report: bool,
+    given: Option<CvGrams>,
 ) -> Result<Selection> {
     check_inputs(design, z, maneuver, pool_fit, opts)?;
     let weight = |m: &u64| weights.map_or(1.0, |w| w.get(m).copied().unwrap_or(0.0));
@@ -1184,12 +1187,14 @@ fn select_impl(
     // per bin and fold, the fold's Gram matrix (every maneuver is in one fold), in one pass
     // over the maneuvers; a bin's total is the sum of its folds
     let fold_map = fold_of(maneuver, opts.folds, opts.seed);
-    let cv = CvGrams::new(
-        grams,
-        opts.folds,
-        |b, k| fold_map.get(&grams.bins[b].maneuvers[k]).copied(),
-        |b, k| weight(&grams.bins[b].maneuvers[k]),
-    );
+    let cv = given.unwrap_or_else(|| {
+        CvGrams::new(
+            grams,
+            opts.folds,
+            |b, k| fold_map.get(&grams.bins[b].maneuvers[k]).copied(),
+            |b, k| weight(&grams.bins[b].maneuvers[k]),
+        )
+    });
     let (folds, trains) = (&cv.folds, &cv.trains);
     if kappa.is_some_and(|k| k.len() != nb) {
         return Err(AeroError::invalid(
@@ -1424,21 +1429,30 @@ fn select_impl(
     // nested cross-validation: the selection reruns on each fold's training maneuvers (the
     // same fold assignment, so its inner folds are the other folds)
     let (outer, outer_chosen) = if opts.nested {
+        let inner = SelectOptions {
+            nested: false,
+            ..opts.clone()
+        };
         let select_fold = |f: usize| -> Result<Vec<usize>> {
             let w: std::collections::HashMap<u64, f64> = fold_map
                 .iter()
                 .map(|(m, &fm)| (*m, if fm == f { 0.0 } else { weight(m) }))
                 .collect();
-            select_chosen(
+            // select_chosen with these weights; their fold sums are this selection's
+            // without fold f
+            select_impl(
                 design,
                 z,
                 maneuver,
                 pool_fit,
                 grams,
-                opts,
+                &inner,
                 Some(&w),
                 Some(&kappa),
+                false,
+                Some(cv.without_fold(f)),
             )
+            .map(|s| s.chosen)
         };
         #[cfg(feature = "parallel")]
         let per_fold: Vec<Vec<usize>> = {
@@ -1901,6 +1915,63 @@ pub(crate) mod tests {
         }
         assert_eq!(independent_columns(&g, dim, p), want);
         assert_eq!(want, vec![0, 1, 4, 5]);
+    }
+
+    #[test]
+    fn fold_sums_without_a_fold_are_those_summed_with_its_weights_zero() {
+        // the nested cross-validation's statistics derived from the outer ones equal, bit for
+        // bit, those summed afresh over the maneuvers with the left-out fold's weights 0
+        // (weights other than 1 too, and a maneuver with weight 0 already)
+        let (design, z, alpha, man) = data(20_000, 7);
+        let opts = iid_identify();
+        let (_, grams) = pool_bins_grams(&design, &z, &alpha, &man, &opts).expect("pool");
+        let nf = 5;
+        let fold_map = fold_of(&man, nf, 3);
+        let weight = |m: u64| [1.0, 2.0, 0.0, 1.0, 3.0][(m % 5) as usize];
+        let build = |out: Option<usize>| {
+            CvGrams::new(
+                &grams,
+                nf,
+                |b, k| fold_map.get(&grams.bins[b].maneuvers[k]).copied(),
+                |b, k| {
+                    let m = grams.bins[b].maneuvers[k];
+                    if Some(fold_map[&m]) == out {
+                        0.0
+                    } else {
+                        weight(m)
+                    }
+                },
+            )
+        };
+        let outer = build(None);
+        let bits = |g: &FoldGrams, b: usize, f: usize| {
+            let (m, s, n) = g.get(b, f);
+            let mut v: Vec<u64> = m.iter().chain(s).map(|x| x.to_bits()).collect();
+            v.push(n.to_bits());
+            v
+        };
+        for out in 0..nf {
+            let (want, got) = (build(Some(out)), outer.without_fold(out));
+            for b in 0..grams.bins.len() {
+                assert_eq!(
+                    bits(&got.totals, b, 0),
+                    bits(&want.totals, b, 0),
+                    "total {b}"
+                );
+                for f in 0..nf {
+                    assert_eq!(
+                        bits(&got.folds, b, f),
+                        bits(&want.folds, b, f),
+                        "fold {b} {f}"
+                    );
+                    assert_eq!(
+                        bits(&got.trains, b, f),
+                        bits(&want.trains, b, f),
+                        "train {b}"
+                    );
+                }
+            }
+        }
     }
 
     #[test]
