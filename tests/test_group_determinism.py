@@ -116,6 +116,32 @@ def test_group_keys_merge_like_polars() -> None:
     assert got["v"].to_list() == [4.0, 3.0, 5.0, 9.0]
 
 
+@pytest.mark.parametrize("dtype", [pl.Float64, pl.Int32])
+def test_whole_number_keys_group_as_polars_sorts_them(dtype: pl.DataType) -> None:
+    """One key of whole numbers (negative, -0.0 with 0.0, gaps) takes the table instead of
+    the sort: the same groups, order and first rows as polars' group-by sorted by the key;
+    a wild value (1e9 among small ones) takes the sort and agrees too."""
+    rng = np.random.default_rng(4)
+    v = rng.integers(-30, 30, 500).astype(float)
+    v[v == 0] = -0.0
+    v[:7] = 0.0
+    for values in (v, np.append(v, 1e9)):
+        if dtype == pl.Int32 and values.max() > 1e6:
+            continue
+        df = pl.DataFrame({"k": pl.Series(values).cast(dtype)})
+        g = Groups.of(df, ["k"])
+        want = (
+            df.with_row_index("row")
+            .group_by("k")
+            .agg(pl.col("row").min().alias("first"), pl.len().alias("n"))
+            .sort("k")
+        )
+        assert g.keys["k"].to_list() == want["k"].to_list()
+        assert g.first.tolist() == want["first"].to_list()
+        assert np.bincount(g.index).tolist() == want["n"].to_list()
+        assert (g.keys["k"].to_numpy()[g.index] == df["k"].to_numpy()).all()
+
+
 def test_over_matches_the_groups_per_row_and_float32_stays_float32() -> None:
     df = _random_frame(5).with_columns(pl.col("y").cast(pl.Float32).alias("y32"))
     g = Groups.of(df, ["k", "b"])

@@ -69,6 +69,9 @@ class Groups:
         keys = list(keys)
         if not keys:
             raise ValueError("group by at least one key column")
+        whole = _whole_number_groups(df, keys)
+        if whole is not None:
+            return whole
         code = np.zeros(df.height, dtype=np.int64)
         for k in keys:
             # dense rank: 1, 2, ... in sort order, equal values (NaN with NaN, -0.0 with 0.0)
@@ -154,6 +157,33 @@ class Groups:
             for name, (col, how) in (floats or {}).items()
         ]
         return out.hstack(cols) if cols else out
+
+
+def _whole_number_groups(df: pl.DataFrame, keys: list[str]) -> Groups | None:
+    """:meth:`Groups.of` without a sort for one numeric key of whole numbers (alpha bins,
+    flap settings in whole degrees) spanning at most a few times the row count: each value
+    indexes a table over the span (the groups in increasing value, as the sort gives them;
+    ``-0.0`` and ``0.0`` one group). ``None`` (the sort) for any other key, or one with a
+    null, NaN or infinity."""
+    if len(keys) != 1 or not df[keys[0]].dtype.is_numeric() or df.height == 0:
+        return None
+    col = df[keys[0]]
+    if col.null_count():
+        return None
+    v = col.cast(pl.Float64).to_numpy()
+    if not np.isfinite(v).all() or not (v == np.floor(v)).all():
+        return None
+    lo = float(v.min())
+    span = int(v.max() - lo) + 1
+    if span > 4 * v.size:
+        return None
+    offset = (v - lo).astype(np.int64)
+    present = np.zeros(span, dtype=bool)
+    present[offset] = True
+    index = (np.cumsum(present) - 1)[offset].astype(np.int64)
+    first = np.full(int(present.sum()), v.size, dtype=np.int64)
+    np.minimum.at(first, index, np.arange(v.size, dtype=np.int64))
+    return Groups(df.select(keys)[first], index, first)
 
 
 def group_agg(

@@ -33,6 +33,7 @@ from tqdm import tqdm
 
 from aerodelta import _core
 from aerodelta._core import __version__
+from aerodelta._groups import Groups
 from aerodelta._threads import engine_threads
 from aerodelta._toml import read_toml
 from aerodelta.exceptions import DataError, InvalidInputError
@@ -605,29 +606,22 @@ def stall_alpha(data: pl.DataFrame, bin_deg: float = 0.5, min_points: int = 50) 
         ct = (data["ct_left"].cast(pl.Float64) + data["ct_right"].cast(pl.Float64)).to_numpy()
         cx = cx - np.where(np.isfinite(ct), ct, 0.0)
     cl = -data["CZ_meas"].to_numpy() * np.cos(a) + cx * np.sin(a)
-    b = np.floor(data["alpha_deg"].cast(pl.Float64).to_numpy() / bin_deg)
-    ok = np.isfinite(b) & ~np.isnan(cl)
-    if not ok.any():
+    df = pl.DataFrame(
+        {"b": np.floor(data["alpha_deg"].cast(pl.Float64).to_numpy() / bin_deg), "cl": cl}
+    ).drop_nans()
+    if df.height == 0:
         raise DataError("cannot detect the stall alpha: no alpha bin holds enough points")
-    # the bins' means summed in row order with np.bincount over integer bin numbers (a
-    # polars group-by mean splits its sums over the thread pool, and a near tie could go
-    # either way with the thread count)
-    bins = b[ok]
-    lo = float(bins.min())
-    if float(bins.max()) - lo <= 100_000:  # the bin numbers as offsets from the lowest
-        idx = (bins - lo).astype(np.int64)
-        keys = lo + np.arange(int(idx.max()) + 1, dtype=float)
-    else:  # a wild alpha: only the bins present
-        keys, idx = np.unique(bins, return_inverse=True)
-    n = np.bincount(idx)
-    total = np.bincount(idx, weights=cl[ok])
-    with np.errstate(invalid="ignore", divide="ignore"):
-        mean = np.where(n >= min_points, total / n, np.nan)
+    # the bins' means summed in row order (_groups: a polars group-by mean splits its sums
+    # over the thread pool, and a near tie could go either way with the thread count)
+    g = Groups.of(df, ["b"])
+    n = np.bincount(g.index, minlength=g.size)
+    mean = np.where(n >= min_points, g.reduce(df["cl"], "mean").to_numpy(), np.nan)
     if np.isnan(mean).all():
         raise DataError("cannot detect the stall alpha: no alpha bin holds enough points")
-    # the largest mean; equal means: the lowest bin (argmax takes the first)
+    # the largest mean; equal means: the lowest bin (the groups are sorted, argmax takes
+    # the first)
     best = int(np.argmax(np.where(np.isnan(mean), -np.inf, mean)))
-    return float((keys[best] + 0.5) * bin_deg)
+    return float((g.keys["b"][best] + 0.5) * bin_deg)
 
 
 @dataclass(frozen=True)
