@@ -39,6 +39,7 @@ from aerodelta.plan.aggregate import recommendation
 from aerodelta.plan.engine import open_client
 from aerodelta.plan.matrix import KINDS, parse_matrix
 from aerodelta.plan.plots import band_figure
+from aerodelta.plan.task import _scratch
 from aerodelta.rolloff import monte_carlo
 
 TINY = """
@@ -204,6 +205,29 @@ def test_resume_runs_only_the_missing_seed_and_a_failing_task_is_reported(
     assert r.ran == [2] and r.failures == []
     assert (out / "summary.json").read_bytes() == (study / "summary.json").read_bytes()
     assert (out / "params.csv").read_bytes() == (study / "params.csv").read_bytes()
+
+
+def _worker_env() -> tuple[str | None, str | None]:
+    return os.environ.get("MALLOC_TRIM_THRESHOLD_"), os.environ.get("MALLOC_ARENA_MAX")
+
+
+def _worker_folder(dask_worker: Any) -> str:
+    return str(dask_worker.local_directory)
+
+
+def test_workers_keep_glibc_adaptive_malloc_and_fly_in_their_own_folder(client: Any) -> None:
+    """Dask's default MALLOC_TRIM_THRESHOLD_ pins glibc's mmap threshold at 128 kB (a default
+    campaign task then faulted in 2.7 million pages, a quarter of its CPU in the kernel): the
+    local workers start without it and with at most 2 arenas. A task flies its campaign in its
+    worker's folder, which Dask deletes when a killed worker's folder is left behind."""
+    envs = client.run(_worker_env)
+    assert len(envs) == 2
+    assert set(envs.values()) == {(None, "2")}
+    for address, local in client.run(_worker_folder).items():
+        # as a task on that worker, as run_task runs
+        scratch = client.submit(_scratch, workers=[address], pure=False).result()
+        assert scratch == local and Path(local).is_dir()
+    assert _scratch() is None  # not on a worker: the system's temporary folder
 
 
 def test_a_killed_worker_loses_no_result(study: Path, tiny: Path, tmp_path: Path) -> None:

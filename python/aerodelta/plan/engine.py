@@ -35,6 +35,10 @@ WORKER_ENV: dict[str, str] = {
 }
 
 
+#: Dask's configuration key of the variables a nanny sets before it spawns a worker.
+_PRE_SPAWN = "distributed.nanny.pre-spawn-environ"
+
+
 @dataclass(frozen=True)
 class Job:
     """One seeded task.
@@ -122,15 +126,26 @@ def open_client(workers: int = 2, scheduler: str | None = None) -> Iterator[Any]
         finally:
             client.close()
         return
-    cluster = distributed.LocalCluster(
-        n_workers=workers,
-        threads_per_worker=1,
-        processes=True,
-        dashboard_address=":0",  # a free port: 8787 may be taken by another cluster
-        silence_logs=logging.ERROR,
-        env=dict(WORKER_ENV),
-        local_directory=os.environ.get("AERODELTA_PLAN_SCRATCH"),
-    )
+    # Dask sets MALLOC_TRIM_THRESHOLD_=65536 in the workers' environment to hand freed memory
+    # back to the OS at once. Setting it also fixes glibc's mmap threshold at 128 kB, so every
+    # array of the fit and the diagnosis is a fresh mapping faulted in page by page: a
+    # campaign task spent a quarter of its CPU in the kernel. The workers keep glibc's
+    # adaptive thresholds (None unsets a pre-spawn variable) with at most 2 malloc arenas
+    # (freed memory of one thread is reused by the others), and each task trims the heap when
+    # it ends (:func:`aerodelta.plan.task.release_memory`).
+    import dask  # noqa: PLC0415  (installed with distributed)
+
+    malloc = {"MALLOC_TRIM_THRESHOLD_": None, "MALLOC_ARENA_MAX": 2}
+    with dask.config.set({f"{_PRE_SPAWN}.{k}": v for k, v in malloc.items()}):
+        cluster = distributed.LocalCluster(
+            n_workers=workers,
+            threads_per_worker=1,
+            processes=True,
+            dashboard_address=":0",  # a free port: 8787 may be taken by another cluster
+            silence_logs=logging.ERROR,
+            env=dict(WORKER_ENV),
+            local_directory=os.environ.get("AERODELTA_PLAN_SCRATCH"),
+        )
     client = distributed.Client(cluster)
     try:
         yield client

@@ -7,6 +7,7 @@ arguments only, so the same seed gives the same summary on any worker.
 
 from __future__ import annotations
 
+import ctypes
 import itertools
 import math
 import resource
@@ -194,6 +195,33 @@ def _effects_named(camp: Path, data: pl.DataFrame, effects: Mapping[str, float])
     return {str(k): bool(v) for k, v in sorted(case.found.items())}
 
 
+def _scratch() -> str | None:
+    """Where a task's campaign is flown: the Dask worker's own folder when the task runs on a
+    worker (a worker killed mid-task leaves its campaign there, and Dask deletes the folders
+    of dead workers), else the system's temporary folder."""
+    try:
+        from distributed import get_worker  # noqa: PLC0415  (only on a worker)
+
+        return str(get_worker().local_directory)
+    except (ImportError, ValueError):  # no Dask, or not inside a worker
+        return None
+
+
+def release_memory() -> None:
+    """Hand the heap's free memory back to the OS (glibc ``malloc_trim``; elsewhere nothing).
+
+    The workers keep glibc's adaptive allocation thresholds (:func:`aerodelta.plan.engine.
+    open_client`), under which freed arrays stay in the process for reuse; trimming once per
+    task keeps a worker's memory from creeping up over the tasks it runs."""
+    if not sys.platform.startswith("linux"):
+        return
+    try:
+        libc = ctypes.CDLL("libc.so.6")
+        libc.malloc_trim(0)
+    except (OSError, AttributeError):  # not glibc (musl): nothing to trim
+        return
+
+
 def peak_rss_mib() -> float:
     """Peak resident memory of this process, MiB (``getrusage``)."""
     kb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
@@ -229,7 +257,7 @@ def run_task(spec: Mapping[str, Any], seed: int, drill: bool = False) -> dict[st
     if drill:
         raise FaultDrillError(f"seed {seed}: fault drill ([engine] fault_drill_seeds)")
     effects: dict[str, float] = dict(spec["effects"])
-    with tempfile.TemporaryDirectory(prefix="aerodelta-plan-") as tmp:
+    with tempfile.TemporaryDirectory(prefix="aerodelta-plan-", dir=_scratch()) as tmp:
         camp = Path(tmp) / "campaign"
         info = generate_campaign(
             camp,
@@ -261,6 +289,8 @@ def run_task(spec: Mapping[str, Any], seed: int, drill: bool = False) -> dict[st
         named = _effects_named(camp, data, truth_effects) if spec["diagnose"] else {}
         coverage = _coverage(data, list(spec["alpha_edges_deg"]))
         n = manifest.height
+    del info, manifest, data, result
+    release_memory()
     return {
         "schema": TASK_SCHEMA,
         "seed": int(seed),
