@@ -5,6 +5,7 @@ evaluating the JSBSim functions inside JSBSim itself (the ``jsbsim`` package).""
 
 from __future__ import annotations
 
+import itertools
 import re
 import shutil
 from pathlib import Path
@@ -386,3 +387,85 @@ def test_jsbsim_functions_have_no_one_argument_sums(model: DeltaModel) -> None:
             for tag in ("sum", "product"):
                 for el in root.iter(tag):
                     assert len(list(el)) >= 2, (tag, ET.tostring(el)[:200])
+
+
+def _with_envelope(model: DeltaModel, flaps: list[float], bands: list[list[tuple]]) -> DeltaModel:
+    """``model`` with a hand-built validated envelope (1-deg bands; ``(band, beta_min,
+    beta_max)`` per covered band of each flap setting)."""
+    spec = model.to_spec()
+    spec["envelope"] = {
+        "band_deg": 1.0,
+        "flaps_deg": flaps,
+        "min_maneuvers": 5,
+        "bands": [
+            [{"band": b, "beta_min_deg": lo, "beta_max_deg": hi, "maneuvers": 5}
+             for b, lo, hi in per]
+            for per in bands
+        ],
+    }  # fmt: skip
+    return DeltaModel.from_spec(spec, "with envelope")
+
+
+def _envelope_states(seed: int, flaps: list[float]) -> dict[str, np.ndarray]:
+    """Random states, band edges (alpha an exact multiple of the band, and just below), the
+    flaps' midpoints (a tie goes to the lower setting) and sideslips at a band's limits."""
+    rng = np.random.default_rng(seed)
+    n = 400
+    s = random_states(n, seed=seed, flaps=flaps)
+    s["alpha_deg"] = rng.uniform(-3.0, 22.0, n)
+    s["beta_deg"] = rng.uniform(-9.0, 9.0, n)
+    s["alpha_deg"][:100] = rng.integers(-3, 28, 100).astype(float)  # band edges
+    s["alpha_deg"][100:150] = rng.integers(-3, 28, 50) - 1e-9
+    s["beta_deg"][150:200] = rng.choice([-6.0, -5.0, 4.0, 5.0, 8.0, -8.0], 50)
+    mids = [0.5 * (a + b) for a, b in itertools.pairwise(flaps)] or flaps
+    s["flap_deg"][200:260] = rng.choice(mids, 60)
+    return s
+
+
+def test_jsbsim_in_envelope_flag_equals_engine(model: DeltaModel, tmp_path: Path) -> None:
+    """``aero/aerodelta/in-envelope`` evaluated by JSBSim against ``DeltaModel.in_envelope``
+    (``aero_core::envelope``): holes between covered bands, bands below zero alpha, a flap
+    setting with no covered band, ties between flap settings, a one-flap envelope; a model
+    without an envelope has no flag."""
+    assert "in-envelope" not in jsbsim_xml(model, _TEST_PROPS)
+    cases = [
+        (
+            FLAPS,
+            [
+                [
+                    (-2, -3.0, 3.0),
+                    *[(b, -6.0, 6.0) for b in range(-1, 4)],
+                    (5, -5.0, 5.0),
+                    *[(b, -8.0, 8.0) for b in (6, 7)],
+                    (8, -5.0, 5.0),
+                    (9, -6.0, 4.0),
+                    (11, -2.0, 8.0),
+                    (12, -8.0, 8.0),
+                ],
+                [],
+                [
+                    (5, -1.0, 1.0),
+                    (6, -5.0, 5.0),
+                    *[(b, -7.0, 7.0) for b in range(8, 20)],
+                    (20, -4.0, 4.0),
+                ],
+            ],
+        ),
+        ([10.0], [[*[(b, -6.0, 6.0) for b in range(0, 5)], (7, -8.0, 4.0), (8, -5.0, 5.0)]]),
+    ]
+    for k, (flaps, bands) in enumerate(cases):
+        m = _with_envelope(model, flaps, bands)
+        fdm = _load_jsbsim(tmp_path / f"case{k}", jsbsim_xml(m, _TEST_PROPS))
+        s = _envelope_states(k + 1, flaps)
+        want = m.in_envelope(
+            pl.DataFrame({c: s[c] for c in ("flap_deg", "alpha_deg", "beta_deg")})
+        ).to_numpy()
+        got = []
+        for i in range(len(s["alpha_deg"])):
+            for ch in DEFAULT_PROPERTIES:
+                if ch in s:
+                    fdm[f"test/{ch}"] = float(s[ch][i])
+            got.append(fdm["aero/aerodelta/in-envelope"])
+        assert 40 <= want.sum() <= len(want) - 40, want.sum()  # both answers are exercised
+        np.testing.assert_array_equal(np.asarray(got) == 1.0, want)
+        assert set(got) <= {0.0, 1.0}

@@ -16,11 +16,14 @@ Each Δ-model channel reads a JSBSim property, or a product of properties and nu
 (:data:`DEFAULT_PROPERTIES`; override with ``properties=``). Channels whose sign convention
 differs between aircraft (controls, thrust coefficients) default to ``aerodelta/...``
 properties that the file declares (value 0) and the aircraft must drive, e.g. from a
-``<system>``. Intermediate values are published as ``aero/aerodelta/<C>/...`` properties.
+``<system>``. Intermediate values are published as ``aero/aerodelta/<C>/...`` properties; a
+model that carries its validated envelope also publishes ``aero/aerodelta/in-envelope`` (1
+inside the flight data's alpha/beta envelope, 0 outside).
 """
 
 from __future__ import annotations
 
+import itertools
 import math
 import re
 from collections.abc import Mapping
@@ -345,6 +348,63 @@ def _qualified_functions(w: _Writer, cname: str, qspec: dict[str, Any], done: se
     return "\n".join(fns)
 
 
+#: Sideslip limits of an alpha band the flight data do not cover (a hole between covered
+#: bands): no sideslip lies inside.
+_NO_BETA = 1e30
+
+
+def _envelope_function(env: Mapping[str, Any], alpha_p: str, beta_p: str, flap_p: str) -> str:
+    """``aero/aerodelta/in-envelope``: 1 when the state lies inside the validated envelope
+    stored with the model, else 0, by the rule of ``aero_core::envelope``: the alpha band
+    ``floor(alpha / band_deg)`` of the nearest flap setting (the lower one on a tie) is covered
+    and beta lies in its measured range. JSBSim's ``<switch>`` picks the flap and the band (its
+    index is kept inside the list: JSBSim stops on an index out of range)."""
+    band_deg = float(env["band_deg"])
+    flaps = [float(f) for f in env["flaps_deg"]]
+    alpha = f"<property>{alpha_p}</property>"
+    beta = f"<property>{beta_p}</property>"
+    band = f"<floor><quotient>{alpha}<value>{_num(band_deg)}</value></quotient></floor>"
+
+    def switch(index: str, values: list[str]) -> str:
+        return values[0] if len(values) == 1 else f"<switch>{index}{''.join(values)}</switch>"
+
+    per_flap = []
+    for bands in env["bands"]:
+        if not bands:
+            per_flap.append("<value>0</value>")
+            continue
+        b0, b1 = int(bands[0]["band"]), int(bands[-1]["band"])
+        lo = [_NO_BETA] * (b1 - b0 + 1)
+        hi = [-_NO_BETA] * (b1 - b0 + 1)
+        for b in bands:
+            lo[int(b["band"]) - b0] = float(b["beta_min_deg"])
+            hi[int(b["band"]) - b0] = float(b["beta_max_deg"])
+        index = (
+            f"<min><max><difference>{band}<value>{b0}</value></difference><value>0</value></max>"
+            f"<value>{b1 - b0}</value></min>"
+        )
+        lo_v = switch(index, [f"<value>{_num(v)}</value>" for v in lo])
+        hi_v = switch(index, [f"<value>{_num(v)}</value>" for v in hi])
+        per_flap.append(
+            f"<and><ge>{band}<value>{b0}</value></ge><le>{band}<value>{b1}</value></le>"
+            f"<ge>{beta}{lo_v}</ge><le>{beta}{hi_v}</le></and>"
+        )
+    nearest = _sum(
+        [
+            f"<gt><property>{flap_p}</property><value>{_num(0.5 * (a + b))}</value></gt>"
+            for a, b in itertools.pairwise(flaps)
+        ],
+        "",
+    )
+    body = switch(nearest, per_flap)
+    return (
+        '  <function name="aero/aerodelta/in-envelope">\n    <description>1 inside the '
+        "validated envelope of the flight data (the alpha band of the nearest flap setting "
+        "is covered and beta lies in its measured range), 0 outside: the indication a "
+        f"simulator shows its instructor</description>\n    {body}\n  </function>"
+    )
+
+
 def jsbsim_xml(
     model: DeltaModel,
     properties: Mapping[str, str] | None = None,
@@ -457,6 +517,10 @@ def jsbsim_xml(
             f"      <product>{ref}<property>{base}/{total}</property></product>\n"
             "    </function>"
         )
+    env = spec.get("envelope")
+    if env:
+        beta_p = w.channel("beta_deg")
+        fns.append(_envelope_function(env, alpha_p, beta_p, flap_p))
     mapping = "\n".join(
         f"    {ch:<14} {p}" for ch, p in jsbsim_properties(model, properties).items()
     )
