@@ -469,3 +469,33 @@ def test_jsbsim_in_envelope_flag_equals_engine(model: DeltaModel, tmp_path: Path
         assert 40 <= want.sum() <= len(want) - 40, want.sum()  # both answers are exercised
         np.testing.assert_array_equal(np.asarray(got) == 1.0, want)
         assert set(got) <= {0.0, 1.0}
+
+
+def test_daveml_in_envelope_flag_equals_engine(model: DeltaModel) -> None:
+    """The DAVE-ML export's ``in_envelope`` output (MathML ``piecewise``) read back by the
+    DAVE-ML engine against ``DeltaModel.in_envelope``, at the sideslip the file computes from
+    the qualified model's ``beta_rad``; the file's other outputs still verify against the
+    engine."""
+    flaps = FLAPS
+    bands = [
+        [(-2, -3.0, 3.0), *[(b, -6.0, 6.0) for b in range(-1, 4)], (5, -5.0, 5.0), (9, -6.0, 4.0)],
+        [],
+        [(5, -1.0, 1.0), (6, -5.0, 5.0), *[(b, -7.0, 7.0) for b in range(8, 20)]],
+    ]
+    m = _with_envelope(model, flaps, bands)
+    assert "in_envelope" not in extended_daveml_text(model).text
+    out = extended_daveml_text(m)
+    assert out.max_rel_error <= 1e-12
+    s = _envelope_states(3, flaps)
+    got = out.model.evaluate(
+        {"alpha_deg": s["alpha_deg"], "beta_rad": np.radians(s["beta_deg"]),
+         "flap_deg": s["flap_deg"]},
+        outputs=["in_envelope", "beta_deg"],
+    )  # fmt: skip
+    frame = pl.DataFrame(
+        {"flap_deg": s["flap_deg"], "alpha_deg": s["alpha_deg"], "beta_deg": got["beta_deg"]}
+    )
+    want = m.in_envelope(frame).to_numpy()
+    assert 40 <= want.sum() <= len(want) - 40, want.sum()
+    np.testing.assert_array_equal(got["in_envelope"].to_numpy() == 1.0, want)
+    assert set(got["in_envelope"].to_list()) <= {0.0, 1.0}

@@ -314,6 +314,9 @@ def extended_daveml_spec(
              "terms": [{"factors": [qual]}, {"factors": [f"w_{cname}", f"d{cname}"]}],
              "description": f"extended {cname} = {qual} + w_{cname} d{cname} (thesis Eq. 3.12)"}
         )  # fmt: skip
+    env = spec.get("envelope")
+    if env:  # the validated envelope's flag reads the sideslip (deg)
+        resolve("beta_deg")
     alpha_max = max(max(t["alpha_deg"]) for c in spec["coefficients"].values() for t in c["terms"])
     blend = {k: (c["alpha_l_deg"], c["alpha_u_deg"]) for k, c in spec["coefficients"].items()}
     all_inputs = [*base.inputs, *(i["id"] for i in inputs if i["id"] not in bunits)]
@@ -324,7 +327,7 @@ def extended_daveml_spec(
             if i not in cp["inputs"] and initial.get(i) is None:
                 cp["inputs"][i] = 0.0
         cp["inputs"] = {k: v for k, v in cp["inputs"].items() if k in all_inputs}
-    return {
+    out: dict[str, Any] = {
         "name": "aerodelta extended model (qualified + blended Δ)",
         "provenance": _provenance(spec),
         "inputs": inputs,
@@ -334,6 +337,15 @@ def extended_daveml_spec(
         "checks": checks,
         "check_tolerance": 1e-9,
     }
+    if env:
+        out["envelope_flag"] = {
+            "id": "in_envelope", "flap": flap_ch, "alpha": alpha_ch, "beta": "beta_deg",
+            "envelope": env,
+            "description": "1 inside the validated envelope of the flight data (the alpha band "
+            "of the nearest flap setting is covered and beta lies in its measured range), 0 "
+            "outside: the indication a simulator shows its instructor",
+        }  # fmt: skip
+    return out
 
 
 def _provenance(spec: Mapping[str, Any]) -> dict[str, Any]:

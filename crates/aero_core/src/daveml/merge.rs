@@ -50,7 +50,8 @@ pub fn merge_xml(base: &str, base_name: &str, add: &ModelSpec) -> Result<String>
         .iter()
         .map(|c| c.id.as_str())
         .chain(add.tables.iter().map(|t| t.id.as_str()))
-        .chain(add.outputs.iter().map(|o| o.id.as_str()));
+        .chain(add.outputs.iter().map(|o| o.id.as_str()))
+        .chain(add.envelope_flag.iter().map(|f| f.id.as_str()));
     for id in own {
         if let Some(k) = base_model.index_of(id) {
             return Err(AeroError::invalid(

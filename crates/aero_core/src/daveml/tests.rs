@@ -252,6 +252,7 @@ fn spec() -> ModelSpec {
         ],
         check_tolerance: 1e-9,
         provenance: None,
+        envelope_flag: None,
     }
 }
 
@@ -353,5 +354,114 @@ fn fast_1d_2d_lookups_equal_table_eval_bit_for_bit() {
             );
         }
         assert!(model::lookup_1d(&t1, f64::NAN).is_nan());
+    }
+}
+
+/// The envelope flag written as MathML and evaluated by this crate's DAVE-ML engine equals
+/// [`crate::envelope::Envelope::contains`] on band edges (alpha an exact multiple of the band
+/// and the next float below), holes, negative bands, flap ties, flaps beyond the settings, a
+/// flap setting without a covered band, non-finite inputs; and one flap setting alone.
+#[test]
+fn envelope_flag_mathml_equals_the_envelope_rule() {
+    use crate::envelope::{Envelope, EnvelopeBand, EnvelopeSpec};
+    let band = |band, lo, hi| EnvelopeBand {
+        band,
+        beta_min_deg: lo,
+        beta_max_deg: hi,
+        maneuvers: 5,
+    };
+    let envs = [
+        EnvelopeSpec {
+            band_deg: 1.0,
+            flaps_deg: vec![0.0, 10.0, 20.0],
+            bands: vec![
+                vec![
+                    band(-2, -3.0, 3.0),
+                    band(0, -6.0, 6.0),
+                    band(1, -6.0, 6.0),
+                    band(3, -7.0, 2.0),
+                ],
+                vec![],
+                vec![band(5, -1.0, 1.0), band(6, -5.0, 5.0), band(8, -7.0, 7.0)],
+            ],
+            min_maneuvers: 5,
+        },
+        EnvelopeSpec {
+            band_deg: 0.5,
+            flaps_deg: vec![15.0],
+            bands: vec![vec![
+                band(6, -4.0, 4.0),
+                band(7, -6.0, 3.0),
+                band(9, -2.0, 2.0),
+            ]],
+            min_maneuvers: 5,
+        },
+    ];
+    let mut rng = crate::sim::rng::Stream::new(5, 1);
+    for (k, env) in envs.iter().enumerate() {
+        let spec = ModelSpec::from_json(
+            r#"{"name": "flag", "inputs": [{"id": "flap", "units": "deg"},
+                {"id": "alpha", "units": "deg"}, {"id": "beta", "units": "deg"}], "outputs": []}"#,
+        )
+        .expect("spec");
+        let spec = ModelSpec {
+            envelope_flag: Some(super::write::EnvelopeFlagSpec {
+                id: "in_envelope".into(),
+                description: String::new(),
+                flap: "flap".into(),
+                alpha: "alpha".into(),
+                beta: "beta".into(),
+                envelope: env.clone(),
+            }),
+            ..spec
+        };
+        let m = DaveModel::from_str(&to_xml(&spec).expect("xml"), "flag.dml").expect("parse");
+        let out = m.index_of("in_envelope").expect("flag");
+        let e = Envelope::new(env.clone()).expect("envelope");
+        let mut flaps = vec![-3.0, 0.0, 4.0, 5.0, 10.0, 15.0, 16.0, 20.0, 27.0];
+        flaps.extend([5.0_f64.next_up(), 15.0_f64.next_down()]);
+        let covered = env.bands.iter().flatten().map(|b| b.band);
+        let (b0, b1) = (
+            covered.clone().min().unwrap_or(0),
+            covered.max().unwrap_or(0),
+        );
+        let mut seen = [0usize; 2];
+        for i in 0..3000 {
+            let flap = flaps[i % flaps.len()];
+            // the covered bands and one band either side
+            let mut alpha = env.band_deg * ((b0 - 1) as f64 + (b1 - b0 + 3) as f64 * rng.uniform());
+            if i % 3 == 0 {
+                alpha = (alpha / env.band_deg).round() * env.band_deg; // a band edge
+            } else if i % 3 == 1 {
+                alpha = ((alpha / env.band_deg).round() * env.band_deg).next_down();
+            }
+            let beta = if i % 5 == 0 {
+                [-7.0, -6.0, -3.0, 2.0, 3.0, 6.0][i % 6]
+            } else {
+                -7.0 + 14.0 * rng.uniform()
+            };
+            let got = m
+                .evaluate(&[("flap", flap), ("alpha", alpha), ("beta", beta)])
+                .expect("evaluate")[out];
+            let want = e.contains(flap, alpha, beta);
+            assert_eq!(
+                got,
+                f64::from(u8::from(want)),
+                "{k}: flap {flap} alpha {alpha} beta {beta}"
+            );
+            seen[usize::from(want)] += 1;
+        }
+        assert!(seen[0] > 300 && seen[1] > 300, "{seen:?}");
+        for bad in [
+            (f64::NAN, 2.5, 0.0),
+            (0.0, f64::NAN, 0.0),
+            (0.0, 0.5, f64::NAN),
+            (f64::INFINITY, 3.2, 0.0),
+        ] {
+            let v = m
+                .evaluate(&[("flap", bad.0), ("alpha", bad.1), ("beta", bad.2)])
+                .expect("evaluate")[out];
+            assert_eq!(v, 0.0, "{bad:?}");
+        }
     }
 }

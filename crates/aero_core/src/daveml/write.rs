@@ -63,6 +63,31 @@ pub struct ModelSpec {
     /// Tolerance written on every generated check output.
     #[serde(default = "default_tol")]
     pub check_tolerance: f64,
+    /// An output flagging the states inside a validated envelope, written after the
+    /// calculations.
+    #[serde(default)]
+    pub envelope_flag: Option<EnvelopeFlagSpec>,
+}
+
+/// An output variable that is 1 inside a validated envelope and 0 outside
+/// ([`crate::envelope::Envelope::contains`]: the alpha band `floor(alpha / band_deg)` of the
+/// nearest flap setting, the lower one on a tie, is covered and beta lies in its measured
+/// range; a non-finite input is outside), written as MathML `piecewise`
+/// ([`envelope_mathml`]).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct EnvelopeFlagSpec {
+    /// `varID` of the flag.
+    pub id: String,
+    #[serde(default)]
+    pub description: String,
+    /// `varID`s of the flap setting, angle of attack and sideslip, deg (inputs or
+    /// calculations of the spec).
+    pub flap: String,
+    pub alpha: String,
+    pub beta: String,
+    /// The envelope.
+    pub envelope: crate::envelope::EnvelopeSpec,
 }
 
 /// An input variable.
@@ -339,6 +364,20 @@ impl ModelSpec {
                 }
             }
         }
+        if let Some(f) = &self.envelope_flag {
+            declare("envelope flag", &f.id, &mut known)?;
+            for v in [&f.flap, &f.alpha, &f.beta] {
+                if !known.contains(&v.as_str()) {
+                    return Err(AeroError::invalid(
+                        place("envelope flag", &f.id),
+                        format!("'{v}' is not an input, a calculation or a table"),
+                    ));
+                }
+            }
+            crate::envelope::Envelope::new(f.envelope.clone())
+                .map_err(|e| e.context(place("envelope flag", &f.id)))?;
+            known.push(&f.id);
+        }
         for o in &self.outputs {
             declare("output", &o.id, &mut known)?;
             for term in &o.terms {
@@ -583,6 +622,14 @@ pub(crate) fn sections(
         }
         let _ = writeln!(x, "  </variableDef>");
     }
+    if let Some(f) = &spec.envelope_flag {
+        open_variable(&mut x, &f.id, &f.id, "nd", &f.description);
+        let math = envelope_mathml(&f.envelope, &f.flap, &f.alpha, &f.beta);
+        let _ = writeln!(
+            x,
+            "    <calculation>\n      <math xmlns=\"http://www.w3.org/1998/Math/MathML\">\n        {math}\n      </math>\n    </calculation>\n    <isOutput/>\n  </variableDef>"
+        );
+    }
     for t in &spec.tables {
         open_variable(&mut x, &t.name, &t.id, &t.units, &t.description);
         if t.is_output {
@@ -728,6 +775,61 @@ pub(crate) fn sections(
         breakpoints,
         functions: x,
     }
+}
+
+/// MathML-2 content markup of the validated-envelope flag ([`EnvelopeFlagSpec`]): 1 inside,
+/// 0 outside, by the rule of [`crate::envelope::Envelope::contains`]. One `piece` per flap
+/// setting, for the flaps between the midpoints to its neighbours (`mid_(k-1) < flap <=
+/// mid_k`: a tie goes to the lower setting), holding one `piece` per covered band `b`:
+/// `b <= alpha / band_deg < b + 1` (that is `floor(alpha / band_deg) = b`: `b` and `b + 1`
+/// are exact) and `beta_min <= beta <= beta_max`. Every comparison with NaN is false and each
+/// flap region asks `|flap| <= f64::MAX`, so a non-finite input falls through to the
+/// `otherwise` 0, as in the engine.
+pub fn envelope_mathml(
+    env: &crate::envelope::EnvelopeSpec,
+    flap: &str,
+    alpha: &str,
+    beta: &str,
+) -> String {
+    let ap = |op: &str, args: &[String]| format!("<apply><{op}/>{}</apply>", args.concat());
+    let ci = |v: &str| format!("<ci>{}</ci>", esc(v));
+    let cn = |v: f64| format!("<cn>{}</cn>", num(v));
+    let ratio = ap("divide", &[ci(alpha), cn(env.band_deg)]);
+    let otherwise = "<otherwise><cn>0</cn></otherwise>";
+    let f = &env.flaps_deg;
+    let mut flaps = String::new();
+    for (k, bands) in env.bands.iter().enumerate() {
+        let mut inside = String::new();
+        for b in bands {
+            let lo = b.band as f64;
+            let cond = ap(
+                "and",
+                &[
+                    ap("geq", &[ratio.clone(), cn(lo)]),
+                    ap("lt", &[ratio.clone(), cn(lo + 1.0)]),
+                    ap("geq", &[ci(beta), cn(b.beta_min_deg)]),
+                    ap("leq", &[ci(beta), cn(b.beta_max_deg)]),
+                ],
+            );
+            let _ = write!(inside, "<piece><cn>1</cn>{cond}</piece>");
+        }
+        let value = format!("<piecewise>{inside}{otherwise}</piecewise>");
+        // a finite flap (an infinite one would fall in the first or last region)
+        let mut region = vec![ap("leq", &[ap("abs", &[ci(flap)]), cn(f64::MAX)])];
+        if k > 0 {
+            region.push(ap("gt", &[ci(flap), cn(0.5 * (f[k - 1] + f[k]))]));
+        }
+        if k + 1 < f.len() {
+            region.push(ap("leq", &[ci(flap), cn(0.5 * (f[k] + f[k + 1]))]));
+        }
+        let cond = if region.len() == 1 {
+            region.remove(0)
+        } else {
+            ap("and", &region)
+        };
+        let _ = write!(flaps, "<piece>{value}{cond}</piece>");
+    }
+    format!("<piecewise>{flaps}{otherwise}</piecewise>")
 }
 
 /// MathML-2 content markup of a regressor expression ([`crate::regressor`]):
