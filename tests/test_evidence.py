@@ -13,6 +13,7 @@ line."""
 from __future__ import annotations
 
 import hashlib
+import json
 import math
 import re
 from html.parser import HTMLParser
@@ -333,6 +334,10 @@ def test_statement_of_compliance_and_provenance(pack: dict[str, Any]) -> None:
 
 def test_without_model_the_model_rows_say_so(pack: dict[str, Any], tmp_path: Path) -> None:
     res = write_evidence(pack["data"], tmp_path / "p", sim_buffet=None, longitudinal=False)
+    # a pack of the frame the model was fitted on shows the digest in the model's provenance
+    fitted_on = json.loads((pack["root"] / "model.json").read_text())["provenance"]
+    prov = res.html.read_text(encoding="utf-8").split('id="provenance"')[1]
+    assert f"<td>{fitted_on['data_sha256']}</td>" in prov
     st = {r.key: r.status for r in res.rows}
     assert st["lateral"].startswith("not assessed: no fitted Δ model")
     assert st["prestall"].startswith("not assessed: no fitted Δ model")

@@ -11,8 +11,9 @@ import polars as pl
 import pytest
 
 import aerodelta as ad
+from aerodelta._fingerprint import data_sha256
 from aerodelta.exceptions import DataError
-from aerodelta.fit import DEFAULT_STRUCTURES, _data_hash, model_frame, stall_alpha
+from aerodelta.fit import DEFAULT_STRUCTURES, model_frame, stall_alpha
 
 
 @pytest.fixture(scope="module")
@@ -94,7 +95,7 @@ def test_data_fingerprint_is_the_sha256_of_the_documented_bytes() -> None:
             h.update(np.array([np.nan if v is None else v for v in values], dtype=float).tobytes())
         else:
             h.update("\x1f".join("None" if v is None else str(v) for v in values).encode())
-    assert _data_hash(df) == h.hexdigest()
+    assert data_sha256(df) == h.hexdigest()
 
 
 def test_fit_never_needs_the_truth_files(campaign: Path, tmp_path: Path) -> None:

@@ -15,7 +15,6 @@ is per degree; non-dimensional rates ``phat``, ``rhat`` are per radian of ``pb/2
 
 from __future__ import annotations
 
-import hashlib
 import json
 import math
 import numbers
@@ -33,6 +32,7 @@ from tqdm import tqdm
 
 from aerodelta import _core
 from aerodelta._core import __version__
+from aerodelta._fingerprint import data_sha256
 from aerodelta._groups import Groups
 from aerodelta._threads import engine_threads
 from aerodelta._toml import read_toml
@@ -1974,7 +1974,7 @@ def fit(
         stall[flap] = float(cfg.stall_alpha_deg.get(flap, stall_alpha(parts[flap])))
     with ThreadPoolExecutor(max_workers=engine_threads(cap=4)) as ex:
         # the provenance hash (hashlib releases the GIL) beside the engine's fits
-        data_hash = ex.submit(_data_hash, data)
+        data_hash = ex.submit(data_sha256, data)
         for flap in flaps:
             full, codes = _flap_columns(parts[flap], wanted)
             # values per channel a regressor can read (a channel absent from the data is not
@@ -2031,29 +2031,6 @@ def fit(
         replicates=replicates,
         notes=notes,
     )
-
-
-def _data_hash(data: pl.DataFrame) -> str:
-    h = hashlib.sha256()
-    h.update(str(data.shape).encode())
-    for c in sorted(data.columns):
-        h.update(c.encode())
-        s = data[c]
-        if s.dtype.is_numeric():
-            # float64 bytes, nulls as NaN; hashed from the array's buffer (no copy to bytes)
-            if s.dtype != pl.Float64:
-                s = s.cast(pl.Float64)
-            if s.null_count():
-                s = s.fill_null(np.nan)
-            h.update(np.ascontiguousarray(s.to_numpy()))
-        elif s.dtype in (pl.Utf8, pl.Categorical) or isinstance(s.dtype, pl.Enum):  # fast path
-            h.update(s.cast(pl.Utf8).fill_null("None").str.join("\x1f")[0].encode())
-        elif s.dtype == pl.Boolean:  # the text of str(bool), as below, without a Python list
-            text = s.replace_strict({True: "True", False: "False"}, return_dtype=pl.Utf8)
-            h.update(text.fill_null("None").str.join("\x1f")[0].encode())
-        else:
-            h.update("\x1f".join(map(str, s.to_list())).encode())
-    return h.hexdigest()
 
 
 def _model_spec(

@@ -25,6 +25,7 @@ from typing import Any
 import numpy as np
 import polars as pl
 
+from aerodelta._fingerprint import data_sha256
 from aerodelta._fsutil import replace_dir
 from aerodelta.evidence.matrix import (
     FAIL,
@@ -90,19 +91,9 @@ class EvidenceResult:
 
 
 def frame_sha256(df: pl.DataFrame) -> str:
-    """SHA-256 of a frame's column names, types and values (numeric columns as their float64 /
-    int64 bytes, others as text): the data's fingerprint when no files were read."""
-    h = hashlib.sha256()
-    for name in df.columns:
-        s = df[name]
-        h.update(f"{name}\x1f{s.dtype}\x1e".encode())
-        if s.dtype.is_numeric() or s.dtype == pl.Boolean:
-            h.update(
-                np.ascontiguousarray(s.cast(pl.Float64).fill_null(np.nan).to_numpy()).tobytes()
-            )
-        else:
-            h.update("\x1f".join(s.cast(pl.Utf8).fill_null("\x00").to_list()).encode())
-    return h.hexdigest()
+    """The data's fingerprint when no files were read: :func:`aerodelta._fingerprint.
+    data_sha256`, the hash a model fitted on the same frame records as ``data_sha256``."""
+    return data_sha256(df)
 
 
 def file_table(paths: Sequence[Path], root: Path | None = None) -> tuple[pl.DataFrame, str]:
