@@ -62,6 +62,21 @@ impl FoldGrams {
     }
 }
 
+/// The sum of `blocks` (folds of `w` entries each, one after the other), added in fold order
+/// into `total` (zeroed first), and each fold's training complement `total − fold` into
+/// `trains` (laid out as `blocks`).
+fn total_and_complements(blocks: &[f64], w: usize, total: &mut [f64], trains: &mut [f64]) {
+    total.fill(0.0);
+    for blk in blocks.chunks_exact(w) {
+        total.iter_mut().zip(blk).for_each(|(a, v)| *a += v);
+    }
+    for (tr, blk) in trains.chunks_exact_mut(w).zip(blocks.chunks_exact(w)) {
+        for ((t, a), v) in tr.iter_mut().zip(&*total).zip(blk) {
+            *t = a - v;
+        }
+    }
+}
+
 impl CvGrams {
     /// The statistics of `grams`' bins for `folds` folds: the `k`-th maneuver of bin `b` goes
     /// to fold `fold(b, k)` (none: to no fold) with weight `weight(b, k)` (0: left out).
@@ -83,7 +98,8 @@ impl CvGrams {
         let mut acc = vec![0.0; folds * wdt];
         let mut count = vec![0.0; folds];
         let mut total = vec![0.0; wdt];
-        let mut train = vec![0.0; wdt];
+        let mut train = vec![0.0; folds * wdt];
+        let (mut n_total, mut n_train) = ([0.0], vec![0.0; folds]);
         for (b, bs) in grams.bins.iter().enumerate() {
             acc.iter_mut().for_each(|v| *v = 0.0);
             count.iter_mut().for_each(|v| *v = 0.0);
@@ -95,21 +111,13 @@ impl CvGrams {
                 &mut acc,
                 &mut count,
             );
-            total.iter_mut().for_each(|v| *v = 0.0);
-            let mut n_total = 0.0;
+            total_and_complements(&acc, wdt, &mut total, &mut train);
+            total_and_complements(&count, 1, &mut n_total, &mut n_train);
+            out.totals.set(b, 0, &total, n_total[0]);
             for f in 0..folds {
-                let pk = &acc[f * wdt..(f + 1) * wdt];
-                total.iter_mut().zip(pk).for_each(|(a, v)| *a += v);
-                n_total += count[f];
-                out.folds.set(b, f, pk, count[f]);
-            }
-            out.totals.set(b, 0, &total, n_total);
-            for f in 0..folds {
-                let pk = &acc[f * wdt..(f + 1) * wdt];
-                for ((t, a), v) in train.iter_mut().zip(&total).zip(pk) {
-                    *t = a - v;
-                }
-                out.trains.set(b, f, &train, n_total - count[f]);
+                let at = f * wdt..(f + 1) * wdt;
+                out.folds.set(b, f, &acc[at.clone()], count[f]);
+                out.trains.set(b, f, &train[at], n_train[f]);
             }
         }
         out
@@ -133,40 +141,29 @@ impl CvGrams {
         let mut totals = FoldGrams::zeros(dim, nb, 1);
         let mut trains = FoldGrams::zeros(dim, nb, nf);
         for b in 0..nb {
-            let (tg, ts) = (
-                &mut totals.g[b * d2..(b + 1) * d2],
-                &mut totals.s[b * dim..(b + 1) * dim],
+            let (g, sums, n) = (
+                b * nf * d2..(b + 1) * nf * d2,
+                b * nf * dim..(b + 1) * nf * dim,
+                b * nf..(b + 1) * nf,
             );
-            let mut n_total = 0.0;
-            for f in 0..nf {
-                let i = b * nf + f;
-                tg.iter_mut()
-                    .zip(&folds.g[i * d2..(i + 1) * d2])
-                    .for_each(|(a, v)| *a += v);
-                ts.iter_mut()
-                    .zip(&folds.s[i * dim..(i + 1) * dim])
-                    .for_each(|(a, v)| *a += v);
-                n_total += folds.n[i];
-            }
-            totals.n[b] = n_total;
-            for f in 0..nf {
-                let i = b * nf + f;
-                for ((t, a), v) in trains.g[i * d2..(i + 1) * d2]
-                    .iter_mut()
-                    .zip(&*tg)
-                    .zip(&folds.g[i * d2..(i + 1) * d2])
-                {
-                    *t = a - v;
-                }
-                for ((t, a), v) in trains.s[i * dim..(i + 1) * dim]
-                    .iter_mut()
-                    .zip(&*ts)
-                    .zip(&folds.s[i * dim..(i + 1) * dim])
-                {
-                    *t = a - v;
-                }
-                trains.n[i] = n_total - folds.n[i];
-            }
+            total_and_complements(
+                &folds.g[g.clone()],
+                d2,
+                &mut totals.g[b * d2..(b + 1) * d2],
+                &mut trains.g[g],
+            );
+            total_and_complements(
+                &folds.s[sums.clone()],
+                dim,
+                &mut totals.s[b * dim..(b + 1) * dim],
+                &mut trains.s[sums],
+            );
+            total_and_complements(
+                &folds.n[n.clone()],
+                1,
+                &mut totals.n[b..=b],
+                &mut trains.n[n],
+            );
         }
         CvGrams {
             folds,

@@ -359,38 +359,11 @@ pub fn solve_subset_into(
     work.clear();
     work.resize(k * k + k, 0.0);
     let (l, y) = work.split_at_mut(k * k);
-    for i in 0..k {
-        for j in 0..=i {
-            let mut s = g[cols[i] * dim + cols[j]];
-            for m in 0..j {
-                s -= l[i * k + m] * l[j * k + m];
-            }
-            if i == j {
-                let d = g[cols[i] * dim + cols[i]];
-                if s.is_nan() || s <= 1e-10 * d || d <= 0.0 {
-                    return None;
-                }
-                l[i * k + i] = s.sqrt();
-            } else {
-                l[i * k + j] = s / l[j * k + j];
-            }
-        }
-    }
-    for i in 0..k {
-        let mut s = g[cols[i] * dim + zc];
-        for m in 0..i {
-            s -= l[i * k + m] * y[m];
-        }
-        y[i] = s / l[i * k + i];
+    if !(0..k).all(|i| cholesky_row(g, dim, cols, i, l, k)) {
+        return None;
     }
     th.resize(k, 0.0);
-    for i in (0..k).rev() {
-        let mut s = y[i];
-        for m in i + 1..k {
-            s -= l[m * k + i] * th[m];
-        }
-        th[i] = s / l[i * k + i];
-    }
+    cholesky_solve(g, dim, cols, l, k, y, th);
     let fit: f64 = th.iter().zip(cols).map(|(t, &c)| t * g[c * dim + zc]).sum();
     let sse = (g[zc * dim + zc] - fit).max(0.0);
     th.iter().all(|v| v.is_finite()).then_some(sse)
@@ -403,56 +376,85 @@ pub fn solve_subset_into(
 /// the first `k` rows of any longer one, so each trial costs `O(k²)`, not a factorization, and
 /// decides as the trial factorization does, to the bit.
 fn independent_columns(g: &[f64], dim: usize, p: usize) -> Vec<usize> {
-    let zc = dim - 1;
     let mut cols: Vec<usize> = Vec::with_capacity(p);
     // rows of L with stride p, the forward solution y and the estimates th
     let mut l = vec![0.0; p * p];
     let (mut y, mut th) = (vec![0.0; p], vec![0.0; p]);
     for c in 0..p {
-        let i = cols.len();
-        // row i of L for the columns cols + [c]
-        let col = |j: usize| if j == i { c } else { cols[j] };
-        let mut ok = true;
-        for j in 0..=i {
-            let mut s = g[c * dim + col(j)];
-            for m in 0..j {
-                s -= l[i * p + m] * l[j * p + m];
-            }
-            if i == j {
-                let d = g[c * dim + c];
-                if s.is_nan() || s <= 1e-10 * d || d <= 0.0 {
-                    ok = false;
-                    break;
-                }
-                l[i * p + i] = s.sqrt();
-            } else {
-                l[i * p + j] = s / l[j * p + j];
-            }
-        }
-        if !ok {
-            continue;
-        }
-        // the solution with the new column: every estimate finite
-        let k = i + 1;
-        for r in 0..k {
-            let mut s = g[col(r) * dim + zc];
-            for m in 0..r {
-                s -= l[r * p + m] * y[m];
-            }
-            y[r] = s / l[r * p + r];
-        }
-        for r in (0..k).rev() {
-            let mut s = y[r];
-            for m in r + 1..k {
-                s -= l[m * p + r] * th[m];
-            }
-            th[r] = s / l[r * p + r];
-        }
-        if th[..k].iter().all(|v| v.is_finite()) {
-            cols.push(c);
+        // the trial: row k - 1 of L for the columns cols + [c], then the solution with it
+        cols.push(c);
+        let k = cols.len();
+        let kept = cholesky_row(g, dim, &cols, k - 1, &mut l, p) && {
+            cholesky_solve(g, dim, &cols, &l, p, &mut y[..k], &mut th[..k]);
+            th[..k].iter().all(|v| v.is_finite())
+        };
+        if !kept {
+            cols.pop();
         }
     }
     cols
+}
+
+/// Row `i` of the Cholesky factor `l` (rows `stride` apart, rows `0..i` already there) of
+/// the augmented Gram matrix `g` over the columns `cols[..=i]`; false when the pivot is NaN,
+/// not positive, or below `1e-10` of its diagonal: column `cols[i]` depends on the earlier
+/// ones (the rule of [`solve_subset`]).
+#[inline]
+fn cholesky_row(
+    g: &[f64],
+    dim: usize,
+    cols: &[usize],
+    i: usize,
+    l: &mut [f64],
+    stride: usize,
+) -> bool {
+    let c = cols[i];
+    for j in 0..=i {
+        let mut s = g[c * dim + cols[j]];
+        for m in 0..j {
+            s -= l[i * stride + m] * l[j * stride + m];
+        }
+        if i == j {
+            let d = g[c * dim + c];
+            if s.is_nan() || s <= 1e-10 * d || d <= 0.0 {
+                return false;
+            }
+            l[i * stride + i] = s.sqrt();
+        } else {
+            l[i * stride + j] = s / l[j * stride + j];
+        }
+    }
+    true
+}
+
+/// The least-squares estimates `th` of `z` (the last column of `g`) on `cols` from their
+/// Cholesky factor `l` (rows `stride` apart): forward substitution into `y`, then back
+/// substitution (`y` and `th` of `cols.len()` entries).
+#[inline]
+fn cholesky_solve(
+    g: &[f64],
+    dim: usize,
+    cols: &[usize],
+    l: &[f64],
+    stride: usize,
+    y: &mut [f64],
+    th: &mut [f64],
+) {
+    let (k, zc) = (cols.len(), dim - 1);
+    for i in 0..k {
+        let mut s = g[cols[i] * dim + zc];
+        for m in 0..i {
+            s -= l[i * stride + m] * y[m];
+        }
+        y[i] = s / l[i * stride + i];
+    }
+    for i in (0..k).rev() {
+        let mut s = y[i];
+        for m in i + 1..k {
+            s -= l[m * stride + i] * th[m];
+        }
+        th[i] = s / l[i * stride + i];
+    }
 }
 
 /// Held-out sums of a fit `theta` on `cols` against another augmented Gram
