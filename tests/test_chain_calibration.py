@@ -168,5 +168,21 @@ def test_a_given_structure_is_estimated_with_the_chain() -> None:
     assert missing.skew_s["Cl"] == pytest.approx(alone.skew_s["Cl"], rel=1e-9)
 
 
+def test_dependent_structure_terms_are_a_note_not_a_crash() -> None:
+    """Two given structure terms that are one below alpha_l (the second twice the first):
+    the chain is not calibrated and the note names them (this used to raise out of fit)."""
+    df = _frame(_signal)
+    da = np.cos(7.3 * df["t"].to_numpy())
+    df = df.with_columns(pl.Series("da_deg", da), pl.Series("dr_deg", 2.0 * da))
+    q = {"Cl": df["Cl_q"].to_numpy()}
+    out, cal = calibrate_chain(
+        df, q, ["Cl"], FitConfig(), [0.0],
+        structures={"Cl": [("dCl_da", "da_deg"), ("dCl_dr", "dr_deg")]},
+    )  # fmt: skip
+    note = cal.note("Cl")
+    assert "not calibrated" in note and "'dCl_da', 'dCl_dr'" in note, note
+    assert np.array_equal(out["Cl"], q["Cl"])
+
+
 def _maneuver_index(df: pl.DataFrame) -> np.ndarray:
     return df["maneuver_id"].str.slice(1).cast(pl.Int64).to_numpy().astype(float)

@@ -574,3 +574,20 @@ def rolloff_monte_carlo(
     spec_json: str, threads: int | None = None
 ) -> dict[str, npt.NDArray[np.generic]]: ...
 def rolloff_mc_default_spec() -> str: ...
+def calibrate_chain(
+    t: npt.NDArray[np.float64],
+    maneuver: npt.NDArray[np.uint64],
+    trusted: npt.NDArray[np.bool_],
+    coefficients: list[
+        tuple[npt.NDArray[np.float64], npt.NDArray[np.float64], list[tuple[str, str]]]
+    ],
+    columns: dict[str, npt.NDArray[np.float64]],
+    min_samples: int,
+    min_maneuvers: int,
+) -> list[
+    tuple[
+        str,
+        tuple[float, float, float, float, int, int] | None,
+        npt.NDArray[np.float64] | None,
+    ]
+]: ...

@@ -36,8 +36,7 @@ from aerodelta._fingerprint import data_sha256
 from aerodelta._groups import Groups
 from aerodelta._threads import engine_threads
 from aerodelta._toml import read_toml
-from aerodelta.exceptions import DataError, InvalidInputError
-from aerodelta.lsq import ols
+from aerodelta.exceptions import DataError
 from aerodelta.model import SCHEMA, DeltaModel
 from aerodelta.qualified import describe, for_model, resolve
 
@@ -1539,114 +1538,6 @@ class ChainCalibration:
         )
 
 
-@dataclass(frozen=True)
-class _Stencil:
-    """Three-point difference weights on the sample times of :func:`_time_derivatives`:
-    ``ok`` marks the interior samples with both neighbours usable; the spacings ``hm``, ``hp``
-    (s) to the previous and next sample."""
-
-    ok: np.ndarray
-    hm: np.ndarray
-    hp: np.ndarray
-
-
-def _stencil(t: np.ndarray, maneuver: np.ndarray) -> _Stencil | None:
-    """The difference stencil of :func:`_time_derivatives` (``None``: no usable spacing),
-    shared by every signal sampled at ``t``."""
-    if t.size < 3:
-        return None
-    hm = t[1:-1] - t[:-2]
-    hp = t[2:] - t[1:-1]
-    steps = np.diff(t)[maneuver[1:] == maneuver[:-1]]
-    steps = steps[np.isfinite(steps) & (steps > 0)]
-    if steps.size == 0:
-        return None
-    gap = 1.5 * float(np.median(steps))
-    ok = (
-        (maneuver[:-2] == maneuver[1:-1])
-        & (maneuver[2:] == maneuver[1:-1])
-        & (hm > 0)
-        & (hp > 0)
-        & (hm <= gap)
-        & (hp <= gap)
-    )
-    return _Stencil(ok, hm, hp)
-
-
-def _time_derivatives(
-    t: np.ndarray, y: np.ndarray, maneuver: np.ndarray, stencil: _Stencil | None = None
-) -> tuple[np.ndarray, np.ndarray]:
-    """First and second time derivatives of ``y`` by three-point differences on the sample
-    times ``t`` (s; unequal spacing allowed), within each maneuver's contiguous samples (rows
-    in time order, as ingested). NaN at a maneuver's ends, across a gap (a spacing over 1.5 x
-    the median) and where a neighbour is not finite. ``stencil``: :func:`_stencil` of ``t``
-    and ``maneuver``, when computed already."""
-    n = t.size
-    d1 = np.full(n, np.nan)
-    d2 = np.full(n, np.nan)
-    st = stencil if stencil is not None else _stencil(t, maneuver)
-    if st is None:
-        return d1, d2
-    hm, hp = st.hm, st.hp
-    ym, y0, yp = y[:-2], y[1:-1], y[2:]
-    with np.errstate(invalid="ignore", divide="ignore"):
-        sp = (yp - y0) / hp
-        sm = (y0 - ym) / hm
-        first = (sp * hm + sm * hp) / (hm + hp)
-        second = 2.0 * (sp - sm) / (hm + hp)
-    d1[1:-1] = np.where(st.ok, first, np.nan)
-    d2[1:-1] = np.where(st.ok, second, np.nan)
-    return d1, d2
-
-
-def _structure_columns(
-    df: pl.DataFrame, coef: str, terms: Sequence[tuple[str, str]], rows: np.ndarray
-) -> list[np.ndarray]:
-    """Values of the regressors of ``terms`` at the rows of ``df`` selected by the boolean
-    mask ``rows`` (the engine evaluates each expression as a Δ-model term with a parameter of
-    1), for :func:`calibrate_chain`; one array of ``rows.sum()`` values per kept term. The
-    intercept, a regressor whose channels ``df`` lacks and one constant over ``rows`` are
-    left out."""
-
-    keep = [
-        (n, e)
-        for n, e in terms
-        if e.replace(" ", "") != "1" and all(ch in df.columns for ch in regressor_channels(e))
-    ]
-    if not keep:
-        return []
-    spec = {
-        "schema": SCHEMA,
-        "flaps_deg": [0.0],
-        "alpha_channel": "alpha_deg",
-        "flap_channel": "flap_deg",
-        "coefficients": {
-            coef: {
-                "terms": [
-                    {"name": n, "regressor": e, "alpha_deg": [0.0, 1.0], "values": [[1.0, 1.0]]}
-                    for n, e in keep
-                ],
-                "alpha_l_deg": [0.0],
-                "alpha_u_deg": [1.0],
-            }
-        },
-    }
-    model = _core.DeltaModel.from_json(json.dumps(spec), "chain calibration")
-    cols = {
-        name: np.ascontiguousarray(df[name].cast(pl.Float64).to_numpy()[rows])
-        for name in model.input_columns
-        if name in df.columns
-    }
-    _, _, values = model.eval_columns(coef, cols, int(rows.sum()))
-    out = []
-    for n, _ in keep:
-        v = np.asarray(values[n], dtype=float)
-        sel = v[np.isfinite(v)]
-        if sel.size and np.ptp(sel) > 0:
-            out.append(v)
-    return out
-
-
 def calibrate_chain(
     df: pl.DataFrame,
     q: Mapping[str, np.ndarray],
@@ -1672,8 +1563,10 @@ def calibrate_chain(
     instrumentation and of the preprocessing, the same at every alpha, so the estimate from
     the trusted range carries over; the Δ the fit identifies is then what the qualified model
     lacks, not the chain's response to the whole aircraft's coefficient. Skipped, with the
-    reason, without the time column ``t`` or with fewer than :data:`CHAIN_MIN_SAMPLES`
-    calibration samples or ``min_maneuvers_identified`` maneuvers.
+    reason, without the time column ``t``, with fewer than :data:`CHAIN_MIN_SAMPLES`
+    calibration samples or ``min_maneuvers_identified`` maneuvers (at least 2, for the
+    clustered errors), or when the derivatives are (near) combinations of the intercept and
+    the structure's regressors below alpha_l. The numerics are ``aero_core::chain``.
 
     Parameters
     ----------
@@ -1704,74 +1597,52 @@ def calibrate_chain(
         for c in coefs:
             cal.skipped[c] = "the data have no time column 't'"
         return out, cal
-    t = df["t"].cast(pl.Float64).to_numpy()
+    t = np.ascontiguousarray(df["t"].cast(pl.Float64).to_numpy())
     # integer maneuver codes (comparing and grouping 10^5 strings costs a quarter second)
-    man = df["maneuver_id"].cast(pl.Utf8).rank("dense").cast(pl.Int64).to_numpy()
+    man = np.ascontiguousarray(
+        df["maneuver_id"].cast(pl.Utf8).rank("dense").cast(pl.UInt64).to_numpy()
+    )
     alpha = df["alpha_deg"].cast(pl.Float64).to_numpy()
     flap = df["flap_deg"].cast(pl.Float64).to_numpy()
     alpha_l = np.full(df.height, -np.inf)
     for f in flaps:
         alpha_l[flap == f] = _per_flap(cfg.alpha_l_deg, f, "alpha_l_deg")
     trusted = np.isfinite(alpha) & (alpha < alpha_l)
-    stencil = _stencil(t, man)
-
-    def one(c: str) -> tuple[np.ndarray, tuple[float, float, float, float, int, int]] | str:
-        """Coefficient ``c``: its calibrated values and (τ, κ, their t, samples, maneuvers),
-        or why it is skipped."""
-        qc = out[c]
-        d1, d2 = _time_derivatives(t, qc, man, stencil)
-        z = df[f"{c}_meas"].cast(pl.Float64).to_numpy() - qc
-        rows = trusted & np.isfinite(z) & np.isfinite(d1) & np.isfinite(d2)
-        terms = _structure_columns(df, c, (structures or {}).get(c, []), rows)
-        if terms:  # the terms' values are at the rows of the mask: drop their non-finite ones
-            finite = np.logical_and.reduce([np.isfinite(col) for col in terms])
-            terms = [col[finite] for col in terms]
-            rows[np.flatnonzero(rows)[~finite]] = False
-        groups = np.unique(man[rows])
-        if rows.sum() < CHAIN_MIN_SAMPLES or groups.size < cfg.min_maneuvers_identified:
-            return (
-                f"{int(rows.sum())} samples of {groups.size} maneuvers below alpha_l "
-                f"({CHAIN_MIN_SAMPLES} samples and {cfg.min_maneuvers_identified} maneuvers "
-                "needed)"
+    terms = {c: [(str(n), str(e)) for n, e in (structures or {}).get(c, [])] for c in coefs}
+    # the channels the structures read that the data have (a term on another is left out)
+    channels = {ch for ts in terms.values() for _, e in ts for ch in regressor_channels(e)}
+    columns = {
+        ch: np.ascontiguousarray(df[ch].cast(pl.Float64).to_numpy())
+        for ch in sorted(channels)
+        if ch in df.columns
+    }
+    # the engine: three-point time derivatives within maneuvers, the clustered least squares
+    # of each coefficient (in parallel), the calibrated values
+    results = _core.calibrate_chain(
+        t,
+        man,
+        trusted,
+        [
+            (
+                np.ascontiguousarray(out[c]),
+                np.ascontiguousarray(df[f"{c}_meas"].cast(pl.Float64).to_numpy()),
+                terms[c],
             )
-        x = np.column_stack([np.ones(int(rows.sum())), d1[rows], d2[rows], *terms])
-        # the engine's least squares (QR, collinearity diagnostics, CR2 errors by maneuver)
-        try:
-            res = ols(
-                x, z[rows], colored=False, groups=np.unique(man[rows], return_inverse=True)[1]
-            )
-        except InvalidInputError as exc:
-            res, why = None, str(exc)
-        else:
-            why = ""
-        # the derivatives must not be (near) combinations of the other columns
-        if res is None or res.rank < x.shape[1] or np.any(res.vif[1:3] > 1e8):
-            return (
-                "the qualified model's time derivatives below alpha_l are not independent of "
-                f"the intercept and the structure's regressors{': ' + why if why else ''}"
-            )
-        beta = res.params
-        with np.errstate(divide="ignore", invalid="ignore"):
-            tstat = beta / res.std_err_cluster
-        est = (
-            float(beta[1]), float(beta[2]), float(tstat[1]), float(tstat[2]), int(rows.sum()),
-            int(res.n_groups or groups.size),
-        )  # fmt: skip
-        corr = np.where(np.isfinite(d1) & np.isfinite(d2), beta[1] * d1 + beta[2] * d2, 0.0)
-        return qc + corr, est
-
-    # the coefficients side by side (numpy and the engine release the GIL), results taken in
-    # the order of ``coefs``
-    with ThreadPoolExecutor(max_workers=engine_threads(cap=len(coefs) or 1)) as ex:
-        results = list(ex.map(one, coefs))
-    for c, r in zip(coefs, results, strict=True):
-        if isinstance(r, str):
-            cal.skipped[c] = r
+            for c in coefs
+        ],
+        columns,
+        CHAIN_MIN_SAMPLES,
+        cfg.min_maneuvers_identified,
+    )
+    for c, (why, est, corrected) in zip(coefs, results, strict=True):
+        if est is None or corrected is None:
+            cal.skipped[c] = why
             continue
-        out[c], (
+        out[c] = corrected
+        (
             cal.skew_s[c], cal.curvature_s2[c], cal.t_skew[c], cal.t_curvature[c],
             cal.samples[c], cal.maneuvers[c],
-        ) = r  # fmt: skip
+        ) = est  # fmt: skip
     return out, cal
 
 

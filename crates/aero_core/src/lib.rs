@@ -33,6 +33,8 @@
 //! - [`select`]: structure selection of the Δ model per coefficient and flap
 //!   (stepwise partial F, orthogonal functions with PSE, cross-validation over maneuvers);
 //! - [`bootstrap`]: confidence bands on the smoothed parameters by resampling maneuvers;
+//! - [`chain`]: the measurement chain's time skew and smoothing, calibrated on the qualified
+//!   model below alpha_l (three-point time derivatives, clustered least squares);
 //! - [`delta_model`]: the Δ part of the extended model (Eq. 3.11-3.12, 3.19),
 //!   its versioned file and an allocation-free bound evaluation;
 //! - [`kirchhoff`]: the Kirchhoff flow-separation stall of the longitudinal axis
@@ -52,6 +54,7 @@ pub mod aircraft;
 pub mod band;
 pub mod bootstrap;
 pub mod buffet;
+pub mod chain;
 pub mod daveml;
 pub mod delta_model;
 pub mod envelope;

@@ -5,6 +5,7 @@
 
 use pyo3::prelude::*;
 
+mod chain;
 mod daveml;
 mod delta_model;
 mod error;
@@ -27,6 +28,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     error::register(m)?;
     table::register(m)?;
     identify::register(m)?;
+    chain::register(m)?;
     kirchhoff::register(m)?;
     delta_model::register(m)?;
     spline::register(m)?;
