@@ -273,6 +273,17 @@ def test_objective_speed_rows_from_closed_loop_replays(
     assert loop.height == stall.height
     assert res.tables["closed_loop_summary"]["n"].sum() > 0
     st = {r.key: r.status for r in res.rows}
+    # the envelope row counts the replays' time outside the model's validated envelope
+    env_row = next(r for r in res.rows if r.key == "envelope")
+    outside = loop["outside_envelope_s"]
+    assert outside.null_count() == 0 and outside.min() >= 0.0
+    n_out = int((outside > 0).sum())
+    assert (
+        f"{n_out} of the {loop.height} closed-loop replays" in env_row.detail
+        if n_out
+        else f"The {loop.height} closed-loop replays with the extended model stay inside"
+        in env_row.detail
+    ), env_row.detail
     pre = next(r for r in res.rows if r.key == "prestall")
     assert pre.status == "PASS" and "identical over the" in pre.detail
     assert res.tables["prestall"]["max_state_diff"].max() == 0.0

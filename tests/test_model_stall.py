@@ -81,6 +81,46 @@ def test_the_replay_flies_the_stored_stall(fitted: dict[str, Any]) -> None:
     assert any(not static.runs[m].equals(given.runs[m]) for m in ids)
 
 
+def test_replays_count_the_time_outside_the_envelope(fitted: dict[str, Any]) -> None:
+    """The replay's time outside the validated envelope against two envelopes whose answer is
+    known: one covering every state (0 s) and one covering none (the run's whole duration);
+    the envelope only flags, the flight is the same."""
+    data, model = fitted["data"], fitted["model"]
+    ids = data["maneuver_id"].unique().sort().to_list()[:3]
+    spec = model.to_spec()
+    env = spec["envelope"]
+    w = float(env["band_deg"])
+
+    def with_bands(beta_lo: float, beta_hi: float) -> DeltaModel:
+        bands = [
+            [
+                {"band": b, "beta_min_deg": beta_lo, "beta_max_deg": beta_hi, "maneuvers": 99}
+                for b in range(-int(90 / w), int(90 / w) + 1)
+            ]
+            for _ in env["flaps_deg"]
+        ]
+        return DeltaModel.from_spec({**spec, "envelope": {**env, "bands": bands}})
+
+    fitted_env = closed_loop_replay(data, model=model, maneuvers=ids)
+    everywhere = closed_loop_replay(data, model=with_bands(-90.0, 90.0), maneuvers=ids)
+    nowhere = closed_loop_replay(data, model=with_bands(80.0, 81.0), maneuvers=ids)
+    assert fitted_env.setup["envelope"] and everywhere.setup["envelope"]
+    for mid in ids:
+        run = fitted_env.runs[mid]
+        assert everywhere.runs[mid].equals(run) and nowhere.runs[mid].equals(run)
+        duration = float(run["t"][-1] - run["t"][0])
+
+        def outside(res: Any, m: str = mid) -> float:
+            return float(res.table.filter(pl.col("maneuver_id") == m)["outside_envelope_s"][0])
+
+        assert outside(everywhere) == 0.0
+        assert outside(nowhere) == pytest.approx(duration, rel=1e-12)
+        assert 0.0 <= outside(fitted_env) <= duration
+    # no model, no envelope: not counted
+    qual = closed_loop_replay(data, maneuvers=ids[:1])
+    assert qual.table["outside_envelope_s"].null_count() == 1 and not qual.setup["envelope"]
+
+
 def test_refusals(fitted: dict[str, Any], tmp_path: Path) -> None:
     data, model = fitted["data"], fitted["model"]
     lift_only = fit_kirchhoff(model_frame(data), flaps=[0.0], fit_cm=False)

@@ -81,7 +81,10 @@ class ClosedLoopResult:
         recorded one up to the record's stall identification: model minus aircraft),
         ``stall_id_by`` and ``sim_stall_id_by``, ``entry_decel_kt_s`` (the record's, kt/s) and
         ``test_condition`` (the entry decelerates at most ``MAX_TEST_DECEL_KT_S``: a Part 60
-        stall-speed test condition, or its deceleration is unknown); per quantity
+        stall-speed test condition, or its deceleration is unknown), ``outside_envelope_s``
+        (the time, s, the replayed state spent outside the model's validated envelope, where
+        the Δ is extrapolated and a simulator shows its "outside the validated envelope"
+        flag; null without a model or for a model with no envelope); per quantity
         ``<q>_rec_keas``, ``<q>_sim_keas``, ``<q>_diff_kt``
         (simulator minus aircraft) and ``<q>_status`` (``PASS``, ``FAIL`` or null when the
         record has no value) for ``v_warning``, ``v_buffet_onset``, ``v_stall``.
@@ -90,7 +93,8 @@ class ClosedLoopResult:
     setup
         The warning and pusher thresholds per flap (deg), the model, the flaps flying the
         Kirchhoff stall given (``kirchhoff_flaps``) and those flying the one ``model`` stores
-        (``model_kirchhoff_flaps``), the buffet model.
+        (``model_kirchhoff_flaps``), the buffet model, whether the envelope time was counted
+        (``envelope``).
     """
 
     table: pl.DataFrame
@@ -206,6 +210,32 @@ def _noise_std(t: np.ndarray, alpha: np.ndarray, az: np.ndarray) -> float:
     floor = float(detect_onset(t, alpha, az)["floor_rms_mps2"])
     frac = max(hi - lo, 0.0) / (0.5 / dt)
     return floor / math.sqrt(frac) if frac > 0 else 0.0
+
+
+def _time_outside(runs: pl.DataFrame, model: DeltaModel | None) -> dict[str, float]:
+    """Per replayed maneuver, the time (s) its simulated state (CG alpha, sideslip, flap)
+    spends outside the model's validated envelope (:meth:`DeltaModel.in_envelope`, the flag
+    a simulator displays): each sample counts the interval to the next. Empty without a model
+    or for a model that carries no envelope."""
+    if model is None or model.envelope is None:
+        return {}
+    states = runs.select(
+        "maneuver_id",
+        "t",
+        "flap_deg",
+        pl.col("alpha_cg_deg").alias("alpha_deg"),
+        "beta_deg",
+    )
+    inside = model.in_envelope(states)
+    per = (
+        states.with_columns(inside.alias("inside"))
+        .with_columns(
+            (pl.col("t").shift(-1).over("maneuver_id") - pl.col("t")).fill_null(0.0).alias("dt")
+        )
+        .group_by("maneuver_id", maintain_order=True)
+        .agg(pl.col("dt").filter(~pl.col("inside")).sum().alias("outside"))
+    )
+    return {str(m): float(v) for m, v in per.iter_rows()}
 
 
 def _status(d: float | None) -> str:
@@ -385,6 +415,7 @@ def closed_loop_replay(
     if buffet_model is None:
         sim_all = sim_all.drop("az_mps2")
     sim_table = stall_identification(sim_all, aft_stop_deg=aft_stop_deg)
+    outside = _time_outside(sim_all, model)
     rows = []
     for mid in ids:
         r = rec_table.filter(pl.col("maneuver_id") == mid).row(0, named=True)
@@ -401,6 +432,7 @@ def closed_loop_replay(
             "entry_decel_kt_s": r["entry_decel_kt_s"],
             "test_condition": r["entry_decel_kt_s"] is None
             or r["entry_decel_kt_s"] <= MAX_TEST_DECEL_KT_S,
+            "outside_envelope_s": outside.get(mid),
         }
         for key, col, _ in QUANTITIES:
             a, b = r[col], s[col]
@@ -423,6 +455,7 @@ def closed_loop_replay(
         "sim_stall_id_by": pl.Utf8,
         "entry_decel_kt_s": pl.Float64,
         "test_condition": pl.Boolean,
+        "outside_envelope_s": pl.Float64,
     }
     for key, _, _ in QUANTITIES:
         schema |= {
@@ -442,5 +475,6 @@ def closed_loop_replay(
             - set(kp)
         ) if model is not None and model.kirchhoff_known == "adx37" else [],
         "buffet_model": buffet_model is not None,
+        "envelope": bool(outside),
     }  # fmt: skip
     return ClosedLoopResult(table=pl.DataFrame(rows, schema=schema), runs=runs, setup=setup)

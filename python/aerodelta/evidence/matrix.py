@@ -204,7 +204,7 @@ def assess(
     _rolloff_row(out, data, table)
     _buffet_rows(out, table, buffet, sim_buffet, sim_buffet_source)
     _validity_row(out, data, table)
-    _envelope_row(out, data, model)
+    _envelope_row(out, data, model, loop)
     _entries_row(out, table, power_on_ct)
     _lateral_row(out, model, params)
     _longitudinal_row(out, fits)
@@ -851,7 +851,29 @@ def _outlines(env: pl.DataFrame) -> dict[float, list[tuple[np.ndarray, np.ndarra
     return out
 
 
-def _envelope_row(out: Assessment, data: pl.DataFrame, model: DeltaModel | None) -> None:
+def _replay_outside(replays: pl.DataFrame) -> str:
+    """The closed-loop replays' time outside the validated envelope, one sentence."""
+    t = replays.filter(pl.col("outside_envelope_s").is_not_null())
+    out = t.filter(pl.col("outside_envelope_s") > 0.0).sort(
+        "outside_envelope_s", "maneuver_id", descending=[True, False]
+    )
+    if not out.height:
+        return (
+            f". The {t.height} closed-loop replays with the extended model stay inside it "
+            "throughout"
+        )
+    worst = out.row(0, named=True)
+    return (
+        f". {out.height} of the {t.height} closed-loop replays with the extended model leave it "
+        f"(the Δ extrapolated there): {_fmt(float(out['outside_envelope_s'].sum()), '.1f')} s "
+        f"in all, the longest {_fmt(worst['outside_envelope_s'], '.1f')} s "
+        f"({worst['maneuver_id']})"
+    )
+
+
+def _envelope_row(
+    out: Assessment, data: pl.DataFrame, model: DeltaModel | None, loop: Any = None
+) -> None:
     acol = "alpha_cg_deg" if "alpha_cg_deg" in data.columns else "alpha_deg"
     bcol = "beta_cg_deg" if "beta_cg_deg" in data.columns else "beta_deg"
     kind = pl.col("kind").cast(pl.Utf8) if "kind" in data.columns else pl.lit("other")
@@ -889,6 +911,8 @@ def _envelope_row(out: Assessment, data: pl.DataFrame, model: DeltaModel | None)
             "'outside the validated envelope' flag, DeltaModel.in_envelope): " + ", ".join(
                 f"flap {f:g} {100 * s:.0f} %" for f, s in share.rows()
             )  # fmt: skip
+        if loop is not None and loop.setup.get("envelope"):
+            detail += _replay_outside(loop.table)
     fig = out.figure(
         FigureSpec(
             "fig-envelope",

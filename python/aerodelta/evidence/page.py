@@ -120,8 +120,10 @@ _FIGURE_TABLES: dict[str, list[tuple[str, Sequence[str] | None, str]]] = {
                 "v_buffet_onset_status",
                 "v_stall_diff_kt",
                 "v_stall_status",
+                "outside_envelope_s",
             ),
-            "Closed-loop replays per maneuver (simulator minus flight test, kt)",
+            "Closed-loop replays per maneuver (simulator minus flight test, kt; time outside "
+            "the validated envelope, s)",
         ),
     ],
     "fig-rolloff": [("rolloff", None, "Wings-level stalls: bank change after identification")],
