@@ -10,19 +10,25 @@ The same suite on JSBSim aircraft (issue 17, item 5) is ``benchmarks/jsbsim_diag
         [--first-seed 1]
         [--design-singles] [--only singles|multi|unlisted|nulls] [--magnitudes 0.5,0.25]
         [--effects a,b] [--condition 0|1] [--out FILE]
+        [--workers 2] [--scheduler tcp://host:8786] [--resume DIR]
+
+The cases run as tasks on the distributed engine (``aerodelta.plan.suite.run_cases``; Dask, a
+local cluster of ``--workers`` processes or the cluster at ``--scheduler``; ``--workers 0``:
+one after the other in this process); a failed case is retried, then listed; with
+``--resume DIR`` each finished case is kept there and a rerun skips it. The numbers do not
+depend on the number of workers.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
-import sys
 import time
-
-from tqdm import tqdm
+from typing import Any
 
 from aerodelta.campaign import effect_library
 from aerodelta.diagnosis.withheld import CaseResult, dumps, run_case, summarize
+from aerodelta.plan.suite import run_cases
 
 CONDITIONS = [
     {"noise": 1.0, "turbulence": 0.5, "rolloff": False},
@@ -72,6 +78,20 @@ def cases(
     return out
 
 
+def one_case(
+    effects: dict[str, float], seed: int, size: str | int, cond: dict[str, Any]
+) -> CaseResult:
+    """One case (a task on the engine)."""
+    r = run_case(effects, seed=seed, size=size, **cond)
+    # a null with only a few ms of skew is a null: the skew must not be reported
+    if set(effects) == {"time_skew"} and effects["time_skew"] < 0.2:
+        r.effects = {}
+        r.false_alarms = [f for f in r.false_alarms if not f.endswith("time_skew")] + [
+            f"{c}:time_skew" for c in ("Cl", "Cn", "CY") if "time_skew" in r.significant[c]
+        ]
+    return r
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--quick", action="store_true", help="a dozen cases instead of the sweep")
@@ -102,6 +122,9 @@ def main() -> int:
         help="only cases flown in this condition (0: nominal; 1: noise x2, gusts, roll-off)",
     )
     ap.add_argument("--out", default="diagnosis_suite.json")
+    ap.add_argument("--workers", type=int, default=2, help="engine workers (0: this process)")
+    ap.add_argument("--scheduler", default=None, help="a Dask scheduler's address")
+    ap.add_argument("--resume", default=None, help="keep finished cases here and skip them")
     args = ap.parse_args()
     size: str | int = int(args.size) if args.size.isdigit() else args.size
     todo = cases(args.quick, args.seeds, args.first_seed)
@@ -129,20 +152,25 @@ def main() -> int:
         todo = [t for t in todo if names & set(t[0])]
     if args.condition is not None:
         todo = [t for t in todo if t[2] is CONDITIONS[args.condition]]
-    results: list[CaseResult] = []
     t0 = time.perf_counter()
-    for effects, seed, cond in tqdm(todo, desc="withheld-effect suite", file=sys.stderr):
-        r = run_case(effects, seed=seed, size=size, **cond)  # type: ignore[arg-type]
-        # a null with only a few ms of skew is a null: the skew must not be reported
-        if set(effects) == {"time_skew"} and effects["time_skew"] < 0.2:
-            r.effects = {}
-            r.false_alarms = [f for f in r.false_alarms if not f.endswith("time_skew")] + [
-                f"{c}:time_skew" for c in ("Cl", "Cn", "CY") if "time_skew" in r.significant[c]
-            ]
-        results.append(r)
+    run = run_cases(
+        one_case,
+        [(effects, seed, size, dict(cond)) for effects, seed, cond in todo],
+        labels=[f"seed {seed} {effects or 'null'}" for effects, seed, _ in todo],
+        workers=args.workers,
+        scheduler=args.scheduler,
+        resume=args.resume,
+        name="withheld",
+    )
+    results: list[CaseResult] = [r for r in run.results if r is not None]
     dt = time.perf_counter() - t0
+    for f in run.failures:
+        print(f"FAILED {f.label}: {f.error}")
     s = summarize(results)
-    print(f"withheld-effect suite: {len(results)} cases in {dt:.0f} s (campaign size {size})")
+    print(
+        f"withheld-effect suite: {len(results)} cases in {dt:.0f} s (campaign size {size}; "
+        f"{run.resumed} read back from --resume; {len(run.failures)} failed)"
+    )
     print("singles: verdict rate by magnitude (floors: design, half 100 %; quarter >= 85 %)")
     for k in ("design", "half", "quarter"):
         if k in s["singles_found"]:
@@ -190,7 +218,7 @@ def main() -> int:
         fh.write(dumps(results))
     print(f"wrote {args.out}")
     _ = json
-    return 0
+    return 1 if run.failures else 0
 
 
 if __name__ == "__main__":

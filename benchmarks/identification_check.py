@@ -17,17 +17,21 @@ rest out. Reported, per coefficient:
   the held-out maneuvers, and the same for qualified + the true Δ (the best any Δ model can do
   against the noisy measurements).
 
-Run: ``python benchmarks/identification_check.py [--seeds 20] [--first-seed 1]``
-(about 40 s per seed on 2 cores).
+Run: ``python benchmarks/identification_check.py [--seeds 20] [--first-seed 1]
+[--workers 2] [--scheduler ADDRESS] [--resume DIR]`` (about 40 s of 2 cores per seed). The seeds
+run as tasks on the distributed engine (``aerodelta.plan.suite.run_cases``: a local Dask cluster
+of ``--workers`` processes, or the cluster at ``--scheduler``; ``--workers 0``: in this
+process); ``--resume DIR`` keeps each finished seed and a rerun skips it. The numbers do not
+depend on the number of workers.
 """
 
 from __future__ import annotations
 
 import argparse
-import shutil
 import tempfile
 import time
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import polars as pl
@@ -35,7 +39,14 @@ import polars as pl
 import aerodelta as ad
 from aerodelta.fit import COEFFICIENTS, FitConfig, model_frame, qualified_coefficients
 from aerodelta.fit import theil_inequality as tic
+from aerodelta.plan.suite import run_cases
 from aerodelta.truth import band_summary, campaign_effects
+
+CONFIGS = {
+    "selected": FitConfig(),
+    "no reselection": FitConfig(bootstrap_selection=False),
+    "thesis": FitConfig(selection=None),
+}
 
 
 def _tic_ratios(
@@ -68,48 +79,74 @@ def _tic_ratios(
     return out
 
 
+def one_seed(seed: int, bootstrap: int) -> dict[str, Any]:
+    """One campaign (a task on the engine): per configuration the band summary, the held-out
+    TIC ratios of the selected fit and the thesis fit's parameter table."""
+    out: dict[str, Any] = {"bands": {}}
+    with tempfile.TemporaryDirectory() as tmp:
+        camp = Path(tmp) / f"c{seed}"
+        ad.generate_campaign(camp, seed=seed, progress=False)
+        effects = campaign_effects(camp)
+        data = ad.ingest(camp, compat=False, progress=False).data
+        ids = data["maneuver_id"].unique().sort().to_list()
+        held = set(ids[::5])
+        train = data.filter(~pl.col("maneuver_id").is_in(held))
+        test = data.filter(pl.col("maneuver_id").is_in(held))
+        for name, base in CONFIGS.items():
+            cfg = FitConfig(**{**base.__dict__, "bootstrap": bootstrap, "seed": seed})
+            r = ad.fit(train, config=cfg)
+            out["bands"][name] = band_summary(r, effects)
+            if name == "selected":
+                out["tics"] = _tic_ratios(r, test, camp)
+            elif name == "thesis":
+                out["params"] = r.params.with_columns(pl.lit(seed).alias("seed"))
+    return out
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", type=int, default=20)
     ap.add_argument("--first-seed", type=int, default=1)
     ap.add_argument("--bootstrap", type=int, default=100)
+    ap.add_argument("--workers", type=int, default=2, help="engine workers (0: this process)")
+    ap.add_argument("--scheduler", default=None, help="a Dask scheduler's address")
+    ap.add_argument("--resume", default=None, help="keep finished seeds here and skip them")
     args = ap.parse_args()
-    configs = {
-        "selected": FitConfig(),
-        "no reselection": FitConfig(bootstrap_selection=False),
-        "thesis": FitConfig(selection=None),
-    }
+    configs = CONFIGS
     cov = {k: {c: [0.0, 0.0, 0.0] for c in COEFFICIENTS} for k in configs}
     widths: dict[str, dict[str, list[float]]] = {k: {c: [] for c in COEFFICIENTS} for k in configs}
     tics: dict[str, list[tuple[float, float]]] = {c: [] for c in COEFFICIENTS}
     params: list[pl.DataFrame] = []
     t_start = time.perf_counter()
-    with tempfile.TemporaryDirectory() as tmp:
-        for seed in range(args.first_seed, args.first_seed + args.seeds):
-            camp = Path(tmp) / f"c{seed}"
-            ad.generate_campaign(camp, seed=seed)
-            effects = campaign_effects(camp)
-            data = ad.ingest(camp, compat=False, progress=False).data
-            ids = data["maneuver_id"].unique().sort().to_list()
-            held = set(ids[::5])
-            train = data.filter(~pl.col("maneuver_id").is_in(held))
-            test = data.filter(pl.col("maneuver_id").is_in(held))
-            for name, base in configs.items():
-                cfg = FitConfig(**{**base.__dict__, "bootstrap": args.bootstrap, "seed": seed})
-                r = ad.fit(train, config=cfg)
-                for row in band_summary(r, effects).iter_rows(named=True):
-                    c, n = row["coefficient"], row["bins"]
-                    cov[name][c][0] += n
-                    cov[name][c][1] += n * row["inside_bin_band"]
-                    cov[name][c][2] += n * row["inside_band"]
-                    widths[name][c].append(row["width_ratio"])
-                if name == "selected":
-                    for c, v in _tic_ratios(r, test, camp).items():
-                        tics[c].append(v)
-                elif name == "thesis":
-                    params.append(r.params.with_columns(pl.lit(seed).alias("seed")))
-            shutil.rmtree(camp)
-            print(f"seed {seed} done ({time.perf_counter() - t_start:.0f} s)", flush=True)
+    seeds = list(range(args.first_seed, args.first_seed + args.seeds))
+    run = run_cases(
+        one_seed,
+        [(seed, args.bootstrap) for seed in seeds],
+        labels=[f"seed {seed}" for seed in seeds],
+        workers=args.workers,
+        scheduler=args.scheduler,
+        resume=args.resume,
+        name="identification",
+    )
+    for f in run.failures:
+        print(f"FAILED {f.label}: {f.error}")
+    for res in run.results:
+        if res is None:
+            continue
+        for name in configs:
+            for row in res["bands"][name].iter_rows(named=True):
+                c, n = row["coefficient"], row["bins"]
+                cov[name][c][0] += n
+                cov[name][c][1] += n * row["inside_bin_band"]
+                cov[name][c][2] += n * row["inside_band"]
+                widths[name][c].append(row["width_ratio"])
+        for c, v in res["tics"].items():
+            tics[c].append(v)
+        params.append(res["params"])
+    print(
+        f"{len(params)} seeds done in {time.perf_counter() - t_start:.0f} s "
+        f"({run.resumed} read back from --resume, {len(run.failures)} failed)"
+    )
     print(f"\n{args.seeds} campaigns (seeds {args.first_seed}..{args.first_seed + args.seeds - 1}),"
           f" {args.bootstrap} bootstrap replicates each")  # fmt: skip
     print("truth inside the 95 % bands (identified bins, alpha >= alpha_l): per bin / smoothed;"
@@ -125,7 +162,7 @@ def main() -> None:
         print(f"{c:<5} " + " ".join(f"{x:>26}" for x in cells) + (
             f" {float(np.median(widths['selected'][c])):>14.3f}"))  # fmt: skip
     _print_tic(tics)
-    if args.seeds < 2:
+    if len(params) < 2:
         return
     # calibration: bins fitted in every campaign with the thesis structure (same structure,
     # same edges), alpha >= 8 deg
@@ -138,7 +175,7 @@ def main() -> None:
             pl.col("std_err_colored").pow(2).mean().sqrt().alias("colored"),
             pl.len().alias("k"),
         )
-        .filter(pl.col("k") == args.seeds)
+        .filter(pl.col("k") == len(params))
     )
     print("\nstandard errors against the spread of the estimates over the campaigns "
           "(thesis structure, median over bins; 1 = honest)")  # fmt: skip

@@ -21,7 +21,10 @@ the REPORT sets, never run before the report. Run:
         [--size 10] [--only singles|multi|nulls] [--match LABEL] [--per-flap] [--out FILE] [--list]
 
 Prints the table in the shape of ``docs/diagnosis.md`` (issue 17's floors) and the confusion of
-singles; writes every case to JSON.
+singles; writes every case to JSON. The cases run as tasks on the distributed engine
+(``aerodelta.plan.suite.run_cases``: ``--workers N`` local processes, default 2, or
+``--scheduler ADDRESS``; ``--workers 0``: in this process); ``--resume DIR`` keeps each finished
+case and a rerun skips it. The results do not depend on the number of workers.
 """
 
 from __future__ import annotations
@@ -37,7 +40,6 @@ from typing import Any
 
 import numpy as np
 import polars as pl
-from tqdm import tqdm
 
 from aerodelta.diagnosis import DiagnoseConfig, diagnose
 from aerodelta.diagnosis.withheld import (
@@ -49,6 +51,7 @@ from aerodelta.diagnosis.withheld import (
 from aerodelta.exceptions import AerodeltaError
 from aerodelta.ingest import ingest
 from aerodelta.jsbsim_campaign import generate_jsbsim_campaign, lateral_terms
+from aerodelta.plan.suite import run_cases
 
 #: Seed sets below this are development sets; from it on, report sets.
 REPORT_FROM = 300
@@ -163,6 +166,15 @@ def run_case(
         "per_flap": "auto" if config is None or config.per_flap is None else config.per_flap,
     }  # fmt: skip
     return out
+
+
+def one_case(aircraft: str, case: Case, size: int, per_flap: bool) -> JsbsimCaseResult | str:
+    """One case (a task on the engine): its result, or the product's refusal (one line)."""
+    cfg = DiagnoseConfig(per_flap=True) if per_flap else None
+    try:
+        return run_case(aircraft, case, size, config=cfg)
+    except AerodeltaError as err:
+        return str(err)
 
 
 def _rate(xs: list[bool]) -> str:
@@ -334,6 +346,9 @@ def main() -> int:
         default=None,
         help="JSON of every case (default jsbsim_suite_<aircraft>_<sets>.json)",
     )
+    ap.add_argument("--workers", type=int, default=2, help="engine workers (0: this process)")
+    ap.add_argument("--scheduler", default=None, help="a Dask scheduler's address")
+    ap.add_argument("--resume", default=None, help="keep finished cases here and skip them")
     args = ap.parse_args()
     if args.rescore:
         res = rescore(args.rescore)
@@ -367,17 +382,28 @@ def main() -> int:
         for c in todo:
             print(f"  {c.seed:>7} {c.part:<8} {c.label}")
         return 0
-    results = []
+    run = run_cases(
+        one_case,
+        [(args.aircraft, c, args.size, args.per_flap) for c in todo],
+        labels=[f"{c.seed} {c.label}" for c in todo],
+        workers=args.workers,
+        scheduler=args.scheduler,
+        resume=args.resume,
+        name=f"jsbsim-withheld-{args.aircraft}",
+    )
+    results: list[JsbsimCaseResult] = []
     failed: list[dict[str, str]] = []
-    for c in tqdm(todo, desc=f"jsbsim suite {args.aircraft}", file=sys.stderr):
-        cfg = DiagnoseConfig(per_flap=True) if args.per_flap else None
-        try:
-            results.append(run_case(args.aircraft, c, args.size, config=cfg))
-        except AerodeltaError as err:
+    for c, r in zip(todo, run.results, strict=True):
+        if isinstance(r, JsbsimCaseResult):
+            results.append(r)
+        elif isinstance(r, str):
             # a case the product refuses is a result, reported, never dropped or fatal to the
             # rest of the set (set 351 lost its last five cases to one refused maneuver)
-            failed.append({"seed": str(c.seed), "label": c.label, "error": str(err)})
-            print(f"case {c.seed} ({c.label}) refused: {err}", file=sys.stderr)
+            failed.append({"seed": str(c.seed), "label": c.label, "error": r})
+            print(f"case {c.seed} ({c.label}) refused: {r}", file=sys.stderr)
+    for f in run.failures:
+        failed.append({"seed": f.label.split()[0], "label": f.label, "error": f.error})
+        print(f"case {f.label} failed after its retries: {f.error}", file=sys.stderr)
     s = summarize(results)
     s["failed_cases"] = failed
     print_table(s, args.aircraft, f"{sets} ({kind})")
@@ -390,7 +416,7 @@ def main() -> int:
         json.dumps({"summary": s, "cases": [r.to_dict() for r in results]}, indent=1, default=str)
     )
     print(f"wrote {out}")
-    return 0
+    return 1 if run.failures else 0
 
 
 if __name__ == "__main__":

@@ -35,7 +35,11 @@ rows_a.parquet rows_b.parquet`` prints the table of saved rows. About 12-15 s pe
 fly (size 10) and 1-10 s per fit on 2 cores. ``--campaigns DIR`` keeps the flown campaigns
 and reuses them on the next run (to compare two versions of the fit on the same flights:
 run the script twice with each version on ``PYTHONPATH``); ``--structures stepwise`` runs
-only the selecting fit.
+only the selecting fit. The seeds run as tasks on the distributed engine
+(``aerodelta.plan.suite.run_cases``: ``--workers N`` local processes, default 2, or
+``--scheduler ADDRESS``; ``--workers 0``: in this process); ``--resume DIR`` keeps each finished
+seed and a rerun skips it. The rows do not depend on the number of workers (the ``fly_s`` and
+``fit_s`` timings do).
 """
 
 from __future__ import annotations
@@ -43,10 +47,10 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import shutil
 import tempfile
 import time
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import polars as pl
@@ -56,6 +60,7 @@ from aerodelta import jsbsim_campaign as jc
 from aerodelta.fit import COEFFICIENTS, FitConfig, model_frame, qualified_coefficients
 from aerodelta.fit import theil_inequality as tic
 from aerodelta.jsbsim_campaign import generate_jsbsim_campaign, true_delta_derivative
+from aerodelta.plan.suite import run_cases
 
 #: Fit regressor -> truth regressor of ``truth.json`` (others have zero truth).
 _TRUTH_REG = {
@@ -263,71 +268,106 @@ def _dropped(result: ad.FitResult, camp: Path) -> pl.DataFrame:
     return pl.DataFrame(rows)
 
 
-def run(args: argparse.Namespace) -> tuple[pl.DataFrame, pl.DataFrame, pl.DataFrame]:
+def one_seed(
+    seed: int, opts: dict[str, Any]
+) -> tuple[list[pl.DataFrame], list[dict[str, Any]], list[pl.DataFrame]]:
+    """One campaign (a task on the engine): its bin rows, campaign row per structure and the
+    selection's dropped terms. ``opts``: ``aircraft``, ``size``, ``turbulence``,
+    ``bootstrap``, ``structures``, ``campaigns`` (the command line's)."""
+    aircraft, size, turbulence = opts["aircraft"], opts["size"], opts["turbulence"]
+    bootstrap, structures, campaigns = opts["bootstrap"], opts["structures"], opts["campaigns"]
     configs = {
-        "thesis": FitConfig(selection=None, bootstrap=args.bootstrap),
-        "stepwise": FitConfig(bootstrap=args.bootstrap),
+        "thesis": FitConfig(selection=None, bootstrap=bootstrap),
+        "stepwise": FitConfig(bootstrap=bootstrap),
     }
-    configs = {k: v for k, v in configs.items() if k in args.structures.split(",")}
-    bins, camps, drops = [], [], []
-    t_start = time.perf_counter()
+    configs = {k: v for k, v in configs.items() if k in structures}
+    bins: list[pl.DataFrame] = []
+    camps: list[dict[str, Any]] = []
+    drops: list[pl.DataFrame] = []
     with tempfile.TemporaryDirectory() as tmp:
-        for seed in range(args.first_seed, args.first_seed + args.seeds):
-            keep = args.campaigns is not None
-            root = args.campaigns if keep else Path(tmp)
-            camp = root / f"{args.aircraft}_{seed}_size{args.size}_turb{args.turbulence:g}"
-            t0 = time.perf_counter()
-            if keep and (camp / "truth" / "truth.json").is_file():
-                # flown before with the same seed, size and turbulence: reused
-                walpha = float(
-                    json.loads((camp / "truth" / "truth.json").read_text())["withhold_alpha_deg"]
-                )
-            else:
-                info = generate_jsbsim_campaign(
-                    camp,
-                    aircraft=args.aircraft,
-                    seed=seed,
-                    size=args.size,
-                    turbulence=args.turbulence,
-                )
-                walpha = info.withhold_alpha_deg
-            t_fly = time.perf_counter() - t0
-            data = ad.ingest(camp, compat=False, progress=False).data
-            truth = _truth_frame(camp)
-            cons = _consistency(data, truth, walpha)
-            ids = data["maneuver_id"].unique().sort().to_list()
-            held = set(ids[::5])
-            train = data.filter(~pl.col("maneuver_id").is_in(held))
-            test = data.filter(pl.col("maneuver_id").is_in(held))
-            for name, base in configs.items():
-                cfg = FitConfig(**{**base.__dict__, "seed": seed})
-                t1 = time.perf_counter()
-                r = ad.fit(train, qualified="columns", config=cfg)
-                t_fit = time.perf_counter() - t1
-                tag = {"aircraft": args.aircraft, "seed": seed, "structure": name}
-                b = _bin_rows(r, camp, cfg)
-                bins.append(b.with_columns(*[pl.lit(v).alias(k) for k, v in tag.items()]))
-                camps.append(
-                    {
-                        **tag,
-                        "maneuvers": len(ids),
-                        "fly_s": t_fly,
-                        "fit_s": t_fit,
-                        **{f"cons_{k}": v for k, v in cons.items()},
-                        **_tic_ratios(r, test, truth),
-                    }
-                )
-                if name == "stepwise":
-                    d = _dropped(r, camp)
-                    if d.height:
-                        drops.append(d.with_columns(*[pl.lit(v).alias(k) for k, v in tag.items()]))
-            if not keep:
-                shutil.rmtree(camp)
-            print(
-                f"{args.aircraft} seed {seed}: fly {t_fly:.1f} s, total "
-                f"{time.perf_counter() - t_start:.0f} s",
-                flush=True,
+        keep = campaigns is not None
+        root = campaigns if campaigns is not None else Path(tmp)
+        camp = root / f"{aircraft}_{seed}_size{size}_turb{turbulence:g}"
+        t0 = time.perf_counter()
+        if keep and (camp / "truth" / "truth.json").is_file():
+            # flown before with the same seed, size and turbulence: reused
+            walpha = float(
+                json.loads((camp / "truth" / "truth.json").read_text())["withhold_alpha_deg"]
             )
+        else:
+            info = generate_jsbsim_campaign(
+                camp, aircraft=aircraft, seed=seed, size=size, turbulence=turbulence
+            )
+            walpha = info.withhold_alpha_deg
+        t_fly = time.perf_counter() - t0
+        data = ad.ingest(camp, compat=False, progress=False).data
+        truth = _truth_frame(camp)
+        cons = _consistency(data, truth, walpha)
+        ids = data["maneuver_id"].unique().sort().to_list()
+        held = set(ids[::5])
+        train = data.filter(~pl.col("maneuver_id").is_in(held))
+        test = data.filter(pl.col("maneuver_id").is_in(held))
+        for name, base in configs.items():
+            cfg = FitConfig(**{**base.__dict__, "seed": seed})
+            t1 = time.perf_counter()
+            r = ad.fit(train, qualified="columns", config=cfg)
+            t_fit = time.perf_counter() - t1
+            tag = {"aircraft": aircraft, "seed": seed, "structure": name}
+            b = _bin_rows(r, camp, cfg)
+            bins.append(b.with_columns(*[pl.lit(v).alias(k) for k, v in tag.items()]))
+            camps.append(
+                {
+                    **tag,
+                    "maneuvers": len(ids),
+                    "fly_s": t_fly,
+                    "fit_s": t_fit,
+                    **{f"cons_{k}": v for k, v in cons.items()},
+                    **_tic_ratios(r, test, truth),
+                }
+            )
+            if name == "stepwise":
+                d = _dropped(r, camp)
+                if d.height:
+                    drops.append(d.with_columns(*[pl.lit(v).alias(k) for k, v in tag.items()]))
+    return bins, camps, drops
+
+
+def run(args: argparse.Namespace) -> tuple[pl.DataFrame, pl.DataFrame, pl.DataFrame]:
+    seeds = list(range(args.first_seed, args.first_seed + args.seeds))
+    opts = {
+        "aircraft": args.aircraft,
+        "size": args.size,
+        "turbulence": args.turbulence,
+        "bootstrap": args.bootstrap,
+        "structures": tuple(args.structures.split(",")),
+        "campaigns": args.campaigns,
+    }
+    t_start = time.perf_counter()
+    res = run_cases(
+        one_seed,
+        [(seed, opts) for seed in seeds],
+        labels=[f"{args.aircraft} seed {seed}" for seed in seeds],
+        workers=args.workers,
+        scheduler=args.scheduler,
+        resume=args.resume,
+        name=f"jsbsim-identification-{args.aircraft}",
+    )
+    for f in res.failures:
+        print(f"FAILED {f.label}: {f.error}")
+    bins: list[pl.DataFrame] = []
+    camps: list[dict[str, Any]] = []
+    drops: list[pl.DataFrame] = []
+    for r in res.results:
+        if r is not None:
+            bins += r[0]
+            camps += r[1]
+            drops += r[2]
+    print(
+        f"{args.aircraft}: {len(seeds) - len(res.failures)} campaigns in "
+        f"{time.perf_counter() - t_start:.0f} s ({res.resumed} read back from --resume, "
+        f"{len(res.failures)} failed)",
+        flush=True,
+    )
     bins_df = pl.concat(bins, how="diagonal_relaxed")
     drops_df = pl.concat(drops) if drops else pl.DataFrame()
     return bins_df, pl.DataFrame(camps), drops_df
@@ -454,6 +494,9 @@ def main() -> None:
         help="comma list of the fits to run: thesis, stepwise",
     )
     ap.add_argument("--summarize", type=Path, nargs="+", default=None, help="saved prefixes")
+    ap.add_argument("--workers", type=int, default=2, help="engine workers (0: this process)")
+    ap.add_argument("--scheduler", default=None, help="a Dask scheduler's address")
+    ap.add_argument("--resume", default=None, help="keep finished seeds here and skip them")
     args = ap.parse_args()
     if args.summarize:
         bins = pl.concat(

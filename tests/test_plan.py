@@ -10,6 +10,7 @@ against numpy over the task files; the roll-off Monte Carlo in chunks against on
 from __future__ import annotations
 
 import json
+import operator
 import os
 import shutil
 import signal
@@ -33,12 +34,14 @@ except ImportError:  # the plan/test extras install it; CI (CI=1) must run these
     )
 
 from aerodelta.cli import main
-from aerodelta.exceptions import DataError
+from aerodelta.exceptions import DataError, InvalidInputError
 from aerodelta.plan import load_matrix, run_plan, run_rolloff_study
 from aerodelta.plan.aggregate import recommendation
 from aerodelta.plan.engine import open_client
 from aerodelta.plan.matrix import KINDS, parse_matrix
 from aerodelta.plan.plots import band_figure
+from aerodelta.plan.rolloff import mc_chunk
+from aerodelta.plan.suite import run_cases
 from aerodelta.plan.task import _scratch
 from aerodelta.rolloff import monte_carlo
 
@@ -417,3 +420,37 @@ def test_rolloff_monte_carlo_in_chunks_equals_one_engine_call(client: Any, tmp_p
     assert (out / "summary.json").read_bytes() == first
     with pytest.raises(DataError, match="other settings"):
         run_rolloff_study(31, seed=4, out=out, chunk=8, client=client, progress=False)
+
+
+def test_suite_cases_on_the_engine_equal_the_cases_in_process_and_resume(
+    client: Any, tmp_path: Path
+) -> None:
+    """``run_cases`` (the benchmark suites on the engine): the roll-off Monte Carlo's seeded
+    chunks give the same frames on the workers as in this process, in case order; a rerun
+    reads the saved cases back; a case that raises is retried, reported and its slot empty."""
+    settings = {
+        "seed": 4, "flap_deg": 0.0, "turbulence_mps": 0.5, "excitation": 1.0, "config": None,
+    }  # fmt: skip
+    cases = [(settings, first, 5) for first in (0, 5, 10)]
+    local = run_cases(mc_chunk, cases, workers=0, progress=False)
+    folder = tmp_path / "cases"
+    engine = run_cases(mc_chunk, cases, client=client, resume=folder, progress=False, name="mc")
+    assert engine.failures == [] and engine.resumed == 0
+    for a, b in zip(local.results, engine.results, strict=True):
+        assert a.equals(b)
+    assert pl.concat(engine.results).equals(monte_carlo(15, 4, threads=1))
+    assert len(list(folder.glob("mc-*.pkl"))) == 3
+    again = run_cases(mc_chunk, cases, client=client, resume=folder, progress=False, name="mc")
+    assert again.resumed == 3
+    assert all(a.equals(b) for a, b in zip(again.results, engine.results, strict=True))
+    # a case that raises: reported with its label after the retries, the others kept
+    bad = run_cases(
+        operator.truediv, [(1.0, 4.0), (1.0, 0.0)], labels=["quarter", "by zero"],
+        client=client, retries=1, progress=False,
+    )  # fmt: skip
+    assert bad.results == [0.25, None]
+    assert [(f.label, f.error.split(":")[0]) for f in bad.failures] == [
+        ("by zero", "ZeroDivisionError")
+    ]
+    with pytest.raises(InvalidInputError, match="--workers -1"):
+        run_cases(operator.truediv, [(1.0, 2.0)], workers=-1)
