@@ -39,7 +39,7 @@ from aerodelta.plan import load_matrix, run_plan, run_rolloff_study
 from aerodelta.plan.aggregate import recommendation
 from aerodelta.plan.engine import open_client
 from aerodelta.plan.matrix import KINDS, parse_matrix
-from aerodelta.plan.plots import band_figure
+from aerodelta.plan.plots import band_figure, compare_figure
 from aerodelta.plan.rolloff import mc_chunk
 from aerodelta.plan.suite import run_cases
 from aerodelta.plan.task import _scratch
@@ -399,6 +399,24 @@ def test_compare_two_matrices_side_by_side(tiny: Path, client: Any, tmp_path: Pa
     )
     assert (tmp_path / "cmp" / "tiny" / "summary.json").is_file()
     assert (tmp_path / "cmp" / "lean" / "summary.json").is_file()
+    # the side-by-side figure: each Cl cell is log2 of lean's band width over tiny's
+    assert (tmp_path / "cmp" / "compare.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    edges = a.matrix.alpha_edges_deg
+    fig = compare_figure(table, ("tiny", "lean"), a.matrix.relative_band_width, edges)
+    shown = fig.axes[0].images[0].get_array()
+    cl = table.filter(
+        (pl.col("coefficient") == "Cl")
+        & (pl.col("band_relative_tiny").is_finite() | pl.col("band_relative_lean").is_finite())
+    )
+    labels = sorted(set(cl.select("param", "flap_deg").iter_rows()))
+    checked = 0
+    for r in cl.iter_rows(named=True):
+        a_w, b_w = r["band_width_tiny"], r["band_width_lean"]
+        if a_w and b_w and r["alpha_lo_deg"] in edges[:-1]:
+            i, j = labels.index((r["param"], r["flap_deg"])), edges.index(r["alpha_lo_deg"])
+            assert shown[i, j] == pytest.approx(np.log2(b_w / a_w), rel=1e-12)
+            checked += 1
+    assert checked > 0
 
 
 def test_rolloff_monte_carlo_in_chunks_equals_one_engine_call(client: Any, tmp_path: Path) -> None:

@@ -122,5 +122,8 @@ def run(args: argparse.Namespace) -> int:
             print(f"wrote {r.path} (seeds run now: {len(r.ran)}, resumed: "
                   f"{len(r.seeds) - len(r.ran) - len(r.failures)})")  # fmt: skip
         if table is not None:
-            print(f"side by side: {Path(out) / 'compare.csv'} ({table.height} rows)")
+            print(
+                f"side by side: {Path(out) / 'compare.csv'} ({table.height} rows), "
+                f"{Path(out) / 'compare.png'}"
+            )
     return 1 if any(r.failures for r in results) else 0

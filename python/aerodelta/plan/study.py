@@ -12,7 +12,8 @@
     DIR/run.json                 this run only: workers, seeds run and resumed, time, memory
 
 ``compare_plans`` runs two matrices on the same seeds and writes each study in
-``DIR/<name>/`` and ``DIR/compare.csv`` side by side.
+``DIR/<name>/``, ``DIR/compare.csv`` side by side and ``DIR/compare.png`` (the second's band
+width over the first's, the probabilities of being identified).
 """
 
 from __future__ import annotations
@@ -39,7 +40,7 @@ from aerodelta.plan.aggregate import (
 )
 from aerodelta.plan.engine import Failure, Job, open_client, run_jobs
 from aerodelta.plan.matrix import Matrix, load_matrix
-from aerodelta.plan.plots import band_figure
+from aerodelta.plan.plots import band_figure, compare_figure
 from aerodelta.plan.task import TASK_SCHEMA, run_task
 from aerodelta.rolloff_plots import save_figure
 
@@ -365,7 +366,8 @@ def compare_plans(
     Returns
     -------
     tuple
-        Both results and the side-by-side table (also ``out/compare.csv``).
+        Both results and the side-by-side table (also ``out/compare.csv``, and the figure
+        ``out/compare.png``: :func:`aerodelta.plan.plots.compare_figure`).
     """
     ma, mb = _matrix(a), _matrix(b)
     if ma.digest() == mb.digest():
@@ -380,6 +382,8 @@ def compare_plans(
     ra, rb = _run([sa, sb], workers=workers, scheduler=scheduler, progress=progress, client=client)
     table = compare_table(ra, rb)
     write_atomic(root / "compare.csv", table.write_csv)
+    fig = compare_figure(table, (na, nb), ma.relative_band_width, ma.alpha_edges_deg)
+    save_figure(fig, root / "compare.png")
     return ra, rb, table
 
 
