@@ -14,10 +14,12 @@ import json
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import polars as pl
 import pytest
 
 import aerodelta as ad
+from aerodelta import _core
 from aerodelta.cli import main
 from aerodelta.closed_loop import closed_loop_replay
 from aerodelta.exceptions import InvalidInputError
@@ -119,6 +121,116 @@ def test_replays_count_the_time_outside_the_envelope(fitted: dict[str, Any]) -> 
     # no model, no envelope: not counted
     qual = closed_loop_replay(data, maneuvers=ids[:1])
     assert qual.table["outside_envelope_s"].null_count() == 1 and not qual.setup["envelope"]
+
+
+def _pull(t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """A smooth pull into the stall and back: alpha 10 -> 24 -> 10 deg over 3 s, and its rate
+    (deg, deg/s)."""
+    w = np.pi / 1.5
+    return 17.0 - 7.0 * np.cos(w * t), 7.0 * w * np.sin(w * t)
+
+
+def _rk4_host(dave: ad.DaveModel, t: np.ndarray, flap: float) -> np.ndarray:
+    """A host integrating the exported state: RK4 on the DAVE-ML file's ``x_sep_dot`` along
+    :func:`_pull`, from its ``x_sep_0``."""
+
+    def state(s: float, x: float, out: str) -> float:
+        a, r = _pull(np.array([s]))
+        inputs = {"alpha_deg": a, "alphadot_dps": r, "flap_deg": [flap], "x_sep": [x]}
+        return float(dave.evaluate(inputs, outputs=[out])[out][0])
+
+    xs = [state(t[0], 1.0, "x_sep_0")]
+    for k in range(t.size - 1):
+        h, x = t[k + 1] - t[k], xs[-1]
+        k1 = state(t[k], x, "x_sep_dot")
+        k2 = state(t[k] + 0.5 * h, x + 0.5 * h * k1, "x_sep_dot")
+        k3 = state(t[k] + 0.5 * h, x + 0.5 * h * k2, "x_sep_dot")
+        k4 = state(t[k + 1], x + h * k3, "x_sep_dot")
+        xs.append(x + h / 6.0 * (k1 + 2 * k2 + 2 * k3 + k4))
+    return np.asarray(xs)
+
+
+def test_the_daveml_export_carries_the_stall_state(fitted: dict[str, Any], tmp_path: Path) -> None:
+    """The extended DAVE-ML file of a model with its Kirchhoff stall: the separation point is a
+    state input ``x_sep`` with its derivative ``x_sep_dot`` (the export itself compares every
+    sampled state with the engine's ``KirchhoffParams`` to 1e-12). Here: a host integrating
+    ``x_sep_dot`` by RK4 along a pull into the stall follows the engine's exact state
+    (``kirchhoff_outputs``), and ``CL_ext``, ``Cm_ext`` with that state are the engine's lift and
+    moment in place of the static curves."""
+    from aerodelta.export import export_extended_daveml  # noqa: PLC0415
+
+    model, stall = fitted["model"], fitted["stall"]
+    m2 = model.with_longitudinal(stall)
+    out = export_extended_daveml(tmp_path / "ext.dml", m2)
+    dave = ad.DaveModel(tmp_path / "ext.dml")
+    assert {"x_sep_dot", "x_sep_0", "CL_ext", "Cm_ext"} <= set(dave.outputs)
+    assert "x_sep" in dave.inputs and dave.run_checks()["pass"].all()
+    assert out.max_rel_error <= 1e-12
+    # a smooth pull into the stall and back at flap 15, 200 Hz: the engine's exact steps of the
+    # sampled input against the host's RK4 of the file's derivative
+    t = np.arange(0.0, 3.0, 0.005)
+    alpha, rate = _pull(t)
+    p = stall[15.0].params
+    x_eng, cl_eng, cm_eng, _, _ = _core.kirchhoff_outputs(p, t, np.radians(alpha), np.radians(rate))
+    x_host = _rk4_host(dave, t, 15.0)
+    assert np.min(x_eng) < 0.2  # the flow separates, and reattaches
+    assert x_eng[-1] > 0.9
+    assert np.max(np.abs(x_host - x_eng)) < 1e-4
+    got = dave.evaluate(
+        {"alpha_deg": alpha, "flap_deg": np.full(t.size, 15.0), "x_sep": x_eng,
+         "alphadot_dps": rate},
+        outputs=["CL_ext", "Cm_ext", "CL", "Cm", "CL_basic", "Cm_basic"],
+    )  # fmt: skip
+    np.testing.assert_allclose(
+        got["CL_ext"].to_numpy(),
+        got["CL"].to_numpy() - got["CL_basic"].to_numpy() + cl_eng, rtol=1e-12, atol=1e-14,
+    )  # fmt: skip
+    np.testing.assert_allclose(
+        got["Cm_ext"].to_numpy(),
+        got["Cm"].to_numpy() - got["Cm_basic"].to_numpy() + cm_eng, rtol=1e-12, atol=1e-14,
+    )  # fmt: skip
+    # a flap setting without a stored stall: no state dynamics, the qualified totals
+    mid = dave.evaluate(
+        {"alpha_deg": alpha, "flap_deg": np.full(t.size, 10.0), "x_sep": x_eng,
+         "alphadot_dps": rate},
+        outputs=["x_sep_dot", "CL_ext", "CL"],
+    )  # fmt: skip
+    assert np.all(mid["x_sep_dot"].to_numpy() == 0.0)
+    assert np.array_equal(mid["CL_ext"].to_numpy(), mid["CL"].to_numpy())
+
+
+def test_a_stall_the_qualified_file_cannot_carry_is_refused(
+    fitted: dict[str, Any], tmp_path: Path
+) -> None:
+    from aerodelta.daveml import write_example_model  # noqa: PLC0415
+    from aerodelta.export import extended_daveml_text  # noqa: PLC0415
+
+    m2 = fitted["model"].with_longitudinal(fitted["stall"])
+    base = tmp_path / "example.dml"
+    write_example_model(base)  # no CL_basic, Cm_basic, CL, Cm
+    with pytest.raises(ad.DataError, match=r"no CL_basic, Cm_basic, CL, Cm.*--no-longitudinal"):
+        extended_daveml_text(m2, base, channel_map={"phat": "p_hat", "rhat": "r_hat"})
+    out = extended_daveml_text(
+        m2, base, channel_map={"phat": "p_hat", "rhat": "r_hat"}, longitudinal=False
+    )
+    assert "x_sep" not in out.model.inputs and "CL_ext" not in out.model.outputs
+
+
+def test_cli_export_of_a_model_with_its_stall(
+    fitted: dict[str, Any], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    path = tmp_path / "with_stall.json"
+    fitted["model"].with_longitudinal(fitted["stall"]).save(path)
+    dml, xml = tmp_path / "ext.dml", tmp_path / "delta.xml"
+    rc = main(["export", "--model", str(path), "--daveml", str(dml), "--jsbsim", str(xml)])
+    out, err = capsys.readouterr()
+    assert rc == 0
+    assert "longitudinal stall at flaps 0, 15 deg" in out
+    assert "longitudinal stall is not in the JSBSim file" in err
+    assert "x_sep" in ad.DaveModel(dml).inputs
+    rc = main(["export", "--model", str(path), "--daveml", str(dml), "--no-longitudinal"])
+    assert rc == 0 and "x_sep" not in ad.DaveModel(dml).inputs
+    assert "longitudinal stall at flaps" not in capsys.readouterr().out
 
 
 def test_refusals(fitted: dict[str, Any], tmp_path: Path) -> None:

@@ -591,3 +591,14 @@ def calibrate_chain(
         npt.NDArray[np.float64] | None,
     ]
 ]: ...
+def kirchhoff_point(
+    params: dict[str, float],
+    alpha: npt.NDArray[np.float64],
+    alpha_dot: npt.NDArray[np.float64],
+    x: npt.NDArray[np.float64],
+) -> tuple[
+    npt.NDArray[np.float64],
+    npt.NDArray[np.float64],
+    npt.NDArray[np.float64],
+    npt.NDArray[np.float64],
+]: ...

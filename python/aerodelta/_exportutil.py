@@ -184,6 +184,7 @@ _RANGES: dict[str, tuple[float, float]] = {
     "de_rad": (-0.15, 0.15),
     "ct_left": (0.0, 0.4),
     "ct_right": (0.0, 0.4),
+    "x_sep": (0.0, 1.0),
 }
 
 

@@ -167,6 +167,110 @@ def qualified_base(qualified: str | PathLike[str] | None) -> tuple[str, str, Dav
     return text, name, DaveModel.from_string(text, name)
 
 
+#: Half width of the flap window of a stored stall in the DAVE-ML export, deg: the engine takes
+#: a flap's stall at that flap setting exactly (``DeltaModel.kirchhoff``); the window only keeps
+#: a NaN flap out.
+STALL_FLAP_WINDOW_DEG = 1e-9
+#: Variables of the qualified file the longitudinal stall replaces (the static curves).
+STALL_BASE_VARIABLES = ("CL_basic", "Cm_basic")
+
+
+def _stall_spec(
+    model: DeltaModel,
+    bunits: Mapping[str, str],
+    *,
+    alpha: str,
+    flap: str,
+    alphadot: str,
+    coefficients: Mapping[str, str],
+) -> tuple[list[dict[str, Any]], list[dict[str, Any]], list[dict[str, Any]]]:
+    """Inputs, calculations and outputs of the stored Kirchhoff stall (``model.kirchhoff``,
+    fitted on the ADX-37's known terms): the separation point as a state input ``x_sep`` the
+    host integrates from ``x_sep_dot`` (Fischenberg's ``τ₁ ẋ + x = x₀(α − τ₂ α̇)``), its
+    static value ``x_sep_0`` (to start at), and ``CL_ext``, ``Cm_ext``: the qualified totals
+    with the static curves ``CL_basic``, ``Cm_basic`` replaced by the Kirchhoff curves at
+    each flap setting that has a stall (the engine's ``KirchhoffStall``). Elsewhere the state
+    derivative is 0 and the totals are the qualified ones."""
+    stall = model.kirchhoff or {}
+    if model.kirchhoff_known != "adx37":
+        raise DataError(
+            "the model's longitudinal stall was fitted to the whole measured C_L, C_m "
+            "(known='none'), not on top of a qualified model's static curves: it cannot be "
+            "merged into a qualified DAVE-ML file; export without it (--no-longitudinal, "
+            "longitudinal=False) or fit it with known='adx37'"
+        )
+    need = [*STALL_BASE_VARIABLES, *(coefficients.get(c, c) for c in ("CL", "Cm"))]
+    missing = [v for v in need if v not in bunits]
+    if missing:
+        raise DataError(
+            f"the qualified DAVE-ML model has no {', '.join(missing)}: the model's Kirchhoff "
+            "stall replaces the static curves CL_basic, Cm_basic of the CL and Cm totals "
+            "(the built-in ADX-37 file's variables); export without it (--no-longitudinal, "
+            "longitudinal=False)"
+        )
+    d2r = math.pi / 180.0
+    inputs = [
+        {"id": "x_sep", "units": "nd", "initial": 1.0,
+         "description": "separation point of the Kirchhoff stall (1 attached, 0 separated): a "
+         "state the host integrates from x_sep_dot, started at x_sep_0"},
+    ]  # fmt: skip
+    calcs: list[dict[str, Any]] = [
+        {"id": "ks_x", "units": "nd", "expr": "min(1, max(0, x_sep))",
+         "description": "the separation point held in [0, 1]"},
+        {"id": "ks_alpha", "units": "rad", "expr": f"{alpha} * {d2r!r}",
+         "description": "angle of attack, rad"},
+        {"id": "ks_alphadot", "units": "rad_s", "expr": f"{alphadot} * {d2r!r}",
+         "description": "rate of the angle of attack, rad/s"},
+    ]  # fmt: skip
+    x0_terms, xd_terms, cl_terms, cm_terms = [], [], [], []
+    w = STALL_FLAP_WINDOW_DEG
+    for i, (f, p) in enumerate(sorted(stall.items())):
+        g = {k: repr(float(v)) for k, v in p.items()}
+        on, x0 = f"ks_on_{i}", f"ks_x0_{i}"
+        calcs += [
+            {"id": on, "units": "nd",
+             "expr": f"step({flap} - {f!r} + {w!r}) * step({f!r} + {w!r} - {flap})",
+             "description": f"1 at flap {f:g} deg (the stall stored for it), else 0"},
+            # x0(u) = (1 - tanh(a1 (u - alpha*))) / 2 = 1 / (1 + exp(2 a1 (u - alpha*)))
+            {"id": x0, "units": "nd",
+             "expr": f"1 / (1 + exp(2 * {g['a1']} * (ks_alpha - {g['tau2']} * ks_alphadot - "
+                     f"{g['alpha_star']})))",
+             "description": f"flap {f:g}: static separation point at alpha - tau2 alphadot"},
+            {"id": f"ks_xdot_{i}", "units": "_s", "expr": f"({x0} - ks_x) / {g['tau1']}",
+             "description": f"flap {f:g}: (x0 - x) / tau1, 1/s"},
+            {"id": f"ks_dcl_{i}", "units": "nd",
+             "expr": f"{g['CL_alpha']} * (ks_alpha - {g['alpha0']}) * "
+                     f"((1 + sqrt(ks_x)) / 2)^2 - CL_basic",
+             "description": f"flap {f:g}: Kirchhoff lift minus the static curve it replaces"},
+            {"id": f"ks_dcm_{i}", "units": "nd",
+             "expr": f"{g['Cm0']} + {g['Cm_alpha']} * ks_alpha + {g['Cm_x']} * (1 - ks_x) - "
+                     "Cm_basic",
+             "description": f"flap {f:g}: Kirchhoff pitching moment minus the static curve"},
+        ]  # fmt: skip
+        x0_terms.append({"factors": [on, x0]})
+        xd_terms.append({"factors": [on, f"ks_xdot_{i}"]})
+        cl_terms.append({"factors": [on, f"ks_dcl_{i}"]})
+        cm_terms.append({"factors": [on, f"ks_dcm_{i}"]})
+    flaps = ", ".join(f"{f:g}" for f in sorted(stall))
+    outputs = [
+        {"id": "x_sep_dot", "units": "_s", "terms": xd_terms,
+         "description": "rate of the separation point, 1/s (tau1 x_dot + x = x0(alpha - tau2 "
+         f"alphadot), Fischenberg), at flaps {flaps} deg; 0 elsewhere"},
+        {"id": "x_sep_0", "units": "nd", "terms": x0_terms,
+         "description": "static separation point at the current alpha and alphadot: the state "
+         f"to start from (trim), at flaps {flaps} deg; 0 elsewhere"},
+        {"id": "CL_ext", "units": "nd",
+         "terms": [{"factors": [coefficients.get("CL", "CL")]}, *cl_terms],
+         "description": "extended CL: the qualified CL with its static curve CL_basic replaced "
+         f"by the Kirchhoff lift at flaps {flaps} deg (the qualified CL elsewhere)"},
+        {"id": "Cm_ext", "units": "nd",
+         "terms": [{"factors": [coefficients.get("Cm", "Cm")]}, *cm_terms],
+         "description": "extended Cm: the qualified Cm with its static curve Cm_basic replaced "
+         f"by the Kirchhoff moment at flaps {flaps} deg (the qualified Cm elsewhere)"},
+    ]  # fmt: skip
+    return inputs, calcs, outputs
+
+
 def extended_daveml_spec(
     model: DeltaModel,
     base: DaveModel,
@@ -174,6 +278,7 @@ def extended_daveml_spec(
     channel_map: Mapping[str, str] | None = None,
     coefficients: Mapping[str, str] | None = None,
     seed: int = 0,
+    longitudinal: bool = True,
 ) -> dict[str, Any]:
     """The Δ part of the extended model as a DAVE-ML spec to merge into ``base``.
 
@@ -194,11 +299,22 @@ def extended_daveml_spec(
         e.g. ``Cl``).
     seed
         Seed of the sampled check states.
+    longitudinal
+        Carry the Kirchhoff stall the model stores (:meth:`DeltaModel.with_longitudinal`):
+        the state input ``x_sep``, ``x_sep_dot``, ``x_sep_0``, ``CL_ext``, ``Cm_ext``
+        (:func:`_stall_spec`). Without a stored stall nothing is added.
 
     Returns
     -------
     dict
         A spec for ``aerodelta._core.daveml_merge_xml`` (the writer's spec with calculations).
+
+    Raises
+    ------
+    DataError
+        A coefficient the base lacks; a stored stall the base cannot carry (no ``CL_basic``,
+        ``Cm_basic``, ``CL``, ``Cm``) or fitted with ``known='none'``, unless
+        ``longitudinal=False``.
     """
     spec = model.to_spec()
     flaps = [float(f) for f in spec["flaps_deg"]]
@@ -314,6 +430,19 @@ def extended_daveml_spec(
              "terms": [{"factors": [qual]}, {"factors": [f"w_{cname}", f"d{cname}"]}],
              "description": f"extended {cname} = {qual} + w_{cname} d{cname} (thesis Eq. 3.12)"}
         )  # fmt: skip
+    if longitudinal and model.kirchhoff:
+        resolve("alphadot_dps")
+        s_inputs, s_calcs, s_outputs = _stall_spec(
+            model, bunits, alpha=alpha_ch, flap=flap_ch, alphadot="alphadot_dps",
+            coefficients=cnames,
+        )  # fmt: skip
+        for v in (*STALL_BASE_VARIABLES, *(cnames.get(c, c) for c in ("CL", "Cm"))):
+            if v not in resolved:
+                resolved.add(v)
+                inputs.append({"id": v, "units": bunits[v]})
+        inputs += s_inputs
+        calcs += s_calcs
+        outputs += s_outputs
     env = spec.get("envelope")
     if env:  # the validated envelope's flag reads the sideslip (deg)
         resolve("beta_deg")
@@ -404,9 +533,12 @@ def _engine_reference(
     merged: DaveModel,
     states: list[dict[str, Any]],
     coefficients: Mapping[str, str],
+    *,
+    stall: bool = False,
 ) -> dict[str, np.ndarray]:
     """``C_ext`` by the engine: the base model's ``C`` plus ``w dC`` from ``aero_core``'s
-    Δ model, at the states (Δ channels derived in the merged file read back by varID)."""
+    Δ model, at the states (Δ channels derived in the merged file read back by varID); with
+    ``stall``, the Kirchhoff stall's outputs too (:func:`_stall_reference`)."""
     ids = merged.variables()["id"].to_list()
     keys = sorted({k for s in states for k in s["inputs"]})
     data = {k: [s["inputs"].get(k, np.nan) for s in states] for k in keys}
@@ -416,10 +548,49 @@ def _engine_reference(
     qual = base.evaluate(
         {k: v for k, v in data.items() if k in binputs}, outputs=list(coefficients.values())
     )
-    return {
+    out = {
         f"{c}_ext": qual[coefficients[c]].to_numpy() + delta[f"d{c}_blended"].to_numpy()
         for c in model.coefficients
     } | {f"d{c}": delta[f"d{c}"].to_numpy() for c in model.coefficients}
+    if stall:
+        out |= _stall_reference(model, base, data, coefficients)
+    return out
+
+
+def _stall_reference(
+    model: DeltaModel,
+    base: DaveModel,
+    data: Mapping[str, list[Any]],
+    coefficients: Mapping[str, str],
+) -> dict[str, np.ndarray]:
+    """``x_sep_dot``, ``x_sep_0``, ``CL_ext``, ``Cm_ext`` by the engine at the states: the
+    stored stall's ``KirchhoffParams`` (``_core.kirchhoff_point``) at the flap settings that
+    have one (exactly), replacing the base file's ``CL_basic``, ``Cm_basic`` in its ``CL``,
+    ``Cm`` (the base's own values, as the Δ's reference takes the base's coefficients)."""
+    n = len(data["alpha_deg"])
+
+    def col(name: str, default: float) -> np.ndarray:
+        v = data.get(name)
+        return np.full(n, default) if v is None else np.asarray(v, dtype=float)
+
+    alpha, flap = col("alpha_deg", np.nan), col("flap_deg", np.nan)
+    rates = np.radians(col("alphadot_dps", 0.0))
+    x = np.clip(col("x_sep", 1.0), 0.0, 1.0)
+    cl_q, cm_q = (coefficients.get(c, c) for c in ("CL", "Cm"))
+    binputs = set(base.inputs)
+    qual = base.evaluate(
+        {k: v for k, v in data.items() if k in binputs},
+        outputs=[cl_q, cm_q, *STALL_BASE_VARIABLES],
+    )
+    xdot, x0 = np.zeros(n), np.zeros(n)
+    cl, cm = qual[cl_q].to_numpy().copy(), qual[cm_q].to_numpy().copy()
+    for f, p in (model.kirchhoff or {}).items():
+        on = flap == f
+        s_x0, s_xd, s_cl, s_cm = _core.kirchhoff_point(p, np.radians(alpha[on]), rates[on], x[on])
+        x0[on], xdot[on] = s_x0, s_xd
+        cl[on] += s_cl - qual["CL_basic"].to_numpy()[on]
+        cm[on] += s_cm - qual["Cm_basic"].to_numpy()[on]
+    return {"x_sep_dot": xdot, "x_sep_0": x0, "CL_ext": cl, "Cm_ext": cm}
 
 
 def extended_daveml_text(
@@ -430,6 +601,7 @@ def extended_daveml_text(
     coefficients: Mapping[str, str] | None = None,
     seed: int = 0,
     rtol: float = 1e-12,
+    longitudinal: bool = True,
 ) -> ExtendedExport:
     """The extended model as DAVE-ML text, verified against the engine.
 
@@ -454,8 +626,10 @@ def extended_daveml_text(
         )
     text, name, base = qualified_base(qualified)
     spec = extended_daveml_spec(
-        model, base, channel_map=channel_map, coefficients=coefficients, seed=seed
-    )
+        model, base, channel_map=channel_map, coefficients=coefficients, seed=seed,
+        longitudinal=longitudinal,
+    )  # fmt: skip
+    stall = longitudinal and bool(model.kirchhoff)
     # every sampled state verifies the file against the engine; only those inside the flown
     # flaps and alphas are published as its check cases (beyond them the file holds the edge
     # values, which no flight test supports)
@@ -464,7 +638,9 @@ def extended_daveml_text(
     merged_text = _core.daveml_merge_xml(text, name, json.dumps(spec))
     merged = DaveModel.from_string(merged_text, name)
     cmap = {c: (coefficients or {}).get(c, c) for c in model.coefficients}
-    ref = _engine_reference(model, base, merged, states, cmap)
+    if stall:
+        cmap |= {c: (coefficients or {}).get(c, c) for c in ("CL", "Cm")}
+    ref = _engine_reference(model, base, merged, states, cmap, stall=stall)
     keys = sorted({k for s in states for k in s["inputs"]})
     data = {k: [s["inputs"].get(k, np.nan) for s in states] for k in keys}
     got = merged.evaluate(data, outputs=list(ref))

@@ -160,6 +160,20 @@ impl KirchhoffParams {
         0.5 * (1.0 - (self.a1 * (alpha - self.alpha_star)).tanh())
     }
 
+    /// The separation point the flow tends to at `alpha`, `alpha_dot` (rad, rad/s): the
+    /// input of the ODE, `x₀(α − τ₂ α̇)`.
+    #[inline]
+    pub fn x0_lagged(&self, alpha: f64, alpha_dot: f64) -> f64 {
+        self.x0(alpha - self.tau2 * alpha_dot)
+    }
+
+    /// The ODE's right-hand side `ẋ = (x₀(α − τ₂ α̇) − x) / τ₁`, 1/s: what a host
+    /// integrating the state itself (a DAVE-ML model's `x_sep_dot`) evaluates.
+    #[inline]
+    pub fn x_dot(&self, alpha: f64, alpha_dot: f64, x: f64) -> f64 {
+        (self.x0_lagged(alpha, alpha_dot) - x) / self.tau1
+    }
+
     /// Static lift coefficient C_L(α) with x = x₀(α) (the lift curve a quasi-steady pull-up follows).
     #[inline]
     pub fn cl_static(&self, alpha: f64) -> f64 {
@@ -283,7 +297,7 @@ impl KirchhoffState {
     pub fn x_at(&self, alpha: f64, alpha_dot: f64) -> f64 {
         match self.last {
             Some((_, x, _)) => x,
-            None => self.params.x0(alpha - self.params.tau2 * alpha_dot),
+            None => self.params.x0_lagged(alpha, alpha_dot),
         }
     }
 
@@ -292,7 +306,7 @@ impl KirchhoffState {
     /// static solution; a call at the time of the last one changes nothing; a
     /// call at an earlier time restarts at the static solution there.
     pub fn update(&mut self, t: f64, alpha: f64, alpha_dot: f64) {
-        let u = self.params.x0(alpha - self.params.tau2 * alpha_dot);
+        let u = self.params.x0_lagged(alpha, alpha_dot);
         let x = match self.last {
             Some((t0, _, _)) if t == t0 => return,
             Some((t0, x, u0)) if t > t0 => step(x, u0, u, t - t0, self.params.tau1),
@@ -367,7 +381,7 @@ pub fn simulate(p: &KirchhoffParams, inp: &Inputs<'_>) -> Result<Vec<f64>> {
     if n == 0 {
         return Ok(x);
     }
-    let u = |k: usize| p.x0(inp.alpha[k] - p.tau2 * inp.alpha_dot[k]);
+    let u = |k: usize| p.x0_lagged(inp.alpha[k], inp.alpha_dot[k]);
     let mut uk = u(0);
     let mut xk = uk;
     x.push(xk);

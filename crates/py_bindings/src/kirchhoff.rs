@@ -112,6 +112,44 @@ fn kirchhoff_outputs<'py>(
     ))
 }
 
+/// `(x0, x_dot, CL, Cm)` at each `(alpha, alpha_dot, x)` (rad, rad/s, -): the ODE's input
+/// `x₀(α − τ₂ α̇)` and right-hand side, and the static-curve lift and pitching moment at the
+/// separation point `x` (`KirchhoffParams::{x0_lagged, x_dot, cl, cm}`).
+#[pyfunction]
+fn kirchhoff_point<'py>(
+    py: Python<'py>,
+    params: HashMap<String, f64>,
+    alpha: PyReadonlyArray1<'py, f64>,
+    alpha_dot: PyReadonlyArray1<'py, f64>,
+    x: PyReadonlyArray1<'py, f64>,
+) -> PyResult<(Array<'py>, Array<'py>, Array<'py>, Array<'py>)> {
+    let p = params_from(&params, "params")?;
+    p.check().map_err(to_py)?;
+    let (a, ad, xs) = (alpha.as_slice()?, alpha_dot.as_slice()?, x.as_slice()?);
+    if ad.len() != a.len() || xs.len() != a.len() {
+        return Err(to_py(AeroError::invalid(
+            "kirchhoff_point",
+            format!(
+                "alpha, alpha_dot and x have {}, {} and {} values; give one of each per point",
+                a.len(),
+                ad.len(),
+                xs.len()
+            ),
+        )));
+    }
+    let pts = || a.iter().zip(ad).zip(xs).map(|((&a, &ad), &x)| (a, ad, x));
+    let x0: Vec<f64> = pts().map(|(a, ad, _)| p.x0_lagged(a, ad)).collect();
+    let xd: Vec<f64> = pts().map(|(a, ad, x)| p.x_dot(a, ad, x)).collect();
+    let cl: Vec<f64> = pts().map(|(a, _, x)| p.cl(a, x)).collect();
+    let cm: Vec<f64> = pts().map(|(a, _, x)| p.cm(a, x)).collect();
+    Ok((
+        x0.into_pyarray(py),
+        xd.into_pyarray(py),
+        cl.into_pyarray(py),
+        cm.into_pyarray(py),
+    ))
+}
+
 /// Output-error fit over maneuvers; returns a dict of plain values.
 #[pyfunction]
 #[pyo3(signature = (t, alpha, alpha_dot, cl, cm=None, start=None, fixed=Vec::new(), max_iter=60, tol=1e-9, max_lag=None))]
@@ -225,6 +263,7 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(kirchhoff_truth_params, m)?)?;
     m.add_function(wrap_pyfunction!(kirchhoff_cl_max, m)?)?;
     m.add_function(wrap_pyfunction!(kirchhoff_outputs, m)?)?;
+    m.add_function(wrap_pyfunction!(kirchhoff_point, m)?)?;
     m.add_function(wrap_pyfunction!(output_error_kirchhoff, m)?)?;
     m.add_function(wrap_pyfunction!(qualified_longitudinal_adx37, m)?)?;
     Ok(())

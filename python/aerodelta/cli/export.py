@@ -5,7 +5,9 @@ model) with the Δ tables, regressors and blend weights merged in, outputs dC, w
 per coefficient, and check cases at sampled states verified against the engine; check it with
 ``aerodelta check-daveml``. JSBSim (--jsbsim): an <aerodynamics> file adding w ΔC to the
 SIDE, ROLL and YAW axes of an aircraft that holds the qualified model (with --jsbsim-qualified:
-the built-in qualified CY, Cl, Cn too); see docs/export.md for the properties it reads."""
+the built-in qualified CY, Cl, Cn too); see docs/export.md for the properties it reads. A
+model carrying its Kirchhoff stall exports it to DAVE-ML as the state x_sep (--no-longitudinal
+leaves it out); the JSBSim file does not carry it (a note says so)."""
 
 from __future__ import annotations
 
@@ -80,6 +82,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "the whole extended lateral-directional model",
     )
     parser.add_argument("--seed", type=int, default=0, help="seed of the sampled check states")
+    parser.add_argument(
+        "--no-longitudinal",
+        action="store_true",
+        help="DAVE-ML: leave out the Kirchhoff stall the model stores (aerodelta longitudinal "
+        "--model M --out-model M2); by default it is exported as the state x_sep with "
+        "x_sep_dot, CL_ext, Cm_ext",
+    )
 
 
 def _usage(message: str) -> int:
@@ -113,6 +122,7 @@ def run(args: argparse.Namespace) -> int:
         (args.map, "--map", "--daveml", args.daveml),
         (args.coef, "--coef", "--daveml", args.daveml),
         (args.qualified, "--qualified", "--daveml", args.daveml),
+        (args.no_longitudinal, "--no-longitudinal", "--daveml", args.daveml),
     ):
         if given and not value:
             return _usage(f"{option} applies to the {needs} export; give {needs} OUT too")
@@ -155,17 +165,32 @@ def run(args: argparse.Namespace) -> int:
                 channel_map=channel_map,
                 coefficients=coefs,
                 seed=args.seed,
+                longitudinal=not args.no_longitudinal,
             )
             print(
                 f"wrote {args.daveml}: outputs {', '.join(out.model.outputs)}; {out.n_checks} "
                 f"check cases, largest relative difference to the engine {out.max_rel_error:.2e}"
             )
+            if model.kirchhoff and not args.no_longitudinal:
+                print(
+                    f"  longitudinal stall at flaps "
+                    f"{', '.join(f'{f:g}' for f in sorted(model.kirchhoff))} deg: the host "
+                    "integrates the input x_sep from x_sep_dot (start at x_sep_0) and flies "
+                    "CL_ext, Cm_ext"
+                )
         if args.jsbsim:
             export_jsbsim(
                 args.jsbsim, model, props, side_axis=side_axis, qualified=args.jsbsim_qualified
             )
     if args.jsbsim:
         print(f"wrote {args.jsbsim}: channels read from JSBSim properties:")
+        if model.kirchhoff:
+            print(
+                "aerodelta export: note: the model's longitudinal stall is not in the JSBSim "
+                "file (it replaces the ADX-37 qualified model's static lift and moment "
+                "curves; a JSBSim aircraft flies its own): the DAVE-ML export carries it",
+                file=sys.stderr,
+            )
         mapped = jsbsim_properties(model, props)
         for ch, prop in mapped.items():
             print(f"  {ch:<14} {prop}")
