@@ -143,6 +143,35 @@ def test_too_few_maneuvers_per_flap_fit_the_given_structure_and_say_so(
         assert listed == {name for name, _ in terms}
 
 
+def test_bootstrap_replicates_that_cannot_smooth_are_counted_not_zeros(
+    split: tuple[pl.DataFrame, pl.DataFrame],
+) -> None:
+    """One flap with 6 maneuvers and 5 needed per bin (``min_maneuvers``): a replicate
+    drawing 6 of them with replacement holds 5 distinct ones in a quarter of the draws, so
+    most replicates refit too few bins to smooth. They are counted in a note and left out,
+    never taken as a zero parameter; under half of them left, the smoothed band is NaN and the
+    model carries no band there."""
+    d = split[0].filter(pl.col("flap_deg") == 15.0)
+    ids = d["maneuver_id"].unique().sort().to_list()[:6]
+    cfg = ad.FitConfig(bootstrap=20, min_maneuvers=5)
+    r = ad.fit(d.filter(pl.col("maneuver_id").is_in(ids)), config=cfg)
+    notes = [n for n in r.notes if "bootstrap replicates could not smooth" in n]
+    assert notes and all("of the 6 at this flap" in n for n in notes), r.notes
+    for (coef, name, _), (_, reps) in r.replicates.items():
+        failed = np.isnan(reps).all(axis=1)
+        assert np.all(failed | np.isfinite(reps).all(axis=1))  # a replicate fails whole
+        est = r.smoothed.filter((pl.col("coefficient") == coef) & (pl.col("param") == name))
+        if (est["value"] != 0).any():
+            assert not np.any((reps[~failed] == 0.0).all(axis=1)), (coef, name)
+        if 2 * (~failed).sum() < len(failed):
+            assert est["lower"].is_nan().all() and est["upper"].is_nan().all()
+            assert f"{20 - int((~failed).sum())} of 20 bootstrap replicates" in " ".join(notes)
+    spec = r.model.to_spec()
+    banded = {t["name"] for c in spec["coefficients"].values() for t in c["terms"] if "band" in t}
+    nan_band = set(r.smoothed.filter(pl.col("lower").is_nan())["param"].to_list())
+    assert not banded & nan_band
+
+
 def _no_thrust(d: pl.DataFrame) -> pl.DataFrame:
     """The records of a jet whose thrust is not recorded: ct channels all null."""
     cols = [c for c in ("ct_left", "ct_right", "ct_diff") if c in d.columns]

@@ -669,7 +669,9 @@ class FitResult:
         inequality of the per-bin Δ fits with the ``selected`` structure, the ``full`` pool
         and the thesis ``default`` structure (empty without selection).
     replicates
-        Bootstrap replicates ``{(coefficient, param, flap): (alpha_grid, values[B, grid])}``.
+        Bootstrap replicates ``{(coefficient, param, flap): (alpha_grid, values[B, grid])}``;
+        a replicate that could not smooth the parameter (too few of its bins refitted) is a
+        row of NaN (counted in :attr:`notes`).
     notes
         What the fit left out and why: terms dropped because a channel they read has no value
         in the data (a jet without thrust channels), rows left out for a missing value.
@@ -820,8 +822,11 @@ class FitResult:
                         x = unit[name].to_numpy()[r]
                         th = np.stack([np.interp(alpha[r], grid, v) for v in reps])
                         acc = th * x if acc is None else acc + th * x
-                    if acc is not None:
-                        qs = np.quantile(acc, q, axis=0)
+                    # a replicate that could not smooth a parameter (NaN) is left out; under
+                    # half of them left, no band
+                    ok = None if acc is None else np.isfinite(acc).all(axis=1)
+                    if acc is not None and ok is not None and 2 * ok.sum() >= len(ok) >= 2:
+                        qs = np.quantile(acc[ok], q, axis=0)
                         lo[r], hi[r] = qs[0] * w[r], qs[1] * w[r]
             out[f"d{coef}_blended"] = ev[f"d{coef}_blended"].to_numpy()
             out[f"d{coef}_lower"] = lo
@@ -1803,6 +1808,22 @@ def fit(
             lower = np.asarray(boot["lower"]).reshape(len(names), ng)
             upper = np.asarray(boot["upper"]).reshape(len(names), ng)
             reps = np.asarray(boot["replicates"]).reshape(len(names), nrep, ng)
+            # failed replicates are counted, never read as zeros: one note per count
+            failed: dict[int, list[str]] = {}
+            for name, ok in zip(names, boot["replicates_ok"], strict=True):
+                if int(ok) < nrep:
+                    failed.setdefault(int(ok), []).append(name)
+            for ok, which in sorted(failed.items()):
+                band = (
+                    "no smoothed band (fewer than half of them left)"
+                    if 2 * ok < nrep or ok < 2
+                    else f"the smoothed band from the other {ok}"
+                )
+                notes.append(
+                    f"{coef} at flap {flap:g} deg: {nrep - ok} of {nrep} bootstrap replicates "
+                    f"could not smooth {', '.join(which)} (too few of the bins refitted: too few "
+                    f"distinct maneuvers drawn of the {n_maneuvers[flap]} at this flap); {band}"
+                )
         for j, (name, grid, values, nused, note) in enumerate(out["smoothed"]):
             g, v = np.asarray(grid), np.asarray(values)
             lo = lower[j] if boot is not None else np.full(len(g), np.nan)

@@ -113,6 +113,10 @@ pub struct Bootstrap {
     /// refitted (the others failed: too few points or maneuvers drawn, a
     /// singular resampled bin). Under half of the replicates gives no band.
     pub bin_replicates_ok: Vec<Vec<usize>>,
+    /// Per parameter: replicates whose smoothing of it succeeded (the others refitted too few
+    /// bins: too few distinct maneuvers drawn; their values are NaN in `replicates`). Under
+    /// half of the replicates gives no smoothed band (`lower`, `upper` NaN).
+    pub replicates_ok: Vec<usize>,
     /// Per parameter: share of replicates whose own selection kept the term
     /// (1 without reselection).
     pub inclusion: Vec<f64>,
@@ -314,15 +318,19 @@ pub fn bootstrap_smoothed(
                     .collect()
             })
             .collect();
-        // a parameter the estimate set to zero stays zero in every replicate
+        // a parameter the estimate set to zero stays zero in every replicate; one the
+        // replicate cannot smooth (too few of its bins refitted: too few distinct maneuvers
+        // drawn) is a failed replicate for it, NaN, not a zero
         let values = sm
             .into_iter()
             .zip(&base)
             .map(|(s, b)| {
-                if b.note.is_empty() {
-                    s.values
-                } else {
+                if !b.note.is_empty() {
                     b.values.clone()
+                } else if !s.note.is_empty() {
+                    vec![f64::NAN; s.values.len()]
+                } else {
+                    s.values
                 }
             })
             .collect();
@@ -354,7 +362,15 @@ pub fn bootstrap_smoothed(
     let mut lower = vec![vec![f64::NAN; ng]; p];
     let mut upper = vec![vec![f64::NAN; ng]; p];
     let bias = spline_bias(fit, &base, smooth)?;
+    let replicates_ok: Vec<usize> = replicates
+        .iter()
+        .map(|r| r.iter().filter(|v| v.iter().all(|x| !x.is_nan())).count())
+        .collect();
     for j in 0..p {
+        // as per bin: under half of the replicates smoothed, no band
+        if replicates_ok[j] < 2 || 2 * replicates_ok[j] < reps.len() {
+            continue;
+        }
         for i in 0..ng {
             let mut col: Vec<f64> = replicates[j]
                 .iter()
@@ -423,6 +439,7 @@ pub fn bootstrap_smoothed(
         bin_lower,
         bin_upper,
         bin_replicates_ok,
+        replicates_ok,
         inclusion,
         level: opts.level,
     })
@@ -533,6 +550,49 @@ mod tests {
         for (k, &al) in b.alpha_deg.iter().enumerate() {
             if (al - 12.0).abs() > 4.5 && al > 6.0 && al < 19.0 {
                 assert!(bias[k].abs() < 0.002, "{al}: {}", bias[k]);
+            }
+        }
+    }
+
+    /// Six maneuvers and five needed per resampled bin: most replicates draw too few distinct
+    /// maneuvers to refit enough bins, and such a replicate is counted as failed (NaN), never
+    /// read as a zero parameter; under half of them left, no smoothed band. With 80
+    /// maneuvers none fails.
+    #[test]
+    fn replicates_that_cannot_smooth_are_failures_not_zeros() {
+        let opts = crate::select::tests::iid_identify();
+        let sm = SmoothOptions::default();
+        let bo = BootstrapOptions {
+            replicates: 40,
+            seed: 9,
+            min_maneuvers: 5,
+            ..BootstrapOptions::default()
+        };
+        let mut x = Vec::new();
+        let (design, z, _, a, man) = synthetic(2, &mut x);
+        let few: Vec<u64> = man.iter().map(|m| m / 14).collect(); // 80 -> 6 maneuvers
+        for (ids, all_ok) in [(&few, false), (&man, true)] {
+            let fit = fit_bins(&design, &z, &a, ids, &opts).expect("fit");
+            let b = bootstrap_smoothed(&design, &z, ids, &fit, &sm, &bo, None).expect("boot");
+            let reps = &b.replicates[1];
+            let finite = reps
+                .iter()
+                .filter(|r| r.iter().all(|v| v.is_finite()))
+                .count();
+            assert!(reps
+                .iter()
+                .all(|r| r.iter().all(|v| v.is_finite()) || r.iter().all(|v| v.is_nan())));
+            assert!(
+                reps.iter().all(|r| r.iter().any(|v| *v != 0.0)),
+                "a zero replicate"
+            );
+            assert_eq!(b.replicates_ok[1], finite);
+            if all_ok {
+                assert_eq!(finite, bo.replicates);
+                assert!(b.lower[1].iter().all(|v| v.is_finite()));
+            } else {
+                assert!(2 * finite < bo.replicates, "{finite} replicates smoothed");
+                assert!(b.lower[1].iter().chain(&b.upper[1]).all(|v| v.is_nan()));
             }
         }
     }

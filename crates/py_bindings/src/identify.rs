@@ -230,6 +230,14 @@ fn bootstrap_dict<'py>(py: Python<'py>, b: &Bootstrap) -> PyResult<Bound<'py, Py
             .collect::<Vec<f64>>()
             .into_pyarray(py),
     )?;
+    d.set_item(
+        "replicates_ok",
+        b.replicates_ok
+            .iter()
+            .map(|&v| v as f64)
+            .collect::<Vec<f64>>()
+            .into_pyarray(py),
+    )?;
     d.set_item("inclusion", b.inclusion.clone().into_pyarray(py))?;
     d.set_item(
         "replicates",
