@@ -33,6 +33,7 @@ except ImportError:  # the plan/test extras install it; CI (CI=1) must run these
         "dask[distributed] not installed: pip install 'aerodelta[plan]'", allow_module_level=True
     )
 
+import aerodelta as ad
 from aerodelta.cli import main
 from aerodelta.exceptions import DataError, InvalidInputError
 from aerodelta.plan import load_matrix, run_plan, run_rolloff_study
@@ -44,6 +45,17 @@ from aerodelta.plan.rolloff import mc_chunk
 from aerodelta.plan.suite import run_cases
 from aerodelta.plan.task import _scratch
 from aerodelta.rolloff import monte_carlo
+
+JSB = """
+[aircraft]
+simulator = "jsbsim"
+name = "f15"
+
+[flaps.0]
+straight = 2
+turning = 2
+sideslip = 2
+"""
 
 TINY = """
 [campaign]
@@ -313,6 +325,25 @@ def test_a_task_folder_of_another_matrix_is_refused(study: Path, tmp_path: Path)
             "[flaps.0]\nstraight = 1\n[plan]\nx = 1\n",
             "unknown key 'plan'; allowed: campaign, effects",
         ),
+        (
+            '[aircraft]\nname = "f15"\n[flaps.0]\nstraight = 1\n',
+            "[aircraft] name: applies to a JSBSim aircraft",
+        ),
+        (
+            JSB.replace('name = "f15"', 'name = "f16"'),
+            "[aircraft] name = 'f16': give a JSBSim aircraft, one of f15, DHC6",
+        ),
+        (JSB + "[effects]\ndihedral = 1\n", "[effects] is the virtual aircraft's"),
+        (JSB.replace("[flaps.0]", "[flaps.5]"), "flap 5 deg is not flown by JSBSim's f15"),
+        (JSB.replace("sideslip = 2", "asymmetric_thrust = 2"), "unknown key 'asymmetric_thrust'"),
+        (
+            JSB.replace('name = "f15"', 'name = "f15"\nwithhold = ["Cmq"]'),
+            "'Cmq' is not a lateral term of f15 tabulated over alpha",
+        ),
+        (
+            JSB + "[campaign]\nturbulence_mps = 1\n",
+            "[campaign] turbulence_mps: the virtual aircraft's; a JSBSim campaign takes noise",
+        ),
     ],
 )
 def test_bad_matrix_is_refused_in_one_line(
@@ -326,6 +357,45 @@ def test_bad_matrix_is_refused_in_one_line(
     assert err.count("\n") == 1 and err.startswith("aerodelta plan: error: ")
     assert str(p) in err and needle in err
     assert not (tmp_path / "o").exists()
+
+
+def test_a_jsbsim_aircraft_study_reports_its_fit_against_the_xml_truth(
+    client: Any, tmp_path: Path
+) -> None:
+    """A matrix of JSBSim's F-15 (its default withheld terms Clb, Clp, Cnb): the study's
+    numbers are those of the same campaign flown, fitted and compared with the aircraft's XML
+    directly (``generate_jsbsim_campaign``, ``fit(qualified="columns")``,
+    ``true_delta_derivative``)."""
+    pytest.importorskip("jsbsim")
+    from aerodelta.jsbsim_campaign import (  # noqa: PLC0415
+        generate_jsbsim_campaign,
+        true_delta_derivative,
+    )
+
+    m = tmp_path / "f15.toml"
+    m.write_text(JSB + "[fit]\nbootstrap = 5\n[targets]\nalpha_edges_deg = [12, 16, 20]\n")
+    r = run_plan(m, campaigns=1, seed=3, out=tmp_path / "study", client=client, progress=False)
+    assert r.failures == [] and r.matrix.simulator == "jsbsim"
+    camp = tmp_path / "camp"
+    generate_jsbsim_campaign(camp, aircraft="f15", seed=3, size=2, withhold=["Clb", "Clp", "Cnb"])
+    data = ad.ingest(camp, compat=False, progress=False).data
+    fit = ad.fit(data, qualified="columns", config=ad.FitConfig(bootstrap=5, seed=3))
+    expected = r.params.filter(pl.col("truth_max") > 0)
+    assert set(expected["param"]) == {"dCl_beta", "dCl_p", "dCn_beta"}
+    for row in expected.iter_rows(named=True):
+        sm = fit.smoothed.filter(
+            (pl.col("coefficient") == row["coefficient"])
+            & (pl.col("param") == row["param"])
+            & (pl.col("alpha_deg") >= row["alpha_lo_deg"])
+            & (pl.col("alpha_deg") < row["alpha_hi_deg"])
+        )
+        grid = sm["alpha_deg"].to_numpy()
+        truth = true_delta_derivative(camp, row["coefficient"], row["regressor"], 0.0, grid)
+        assert row["truth"] == pytest.approx(float(truth.mean()), rel=1e-12)
+        assert row["estimate_mean"] == pytest.approx(float(sm["value"].mean()), rel=1e-12)
+    # the maneuver kinds are the JSBSim pilot's: 2 of each per campaign
+    kinds = set(pl.read_csv(tmp_path / "study" / "coverage.csv")["kind"])
+    assert kinds == {"straight", "turning", "sideslip"}
 
 
 def test_recommendation_follows_the_numbers() -> None:

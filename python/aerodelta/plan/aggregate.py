@@ -15,7 +15,7 @@ from typing import Any
 import polars as pl
 
 from aerodelta._groups import group_agg
-from aerodelta.plan.matrix import KINDS, Matrix
+from aerodelta.plan.matrix import Matrix
 
 KEYS: tuple[str, ...] = (
     "coefficient",
@@ -220,11 +220,12 @@ def recommendation(
             f"flap {flap:g}: {k} parameter/alpha ranges miss a target ({n_flap} maneuvers flown)"
         )
         for r in m.head(6).iter_rows(named=True):
-            band = (
-                "no band (never identified)"
-                if r["band_relative"] is None
-                else f"band {r['band_relative']:.0%} of its largest expected |Δ|"
-            )
+            if r["band_relative"] is not None:
+                band = f"band {r['band_relative']:.0%} of its largest expected |Δ|"
+            elif not r["p_identified"]:
+                band = "no band (never identified)"
+            else:  # identified, but the replicates could not smooth it (fit notes)
+                band = "no band (too few maneuvers for the bootstrap to smooth it)"
             lines.append(
                 f"  {r['coefficient']} {_label(r['param'], r['regressor'])}, alpha "
                 f"{r['alpha_lo_deg']:g}-{r['alpha_hi_deg']:g} deg: {band}, identified in "
@@ -277,7 +278,7 @@ def recommendation(
                 "1/√(maneuvers at the flap), so a band r times the target needs r² times the "
                 "maneuvers; an identification miss alone is given twice the maneuvers."
             )
-            unflown = [k for k in KINDS if counts.get(flap, {}).get(k, 0) == 0]
+            unflown = [k for k in matrix.kinds() if counts.get(flap, {}).get(k, 0) == 0]
             if unflown:
                 lines.append(
                     f"     (kinds not flown at this flap, so not measured: {', '.join(unflown)})"

@@ -20,13 +20,20 @@ from typing import Any
 
 from aerodelta._toml import read_toml
 from aerodelta.campaign import mass_variation, parse_effects, vane_calibration
-from aerodelta.exceptions import DataError, InvalidInputError
+from aerodelta.exceptions import AerodeltaError, DataError, InvalidInputError
 
 #: The flap settings the virtual ADX-37 flies, deg.
 FLAPS: tuple[float, ...] = (0.0, 5.0, 10.0, 15.0, 35.0)
 
 #: Maneuver kinds the pilot model flies (thesis Section 3.2.1).
 KINDS: tuple[str, ...] = ("straight", "turning", "accelerated", "asymmetric_thrust")
+
+#: Maneuver kinds the JSBSim pilot flies (``aerodelta.jsbsim_campaign.KINDS``; a sideslip
+#: entry's manifest kind is ``other``).
+JSBSIM_KINDS: tuple[str, ...] = ("straight", "turning", "sideslip")
+
+#: Simulators a matrix can fly: the built-in virtual ADX-37, or a JSBSim aircraft.
+SIMULATORS: tuple[str, ...] = ("virtual", "jsbsim")
 
 #: ``pusher`` values of a flap: both variants (alternating, the pusher on for the odd one),
 #: the stick pusher on only, or off only.
@@ -54,9 +61,12 @@ _TABLES: dict[str, tuple[str, ...]] = {
         "named_probability",
     ),
     "engine": ("retries", "fault_drill_seeds"),
+    "aircraft": ("simulator", "name", "withhold", "withhold_scale", "turbulence"),
 }
-_TOP = ("campaign", "effects", "flaps", "fit", "diagnosis", "targets", "engine")
+_TOP = ("campaign", "effects", "flaps", "fit", "diagnosis", "targets", "engine", "aircraft")
 _FLAP_KEYS = (*KINDS, "pusher")
+#: [campaign] keys a JSBSim matrix takes (the others set the virtual aircraft's generator).
+_JSBSIM_CAMPAIGN = ("noise",)
 
 
 @dataclass(frozen=True)
@@ -81,8 +91,7 @@ class FlapCounts:
         """Maneuvers per (kind, stick pusher armed): with ``"both"`` the pusher-on variant
         takes the odd one (``ceil(n / 2)``)."""
         out: dict[tuple[str, bool], int] = {}
-        for k in KINDS:
-            n = self.counts.get(k, 0)
+        for k, n in self.counts.items():
             if self.pusher == "both":
                 out[(k, True)], out[(k, False)] = (n + 1) // 2, n // 2
             else:
@@ -136,6 +145,15 @@ class Matrix:
     fault_drill_seeds
         Seeds whose task raises on purpose (a drill of the retry and report path of a
         cluster before a long study); empty for a real study.
+    simulator
+        ``"virtual"`` (the built-in ADX-37) or ``"jsbsim"`` (:data:`SIMULATORS`).
+    aircraft
+        The JSBSim aircraft (a key of ``aerodelta.jsbsim_campaign.AIRCRAFT``); ``""`` for the
+        virtual one.
+    withhold, withhold_scale, jsbsim_turbulence
+        The JSBSim campaign's withheld lateral terms (the effects the study expects; empty:
+        the aircraft's default), the fraction of their change withheld, and the Dryden
+        turbulence severity (``generate_jsbsim_campaign``'s ``turbulence``).
     """
 
     name: str
@@ -161,10 +179,19 @@ class Matrix:
     named_probability: float = 0.8
     retries: int = 2
     fault_drill_seeds: tuple[int, ...] = field(default_factory=tuple)
+    simulator: str = "virtual"
+    aircraft: str = ""
+    withhold: tuple[str, ...] = ()
+    withhold_scale: float = 1.0
+    jsbsim_turbulence: float = 0.0
 
     def n_maneuvers(self) -> int:
         """Maneuvers used per campaign."""
         return sum(sum(f.counts.values()) for f in self.flaps)
+
+    def kinds(self) -> tuple[str, ...]:
+        """The maneuver kinds the matrix's pilot flies."""
+        return JSBSIM_KINDS if self.simulator == "jsbsim" else KINDS
 
     def task_spec(self) -> dict[str, Any]:
         """What a task needs (JSON-ready): everything that shapes a campaign's summary, and
@@ -179,6 +206,9 @@ class Matrix:
             "fault_drill_seeds",
         ):
             d.pop(k)
+        if self.simulator == "virtual":  # the virtual matrices' digests as before
+            for k in ("simulator", "aircraft", "withhold", "withhold_scale", "jsbsim_turbulence"):
+                d.pop(k)
         return d
 
     def digest(self) -> str:
@@ -225,28 +255,100 @@ def _numbers(v: Any, n: int | None, where: str) -> tuple[float, ...]:
     return tuple(_number(x, where) for x in v)
 
 
-def _flap(key: str, body: Any, path: Path | str) -> FlapCounts:
+def _flap(
+    key: str,
+    body: Any,
+    path: Path | str,
+    *,
+    flaps: tuple[float, ...] = FLAPS,
+    kinds: tuple[str, ...] = KINDS,
+    aircraft: str = "the virtual aircraft",
+) -> FlapCounts:
     where = f"{path}: [flaps.{key}]"
     try:
         flap = float(key)
     except ValueError:
         raise DataError(
             f"{where}: '{key}' is not a flap setting; use one of "
-            f"{', '.join(f'{f:g}' for f in FLAPS)}"
+            f"{', '.join(f'{f:g}' for f in flaps)}"
         ) from None
-    if flap not in FLAPS:
+    if flap not in flaps:
         raise DataError(
-            f"{where}: flap {flap:g} deg is not flown by the virtual aircraft; use one of "
-            f"{', '.join(f'{f:g}' for f in FLAPS)}"
+            f"{where}: flap {flap:g} deg is not flown by {aircraft}; use one of "
+            f"{', '.join(f'{f:g}' for f in flaps)}"
         )
     if not isinstance(body, Mapping):
         raise DataError(f"{where}: give a table of maneuver counts, e.g. straight = 4")
-    _check_keys(body, _FLAP_KEYS, where)
-    counts = {k: _integer(body.get(k, 0), f"{where} {k}") for k in KINDS}
-    pusher = body.get("pusher", "both")
+    jsbsim = kinds == JSBSIM_KINDS
+    _check_keys(body, kinds if jsbsim else _FLAP_KEYS, where)
+    counts = {k: _integer(body.get(k, 0), f"{where} {k}") for k in kinds}
+    pusher = "off" if jsbsim else body.get("pusher", "both")
     if pusher not in PUSHER:
         raise DataError(f"{where} pusher = {pusher!r}: use one of {', '.join(PUSHER)}")
     return FlapCounts(flap, counts, str(pusher))
+
+
+def _aircraft(doc: Mapping[str, Any], path: Path | str) -> dict[str, Any]:
+    """The ``[aircraft]`` table: which simulator flies the campaigns (checked)."""
+    a = doc.get("aircraft", {})
+    sim = a.get("simulator", "virtual")
+    if sim not in SIMULATORS:
+        raise DataError(
+            f"{_where(path, 'aircraft', 'simulator')} = {sim!r}: use one of {', '.join(SIMULATORS)}"
+        )
+    if sim == "virtual":
+        extra = [k for k in a if k != "simulator"]
+        if extra:
+            raise DataError(
+                f"{_where(path, 'aircraft', extra[0])}: applies to a JSBSim aircraft (simulator "
+                '= "jsbsim"); the virtual ADX-37 takes its effects from [effects]'
+            )
+        return {}
+    from aerodelta.jsbsim_campaign import AIRCRAFT, lateral_terms  # noqa: PLC0415
+
+    name = a.get("name")
+    if name not in AIRCRAFT:
+        raise DataError(
+            f"{_where(path, 'aircraft', 'name')} = {name!r}: give a JSBSim aircraft, one of "
+            f"{', '.join(AIRCRAFT)}"
+        )
+    for t in ("effects",):
+        if doc.get(t):
+            raise DataError(
+                f"{path}: [{t}] is the virtual aircraft's; a JSBSim aircraft's effects are the "
+                "lateral terms it withholds ([aircraft] withhold)"
+            )
+    bad = [k for k in doc.get("campaign", {}) if k not in _JSBSIM_CAMPAIGN]
+    if bad:
+        raise DataError(
+            f"{_where(path, 'campaign', bad[0])}: the virtual aircraft's; a JSBSim campaign takes "
+            f"{', '.join(_JSBSIM_CAMPAIGN)} here and its turbulence as [aircraft] turbulence"
+        )
+    out: dict[str, Any] = {"simulator": "jsbsim", "aircraft": str(name)}
+    w = a.get("withhold", [])
+    where = _where(path, "aircraft", "withhold")
+    if not isinstance(w, list) or not all(isinstance(x, str) for x in w):
+        raise DataError(f"{where} = {w!r}: give a list of the aircraft's lateral terms, or omit it")
+    try:  # reads the aircraft's XML from the jsbsim package
+        known = [t["name"] for t in lateral_terms(str(name)) if t["alpha_dependent"]]
+    except (AerodeltaError, ImportError) as e:
+        raise DataError(f"{_where(path, 'aircraft', 'name')} = {name!r}: {e}") from None
+    unknown = [x for x in w if x not in known]
+    if unknown:
+        raise DataError(
+            f"{where}: '{unknown[0]}' is not a lateral term of {name} tabulated over alpha; use "
+            f"some of {', '.join(known)}"
+        )
+    out["withhold"] = tuple(w) or tuple(AIRCRAFT[str(name)].withhold)
+    if "withhold_scale" in a:
+        out["withhold_scale"] = _number(
+            a["withhold_scale"], _where(path, "aircraft", "withhold_scale"), 0.0, 1.0
+        )
+    if "turbulence" in a:
+        out["jsbsim_turbulence"] = _number(
+            a["turbulence"], _where(path, "aircraft", "turbulence"), 0.0, 7.0
+        )
+    return out
 
 
 def parse_matrix(doc: Mapping[str, Any], path: Path | str, name: str) -> Matrix:
@@ -282,7 +384,8 @@ def parse_matrix(doc: Mapping[str, Any], path: Path | str, name: str) -> Matrix:
         if not isinstance(body, Mapping):
             raise DataError(f"{path}: '{t}' must be a table ([{t}])")
         _check_keys(body, allowed, _where(path, t))
-    kw: dict[str, Any] = {}
+    kw: dict[str, Any] = _aircraft(doc, path)
+    jsbsim = kw.get("simulator") == "jsbsim"
     c = doc.get("campaign", {})
     w = lambda k: _where(path, "campaign", k)  # noqa: E731
     if "noise" in c:
@@ -324,7 +427,18 @@ def parse_matrix(doc: Mapping[str, Any], path: Path | str, name: str) -> Matrix:
             f"{path}: no [flaps.N] table; give the maneuver counts per flap, e.g. "
             "[flaps.0] straight = 4"
         )
-    flaps = tuple(sorted((_flap(str(k), v, path) for k, v in fl.items()), key=lambda f: f.flap_deg))
+    if jsbsim:
+        from aerodelta.jsbsim_campaign import AIRCRAFT  # noqa: PLC0415
+
+        ac = kw["aircraft"]
+        fargs: dict[str, Any] = {
+            "flaps": AIRCRAFT[ac].flaps_deg, "kinds": JSBSIM_KINDS, "aircraft": f"JSBSim's {ac}",
+        }  # fmt: skip
+    else:
+        fargs = {}
+    flaps = tuple(
+        sorted((_flap(str(k), v, path, **fargs) for k, v in fl.items()), key=lambda f: f.flap_deg)
+    )
     if len({f.flap_deg for f in flaps}) != len(flaps):
         raise DataError(f"{path}: [flaps] a flap setting is given twice (e.g. 15 and 15.0)")
     if sum(sum(f.counts.values()) for f in flaps) == 0:
