@@ -33,7 +33,10 @@
 
 use crate::error::{AeroError, Result};
 use crate::identify::{smooth_parameters, BinnedFit, Design, SmoothOptions, SmoothedParameter};
-use crate::select::{bin_grams, bin_members, select_chosen, solve_subset, BinGrams, SelectOptions};
+use crate::select::{
+    bin_grams, bin_members, independent_subset, select_chosen, solve_subset, BinGrams,
+    SelectOptions,
+};
 use crate::sim::rng::{derive_seed, Stream};
 
 /// One replicate: smoothed values per parameter on the grid, the bin
@@ -284,16 +287,30 @@ pub fn bootstrap_smoothed(
             let distinct = w.iter().filter(|v| **v > 0.0).count();
             let (g, _, n) = bs.total(dim, Some(&w));
             let sol = if n >= required && distinct >= opts.min_maneuvers.max(1) {
-                solve_subset(&g, dim, &cols)
+                match solve_subset(&g, dim, &cols) {
+                    Some((th, _)) => Some((th, None)),
+                    None => {
+                        // a column the resample leaves dependent (a channel constant or
+                        // zero in it): refitted without it, as the estimate's bins are
+                        // (minimum norm); the others are not lost with it
+                        let kept = independent_subset(&g, dim, &cols);
+                        solve_subset(&g, dim, &kept).map(|(th, _)| (th, Some(kept)))
+                    }
+                }
             } else {
                 None
             };
             let bin = &mut rf.bins[b];
             match sol {
-                Some((th, _)) => {
+                Some((th, kept)) => {
                     bin.params.iter_mut().for_each(|v| *v = 0.0);
-                    for (i, &j) in cols.iter().enumerate() {
+                    let used = kept.as_deref().unwrap_or(&cols);
+                    for (i, &j) in used.iter().enumerate() {
                         bin.params[j] = th[i] * grams.scale[p] / grams.scale[j];
+                    }
+                    for &j in cols.iter().filter(|j| !used.contains(j)) {
+                        bin.identifiable[j] = false;
+                        bin.smoothable[j] = false;
                     }
                 }
                 None => {
@@ -594,6 +611,46 @@ mod tests {
                 assert!(2 * finite < bo.replicates, "{finite} replicates smoothed");
                 assert!(b.lower[1].iter().chain(&b.upper[1]).all(|v| v.is_nan()));
             }
+        }
+    }
+
+    /// A structure term whose channel is zero throughout (a thrust difference of symmetric
+    /// engines): the estimate's bins leave it out (minimum norm) and fit the others; so does
+    /// every replicate, instead of failing every bin on the singular Gram matrix (which left
+    /// no replicate to smooth the other terms).
+    #[test]
+    fn a_dependent_column_does_not_fail_the_replicates() {
+        let opts = crate::select::tests::iid_identify();
+        let sm = SmoothOptions::default();
+        let bo = BootstrapOptions {
+            replicates: 30,
+            seed: 4,
+            ..BootstrapOptions::default()
+        };
+        let mut x = Vec::new();
+        let (design, z, _, a, man) = synthetic(1, &mut x);
+        let zero = vec![0.0; design.nrows];
+        let lookup = |c: &str| -> Option<&[f64]> {
+            match c {
+                "x" => Some(&x[..]),
+                "zero" => Some(&zero[..]),
+                _ => None,
+            }
+        };
+        let regs = vec![
+            ("bias".into(), "1".into()),
+            ("b".into(), "x".into()),
+            ("d".into(), "zero".into()),
+        ];
+        let with_zero = Design::build(&regs, &lookup, design.nrows).expect("design");
+        let fit = fit_bins(&with_zero, &z, &a, &man, &opts).expect("fit");
+        let b = bootstrap_smoothed(&with_zero, &z, &man, &fit, &sm, &bo, None).expect("boot");
+        assert_eq!(b.replicates_ok[1], bo.replicates);
+        // the same band as without the zero column
+        let fit0 = fit_bins(&design, &z, &a, &man, &opts).expect("fit");
+        let b0 = bootstrap_smoothed(&design, &z, &man, &fit0, &sm, &bo, None).expect("boot");
+        for (u, v) in b.lower[1].iter().zip(&b0.lower[1]) {
+            assert!((u - v).abs() <= 1e-9 * v.abs().max(1e-6), "{u} vs {v}");
         }
     }
 

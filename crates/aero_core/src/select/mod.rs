@@ -376,11 +376,17 @@ pub fn solve_subset_into(
 /// the first `k` rows of any longer one, so each trial costs `O(k²)`, not a factorization, and
 /// decides as the trial factorization does, to the bit.
 fn independent_columns(g: &[f64], dim: usize, p: usize) -> Vec<usize> {
+    independent_subset(g, dim, &(0..p).collect::<Vec<_>>())
+}
+
+/// [`independent_columns`] over the columns `candidates` of `g`, tried in their order.
+pub(crate) fn independent_subset(g: &[f64], dim: usize, candidates: &[usize]) -> Vec<usize> {
+    let p = candidates.len();
     let mut cols: Vec<usize> = Vec::with_capacity(p);
     // rows of L with stride p, the forward solution y and the estimates th
     let mut l = vec![0.0; p * p];
     let (mut y, mut th) = (vec![0.0; p], vec![0.0; p]);
-    for c in 0..p {
+    for &c in candidates {
         // the trial: row k - 1 of L for the columns cols + [c], then the solution with it
         cols.push(c);
         let k = cols.len();
