@@ -18,6 +18,7 @@ use std::collections::HashMap;
 use crate::error::{AeroError, ErrorKind, Result, ResultExt};
 use crate::lsq::{ols_clustered, OlsOptions};
 use crate::regressor::Expr;
+use crate::rolloff_detect::median;
 
 /// Three-point difference weights on sample times ([`time_derivatives`]).
 #[derive(Debug, Clone)]
@@ -66,19 +67,6 @@ impl Stencil {
             hp.push(p);
         }
         Some(Stencil { ok, hm, hp })
-    }
-}
-
-/// The median (the mean of the two middle values for an even count), as numpy's.
-fn median(v: &mut [f64]) -> f64 {
-    let m = v.len() / 2;
-    v.select_nth_unstable_by(m, f64::total_cmp);
-    let hi = v[m];
-    if v.len() % 2 == 1 {
-        hi
-    } else {
-        let lo = v[..m].iter().copied().fold(f64::NEG_INFINITY, f64::max);
-        0.5 * (lo + hi)
     }
 }
 

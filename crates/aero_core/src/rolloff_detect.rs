@@ -172,7 +172,9 @@ fn median_sorted(win: &[f64]) -> f64 {
     }
 }
 
-fn median(buf: &mut [f64]) -> f64 {
+/// The median of `buf` (reordered; NaN when empty; the mean of the two middle values for an
+/// even count, as numpy's), by selection.
+pub(crate) fn median(buf: &mut [f64]) -> f64 {
     if buf.is_empty() {
         return f64::NAN;
     }

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import itertools
 from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 import polars as pl
@@ -17,6 +18,16 @@ from matplotlib.figure import Figure
 from matplotlib.patches import Rectangle
 
 COEFFICIENTS = ("Cl", "Cn", "CY")
+
+
+def _label_axes(ax: Any, coef: str, labels: list[tuple[str, float]], edges: list[float]) -> None:
+    """Alpha ranges across, ``param @flap`` down, the coefficient on top."""
+    ax.set_xticks(range(len(edges) - 1))
+    ax.set_xticklabels([f"{a:g}-{b:g}" for a, b in itertools.pairwise(edges)])
+    ax.set_yticks(range(len(labels)))
+    ax.set_yticklabels([f"{p} @{f:g}" for p, f in labels], fontsize=6)
+    ax.set_xlabel("alpha, deg")
+    ax.set_title(coef)
 
 
 def band_figure(
@@ -82,12 +93,7 @@ def band_figure(
                 ax.add_patch(
                     Rectangle((j - 0.5, i - 0.5), 1, 1, fill=False, edgecolor="red", lw=1.0)
                 )
-        ax.set_xticks(range(len(edges) - 1))
-        ax.set_xticklabels([f"{a:g}-{b:g}" for a, b in itertools.pairwise(edges)])
-        ax.set_yticks(range(len(labels)))
-        ax.set_yticklabels([f"{p} @{f:g}" for p, f in labels], fontsize=6)
-        ax.set_xlabel("alpha, deg")
-        ax.set_title(c)
+        _label_axes(ax, c, labels, edges)
     if im is not None:
         cb = fig.colorbar(im, ax=list(axes), shrink=0.8)
         cb.set_label(f"band / largest expected |Δ| (target {target:g}; red: misses a target)")
@@ -151,12 +157,7 @@ def compare_figure(
                 box = Rectangle((j - 0.5, i - 0.5), 1, 1, fill=False, lw=1.2, edgecolor=edge)
                 ax.add_patch(box)
         im = ax.imshow(ratio, aspect="auto", origin="upper", cmap="coolwarm", vmin=-2, vmax=2)
-        ax.set_xticks(range(len(edges) - 1))
-        ax.set_xticklabels([f"{a:g}-{b:g}" for a, b in itertools.pairwise(edges)])
-        ax.set_yticks(range(len(labels)))
-        ax.set_yticklabels([f"{p} @{f:g}" for p, f in labels], fontsize=6)
-        ax.set_xlabel("alpha, deg")
-        ax.set_title(c)
+        _label_axes(ax, c, labels, edges)
     if im is not None:
         cb = fig.colorbar(im, ax=list(axes), shrink=0.8)
         cb.set_label(f"log2(band {nb} / band {na})")

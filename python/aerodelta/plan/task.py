@@ -233,6 +233,34 @@ def peak_rss_mib() -> float:
     return kb / (1024.0 * 1024.0) if sys.platform == "darwin" else kb / 1024.0
 
 
+def _fit_config(spec: Mapping[str, Any], seed: int) -> FitConfig:
+    """The matrix's fit settings, bootstrapped with the campaign's seed."""
+    selection = None if spec["selection"] == "none" else spec["selection"]
+    return FitConfig(
+        bootstrap=int(spec["bootstrap"]),
+        seed=int(seed),
+        selection=selection,
+        band_level=float(spec["band_level"]),
+    )
+
+
+def _summary(
+    seed: int, n: int, rows: list[dict[str, Any]], coverage: list[dict[str, Any]],
+    named: Mapping[str, bool],
+) -> dict[str, Any]:  # fmt: skip
+    """A task's summary (:func:`run_task`), once its campaign is gone and memory trimmed."""
+    release_memory()
+    return {
+        "schema": TASK_SCHEMA,
+        "seed": int(seed),
+        "maneuvers": int(n),
+        "params": rows,
+        "coverage": coverage,
+        "effects": dict(named),
+        "peak_rss_mib": peak_rss_mib(),
+    }
+
+
 def run_task(spec: Mapping[str, Any], seed: int, drill: bool = False) -> dict[str, Any]:
     """Fly, fit and (optionally) diagnose one campaign of a matrix; return its summary.
 
@@ -284,14 +312,7 @@ def run_task(spec: Mapping[str, Any], seed: int, drill: bool = False) -> dict[st
         manifest = select_maneuvers(info.manifest, spec)
         data = ingest(camp, manifest=manifest, compat=False, progress=False).data
         truth_effects = dict(info.effects)
-        selection = None if spec["selection"] == "none" else spec["selection"]
-        cfg = FitConfig(
-            bootstrap=int(spec["bootstrap"]),
-            seed=int(seed),
-            selection=selection,
-            band_level=float(spec["band_level"]),
-        )
-        result = fit(data, config=cfg)
+        result = fit(data, config=_fit_config(spec, seed))
         rows = _range_rows(
             result,
             spec,
@@ -301,16 +322,7 @@ def run_task(spec: Mapping[str, Any], seed: int, drill: bool = False) -> dict[st
         coverage = _coverage(data, list(spec["alpha_edges_deg"]))
         n = manifest.height
     del info, manifest, data, result
-    release_memory()
-    return {
-        "schema": TASK_SCHEMA,
-        "seed": int(seed),
-        "maneuvers": int(n),
-        "params": rows,
-        "coverage": coverage,
-        "effects": named,
-        "peak_rss_mib": peak_rss_mib(),
-    }
+    return _summary(seed, n, rows, coverage, named)
 
 
 def _run_jsbsim_task(spec: Mapping[str, Any], seed: int) -> dict[str, Any]:
@@ -347,14 +359,7 @@ def _run_jsbsim_task(spec: Mapping[str, Any], seed: int) -> dict[str, Any]:
         keep = info.manifest.filter(pl.col("maneuver_id").is_in(manifest["maneuver_id"]))
         data = ingest(camp, manifest=keep, compat=False, progress=False).data
         data = data.with_columns(kinds)
-        selection = None if spec["selection"] == "none" else spec["selection"]
-        cfg = FitConfig(
-            bootstrap=int(spec["bootstrap"]),
-            seed=int(seed),
-            selection=selection,
-            band_level=float(spec["band_level"]),
-        )
-        result = fit(data, qualified="columns", config=cfg)
+        result = fit(data, qualified="columns", config=_fit_config(spec, seed))
         rows = _range_rows(result, spec, lambda c, r, f, a: true_delta_derivative(camp, c, r, f, a))
         named: dict[str, bool] = {}
         if spec["diagnose"]:
@@ -373,13 +378,4 @@ def _run_jsbsim_task(spec: Mapping[str, Any], seed: int) -> dict[str, Any]:
         coverage = _coverage(data, list(spec["alpha_edges_deg"]))
         n = manifest.height
     del info, manifest, data, result
-    release_memory()
-    return {
-        "schema": TASK_SCHEMA,
-        "seed": int(seed),
-        "maneuvers": int(n),
-        "params": rows,
-        "coverage": coverage,
-        "effects": named,
-        "peak_rss_mib": peak_rss_mib(),
-    }
+    return _summary(seed, n, rows, coverage, named)
