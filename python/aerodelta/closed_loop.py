@@ -227,15 +227,11 @@ def _time_outside(runs: pl.DataFrame, model: DeltaModel | None) -> dict[str, flo
         "beta_deg",
     )
     inside = model.in_envelope(states)
-    per = (
-        states.with_columns(inside.alias("inside"))
-        .with_columns(
-            (pl.col("t").shift(-1).over("maneuver_id") - pl.col("t")).fill_null(0.0).alias("dt")
-        )
-        .group_by("maneuver_id", maintain_order=True)
-        .agg(pl.col("dt").filter(~pl.col("inside")).sum().alias("outside"))
-    )
-    return {str(m): float(v) for m, v in per.iter_rows()}
+    dt = (pl.col("t").shift(-1).over("maneuver_id") - pl.col("t")).fill_null(0.0)
+    steps = states.with_columns(pl.when(inside).then(0.0).otherwise(dt).alias("dt_outside"))
+    # summed in row order (_groups: a polars group-by sum splits over its thread pool)
+    per = group_agg(steps, ["maneuver_id"], {"outside": ("dt_outside", "sum")})
+    return {str(m): float(v) for m, v in per.select("maneuver_id", "outside").iter_rows()}
 
 
 def _status(d: float | None) -> str:
