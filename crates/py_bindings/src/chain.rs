@@ -5,7 +5,7 @@ use aero_core::chain::{calibrate_all, ChainInput, ChainOptions, ChainOutcome};
 use numpy::{PyArray1, PyReadonlyArray1};
 use pyo3::prelude::*;
 
-use crate::util::{detached, slice};
+use crate::util::{column_slices, detached, slice};
 
 /// One coefficient's estimates: `(tau_s, kappa_s2, t_tau, t_kappa, samples, maneuvers)`.
 type Estimate = (f64, f64, f64, f64, usize, usize);
@@ -34,10 +34,7 @@ fn calibrate_chain<'py>(
         slice("maneuver", &maneuver)?,
         slice("trusted", &trusted)?,
     );
-    let mut cols: HashMap<String, &[f64]> = HashMap::new();
-    for (k, v) in &columns {
-        cols.insert(k.clone(), slice(k, v)?);
-    }
+    let cols = column_slices(&columns)?;
     let mut inputs = Vec::with_capacity(coefficients.len());
     for (q, meas, terms) in &coefficients {
         inputs.push(ChainInput {

@@ -8,7 +8,7 @@ use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
 use crate::error::to_py;
-use crate::util::detached;
+use crate::util::{column_slices, detached};
 
 #[derive(Debug)]
 #[pyclass(frozen, name = "DeltaModel", module = "aerodelta._core")]
@@ -94,10 +94,7 @@ impl PyDeltaModel {
         Bound<'py, PyArray1<f64>>,
         Bound<'py, PyDict>,
     )> {
-        let mut slices: HashMap<String, &[f64]> = HashMap::with_capacity(columns.len());
-        for (k, v) in &columns {
-            slices.insert(k.clone(), v.as_slice()?);
-        }
+        let slices = column_slices(&columns)?;
         let m = &self.0;
         let (delta, weight, terms) = detached(py, || {
             let lookup = |name: &str| slices.get(name).copied();

@@ -17,7 +17,7 @@ use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
 use crate::error::to_py;
-use crate::util::{detached, record_columns};
+use crate::util::{column_slices, detached, record_columns};
 
 type Array<'py> = Bound<'py, PyArray1<f64>>;
 type SmoothedRow = (String, Vec<f64>, Vec<f64>, usize, String);
@@ -29,10 +29,7 @@ fn qualified_lateral_adx37<'py>(
     py: Python<'py>,
     columns: HashMap<String, PyReadonlyArray1<'py, f64>>,
 ) -> PyResult<(Array<'py>, Array<'py>, Array<'py>)> {
-    let mut cols: HashMap<String, &[f64]> = HashMap::new();
-    for (k, v) in &columns {
-        cols.insert(k.clone(), v.as_slice()?);
-    }
+    let cols = column_slices(&columns)?;
     let [cl, cn, cy] = detached(py, || {
         let model = QualifiedModel::adx37(&adx37())?;
         let c = record_columns(&cols)?;
@@ -296,10 +293,7 @@ fn identify_flap<'py>(
     prune_collinear: bool,
     nested_cv: bool,
 ) -> PyResult<Bound<'py, PyDict>> {
-    let mut cols: HashMap<String, &[f64]> = HashMap::new();
-    for (k, v) in &columns {
-        cols.insert(k.clone(), v.as_slice()?);
-    }
+    let cols = column_slices(&columns)?;
     let (z, alpha, man) = (z.as_slice()?, alpha_deg.as_slice()?, maneuver.as_slice()?);
     let t = match &t {
         Some(a) => Some(a.as_slice()?),

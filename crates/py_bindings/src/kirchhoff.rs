@@ -14,7 +14,7 @@ use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
 use crate::error::to_py;
-use crate::util::{detached, record_columns};
+use crate::util::{column_slices, detached, record_columns};
 
 type Array<'py> = Bound<'py, PyArray1<f64>>;
 type Matrix<'py> = Bound<'py, PyArray2<f64>>;
@@ -241,10 +241,7 @@ fn qualified_longitudinal_adx37<'py>(
     py: Python<'py>,
     columns: HashMap<String, PyReadonlyArray1<'py, f64>>,
 ) -> PyResult<(Array<'py>, Array<'py>, Array<'py>, Array<'py>)> {
-    let mut cols: HashMap<String, &[f64]> = HashMap::new();
-    for (k, v) in &columns {
-        cols.insert(k.clone(), v.as_slice()?);
-    }
+    let cols = column_slices(&columns)?;
     let [a, b, c, d] = detached(py, || {
         let model = QualifiedModel::adx37(&adx37())?;
         let r = record_columns(&cols)?;

@@ -11,6 +11,17 @@ where
     py.detach(f).map_err(crate::error::to_py)
 }
 
+/// Named float columns from Python as slices (each C-contiguous), for a core lookup.
+pub fn column_slices<'a>(
+    columns: &'a std::collections::HashMap<String, numpy::PyReadonlyArray1<'_, f64>>,
+) -> PyResult<std::collections::HashMap<String, &'a [f64]>> {
+    let mut out = std::collections::HashMap::with_capacity(columns.len());
+    for (k, v) in columns {
+        out.insert(k.clone(), v.as_slice()?);
+    }
+    Ok(out)
+}
+
 /// A C-contiguous numpy array as a slice, naming the argument otherwise.
 pub fn slice<'a, T: numpy::Element, D: numpy::ndarray::Dimension>(
     name: &str,
