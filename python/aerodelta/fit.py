@@ -20,7 +20,7 @@ import math
 import numbers
 import re
 import sys
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -1651,6 +1651,15 @@ def calibrate_chain(
     return out, cal
 
 
+def _in_background(fn: Callable[[pl.DataFrame], str], data: pl.DataFrame) -> Future[str]:
+    """``fn(data)`` on a thread of its own, which ends when it is done."""
+    ex = ThreadPoolExecutor(max_workers=1, thread_name_prefix="aerodelta")
+    try:
+        return ex.submit(fn, data)
+    finally:
+        ex.shutdown(wait=False)
+
+
 def fit(
     data: pl.DataFrame,
     *,
@@ -1709,6 +1718,9 @@ def fit(
     missing = [c for c in needed if c not in df.columns]
     if missing:
         raise DataError(f"fit: the data lack {missing}; run aerodelta.ingest first")
+    # the provenance hash (hashlib releases the GIL) beside the qualified model, the chain
+    # calibration and the engine's fits
+    data_hash = _in_background(data_sha256, data)
     qual = resolve(df, qualified)
     q = qual.predict(df)
     flaps = sorted(float(f) for f in df["flap_deg"].unique().drop_nulls())
@@ -1865,8 +1877,6 @@ def fit(
     for flap in flaps:
         stall[flap] = float(cfg.stall_alpha_deg.get(flap, stall_alpha(parts[flap])))
     with ThreadPoolExecutor(max_workers=engine_threads(cap=4)) as ex:
-        # the provenance hash (hashlib releases the GIL) beside the engine's fits
-        data_hash = ex.submit(data_sha256, data)
         for flap in flaps:
             full, codes = _flap_columns(parts[flap], wanted)
             # values per channel a regressor can read (a channel absent from the data is not
