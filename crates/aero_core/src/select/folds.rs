@@ -6,7 +6,7 @@
 //! maneuver), the total the sum of the folds and a training set the total minus its fold;
 //! each is summed packed and unpacked once into its full symmetric matrix.
 
-use super::{packed_width, unpack_lower_into, BinGrams};
+use super::{packed_width, BinGrams};
 
 /// Gram matrices (`dim × dim`, row-major), column sums and sample counts per bin and fold.
 #[derive(Clone)]
@@ -36,6 +36,34 @@ impl FoldGrams {
         }
     }
 
+    /// Room for `bins × folds` entries, none yet: [`FoldGrams::push`] appends them in order
+    /// (bin by bin, folds in order), each written once.
+    fn with_capacity(dim: usize, bins: usize, folds: usize) -> Self {
+        FoldGrams {
+            dim,
+            folds,
+            g: Vec::with_capacity(bins * folds * dim * dim),
+            s: Vec::with_capacity(bins * folds * dim),
+            n: Vec::with_capacity(bins * folds),
+        }
+    }
+
+    /// Appends the next entry: packed statistics `pk` (lower triangle, then sums) with `n`
+    /// samples, the triangle unpacked into its full symmetric matrix.
+    fn push(&mut self, pk: &[f64], n: f64) {
+        let dim = self.dim;
+        let (tri, sums) = pk.split_at(pk.len() - dim);
+        for i in 0..dim {
+            // row i: the triangle's row i, then column i below the diagonal
+            let at = i * (i + 1) / 2;
+            self.g.extend_from_slice(&tri[at..=at + i]);
+            self.g
+                .extend((i + 1..dim).map(|j| tri[j * (j + 1) / 2 + i]));
+        }
+        self.s.extend_from_slice(sums);
+        self.n.push(n);
+    }
+
     /// Folds per bin.
     pub(super) fn folds(&self) -> usize {
         self.folds
@@ -49,16 +77,6 @@ impl FoldGrams {
             &self.s[i * dim..(i + 1) * dim],
             self.n[i],
         )
-    }
-
-    /// Writes packed statistics `pk` (lower triangle, then sums) with `n` samples to bin `b`,
-    /// fold `f`.
-    fn set(&mut self, b: usize, f: usize, pk: &[f64], n: f64) {
-        let (dim, i) = (self.dim, b * self.folds + f);
-        let (tri, sums) = pk.split_at(pk.len() - dim);
-        unpack_lower_into(tri, dim, &mut self.g[i * dim * dim..(i + 1) * dim * dim]);
-        self.s[i * dim..(i + 1) * dim].copy_from_slice(sums);
-        self.n[i] = n;
     }
 }
 
@@ -91,9 +109,9 @@ impl CvGrams {
         let nb = grams.bins.len();
         let wdt = packed_width(dim);
         let mut out = CvGrams {
-            folds: FoldGrams::zeros(dim, nb, folds),
-            totals: FoldGrams::zeros(dim, nb, 1),
-            trains: FoldGrams::zeros(dim, nb, folds),
+            folds: FoldGrams::with_capacity(dim, nb, folds),
+            totals: FoldGrams::with_capacity(dim, nb, 1),
+            trains: FoldGrams::with_capacity(dim, nb, folds),
         };
         let mut acc = vec![0.0; folds * wdt];
         let mut count = vec![0.0; folds];
@@ -113,11 +131,11 @@ impl CvGrams {
             );
             total_and_complements(&acc, wdt, &mut total, &mut train);
             total_and_complements(&count, 1, &mut n_total, &mut n_train);
-            out.totals.set(b, 0, &total, n_total[0]);
+            out.totals.push(&total, n_total[0]);
             for f in 0..folds {
                 let at = f * wdt..(f + 1) * wdt;
-                out.folds.set(b, f, &acc[at.clone()], count[f]);
-                out.trains.set(b, f, &train[at], n_train[f]);
+                out.folds.push(&acc[at.clone()], count[f]);
+                out.trains.push(&train[at], n_train[f]);
             }
         }
         out
