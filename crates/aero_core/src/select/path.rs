@@ -23,32 +23,29 @@
 //! matrix is the inverse of its leading block). So every product above is carried along the
 //! path: the path's `yᵀq_a`, `yᵀMy` per bin and fold, and `wᵀw`, `wᵀy`, `wᵀq_a`, `wᵀr`,
 //! `wᵀMw`, `wᵀMy`, `yᵀr` per candidate, each extended in `O(k)` per new row
-//! ([`Cell::extend_row`]); a new row of `M` is `(r_c − M w_c)/√d` with diagonal
+//! ([`Cand::extend`]); a new row of `M` is `(r_c − M w_c)/√d` with diagonal
 //! `(w_cᵀMw_c − 2w_cᵀr_c + γ_c)/d` for the column `c` the path takes (`O(k²)` once per bin,
 //! fold and step). Computing `θ` of `path + [c]` and its held-out sums afresh cost `O(k²)`
 //! per candidate and step, refactoring `O(k³)`. The scores are those of `super::cv_score`
 //! to rounding (checked in the test builds).
-//!
-//! # Layout
-//! A new row of the factor extends every column that may join the path at once, the columns
-//! side by side (`w[i][slot]`, and each product one array over the slots): the inner loops
-//! run across columns, independent of one another, with each column's sums taken in the
-//! same order (rows ascending) as one column alone.
 
 use super::stepwise::PIVOT_TOL;
 use super::{zero_prediction, BinGrams, CvAccum, CvScore, Excitation, FoldGrams};
 
-/// The candidate products a cell carries per slot (see the module doc), one array each.
-const PRODUCTS: usize = 7;
-/// Indices of the products in a cell's product arrays: `wᵀw`, `wᵀy`, `wᵀq_a`, `wᵀr`,
-/// `wᵀMw`, `wᵀMy`, `yᵀr`.
-const WW: usize = 0;
-const WY: usize = 1;
-const WQA: usize = 2;
-const WR: usize = 3;
-const WMW: usize = 4;
-const WMY: usize = 5;
-const YR: usize = 6;
+/// What one candidate carries along the path in one bin and fold: the length of its `w` and
+/// `r` and their products.
+#[derive(Clone, Copy, Default)]
+struct Cand {
+    len: usize,
+    /// `wᵀw`, `wᵀy`, `wᵀq_a`, `wᵀr`, `wᵀMw`, `wᵀMy`, `yᵀr`.
+    ww: f64,
+    wy: f64,
+    wqa: f64,
+    wr: f64,
+    wmw: f64,
+    wmy: f64,
+    yr: f64,
+}
 
 /// One bin and fold of the path; its vectors live in the scorer's arenas.
 struct Cell<'g> {
@@ -71,11 +68,10 @@ struct Cell<'g> {
     yy: f64,
 }
 
-/// A cell's vectors: per row `i` of the factor and slot `s` (a column that may join the path,
-/// [`PathScorer::slot`]) the entries `w[i · kmax + s]` and `r[i · kmax + s]`; the factor `L`
-/// and `M = L⁻¹ F L⁻ᵀ` (lower triangles packed by rows, row `i` at `i(i+1)/2`); `y`, `q_a`
-/// and, per row `i` of `M`, `M[i, ..i]·y[..i]`; the slots' products (`PRODUCTS` arrays of
-/// `kmax`, [`WW`] ...) and two work arrays of `kmax`; the factor's columns.
+/// A cell's vectors: per slot (a column that may join the path, [`PathScorer::slot`]) its
+/// `w` and `r`; the factor `L` and `M = L⁻¹ F L⁻ᵀ` (lower triangles packed by rows, row `i`
+/// at `i(i+1)/2`); `y`, `q_a` and, per row `i` of `M`, `M[i, ..i]·y[..i]`; the factor's
+/// columns and the slots' products.
 struct Parts<'a> {
     w: &'a mut [f64],
     r: &'a mut [f64],
@@ -84,27 +80,24 @@ struct Parts<'a> {
     y: &'a mut [f64],
     qa: &'a mut [f64],
     mdy: &'a mut [f64],
-    prod: &'a mut [f64],
-    work: &'a mut [f64],
     cols: &'a mut [usize],
+    cand: &'a mut [Cand],
 }
 
 /// Entries of one cell's block of [`PathScorer::store`].
 fn block(kmax: usize) -> usize {
-    2 * kmax * kmax + kmax * (kmax + 1) + (3 + PRODUCTS + 3) * kmax
+    2 * kmax * kmax + kmax * (kmax + 1) + 3 * kmax
 }
 
 impl<'a> Parts<'a> {
-    fn of(blk: &'a mut [f64], cols: &'a mut [usize], kmax: usize) -> Self {
+    fn of(blk: &'a mut [f64], cols: &'a mut [usize], cand: &'a mut [Cand], kmax: usize) -> Self {
         let tri = kmax * (kmax + 1) / 2;
         let (w, rest) = blk.split_at_mut(kmax * kmax);
         let (r, rest) = rest.split_at_mut(kmax * kmax);
         let (l, rest) = rest.split_at_mut(tri);
         let (m, rest) = rest.split_at_mut(tri);
         let (y, rest) = rest.split_at_mut(kmax);
-        let (qa, rest) = rest.split_at_mut(kmax);
-        let (mdy, rest) = rest.split_at_mut(kmax);
-        let (prod, work) = rest.split_at_mut(PRODUCTS * kmax);
+        let (qa, mdy) = rest.split_at_mut(kmax);
         Parts {
             w,
             r,
@@ -113,26 +106,8 @@ impl<'a> Parts<'a> {
             y,
             qa,
             mdy,
-            prod,
-            work,
             cols,
-        }
-    }
-
-    /// Product `what` of slot `s`.
-    fn get(&self, what: usize, s: usize, kmax: usize) -> f64 {
-        self.prod[what * kmax + s]
-    }
-
-    /// Slots `a` and `b` trade places: their `w` and `r` in the first `rows` rows and their
-    /// products.
-    fn swap_slots(&mut self, a: usize, b: usize, rows: usize, kmax: usize) {
-        for i in 0..rows {
-            self.w.swap(i * kmax + a, i * kmax + b);
-            self.r.swap(i * kmax + a, i * kmax + b);
-        }
-        for what in 0..PRODUCTS {
-            self.prod.swap(what * kmax + a, what * kmax + b);
+            cand,
         }
     }
 }
@@ -143,82 +118,46 @@ fn row(t: &[f64], i: usize) -> &[f64] {
 }
 
 impl Cell<'_> {
-    /// Extends the first `column.len()` slots' `w`, `r` and products by the factor's row `i`
-    /// (just added): `O(k)` per slot, the slots side by side; `column[s]` is slot `s`'s pool
-    /// column.
-    fn extend_row(&self, pt: &mut Parts<'_>, i: usize, column: &[usize], kmax: usize, dim: usize) {
-        let n = column.len();
-        let li = row(pt.l, i);
-        let mi = row(pt.m, i);
-        let s_col = pt.cols[i];
-        let (sw, rest) = pt.work.split_at_mut(kmax);
-        let (sr, mw) = rest.split_at_mut(kmax);
-        let (sw, sr, mw) = (&mut sw[..n], &mut sr[..n], &mut mw[..n]);
-        for (s, &c) in column.iter().enumerate() {
-            sw[s] = self.train[s_col * dim + c];
-            sr[s] = self.fold[s_col * dim + c];
-            mw[s] = -0.0;
-        }
-        for j in 0..i {
-            let (lij, mij) = (li[j], mi[j]);
-            let wj = &pt.w[j * kmax..j * kmax + n];
-            let rj = &pt.r[j * kmax..j * kmax + n];
-            for ((((a, b), m), wv), rv) in sw
-                .iter_mut()
-                .zip(sr.iter_mut())
-                .zip(mw.iter_mut())
-                .zip(wj)
-                .zip(rj)
-            {
-                *a -= lij * wv;
-                *b -= lij * rv;
-                *m += mij * wv;
+    /// Extends the products of column `c` (in `slot`) by the factor's rows added since its
+    /// last extension: `O(k)` per row.
+    fn extend(&self, pt: &mut Parts<'_>, c: usize, slot: usize, kmax: usize, dim: usize) {
+        let cd = &mut pt.cand[slot];
+        let w = &mut pt.w[slot * kmax..(slot + 1) * kmax];
+        let r = &mut pt.r[slot * kmax..(slot + 1) * kmax];
+        for i in cd.len.min(self.k)..self.k {
+            let li = row(pt.l, i);
+            let s = pt.cols[i];
+            let (mut sw, mut sr) = (self.train[s * dim + c], self.fold[s * dim + c]);
+            for ((l, a), b) in li[..i].iter().zip(&w[..i]).zip(&r[..i]) {
+                sw -= l * a;
+                sr -= l * b;
             }
+            let (om, rr) = (sw / li[i], sr / li[i]);
+            let mi = row(pt.m, i);
+            let mw: f64 = mi[..i].iter().zip(&w[..i]).map(|(a, b)| a * b).sum();
+            let yi = pt.y[i];
+            cd.wmw += 2.0 * om * mw + om * om * mi[i];
+            cd.wmy += om * pt.mdy[i] + mw * yi + om * mi[i] * yi;
+            cd.ww += om * om;
+            cd.wy += om * yi;
+            cd.wqa += om * pt.qa[i];
+            cd.wr += om * rr;
+            cd.yr += yi * rr;
+            w[i] = om;
+            r[i] = rr;
         }
-        let (lii, mii, yi, mdyi, qai) = (li[i], mi[i], pt.y[i], pt.mdy[i], pt.qa[i]);
-        let (prod, w, r) = (&mut *pt.prod, &mut *pt.w, &mut *pt.r);
-        let (ww, rest) = prod.split_at_mut(kmax);
-        let (wy, rest) = rest.split_at_mut(kmax);
-        let (wqa, rest) = rest.split_at_mut(kmax);
-        let (wr, rest) = rest.split_at_mut(kmax);
-        let (wmw, rest) = rest.split_at_mut(kmax);
-        let (wmy, yr) = rest.split_at_mut(kmax);
-        let wi = &mut w[i * kmax..(i + 1) * kmax];
-        let ri = &mut r[i * kmax..(i + 1) * kmax];
-        let (sw, sr, mw) = (&sw[..n], &sr[..n], &mw[..n]);
-        let (ww, wy, wqa, wr) = (&mut ww[..n], &mut wy[..n], &mut wqa[..n], &mut wr[..n]);
-        let (wmw, wmy, yr) = (&mut wmw[..n], &mut wmy[..n], &mut yr[..n]);
-        let (wi, ri) = (&mut wi[..n], &mut ri[..n]);
-        for s in 0..n {
-            let (om, rr) = (sw[s] / lii, sr[s] / lii);
-            wmw[s] += 2.0 * om * mw[s] + om * om * mii;
-            wmy[s] += om * mdyi + mw[s] * yi + om * mii * yi;
-            ww[s] += om * om;
-            wy[s] += om * yi;
-            wqa[s] += om * qai;
-            wr[s] += om * rr;
-            yr[s] += yi * rr;
-            wi[s] = om;
-            ri[s] = rr;
-        }
+        cd.len = cd.len.max(self.k);
     }
 
-    /// Pivot `d` and new entry `u` of `y` for column `c` (in `slot`) given its products (the
-    /// rule of `Factor::probe_cached`); `None` when `c` is (numerically) dependent on the path.
-    fn pivot(
-        &self,
-        pt: &Parts<'_>,
-        c: usize,
-        slot: usize,
-        kmax: usize,
-        dim: usize,
-    ) -> Option<(f64, f64)> {
+    /// Pivot `d` and new entry `u` of `y` for column `c` given its products (the rule of
+    /// `Factor::probe_cached`); `None` when `c` is (numerically) dependent on the path.
+    fn pivot(&self, cd: &Cand, c: usize, dim: usize) -> Option<(f64, f64)> {
         let gcc = self.train[c * dim + c];
-        let d = gcc - pt.get(WW, slot, kmax);
+        let d = gcc - cd.ww;
         if d.is_nan() || gcc <= 0.0 || d <= PIVOT_TOL * gcc {
             return None;
         }
-        let u = (self.train[c * dim + dim - 1] - pt.get(WY, slot, kmax)) / d.sqrt();
+        let u = (self.train[c * dim + dim - 1] - cd.wy) / d.sqrt();
         u.is_finite().then_some((d, u))
     }
 
@@ -227,7 +166,7 @@ impl Cell<'_> {
     /// not finite.
     fn score(
         &self,
-        pt: &Parts<'_>,
+        pt: &mut Parts<'_>,
         c: usize,
         slot: usize,
         kmax: usize,
@@ -237,15 +176,16 @@ impl Cell<'_> {
         if self.dead {
             return zero_prediction(fold, dim);
         }
-        let Some((d, u)) = self.pivot(pt, c, slot, kmax, dim) else {
+        self.extend(pt, c, slot, kmax, dim);
+        let cd = pt.cand[slot];
+        let Some((d, u)) = self.pivot(&cd, c, dim) else {
             return zero_prediction(fold, dim);
         };
-        let p = |what: usize| pt.get(what, slot, kmax);
         let tc = u / d.sqrt();
         let zz = fold[dim * dim - 1];
-        let cross = self.cross - tc * p(WQA) + tc * fold[c * dim + dim - 1];
-        let yy = self.yy - 2.0 * tc * p(WMY) + tc * tc * p(WMW) + 2.0 * tc * p(YR)
-            - 2.0 * tc * tc * p(WR)
+        let cross = self.cross - tc * cd.wqa + tc * fold[c * dim + dim - 1];
+        let yy = self.yy - 2.0 * tc * cd.wmy + tc * tc * cd.wmw + 2.0 * tc * cd.yr
+            - 2.0 * tc * tc * cd.wr
             + tc * tc * fold[c * dim + c];
         let sse = zz - 2.0 * cross + yy;
         if tc.is_finite() && sse.is_finite() && yy.is_finite() {
@@ -256,38 +196,20 @@ impl Cell<'_> {
     }
 
     /// Column `c` (in `slot`) joins the factor (the caller checked that this training set
-    /// excites it): new rows of `L` and `M`, new entries of `y`, `q_a` and the path's sums,
-    /// and the slots of `column` (the columns that may still join) extended by the new row.
-    fn push(
-        &mut self,
-        pt: &mut Parts<'_>,
-        c: usize,
-        slot: usize,
-        column: &[usize],
-        kmax: usize,
-        dim: usize,
-    ) {
+    /// excites it): new rows of `L` and `M`, new entries of `y`, `q_a` and the path's sums.
+    fn push(&mut self, pt: &mut Parts<'_>, c: usize, slot: usize, kmax: usize, dim: usize) {
         if self.dead {
             return;
         }
-        let Some((d, u)) = self.pivot(pt, c, slot, kmax, dim) else {
+        self.extend(pt, c, slot, kmax, dim);
+        let cd = pt.cand[slot];
+        let Some((d, u)) = self.pivot(&cd, c, dim) else {
             self.dead = true;
             return;
         };
         let (k, lam) = (self.k, d.sqrt());
-        let (wmw, wr, wqa) = (
-            pt.get(WMW, slot, kmax),
-            pt.get(WR, slot, kmax),
-            pt.get(WQA, slot, kmax),
-        );
-        // the slot's w and r (rows 0..k) side by side
-        let (w, rest) = pt.work.split_at_mut(kmax);
-        let r = &mut rest[..kmax];
-        for i in 0..k {
-            w[i] = pt.w[i * kmax + slot];
-            r[i] = pt.r[i * kmax + slot];
-        }
-        let (w, r) = (&w[..k], &r[..k]);
+        let w = &pt.w[slot * kmax..slot * kmax + k];
+        let r = &pt.r[slot * kmax..slot * kmax + k];
         // L's new row: [w, √d]
         let at = k * (k + 1) / 2;
         pt.l[at..at + k].copy_from_slice(w);
@@ -308,11 +230,11 @@ impl Cell<'_> {
         for v in &mut new[..k] {
             *v /= lam;
         }
-        new[k] = (wmw - 2.0 * wr + self.fold[c * dim + c]) / d;
+        new[k] = (cd.wmw - 2.0 * cd.wr + self.fold[c * dim + c]) / d;
         let dy: f64 = new[..k].iter().zip(&pt.y[..k]).map(|(a, b)| a * b).sum();
         let mu = new[k];
         pt.mdy[k] = dy;
-        let qa = (self.fold[c * dim + dim - 1] - wqa) / lam;
+        let qa = (self.fold[c * dim + dim - 1] - cd.wqa) / lam;
         pt.qa[k] = qa;
         pt.y[k] = u;
         pt.cols[k] = c;
@@ -320,7 +242,6 @@ impl Cell<'_> {
         // the path's own sums with y's new entry u: yᵀq_a and yᵀMy
         self.cross += u * qa;
         self.yy += 2.0 * u * dy + mu * u * u;
-        self.extend_row(pt, k, column, kmax, dim);
     }
 
     /// Held-out sums of the path itself.
@@ -357,12 +278,9 @@ pub(super) struct PathScorer<'g> {
     excited: Vec<bool>,
     /// Per cell, [`block`] entries (see [`Parts`]).
     store: Vec<f64>,
-    /// Per slot, its pool column: the columns that may still join the path first (`active`
-    /// of them), those on it after (a column joining trades slots with the last active one).
-    column: Vec<usize>,
-    active: usize,
-    /// Per cell, the factor's columns (`kmax`).
+    /// Per cell, the factor's columns (`kmax`) and the slots' products (`kmax`).
     cols: Vec<usize>,
+    cand: Vec<Cand>,
 }
 
 impl<'g> PathScorer<'g> {
@@ -384,14 +302,13 @@ impl<'g> PathScorer<'g> {
         let nf = folds.folds();
         let all: Vec<usize> = (0..p).collect();
         let mut slot = vec![usize::MAX; p];
-        let mut column = Vec::new();
+        let mut kmax = 0;
         for &c in start.iter().chain(later) {
             if c < p && slot[c] == usize::MAX {
-                slot[c] = column.len();
-                column.push(c);
+                slot[c] = kmax;
+                kmax += 1;
             }
         }
-        let kmax = column.len();
         let mut cells = Vec::new();
         let mut excited = Vec::new();
         let mut used = Vec::new();
@@ -435,9 +352,8 @@ impl<'g> PathScorer<'g> {
             kmax,
             excited,
             store: vec![0.0; n * block(kmax)],
-            column,
-            active: kmax,
             cols: vec![0; n * kmax],
+            cand: vec![Cand::default(); n * kmax],
         };
         for &c in start {
             scorer.add(c);
@@ -456,15 +372,22 @@ impl<'g> PathScorer<'g> {
         }
     }
 
-    /// Calls `f` with every cell, its vectors, its excited columns and the slots' columns.
-    fn each_cell(&mut self, mut f: impl FnMut(&mut Cell<'g>, &mut Parts<'_>, &[bool], &[usize])) {
+    /// Calls `f` with every cell, its vectors and its excited columns.
+    fn each_cell(&mut self, mut f: impl FnMut(&mut Cell<'g>, &mut Parts<'_>, &[bool])) {
         let (p, kmax) = (self.p, self.kmax);
         let blocks = self.store.chunks_mut(block(kmax).max(1));
         let cols = self.cols.chunks_mut(kmax.max(1));
+        let cand = self.cand.chunks_mut(kmax.max(1));
         let excited = self.excited.chunks(p.max(1));
-        let column = &self.column;
-        for (((cell, blk), cl), ex) in self.cells.iter_mut().zip(blocks).zip(cols).zip(excited) {
-            f(cell, &mut Parts::of(blk, cl, kmax), ex, column);
+        for ((((cell, blk), cl), cd), ex) in self
+            .cells
+            .iter_mut()
+            .zip(blocks)
+            .zip(cols)
+            .zip(cand)
+            .zip(excited)
+        {
+            f(cell, &mut Parts::of(blk, cl, cd, kmax), ex);
         }
     }
 
@@ -473,7 +396,7 @@ impl<'g> PathScorer<'g> {
         let mut accs = vec![CvAccum::new(self.nf); cands.len()];
         let (dim, min_points, kmax) = (self.dim, self.min_points, self.kmax);
         let slots: Vec<usize> = cands.iter().map(|&c| self.slot[c]).collect();
-        self.each_cell(|cell, pt, ex, _| {
+        self.each_cell(|cell, pt, ex| {
             let enough = cell.n_train >= (min_points * (cell.k + 1).max(1)) as f64;
             for (i, (&c, &sl)) in cands.iter().zip(&slots).enumerate() {
                 let sums = if !ex[c] {
@@ -501,27 +424,10 @@ impl<'g> PathScorer<'g> {
     pub(super) fn add(&mut self, c: usize) {
         self.path.push(c);
         let (dim, min_points, kmax) = (self.dim, self.min_points, self.kmax);
-        let s = self.slot[c];
-        if s >= self.active {
-            // already on the path: dependent on it wherever it is in the factor
-            self.each_cell(|cell, _, ex, _| {
-                cell.dead |= ex[c];
-                cell.refresh(dim, min_points);
-            });
-            return;
-        }
-        // c leaves the active slots: it trades places with the last of them
-        let last = self.active - 1;
-        self.column.swap(s, last);
-        self.slot[self.column[s]] = s;
-        self.slot[c] = last;
-        self.active = last;
-        self.each_cell(|cell, pt, ex, column| {
-            if s != last {
-                pt.swap_slots(s, last, cell.k, kmax);
-            }
+        let slot = self.slot[c];
+        self.each_cell(|cell, pt, ex| {
             if ex[c] {
-                cell.push(pt, c, last, &column[..last], kmax, dim);
+                cell.push(pt, c, slot, kmax, dim);
             }
             cell.refresh(dim, min_points);
         });
