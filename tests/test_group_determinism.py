@@ -142,6 +142,64 @@ def test_whole_number_keys_group_as_polars_sorts_them(dtype: pl.DataType) -> Non
         assert (g.keys["k"].to_numpy()[g.index] == df["k"].to_numpy()).all()
 
 
+def _polars_groups(df: pl.DataFrame, keys: list[str]) -> pl.DataFrame:
+    """The reference: polars' own group-by, its first row and size per group, sorted by the
+    keys (nulls first)."""
+    return (
+        df.with_row_index("row")
+        .group_by(keys)
+        .agg(pl.col("row").min().alias("first"), pl.len().alias("n"))
+        .sort(keys, nulls_last=False)
+    )
+
+
+@pytest.mark.parametrize(
+    "keys",
+    [
+        ["i8"],  # the whole range of a narrow integer (offsets past its dtype)
+        ["u64"],  # values past Int64 and far apart: the rank, not the table
+        ["i64n", "s"],  # integers with nulls, strings with nulls and an empty string
+        ["s", "f", "t"],  # strings, floats with NaN, -0.0 and null, booleans
+        ["i8", "u64", "s", "f", "i64n", "t"],  # past the table: compacted by a sort midway
+    ],
+)
+def test_keys_of_every_dtype_group_as_polars_sorts_them(keys: list[str]) -> None:
+    """Each key is coded by its dense rank (a table for whole numbers over a short span, the
+    sorted distinct values for strings, polars' rank otherwise), the codes mixed into one
+    integer: the groups, their order and their first rows are polars' group-by sorted by the
+    keys, whichever path a key takes."""
+    rng = np.random.default_rng(11)
+    n = 3000
+    s = rng.choice(["", "a", "b", "ab", "Z", "é"], n).astype(object)
+    s[rng.random(n) < 0.05] = None
+    f = rng.choice([0.0, -0.0, 2.5, -1.0, np.nan], n)
+    df = pl.DataFrame(
+        {
+            "i8": pl.Series(rng.integers(-128, 128, n), dtype=pl.Int8),
+            "u64": pl.Series(
+                np.array([0, 5, 2**63 + 7, 2**64 - 1], dtype=np.uint64)[rng.integers(0, 4, n)]
+            ),
+            "i64n": pl.Series(rng.integers(-5, 6, n)).scatter(
+                np.flatnonzero(rng.random(n) < 0.05), None
+            ),
+            "s": pl.Series(list(s), dtype=pl.String),
+            "f": pl.Series(f).scatter(np.flatnonzero(rng.random(n) < 0.05), None),
+            "t": pl.Series(rng.random(n) < 0.5).scatter(np.flatnonzero(rng.random(n) < 0.05), None),
+        }
+    )
+    g = Groups.of(df, keys)
+    want = _polars_groups(df, keys)
+    assert g.keys.equals(want.select(keys))
+    assert g.first.tolist() == want["first"].to_list()
+    assert np.bincount(g.index, minlength=g.size).tolist() == want["n"].to_list()
+    # every row's group holds its keys (nulls and NaN compared as values)
+    back = g.keys[g.index]
+    for k in keys:
+        assert back[k].equals(df[k], check_names=True) or back[k].cast(pl.String).fill_null(
+            "<null>"
+        ).equals(df[k].cast(pl.String).fill_null("<null>")), k
+
+
 def test_over_matches_the_groups_per_row_and_float32_stays_float32() -> None:
     df = _random_frame(5).with_columns(pl.col("y").cast(pl.Float32).alias("y32"))
     g = Groups.of(df, ["k", "b"])

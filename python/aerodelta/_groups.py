@@ -43,6 +43,8 @@ Agg = Literal["sum", "mean", "std", "var"]
 
 _AGGS = ("sum", "mean", "std", "var")
 _INDEX = "__aerodelta_group__"
+#: Mixed-radix key codes up to this many (or 4x the rows) are compacted by a table, not a sort.
+_TABLE_MIN = 1 << 16
 
 
 @dataclass(frozen=True)
@@ -69,20 +71,30 @@ class Groups:
         keys = list(keys)
         if not keys:
             raise ValueError("group by at least one key column")
-        whole = _whole_number_groups(df, keys)
-        if whole is not None:
-            return whole
-        code = np.zeros(df.height, dtype=np.int64)
+        n = df.height
+        # the rows' key tuples as one integer whose order is the keys' sort order: per key its
+        # dense rank (0 for null), mixed radix; compacted by a sort only past the table bound
+        code = np.zeros(n, dtype=np.int64)
+        size = 1
+        bound = max(_TABLE_MIN, 4 * n)
         for k in keys:
-            # dense rank: 1, 2, ... in sort order, equal values (NaN with NaN, -0.0 with 0.0)
-            # one rank, as polars groups them; null -> 0, first as in a polars sort
-            r = df.select(pl.col(k).rank("dense").fill_null(0)).to_series().to_numpy()
-            code = code * (int(r.max(initial=0)) + 1) + r.astype(np.int64)
-            if k != keys[-1]:
-                code = np.unique(code, return_inverse=True)[1].astype(np.int64)
-        _, first, index = np.unique(code, return_index=True, return_inverse=True)
-        first = first.astype(np.int64)
-        return cls(df.select(keys)[first], index.astype(np.int64).reshape(-1), first)
+            r, m = _dense_rank(df[k])
+            if size * (m + 1) > bound and n:
+                code = np.unique(code, return_inverse=True)[1].astype(np.int64).reshape(-1)
+                size = int(code.max()) + 1
+            code = code * (m + 1) + r
+            size *= m + 1
+        if n and size <= bound:
+            present = np.zeros(size, dtype=bool)
+            present[code] = True
+            index = (np.cumsum(present) - 1)[code].astype(np.int64)
+            first = np.full(int(present.sum()), n, dtype=np.int64)
+            np.minimum.at(first, index, np.arange(n, dtype=np.int64))
+        else:
+            _, first, index = np.unique(code, return_index=True, return_inverse=True)
+            first = first.astype(np.int64)
+            index = index.astype(np.int64).reshape(-1)
+        return cls(df.select(keys)[first], index, first)
 
     @property
     def size(self) -> int:
@@ -159,31 +171,51 @@ class Groups:
         return out.hstack(cols) if cols else out
 
 
-def _whole_number_groups(df: pl.DataFrame, keys: list[str]) -> Groups | None:
-    """:meth:`Groups.of` without a sort for one numeric key of whole numbers (alpha bins,
-    flap settings in whole degrees) spanning at most a few times the row count: each value
-    indexes a table over the span (the groups in increasing value, as the sort gives them;
-    ``-0.0`` and ``0.0`` one group). ``None`` (the sort) for any other key, or one with a
-    null, NaN or infinity."""
-    if len(keys) != 1 or not df[keys[0]].dtype.is_numeric() or df.height == 0:
-        return None
-    col = df[keys[0]]
-    if col.null_count():
-        return None
-    v = col.cast(pl.Float64).to_numpy()
-    if not np.isfinite(v).all() or not (v == np.floor(v)).all():
-        return None
-    lo = float(v.min())
-    span = int(v.max() - lo) + 1
-    if span > 4 * v.size:
-        return None
-    offset = (v - lo).astype(np.int64)
+def _dense_rank(col: pl.Series) -> tuple[np.ndarray, int]:
+    """Per row of ``col``, the dense rank of its value among the column's distinct values in
+    polars' sort order (1, 2, ...; null 0, first as in a polars sort), and the number of
+    distinct non-null values: polars' ``rank("dense")`` (NaN with NaN after every number,
+    ``-0.0`` with ``0.0``).
+
+    Without a sort where it can: whole numbers spanning at most a few times the row count
+    (alpha bins, flap settings in whole degrees) index a table over the span; strings are
+    coded by their sorted distinct values (a hash lookup). Anything else takes the rank."""
+    n = col.len()
+    valid = col.is_not_null().to_numpy()
+    nonnull = int(np.count_nonzero(valid))
+    if nonnull == 0:
+        return np.zeros(n, dtype=np.int64), 0
+    offset: np.ndarray | None = None
+    span = 0
+    if col.dtype.is_integer():
+        lo, hi = col.min(), col.max()
+        if isinstance(lo, int) and isinstance(hi, int) and hi - lo < 4 * n:
+            span = hi - lo + 1
+            c = col.drop_nulls()
+            # in a dtype that holds both the values and their offset from the smallest
+            c = c if c.dtype == pl.UInt64 else c.cast(pl.Int64)
+            offset = (c - lo).cast(pl.Int64).to_numpy()
+    elif col.dtype.is_float():
+        v = col.drop_nulls().cast(pl.Float64).to_numpy()
+        if np.isfinite(v).all() and (v == np.floor(v)).all():
+            lo_f = float(v.min())
+            if v.max() - lo_f < 4 * n:
+                span = int(v.max() - lo_f) + 1
+                offset = (v - lo_f).astype(np.int64)
+    elif col.dtype == pl.String:
+        cats = col.drop_nulls().unique().sort()
+        r = col.cast(pl.Enum(cats)).to_physical().cast(pl.Int64).fill_null(-1).to_numpy()
+        out = np.zeros(n, dtype=np.int64)
+        out[valid] = r[valid] + 1
+        return out, cats.len()
+    if offset is None:
+        r = col.rank("dense").fill_null(0).cast(pl.Int64).to_numpy()
+        return r, int(r.max(initial=0))
     present = np.zeros(span, dtype=bool)
     present[offset] = True
-    index = (np.cumsum(present) - 1)[offset].astype(np.int64)
-    first = np.full(int(present.sum()), v.size, dtype=np.int64)
-    np.minimum.at(first, index, np.arange(v.size, dtype=np.int64))
-    return Groups(df.select(keys)[first], index, first)
+    out = np.zeros(n, dtype=np.int64)
+    out[valid] = np.cumsum(present)[offset]
+    return out, int(present.sum())
 
 
 def group_agg(
