@@ -123,6 +123,69 @@ def test_replays_count_the_time_outside_the_envelope(fitted: dict[str, Any]) -> 
     assert qual.table["outside_envelope_s"].null_count() == 1 and not qual.setup["envelope"]
 
 
+def test_the_open_loop_replay_flies_the_stored_stall_and_the_prestall_check_splits(
+    fitted: dict[str, Any], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The open-loop replay of a model storing the stall (flaps 0 and 15) flies it, as the
+    closed-loop replays do (``aero_core``'s own test compares it with the virtual aircraft's
+    Kirchhoff truth): past the stall it leaves the qualified replay; at flap 10, where no stall
+    is stored, the qualified curves fly. The pre-stall regression then compares the extended
+    model with the same model without its lateral Δ (bit for bit, stall on both sides) and the
+    stall with the qualified model (within Part 60 Table A2A 2.c tolerances); tightened
+    tolerances make exactly the stall's flaps fail."""
+    from aerodelta.campaign import record_state, replay  # noqa: PLC0415
+    from aerodelta.evidence import prestall  # noqa: PLC0415
+
+    data, model = fitted["data"], fitted["model"]
+    m2 = model.with_longitudinal(fitted["stall"])
+    flown: dict[float, bool] = {}
+    for flap in (0.0, 10.0, 15.0):
+        mid = str(
+            data.filter((pl.col("flap_deg") == flap) & (pl.col("kind") == "straight"))[
+                "maneuver_id"
+            ].min()
+        )
+        g = data.filter(pl.col("maneuver_id") == mid).sort("t")
+        c = np.column_stack([g[x].cast(pl.Float64).fill_null(0.0) for x in prestall.CONTROLS])
+        ct = np.column_stack([g[x].cast(pl.Float64).fill_null(0.0) for x in prestall.THRUST])
+        x0, dt = record_state(g.row(0, named=True)), float(np.median(np.diff(g["t"])))
+        qual = replay(flap, x0, dt, c, ct)
+        stall_only = replay(flap, x0, dt, c, ct, delta_model=m2, lateral_delta=False)
+        assert np.isfinite(stall_only).all()
+        flown[flap] = not np.array_equal(stall_only, qual)
+        # without a stored stall the model's no-Δ replay is the qualified one
+        assert np.array_equal(
+            replay(flap, x0, dt, c, ct, delta_model=model, lateral_delta=False), qual
+        )
+    assert flown == {0.0: True, 10.0: False, 15.0: True}
+    with pytest.raises(InvalidInputError, match="lateral_delta=False"):
+        replay(0.0, x0, dt, c, ct, lateral_delta=False)
+
+    chk = prestall.prestall_regression(data, m2)
+    t = chk.table
+    assert chk.passed, prestall.describe(chk)
+    assert t.filter(pl.col("stall_flown"))["flap_deg"].unique().sort().to_list() == [0.0, 15.0]
+    assert float(t["max_state_diff"].max()) == 0.0  # the lateral Δ adds exactly nothing there
+    dev = t.filter(pl.col("stall_flown") & (pl.col("steps_compared") > 50))
+    assert dev.height >= 4
+    # the stall acts before the blend start, within the tolerances
+    assert (dev["stall_dh_ft"] > 0.0).all() and (dev["stall_dtheta_deg"] > 0.0).all()
+    assert t.filter(~pl.col("stall_flown"))["stall_dv_kt"].null_count() == int(
+        (~t["stall_flown"]).sum()
+    )
+    assert "stored stall (flap 0, 15)" in prestall.describe(chk)
+    # tolerances under the measured deviations: the stall's maneuvers fail, the others pass
+    tight = {k: 0.5 * float(dev[c].min()) for k, c in zip(
+        prestall.STALL_TOLERANCES, ("stall_dv_kt", "stall_dh_ft", "stall_dtheta_deg"), strict=True
+    )}  # fmt: skip
+    monkeypatch.setattr(prestall, "STALL_TOLERANCES", tight)
+    bad = prestall.prestall_regression(data, m2).table
+    failed = bad.filter(pl.col("status") == "FAIL")
+    assert set(failed["maneuver_id"]) >= set(dev["maneuver_id"])
+    assert failed["stall_flown"].all()
+    assert (bad.filter(~pl.col("stall_flown"))["status"] == "PASS").all()
+
+
 def _pull(t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """A smooth pull into the stall and back: alpha 10 -> 24 -> 10 deg over 3 s, and its rate
     (deg, deg/s)."""

@@ -154,6 +154,7 @@ def sim_replay_extended(
     controls_deg: npt.NDArray[np.float64],
     ct: npt.NDArray[np.float64],
     rolloff_seed: int | None = None,
+    lateral_delta: bool = True,
 ) -> npt.NDArray[np.float64]: ...
 def sim_closed_loop(
     record: npt.NDArray[np.float64],

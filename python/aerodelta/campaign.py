@@ -745,6 +745,7 @@ def replay(
     effects: str | Sequence[str] | Mapping[str, float] | None = None,
     rolloff_seed: int | None = None,
     delta_model: DeltaModel | None = None,
+    lateral_delta: bool = True,
 ) -> npt.NDArray[np.float64]:
     """Replay recorded controls on the ADX-37 (thesis Section 4.3).
 
@@ -768,7 +769,13 @@ def replay(
         Include the stochastic roll-off with this seed.
     delta_model
         A fitted Δ model put on top of the qualified model in the loop (the extended model,
-        Eq. 3.12; lateral coefficients CY, Cl, Cn); not with ``effects``.
+        Eq. 3.12; lateral coefficients CY, Cl, Cn); not with ``effects``. The Kirchhoff stall
+        the model stores for the flap (:meth:`aerodelta.model.DeltaModel.with_longitudinal`)
+        replaces the qualified static C_L, C_m curves when it was fitted on the ADX-37's known
+        terms (``kirchhoff_known == "adx37"``), as in the closed-loop replays.
+    lateral_delta
+        With ``delta_model``: ``False`` flies the model's stored stall alone, without the
+        lateral Δ (the qualified model when the model stores no such stall).
 
     Returns
     -------
@@ -787,7 +794,12 @@ def replay(
         if eff:
             raise InvalidInputError("replay: give either effects (truth) or delta_model, not both")
         return _core.sim_replay_extended(
-            float(flap_deg), delta_model._m, list(state0), float(dt), c, k, rolloff_seed
+            float(flap_deg), delta_model._m, list(state0), float(dt), c, k, rolloff_seed,
+            bool(lateral_delta),
+        )  # fmt: skip
+    if not lateral_delta:
+        raise InvalidInputError(
+            "replay: lateral_delta=False says what to fly of a delta_model; give delta_model"
         )
     spec = json.dumps([{"name": n, "magnitude": m} for n, m in eff.items()])
     return _core.sim_replay(float(flap_deg), spec, list(state0), float(dt), c, k, rolloff_seed)

@@ -270,6 +270,17 @@ impl DeltaModel {
             .map(|(_, p)| (p, known))
     }
 
+    /// The stored stall a simulator of the built-in ADX-37 flies at `flap_deg` (deg, exact):
+    /// the Kirchhoff parameters when they were fitted on that aircraft's known terms
+    /// (`known == "adx37"`; they then replace its qualified static C_L, C_m curves), `None`
+    /// for another basis or no stall. The rule of every ADX-37 replay of a Δ model (open and
+    /// closed loop).
+    pub fn adx37_stall(&self, flap_deg: f64) -> Option<KirchhoffParams> {
+        self.kirchhoff(flap_deg)
+            .filter(|(_, known)| *known == "adx37")
+            .map(|(p, _)| *p)
+    }
+
     /// Whether the state (flap, α, β in deg) lies inside the validated envelope of the flight
     /// data ([`Envelope::contains`]); `None` when the model carries no envelope.
     pub fn in_envelope(&self, flap_deg: f64, alpha_deg: f64, beta_deg: f64) -> Option<bool> {

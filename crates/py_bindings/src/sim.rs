@@ -8,6 +8,7 @@ use aero_core::aircraft::turboprop::adx37;
 use aero_core::rolloff::{sample_draws, RollOffConfig};
 use aero_core::sim::campaign::{
     plan, replay_adx37, replay_adx37_extended, run_campaign, trim_adx37, CampaignSpec,
+    ExtendedLayers,
 };
 use aero_core::sim::closed_loop::{
     closed_loop_adx37, ClosedLoopOptions, ReplayModel, OUTPUT_COLUMNS, RECORD_COLUMNS,
@@ -127,7 +128,8 @@ fn sim_replay<'py>(
 /// Replay recorded controls on the ADX-37 with the extended model (qualified + Δ model;
 /// see `aero_core::sim::campaign::replay_adx37_extended`).
 #[pyfunction]
-#[pyo3(signature = (flap_deg, model, x0, dt, controls_deg, ct, rolloff_seed=None))]
+/// `lateral_delta=False` flies the model's stored stall alone (`ExtendedLayers::StallOnly`).
+#[pyo3(signature = (flap_deg, model, x0, dt, controls_deg, ct, rolloff_seed=None, lateral_delta=true))]
 #[allow(clippy::too_many_arguments)]
 fn sim_replay_extended<'py>(
     py: Python<'py>,
@@ -138,11 +140,17 @@ fn sim_replay_extended<'py>(
     controls_deg: PyReadonlyArray2<'py, f64>,
     ct: PyReadonlyArray2<'py, f64>,
     rolloff_seed: Option<u64>,
+    lateral_delta: bool,
 ) -> PyResult<Bound<'py, PyArray2<f64>>> {
     let (c, k) = replay_rows(&controls_deg, &ct)?;
     let delta = &model.get().0;
+    let layers = if lateral_delta {
+        ExtendedLayers::Extended
+    } else {
+        ExtendedLayers::StallOnly
+    };
     let states = detached(py, || {
-        replay_adx37_extended(flap_deg, delta, rolloff_seed, x0, dt, &c, &k)
+        replay_adx37_extended(flap_deg, delta, layers, rolloff_seed, x0, dt, &c, &k)
     })?;
     states_array(py, states)
 }

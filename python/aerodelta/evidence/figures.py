@@ -384,8 +384,9 @@ def longitudinal(*, panels: Sequence[Mapping[str, Any]]) -> Figure:
 
 
 def prestall(*, panels: Sequence[Mapping[str, Any]]) -> Figure:
-    """Per flap, one maneuver replayed open loop on the qualified and on the extended model:
-    angle of attack and roll rate against time, the blend start ``alpha_l`` and the end of the
+    """Per flap, one maneuver replayed open loop on the qualified and on the extended model
+    (and on the model's stored stall without its lateral Δ, when it flies one): angle of
+    attack and roll rate against time, the blend start ``alpha_l`` and the end of the
     bit-for-bit comparison marked (``panels``: ``flap``, ``id``, ``run`` frame of
     :func:`aerodelta.evidence.prestall.prestall_regression`, ``alpha_l``, ``t_end``)."""
     n = max(1, len(panels))
@@ -400,6 +401,10 @@ def prestall(*, panels: Sequence[Mapping[str, Any]]) -> Figure:
         for j, (q, e, label) in enumerate(pairs):
             a = ax[i, j]
             a.plot(t, run[q].to_numpy(), color="#1f77b4", lw=1.6, label="qualified")
+            stall = q.replace("qual", "stall")
+            if stall in run.columns:  # the model's stored stall, without the lateral Δ
+                a.plot(t, run[stall].to_numpy(), color="#9467bd", lw=1.1, ls=":",
+                       label="stored stall, no lateral Δ")  # fmt: skip
             a.plot(t, run[e].to_numpy(), color="#d62728", lw=0.9, ls="--", label="extended")
             if j == 0:
                 a.axhline(pn["alpha_l"], color="#444", lw=0.8, ls=":", label="blend start α_l")

@@ -950,16 +950,35 @@ pub fn replay_adx37(
     replay_with(&mut model, flap_deg, x0, dt, controls_deg, ct)
 }
 
+/// What an open-loop replay of a Δ model flies over the qualified ADX-37
+/// ([`replay_adx37_extended`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ExtendedLayers {
+    /// The extended model: the lateral Δ (thesis Eq. 3.12) and the stored longitudinal stall.
+    Extended,
+    /// The stored longitudinal stall alone, no lateral Δ: the baseline against which the Δ's
+    /// blend-out is checked (pre-stall regression), and the stall's own effect is measured
+    /// against the qualified model.
+    StallOnly,
+}
+
 /// Replay recorded controls on the ADX-37 with the **extended** model: the qualified
 /// model plus the fitted Δ model `delta` (thesis Section 4.3, Eq. 3.12), and the
 /// stochastic roll-off when `rolloff_seed` is given. Arguments and result as
-/// [`replay_adx37`].
+/// [`replay_adx37`]. The stall the model stores for the flap replaces the qualified static
+/// C_L, C_m curves when it was fitted on the ADX-37's known terms
+/// ([`DeltaModel::adx37_stall`]), as in the closed-loop replays
+/// ([`crate::sim::closed_loop::closed_loop_adx37`]); `layers` chooses whether the lateral Δ
+/// flies too.
 ///
 /// # Errors
-/// For a Δ model the loop cannot run (see [`ExtendedAero::new`]) or mismatched inputs.
+/// For a Δ model the loop cannot run (see [`ExtendedAero::new`]), invalid stored stall
+/// parameters, or mismatched inputs.
+#[allow(clippy::too_many_arguments)]
 pub fn replay_adx37_extended(
     flap_deg: f64,
     delta: &DeltaModel,
+    layers: ExtendedLayers,
     rolloff_seed: Option<u64>,
     x0: [f64; 12],
     dt: f64,
@@ -968,9 +987,19 @@ pub fn replay_adx37_extended(
 ) -> Result<Vec<[f64; 12]>> {
     let (qual, _) = adx37_models()?;
     let rolloff = replay_rolloff(flap_deg, rolloff_seed)?;
-    let base = TruthAero::new(slice(qual, flap_deg)?, Vec::new(), rolloff);
-    let mut model = ExtendedAero::new(base, delta)?;
-    replay_with(&mut model, flap_deg, x0, dt, controls_deg, ct)
+    let stall = delta
+        .adx37_stall(flap_deg)
+        .map(|p| KirchhoffStall::new(qual, p))
+        .transpose()?;
+    let mut base =
+        TruthAero::new(slice(qual, flap_deg)?, Vec::new(), rolloff).with_kirchhoff(stall);
+    match layers {
+        ExtendedLayers::Extended => {
+            let mut model = ExtendedAero::new(base, delta)?;
+            replay_with(&mut model, flap_deg, x0, dt, controls_deg, ct)
+        }
+        ExtendedLayers::StallOnly => replay_with(&mut base, flap_deg, x0, dt, controls_deg, ct),
+    }
 }
 
 fn replay_rolloff(flap_deg: f64, seed: Option<u64>) -> Result<Option<RollOff>> {

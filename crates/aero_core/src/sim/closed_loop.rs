@@ -719,12 +719,7 @@ pub fn closed_loop_adx37(
         ReplayModel::Extended { delta, kirchhoff } => {
             // the stall given, else the one the model carries for this flap when it was fitted
             // on the ADX-37's known terms (it then replaces the qualified static curves)
-            let k = kirchhoff.or_else(|| {
-                delta
-                    .kirchhoff(opts.flap_deg)
-                    .filter(|(_, known)| *known == "adx37")
-                    .map(|(p, _)| *p)
-            });
+            let k = kirchhoff.or_else(|| delta.adx37_stall(opts.flap_deg));
             let base = TruthAero::new(slice(qual, opts.flap_deg)?, Vec::new(), None)
                 .with_kirchhoff(stall(k)?);
             let mut m = ExtendedAero::new(base, delta)?;

@@ -279,7 +279,9 @@ mod tests {
 
     #[test]
     fn replay_with_a_zero_model_is_the_qualified_replay_and_a_cl_offset_rolls_right() {
-        use crate::sim::campaign::{replay_adx37, replay_adx37_extended, trim_adx37};
+        use crate::sim::campaign::{
+            replay_adx37, replay_adx37_extended, trim_adx37, ExtendedLayers,
+        };
         let (x0, c, ct) = trim_adx37(0.0, 70.0, 1000.0).expect("trims");
         let n = 300;
         let controls = vec![c; n];
@@ -292,15 +294,97 @@ mod tests {
             )
         };
         let zero = model(&term(0.0));
-        let ext =
-            replay_adx37_extended(0.0, &zero, None, x0, 0.01, &controls, &cts).expect("replays");
+        let ext = replay_adx37_extended(
+            0.0,
+            &zero,
+            ExtendedLayers::Extended,
+            None,
+            x0,
+            0.01,
+            &controls,
+            &cts,
+        )
+        .expect("replays");
         assert_eq!(ext, base);
         let push = model(&term(0.01));
-        let ext =
-            replay_adx37_extended(0.0, &push, None, x0, 0.01, &controls, &cts).expect("replays");
+        let ext = replay_adx37_extended(
+            0.0,
+            &push,
+            ExtendedLayers::Extended,
+            None,
+            x0,
+            0.01,
+            &controls,
+            &cts,
+        )
+        .expect("replays");
         // a positive rolling moment (right wing down) with no aileron: p > 0 and phi > 0
         let (p_end, phi_end) = (ext[n][3], ext[n][6]);
         assert!(p_end > 0.0 && phi_end > 0.0, "p {p_end}, phi {phi_end}");
         assert!(base[n][6].abs() < 0.01 * phi_end.abs());
+    }
+
+    #[test]
+    fn the_open_loop_replay_flies_the_stored_adx37_stall() {
+        use crate::aircraft::truth::{kirchhoff_truth_params, KirchhoffStall, TruthAero};
+        use crate::sim::campaign::{
+            adx37_models, replay_adx37, replay_adx37_extended, slice, trim_adx37, ExtendedLayers,
+        };
+        use crate::stall_spec::LongitudinalSpec;
+        // a pull from a 70 m/s trim to well past the stall: the Kirchhoff lift break matters
+        let (x0, c, ct) = trim_adx37(0.0, 70.0, 1000.0).expect("trims");
+        let n = 800;
+        let controls: Vec<[f64; 5]> = (0..n)
+            .map(|i| {
+                let pull = (i as f64 * 0.01 / 6.0).min(1.0) * 15.0;
+                [c[0], c[1] - pull, c[2], c[3], c[4]]
+            })
+            .collect();
+        let cts = vec![[ct, ct]; n];
+        let zero_cl = r#""Cl": {"terms": [{"name": "dCl_0", "regressor": "1",
+            "alpha_deg": [-20, 40], "values": [[0.0, 0.0]]}],
+            "alpha_l_deg": [-20.0], "alpha_u_deg": [-19.0]}"#;
+        let with_stall = |known: &str| {
+            let mut spec = model(zero_cl).spec().clone();
+            spec.longitudinal = Some(LongitudinalSpec::from_params(
+                known,
+                &[(0.0, kirchhoff_truth_params(0.0), String::new())],
+            ));
+            DeltaModel::new(spec).expect("valid model")
+        };
+        let fly = |m: &DeltaModel, layers| {
+            replay_adx37_extended(0.0, m, layers, None, x0, 0.01, &controls, &cts).expect("replays")
+        };
+        // the reference: the virtual aircraft's own Kirchhoff stall over the qualified model
+        let (qual, _) = adx37_models().expect("tables");
+        let mut truth = TruthAero::new(slice(qual, 0.0).expect("flap 0"), Vec::new(), None)
+            .with_kirchhoff(Some(KirchhoffStall::adx37(qual, 0.0).expect("stall")));
+        let mut sim = crate::sim::maneuver::Simulator::new(
+            crate::aircraft::turboprop::adx37(),
+            0.0,
+            nalgebra::SVector::from(x0),
+            0.01,
+        );
+        let want = crate::sim::campaign::replay_states(&mut sim, &mut truth, &controls, &cts)
+            .expect("replays");
+        let stored = with_stall("adx37");
+        let stall_only = fly(&stored, ExtendedLayers::StallOnly);
+        assert_eq!(stall_only, want);
+        // a zero lateral Δ adds exactly nothing on top of the stall
+        assert_eq!(fly(&stored, ExtendedLayers::Extended), want);
+        // the qualified static curves fly another flight past the stall
+        let qual_run = replay_adx37(0.0, &[], None, x0, 0.01, &controls, &cts).expect("replays");
+        let alpha_max = want
+            .iter()
+            .map(|x| x[2].atan2(x[0]).to_degrees())
+            .fold(f64::MIN, f64::max);
+        assert!(alpha_max > 16.0, "the pull reaches {alpha_max} deg only");
+        assert_ne!(qual_run, want);
+        // a stall fitted on the whole measured coefficients (known "none") is not the ADX-37's:
+        // the replay keeps the qualified curves
+        let other = with_stall("none");
+        assert_eq!(fly(&other, ExtendedLayers::StallOnly), qual_run);
+        assert_eq!(fly(&other, ExtendedLayers::Extended), qual_run);
+        assert_eq!(fly(&model(zero_cl), ExtendedLayers::Extended), qual_run);
     }
 }
