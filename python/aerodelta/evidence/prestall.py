@@ -73,7 +73,8 @@ class PrestallCheck:
         there whose Δ added is not finite), ``steps_compared`` (replay steps before the blend
         start; null: no replay), ``max_state_diff`` (largest |state difference| over them
         between the extended model and the same model without its lateral Δ, SI units and
-        rad; null: no replay), ``stall_flown`` (the model's stored stall flew at this flap),
+        rad; null: no replay), ``stall_flown`` (the model's stored stall flew in this
+        maneuver's replays),
         ``stall_dv_kt``, ``stall_dh_ft``, ``stall_dtheta_deg`` (with the stall: its largest
         deviation from the qualified replay over the same steps, in airspeed, altitude and
         pitch angle; null without) and ``status`` (``PASS``/``FAIL``).
@@ -234,7 +235,8 @@ def prestall_regression(data: pl.DataFrame, model: DeltaModel) -> PrestallCheck:
                 runs[mid] = pl.DataFrame(run)
         rows.append(
             {"maneuver_id": mid, "flap_deg": flap, "alpha_l_deg": a_l,
-             "steps_compared": steps, "max_state_diff": diff, "stall_flown": flown,
+             "steps_compared": steps, "max_state_diff": diff,
+             "stall_flown": flown and steps is not None,
              **dict(zip(_STALL_COLUMNS, dev if dev is not None else (None,) * 3, strict=True))}
         )  # fmt: skip
     table = (
@@ -261,6 +263,7 @@ def prestall_regression(data: pl.DataFrame, model: DeltaModel) -> PrestallCheck:
         table = table.with_columns(
             pl.lit(None, pl.Int64).alias("steps_compared"),
             pl.lit(None, pl.Float64).alias("max_state_diff"),
+            pl.lit(False).alias("stall_flown"),
             *(pl.lit(None, pl.Float64).alias(c) for c in _STALL_COLUMNS),
         )
         runs = {}
