@@ -498,7 +498,8 @@ def _provenance(spec: Mapping[str, Any]) -> dict[str, Any]:
         parts.append(
             f"uncertainty: {100 * float(cfg.get('band_level', 0.95)):g} % percentile bands of "
             f"a {n_boot}-replicate bootstrap over maneuvers (seed {cfg.get('seed', 0)}), "
-            "widened by the smoothing spline's bias"
+            "widened by the smoothing spline's bias and holding the smoothed bins' bands "
+            "(each at least the bin's CR2 t interval)"
         )
     else:
         parts.append("no bands: fitted without a bootstrap")

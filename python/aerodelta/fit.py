@@ -642,9 +642,10 @@ class FitResult:
         (SIDPAC's all-lag coloured-residual correction) and, with a bootstrap,
         ``std_err_bootstrap`` over maneuvers; with a bootstrap the percentile band
         ``band_lower``/``band_upper`` at ``band_level`` (widened to reach the estimate when
-        the replicates lie on one side of it; NaN when fewer than half the replicates could
-        refit the bin), ``bootstrap_ok`` (replicates that refitted the bin), ``inclusion``
-        (share of replicates whose own selection kept the term), t, partial F, excitation (against
+        the replicates lie on one side of it, and to contain the bin's CR2 t interval at
+        ``band_level``; NaN when fewer than half the replicates could refit the bin),
+        ``bootstrap_ok`` (replicates that refitted the bin), ``inclusion`` (share of
+        replicates whose own selection kept the term), t, partial F, excitation (against
         the flap, ``excitation``, and against the regressor's noise floor,
         ``excitation_snr``), VIF, ``identifiable`` and a ``note`` saying why not, and
         ``in_table``: whether the bin's estimate enters the smoothed table (identified, or
@@ -653,7 +654,9 @@ class FitResult:
         Adjacent-bin consistency per coefficient, flap and parameter (Section 3.3.4).
     smoothed
         The smoothed parameter tables per coefficient, flap and parameter; with a bootstrap
-        also ``lower``/``upper`` (the confidence band at ``band_level``).
+        also ``lower``/``upper`` (the confidence band at ``band_level``: the replicates'
+        percentiles widened by the spline's bias, and containing the ``params`` bands of the
+        smoothed bins, interpolated between their centres).
     stall_alpha_deg
         Stall alpha used per flap, deg.
     structure
