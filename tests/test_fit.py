@@ -172,6 +172,30 @@ def test_bootstrap_replicates_that_cannot_smooth_are_counted_not_zeros(
     assert not banded & nan_band
 
 
+def test_significance_and_the_bands_floor(
+    split: tuple[pl.DataFrame, pl.DataFrame], result: ad.FitResult
+) -> None:
+    """``significant`` is the CR2 test at 5 % without a bootstrap; with a selecting bootstrap
+    it is the band excluding zero, and every bin band holds the bin's CR2 95 % interval
+    (``aero_core::bootstrap``'s floor), so a bin the band calls significant has p < 0.05, not
+    always the reverse (a term some replicates drop reaches zero)."""
+    p0 = result.params
+    want = (p0["p_value"].is_finite() & (p0["p_value"] < 0.05)).fill_null(False)
+    assert p0["significant"].equals(want, check_names=False)
+    assert p0.columns.index("significant") == p0.columns.index("band_upper") + 1
+    r = ad.fit(split[0], config=ad.FitConfig(bootstrap=20, seed=3))
+    p = r.params.filter(pl.col("band_lower").is_finite() & pl.col("band_upper").is_finite())
+    assert p.height > 100
+    excl = (p["band_lower"] > 0) | (p["band_upper"] < 0)
+    assert p["significant"].equals(excl, check_names=False)
+    ci = p.filter(pl.col("ci95_lower").is_finite())
+    tol = 1e-9 * (1.0 + ci["estimate"].abs())
+    assert (
+        (ci["band_lower"] <= ci["ci95_lower"] + tol) & (ci["ci95_upper"] - tol <= ci["band_upper"])
+    ).all()
+    assert ci.filter(pl.col("significant"))["p_value"].max() < 0.05 + 1e-9
+
+
 def _no_thrust(d: pl.DataFrame) -> pl.DataFrame:
     """The records of a jet whose thrust is not recorded: ct channels all null."""
     cols = [c for c in ("ct_left", "ct_right", "ct_diff") if c in d.columns]

@@ -644,7 +644,10 @@ class FitResult:
         ``band_lower``/``band_upper`` at ``band_level`` (widened to reach the estimate when
         the replicates lie on one side of it, and to contain the bin's CR2 t interval at
         ``band_level``; NaN when fewer than half the replicates could refit the bin),
-        ``bootstrap_ok`` (replicates that refitted the bin), ``inclusion`` (share of
+        ``significant`` (the estimate differs from zero at ``band_level``: its band excludes
+        zero, or without a band ``p_value < 1 - band_level``; with a selecting bootstrap this
+        accounts for the selection, ``p_value`` does not), ``bootstrap_ok`` (replicates that
+        refitted the bin), ``inclusion`` (share of
         replicates whose own selection kept the term), t, partial F, excitation (against
         the flap, ``excitation``, and against the regressor's noise floor,
         ``excitation_snr``), VIF, ``identifiable`` and a ``note`` saying why not, and
@@ -1330,6 +1333,22 @@ def _bin_rows(
     return bins, params
 
 
+def _with_significance(params: pl.DataFrame, level: float) -> pl.DataFrame:
+    """``params`` with ``significant`` after ``band_upper``: the estimate differs from zero at
+    ``level``. With a bootstrap band, the band excludes zero: a selecting bootstrap's band
+    carries the selection's uncertainty (a term the replicates drop reaches zero) and contains
+    the CR2 interval, so a term kept because it fits the data is not then declared significant
+    on the same data by its CR2 t-test alone (post-selection inference; Efron 2014). Without a
+    band, ``p_value < 1 - level`` (CR2, Bell-McCaffrey t)."""
+    band = pl.col("band_lower").is_finite() & pl.col("band_upper").is_finite()
+    excludes = (pl.col("band_lower") > 0.0) | (pl.col("band_upper") < 0.0)
+    by_p = pl.col("p_value").is_finite() & (pl.col("p_value") < 1.0 - level)
+    sig = params.select(
+        pl.when(band).then(excludes).otherwise(by_p).fill_null(False).alias("significant")
+    ).to_series()
+    return params.insert_column(params.columns.index("band_upper") + 1, sig)
+
+
 def _selection_rows(
     coef: str,
     *,
@@ -1926,7 +1945,9 @@ def fit(
     return FitResult(
         model=DeltaModel.from_spec(spec, "fitted model"),
         bins=pl.concat(bins_rows) if bins_rows else pl.DataFrame(),
-        params=pl.concat(param_rows) if param_rows else pl.DataFrame(),
+        params=_with_significance(pl.concat(param_rows), cfg.band_level)
+        if param_rows
+        else pl.DataFrame(),
         consistency=pl.DataFrame(cons_rows),
         smoothed=pl.DataFrame(smooth_rows),
         stall_alpha_deg=stall,
