@@ -293,31 +293,12 @@ mod tests {
                     "values": [[{v}, {v}]]}}], "alpha_l_deg": [-20.0], "alpha_u_deg": [-19.0]}}"#
             )
         };
-        let zero = model(&term(0.0));
-        let ext = replay_adx37_extended(
-            0.0,
-            &zero,
-            ExtendedLayers::Extended,
-            None,
-            x0,
-            0.01,
-            &controls,
-            &cts,
-        )
-        .expect("replays");
-        assert_eq!(ext, base);
-        let push = model(&term(0.01));
-        let ext = replay_adx37_extended(
-            0.0,
-            &push,
-            ExtendedLayers::Extended,
-            None,
-            x0,
-            0.01,
-            &controls,
-            &cts,
-        )
-        .expect("replays");
+        let fly = |m: &DeltaModel| {
+            let layers = ExtendedLayers::Extended;
+            replay_adx37_extended(0.0, m, layers, None, x0, 0.01, &controls, &cts).expect("replays")
+        };
+        assert_eq!(fly(&model(&term(0.0))), base);
+        let ext = fly(&model(&term(0.01)));
         // a positive rolling moment (right wing down) with no aileron: p > 0 and phi > 0
         let (p_end, phi_end) = (ext[n][3], ext[n][6]);
         assert!(p_end > 0.0 && phi_end > 0.0, "p {p_end}, phi {phi_end}");
