@@ -41,11 +41,17 @@ def fitted(stall_campaign: Path, tmp_path_factory: pytest.TempPathFactory) -> di
 def test_the_stall_survives_the_file_bit_for_bit(fitted: dict[str, Any]) -> None:
     model, stall = fitted["model"], fitted["stall"]
     assert model.kirchhoff is None and model.kirchhoff_known is None
+    assert model.adx37_stall_flaps == []
     m2 = model.with_longitudinal(stall)
     path = fitted["root"] / "with_stall.json"
     m2.save(path)
     back = DeltaModel.load(path)
     assert back.kirchhoff_known == "adx37"
+    assert back.adx37_stall_flaps == [0.0, 15.0]
+    # a stall fitted on the whole measured coefficients is not flown over the ADX-37's curves
+    whole = DeltaModel.from_spec({**back.to_spec(), "longitudinal": {
+        **back.to_spec()["longitudinal"], "known": "none"}})  # fmt: skip
+    assert whole.kirchhoff_known == "none" and whole.adx37_stall_flaps == []
     k = back.kirchhoff
     assert k is not None and sorted(k) == [0.0, 15.0]
     for f in (0.0, 15.0):

@@ -467,9 +467,9 @@ def closed_loop_replay(
             "truth effects" if truth_effects else "qualified"),
         "kirchhoff_flaps": sorted(f for f, v in kp.items() if v is not None),
         "model_kirchhoff_flaps": sorted(
-            set(model.kirchhoff or {}) & {float(x) for x in sim_all["flap_deg"].unique()}
+            set(model.adx37_stall_flaps) & {float(x) for x in sim_all["flap_deg"].unique()}
             - set(kp)
-        ) if model is not None and model.kirchhoff_known == "adx37" else [],
+        ) if model is not None else [],
         "buffet_model": buffet_model is not None,
         "envelope": bool(outside),
     }  # fmt: skip

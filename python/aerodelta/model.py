@@ -209,6 +209,15 @@ class DeltaModel:
         lon = self.to_spec().get("longitudinal")
         return None if lon is None else str(lon["known"])
 
+    @property
+    def adx37_stall_flaps(self) -> list[float]:
+        """The flap settings (deg, sorted) at which replays on the built-in ADX-37 fly the
+        stored stall in place of the qualified static curves: those of a stall fitted on its
+        known terms (``kirchhoff_known == "adx37"``); empty otherwise. The engine's rule,
+        ``aero_core``'s ``DeltaModel::adx37_stall`` (flaps matched exactly)."""
+        k = self.kirchhoff
+        return sorted(k) if k is not None and self.kirchhoff_known == "adx37" else []
+
     def with_longitudinal(self, result: Any) -> DeltaModel:
         """A copy of the model carrying the Kirchhoff stall of
         :func:`aerodelta.longitudinal.fit_kirchhoff` (every flap fitted, with its note), so a

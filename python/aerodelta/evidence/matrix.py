@@ -330,9 +330,8 @@ def _replay(
         )
     # the stall the model carries flies where it has one (what the simulator will fly), the
     # pack's own fit elsewhere
-    kp = fits.params()
-    if model.kirchhoff_known == "adx37":
-        kp = {f: p for f, p in kp.items() if f not in (model.kirchhoff or {})}
+    stored = set(model.adx37_stall_flaps)
+    kp = {f: p for f, p in fits.params().items() if f not in stored}
     try:
         res = closed_loop_replay(
             data,

@@ -112,13 +112,6 @@ def _alpha_deg(states: np.ndarray) -> np.ndarray:
     return np.degrees(np.arctan2(states[:, 2], states[:, 0]))
 
 
-def stall_flown(model: DeltaModel, flap_deg: float) -> bool:
-    """Whether the ADX-37 replays of ``model`` fly its stored stall at ``flap_deg``: a
-    Kirchhoff stall fitted on the ADX-37's known terms, stored for that flap exactly."""
-    k = model.kirchhoff
-    return model.kirchhoff_known == "adx37" and k is not None and float(flap_deg) in k
-
-
 def _stall_deviation(qual: np.ndarray, stall: np.ndarray) -> tuple[float, float, float]:
     """Largest |difference| of airspeed (kt), altitude (ft) and pitch angle (deg) between two
     replays' states (rows: steps; u v w, p q r, φ θ ψ, x y h)."""
@@ -178,6 +171,7 @@ def prestall_regression(data: pl.DataFrame, model: DeltaModel) -> PrestallCheck:
         )
     elif missing:
         note = f"the records lack {', '.join(missing)} for the replays"
+    stall_flaps = set(model.adx37_stall_flaps)  # the ADX-37 replays fly the stall there
     for key, g in (
         data.sort("t").partition_by("maneuver_id", as_dict=True, maintain_order=True).items()
     ):
@@ -185,7 +179,7 @@ def prestall_regression(data: pl.DataFrame, model: DeltaModel) -> PrestallCheck:
         flap = float(g["flap_deg"][0])
         a_l = blend_start(model, flap)
         steps, diff = None, None
-        flown = stall_flown(model, flap)
+        flown = flap in stall_flaps
         dev: tuple[float, float, float] | None = None
         if not note:
             controls = np.column_stack([g[c].cast(pl.Float64).fill_null(0.0) for c in CONTROLS])
