@@ -6,6 +6,7 @@ evaluating the JSBSim functions inside JSBSim itself (the ``jsbsim`` package).""
 from __future__ import annotations
 
 import itertools
+import math
 import re
 import shutil
 from pathlib import Path
@@ -22,7 +23,12 @@ from aerodelta.cli import main
 from aerodelta.daveml import write_example_model
 from aerodelta.export import export_extended_daveml, extended_daveml_text
 from aerodelta.fit import DEFAULT_STRUCTURES
-from aerodelta.jsbsim import DEFAULT_PROPERTIES, export_jsbsim, jsbsim_xml
+from aerodelta.jsbsim import (
+    DEFAULT_PROPERTIES,
+    export_jsbsim,
+    jsbsim_stall_system_xml,
+    jsbsim_xml,
+)
 from aerodelta.model import DeltaModel
 
 FIXTURE = Path(__file__).parent / "data" / "jsbsim" / "aircraft" / "aerodelta_fixture"
@@ -499,3 +505,181 @@ def test_daveml_in_envelope_flag_equals_engine(model: DeltaModel) -> None:
     assert 40 <= want.sum() <= len(want) - 40, want.sum()
     np.testing.assert_array_equal(got["in_envelope"].to_numpy() == 1.0, want)
     assert set(got["in_envelope"].to_list()) <= {0.0, 1.0}
+
+
+# -- JSBSim: the Kirchhoff stall ---------------------------------------------------------------
+
+_D2R = math.pi / 180.0
+#: The virtual aircraft's Kirchhoff truth at flaps 0 and 10 (docs/longitudinal.md), stored as a
+#: stall fitted on the ADX-37's known terms.
+STALL = {
+    0.0: {"tau1": 0.2, "tau2": 0.06, "alpha_star": 21.0 * _D2R, "a1": 20.0, "CL_alpha": 5.2,
+          "alpha0": -2.78 * _D2R, "Cm0": 0.06, "Cm_alpha": -0.75, "Cm_x": -0.12},
+    10.0: {"tau1": 0.22, "tau2": 0.066, "alpha_star": 20.0 * _D2R, "a1": 20.0, "CL_alpha": 5.2,
+           "alpha0": -7.09 * _D2R, "Cm0": 0.03, "Cm_alpha": -0.75, "Cm_x": -0.12},
+}  # fmt: skip
+
+
+def stall_model(known: str = "adx37") -> DeltaModel:
+    """:func:`synthetic_model` (flaps 0, 10, 20) storing :data:`STALL` at flaps 0 and 10."""
+    spec = synthetic_model().to_spec()
+    spec["longitudinal"] = {"model": "kirchhoff", "known": known, "flaps": [
+        {"flap_deg": f, "params": p, "note": ""} for f, p in STALL.items()]}  # fmt: skip
+    return DeltaModel.from_spec(spec)
+
+
+def _load_with_stall(tmp: Path, aero: str, system: str) -> Any:
+    """The fixture aircraft with the exported aerodynamics and the stall's ``<system>``."""
+    root = tmp / "jsbsim"
+    dest = root / "aircraft" / "aerodelta_fixture"
+    dest.mkdir(parents=True)
+    text = (FIXTURE / "aerodelta_fixture.xml").read_text()
+    loads = '<aerodynamics file="delta"/>'
+    assert loads in text
+    (dest / "aerodelta_fixture.xml").write_text(
+        text.replace(loads, f'<system file="stall"/>\n  {loads}')
+    )
+    (dest / "delta.xml").write_text(aero)
+    (dest / "stall.xml").write_text(system)
+    fdm = jsbsim.FGFDMExec(str(root))
+    fdm.set_debug_level(0)
+    assert fdm.load_model("aerodelta_fixture")
+    return fdm
+
+
+def test_jsbsim_stall_state_and_increments_equal_the_engine(tmp_path: Path) -> None:
+    """A pull into the stall and back (5 s, alpha 5 -> 25 -> 5 deg) at flap 0, then 10, then
+    20 (no stall stored), alpha and its rate set on the property tree each JSBSim frame:
+    - each flap's ``<fcs_function>`` is ``1 - x0(alpha - tau2 alphadot)`` of the engine
+      (``aero_core::kirchhoff``) to 1e-12;
+    - each ``<lag_filter>`` steps Tustin's rule with ``c1 = 1/tau1`` at JSBSim's dt (the
+      recurrence holds to 1e-12: the filter is the documented one);
+    - the state ``x`` follows the engine's exact state (first-order hold, driven by the same
+      alpha history from the start) within 1e-4 on the flap setting's own segment, and is 1 at
+      the flap without a stall;
+    - ``CL-delta``, ``Cm-delta`` are the engine's Kirchhoff lift and moment at JSBSim's ``x``
+      less the qualified static curves (the engine's DAVE-ML reading of the exported
+      qualified model) to 1e-9, and 0 at flap 20."""
+    m = stall_model()
+    fdm = _load_with_stall(
+        tmp_path, jsbsim_xml(m, _TEST_PROPS), jsbsim_stall_system_xml(m, _TEST_PROPS)
+    )
+    for ch in _TEST_PROPS.values():
+        fdm[ch] = 0.0
+    fdm["test/alpha_deg"] = 5.0
+    assert fdm.run_ic()
+    dt = fdm["simulation/dt"]
+    n = 600
+    t1 = np.arange(n) * dt
+    a1 = 5.0 + 20.0 * np.sin(np.pi * t1 / t1[-1]) ** 2
+    alpha = np.concatenate([a1, a1, a1])
+    rate = np.concatenate([np.gradient(a1, dt)] * 3)
+    flap = np.repeat([0.0, 10.0, 20.0], n)
+    names = ["aero/aerodelta/stall/x", "aero/aerodelta/stall/CL-delta",
+             "aero/aerodelta/stall/Cm-delta"]  # fmt: skip
+    for i in range(len(STALL)):
+        names += [
+            f"aerodelta/stall/flap-{i}/separated-static",
+            f"aerodelta/stall/flap-{i}/separated",
+        ]
+    got: dict[str, list[float]] = {k: [] for k in names}
+    for k in range(alpha.size):
+        fdm["test/alpha_deg"], fdm["test/alphadot_dps"] = alpha[k], rate[k]
+        fdm["test/flap_deg"] = flap[k]
+        assert fdm.run()
+        for name in names:
+            got[name].append(fdm[name])
+    g = {k: np.asarray(v) for k, v in got.items()}
+    t = np.arange(alpha.size) * dt
+    a_rad, r_rad = np.radians(alpha), np.radians(rate)
+    qual = ad.export_qualified_daveml(tmp_path / "q.dml").evaluate(
+        {"alpha_deg": alpha, "flap_deg": flap}, outputs=["CL_basic", "Cm_basic"]
+    )
+    x = g["aero/aerodelta/stall/x"]
+    for i, (f, p) in enumerate(STALL.items()):
+        u = g[f"aerodelta/stall/flap-{i}/separated-static"]
+        s = g[f"aerodelta/stall/flap-{i}/separated"]
+        x0, _, _, _ = _core.kirchhoff_point(p, a_rad, r_rad, np.ones_like(a_rad))
+        np.testing.assert_allclose(u, 1.0 - x0, rtol=0, atol=1e-12)
+        c1 = 1.0 / p["tau1"]
+        ca, cb = dt * c1 / (2.0 + dt * c1), (2.0 - dt * c1) / (2.0 + dt * c1)
+        np.testing.assert_allclose(s[2:], ca * (u[2:] + u[1:-1]) + cb * s[1:-1], rtol=0, atol=1e-12)
+        x_exact = _core.kirchhoff_outputs(p, t, a_rad, r_rad)[0]
+        on = flap == f
+        assert np.abs(x[on] - x_exact[on]).max() < 1e-4
+        assert x[on].min() < 0.2  # the flow separates: the stall is flown, not skipped
+        _, _, cl, cm = _core.kirchhoff_point(p, a_rad[on], r_rad[on], x[on])
+        np.testing.assert_allclose(
+            g["aero/aerodelta/stall/CL-delta"][on], cl - qual["CL_basic"].to_numpy()[on],
+            rtol=0, atol=1e-9,
+        )  # fmt: skip
+        np.testing.assert_allclose(
+            g["aero/aerodelta/stall/Cm-delta"][on], cm - qual["Cm_basic"].to_numpy()[on],
+            rtol=0, atol=1e-9,
+        )  # fmt: skip
+    off = flap == 20.0
+    assert (x[off] == 1.0).all()
+    assert (g["aero/aerodelta/stall/CL-delta"][off] == 0.0).all()
+    assert (g["aero/aerodelta/stall/Cm-delta"][off] == 0.0).all()
+
+
+def test_jsbsim_stall_axes_equal_jsbsim_own_wind_to_body_forces(tmp_path: Path) -> None:
+    """Default properties, the initial state of a flight past the stall (alpha 19 deg, no
+    sideslip, flap 0; the Kirchhoff lift at attached flow differs from the static curve there):
+    with ``side_axis="SIDE"`` the lift increment on JSBSim's LIFT axis comes out of JSBSim's
+    own wind-to-body transform as body forces ``(L sin alpha, -L cos alpha)`` with
+    ``L = qbar S CL-delta``; with ``side_axis="Y"`` the export's own X and Z functions give the
+    same body forces; PITCH is ``qbar S cbar Cm-delta`` in both."""
+    m = stall_model()
+    out = {}
+    for axis in ("SIDE", "Y"):
+        fdm = _load_with_stall(
+            tmp_path / axis, jsbsim_xml(m, side_axis=axis), jsbsim_stall_system_xml(m)
+        )
+        fdm["ic/vt-kts"], fdm["ic/h-sl-ft"] = 110.0, 3000.0
+        fdm["ic/alpha-deg"], fdm["ic/beta-deg"] = 19.0, 0.0
+        fdm["fcs/flap-pos-deg"] = 0.0
+        assert fdm.run_ic()
+        qs = fdm["aero/qbar-psf"] * fdm["metrics/Sw-sqft"]
+        alpha = fdm["aero/alpha-rad"]
+        lift = qs * fdm["aero/aerodelta/stall/CL-delta"]
+        assert abs(fdm["aero/beta-rad"]) < 1e-9 and abs(lift) > 1.0
+        np.testing.assert_allclose(fdm["forces/fbx-aero-lbs"], lift * math.sin(alpha), rtol=1e-9)
+        np.testing.assert_allclose(fdm["forces/fbz-aero-lbs"], -lift * math.cos(alpha), rtol=1e-9)
+        np.testing.assert_allclose(
+            fdm["moments/m-aero-lbsft"],
+            qs * fdm["metrics/cbarw-ft"] * fdm["aero/aerodelta/stall/Cm-delta"], rtol=1e-9,
+        )  # fmt: skip
+        out[axis] = (fdm["forces/fbx-aero-lbs"], fdm["forces/fbz-aero-lbs"])
+    np.testing.assert_allclose(out["Y"], out["SIDE"], rtol=1e-9)
+
+
+def test_jsbsim_stall_export_refusals_and_files(tmp_path: Path) -> None:
+    m = stall_model()
+    plain = synthetic_model()
+    # without the stall the aerodynamics are those of the model that stores none
+    assert jsbsim_xml(m, longitudinal=False) == jsbsim_xml(plain)
+    assert "aerodelta/stall" not in jsbsim_xml(m, longitudinal=False)
+    with pytest.raises(ad.DataError, match=r"known='none'.*--no-longitudinal"):
+        jsbsim_xml(stall_model(known="none"))
+    with pytest.raises(ad.DataError, match="stores no longitudinal stall"):
+        jsbsim_stall_system_xml(plain)
+    aero, system = tmp_path / "delta.xml", tmp_path / "stall.xml"
+    with pytest.raises(ad.DataError, match=r"<system>.*--jsbsim-system.*--no-longitudinal"):
+        export_jsbsim(aero, m)
+    with pytest.raises(ad.DataError, match="stores no Kirchhoff stall"):
+        export_jsbsim(aero, plain, system_path=system)
+    with pytest.raises(ad.DataError, match="leaves its stall out"):
+        export_jsbsim(aero, m, longitudinal=False, system_path=system)
+    with pytest.raises(ad.DataError, match="give two files"):
+        export_jsbsim(aero, m, system_path=aero)
+    assert not aero.exists() and not system.exists()
+    text = export_jsbsim(aero, m, system_path=system)
+    assert aero.read_text() == text and system.read_text() == jsbsim_stall_system_xml(m)
+    # the two files are one output: a system file that cannot be written leaves the
+    # aerodynamics as they were
+    aero.write_text("earlier")
+    with pytest.raises(OSError, match="missing"):
+        export_jsbsim(aero, m, system_path=tmp_path / "missing" / "stall.xml")
+    assert aero.read_text() == "earlier"
+    assert not list(tmp_path.glob("*.tmp-*"))

@@ -290,13 +290,24 @@ def test_cli_export_of_a_model_with_its_stall(
 ) -> None:
     path = tmp_path / "with_stall.json"
     fitted["model"].with_longitudinal(fitted["stall"]).save(path)
-    dml, xml = tmp_path / "ext.dml", tmp_path / "delta.xml"
-    rc = main(["export", "--model", str(path), "--daveml", str(dml), "--jsbsim", str(xml)])
+    dml, xml, sysx = tmp_path / "ext.dml", tmp_path / "delta.xml", tmp_path / "stall.xml"
+    argv = ["export", "--model", str(path), "--daveml", str(dml), "--jsbsim", str(xml)]
+    # the JSBSim export carries the stall, whose state needs the <system> file
+    rc = main(argv)
+    err = capsys.readouterr().err
+    assert rc == 2 and "--jsbsim-system" in err and "flaps 0, 15 deg" in err
+    assert not dml.exists() and not xml.exists()
+    rc = main([*argv, "--jsbsim-system", str(sysx)])
     out, err = capsys.readouterr()
     assert rc == 0
     assert "longitudinal stall at flaps 0, 15 deg" in out
-    assert "longitudinal stall is not in the JSBSim file" in err
+    assert f"wrote {sysx}" in out and "LIFT and PITCH" in out
+    assert "aero/aerodelta/stall/CL-delta" in xml.read_text()
+    assert '<lag_filter name="aerodelta/stall/flap-1/separated">' in sysx.read_text()
     assert "x_sep" in ad.DaveModel(dml).inputs
+    assert not list(tmp_path.glob("*.tmp-*"))
+    rc = main([*argv, "--no-longitudinal", "--jsbsim-system", str(sysx)])
+    assert rc == 2 and "--no-longitudinal" in capsys.readouterr().err
     rc = main(["export", "--model", str(path), "--daveml", str(dml), "--no-longitudinal"])
     assert rc == 0 and "x_sep" not in ad.DaveModel(dml).inputs
     assert "longitudinal stall at flaps" not in capsys.readouterr().out

@@ -41,6 +41,29 @@ def write_text_atomic(path: str | os.PathLike[str], text: str) -> Path:
     return write_atomic(path, lambda p: p.write_text(text, encoding="utf-8"))
 
 
+def write_texts_atomic(items: list[tuple[str | os.PathLike[str], str]]) -> list[Path]:
+    """Write several UTF-8 files as one output: each to ``<path>.tmp-<pid>`` beside it, and
+    only when all are written are they renamed into place (a failure while writing leaves
+    every earlier file as it was, and no temporary file)."""
+    outs = [Path(p) for p, _ in items]
+    tmps = [o.with_name(f"{o.name}.tmp-{os.getpid()}") for o in outs]
+    try:
+        for (_, text), tmp, out in zip(items, tmps, outs, strict=True):
+            try:
+                tmp.write_text(text, encoding="utf-8")
+            except OSError as e:
+                raise _naming(e, tmp, out) from e
+        for tmp, out in zip(tmps, outs, strict=True):
+            try:
+                os.replace(tmp, out)
+            except OSError as e:
+                raise _naming(e, tmp, out) from e
+    finally:
+        for tmp in tmps:
+            tmp.unlink(missing_ok=True)
+    return outs
+
+
 def write_bytes_atomic(path: str | os.PathLike[str], data: bytes) -> Path:
     """Write ``data`` to ``path`` atomically."""
     return write_atomic(path, lambda p: p.write_bytes(data))

@@ -1754,10 +1754,16 @@ def fit(
         q, chain = calibrate_chain(df, q, coefs, cfg, flaps, structures=given)
         notes.extend(chain.note(c) for c in coefs)
     df = pl.concat([df, pl.DataFrame({f"{c}_qual": q[c] for c in COEFFICIENTS})], how="horizontal")
-    per_flap = df.group_by("flap_deg").agg(pl.col("maneuver_id").n_unique().alias("n"))
-    if int(per_flap["n"].max() or 0) < cfg.min_maneuvers_identified:
+    # maneuvers per flap setting (the null flap, refused above when alone, counts nowhere)
+    n_maneuvers = {
+        float(f): int(n)
+        for f, n in df.group_by("flap_deg").agg(pl.col("maneuver_id").n_unique()).iter_rows()
+        if f is not None
+    }
+    most = max(n_maneuvers.values(), default=0)
+    if most < cfg.min_maneuvers_identified:
         raise DataError(
-            f"fit: too little data: at most {int(per_flap['n'].max() or 0)} maneuvers at one flap "
+            f"fit: too little data: at most {most} maneuvers at one flap "
             f"setting, and a parameter needs {cfg.min_maneuvers_identified} maneuvers in an "
             "alpha bin to be identified (min_maneuvers_identified); fly more maneuvers"
         )
@@ -1879,11 +1885,6 @@ def fit(
     # the engine releases the GIL: the (flap, coefficient) fits run side by side, and their
     # results are assembled in a fixed order (the same output for any number of threads)
     jobs: list[tuple[float, str, list[tuple[str, str]], list[tuple[str, str]], list, Future]] = []
-    n_maneuvers = {
-        float(f): int(n)
-        for f, n in df.group_by("flap_deg").agg(pl.col("maneuver_id").n_unique()).iter_rows()
-        if f is not None
-    }
     # the columns any regressor can read (names appearing in its expression), and the fit's own
     exprs = [e for c in coefs for _, e in [*cfg.structures[c], *pools.get(c, [])]]
     wanted = {"alpha_deg", "t", *(f"{c}_{k}" for c in coefs for k in ("meas", "qual"))}

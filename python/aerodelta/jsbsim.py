@@ -28,18 +28,26 @@ import math
 import re
 from collections.abc import Mapping
 from os import PathLike
+from pathlib import Path
 from typing import Any
 from xml.sax.saxutils import escape
 
 import numpy as np
 
 from aerodelta._exportutil import DERIVED_CHANNELS, Node, parse_regressor, write_atomic
+from aerodelta._fsutil import write_texts_atomic
 from aerodelta.exceptions import DataError
 from aerodelta.export import qualified_daveml_spec
 from aerodelta.model import DeltaModel
 from aerodelta.qualified import describe, recorded_source
 
-__all__ = ["DEFAULT_PROPERTIES", "export_jsbsim", "jsbsim_properties", "jsbsim_xml"]
+__all__ = [
+    "DEFAULT_PROPERTIES",
+    "export_jsbsim",
+    "jsbsim_properties",
+    "jsbsim_stall_system_xml",
+    "jsbsim_xml",
+]
 
 _R2D = repr(180.0 / math.pi)
 
@@ -307,6 +315,24 @@ def _sum(items: list[str], sep: str) -> str:
     return f"<sum>{sep}" + sep.join(items) + "\n    </sum>"
 
 
+def _qualified_table(
+    w: _Writer, vid: str, qspec: dict[str, Any], done: set[str], fns: list[str]
+) -> str:
+    """``aero/aerodelta/qualified/<vid>``: a table of a writer spec (its inputs clamped to the
+    spec's limits) as a JSBSim function, appended to ``fns`` the first time (``done``)."""
+    name = f"aero/aerodelta/qualified/{vid}"
+    if vid not in done:
+        done.add(vid)
+        inputs = {i["id"]: i for i in qspec["inputs"]}
+        t = next(t for t in qspec["tables"] if t["id"] == vid)
+        args = [w.limited(a, inputs[a].get("min"), inputs[a].get("max")) for a in t["args"]]
+        fns.append(
+            f'  <function name="{name}">\n    '
+            f"{w.gridded(args, t['breakpoints'], t['values'])}\n  </function>"
+        )
+    return name
+
+
 def _qualified_functions(w: _Writer, cname: str, qspec: dict[str, Any], done: set[str]) -> str:
     """``aero/aerodelta/<C>/qualified``: a coefficient of a writer spec (sum of products of
     tables and inputs, e.g. the built-in ADX-37 qualified model) as JSBSim functions."""
@@ -319,16 +345,7 @@ def _qualified_functions(w: _Writer, cname: str, qspec: dict[str, Any], done: se
 
     def prop(vid: str) -> str:
         if vid in tables:
-            name = f"aero/aerodelta/qualified/{vid}"
-            if vid not in done:
-                done.add(vid)
-                t = tables[vid]
-                args = [w.limited(a, inputs[a].get("min"), inputs[a].get("max")) for a in t["args"]]
-                fns.append(
-                    f'  <function name="{name}">\n    '
-                    f"{w.gridded(args, t['breakpoints'], t['values'])}\n  </function>"
-                )
-            return name
+            return _qualified_table(w, vid, qspec, done, fns)
         if vid in inputs:
             return w.limited(vid, inputs[vid].get("min"), inputs[vid].get("max"))
         raise DataError(f"qualified output {cname}: factor '{vid}' has no JSBSim form")
@@ -346,6 +363,213 @@ def _qualified_functions(w: _Writer, cname: str, qspec: dict[str, Any], done: se
         f"{cname}</description>\n    " + _sum(prods, "\n      ") + "\n  </function>"
     )
     return "\n".join(fns)
+
+
+#: Where the stall's separation state lives: per stored flap setting ``i``, the system's
+#: ``<fcs_function>`` ``.../flap-<i>/separated-static`` (``1 - x0(alpha - tau2 alphadot)``) and
+#: its ``<lag_filter>`` ``.../flap-<i>/separated`` (``1 - x``).
+STALL_PREFIX = "aerodelta/stall"
+
+#: Half-width of the flap window in which a stored stall applies, deg: the engine's exact
+#: match of flap settings (``aerodelta.export.STALL_FLAP_WINDOW_DEG``, the DAVE-ML export's).
+_STALL_FLAP_WINDOW_DEG = 1e-9
+
+
+def _stall_flaps(model: DeltaModel) -> list[tuple[float, dict[str, float]]]:
+    """The stored Kirchhoff stall per flap setting, refused unless it was fitted on the
+    built-in ADX-37's known terms (its Δ then replaces that model's static curves)."""
+    if model.kirchhoff_known != "adx37":
+        raise DataError(
+            "the model's longitudinal stall was fitted to the whole measured C_L, C_m "
+            "(known='none'), not on top of the qualified model's static curves: it is no "
+            "increment a JSBSim aircraft can add; export without it (--no-longitudinal, "
+            "longitudinal=False) or fit it with known='adx37'"
+        )
+    return sorted((float(f), dict(p)) for f, p in (model.kirchhoff or {}).items())
+
+
+def _stall_static_separated(g: Mapping[str, float], alpha_p: str, alphadot_p: str) -> str:
+    """``1 - x0(alpha - tau2 alphadot) = 1 / (1 + exp(-2 a1 (u - alpha*)))`` (alpha in deg,
+    alphadot in deg/s read from the properties; ``x0 = (1 - tanh(a1 (u - alpha*))) / 2``)."""
+    d2r = math.pi / 180.0
+    u = (
+        f"<difference><product><property>{alpha_p}</property><value>{_num(d2r)}</value>"
+        f"</product><product><property>{alphadot_p}</property>"
+        f"<value>{_num(g['tau2'] * d2r)}</value></product></difference>"
+    )
+    return (
+        "<quotient><value>1</value><sum><value>1</value><exp><product>"
+        f"<value>{_num(-2.0 * g['a1'])}</value><difference>{u}"
+        f"<value>{_num(g['alpha_star'])}</value></difference></product></exp></sum></quotient>"
+    )
+
+
+def _stall_on(flap_p: str, f: float) -> str:
+    """1 at flap setting ``f`` (within the engine's exact match), else 0."""
+    lo, hi = _num(f - _STALL_FLAP_WINDOW_DEG), _num(f + _STALL_FLAP_WINDOW_DEG)
+    return (
+        f"<and><ge><property>{flap_p}</property><value>{lo}</value></ge>"
+        f"<le><property>{flap_p}</property><value>{hi}</value></le></and>"
+    )
+
+
+def jsbsim_stall_system_xml(model: DeltaModel, properties: Mapping[str, str] | None = None) -> str:
+    """The JSBSim ``<system>`` integrating the stored Kirchhoff stall's separation state.
+
+    Per stored flap setting ``i`` a ``<fcs_function>`` ``aerodelta/stall/flap-<i>/separated-
+    static`` computes ``1 - x0(alpha - tau2 alphadot)`` and a ``<lag_filter>`` (``c1 = 1/tau1``,
+    clipped to [0, 1]) ``aerodelta/stall/flap-<i>/separated`` follows it: Fischenberg's
+    ``tau1 x' + x = x0(alpha - tau2 alphadot)`` for the separated fraction ``1 - x``, which is
+    0 in attached flow, where JSBSim's filters start (their first output is 0). JSBSim steps
+    the filter with Tustin's rule at the system's rate; the engine's ``KirchhoffState`` steps it
+    exactly for a piecewise-linear input (``docs/export.md`` gives the difference). Load it
+    with the aircraft (``<system file="..."/>``) beside :func:`jsbsim_xml`'s aerodynamics.
+
+    Raises
+    ------
+    DataError
+        The model stores no stall, or one fitted with ``known="none"``; a channel without a
+        property (as :func:`jsbsim_xml`).
+    """
+    if not model.kirchhoff:
+        raise DataError(
+            "the model stores no longitudinal stall (aerodelta longitudinal --model M "
+            "--out-model M2 adds one): there is no separation state to integrate"
+        )
+    w = _Writer(model, properties or {})
+    spec = w.spec
+    alpha_p = w.channel(spec.get("alpha_channel", "alpha_deg"))
+    alphadot_p = w.channel("alphadot_dps")
+    parts = []
+    for i, (f, g) in enumerate(_stall_flaps(model)):
+        base = f"{STALL_PREFIX}/flap-{i}"
+        parts.append(
+            f'    <fcs_function name="{base}/separated-static">\n'
+            f"      <description>flap {f:g} deg: 1 - x0(alpha - tau2 alphadot), the separated "
+            "fraction the flow tends to</description>\n"
+            f"      <function>{_stall_static_separated(g, alpha_p, alphadot_p)}</function>\n"
+            "    </fcs_function>\n"
+            f'    <lag_filter name="{base}/separated">\n'
+            f"      <description>flap {f:g} deg: 1 - x, tau1 = {_num(g['tau1'])} s</description>\n"
+            f"      <input>{base}/separated-static</input>\n"
+            f"      <c1>{_num(1.0 / g['tau1'])}</c1>\n"
+            "      <clipto><min>0</min><max>1</max></clipto>\n"
+            "    </lag_filter>"
+        )
+    prov = spec.get("provenance") or {}
+    mapping = "\n".join(
+        f"    {ch:<14} {p}"
+        for ch, p in jsbsim_properties(model, properties).items()
+        if ch in ("alpha_deg", "alphadot_dps")
+    )
+    header = (
+        '<?xml version="1.0"?>\n<!--\n  aerodelta Kirchhoff stall: the separation state of the '
+        f"model's longitudinal stall, written by {_comment(str(prov.get('library', 'aerodelta')))}"
+        f"; model data sha256 {_comment(str(prov.get('data_sha256', '?')))}.\n  Load it with "
+        "the aircraft beside the exported aerodynamics, which read its outputs.\n  Channels "
+        "read:\n" + _comment(mapping) + "\n-->\n"
+    )
+    return (
+        header + '<system name="aerodelta-stall">\n  <channel name="separation">\n'
+        + "\n".join(parts) + "\n  </channel>\n</system>\n"
+    )  # fmt: skip
+
+
+def _stall_functions(
+    w: _Writer, model: DeltaModel, side_axis: str, done: set[str]
+) -> tuple[list[str], dict[str, list[str]]]:
+    """The aerodynamics' part of the stored stall: ``aero/aerodelta/stall/x`` (1 attached,
+    0 separated; 1 at a flap setting without a stall), the increments ``CL-delta``,
+    ``Cm-delta`` (the Kirchhoff curves less the ADX-37 qualified static curves ``CL_basic``,
+    ``Cm_basic`` they replace, at each flap setting with a stall; 0 elsewhere) and the axis
+    functions: ``LIFT`` (wind axes, with ``side_axis="SIDE"``) or ``X``, ``Z`` (body axes, with
+    ``side_axis="Y"``: ``L sin(alpha)``, ``-L cos(alpha)``), and ``PITCH``."""
+    flaps = _stall_flaps(model)
+    qspec = qualified_daveml_spec()
+    spec = w.spec
+    alpha_p = w.channel(spec.get("alpha_channel", "alpha_deg"))
+    flap_p = w.channel(spec.get("flap_channel", "flap_deg"))
+    fns: list[str] = []
+    cl_basic = _qualified_table(w, "CL_basic", qspec, done, fns)
+    cm_basic = _qualified_table(w, "Cm_basic", qspec, done, fns)
+    sep = _sum(
+        [
+            f"<product>{_stall_on(flap_p, f)}<property>{STALL_PREFIX}/flap-{i}/separated"
+            "</property></product>"
+            for i, (f, _) in enumerate(flaps)
+        ],
+        "",
+    )
+    x = "aero/aerodelta/stall/x"
+    fns.append(
+        f'  <function name="{x}">\n    <description>separation point of the Kirchhoff stall '
+        "(1 attached, 0 separated); 1 at a flap setting without a stall</description>\n"
+        f"    <difference><value>1</value>{sep}</difference>\n  </function>"
+    )
+    xp = f"<property>{x}</property>"
+    a_rad = (
+        f"<product><property>{alpha_p}</property><value>{_num(math.pi / 180.0)}</value></product>"
+    )
+    cl_terms, cm_terms = [], []
+    for f, g in flaps:
+        lift = (
+            f"<product><value>{_num(g['CL_alpha'])}</value><difference>{a_rad}"
+            f"<value>{_num(g['alpha0'])}</value></difference><pow><product><value>0.5</value>"
+            f"<sum><value>1</value><pow>{xp}<value>0.5</value></pow></sum></product>"
+            "<value>2</value></pow></product>"
+        )
+        moment = (
+            f"<sum><value>{_num(g['Cm0'])}</value><product><value>{_num(g['Cm_alpha'])}</value>"
+            f"{a_rad}</product><product><value>{_num(g['Cm_x'])}</value><difference>"
+            f"<value>1</value>{xp}</difference></product></sum>"
+        )
+        on = _stall_on(flap_p, f)
+        cl_terms.append(
+            f"<product>{on}<difference>{lift}<property>{cl_basic}</property></difference></product>"
+        )
+        cm_terms.append(
+            f"<product>{on}<difference>{moment}<property>{cm_basic}</property></difference>"
+            "</product>"
+        )
+    flaps_txt = ", ".join(f"{f:g}" for f, _ in flaps)
+    for c, terms, what in (("CL", cl_terms, "lift"), ("Cm", cm_terms, "pitching moment")):
+        fns.append(
+            f'  <function name="aero/aerodelta/stall/{c}-delta">\n    <description>Kirchhoff '
+            f"{what} less the qualified static curve it replaces, at flaps {flaps_txt} deg; 0 "
+            f"elsewhere</description>\n    {_sum(terms, '')}\n  </function>"
+        )
+    qs = "<property>aero/qbar-psf</property><property>metrics/Sw-sqft</property>"
+    cl = "<property>aero/aerodelta/stall/CL-delta</property>"
+    axes: dict[str, list[str]] = {}
+
+    def force(axis: str, name: str, what: str, body: str) -> None:
+        axes.setdefault(axis, []).append(
+            f'    <function name="aero/force/aerodelta-{name}">\n      <description>{what} '
+            f"(lbf)</description>\n      {body}\n    </function>"
+        )
+
+    if side_axis == "Y":
+        force(
+            "X",
+            "CX-stall",
+            "body x force of the stall's lift increment, L sin(alpha)",
+            f"<product>{qs}{cl}<sin>{a_rad}</sin></product>",
+        )
+        force(
+            "Z",
+            "CZ-stall",
+            "body z force of the stall's lift increment, -L cos(alpha)",
+            f"<product><value>-1</value>{qs}{cl}<cos>{a_rad}</cos></product>",
+        )
+    else:
+        force("LIFT", "CL-stall", "lift increment of the stall", f"<product>{qs}{cl}</product>")
+    axes["PITCH"] = [
+        '    <function name="aero/moment/aerodelta-Cm-stall">\n      <description>pitching '
+        "moment increment of the stall (ft lbf)</description>\n      <product>"
+        f"{qs}<property>metrics/cbarw-ft</property><property>aero/aerodelta/stall/Cm-delta"
+        "</property></product>\n    </function>"
+    ]  # fmt: skip
+    return fns, axes
 
 
 #: Sideslip limits of an alpha band the flight data do not cover (a hole between covered
@@ -411,6 +635,7 @@ def jsbsim_xml(
     *,
     side_axis: str = "SIDE",
     qualified: bool = False,
+    longitudinal: bool = True,
 ) -> str:
     """The JSBSim ``<aerodynamics>`` text of the blended Δ model (see the module docstring).
 
@@ -432,12 +657,21 @@ def jsbsim_xml(
         extended coefficients on the axes: the file is then the aircraft's whole
         lateral-directional aerodynamics, without the thrust's own moment
         (:data:`PROPULSIVE_TERMS`), which JSBSim's propulsion applies.
+    longitudinal
+        Carry the Kirchhoff stall the model stores (:meth:`DeltaModel.with_longitudinal`,
+        fitted with ``known="adx37"``): the lift and pitching-moment increments of the
+        Kirchhoff curves over the ADX-37 qualified static curves ``CL_basic``, ``Cm_basic``
+        (non-dimensional: ``aero/aerodelta/stall/CL-delta``, ``.../Cm-delta``), on the ``LIFT``
+        axis (``side_axis="SIDE"``: wind axes) or the ``X`` and ``Z`` axes (``side_axis="Y"``),
+        and ``PITCH`` (``qbar S cbar``, ft lbf). They read the separation state that
+        :func:`jsbsim_stall_system_xml`'s ``<system>`` integrates; load both.
 
     Raises
     ------
     DataError
-        A channel without a property, a coefficient other than ``CY``, ``Cl``, ``Cn``, or
-        ``qualified`` for a Δ fitted against another simulator than the built-in ADX-37.
+        A channel without a property, a coefficient other than ``CY``, ``Cl``, ``Cn``,
+        ``qualified`` for a Δ fitted against another simulator than the built-in ADX-37, or a
+        stored stall fitted with ``known="none"`` (give ``longitudinal=False``).
     """
     if side_axis not in ("SIDE", "Y"):
         raise DataError(f"side_axis '{side_axis}': use 'SIDE' or 'Y' (JSBSim axis names)")
@@ -517,12 +751,19 @@ def jsbsim_xml(
             f"      <product>{ref}<property>{base}/{total}</property></product>\n"
             "    </function>"
         )
+    stall = longitudinal and bool(model.kirchhoff)
+    if stall:
+        sfns, saxes = _stall_functions(w, model, side_axis, done)
+        fns.extend(sfns)
+        for a, fs in saxes.items():
+            axes.setdefault(a, []).extend(fs)
     env = spec.get("envelope")
     if env:
         beta_p = w.channel("beta_deg")
         fns.append(_envelope_function(env, alpha_p, beta_p, flap_p))
     mapping = "\n".join(
-        f"    {ch:<14} {p}" for ch, p in jsbsim_properties(model, properties).items()
+        f"    {ch:<14} {p}"
+        for ch, p in jsbsim_properties(model, properties, longitudinal=stall).items()
     )
     decl = "\n".join(f'  <property value="0">{p}</property>' for p in w.declared)
     prov = spec.get("provenance") or {}
@@ -530,7 +771,14 @@ def jsbsim_xml(
         '<?xml version="1.0"?>\n<!--\n  aerodelta extended-model increments (thesis Eq. 3.12), '
         f"written by {_comment(str(prov.get('library', 'aerodelta')))}; model data sha256 "
         f"{_comment(str(prov.get('data_sha256', '?')))}.\n  Add these functions to the aircraft's "
-        "own aerodynamics (the qualified model).\n  Channels and the JSBSim properties they "
+        "own aerodynamics (the qualified model)"
+        + (
+            "; the Kirchhoff stall's functions read the\n  separation state of the stall "
+            "<system> exported with them (load both)"
+            if stall
+            else ""
+        )
+        + ".\n  Channels and the JSBSim properties they "
         "read (aerodelta/... ones are declared here with value 0:\n  drive them from the "
         "aircraft, signs as in the Etkin convention):\n" + _comment(mapping) + "\n-->\n"
     )
@@ -542,13 +790,21 @@ def jsbsim_xml(
 
 
 def jsbsim_properties(
-    model: DeltaModel, properties: Mapping[str, str] | None = None
+    model: DeltaModel,
+    properties: Mapping[str, str] | None = None,
+    *,
+    longitudinal: bool | None = None,
 ) -> dict[str, str]:
     """Channel -> the JSBSim property the export of ``model`` reads for it, followed by
     ``= definition`` when the export defines that property as a function (a product of
-    mapped properties, or a derived channel such as ``ct_diff``)."""
+    mapped properties, or a derived channel such as ``ct_diff``). ``longitudinal`` (default:
+    whether the model stores a stall) adds the channels the stall reads (``alpha_deg``,
+    ``alphadot_dps``, ``flap_deg``)."""
     w = _Writer(model, properties or {})
-    for ch in model.input_columns:
+    chans = list(model.input_columns)
+    if longitudinal if longitudinal is not None else bool(model.kirchhoff):
+        chans += [c for c in ("alpha_deg", "alphadot_dps", "flap_deg") if c not in chans]
+    for ch in chans:
         w.channel(ch)
     out = {}
     for ch, prop in w.channel_prop.items():
@@ -567,8 +823,42 @@ def export_jsbsim(
     *,
     side_axis: str = "SIDE",
     qualified: bool = False,
+    longitudinal: bool = True,
+    system_path: str | PathLike[str] | None = None,
 ) -> str:
-    """Write :func:`jsbsim_xml` to ``path`` atomically; returns the text."""
-    text = jsbsim_xml(model, properties, side_axis=side_axis, qualified=qualified)
-    write_atomic(path, text)
+    """Write :func:`jsbsim_xml` to ``path``; returns its text. A model storing a Kirchhoff
+    stall (with ``longitudinal``) also needs ``system_path``, where
+    :func:`jsbsim_stall_system_xml` goes: both files are written in full before either
+    replaces what was there (``<name>.tmp-<pid>`` beside each, then renamed).
+
+    Raises
+    ------
+    DataError
+        As :func:`jsbsim_xml`; a stall without ``system_path``, ``system_path`` without a
+        stall to carry, or ``system_path`` naming ``path``.
+    """
+    stall = longitudinal and bool(model.kirchhoff)
+    if stall and system_path is None:
+        raise DataError(
+            "the model stores a Kirchhoff stall: JSBSim integrates its separation state in a "
+            "<system> file; give one (--jsbsim-system FILE, system_path=) or leave the stall "
+            "out (--no-longitudinal, longitudinal=False)"
+        )
+    if system_path is not None and not stall:
+        why = "stores no Kirchhoff stall" if not model.kirchhoff else "leaves its stall out"
+        raise DataError(
+            f"the JSBSim stall system {system_path}: the export {why} "
+            "(longitudinal=False or no stall); drop --jsbsim-system / system_path"
+        )
+    text = jsbsim_xml(
+        model, properties, side_axis=side_axis, qualified=qualified, longitudinal=longitudinal
+    )
+    if system_path is None:
+        write_atomic(path, text)
+        return text
+    if Path(system_path).resolve() == Path(path).resolve():
+        raise DataError(
+            f"the JSBSim aerodynamics and stall system both name {path}; give two files"
+        )
+    write_texts_atomic([(path, text), (system_path, jsbsim_stall_system_xml(model, properties))])
     return text

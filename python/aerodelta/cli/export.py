@@ -6,12 +6,14 @@ per coefficient, and check cases at sampled states verified against the engine; 
 ``aerodelta check-daveml``. JSBSim (--jsbsim): an <aerodynamics> file adding w ΔC to the
 SIDE, ROLL and YAW axes of an aircraft that holds the qualified model (with --jsbsim-qualified:
 the built-in qualified CY, Cl, Cn too); see docs/export.md for the properties it reads. A
-model carrying its Kirchhoff stall exports it to DAVE-ML as the state x_sep (--no-longitudinal
-leaves it out); the JSBSim file does not carry it (a note says so)."""
+model carrying its Kirchhoff stall exports it to DAVE-ML as the state x_sep, and to JSBSim as
+lift and pitching-moment increments reading a <system> file (--jsbsim-system) that integrates the
+separation state; --no-longitudinal leaves it out of both."""
 
 from __future__ import annotations
 
 import argparse
+import itertools
 import re
 import sys
 from contextlib import ExitStack
@@ -81,13 +83,20 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="JSBSim: also write the built-in ADX-37 qualified CY, Cl, Cn, so the axes carry "
         "the whole extended lateral-directional model",
     )
+    parser.add_argument(
+        "--jsbsim-system",
+        metavar="OUT.xml",
+        help="JSBSim: the <system> file integrating the separation state of the model's "
+        "Kirchhoff stall (needed when the model stores one; load it with the aircraft)",
+    )
     parser.add_argument("--seed", type=int, default=0, help="seed of the sampled check states")
     parser.add_argument(
         "--no-longitudinal",
         action="store_true",
-        help="DAVE-ML: leave out the Kirchhoff stall the model stores (aerodelta longitudinal "
-        "--model M --out-model M2); by default it is exported as the state x_sep with "
-        "x_sep_dot, CL_ext, Cm_ext",
+        help="leave out the Kirchhoff stall the model stores (aerodelta longitudinal "
+        "--model M --out-model M2); by default DAVE-ML carries it as the state x_sep with "
+        "x_sep_dot, CL_ext, Cm_ext, and JSBSim as increments on LIFT (or X, Z) and PITCH "
+        "reading the --jsbsim-system file",
     )
 
 
@@ -122,10 +131,14 @@ def run(args: argparse.Namespace) -> int:
         (args.map, "--map", "--daveml", args.daveml),
         (args.coef, "--coef", "--daveml", args.daveml),
         (args.qualified, "--qualified", "--daveml", args.daveml),
-        (args.no_longitudinal, "--no-longitudinal", "--daveml", args.daveml),
+        (args.jsbsim_system, "--jsbsim-system", "--jsbsim", args.jsbsim),
     ):
         if given and not value:
             return _usage(f"{option} applies to the {needs} export; give {needs} OUT too")
+    if args.no_longitudinal and not (args.daveml or args.jsbsim):
+        return _usage("--no-longitudinal applies to an export; give --daveml or --jsbsim")
+    if args.jsbsim_system and args.no_longitudinal:
+        return _usage("--jsbsim-system carries the stall that --no-longitudinal leaves out")
     check_at_least(args.seed, "--seed", 0)
     model_file = existing_file(args.model, "--model")
     qualified = existing_file(args.qualified, "--qualified")
@@ -134,14 +147,28 @@ def run(args: argparse.Namespace) -> int:
         for v, o, example in (
             (args.daveml, "--daveml", "extended.dml"),
             (args.jsbsim, "--jsbsim", "delta.xml"),
+            (args.jsbsim_system, "--jsbsim-system", "stall-system.xml"),
         )
         if v
     }
-    if len(outs) == 2 and outs["--daveml"].resolve() == outs["--jsbsim"].resolve():
-        raise DataError(f"--daveml and --jsbsim name the same file {args.daveml}; give two files")
+    for a, b in itertools.combinations(outs, 2):
+        if outs[a].resolve() == outs[b].resolve():
+            raise DataError(f"{a} and {b} name the same file {outs[a]}; give two files")
     check_outputs(None, "--daveml" if args.daveml else "--jsbsim", files=list(outs.values()),
                   inputs=[model_file, qualified])  # fmt: skip
     model = load_model(model_file)
+    if args.jsbsim and model.kirchhoff and not args.no_longitudinal and not args.jsbsim_system:
+        return _usage(
+            f"the model stores a Kirchhoff stall (flaps "
+            f"{', '.join(f'{f:g}' for f in sorted(model.kirchhoff))} deg): JSBSim integrates its "
+            "separation state in a <system>; give --jsbsim-system OUT.xml, or --no-longitudinal "
+            "to leave the stall out"
+        )
+    if args.jsbsim_system and not model.kirchhoff:
+        return _usage(
+            "--jsbsim-system: the model stores no Kirchhoff stall (aerodelta longitudinal "
+            "--model M --out-model M2 adds one)"
+        )
     channel_map = _pairs(args.map, "--map")
     coefs = _pairs(args.coef, "--coef")
     props = _pairs(args.property, "--property")
@@ -150,7 +177,7 @@ def run(args: argparse.Namespace) -> int:
     _known(props, "--property", model.input_columns, "channel")
     if args.jsbsim:
         try:  # every property checked before anything is written
-            jsbsim_properties(model, props)
+            jsbsim_properties(model, props, longitudinal=not args.no_longitudinal)
         except DataError as e:
             raise DataError(f"--property: {e}") from None
     side_axis = args.side_axis or "SIDE"
@@ -180,24 +207,31 @@ def run(args: argparse.Namespace) -> int:
                 )
         if args.jsbsim:
             export_jsbsim(
-                args.jsbsim, model, props, side_axis=side_axis, qualified=args.jsbsim_qualified
+                args.jsbsim,
+                model,
+                props,
+                side_axis=side_axis,
+                qualified=args.jsbsim_qualified,
+                longitudinal=not args.no_longitudinal,
+                system_path=args.jsbsim_system,
             )
     if args.jsbsim:
         print(f"wrote {args.jsbsim}: channels read from JSBSim properties:")
-        if model.kirchhoff:
-            print(
-                "aerodelta export: note: the model's longitudinal stall is not in the JSBSim "
-                "file (it replaces the ADX-37 qualified model's static lift and moment "
-                "curves; a JSBSim aircraft flies its own): the DAVE-ML export carries it",
-                file=sys.stderr,
-            )
-        mapped = jsbsim_properties(model, props)
+        mapped = jsbsim_properties(model, props, longitudinal=not args.no_longitudinal)
         for ch, prop in mapped.items():
             print(f"  {ch:<14} {prop}")
         # properties the file declares (value 0): nothing in JSBSim sets them by itself
         undriven = sorted(
             {p for p in re.findall(r"(?<![\w/])aerodelta/[\w.-]+", " ".join(mapped.values()))}
         )
+        if args.jsbsim_system:
+            axes = "X, Z" if side_axis == "Y" else "LIFT"
+            print(
+                f"wrote {args.jsbsim_system}: the <system> integrating the separation state of "
+                f"the stall at flaps {', '.join(f'{f:g}' for f in sorted(model.kirchhoff or {}))}"
+                f" deg; load it with the aircraft (the aerodynamics' {axes} and PITCH "
+                "increments read it)"
+            )
         if undriven:
             print(
                 f"aerodelta export: warning: the file declares {', '.join(undriven)} (value "
