@@ -550,13 +550,15 @@ def _load_with_stall(tmp: Path, aero: str, system: str) -> Any:
 def test_jsbsim_stall_state_and_increments_equal_the_engine(tmp_path: Path) -> None:
     """A pull into the stall and back (5 s, alpha 5 -> 25 -> 5 deg) at flap 0, then 10, then
     20 (no stall stored), alpha and its rate set on the property tree each JSBSim frame:
-    - each flap's ``<fcs_function>`` is ``1 - x0(alpha - tau2 alphadot)`` of the engine
+    - each flap's ``separated-static`` is ``1 - x0(alpha - tau2 alphadot)`` of the engine
       (``aero_core::kirchhoff``) to 1e-12;
-    - each ``<lag_filter>`` steps Tustin's rule with ``c1 = 1/tau1`` at JSBSim's dt (the
-      recurrence holds to 1e-12: the filter is the documented one);
-    - the state ``x`` follows the engine's exact state (first-order hold, driven by the same
-      alpha history from the start) within 1e-4 on the flap setting's own segment, and is 1 at
-      the flap without a stall;
+    - each flap's separated fraction ``1 - x`` is the engine's exact step
+      (``_core.kirchhoff_outputs``, first-order hold) of the same alpha history: the recurrence
+      from the previous frame holds to 1e-12 (no frame's delay), and the state is the engine's
+      but for the start (attached flow; the engine's is the static ``x0``, 1.4e-5 and 2.8e-5
+      below),
+      whose difference decays as ``exp(-k dt/tau1)``, to 1e-12;
+    - ``x`` is the flap setting's own state there and 1 at the flap without a stall;
     - ``CL-delta``, ``Cm-delta`` are the engine's Kirchhoff lift and moment at JSBSim's ``x``
       less the qualified static curves (the engine's DAVE-ML reading of the exported
       qualified model) to 1e-9, and 0 at flap 20."""
@@ -578,10 +580,7 @@ def test_jsbsim_stall_state_and_increments_equal_the_engine(tmp_path: Path) -> N
     names = ["aero/aerodelta/stall/x", "aero/aerodelta/stall/CL-delta",
              "aero/aerodelta/stall/Cm-delta"]  # fmt: skip
     for i in range(len(STALL)):
-        names += [
-            f"aerodelta/stall/flap-{i}/separated-static",
-            f"aerodelta/stall/flap-{i}/separated",
-        ]
+        names += [f"aero/aerodelta/stall/flap-{i}/separated{k}" for k in ("-static", "")]
     got: dict[str, list[float]] = {k: [] for k in names}
     for k in range(alpha.size):
         fdm["test/alpha_deg"], fdm["test/alphadot_dps"] = alpha[k], rate[k]
@@ -597,16 +596,23 @@ def test_jsbsim_stall_state_and_increments_equal_the_engine(tmp_path: Path) -> N
     )
     x = g["aero/aerodelta/stall/x"]
     for i, (f, p) in enumerate(STALL.items()):
-        u = g[f"aerodelta/stall/flap-{i}/separated-static"]
-        s = g[f"aerodelta/stall/flap-{i}/separated"]
+        v = g[f"aero/aerodelta/stall/flap-{i}/separated-static"]
+        s = g[f"aero/aerodelta/stall/flap-{i}/separated"]
         x0, _, _, _ = _core.kirchhoff_point(p, a_rad, r_rad, np.ones_like(a_rad))
-        np.testing.assert_allclose(u, 1.0 - x0, rtol=0, atol=1e-12)
-        c1 = 1.0 / p["tau1"]
-        ca, cb = dt * c1 / (2.0 + dt * c1), (2.0 - dt * c1) / (2.0 + dt * c1)
-        np.testing.assert_allclose(s[2:], ca * (u[2:] + u[1:-1]) + cb * s[1:-1], rtol=0, atol=1e-12)
+        np.testing.assert_allclose(v, 1.0 - x0, rtol=0, atol=1e-12)
+        r = dt / p["tau1"]
+        e = math.exp(-r)
+        gh = 1.0 - (1.0 - e) / r
+        step = e * s[:-1] + (1.0 - e - gh) * v[:-1] + gh * v[1:]
+        np.testing.assert_allclose(s[1:], step, rtol=0, atol=1e-12)
         x_exact = _core.kirchhoff_outputs(p, t, a_rad, r_rad)[0]
+        # the same step from another start: the two differ by the start's difference, decaying
+        # as e^k (JSBSim starts attached, the engine at the static x0 of the first sample)
+        diff = (1.0 - s) - x_exact
+        assert 0.0 < diff[0] <= 1.0 - x_exact[0] < 1e-4
+        np.testing.assert_allclose(diff, diff[0] * e ** np.arange(diff.size), rtol=0, atol=1e-12)
         on = flap == f
-        assert np.abs(x[on] - x_exact[on]).max() < 1e-4
+        np.testing.assert_array_equal(x[on], 1.0 - s[on])
         assert x[on].min() < 0.2  # the flow separates: the stall is flown, not skipped
         _, _, cl, cm = _core.kirchhoff_point(p, a_rad[on], r_rad[on], x[on])
         np.testing.assert_allclose(
@@ -652,6 +658,35 @@ def test_jsbsim_stall_axes_equal_jsbsim_own_wind_to_body_forces(tmp_path: Path) 
         )  # fmt: skip
         out[axis] = (fdm["forces/fbx-aero-lbs"], fdm["forces/fbz-aero-lbs"])
     np.testing.assert_allclose(out["Y"], out["SIDE"], rtol=1e-9)
+
+
+def test_jsbsim_stall_state_in_flight_is_the_engines_step_of_jsbsim_alpha(tmp_path: Path) -> None:
+    """Default properties, 1 s of flight from alpha 19 deg at flap 0 (the aircraft pitches and
+    falls): the separated fraction is the engine's exact step of JSBSim's own alpha and
+    alphadot of each frame, from the frame's start (no frame's delay: the aerodynamics step
+    the state after JSBSim computes alpha), to 1e-12."""
+    m = stall_model()
+    fdm = _load_with_stall(tmp_path, jsbsim_xml(m), jsbsim_stall_system_xml(m))
+    fdm["ic/vt-kts"], fdm["ic/h-sl-ft"] = 110.0, 3000.0
+    fdm["ic/alpha-deg"], fdm["fcs/flap-pos-deg"] = 19.0, 0.0
+    assert fdm.run_ic()
+    rows = []
+    for _ in range(120):
+        assert fdm.run()
+        rows.append([fdm["aero/alpha-rad"], fdm["aero/alphadot-rad_sec"],
+                     fdm["aero/aerodelta/stall/flap-0/separated"]])  # fmt: skip
+    a, ad_, s = (np.ascontiguousarray(c) for c in np.asarray(rows).T)
+    assert np.ptp(a) > 0.01 and np.abs(ad_).max() > 0.05  # alpha moves
+    p, dt = STALL[0.0], fdm["simulation/dt"]
+    x0, _, _, _ = _core.kirchhoff_point(p, a, ad_, np.ones_like(a))
+    r = dt / p["tau1"]
+    e = math.exp(-r)
+    gh = 1.0 - (1.0 - e) / r
+    v = 1.0 - x0
+    np.testing.assert_allclose(
+        s[1:], e * s[:-1] + (1.0 - e - gh) * v[:-1] + gh * v[1:], rtol=0, atol=1e-12
+    )
+    assert s[-1] > 0.01  # the flow separates
 
 
 def test_jsbsim_stall_export_refusals_and_files(tmp_path: Path) -> None:

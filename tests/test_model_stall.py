@@ -303,7 +303,7 @@ def test_cli_export_of_a_model_with_its_stall(
     assert "longitudinal stall at flaps 0, 15 deg" in out
     assert f"wrote {sysx}" in out and "LIFT and PITCH" in out
     assert "aero/aerodelta/stall/CL-delta" in xml.read_text()
-    assert '<lag_filter name="aerodelta/stall/flap-1/separated">' in sysx.read_text()
+    assert 'name="aerodelta/stall/flap-1/separated-previous"' in sysx.read_text()
     assert "x_sep" in ad.DaveModel(dml).inputs
     assert not list(tmp_path.glob("*.tmp-*"))
     rc = main([*argv, "--no-longitudinal", "--jsbsim-system", str(sysx)])

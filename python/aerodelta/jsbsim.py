@@ -365,9 +365,8 @@ def _qualified_functions(w: _Writer, cname: str, qspec: dict[str, Any], done: se
     return "\n".join(fns)
 
 
-#: Where the stall's separation state lives: per stored flap setting ``i``, the system's
-#: ``<fcs_function>`` ``.../flap-<i>/separated-static`` (``1 - x0(alpha - tau2 alphadot)``) and
-#: its ``<lag_filter>`` ``.../flap-<i>/separated`` (``1 - x``).
+#: Property prefix of the stall's separation state (``aero/aerodelta/stall/...`` in the
+#: aerodynamics, ``aerodelta/stall/...`` in the ``<system>`` holding the previous frame).
 STALL_PREFIX = "aerodelta/stall"
 
 #: Half-width of the flap window in which a stored stall applies, deg: the engine's exact
@@ -414,60 +413,44 @@ def _stall_on(flap_p: str, f: float) -> str:
 
 
 def jsbsim_stall_system_xml(model: DeltaModel, properties: Mapping[str, str] | None = None) -> str:
-    """The JSBSim ``<system>`` integrating the stored Kirchhoff stall's separation state.
+    """The JSBSim ``<system>`` that carries the stored Kirchhoff stall's separation state from
+    one frame to the next.
 
-    Per stored flap setting ``i`` a ``<fcs_function>`` ``aerodelta/stall/flap-<i>/separated-
-    static`` computes ``1 - x0(alpha - tau2 alphadot)`` and a ``<lag_filter>`` (``c1 = 1/tau1``,
-    clipped to [0, 1]) ``aerodelta/stall/flap-<i>/separated`` follows it: Fischenberg's
-    ``tau1 x' + x = x0(alpha - tau2 alphadot)`` for the separated fraction ``1 - x``, which is
-    0 in attached flow, where JSBSim's filters start (their first output is 0). JSBSim steps
-    the filter with Tustin's rule at the system's rate; the engine's ``KirchhoffState`` steps it
-    exactly for a piecewise-linear input (``docs/export.md`` gives the difference). Load it
-    with the aircraft (``<system file="..."/>``) beside :func:`jsbsim_xml`'s aerodynamics.
+    JSBSim runs its systems before it computes alpha and the aerodynamics, so the state is
+    stepped in the aerodynamics (:func:`jsbsim_xml`), with the frame's own alpha and alphadot,
+    and this system only hands each frame's result to the next: per stored flap setting ``i``
+    two ``<fcs_function>`` copies, ``aerodelta/stall/flap-<i>/separated-previous`` (the
+    separated fraction ``1 - x`` after the previous frame) and ``.../separated-static-previous``
+    (the previous frame's ``1 - x0(alpha - tau2 alphadot)``). Both start at 0, attached flow.
+    Load it with the aircraft (``<system file="..."/>``) beside the aerodynamics.
 
     Raises
     ------
     DataError
-        The model stores no stall, or one fitted with ``known="none"``; a channel without a
-        property (as :func:`jsbsim_xml`).
+        The model stores no stall, or one fitted with ``known="none"``.
     """
     if not model.kirchhoff:
         raise DataError(
             "the model stores no longitudinal stall (aerodelta longitudinal --model M "
-            "--out-model M2 adds one): there is no separation state to integrate"
+            "--out-model M2 adds one): there is no separation state to carry"
         )
     w = _Writer(model, properties or {})
-    spec = w.spec
-    alpha_p = w.channel(spec.get("alpha_channel", "alpha_deg"))
-    alphadot_p = w.channel("alphadot_dps")
     parts = []
-    for i, (f, g) in enumerate(_stall_flaps(model)):
-        base = f"{STALL_PREFIX}/flap-{i}"
-        parts.append(
-            f'    <fcs_function name="{base}/separated-static">\n'
-            f"      <description>flap {f:g} deg: 1 - x0(alpha - tau2 alphadot), the separated "
-            "fraction the flow tends to</description>\n"
-            f"      <function>{_stall_static_separated(g, alpha_p, alphadot_p)}</function>\n"
-            "    </fcs_function>\n"
-            f'    <lag_filter name="{base}/separated">\n'
-            f"      <description>flap {f:g} deg: 1 - x, tau1 = {_num(g['tau1'])} s</description>\n"
-            f"      <input>{base}/separated-static</input>\n"
-            f"      <c1>{_num(1.0 / g['tau1'])}</c1>\n"
-            "      <clipto><min>0</min><max>1</max></clipto>\n"
-            "    </lag_filter>"
-        )
-    prov = spec.get("provenance") or {}
-    mapping = "\n".join(
-        f"    {ch:<14} {p}"
-        for ch, p in jsbsim_properties(model, properties).items()
-        if ch in ("alpha_deg", "alphadot_dps")
-    )
+    for i, (f, _) in enumerate(_stall_flaps(model)):
+        for what, desc in (("separated", "1 - x"), ("separated-static", "1 - x0")):
+            parts.append(
+                f'    <fcs_function name="{STALL_PREFIX}/flap-{i}/{what}-previous">\n'
+                f"      <description>flap {f:g} deg: {desc} of the previous frame</description>\n"
+                f"      <function><property>aero/{STALL_PREFIX}/flap-{i}/{what}</property>"
+                "</function>\n    </fcs_function>"
+            )
+    prov = w.spec.get("provenance") or {}
     header = (
         '<?xml version="1.0"?>\n<!--\n  aerodelta Kirchhoff stall: the separation state of the '
-        f"model's longitudinal stall, written by {_comment(str(prov.get('library', 'aerodelta')))}"
-        f"; model data sha256 {_comment(str(prov.get('data_sha256', '?')))}.\n  Load it with "
-        "the aircraft beside the exported aerodynamics, which read its outputs.\n  Channels "
-        "read:\n" + _comment(mapping) + "\n-->\n"
+        f"model's longitudinal stall carried between frames, written by "
+        f"{_comment(str(prov.get('library', 'aerodelta')))}; model data sha256 "
+        f"{_comment(str(prov.get('data_sha256', '?')))}.\n  Load it with the aircraft beside "
+        "the exported aerodynamics, which step the state and read these copies.\n-->\n"
     )
     return (
         header + '<system name="aerodelta-stall">\n  <channel name="separation">\n'
@@ -492,9 +475,51 @@ def _stall_functions(
     fns: list[str] = []
     cl_basic = _qualified_table(w, "CL_basic", qspec, done, fns)
     cm_basic = _qualified_table(w, "Cm_basic", qspec, done, fns)
+    alphadot_p = w.channel("alphadot_dps")
+    # the exact step of the ODE for an input linear over the frame (first-order hold, as
+    # aero_core::kirchhoff::step): r = dt / tau1, e = exp(-r), g = 1 - (1 - e) / r,
+    # s = e s_prev + (1 - e - g) v_prev + g v on the separated fraction s = 1 - x, v = 1 - x0
+    # (a frame of dt = 0, as JSBSim's initial conditions run, keeps the state; r is floored
+    # so that e and g stay finite there)
+    for i, (f, g) in enumerate(flaps):
+        base, prev = f"aero/{STALL_PREFIX}/flap-{i}", f"{STALL_PREFIX}/flap-{i}"
+        r = (
+            f"<quotient><max><property>simulation/dt</property><value>1e-12</value></max>"
+            f"<value>{_num(g['tau1'])}</value></quotient>"
+        )
+        e_fn = f"<exp><product><value>-1</value>{r}</product></exp>"
+        g_fn = (
+            f"<difference><value>1</value><quotient><difference><value>1</value>{e_fn}"
+            f"</difference>{r}</quotient></difference>"
+        )
+        e, gg = f"<property>{base}/e</property>", f"<property>{base}/g</property>"
+        fns.append(
+            f'  <function name="{base}/e">\n    <description>flap {f:g} deg: exp(-dt/tau1)'
+            f'</description>\n    {e_fn}\n  </function>\n  <function name="{base}/g">\n'
+            f"    <description>flap {f:g} deg: 1 - (1 - e) tau1/dt</description>\n    {g_fn}\n"
+            "  </function>"
+        )
+        fns.append(
+            f'  <function name="{base}/separated-static">\n    <description>flap {f:g} deg: '
+            "1 - x0(alpha - tau2 alphadot), the separated fraction the flow tends to"
+            f"</description>\n    {_stall_static_separated(g, alpha_p, alphadot_p)}\n  </function>"
+        )
+        fns.append(
+            f'  <function name="{base}/separated">\n    <description>flap {f:g} deg: 1 - x, '
+            f"tau1 {_num(g['tau1'])} s (Fischenberg: tau1 x' + x = x0(alpha - tau2 alphadot)), "
+            "stepped exactly over the frame; held in a frame of dt = 0</description>\n    "
+            "<ifthen><gt><property>simulation/dt</property><value>0</value></gt>"
+            "<min><value>1</value><max><value>0</value><sum>"
+            f"<product>{e}<property>{prev}/separated-previous</property></product>"
+            f"<product><difference><difference><value>1</value>{e}</difference>{gg}</difference>"
+            f"<property>{prev}/separated-static-previous</property></product>"
+            f"<product>{gg}<property>{base}/separated-static</property></product>"
+            f"</sum></max></min><property>{prev}/separated-previous</property></ifthen>\n"
+            "  </function>"
+        )
     sep = _sum(
         [
-            f"<product>{_stall_on(flap_p, f)}<property>{STALL_PREFIX}/flap-{i}/separated"
+            f"<product>{_stall_on(flap_p, f)}<property>aero/{STALL_PREFIX}/flap-{i}/separated"
             "</property></product>"
             for i, (f, _) in enumerate(flaps)
         ],
