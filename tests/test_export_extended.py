@@ -563,9 +563,7 @@ def test_jsbsim_stall_state_and_increments_equal_the_engine(tmp_path: Path) -> N
       less the qualified static curves (the engine's DAVE-ML reading of the exported
       qualified model) to 1e-9, and 0 at flap 20."""
     m = stall_model()
-    fdm = _load_with_stall(
-        tmp_path, jsbsim_xml(m, _TEST_PROPS), jsbsim_stall_system_xml(m, _TEST_PROPS)
-    )
+    fdm = _load_with_stall(tmp_path, jsbsim_xml(m, _TEST_PROPS), jsbsim_stall_system_xml(m))
     for ch in _TEST_PROPS.values():
         fdm[ch] = 0.0
     fdm["test/alpha_deg"] = 5.0

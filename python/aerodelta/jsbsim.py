@@ -19,6 +19,11 @@ properties that the file declares (value 0) and the aircraft must drive, e.g. fr
 ``<system>``. Intermediate values are published as ``aero/aerodelta/<C>/...`` properties; a
 model that carries its validated envelope also publishes ``aero/aerodelta/in-envelope`` (1
 inside the flight data's alpha/beta envelope, 0 outside).
+
+A model storing a Kirchhoff stall (fitted on the ADX-37's known terms) adds its lift and
+pitching-moment increments over the qualified static curves (``LIFT`` or ``X``/``Z``, and
+``PITCH``), with the separation state stepped exactly each frame in the aerodynamics and carried
+to the next frame by a ``<system>`` (:func:`jsbsim_stall_system_xml`; ``docs/export.md``).
 """
 
 from __future__ import annotations
@@ -37,7 +42,7 @@ import numpy as np
 from aerodelta._exportutil import DERIVED_CHANNELS, Node, parse_regressor, write_atomic
 from aerodelta._fsutil import write_texts_atomic
 from aerodelta.exceptions import DataError
-from aerodelta.export import qualified_daveml_spec
+from aerodelta.export import STALL_FLAP_WINDOW_DEG, qualified_daveml_spec
 from aerodelta.model import DeltaModel
 from aerodelta.qualified import describe, recorded_source
 
@@ -369,10 +374,6 @@ def _qualified_functions(w: _Writer, cname: str, qspec: dict[str, Any], done: se
 #: aerodynamics, ``aerodelta/stall/...`` in the ``<system>`` holding the previous frame).
 STALL_PREFIX = "aerodelta/stall"
 
-#: Half-width of the flap window in which a stored stall applies, deg: the engine's exact
-#: match of flap settings (``aerodelta.export.STALL_FLAP_WINDOW_DEG``, the DAVE-ML export's).
-_STALL_FLAP_WINDOW_DEG = 1e-9
-
 
 def _stall_flaps(model: DeltaModel) -> list[tuple[float, dict[str, float]]]:
     """The stored Kirchhoff stall per flap setting, refused unless it was fitted on the
@@ -405,14 +406,14 @@ def _stall_static_separated(g: Mapping[str, float], alpha_p: str, alphadot_p: st
 
 def _stall_on(flap_p: str, f: float) -> str:
     """1 at flap setting ``f`` (within the engine's exact match), else 0."""
-    lo, hi = _num(f - _STALL_FLAP_WINDOW_DEG), _num(f + _STALL_FLAP_WINDOW_DEG)
+    lo, hi = _num(f - STALL_FLAP_WINDOW_DEG), _num(f + STALL_FLAP_WINDOW_DEG)
     return (
         f"<and><ge><property>{flap_p}</property><value>{lo}</value></ge>"
         f"<le><property>{flap_p}</property><value>{hi}</value></le></and>"
     )
 
 
-def jsbsim_stall_system_xml(model: DeltaModel, properties: Mapping[str, str] | None = None) -> str:
+def jsbsim_stall_system_xml(model: DeltaModel) -> str:
     """The JSBSim ``<system>`` that carries the stored Kirchhoff stall's separation state from
     one frame to the next.
 
@@ -434,7 +435,6 @@ def jsbsim_stall_system_xml(model: DeltaModel, properties: Mapping[str, str] | N
             "the model stores no longitudinal stall (aerodelta longitudinal --model M "
             "--out-model M2 adds one): there is no separation state to carry"
         )
-    w = _Writer(model, properties or {})
     parts = []
     for i, (f, _) in enumerate(_stall_flaps(model)):
         for what, desc in (("separated", "1 - x"), ("separated-static", "1 - x0")):
@@ -444,7 +444,7 @@ def jsbsim_stall_system_xml(model: DeltaModel, properties: Mapping[str, str] | N
                 f"      <function><property>aero/{STALL_PREFIX}/flap-{i}/{what}</property>"
                 "</function>\n    </fcs_function>"
             )
-    prov = w.spec.get("provenance") or {}
+    prov = model.to_spec().get("provenance") or {}
     header = (
         '<?xml version="1.0"?>\n<!--\n  aerodelta Kirchhoff stall: the separation state of the '
         f"model's longitudinal stall carried between frames, written by "
@@ -688,8 +688,9 @@ def jsbsim_xml(
         Kirchhoff curves over the ADX-37 qualified static curves ``CL_basic``, ``Cm_basic``
         (non-dimensional: ``aero/aerodelta/stall/CL-delta``, ``.../Cm-delta``), on the ``LIFT``
         axis (``side_axis="SIDE"``: wind axes) or the ``X`` and ``Z`` axes (``side_axis="Y"``),
-        and ``PITCH`` (``qbar S cbar``, ft lbf). They read the separation state that
-        :func:`jsbsim_stall_system_xml`'s ``<system>`` integrates; load both.
+        and ``PITCH`` (``qbar S cbar``, ft lbf). The separation state is stepped here, with
+        the frame's alpha and alphadot, from the previous frame's that
+        :func:`jsbsim_stall_system_xml`'s ``<system>`` hands on; load both.
 
     Raises
     ------
@@ -885,5 +886,5 @@ def export_jsbsim(
         raise DataError(
             f"the JSBSim aerodynamics and stall system both name {path}; give two files"
         )
-    write_texts_atomic([(path, text), (system_path, jsbsim_stall_system_xml(model, properties))])
+    write_texts_atomic([(path, text), (system_path, jsbsim_stall_system_xml(model))])
     return text
