@@ -687,14 +687,84 @@ def test_jsbsim_stall_state_in_flight_is_the_engines_step_of_jsbsim_alpha(tmp_pa
     assert s[-1] > 0.01  # the flow separates
 
 
+def test_jsbsim_stall_fitted_on_the_whole_coefficients_adds_its_dynamics_only(
+    tmp_path: Path,
+) -> None:
+    """A stall fitted with ``known="none"`` (the whole measured C_L, C_m, as on a JSBSim
+    aircraft of the user's) adds the separation dynamics over the aircraft's own static
+    curves: ``CL-delta`` is the engine's Kirchhoff lift at JSBSim's state less the same at the
+    static state ``x0(alpha)``, ``Cm-delta`` is ``Cm_x (x0 - x)``, both to 1e-9 along a pull
+    into the stall and back, and both vanish (below 1e-9) once alpha has been held for 6 s
+    (30 tau1: the state's distance to x0 decays as exp(-t/tau1)).
+    No qualified table is written."""
+    m = stall_model(known="none")
+    aero = jsbsim_xml(m, _TEST_PROPS)
+    assert "CL_basic" not in aero and "aero/aerodelta/stall/flap-0/x-static" in aero
+    fdm = _load_with_stall(tmp_path, aero, jsbsim_stall_system_xml(m))
+    for ch in _TEST_PROPS.values():
+        fdm[ch] = 0.0
+    fdm["test/alpha_deg"] = 5.0
+    assert fdm.run_ic()
+    dt = fdm["simulation/dt"]
+    n = 600
+    t1 = np.arange(n) * dt
+    pull = 5.0 + 20.0 * np.sin(np.pi * t1 / t1[-1]) ** 2
+    alpha = np.concatenate([pull, np.full(720, 22.0)])  # then 6 s (30 tau1) held past the break
+    rate = np.concatenate([np.gradient(pull, dt), np.zeros(720)])
+    rows = []
+    for a, r in zip(alpha, rate, strict=True):
+        fdm["test/alpha_deg"], fdm["test/alphadot_dps"] = a, r
+        assert fdm.run()
+        rows.append([fdm["aero/aerodelta/stall/x"], fdm["aero/aerodelta/stall/CL-delta"],
+                     fdm["aero/aerodelta/stall/Cm-delta"]])  # fmt: skip
+    x, dcl, dcm = (np.ascontiguousarray(c) for c in np.asarray(rows).T)
+    p = STALL[0.0]
+    a_rad, r_rad = np.radians(alpha), np.radians(rate)
+    _, _, cl, _ = _core.kirchhoff_point(p, a_rad, r_rad, x)
+    x0s, _, _, _ = _core.kirchhoff_point(p, a_rad, np.zeros_like(a_rad), x)  # x0(alpha)
+    _, _, cls, _ = _core.kirchhoff_point(p, a_rad, np.zeros_like(a_rad), x0s)
+    np.testing.assert_allclose(dcl, cl - cls, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(dcm, p["Cm_x"] * (x0s - x), rtol=0, atol=1e-9)
+    assert np.abs(dcl[:n]).max() > 0.01  # the hysteresis is flown
+    assert np.abs(dcl[-1]) < 1e-9 and np.abs(dcm[-1]) < 1e-9
+
+
+def test_daveml_stall_fitted_on_the_whole_coefficients_adds_its_dynamics_only() -> None:
+    """The DAVE-ML form of the same (``known="none"``): the export's own check cases match the
+    engine (``_core.kirchhoff_point``) to 1e-9; ``CL_ext`` and ``Cm_ext`` are the qualified
+    ``CL``, ``Cm`` when ``x_sep`` is the static ``x0(alpha)`` (steady flight), and differ by the
+    engine's Kirchhoff lift and moment at ``x_sep`` less at ``x0(alpha)`` otherwise, 1e-12."""
+    m = stall_model(known="none")
+    out = extended_daveml_text(m)
+    assert out.max_rel_error <= 1e-9 and out.model.run_checks()["pass"].all()
+    assert {"x_sep_dot", "CL_ext", "Cm_ext"} <= set(out.model.outputs)
+    rng = np.random.default_rng(3)
+    alpha = rng.uniform(0.0, 30.0, 200)
+    x = rng.uniform(0.0, 1.0, 200)
+    p = STALL[10.0]
+    a_rad, still = np.radians(alpha), np.zeros(200)
+    xs = _core.kirchhoff_point(p, a_rad, still, x)[0]
+    for state, want_zero in ((xs, True), (x, False)):
+        got = out.model.evaluate(
+            {"alpha_deg": alpha, "flap_deg": np.full(200, 10.0), "x_sep": state,
+             "alphadot_dps": still},
+            outputs=["CL_ext", "Cm_ext", "CL", "Cm"],
+        )  # fmt: skip
+        _, _, cl, cm = _core.kirchhoff_point(p, a_rad, still, np.ascontiguousarray(state))
+        _, _, cls, cms = _core.kirchhoff_point(p, a_rad, still, xs)
+        dcl = got["CL_ext"].to_numpy() - got["CL"].to_numpy()
+        dcm = got["Cm_ext"].to_numpy() - got["Cm"].to_numpy()
+        np.testing.assert_allclose(dcl, cl - cls, rtol=0, atol=1e-12)
+        np.testing.assert_allclose(dcm, cm - cms, rtol=0, atol=1e-12)
+        assert (np.abs(dcl).max() < 1e-12) == want_zero
+
+
 def test_jsbsim_stall_export_refusals_and_files(tmp_path: Path) -> None:
     m = stall_model()
     plain = synthetic_model()
     # without the stall the aerodynamics are those of the model that stores none
     assert jsbsim_xml(m, longitudinal=False) == jsbsim_xml(plain)
     assert "aerodelta/stall" not in jsbsim_xml(m, longitudinal=False)
-    with pytest.raises(ad.DataError, match=r"known='none'.*--no-longitudinal"):
-        jsbsim_xml(stall_model(known="none"))
     with pytest.raises(ad.DataError, match="stores no longitudinal stall"):
         jsbsim_stall_system_xml(plain)
     aero, system = tmp_path / "delta.xml", tmp_path / "stall.xml"

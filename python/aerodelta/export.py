@@ -184,29 +184,33 @@ def _stall_spec(
     alphadot: str,
     coefficients: Mapping[str, str],
 ) -> tuple[list[dict[str, Any]], list[dict[str, Any]], list[dict[str, Any]]]:
-    """Inputs, calculations and outputs of the stored Kirchhoff stall (``model.kirchhoff``,
-    fitted on the ADX-37's known terms): the separation point as a state input ``x_sep`` the
-    host integrates from ``x_sep_dot`` (Fischenberg's ``τ₁ ẋ + x = x₀(α − τ₂ α̇)``), its
-    static value ``x_sep_0`` (to start at), and ``CL_ext``, ``Cm_ext``: the qualified totals
-    with the static curves ``CL_basic``, ``Cm_basic`` replaced by the Kirchhoff curves at
-    each flap setting that has a stall (the engine's ``KirchhoffStall``). Elsewhere the state
+    """Inputs, calculations and outputs of the stored Kirchhoff stall (``model.kirchhoff``):
+    the separation point as a state input ``x_sep`` the host integrates from ``x_sep_dot``
+    (Fischenberg's ``τ₁ ẋ + x = x₀(α − τ₂ α̇)``), its static value ``x_sep_0`` (to start
+    at), and ``CL_ext``, ``Cm_ext`` at each flap setting that has a stall. A stall fitted on
+    the ADX-37's known terms replaces the qualified static curves ``CL_basic``, ``Cm_basic``
+    of the ``CL``, ``Cm`` totals by the Kirchhoff curves (the engine's ``KirchhoffStall``);
+    one fitted with ``known="none"`` (the whole measured coefficients, whose static curves
+    the qualified file already holds) adds the separation dynamics alone: the Kirchhoff
+    curves at ``x_sep`` less the same curves at the static ``x₀(α)``. Elsewhere the state
     derivative is 0 and the totals are the qualified ones."""
     stall = model.kirchhoff or {}
-    if model.kirchhoff_known != "adx37":
-        raise DataError(
-            "the model's longitudinal stall was fitted to the whole measured C_L, C_m "
-            "(known='none'), not on top of a qualified model's static curves: it cannot be "
-            "merged into a qualified DAVE-ML file; export without it (--no-longitudinal, "
-            "longitudinal=False) or fit it with known='adx37'"
-        )
-    need = [*STALL_BASE_VARIABLES, *(coefficients.get(c, c) for c in ("CL", "Cm"))]
+    dynamics_only = model.kirchhoff_known == "none"
+    need = [
+        *(() if dynamics_only else STALL_BASE_VARIABLES),
+        *(coefficients.get(c, c) for c in ("CL", "Cm")),
+    ]
     missing = [v for v in need if v not in bunits]
     if missing:
+        what = (
+            "the CL and Cm totals the stall's separation dynamics are added to"
+            if dynamics_only
+            else "the stall replaces the static curves CL_basic, Cm_basic of the CL and Cm "
+            "totals (the built-in ADX-37 file's variables)"
+        )
         raise DataError(
-            f"the qualified DAVE-ML model has no {', '.join(missing)}: the model's Kirchhoff "
-            "stall replaces the static curves CL_basic, Cm_basic of the CL and Cm totals "
-            "(the built-in ADX-37 file's variables); export without it (--no-longitudinal, "
-            "longitudinal=False)"
+            f"the qualified DAVE-ML model has no {', '.join(missing)}: {what}; export without "
+            "the stall (--no-longitudinal, longitudinal=False)"
         )
     d2r = math.pi / 180.0
     inputs = [
@@ -238,15 +242,33 @@ def _stall_spec(
              "description": f"flap {f:g}: static separation point at alpha - tau2 alphadot"},
             {"id": f"ks_xdot_{i}", "units": "_s", "expr": f"({x0} - ks_x) / {g['tau1']}",
              "description": f"flap {f:g}: (x0 - x) / tau1, 1/s"},
-            {"id": f"ks_dcl_{i}", "units": "nd",
-             "expr": f"{g['CL_alpha']} * (ks_alpha - {g['alpha0']}) * "
-                     f"((1 + sqrt(ks_x)) / 2)^2 - CL_basic",
-             "description": f"flap {f:g}: Kirchhoff lift minus the static curve it replaces"},
-            {"id": f"ks_dcm_{i}", "units": "nd",
-             "expr": f"{g['Cm0']} + {g['Cm_alpha']} * ks_alpha + {g['Cm_x']} * (1 - ks_x) - "
-                     "Cm_basic",
-             "description": f"flap {f:g}: Kirchhoff pitching moment minus the static curve"},
         ]  # fmt: skip
+        lift = f"{g['CL_alpha']} * (ks_alpha - {g['alpha0']}) * ((1 + sqrt(ks_x)) / 2)^2"
+        if dynamics_only:
+            xs = f"ks_x0s_{i}"
+            calcs += [
+                {"id": xs, "units": "nd",
+                 "expr": f"1 / (1 + exp(2 * {g['a1']} * (ks_alpha - {g['alpha_star']})))",
+                 "description": f"flap {f:g}: static separation point x0(alpha)"},
+                {"id": f"ks_dcl_{i}", "units": "nd",
+                 "expr": f"{lift} - {g['CL_alpha']} * (ks_alpha - {g['alpha0']}) * "
+                         f"((1 + sqrt({xs})) / 2)^2",
+                 "description": f"flap {f:g}: Kirchhoff lift at x_sep minus at x0(alpha)"},
+                {"id": f"ks_dcm_{i}", "units": "nd", "expr": f"{g['Cm_x']} * ({xs} - ks_x)",
+                 "description": f"flap {f:g}: Kirchhoff pitching moment at x_sep minus at "
+                 "x0(alpha)"},
+            ]  # fmt: skip
+        else:
+            calcs += [
+                {"id": f"ks_dcl_{i}", "units": "nd", "expr": f"{lift} - CL_basic",
+                 "description": f"flap {f:g}: Kirchhoff lift minus the static curve it "
+                 "replaces"},
+                {"id": f"ks_dcm_{i}", "units": "nd",
+                 "expr": f"{g['Cm0']} + {g['Cm_alpha']} * ks_alpha + {g['Cm_x']} * (1 - ks_x) "
+                         "- Cm_basic",
+                 "description": f"flap {f:g}: Kirchhoff pitching moment minus the static "
+                 "curve"},
+            ]  # fmt: skip
         x0_terms.append({"factors": [on, x0]})
         xd_terms.append({"factors": [on, f"ks_xdot_{i}"]})
         cl_terms.append({"factors": [on, f"ks_dcl_{i}"]})
@@ -261,12 +283,22 @@ def _stall_spec(
          f"to start from (trim), at flaps {flaps} deg; 0 elsewhere"},
         {"id": "CL_ext", "units": "nd",
          "terms": [{"factors": [coefficients.get("CL", "CL")]}, *cl_terms],
-         "description": "extended CL: the qualified CL with its static curve CL_basic replaced "
-         f"by the Kirchhoff lift at flaps {flaps} deg (the qualified CL elsewhere)"},
+         "description": (
+             "extended CL: the qualified CL plus the lift of the stall's separation dynamics "
+             f"(Kirchhoff lift at x_sep less at x0(alpha)) at flaps {flaps} deg"
+             if dynamics_only else
+             "extended CL: the qualified CL with its static curve CL_basic replaced by the "
+             f"Kirchhoff lift at flaps {flaps} deg")
+         + " (the qualified CL elsewhere)"},
         {"id": "Cm_ext", "units": "nd",
          "terms": [{"factors": [coefficients.get("Cm", "Cm")]}, *cm_terms],
-         "description": "extended Cm: the qualified Cm with its static curve Cm_basic replaced "
-         f"by the Kirchhoff moment at flaps {flaps} deg (the qualified Cm elsewhere)"},
+         "description": (
+             "extended Cm: the qualified Cm plus the moment of the stall's separation "
+             f"dynamics (Cm_x (x0(alpha) - x_sep)) at flaps {flaps} deg"
+             if dynamics_only else
+             "extended Cm: the qualified Cm with its static curve Cm_basic replaced by the "
+             f"Kirchhoff moment at flaps {flaps} deg")
+         + " (the qualified Cm elsewhere)"},
     ]  # fmt: skip
     return inputs, calcs, outputs
 
@@ -312,9 +344,9 @@ def extended_daveml_spec(
     Raises
     ------
     DataError
-        A coefficient the base lacks; a stored stall the base cannot carry (no ``CL_basic``,
-        ``Cm_basic``, ``CL``, ``Cm``) or fitted with ``known='none'``, unless
-        ``longitudinal=False``.
+        A coefficient the base lacks; a stored stall the base cannot carry (no ``CL``, ``Cm``,
+        or, for a stall fitted on the ADX-37's known terms, no ``CL_basic``, ``Cm_basic``),
+        unless ``longitudinal=False``.
     """
     spec = model.to_spec()
     flaps = [float(f) for f in spec["flaps_deg"]]
@@ -436,7 +468,8 @@ def extended_daveml_spec(
             model, bunits, alpha=alpha_ch, flap=flap_ch, alphadot="alphadot_dps",
             coefficients=cnames,
         )  # fmt: skip
-        for v in (*STALL_BASE_VARIABLES, *(cnames.get(c, c) for c in ("CL", "Cm"))):
+        base_vars = () if model.kirchhoff_known == "none" else STALL_BASE_VARIABLES
+        for v in (*base_vars, *(cnames.get(c, c) for c in ("CL", "Cm"))):
             if v not in resolved:
                 resolved.add(v)
                 inputs.append({"id": v, "units": bunits[v]})
@@ -579,18 +612,27 @@ def _stall_reference(
     x = np.clip(col("x_sep", 1.0), 0.0, 1.0)
     cl_q, cm_q = (coefficients.get(c, c) for c in ("CL", "Cm"))
     binputs = set(base.inputs)
+    dynamics_only = model.kirchhoff_known == "none"
     qual = base.evaluate(
         {k: v for k, v in data.items() if k in binputs},
-        outputs=[cl_q, cm_q, *STALL_BASE_VARIABLES],
+        outputs=[cl_q, cm_q, *(() if dynamics_only else STALL_BASE_VARIABLES)],
     )
     xdot, x0 = np.zeros(n), np.zeros(n)
     cl, cm = qual[cl_q].to_numpy().copy(), qual[cm_q].to_numpy().copy()
     for f, p in (model.kirchhoff or {}).items():
         on = flap == f
-        s_x0, s_xd, s_cl, s_cm = _core.kirchhoff_point(p, np.radians(alpha[on]), rates[on], x[on])
+        a_on = np.radians(alpha[on])
+        s_x0, s_xd, s_cl, s_cm = _core.kirchhoff_point(p, a_on, rates[on], x[on])
         x0[on], xdot[on] = s_x0, s_xd
-        cl[on] += s_cl - qual["CL_basic"].to_numpy()[on]
-        cm[on] += s_cm - qual["Cm_basic"].to_numpy()[on]
+        if dynamics_only:  # less the same curves at the static state x0(alpha)
+            still = np.zeros_like(a_on)
+            xs = _core.kirchhoff_point(p, a_on, still, x[on])[0]
+            _, _, st_cl, st_cm = _core.kirchhoff_point(p, a_on, still, xs)
+            cl[on] += s_cl - st_cl
+            cm[on] += s_cm - st_cm
+        else:
+            cl[on] += s_cl - qual["CL_basic"].to_numpy()[on]
+            cm[on] += s_cm - qual["Cm_basic"].to_numpy()[on]
     return {"x_sep_dot": xdot, "x_sep_0": x0, "CL_ext": cl, "Cm_ext": cm}
 
 

@@ -20,10 +20,12 @@ properties that the file declares (value 0) and the aircraft must drive, e.g. fr
 model that carries its validated envelope also publishes ``aero/aerodelta/in-envelope`` (1
 inside the flight data's alpha/beta envelope, 0 outside).
 
-A model storing a Kirchhoff stall (fitted on the ADX-37's known terms) adds its lift and
-pitching-moment increments over the qualified static curves (``LIFT`` or ``X``/``Z``, and
-``PITCH``), with the separation state stepped exactly each frame in the aerodynamics and carried
-to the next frame by a ``<system>`` (:func:`jsbsim_stall_system_xml`; ``docs/export.md``).
+A model storing a Kirchhoff stall adds its lift and pitching-moment increments (``LIFT`` or
+``X``/``Z``, and ``PITCH``): over the ADX-37 qualified static curves for a stall fitted on the
+ADX-37's known terms, over the identified static curves (the separation dynamics alone) for one
+fitted with ``known="none"``; the separation state is stepped exactly each frame in the
+aerodynamics and carried to the next frame by a ``<system>`` (:func:`jsbsim_stall_system_xml`;
+``docs/export.md``).
 """
 
 from __future__ import annotations
@@ -376,15 +378,8 @@ STALL_PREFIX = "aerodelta/stall"
 
 
 def _stall_flaps(model: DeltaModel) -> list[tuple[float, dict[str, float]]]:
-    """The stored Kirchhoff stall per flap setting, refused unless it was fitted on the
-    built-in ADX-37's known terms (its Δ then replaces that model's static curves)."""
-    if model.kirchhoff_known != "adx37":
-        raise DataError(
-            "the model's longitudinal stall was fitted to the whole measured C_L, C_m "
-            "(known='none'), not on top of the qualified model's static curves: it is no "
-            "increment a JSBSim aircraft can add; export without it (--no-longitudinal, "
-            "longitudinal=False) or fit it with known='adx37'"
-        )
+    """The stored Kirchhoff stall per flap setting (fitted with ``known`` ``"adx37"`` or
+    ``"none"``, the two forms of :func:`_stall_functions`; the model file allows no other)."""
     return sorted((float(f), dict(p)) for f, p in (model.kirchhoff or {}).items())
 
 
@@ -463,18 +458,26 @@ def _stall_functions(
 ) -> tuple[list[str], dict[str, list[str]]]:
     """The aerodynamics' part of the stored stall: ``aero/aerodelta/stall/x`` (1 attached,
     0 separated; 1 at a flap setting without a stall), the increments ``CL-delta``,
-    ``Cm-delta`` (the Kirchhoff curves less the ADX-37 qualified static curves ``CL_basic``,
-    ``Cm_basic`` they replace, at each flap setting with a stall; 0 elsewhere) and the axis
-    functions: ``LIFT`` (wind axes, with ``side_axis="SIDE"``) or ``X``, ``Z`` (body axes, with
-    ``side_axis="Y"``: ``L sin(alpha)``, ``-L cos(alpha)``), and ``PITCH``."""
+    ``Cm-delta`` at each flap setting with a stall (0 elsewhere) and the axis functions:
+    ``LIFT`` (wind axes, with ``side_axis="SIDE"``) or ``X``, ``Z`` (body axes, with
+    ``side_axis="Y"``: ``L sin(alpha)``, ``-L cos(alpha)``), and ``PITCH``.
+
+    The increments of a stall fitted with ``known="adx37"`` are the Kirchhoff curves less the
+    ADX-37 qualified static curves ``CL_basic``, ``Cm_basic`` they replace. One fitted with
+    ``known="none"`` describes the whole measured coefficients, whose static curves the
+    aircraft's own tables already hold: its increments are the separation dynamics alone, the
+    Kirchhoff curves at the state ``x`` less the same curves at the static state ``x0(alpha)``
+    (0 in steady flight; ``aero/aerodelta/stall/flap-<i>/x-static``)."""
     flaps = _stall_flaps(model)
-    qspec = qualified_daveml_spec()
+    dynamics_only = model.kirchhoff_known == "none"
     spec = w.spec
     alpha_p = w.channel(spec.get("alpha_channel", "alpha_deg"))
     flap_p = w.channel(spec.get("flap_channel", "flap_deg"))
     fns: list[str] = []
-    cl_basic = _qualified_table(w, "CL_basic", qspec, done, fns)
-    cm_basic = _qualified_table(w, "Cm_basic", qspec, done, fns)
+    if not dynamics_only:
+        qspec = qualified_daveml_spec()
+        cl_basic = _qualified_table(w, "CL_basic", qspec, done, fns)
+        cm_basic = _qualified_table(w, "Cm_basic", qspec, done, fns)
     alphadot_p = w.channel("alphadot_dps")
     # the exact step of the ODE for an input linear over the frame (first-order hold, as
     # aero_core::kirchhoff::step): r = dt / tau1, e = exp(-r), g = 1 - (1 - e) / r,
@@ -536,32 +539,55 @@ def _stall_functions(
         f"<product><property>{alpha_p}</property><value>{_num(math.pi / 180.0)}</value></product>"
     )
     cl_terms, cm_terms = [], []
-    for f, g in flaps:
-        lift = (
+
+    def lift(g: Mapping[str, float], x: str) -> str:
+        """``C_La (alpha - alpha0) ((1 + sqrt(x)) / 2)^2``"""
+        return (
             f"<product><value>{_num(g['CL_alpha'])}</value><difference>{a_rad}"
             f"<value>{_num(g['alpha0'])}</value></difference><pow><product><value>0.5</value>"
-            f"<sum><value>1</value><pow>{xp}<value>0.5</value></pow></sum></product>"
+            f"<sum><value>1</value><pow>{x}<value>0.5</value></pow></sum></product>"
             "<value>2</value></pow></product>"
         )
-        moment = (
-            f"<sum><value>{_num(g['Cm0'])}</value><product><value>{_num(g['Cm_alpha'])}</value>"
-            f"{a_rad}</product><product><value>{_num(g['Cm_x'])}</value><difference>"
-            f"<value>1</value>{xp}</difference></product></sum>"
-        )
+
+    for i, (f, g) in enumerate(flaps):
         on = _stall_on(flap_p, f)
-        cl_terms.append(
-            f"<product>{on}<difference>{lift}<property>{cl_basic}</property></difference></product>"
-        )
-        cm_terms.append(
-            f"<product>{on}<difference>{moment}<property>{cm_basic}</property></difference>"
-            "</product>"
-        )
+        if dynamics_only:
+            xs = f"aero/{STALL_PREFIX}/flap-{i}/x-static"
+            fns.append(
+                f'  <function name="{xs}">\n    <description>flap {f:g} deg: the static '
+                "separation point x0(alpha) = 1 / (1 + exp(2 a1 (alpha - alpha*)))</description>"
+                f"\n    <quotient><value>1</value><sum><value>1</value><exp><product><value>"
+                f"{_num(2.0 * g['a1'])}</value><difference>{a_rad}<value>"
+                f"{_num(g['alpha_star'])}</value></difference></product></exp></sum></quotient>"
+                "\n  </function>"
+            )
+            dcl = f"<difference>{lift(g, xp)}{lift(g, f'<property>{xs}</property>')}</difference>"
+            dcm = (
+                f"<product><value>{_num(g['Cm_x'])}</value><difference><property>{xs}"
+                f"</property>{xp}</difference></product>"
+            )
+        else:
+            moment = (
+                f"<sum><value>{_num(g['Cm0'])}</value><product><value>{_num(g['Cm_alpha'])}"
+                f"</value>{a_rad}</product><product><value>{_num(g['Cm_x'])}</value><difference>"
+                f"<value>1</value>{xp}</difference></product></sum>"
+            )
+            dcl = f"<difference>{lift(g, xp)}<property>{cl_basic}</property></difference>"
+            dcm = f"<difference>{moment}<property>{cm_basic}</property></difference>"
+        cl_terms.append(f"<product>{on}{dcl}</product>")
+        cm_terms.append(f"<product>{on}{dcm}</product>")
     flaps_txt = ", ".join(f"{f:g}" for f, _ in flaps)
+    less = (
+        "the same curve at the static separation point (the separation dynamics over the "
+        "aircraft's own static curve)"
+        if dynamics_only
+        else "the qualified static curve it replaces"
+    )
     for c, terms, what in (("CL", cl_terms, "lift"), ("Cm", cm_terms, "pitching moment")):
         fns.append(
             f'  <function name="aero/aerodelta/stall/{c}-delta">\n    <description>Kirchhoff '
-            f"{what} less the qualified static curve it replaces, at flaps {flaps_txt} deg; 0 "
-            f"elsewhere</description>\n    {_sum(terms, '')}\n  </function>"
+            f"{what} less {less}, at flaps {flaps_txt} deg; 0 elsewhere</description>\n    "
+            f"{_sum(terms, '')}\n  </function>"
         )
     qs = "<property>aero/qbar-psf</property><property>metrics/Sw-sqft</property>"
     cl = "<property>aero/aerodelta/stall/CL-delta</property>"
@@ -683,10 +709,12 @@ def jsbsim_xml(
         lateral-directional aerodynamics, without the thrust's own moment
         (:data:`PROPULSIVE_TERMS`), which JSBSim's propulsion applies.
     longitudinal
-        Carry the Kirchhoff stall the model stores (:meth:`DeltaModel.with_longitudinal`,
-        fitted with ``known="adx37"``): the lift and pitching-moment increments of the
-        Kirchhoff curves over the ADX-37 qualified static curves ``CL_basic``, ``Cm_basic``
-        (non-dimensional: ``aero/aerodelta/stall/CL-delta``, ``.../Cm-delta``), on the ``LIFT``
+        Carry the Kirchhoff stall the model stores (:meth:`DeltaModel.with_longitudinal`):
+        the lift and pitching-moment increments of the Kirchhoff curves over the ADX-37
+        qualified static curves ``CL_basic``, ``Cm_basic`` (fitted with ``known="adx37"``) or,
+        fitted with ``known="none"``, over the same curves at the static separation point (the
+        separation dynamics alone, over the aircraft's own static curves; non-dimensional:
+        ``aero/aerodelta/stall/CL-delta``, ``.../Cm-delta``), on the ``LIFT``
         axis (``side_axis="SIDE"``: wind axes) or the ``X`` and ``Z`` axes (``side_axis="Y"``),
         and ``PITCH`` (``qbar S cbar``, ft lbf). The separation state is stepped here, with
         the frame's alpha and alphadot, from the previous frame's that
@@ -696,8 +724,7 @@ def jsbsim_xml(
     ------
     DataError
         A channel without a property, a coefficient other than ``CY``, ``Cl``, ``Cn``,
-        ``qualified`` for a Δ fitted against another simulator than the built-in ADX-37, or a
-        stored stall fitted with ``known="none"`` (give ``longitudinal=False``).
+        or ``qualified`` for a Δ fitted against another simulator than the built-in ADX-37.
     """
     if side_axis not in ("SIDE", "Y"):
         raise DataError(f"side_axis '{side_axis}': use 'SIDE' or 'Y' (JSBSim axis names)")

@@ -315,8 +315,8 @@ def write_replay_aircraft(
         ``"full"`` (the aircraft as flown), ``"qualified"`` (withheld terms frozen above the
         withhold alpha, the campaign's ``C*_sim``) or ``"extended"`` (qualified + the Δ of
         ``model`` exported by :func:`aerodelta.jsbsim.export_jsbsim` with
-        :func:`replay_properties`; the lateral Δ only: a stored Kirchhoff stall is not flown,
-        its increments being over the built-in ADX-37's static curves).
+        :func:`replay_properties`; the lateral Δ only: a stored Kirchhoff stall is not
+        flown).
     model
         The fitted Δ model (``"extended"`` only).
 
@@ -381,8 +381,7 @@ def write_replay_aircraft(
 
 def _merge_delta(setup: CampaignSetup, aero: ET.Element, model: DeltaModel, xml: Path) -> None:
     """Add the exported Δ (increments w ΔC on SIDE/ROLL/YAW) to the aircraft's aerodynamics.
-    A Kirchhoff stall the model stores is not added: its increments are over the built-in
-    ADX-37's static curves, not this aircraft's own lift and pitch tables."""
+    A Kirchhoff stall the model stores is not added: the replay checks the lateral Δ."""
     with tempfile.TemporaryDirectory() as tmp:
         text = export_jsbsim(
             Path(tmp) / "delta.xml", model, replay_properties(setup), longitudinal=False
