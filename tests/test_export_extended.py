@@ -547,6 +547,20 @@ def _load_with_stall(tmp: Path, aero: str, system: str) -> Any:
     return fdm
 
 
+def _driven(tmp: Path, aero: str, m: DeltaModel) -> tuple[Any, float, np.ndarray]:
+    """The fixture with ``aero`` and ``m``'s stall system, its channels on test properties
+    (all 0, alpha 5 deg) after the initial conditions; JSBSim's dt, and a 5 s pull from 5 to
+    25 deg and back (deg per frame)."""
+    fdm = _load_with_stall(tmp, aero, jsbsim_stall_system_xml(m))
+    for ch in _TEST_PROPS.values():
+        fdm[ch] = 0.0
+    fdm["test/alpha_deg"] = 5.0
+    assert fdm.run_ic()
+    dt = fdm["simulation/dt"]
+    t = np.arange(600) * dt
+    return fdm, dt, 5.0 + 20.0 * np.sin(np.pi * t / t[-1]) ** 2
+
+
 def test_jsbsim_stall_state_and_increments_equal_the_engine(tmp_path: Path) -> None:
     """A pull into the stall and back (5 s, alpha 5 -> 25 -> 5 deg) at flap 0, then 10, then
     20 (no stall stored), alpha and its rate set on the property tree each JSBSim frame:
@@ -563,15 +577,8 @@ def test_jsbsim_stall_state_and_increments_equal_the_engine(tmp_path: Path) -> N
       less the qualified static curves (the engine's DAVE-ML reading of the exported
       qualified model) to 1e-9, and 0 at flap 20."""
     m = stall_model()
-    fdm = _load_with_stall(tmp_path, jsbsim_xml(m, _TEST_PROPS), jsbsim_stall_system_xml(m))
-    for ch in _TEST_PROPS.values():
-        fdm[ch] = 0.0
-    fdm["test/alpha_deg"] = 5.0
-    assert fdm.run_ic()
-    dt = fdm["simulation/dt"]
-    n = 600
-    t1 = np.arange(n) * dt
-    a1 = 5.0 + 20.0 * np.sin(np.pi * t1 / t1[-1]) ** 2
+    fdm, dt, a1 = _driven(tmp_path, jsbsim_xml(m, _TEST_PROPS), m)
+    n = a1.size
     alpha = np.concatenate([a1, a1, a1])
     rate = np.concatenate([np.gradient(a1, dt)] * 3)
     flap = np.repeat([0.0, 10.0, 20.0], n)
@@ -700,15 +707,8 @@ def test_jsbsim_stall_fitted_on_the_whole_coefficients_adds_its_dynamics_only(
     m = stall_model(known="none")
     aero = jsbsim_xml(m, _TEST_PROPS)
     assert "CL_basic" not in aero and "aero/aerodelta/stall/flap-0/x-static" in aero
-    fdm = _load_with_stall(tmp_path, aero, jsbsim_stall_system_xml(m))
-    for ch in _TEST_PROPS.values():
-        fdm[ch] = 0.0
-    fdm["test/alpha_deg"] = 5.0
-    assert fdm.run_ic()
-    dt = fdm["simulation/dt"]
-    n = 600
-    t1 = np.arange(n) * dt
-    pull = 5.0 + 20.0 * np.sin(np.pi * t1 / t1[-1]) ** 2
+    fdm, dt, pull = _driven(tmp_path, aero, m)
+    n = pull.size
     alpha = np.concatenate([pull, np.full(720, 22.0)])  # then 6 s (30 tau1) held past the break
     rate = np.concatenate([np.gradient(pull, dt), np.zeros(720)])
     rows = []
