@@ -7,8 +7,8 @@ per coefficient, and check cases at sampled states verified against the engine; 
 SIDE, ROLL and YAW axes of an aircraft that holds the qualified model (with --jsbsim-qualified:
 the built-in qualified CY, Cl, Cn too); see docs/export.md for the properties it reads. A
 model carrying its Kirchhoff stall exports it to DAVE-ML as the state x_sep, and to JSBSim as
-lift and pitching-moment increments reading a <system> file (--jsbsim-system) that integrates the
-separation state; --no-longitudinal leaves it out of both."""
+lift and pitching-moment increments whose separation state a <system> file (--jsbsim-system)
+carries between frames; --no-longitudinal leaves it out of both."""
 
 from __future__ import annotations
 
@@ -75,7 +75,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--side-axis",
         choices=["SIDE", "Y"],
         help="JSBSim: axis of the side force (SIDE for AXIAL/NORMAL or DRAG/LIFT aircraft, "
-        "the default; Y for X/Y/Z aircraft)",
+        "the default; Y for X/Y/Z aircraft); a stored stall's lift goes on LIFT with SIDE "
+        "(DRAG/LIFT aircraft), on X and Z with Y",
     )
     parser.add_argument(
         "--jsbsim-qualified",
@@ -86,8 +87,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--jsbsim-system",
         metavar="OUT.xml",
-        help="JSBSim: the <system> file integrating the separation state of the model's "
-        "Kirchhoff stall (needed when the model stores one; load it with the aircraft)",
+        help="JSBSim: the <system> file carrying the separation state of the model's "
+        "Kirchhoff stall from frame to frame (needed when the model stores one; load it with "
+        "the aircraft)",
     )
     parser.add_argument("--seed", type=int, default=0, help="seed of the sampled check states")
     parser.add_argument(
