@@ -308,6 +308,11 @@ def test_cli_export_of_a_model_with_its_stall(
     assert not list(tmp_path.glob("*.tmp-*"))
     rc = main([*argv, "--no-longitudinal", "--jsbsim-system", str(sysx)])
     assert rc == 2 and "--no-longitudinal" in capsys.readouterr().err
+    # the stall's CL and Cm totals may be named with --coef (here as they are called)
+    rc = main([*argv, "--jsbsim-system", str(sysx), "--coef", "CL=CL", "--coef", "Cm=Cm"])
+    assert rc == 0, capsys.readouterr().err
+    rc = main([*argv, "--no-longitudinal", "--coef", "CL=CL"])
+    assert rc != 0 and "has no coefficient 'CL'" in capsys.readouterr().err
     rc = main(["export", "--model", str(path), "--daveml", str(dml), "--no-longitudinal"])
     assert rc == 0 and "x_sep" not in ad.DaveModel(dml).inputs
     assert "longitudinal stall at flaps" not in capsys.readouterr().out

@@ -209,8 +209,9 @@ def _stall_spec(
             "totals (the built-in ADX-37 file's variables)"
         )
         raise DataError(
-            f"the qualified DAVE-ML model has no {', '.join(missing)}: {what}; export without "
-            "the stall (--no-longitudinal, longitudinal=False)"
+            f"the qualified DAVE-ML model has no {', '.join(missing)}: {what}; name the totals "
+            "(--coef CL=VARID --coef Cm=VARID, coefficients=) or export without the stall "
+            "(--no-longitudinal, longitudinal=False)"
         )
     d2r = math.pi / 180.0
     inputs = [

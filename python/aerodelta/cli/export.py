@@ -62,7 +62,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--coef",
         action="append",
         metavar="C=VARID",
-        help="DAVE-ML: the qualified-model variable of a coefficient, e.g. Cl=Cl_total",
+        help="DAVE-ML: the qualified-model variable of a coefficient, e.g. Cl=Cl_total (and "
+        "CL=..., Cm=... for the totals a stored Kirchhoff stall reads)",
     )
     parser.add_argument(
         "--property",
@@ -175,7 +176,9 @@ def run(args: argparse.Namespace) -> int:
     coefs = _pairs(args.coef, "--coef")
     props = _pairs(args.property, "--property")
     _known(channel_map, "--map", model.input_columns, "channel")
-    _known(coefs, "--coef", model.coefficients, "coefficient")
+    # a stored stall also reads the qualified CL and Cm totals
+    stall_coefs = ["CL", "Cm"] if model.kirchhoff and not args.no_longitudinal else []
+    _known(coefs, "--coef", [*model.coefficients, *stall_coefs], "coefficient")
     _known(props, "--property", model.input_columns, "channel")
     if args.jsbsim:
         try:  # every property checked before anything is written
