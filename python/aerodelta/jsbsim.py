@@ -893,9 +893,9 @@ def export_jsbsim(
     stall = longitudinal and bool(model.kirchhoff)
     if stall and system_path is None:
         raise DataError(
-            "the model stores a Kirchhoff stall: JSBSim integrates its separation state in a "
-            "<system> file; give one (--jsbsim-system FILE, system_path=) or leave the stall "
-            "out (--no-longitudinal, longitudinal=False)"
+            "the model stores a Kirchhoff stall: JSBSim needs a <system> file to carry its "
+            "separation state between frames; give one (--jsbsim-system FILE, system_path=) or "
+            "leave the stall out (--no-longitudinal, longitudinal=False)"
         )
     if system_path is not None and not stall:
         why = "stores no Kirchhoff stall" if not model.kirchhoff else "leaves its stall out"

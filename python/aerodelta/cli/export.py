@@ -163,9 +163,9 @@ def run(args: argparse.Namespace) -> int:
     if args.jsbsim and model.kirchhoff and not args.no_longitudinal and not args.jsbsim_system:
         return _usage(
             f"the model stores a Kirchhoff stall (flaps "
-            f"{', '.join(f'{f:g}' for f in sorted(model.kirchhoff))} deg): JSBSim integrates its "
-            "separation state in a <system>; give --jsbsim-system OUT.xml, or --no-longitudinal "
-            "to leave the stall out"
+            f"{', '.join(f'{f:g}' for f in sorted(model.kirchhoff))} deg): JSBSim needs a "
+            "<system> to carry its separation state between frames; give --jsbsim-system "
+            "OUT.xml, or --no-longitudinal to leave the stall out"
         )
     if args.jsbsim_system and not model.kirchhoff:
         return _usage(
@@ -232,7 +232,7 @@ def run(args: argparse.Namespace) -> int:
         if args.jsbsim_system:
             axes = "X, Z" if side_axis == "Y" else "LIFT"
             print(
-                f"wrote {args.jsbsim_system}: the <system> integrating the separation state of "
+                f"wrote {args.jsbsim_system}: the <system> carrying the separation state of "
                 f"the stall at flaps {', '.join(f'{f:g}' for f in sorted(model.kirchhoff or {}))}"
                 f" deg; load it with the aircraft (the aerodynamics' {axes} and PITCH "
                 "increments read it)"
