@@ -15,7 +15,7 @@ def write_atomic(path: str | os.PathLike[str], write: Callable[[Path], object]) 
     An ``OSError`` names ``path``, never the temporary file (which the user never asked for).
     """
     out = Path(path)
-    tmp = out.with_name(f"{out.name}.tmp-{os.getpid()}")
+    tmp = _temporary(out)
     try:
         write(tmp)
         os.replace(tmp, out)
@@ -24,6 +24,11 @@ def write_atomic(path: str | os.PathLike[str], write: Callable[[Path], object]) 
     finally:
         tmp.unlink(missing_ok=True)
     return out
+
+
+def _temporary(out: Path) -> Path:
+    """The temporary file beside ``out`` that is renamed to it: ``<name>.tmp-<pid>``."""
+    return out.with_name(f"{out.name}.tmp-{os.getpid()}")
 
 
 def _naming(e: OSError, tmp: Path, out: Path) -> OSError:
@@ -46,7 +51,7 @@ def write_texts_atomic(items: list[tuple[str | os.PathLike[str], str]]) -> list[
     only when all are written are they renamed into place (a failure while writing leaves
     every earlier file as it was, and no temporary file)."""
     outs = [Path(p) for p, _ in items]
-    tmps = [o.with_name(f"{o.name}.tmp-{os.getpid()}") for o in outs]
+    tmps = [_temporary(o) for o in outs]
     try:
         for (_, text), tmp, out in zip(items, tmps, outs, strict=True):
             try:

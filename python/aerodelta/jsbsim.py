@@ -383,20 +383,27 @@ def _stall_flaps(model: DeltaModel) -> list[tuple[float, dict[str, float]]]:
     return sorted((float(f), dict(p)) for f, p in (model.kirchhoff or {}).items())
 
 
+def _logistic(k: float, u: str, centre: float) -> str:
+    """``1 / (1 + exp(k (u - centre)))`` as JSBSim function elements (``u`` one element).
+    With ``k = 2 a1`` it is ``x0(u) = (1 - tanh(a1 (u - alpha*))) / 2``, with ``k = -2 a1``
+    the separated fraction ``1 - x0(u)``."""
+    return (
+        "<quotient><value>1</value><sum><value>1</value><exp><product>"
+        f"<value>{_num(k)}</value><difference>{u}<value>{_num(centre)}</value></difference>"
+        "</product></exp></sum></quotient>"
+    )
+
+
 def _stall_static_separated(g: Mapping[str, float], alpha_p: str, alphadot_p: str) -> str:
-    """``1 - x0(alpha - tau2 alphadot) = 1 / (1 + exp(-2 a1 (u - alpha*)))`` (alpha in deg,
-    alphadot in deg/s read from the properties; ``x0 = (1 - tanh(a1 (u - alpha*))) / 2``)."""
+    """``1 - x0(alpha - tau2 alphadot)`` (alpha in deg, alphadot in deg/s read from the
+    properties)."""
     d2r = math.pi / 180.0
     u = (
         f"<difference><product><property>{alpha_p}</property><value>{_num(d2r)}</value>"
         f"</product><product><property>{alphadot_p}</property>"
         f"<value>{_num(g['tau2'] * d2r)}</value></product></difference>"
     )
-    return (
-        "<quotient><value>1</value><sum><value>1</value><exp><product>"
-        f"<value>{_num(-2.0 * g['a1'])}</value><difference>{u}"
-        f"<value>{_num(g['alpha_star'])}</value></difference></product></exp></sum></quotient>"
-    )
+    return _logistic(-2.0 * g["a1"], u, g["alpha_star"])
 
 
 def _stall_on(flap_p: str, f: float) -> str:
@@ -556,10 +563,7 @@ def _stall_functions(
             fns.append(
                 f'  <function name="{xs}">\n    <description>flap {f:g} deg: the static '
                 "separation point x0(alpha) = 1 / (1 + exp(2 a1 (alpha - alpha*)))</description>"
-                f"\n    <quotient><value>1</value><sum><value>1</value><exp><product><value>"
-                f"{_num(2.0 * g['a1'])}</value><difference>{a_rad}<value>"
-                f"{_num(g['alpha_star'])}</value></difference></product></exp></sum></quotient>"
-                "\n  </function>"
+                f"\n    {_logistic(2.0 * g['a1'], a_rad, g['alpha_star'])}\n  </function>"
             )
             dcl = f"<difference>{lift(g, xp)}{lift(g, f'<property>{xs}</property>')}</difference>"
             dcm = (
@@ -869,6 +873,33 @@ def jsbsim_properties(
     return out
 
 
+def stall_system_problem(
+    model: DeltaModel, longitudinal: bool, system_path: str | PathLike[str] | None
+) -> str | None:
+    """Why the JSBSim export of ``model`` cannot go ahead with this stall system file (a stall
+    carried without one, or one given with no stall to carry), or ``None``. One rule for
+    :func:`export_jsbsim` and the CLI, which asks before it writes anything."""
+    if longitudinal and model.kirchhoff:
+        if system_path is None:
+            flaps = ", ".join(f"{f:g}" for f in sorted(model.kirchhoff))
+            return (
+                f"the model stores a Kirchhoff stall (flaps {flaps} deg): JSBSim needs a "
+                "<system> file to carry its separation state between frames; give one "
+                "(--jsbsim-system FILE, system_path=) or leave the stall out "
+                "(--no-longitudinal, longitudinal=False)"
+            )
+        return None
+    if system_path is None:
+        return None
+    why = (
+        "the model stores no Kirchhoff stall (aerodelta longitudinal --model M --out-model M2 "
+        "adds one)"
+        if not model.kirchhoff
+        else "the export leaves its stall out (--no-longitudinal, longitudinal=False)"
+    )
+    return f"the JSBSim stall system {system_path}: {why}; drop --jsbsim-system / system_path"
+
+
 def export_jsbsim(
     path: str | PathLike[str],
     model: DeltaModel,
@@ -890,19 +921,9 @@ def export_jsbsim(
         As :func:`jsbsim_xml`; a stall without ``system_path``, ``system_path`` without a
         stall to carry, or ``system_path`` naming ``path``.
     """
-    stall = longitudinal and bool(model.kirchhoff)
-    if stall and system_path is None:
-        raise DataError(
-            "the model stores a Kirchhoff stall: JSBSim needs a <system> file to carry its "
-            "separation state between frames; give one (--jsbsim-system FILE, system_path=) or "
-            "leave the stall out (--no-longitudinal, longitudinal=False)"
-        )
-    if system_path is not None and not stall:
-        why = "stores no Kirchhoff stall" if not model.kirchhoff else "leaves its stall out"
-        raise DataError(
-            f"the JSBSim stall system {system_path}: the export {why} "
-            "(longitudinal=False or no stall); drop --jsbsim-system / system_path"
-        )
+    problem = stall_system_problem(model, longitudinal, system_path)
+    if problem is not None:
+        raise DataError(problem)
     text = jsbsim_xml(
         model, properties, side_axis=side_axis, qualified=qualified, longitudinal=longitudinal
     )

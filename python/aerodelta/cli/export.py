@@ -28,7 +28,7 @@ from aerodelta.cli._data import (
 )
 from aerodelta.exceptions import DataError
 from aerodelta.export import export_extended_daveml
-from aerodelta.jsbsim import export_jsbsim, jsbsim_properties
+from aerodelta.jsbsim import export_jsbsim, jsbsim_properties, stall_system_problem
 
 HELP = "export the extended model to DAVE-ML and/or JSBSim"
 
@@ -160,18 +160,10 @@ def run(args: argparse.Namespace) -> int:
     check_outputs(None, "--daveml" if args.daveml else "--jsbsim", files=list(outs.values()),
                   inputs=[model_file, qualified])  # fmt: skip
     model = load_model(model_file)
-    if args.jsbsim and model.kirchhoff and not args.no_longitudinal and not args.jsbsim_system:
-        return _usage(
-            f"the model stores a Kirchhoff stall (flaps "
-            f"{', '.join(f'{f:g}' for f in sorted(model.kirchhoff))} deg): JSBSim needs a "
-            "<system> to carry its separation state between frames; give --jsbsim-system "
-            "OUT.xml, or --no-longitudinal to leave the stall out"
-        )
-    if args.jsbsim_system and not model.kirchhoff:
-        return _usage(
-            "--jsbsim-system: the model stores no Kirchhoff stall (aerodelta longitudinal "
-            "--model M --out-model M2 adds one)"
-        )
+    if args.jsbsim:  # before anything is written
+        problem = stall_system_problem(model, not args.no_longitudinal, args.jsbsim_system)
+        if problem is not None:
+            return _usage(problem)
     channel_map = _pairs(args.map, "--map")
     coefs = _pairs(args.coef, "--coef")
     props = _pairs(args.property, "--property")
