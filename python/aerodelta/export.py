@@ -175,6 +175,13 @@ STALL_FLAP_WINDOW_DEG = 1e-9
 STALL_BASE_VARIABLES = ("CL_basic", "Cm_basic")
 
 
+def _stall_replaces(model: DeltaModel) -> tuple[str, ...]:
+    """The qualified file's static curves the model's stall replaces: those of
+    :data:`STALL_BASE_VARIABLES` for a stall fitted on the ADX-37's known terms, none for one
+    fitted with ``known="none"`` (which adds its separation dynamics to the totals)."""
+    return () if model.kirchhoff_known == "none" else STALL_BASE_VARIABLES
+
+
 def _stall_spec(
     model: DeltaModel,
     bunits: Mapping[str, str],
@@ -196,10 +203,7 @@ def _stall_spec(
     derivative is 0 and the totals are the qualified ones."""
     stall = model.kirchhoff or {}
     dynamics_only = model.kirchhoff_known == "none"
-    need = [
-        *(() if dynamics_only else STALL_BASE_VARIABLES),
-        *(coefficients.get(c, c) for c in ("CL", "Cm")),
-    ]
+    need = [*_stall_replaces(model), *(coefficients.get(c, c) for c in ("CL", "Cm"))]
     missing = [v for v in need if v not in bunits]
     if missing:
         what = (
@@ -469,8 +473,7 @@ def extended_daveml_spec(
             model, bunits, alpha=alpha_ch, flap=flap_ch, alphadot="alphadot_dps",
             coefficients=cnames,
         )  # fmt: skip
-        base_vars = () if model.kirchhoff_known == "none" else STALL_BASE_VARIABLES
-        for v in (*base_vars, *(cnames.get(c, c) for c in ("CL", "Cm"))):
+        for v in (*_stall_replaces(model), *(cnames.get(c, c) for c in ("CL", "Cm"))):
             if v not in resolved:
                 resolved.add(v)
                 inputs.append({"id": v, "units": bunits[v]})
@@ -616,7 +619,7 @@ def _stall_reference(
     dynamics_only = model.kirchhoff_known == "none"
     qual = base.evaluate(
         {k: v for k, v in data.items() if k in binputs},
-        outputs=[cl_q, cm_q, *(() if dynamics_only else STALL_BASE_VARIABLES)],
+        outputs=[cl_q, cm_q, *_stall_replaces(model)],
     )
     xdot, x0 = np.zeros(n), np.zeros(n)
     cl, cm = qual[cl_q].to_numpy().copy(), qual[cm_q].to_numpy().copy()
