@@ -281,6 +281,8 @@ def one_seed(
     configs = {
         "thesis": FitConfig(selection=None, bootstrap=bootstrap),
         "stepwise": FitConfig(bootstrap=bootstrap),
+        # the default fit with the qualified model compared at full band (before session 27)
+        "stepwise_full_band": FitConfig(bootstrap=bootstrap, smoother_match=False),
     }
     configs = {k: v for k, v in configs.items() if k in structures}
     bins: list[pl.DataFrame] = []
@@ -327,7 +329,7 @@ def one_seed(
                     **_tic_ratios(r, test, truth),
                 }
             )
-            if name == "stepwise":
+            if name.startswith("stepwise"):
                 d = _dropped(r, camp)
                 if d.height:
                     drops.append(d.with_columns(*[pl.lit(v).alias(k) for k, v in tag.items()]))
@@ -416,8 +418,12 @@ def summarize(bins: pl.DataFrame, camps: pl.DataFrame, drops: pl.DataFrame) -> s
             zsig = zero["p_value"].to_numpy() < 0.05
             # the fit's own verdict (band excludes zero; rows saved before it: p < 0.05 only)
             zsig_fit = zero["significant"].to_numpy() if "significant" in zero.columns else None
-            if st == "stepwise" and drops.height:
-                dg = drops.filter((pl.col("aircraft") == ac) & (pl.col("coefficient") == c))
+            if st.startswith("stepwise") and drops.height:
+                dg = drops.filter(
+                    (pl.col("aircraft") == ac)
+                    & (pl.col("coefficient") == c)
+                    & (pl.col("structure") == st)
+                )
                 nd = dg.filter(~pl.col("kept"))
                 dropped = (
                     f"{nd.height} of {dg.height} ("
@@ -503,7 +509,8 @@ def main() -> None:
     ap.add_argument(
         "--structures",
         default="thesis,stepwise",
-        help="comma list of the fits to run: thesis, stepwise",
+        help="comma list of the fits to run: thesis, stepwise, stepwise_full_band (the default "
+        "fit without FitConfig.smoother_match)",
     )
     ap.add_argument("--summarize", type=Path, nargs="+", default=None, help="saved prefixes")
     ap.add_argument("--workers", type=int, default=2, help="engine workers (0: this process)")

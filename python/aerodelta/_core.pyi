@@ -575,6 +575,19 @@ def rolloff_monte_carlo(
     spec_json: str, threads: int | None = None
 ) -> dict[str, npt.NDArray[np.generic]]: ...
 def rolloff_mc_default_spec() -> str: ...
+def through_smoother(
+    t: npt.NDArray[np.float64],
+    maneuver: npt.NDArray[np.uint64],
+    check_raw: npt.NDArray[np.float64],
+    check_smoothed: npt.NDArray[np.float64],
+    scale: npt.NDArray[np.float64],
+    channels: list[tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]],
+) -> tuple[list[npt.NDArray[np.float64]], tuple[int, int, int, int]]:
+    """Each ``(reference, target)``: ``S_ref(target * scale) / scale`` per maneuver (the Wiener
+    weights the smoother chooses for the raw reference), and the counts ``(matched,
+    unsmoothed, changed, nonfinite)`` (``aero_core::preprocess::matched``)."""
+    ...
+
 def calibrate_chain(
     t: npt.NDArray[np.float64],
     maneuver: npt.NDArray[np.uint64],

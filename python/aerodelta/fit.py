@@ -39,6 +39,7 @@ from aerodelta._toml import read_toml
 from aerodelta.exceptions import DataError
 from aerodelta.model import SCHEMA, DeltaModel
 from aerodelta.qualified import describe, for_model, resolve
+from aerodelta.smoother_match import through_smoother
 
 COEFFICIENTS = ("Cl", "Cn", "CY")
 
@@ -255,6 +256,14 @@ class FitConfig:
         listed in the notes. Measured on JSBSim report seeds 401-410 (``docs/identification.md``):
         DHC-6 zero-truth terms significant in 31 % → 10 % (C_l) and 26 % → 3.7 % (C_n) of their
         bins, F-15 ΔC_l_p 1.13 → 1.08 × its truth.
+    smoother_match
+        Pass the qualified model, maneuver by maneuver, through the smoother weights the
+        ingestion applied to the channel each measured coefficient comes from (C_Y: ``ay``,
+        C_l: ``p``, C_n: ``r``; :mod:`aerodelta.smoother_match`), before the chain calibration:
+        the measurement lost what lies above its channel's data-chosen cut-off (about 2 Hz for
+        a noisy lateral accelerometer), the model evaluated along the records did not, and the
+        difference of a fast transient reads as a Δ. Maneuvers ingested without smoothing, or
+        changed since, are left at full band (counted in the notes).
     """
 
     structures: Mapping[str, Sequence[tuple[str, str]]] = field(
@@ -291,6 +300,7 @@ class FitConfig:
     band_hz: float | Mapping[str, float] | None = None
     nested_cv: bool = True
     chain_calibration: bool = True
+    smoother_match: bool = True
 
     def __post_init__(self) -> None:
         """Refuse a setting of the wrong type (a TOML string where a number belongs, a
@@ -547,6 +557,7 @@ _FLOAT_SETTINGS = (
 _OPTIONAL_SETTINGS = ("max_width_deg", "max_vif")
 _BOOL_SETTINGS = (
     "colored", "weighted", "bootstrap_selection", "nested_cv", "chain_calibration",
+    "smoother_match",
 )  # fmt: skip
 
 
@@ -1749,6 +1760,10 @@ def fit(
     if not flaps:
         raise DataError("fit: no row has a flap setting (flap_deg); check the manifest")
     notes: list[str] = []
+    if cfg.smoother_match:
+        q, matched = through_smoother(df, q)
+        if (line := matched.note()) is not None:
+            notes.append(line)
     if cfg.chain_calibration:
         given = cfg.structures if cfg.selection is None else None
         q, chain = calibrate_chain(df, q, coefs, cfg, flaps, structures=given)

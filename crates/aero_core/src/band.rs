@@ -48,7 +48,7 @@ pub struct BandReport {
 }
 
 /// Time-ordered pieces of each maneuver, in the order the maneuvers first appear.
-fn segments(maneuver: &[u64], t: &[f64]) -> Vec<Vec<usize>> {
+pub(crate) fn segments(maneuver: &[u64], t: &[f64]) -> Vec<Vec<usize>> {
     let mut order: Vec<u64> = Vec::new();
     let mut rows: HashMap<u64, Vec<usize>> = HashMap::new();
     for (i, &m) in maneuver.iter().enumerate() {

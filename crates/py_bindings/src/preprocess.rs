@@ -1,13 +1,13 @@
 //! Flight test preprocessing (`aero_core::preprocess`): conversion and error mapping only.
 use aero_core::preprocess::coefficients::MassGeometry;
 use aero_core::preprocess::smooth as core_smooth;
-use aero_core::preprocess::{compat, deriv, kinematics, maneuver, plausibility};
+use aero_core::preprocess::{compat, deriv, kinematics, maneuver, matched, plausibility};
 use aero_core::AeroError;
 use numpy::{IntoPyArray, PyArray1, PyReadonlyArray1, PyReadonlyArray2};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-use crate::util::detached;
+use crate::util::{detached, slice};
 
 type Arr<'py> = Bound<'py, PyArray1<f64>>;
 
@@ -385,6 +385,44 @@ fn plausibility_check<'py>(
         .collect()
 }
 
+/// A model's coefficients seen through the smoother of their measurement's channel
+/// (`aero_core::preprocess::matched::through_smoother`): per `(reference, target)` the
+/// filtered target, and the counts `(matched, unsmoothed, changed, nonfinite)`.
+#[pyfunction]
+#[pyo3(signature = (t, maneuver, check_raw, check_smoothed, scale, channels))]
+#[allow(clippy::type_complexity)]
+fn through_smoother<'py>(
+    py: Python<'py>,
+    t: PyReadonlyArray1<'py, f64>,
+    maneuver: PyReadonlyArray1<'py, u64>,
+    check_raw: PyReadonlyArray1<'py, f64>,
+    check_smoothed: PyReadonlyArray1<'py, f64>,
+    scale: PyReadonlyArray1<'py, f64>,
+    channels: Vec<(PyReadonlyArray1<'py, f64>, PyReadonlyArray1<'py, f64>)>,
+) -> PyResult<(Vec<Arr<'py>>, (usize, usize, usize, usize))> {
+    let (t, man, raw, smoothed, scale) = (
+        slice("t", &t)?,
+        slice("maneuver", &maneuver)?,
+        slice("check_raw", &check_raw)?,
+        slice("check_smoothed", &check_smoothed)?,
+        slice("scale", &scale)?,
+    );
+    let mut chans = Vec::with_capacity(channels.len());
+    for (r, x) in &channels {
+        chans.push(matched::Channel {
+            reference: slice("reference", r)?,
+            target: slice("target", x)?,
+        });
+    }
+    let (out, rep) = detached(py, || {
+        matched::through_smoother(t, man, raw, smoothed, scale, &chans)
+    })?;
+    Ok((
+        out.into_iter().map(|v| v.into_pyarray(py)).collect(),
+        (rep.matched, rep.unsmoothed, rep.changed, rep.nonfinite),
+    ))
+}
+
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(smooth, m)?)?;
     m.add_function(wrap_pyfunction!(smooth_deriv, m)?)?;
@@ -395,5 +433,6 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(preprocess_batch, m)?)?;
     m.add_function(wrap_pyfunction!(compat_check, m)?)?;
     m.add_function(wrap_pyfunction!(plausibility_check, m)?)?;
+    m.add_function(wrap_pyfunction!(through_smoother, m)?)?;
     Ok(())
 }

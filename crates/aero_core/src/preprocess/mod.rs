@@ -8,7 +8,8 @@
 //! - [`coefficients`]: measured Cl, Cn, CY (Eq. 3.2-3.4), CX, CZ, Cm;
 //! - [`compat`]: data compatibility / flight path reconstruction (Section 2.4);
 //! - [`plausibility`]: unit and sign plausibility of the channels from kinematic consistency;
-//! - [`maneuver`]: the per-maneuver pipeline and its parallel batch form.
+//! - [`maneuver`]: the per-maneuver pipeline and its parallel batch form;
+//! - [`matched`]: a model's coefficients seen through the smoother the measured ones came through.
 
 // Sample-indexed loops mirror the equations; iterator chains would hide them.
 #![allow(clippy::needless_range_loop)]
@@ -19,5 +20,6 @@ pub mod deriv;
 pub mod fft;
 pub mod kinematics;
 pub mod maneuver;
+pub mod matched;
 pub mod plausibility;
 pub mod smooth;

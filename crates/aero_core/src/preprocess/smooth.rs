@@ -333,6 +333,46 @@ impl Smoother {
 }
 
 impl Smoother {
+    /// `target` through the Wiener weights the smoother chooses for `reference` (both of the
+    /// planned length, finite): the same end treatment (each channel's own line removed and
+    /// added back, tapered odd reflections) and the weights $W_k$ designed on the reference's
+    /// spectrum (step 3-4 of the module doc), applied to the target's. With fixed weights the
+    /// smoother is linear, so a model output seen through it carries the band the smoothed
+    /// measurement carries (filter consistency of equation error: Klein & Morelli 2006,
+    /// Section 5.5). The target is returned unchanged where [`Smoother::smooth`] would
+    /// return the reference unchanged (too short, another length, no noise floor found).
+    pub fn smooth_like(&self, reference: &[f64], target: &[f64]) -> Vec<f64> {
+        let n = self.n;
+        let plan = match &self.plan {
+            Some(p) if reference.len() == n && target.len() == n => p,
+            _ => return target.to_vec(),
+        };
+        let h = self.half;
+        let m = 2 * h;
+        // the reference's spectrum as [`Smoother::smooth`] takes it (the channel in both
+        // parts of one FFT), so the weights are the ones it applies, and a degenerate
+        // reference (a constant) sees no rounding from the target in its spectrum
+        let (own, _) = self.forward_pair(plan, reference, reference);
+        let mut pr = vec![0.0; h + 1];
+        for k in 0..=h {
+            let zm = own[(m - k) % m].conj();
+            pr[k] = ((own[k] + zm) * 0.5).norm_sqr();
+        }
+        let d = self.design(&pr);
+        if !d.filter {
+            return target.to_vec();
+        }
+        let (mut buf, lines) = self.forward_pair(plan, target, target);
+        for k in 0..m {
+            let kk = if k <= h { k } else { m - k };
+            buf[k] *= d.weights[kk];
+        }
+        // the same real, even weight on both parts: the packed spectrum is scaled as is
+        self.back_pair(plan, buf, lines).0
+    }
+}
+
+impl Smoother {
     /// Zero-phase low-pass of two channels of the same record at a fixed cut-off `fc_hz`,
     /// with the smoother's end treatment (line removed, tapered odd reflections, one FFT
     /// period): the weight is 1 up to `0.75 fc`, 0 from `1.25 fc`, and `cos²` between
@@ -476,6 +516,64 @@ mod tests {
         assert!(
             (a.cutoff_hz - a1.cutoff_hz).abs() < 1e-9 && (b.noise_std - b1.noise_std).abs() < 1e-12
         );
+    }
+
+    #[test]
+    fn smooth_like_applies_the_references_weights() {
+        let dt = 0.02;
+        let mut rng = ChaCha8Rng::seed_from_u64(11);
+        let n = 1500;
+        let x: Vec<f64> = (0..n)
+            .map(|i| {
+                (0.03 * i as f64).sin() + 0.2 * (0.4 * i as f64).sin() + 0.02 * gauss(&mut rng)
+            })
+            .collect();
+        let sm = Smoother::new(n);
+        let own = sm.smooth(&x, dt);
+        assert!(own.cutoff_hz < 0.5 / dt, "the reference must be filtered");
+        // the reference seen through its own weights is its smoothed self
+        let same = sm.smooth_like(&x, &x);
+        let err = same
+            .iter()
+            .zip(&own.values)
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0, f64::max);
+        assert!(err < 1e-12, "the reference through its own weights: {err}");
+        // linear in the target (each target's own line removed and added back): a y + b x + c
+        let y: Vec<f64> = (0..n)
+            .map(|i| (0.11 * i as f64).cos() + 0.5 * gauss(&mut rng))
+            .collect();
+        let combo: Vec<f64> = y
+            .iter()
+            .zip(&x)
+            .enumerate()
+            .map(|(i, (u, v))| 2.0 * u - 3.0 * v + 1.5 + 0.001 * i as f64)
+            .collect();
+        let sy = sm.smooth_like(&x, &y);
+        let sc = sm.smooth_like(&x, &combo);
+        for i in 0..n {
+            let want = 2.0 * sy[i] - 3.0 * own.values[i] + 1.5 + 0.001 * i as f64;
+            assert!((sc[i] - want).abs() < 1e-9, "row {i}: {} vs {want}", sc[i]);
+        }
+        // the reference's weights: a 12 Hz target, far above its 1 Hz cut-off, is removed
+        // (in the middle third: the end samples keep their values, as the reference's do,
+        // and the step the filter leaves there rings for a while)
+        let fast: Vec<f64> = (0..n)
+            .map(|i| (2.0 * std::f64::consts::PI * 12.0 * i as f64 * dt).sin())
+            .collect();
+        let sf = sm.smooth_like(&x, &fast);
+        let kept = sf[n / 3..2 * n / 3]
+            .iter()
+            .fold(0.0_f64, |a, v| a.max(v.abs()));
+        assert!(
+            kept < 0.005,
+            "12 Hz above a {} Hz cut-off kept at {kept}",
+            own.cutoff_hz
+        );
+        // no noise floor in the reference (a constant): the target passes unchanged
+        assert_eq!(sm.smooth_like(&vec![2.0; n], &y), y);
+        // another length: unchanged
+        assert_eq!(sm.smooth_like(&x[..10], &y[..10]), y[..10].to_vec());
     }
 
     #[test]
