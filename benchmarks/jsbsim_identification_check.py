@@ -283,6 +283,8 @@ def one_seed(
         "stepwise": FitConfig(bootstrap=bootstrap),
         # the default fit with the qualified model compared at full band (before session 27)
         "stepwise_full_band": FitConfig(bootstrap=bootstrap, smoother_match=False),
+        # the default fit without |beta| riding with beta (before session 27)
+        "stepwise_no_kink": FitConfig(bootstrap=bootstrap, beta_kink=False),
     }
     configs = {k: v for k, v in configs.items() if k in structures}
     bins: list[pl.DataFrame] = []
@@ -510,7 +512,7 @@ def main() -> None:
         "--structures",
         default="thesis,stepwise",
         help="comma list of the fits to run: thesis, stepwise, stepwise_full_band (the default "
-        "fit without FitConfig.smoother_match)",
+        "fit without FitConfig.smoother_match), stepwise_no_kink (without FitConfig.beta_kink)",
     )
     ap.add_argument("--summarize", type=Path, nargs="+", default=None, help="saved prefixes")
     ap.add_argument("--workers", type=int, default=2, help="engine workers (0: this process)")

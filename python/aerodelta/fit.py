@@ -100,7 +100,9 @@ DEFAULT_STRUCTURES: dict[str, list[tuple[str, str]]] = {
 #: otherwise the kink leaks into the intercept and into terms correlated with |beta| (rates in
 #: wing rock). The stepwise regression's collinearity guard keeps it and ``beta^2`` from
 #: entering together. The order is the priority of :func:`fit`'s collinearity rule (a term
-#: collinear with an earlier one leaves the structure first).
+#: collinear with an earlier one leaves the structure first): ``|beta|`` comes before
+#: ``beta^2`` (correlation about 0.95), since :attr:`FitConfig.beta_kink` keeps it with
+#: ``beta``.
 CANDIDATE_TERMS: list[tuple[str, str]] = [
     ("0", "1"),
     ("beta", "beta_deg"),
@@ -116,10 +118,14 @@ CANDIDATE_TERMS: list[tuple[str, str]] = [
     ("alphadot_beta", "alphadot_dps * beta_deg"),
     ("alphadot_betadot", "alphadot_dps * betadot_dps"),
     ("beta_ds", "beta_deg * ds_deg"),
+    ("beta_abs", "abs(beta_deg)"),
     ("beta2", "beta_deg^2"),
     ("beta3", "beta_deg^3"),
-    ("beta_abs", "abs(beta_deg)"),
 ]
+
+#: Companion terms of the selection (:attr:`FitConfig.beta_kink`), as regressor expressions
+#: without spaces: whenever it keeps the first, it keeps the second too.
+BETA_KINK: tuple[tuple[str, str], ...] = (("beta_deg", "abs(beta_deg)"),)
 
 #: Default candidate pools of the structure selection.
 DEFAULT_CANDIDATES: dict[str, list[tuple[str, str]]] = {
@@ -264,6 +270,16 @@ class FitConfig:
         a noisy lateral accelerometer), the model evaluated along the records did not, and the
         difference of a fast transient reads as a Δ. Maneuvers ingested without smoothing, or
         changed since, are left at full band (counted in the notes).
+    beta_kink
+        Whenever the selection keeps ``beta``, keep ``|beta|`` too (:data:`BETA_KINK`; in the
+        reselecting bootstrap's replicates and the nested cross-validation alike). Flight
+        simulator tables are piecewise linear in β with a breakpoint at zero (the JSBSim
+        DHC-6's Clb changes slope there by a factor of five); without ``|beta|`` the kink goes
+        into the intercept and the slope. When most samples have |β| < 1 deg the held-out
+        error barely sees it, so the selection's prediction score drops ``|beta|`` while the
+        reported ΔC_l_0 misses its truth (development seeds 1-20 of the DHC-6: 60 % of flap-20
+        bins inside their 95 % intervals). A bin that cannot identify ``|beta|`` (one-sided
+        sideslip: collinear with ``beta``) says so in its note.
     """
 
     structures: Mapping[str, Sequence[tuple[str, str]]] = field(
@@ -301,6 +317,7 @@ class FitConfig:
     nested_cv: bool = True
     chain_calibration: bool = True
     smoother_match: bool = True
+    beta_kink: bool = True
 
     def __post_init__(self) -> None:
         """Refuse a setting of the wrong type (a TOML string where a number belongs, a
@@ -557,7 +574,7 @@ _FLOAT_SETTINGS = (
 _OPTIONAL_SETTINGS = ("max_width_deg", "max_vif")
 _BOOL_SETTINGS = (
     "colored", "weighted", "bootstrap_selection", "nested_cv", "chain_calibration",
-    "smoother_match",
+    "smoother_match", "beta_kink",
 )  # fmt: skip
 
 
@@ -1493,6 +1510,7 @@ def _submit(
     flap: float,
     notes: list[str],
     prune: bool,
+    companions: Sequence[tuple[int, int]] = (),
 ) -> Future:
     """Submit one coefficient's identification at one flap to the engine (which releases the
     GIL), on the rows with a finite qualified-model error, alpha and regressor channels (rows
@@ -1527,7 +1545,7 @@ def _submit(
         cfg.min_selected_bins, cfg.cv_folds, cfg.seed, [list(e) for e in extra], bootstrap,
         cfg.band_level, t, band, cfg.min_excitation_snr, cfg.min_maneuvers_identified,
         cfg.bootstrap_selection, math.inf if cfg.max_vif is None else cfg.max_vif, prune,
-        cfg.nested_cv,
+        cfg.nested_cv, list(companions),
     )  # fmt: skip
     return fut
 
@@ -1940,11 +1958,16 @@ def fit(
                 by_expr = {e.replace(" ", ""): i for i, (_, e) in enumerate(regs)}
                 extra_cols = [by_expr.get(e.replace(" ", "")) for _, e in default]
                 extra = [sorted(c for c in extra_cols if c is not None)] if selection else []
+                pairs = [
+                    (by_expr[a], by_expr[b])
+                    for a, b in BETA_KINK
+                    if cfg.beta_kink and selection and a in by_expr and b in by_expr
+                ]
                 fut = _submit(
                     ex, cfg, full, codes, coef, regs=regs,
                     alpha_max=stall[flap] + cfg.past_stall_deg, selection=selection,
                     forced=forced, extra=extra, bootstrap=cfg.bootstrap, flap=flap, notes=notes,
-                    prune=selection is not None or not custom_structures[coef],
+                    prune=selection is not None or not custom_structures[coef], companions=pairs,
                 )  # fmt: skip
                 jobs.append((flap, coef, regs, default, extra, fut))
             while len(jobs) > 2 * len(coefs):  # bounded memory: about three flaps in flight

@@ -254,7 +254,7 @@ fn bootstrap_dict<'py>(py: Python<'py>, b: &Bootstrap) -> PyResult<Bound<'py, Py
 /// Per-bin identification of one coefficient at one flap setting with an optional
 /// structure selection over a candidate pool and an optional bootstrap over maneuvers.
 #[pyfunction]
-#[pyo3(signature = (regressors, columns, z, alpha_deg, maneuver, width_deg, min_points_per_param, min_maneuvers, max_width_deg, colored, min_excitation, p, weighted, grid_step_deg, alpha_max_deg, min_identified_bins, selection, f_in, f_out, forced, min_bins, folds, seed, extra, bootstrap, level, t=None, band_hz=None, min_excitation_snr=3.0, min_maneuvers_identified=5, bootstrap_reselect=false, max_vif=10.0, prune_collinear=true, nested_cv=true))]
+#[pyo3(signature = (regressors, columns, z, alpha_deg, maneuver, width_deg, min_points_per_param, min_maneuvers, max_width_deg, colored, min_excitation, p, weighted, grid_step_deg, alpha_max_deg, min_identified_bins, selection, f_in, f_out, forced, min_bins, folds, seed, extra, bootstrap, level, t=None, band_hz=None, min_excitation_snr=3.0, min_maneuvers_identified=5, bootstrap_reselect=false, max_vif=10.0, prune_collinear=true, nested_cv=true, companions=Vec::new()))]
 #[allow(clippy::too_many_arguments)]
 fn identify_flap<'py>(
     py: Python<'py>,
@@ -292,6 +292,7 @@ fn identify_flap<'py>(
     max_vif: f64,
     prune_collinear: bool,
     nested_cv: bool,
+    companions: Vec<(usize, usize)>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let cols = column_slices(&columns)?;
     let (z, alpha, man) = (z.as_slice()?, alpha_deg.as_slice()?, maneuver.as_slice()?);
@@ -353,6 +354,7 @@ fn identify_flap<'py>(
             min_points_per_param,
             extra: extra.clone(),
             nested: nested_cv,
+            companions: companions.clone(),
         });
         let smooth = SmoothOptions {
             p,

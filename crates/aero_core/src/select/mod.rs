@@ -587,6 +587,18 @@ pub struct SelectOptions {
     /// whole selection reruns once per fold on the other folds' maneuvers. Costs `folds`
     /// more selections.
     pub nested: bool,
+    /// Companion columns `(a, b)`: when the selection keeps `a` (after the
+    /// one-standard-error rule and the backward pruning), it adds `b` if the structure with
+    /// `b` predicts the held-out maneuvers within one standard error of the structure without
+    /// it (the standard error of its cross-validated error over the folds, the classic
+    /// one-standard-error rule of Hastie, Tibshirani & Friedman 2009, Section 7.10, turned the
+    /// other way), for a term whose absence biases a reported parameter more than the
+    /// held-out error can see. `|β|` with `β`: the kink of a table piecewise linear in β
+    /// at β = 0 goes into the intercept and the slope without it, while most samples have
+    /// small |β|. Where the aircraft has no kink and `|β|` only adds variance, the held-out
+    /// error rises by more than that and it stays out. A companion a bin cannot identify
+    /// (collinear, not excited) is then marked as such by the per-bin fit.
+    pub companions: Vec<(usize, usize)>,
 }
 
 impl Default for SelectOptions {
@@ -605,6 +617,7 @@ impl Default for SelectOptions {
             min_points_per_param: 10,
             extra: Vec::new(),
             nested: true,
+            companions: Vec::new(),
         }
     }
 }
@@ -1048,6 +1061,12 @@ fn check_inputs(
             format!("column {c} is out of the pool's {p} columns"),
         ));
     }
+    if let Some(&(a, b)) = opts.companions.iter().find(|(a, b)| *a >= p || *b >= p) {
+        return Err(AeroError::invalid(
+            "structure selection, companions",
+            format!("pair ({a}, {b}) is out of the pool's {p} columns"),
+        ));
+    }
     if opts.folds < 2 {
         return Err(AeroError::invalid(
             "structure selection, folds",
@@ -1416,6 +1435,31 @@ fn select_impl(
                 chosen = s.columns;
             }
             _ => break,
+        }
+    }
+    // companions of the kept columns, in the order given (a companion's own companion too),
+    // each where its held-out error stays within one standard error (over the folds) of the
+    // structure's without it: the two predict alike, and the one with the companion reports
+    // unbiased parameters where the companion's effect is real
+    let mut base = score(&chosen);
+    for _ in 0..opts.companions.len() {
+        let mut grew = false;
+        for &(a, b) in &opts.companions {
+            if !chosen.contains(&a) || chosen.contains(&b) {
+                continue;
+            }
+            let mut trial = chosen.clone();
+            trial.push(b);
+            let s = score(&trial);
+            let se = base.mse_se;
+            if s.mse.is_finite() && s.mse <= base.mse + if se.is_finite() { se } else { 0.0 } {
+                chosen = trial;
+                base = s;
+                grew = true;
+            }
+        }
+        if !grew {
+            break;
         }
     }
     let all: Vec<usize> = (0..p).collect();
@@ -2405,5 +2449,39 @@ pub(crate) mod tests {
             assert!(sel.nested[sel.chosen_k].mse < sel.nested[0].mse);
             assert!(sel.nested[sel.chosen_k].mse <= sel.full.mse + sel.full.mse_se);
         }
+    }
+
+    #[test]
+    fn a_companion_joins_its_kept_term_and_the_score_is_the_shipped_structures() {
+        let (design, z, alpha, man) = data(30_000, 3);
+        let pool = fit_bins(&design, &z, &alpha, &man, &iid_identify()).expect("fit");
+        let base = SelectOptions {
+            min_excitation_snr: 0.0,
+            ..SelectOptions::default()
+        };
+        // x3 (noise, a held-out cost far below the error's standard error) rides with x1
+        // (kept), x4 with x3 (a chain); nothing joins a dropped term
+        let opts = SelectOptions {
+            companions: vec![(4, 2), (1, 3), (3, 4)],
+            ..base.clone()
+        };
+        let sel = select_structure(&design, &z, &man, &pool, &opts).expect("selects");
+        assert_eq!(sel.chosen, vec![0, 1, 2, 3, 4]);
+        // the reported score is the shipped structure's, not the path's
+        assert_eq!(sel.pruned.columns, sel.chosen);
+        let plain = select_structure(&design, &z, &man, &pool, &base).expect("selects");
+        assert_eq!(plain.chosen, vec![0, 1, 2]);
+        let only_dropped = SelectOptions {
+            companions: vec![(3, 1), (4, 3)],
+            ..base.clone()
+        };
+        let sel = select_structure(&design, &z, &man, &pool, &only_dropped).expect("selects");
+        assert_eq!(sel.chosen, vec![0, 1, 2]);
+        let bad = SelectOptions {
+            companions: vec![(1, 9)],
+            ..base
+        };
+        let e = select_structure(&design, &z, &man, &pool, &bad).unwrap_err();
+        assert!(e.to_string().contains("companions"), "{e}");
     }
 }
