@@ -237,9 +237,7 @@ def test_band_limited_fit_keeps_an_exact_linear_relation(
     for band in (None, 2.0, {"Cn": 1.5}):
         # this C_n_meas never went through the ingestion's smoother, so the simulator's
         # output must not either (FitConfig.smoother_match off)
-        cfg = FitConfig(
-            selection=None, structures=structures, band_hz=band, smoother_match=False
-        )
+        cfg = FitConfig(selection=None, structures=structures, band_hz=band, smoother_match=False)
         p = ad.fit(d, qualified="columns", config=cfg).params
         p = p.filter(pl.col("estimate").is_not_nan())
         assert p.height > 40
