@@ -426,6 +426,7 @@ def identify_flap(
     max_vif: float = 10.0,
     prune_collinear: bool = True,
     nested_cv: bool = True,
+    companions: list[tuple[int, int]] = ...,
 ) -> dict[str, Any]: ...
 
 # sign-flip randomization counts on numpy's PCG64 stream (crates/py_bindings/src/signflip.rs)
