@@ -115,16 +115,52 @@ pub fn through_smoother(
     pieces.retain(|(m, _)| split[m] == 1);
     let changed_split = split.values().filter(|&&k| k > 1).count();
     let gather = |rows: &[usize], x: &[f64]| -> Vec<f64> { rows.iter().map(|&r| x[r]).collect() };
+    let finite = |x: &[f64]| x.iter().all(|v| v.is_finite());
     let work = |rows: &[usize]| -> Outcome {
         let raw = gather(rows, check_raw);
         let stored = gather(rows, check_smoothed);
-        if raw.iter().chain(&stored).any(|v| !v.is_finite()) {
+        if !finite(&raw) || !finite(&stored) {
             return Outcome::Changed;
         }
         let sm = Smoother::new(rows.len());
-        let again = sm.smooth(&raw, 1.0).values;
+        let q = gather(rows, scale);
+        let scaled_ok = q.iter().all(|v| v.is_finite() && *v != 0.0);
+        // series 0 is the check channel, then one per coefficient: the references designed
+        // two per FFT, the targets (the check channel itself, then the forces) filtered two
+        // per FFT, each through its own reference's weights; a coefficient with a non-finite
+        // value rides along as the check channel and is left as it is
+        let mut refs: Vec<Vec<f64>> = vec![raw.clone()];
+        let mut targets: Vec<Vec<f64>> = vec![raw.clone()];
+        let mut ok = vec![true];
+        for c in channels {
+            let reference = gather(rows, c.reference);
+            let force: Vec<f64> = rows.iter().zip(&q).map(|(&r, s)| c.target[r] * s).collect();
+            let good = scaled_ok && finite(&reference) && finite(&force);
+            refs.push(if good { reference } else { raw.clone() });
+            targets.push(if good { force } else { raw.clone() });
+            ok.push(good);
+        }
+        let mut weights: Vec<Option<Vec<f64>>> = Vec::with_capacity(refs.len());
+        for pair in refs.chunks(2) {
+            let (wa, wb) = sm.weights_pair(&pair[0], pair.get(1).unwrap_or(&pair[0]));
+            weights.push(wa);
+            if pair.len() == 2 {
+                weights.push(wb);
+            }
+        }
+        let mut filtered: Vec<Vec<f64>> = Vec::with_capacity(targets.len());
+        for (k, pair) in targets.chunks(2).enumerate() {
+            let (i, j) = (2 * k, 2 * k + 1);
+            let second = pair.get(1).unwrap_or(&pair[0]);
+            let wj = weights.get(j).and_then(Option::as_deref);
+            let (fa, fb) = sm.apply_pair(&pair[0], second, weights[i].as_deref(), wj);
+            filtered.push(fa);
+            if pair.len() == 2 {
+                filtered.push(fb);
+            }
+        }
         let size = stored.iter().fold(1.0_f64, |a, v| a.max(v.abs()));
-        let reproduced = again
+        let reproduced = filtered[0]
             .iter()
             .zip(&stored)
             .all(|(a, b)| (a - b).abs() <= REPRODUCED * size);
@@ -135,24 +171,12 @@ pub fn through_smoother(
                 Outcome::Changed
             };
         }
-        let q = gather(rows, scale);
-        let scaled_ok = q.iter().all(|v| v.is_finite() && *v != 0.0);
         Outcome::Matched(
-            channels
-                .iter()
-                .map(|c| {
-                    let reference = gather(rows, c.reference);
-                    let force: Vec<f64> =
-                        rows.iter().zip(&q).map(|(&r, s)| c.target[r] * s).collect();
-                    let finite = reference.iter().chain(&force).all(|v| v.is_finite());
-                    (finite && scaled_ok).then(|| {
-                        sm.smooth_like(&reference, &force)
-                            .into_iter()
-                            .zip(&q)
-                            .map(|(f, s)| f / s)
-                            .collect()
-                    })
-                })
+            filtered
+                .into_iter()
+                .zip(ok)
+                .skip(1)
+                .map(|(f, good)| good.then(|| f.into_iter().zip(&q).map(|(v, s)| v / s).collect()))
                 .collect(),
         )
     };
