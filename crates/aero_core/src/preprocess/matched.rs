@@ -220,6 +220,16 @@ mod tests {
     use rand_chacha::ChaCha8Rng;
     use rand_core::SeedableRng;
 
+    /// The report with these counts: matched, unsmoothed, changed, nonfinite.
+    fn counts(matched: usize, unsmoothed: usize, changed: usize, nonfinite: usize) -> MatchReport {
+        MatchReport {
+            matched,
+            unsmoothed,
+            changed,
+            nonfinite,
+        }
+    }
+
     /// (t, maneuver, p raw, ay raw, model, qbar).
     type Records = (Vec<f64>, Vec<u64>, Vec<f64>, Vec<f64>, Vec<f64>, Vec<f64>);
 
@@ -269,13 +279,7 @@ mod tests {
             }],
         )
         .unwrap();
-        assert_eq!(
-            rep,
-            MatchReport {
-                matched: 2,
-                ..Default::default()
-            }
-        );
+        assert_eq!(rep, counts(2, 0, 0, 0));
         // the reference: per maneuver in time order, S_ay(c q) / q
         for (a, b) in [(0usize, 600usize), (600, 1050)] {
             let force: Vec<f64> = (a..b).map(|i| c[i] * q[i]).collect();
@@ -304,13 +308,7 @@ mod tests {
         }];
         // ingested without smoothing: the stored channel is the raw one
         let (out, rep) = through_smoother(&t, &m, &p, &p, &q, &ch).unwrap();
-        assert_eq!(
-            rep,
-            MatchReport {
-                unsmoothed: 2,
-                ..Default::default()
-            }
-        );
+        assert_eq!(rep, counts(0, 2, 0, 0));
         assert_eq!(out[0], c);
         // the first maneuver cut after ingestion (its first 100 rows gone): not reproduced
         let mut ps = p.clone();
@@ -331,14 +329,7 @@ mod tests {
             }],
         )
         .unwrap();
-        assert_eq!(
-            rep,
-            MatchReport {
-                matched: 1,
-                changed: 1,
-                ..Default::default()
-            }
-        );
+        assert_eq!(rep, counts(1, 0, 1, 0));
         assert_eq!(out[0][..500], c[k..600]);
         // a gap inside a maneuver: changed; a NaN in the model: counted, left as it is
         let mut tg = t.clone();
@@ -359,15 +350,7 @@ mod tests {
             }],
         )
         .unwrap();
-        assert_eq!(
-            rep,
-            MatchReport {
-                matched: 1,
-                changed: 1,
-                nonfinite: 1,
-                ..Default::default()
-            }
-        );
+        assert_eq!(rep, counts(1, 0, 1, 1));
         assert_eq!(out[0][..600], c[..600]);
         assert!(out[0][700].is_nan());
     }

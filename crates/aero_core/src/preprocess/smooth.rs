@@ -226,6 +226,44 @@ impl Smoother {
         }
     }
 
+    /// The split power spectra `(|X_k|², |Y_k|²)`, k = 0..=H, of two channels packed in one
+    /// complex FFT: `X_k = (Z_k + conj Z_{M-k})/2`, `Y_k = (Z_k - conj Z_{M-k})/(2i)`.
+    fn split_powers(&self, buf: &[C]) -> (Vec<f64>, Vec<f64>) {
+        let h = self.half;
+        let m = 2 * h;
+        let mut px = vec![0.0; h + 1];
+        let mut py = vec![0.0; h + 1];
+        for k in 0..=h {
+            let zk = buf[k];
+            let zm = buf[(m - k) % m].conj();
+            px[k] = ((zk + zm) * 0.5).norm_sqr();
+            py[k] = ((zk - zm) * 0.5).norm_sqr();
+        }
+        (px, py)
+    }
+
+    /// The packed spectrum of two channels with each part scaled by its own real, even
+    /// weight (`wx(k)`, `wy(k)` for bins 0..=H).
+    fn weigh_split(
+        &self,
+        buf: &[C],
+        wx: impl Fn(usize) -> f64,
+        wy: impl Fn(usize) -> f64,
+    ) -> Vec<C> {
+        let h = self.half;
+        let m = 2 * h;
+        let mut out = vec![C::new(0.0, 0.0); m];
+        for k in 0..m {
+            let kk = if k <= h { k } else { m - k };
+            let zk = buf[k];
+            let zm = buf[(m - k) % m].conj();
+            let xk = (zk + zm) * 0.5;
+            let yk = (zk - zm) * C::new(0.0, -0.5);
+            out[k] = xk * wx(kk) + C::new(0.0, 1.0) * yk * wy(kk);
+        }
+        out
+    }
+
     fn unchanged(&self, x: &[f64], dt: f64) -> Smoothed {
         Smoothed {
             values: x.to_vec(),
@@ -273,29 +311,11 @@ impl Smoother {
             Some(p) if x.len() == n && y.len() == n => p,
             _ => return (self.unchanged(x, dt), self.unchanged(y, dt)),
         };
-        let h = self.half;
-        let m = 2 * h;
         let (buf, lines) = self.forward_pair(plan, x, y);
-        // split: X_k = (Z_k + conj Z_{M-k})/2, Y_k = (Z_k - conj Z_{M-k})/(2i)
-        let mut px = vec![0.0; h + 1];
-        let mut py = vec![0.0; h + 1];
-        for k in 0..=h {
-            let zk = buf[k];
-            let zm = buf[(m - k) % m].conj();
-            px[k] = ((zk + zm) * 0.5).norm_sqr();
-            py[k] = ((zk - zm) * 0.5).norm_sqr();
-        }
+        let (px, py) = self.split_powers(&buf);
         let dx = self.design(&px);
         let dy = self.design(&py);
-        let mut out = vec![C::new(0.0, 0.0); m];
-        for k in 0..m {
-            let kk = if k <= h { k } else { m - k };
-            let zk = buf[k];
-            let zm = buf[(m - k) % m].conj();
-            let xk = (zk + zm) * 0.5;
-            let yk = (zk - zm) * C::new(0.0, -0.5);
-            out[k] = xk * dx.weights[kk] + C::new(0.0, 1.0) * yk * dy.weights[kk];
-        }
+        let out = self.weigh_split(&buf, |k| dx.weights[k], |k| dy.weights[k]);
         let (vx, vy) = self.back_pair(plan, out, lines);
         (self.result(x, dt, &dx, vx), self.result(y, dt, &dy, vy))
     }
@@ -353,12 +373,7 @@ impl Smoother {
         // parts of one FFT), so the weights are the ones it applies, and a degenerate
         // reference (a constant) sees no rounding from the target in its spectrum
         let (own, _) = self.forward_pair(plan, reference, reference);
-        let mut pr = vec![0.0; h + 1];
-        for k in 0..=h {
-            let zm = own[(m - k) % m].conj();
-            pr[k] = ((own[k] + zm) * 0.5).norm_sqr();
-        }
-        let d = self.design(&pr);
+        let d = self.design(&self.split_powers(&own).0);
         if !d.filter {
             return target.to_vec();
         }
@@ -382,17 +397,8 @@ impl Smoother {
             Some(p) if x.len() == n && y.len() == n => p,
             _ => return (None, None),
         };
-        let h = self.half;
-        let m = 2 * h;
         let (buf, _) = self.forward_pair(plan, x, y);
-        let mut px = vec![0.0; h + 1];
-        let mut py = vec![0.0; h + 1];
-        for k in 0..=h {
-            let zk = buf[k];
-            let zm = buf[(m - k) % m].conj();
-            px[k] = ((zk + zm) * 0.5).norm_sqr();
-            py[k] = ((zk - zm) * 0.5).norm_sqr();
-        }
+        let (px, py) = self.split_powers(&buf);
         let keep = |d: Design| d.filter.then_some(d.weights);
         (keep(self.design(&px)), keep(self.design(&py)))
     }
@@ -412,19 +418,12 @@ impl Smoother {
             Some(p) if x.len() == n && y.len() == n && (wx.is_some() || wy.is_some()) => p,
             _ => return (x.to_vec(), y.to_vec()),
         };
-        let h = self.half;
-        let m = 2 * h;
         let (buf, lines) = self.forward_pair(plan, x, y);
-        let mut out = vec![C::new(0.0, 0.0); m];
-        for k in 0..m {
-            let kk = if k <= h { k } else { m - k };
-            let zk = buf[k];
-            let zm = buf[(m - k) % m].conj();
-            let xk = (zk + zm) * 0.5;
-            let yk = (zk - zm) * C::new(0.0, -0.5);
-            let (a, b) = (wx.map_or(1.0, |w| w[kk]), wy.map_or(1.0, |w| w[kk]));
-            out[k] = xk * a + C::new(0.0, 1.0) * yk * b;
-        }
+        let out = self.weigh_split(
+            &buf,
+            |k| wx.map_or(1.0, |w| w[k]),
+            |k| wy.map_or(1.0, |w| w[k]),
+        );
         self.back_pair(plan, out, lines)
     }
 }
