@@ -1441,7 +1441,7 @@ fn select_impl(
     // each where its held-out error stays within one standard error (over the folds) of the
     // structure's without it: the two predict alike, and the one with the companion reports
     // unbiased parameters where the companion's effect is real
-    let mut base = score(&chosen);
+    let mut base: Option<CvScore> = None; // scored when a companion is first tried
     for _ in 0..opts.companions.len() {
         let mut grew = false;
         for &(a, b) in &opts.companions {
@@ -1451,10 +1451,11 @@ fn select_impl(
             let mut trial = chosen.clone();
             trial.push(b);
             let s = score(&trial);
+            let base = base.get_or_insert_with(|| score(&chosen));
             let se = base.mse_se;
             if s.mse.is_finite() && s.mse <= base.mse + if se.is_finite() { se } else { 0.0 } {
                 chosen = trial;
-                base = s;
+                *base = s;
                 grew = true;
             }
         }
