@@ -1707,6 +1707,25 @@ def calibrate_chain(
     return out, cal
 
 
+def _stall_alphas(
+    df: pl.DataFrame, flaps: Sequence[float], given: Mapping[float, float]
+) -> dict[float, float]:
+    """Per flap (in ``flaps`` order), the stall alpha the user gave (``given``, deg) or
+    :func:`stall_alpha` of its rows."""
+    out = {f: float(given[f]) for f in flaps if f in given}
+    if len(out) < len(flaps):
+        cols = ["flap_deg", "alpha_deg", "CX_meas", "CZ_meas", "ct_left", "ct_right"]
+        parts = {
+            float(k[0]): v
+            for k, v in df.select([c for c in cols if c in df.columns])
+            .partition_by("flap_deg", as_dict=True)
+            .items()
+            if k[0] is not None
+        }
+        out.update({f: stall_alpha(parts[f]) for f in flaps if f not in out})
+    return {f: out[f] for f in flaps}
+
+
 def _in_background(fn: Callable[[pl.DataFrame], str], data: pl.DataFrame) -> Future[str]:
     """``fn(data)`` on a thread of its own, which ends when it is done."""
     ex = ThreadPoolExecutor(max_workers=1, thread_name_prefix="aerodelta")
@@ -1783,10 +1802,15 @@ def fit(
     if not flaps:
         raise DataError("fit: no row has a flap setting (flap_deg); check the manifest")
     notes: list[str] = []
-    if cfg.smoother_match:
-        q, matched = through_smoother(df, q)
-        if (line := matched.note()) is not None:
-            notes.append(line)
+    # the stall alpha per flap (measured lift only) on this thread while the engine passes the
+    # qualified model through the smoother (it releases the GIL)
+    with ThreadPoolExecutor(max_workers=1, thread_name_prefix="aerodelta") as pool:
+        matching = pool.submit(through_smoother, df, q) if cfg.smoother_match else None
+        stall = _stall_alphas(df, flaps, cfg.stall_alpha_deg)
+        if matching is not None:
+            q, matched = matching.result()
+            if (line := matched.note()) is not None:
+                notes.append(line)
     if cfg.chain_calibration:
         given = cfg.structures if cfg.selection is None else None
         q, chain = calibrate_chain(df, q, coefs, cfg, flaps, structures=given)
@@ -1817,7 +1841,6 @@ def fit(
     struct_rows: list[dict[str, Any]] = []
     selbin_rows: list[pl.DataFrame] = []
     cv_rows: list[dict[str, Any]] = []
-    stall: dict[float, float] = {}
     tables: dict[str, dict[str, dict[float, tuple[np.ndarray, ...]]]] = {}
     regressors: dict[str, dict[str, str]] = {c: {} for c in coefs}
     replicates: dict[tuple[str, str, float], tuple[np.ndarray, np.ndarray]] = {}
@@ -1927,16 +1950,14 @@ def fit(
     exprs = [e for c in coefs for _, e in [*cfg.structures[c], *pools.get(c, [])]]
     wanted = {"alpha_deg", "t", *(f"{c}_{k}" for c in coefs for k in ("meas", "qual"))}
     wanted |= {c for c in df.columns if any(c in e for e in exprs)}
-    # per flap, those and what stall_alpha reads (the other columns are not copied)
-    keep = wanted | {"flap_deg", "maneuver_id", "CX_meas", "CZ_meas", "ct_left", "ct_right"}
+    # per flap, those (the other columns are not copied)
+    keep = wanted | {"flap_deg", "maneuver_id"}
     parts = {
         float(k[0]): v
         for k, v in df.select([c for c in df.columns if c in keep])
         .partition_by("flap_deg", as_dict=True)
         .items()
     }
-    for flap in flaps:
-        stall[flap] = float(cfg.stall_alpha_deg.get(flap, stall_alpha(parts[flap])))
     with ThreadPoolExecutor(max_workers=engine_threads(cap=4)) as ex:
         for flap in flaps:
             full, codes = _flap_columns(parts[flap], wanted)
