@@ -362,32 +362,17 @@ impl Smoother {
     /// Section 5.5). The target is returned unchanged where [`Smoother::smooth`] would
     /// return the reference unchanged (too short, another length, no noise floor found).
     pub fn smooth_like(&self, reference: &[f64], target: &[f64]) -> Vec<f64> {
-        let n = self.n;
-        let plan = match &self.plan {
-            Some(p) if reference.len() == n && target.len() == n => p,
-            _ => return target.to_vec(),
-        };
-        let h = self.half;
-        let m = 2 * h;
+        if reference.len() != self.n || target.len() != self.n {
+            return target.to_vec();
+        }
         // the reference's spectrum as [`Smoother::smooth`] takes it (the channel in both
         // parts of one FFT), so the weights are the ones it applies, and a degenerate
         // reference (a constant) sees no rounding from the target in its spectrum
-        let (own, _) = self.forward_pair(plan, reference, reference);
-        let d = self.design(&self.split_powers(&own).0);
-        if !d.filter {
-            return target.to_vec();
-        }
-        let (mut buf, lines) = self.forward_pair(plan, target, target);
-        for k in 0..m {
-            let kk = if k <= h { k } else { m - k };
-            buf[k] *= d.weights[kk];
-        }
-        // the same real, even weight on both parts: the packed spectrum is scaled as is
-        self.back_pair(plan, buf, lines).0
+        let (w, _) = self.weights_pair(reference, reference);
+        self.apply_pair(target, target, w.as_deref(), w.as_deref())
+            .0
     }
-}
 
-impl Smoother {
     /// The Wiener weights the smoother designs for each of two channels of the planned
     /// length (one FFT for both, split as [`Smoother::smooth_pair`] splits it): `None` for a
     /// channel it would leave unchanged (no noise floor found, or no plan: too short).
