@@ -171,6 +171,15 @@ class Groups:
         return out.hstack(cols) if cols else out
 
 
+def maneuver_keys(frame: pl.DataFrame) -> np.ndarray:
+    """Each row's maneuver as an integer for the engine: the dense rank (1, 2, ...) of
+    ``maneuver_id`` as text, a contiguous ``uint64`` array (the engine compares and groups
+    integers; comparing and grouping 10^5 strings costs a quarter second)."""
+    return np.ascontiguousarray(
+        frame["maneuver_id"].cast(pl.Utf8).rank("dense").cast(pl.UInt64).to_numpy()
+    )
+
+
 def _dense_rank(col: pl.Series) -> tuple[np.ndarray, int]:
     """Per row of ``col``, the dense rank of its value among the column's distinct values in
     polars' sort order (1, 2, ...; null 0, first as in a polars sort), and the number of

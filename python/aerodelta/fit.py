@@ -23,8 +23,9 @@ import sys
 from collections.abc import Callable, Mapping, Sequence
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
+from functools import partial
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 import numpy as np
 import polars as pl
@@ -33,7 +34,7 @@ from tqdm import tqdm
 from aerodelta import _core
 from aerodelta._core import __version__
 from aerodelta._fingerprint import data_sha256
-from aerodelta._groups import Groups
+from aerodelta._groups import Groups, maneuver_keys
 from aerodelta._threads import engine_threads
 from aerodelta._toml import read_toml
 from aerodelta.exceptions import DataError
@@ -42,6 +43,8 @@ from aerodelta.qualified import describe, for_model, resolve
 from aerodelta.smoother_match import through_smoother
 
 COEFFICIENTS = ("Cl", "Cn", "CY")
+
+T = TypeVar("T")
 
 #: Default Δ-model structures: thesis Eq. 3.14 (Cl), 3.21 (Cn) and 3.22 (CY). ``deadband(da, 2)``
 #: is the aileron dead-band spline of Eq. 3.15-3.16; ``ds_deg`` the combined roll spoiler.
@@ -1659,10 +1662,7 @@ def calibrate_chain(
             cal.skipped[c] = "the data have no time column 't'"
         return out, cal
     t = np.ascontiguousarray(df["t"].cast(pl.Float64).to_numpy())
-    # integer maneuver codes (comparing and grouping 10^5 strings costs a quarter second)
-    man = np.ascontiguousarray(
-        df["maneuver_id"].cast(pl.Utf8).rank("dense").cast(pl.UInt64).to_numpy()
-    )
+    man = maneuver_keys(df)
     alpha = df["alpha_deg"].cast(pl.Float64).to_numpy()
     flap = df["flap_deg"].cast(pl.Float64).to_numpy()
     alpha_l = np.full(df.height, -np.inf)
@@ -1726,7 +1726,7 @@ def _stall_alphas(
     return {f: out[f] for f in flaps}
 
 
-def _in_background(fn: Callable[[pl.DataFrame], str], data: pl.DataFrame) -> Future[str]:
+def _in_background(fn: Callable[[pl.DataFrame], T], data: pl.DataFrame) -> Future[T]:
     """``fn(data)`` on a thread of its own, which ends when it is done."""
     ex = ThreadPoolExecutor(max_workers=1, thread_name_prefix="aerodelta")
     try:
@@ -1804,13 +1804,12 @@ def fit(
     notes: list[str] = []
     # the stall alpha per flap (measured lift only) on this thread while the engine passes the
     # qualified model through the smoother (it releases the GIL)
-    with ThreadPoolExecutor(max_workers=1, thread_name_prefix="aerodelta") as pool:
-        matching = pool.submit(through_smoother, df, q) if cfg.smoother_match else None
-        stall = _stall_alphas(df, flaps, cfg.stall_alpha_deg)
-        if matching is not None:
-            q, matched = matching.result()
-            if (line := matched.note()) is not None:
-                notes.append(line)
+    matching = _in_background(partial(through_smoother, q=q), df) if cfg.smoother_match else None
+    stall = _stall_alphas(df, flaps, cfg.stall_alpha_deg)
+    if matching is not None:
+        q, matched = matching.result()
+        if (line := matched.note()) is not None:
+            notes.append(line)
     if cfg.chain_calibration:
         given = cfg.structures if cfg.selection is None else None
         q, chain = calibrate_chain(df, q, coefs, cfg, flaps, structures=given)

@@ -28,6 +28,7 @@ import numpy as np
 import polars as pl
 
 from aerodelta import _core
+from aerodelta._groups import maneuver_keys
 
 #: The raw channel whose smoothing sets each measured coefficient's band.
 MEASURED_CHANNEL = {"Cl": "p_dps", "Cn": "r_dps", "CY": "ay_mps2"}
@@ -127,12 +128,9 @@ def through_smoother(
     def col(name: str) -> np.ndarray:
         return np.ascontiguousarray(frame[name].cast(pl.Float64).to_numpy(), dtype=np.float64)
 
-    man = np.ascontiguousarray(
-        frame["maneuver_id"].cast(pl.Utf8).rank("dense").cast(pl.UInt64).to_numpy()
-    )
     values, (matched, unsmoothed, changed, nonfinite) = _core.through_smoother(
         col("t"),
-        man,
+        maneuver_keys(frame),
         col("p_dps"),
         col("p_s_dps"),
         col("qbar_pa"),
