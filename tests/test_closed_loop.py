@@ -47,6 +47,11 @@ def camp(stall_campaign: Path) -> dict[str, Any]:
     }
 
 
+def _truth_stall(flap: float) -> dict[str, float]:
+    """The virtual aircraft's Kirchhoff stall at ``flap``: its parameters and its drag."""
+    return {**_core.kirchhoff_truth_params(flap), **_core.kirchhoff_truth_drag(flap)}
+
+
 def _replay(camp: dict[str, Any], kirchhoff: dict[float, dict[str, float]]) -> pl.DataFrame:
     return closed_loop_replay(
         camp["data"],
@@ -74,7 +79,7 @@ def test_truth_replay_reproduces_the_recorded_speeds(camp: dict[str, Any]) -> No
     # Kirchhoff stall) flown by the replay's pilot in calm air: the recorded speeds come back
     # within the pilot-model differences (the record's gusts move its warning onset by up to a
     # few seconds at 1 kt/s; measured: median 1.0-1.2 kt, 89-96 % within ±3 kt)
-    t = _replay(camp, {f: _core.kirchhoff_truth_params(f) for f in FLAPS})
+    t = _replay(camp, {f: _truth_stall(f) for f in FLAPS})
     assert t.height == len(camp["entries"])
     for q in ("v_warning", "v_buffet_onset", "v_stall"):
         c = t.filter(pl.col(f"{q}_status").is_not_null())
@@ -97,14 +102,18 @@ def test_a_stall_four_degrees_early_fails(camp: dict[str, Any]) -> None:
     # the Kirchhoff breakpoint 4 deg below the truth's: less lift near the stall, a stall at a
     # lower alpha, so the simulator warns, buffets and stalls at higher speeds
     wrong = {
-        f: {**_core.kirchhoff_truth_params(f), "alpha_star": p - math.radians(4.0)}
+        f: {**_truth_stall(f), "alpha_star": p - math.radians(4.0)}
         for f in FLAPS
         for p in [_core.kirchhoff_truth_params(f)["alpha_star"]]
     }
     t = _replay(camp, wrong)
     c = t.filter(pl.col("v_stall_status").is_not_null())
     d = c["v_stall_diff_kt"].fill_null(float("inf")).to_numpy()
-    assert (c["v_stall_status"] == "FAIL").mean() >= 0.8, np.round(d, 1)
+    # session 28: the truth's stall gained its drag rise (docs/longitudinal.md), and the early
+    # stall carries it too, so it also bleeds speed earlier: 19 of 24 stalls outside ±3 kt
+    # (median 5.4 kt) where the same stall without the drag against the drag-free truth failed
+    # in at least 80 %; the floor went from 0.8 to 0.75 with that change of the truth
+    assert (c["v_stall_status"] == "FAIL").mean() >= 0.75, np.round(d, 1)
     assert float(np.median(d)) > 4.0, np.round(d, 1)
     b = t.filter(pl.col("v_buffet_onset_status").is_not_null())
     assert (b["v_buffet_onset_status"] == "FAIL").mean() >= 0.6
@@ -145,6 +154,18 @@ def test_unsupported_aircraft_and_bad_options_are_refused(camp: dict[str, Any]) 
     with pytest.raises(InvalidInputError, match="Kirchhoff parameters lack"):
         closed_loop_replay(
             camp["data"], kirchhoff={0.0: {"tau1": 0.2}}, maneuvers=["m000_f00_straight_p"],
+            table=camp["table"],
+        )  # fmt: skip
+    # a drag is all three of its parameters or none
+    half = {**_core.kirchhoff_truth_params(0.0), "CD_x": 0.3}
+    with pytest.raises(InvalidInputError, match="drag lacks CD0, CD_k"):
+        closed_loop_replay(
+            camp["data"], kirchhoff={0.0: half}, maneuvers=["m000_f00_straight_p"],
+            table=camp["table"],
+        )  # fmt: skip
+    with pytest.raises(InvalidInputError, match=r"give 9 .* or 12"):
+        closed_loop_replay(
+            camp["data"], kirchhoff={0.0: [0.2] * 10}, maneuvers=["m000_f00_straight_p"],
             table=camp["table"],
         )  # fmt: skip
 

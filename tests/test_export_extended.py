@@ -518,13 +518,19 @@ STALL = {
     10.0: {"tau1": 0.22, "tau2": 0.066, "alpha_star": 20.0 * _D2R, "a1": 20.0, "CL_alpha": 5.2,
            "alpha0": -7.09 * _D2R, "Cm0": 0.03, "Cm_alpha": -0.75, "Cm_x": -0.12},
 }  # fmt: skip
+#: The truth's drag at flap 0 (``kirchhoff_truth_drag``); flap 10's stall is stored without one
+#: (the qualified drag flies there).
+STALL_DRAG = {0.0: {"CD0": 0.027, "CD_k": 0.0322, "CD_x": 0.30}}
 
 
 def stall_model(known: str = "adx37") -> DeltaModel:
-    """:func:`synthetic_model` (flaps 0, 10, 20) storing :data:`STALL` at flaps 0 and 10."""
+    """:func:`synthetic_model` (flaps 0, 10, 20) storing :data:`STALL` at flaps 0 and 10, with
+    :data:`STALL_DRAG` at flap 0."""
     spec = synthetic_model().to_spec()
     spec["longitudinal"] = {"model": "kirchhoff", "known": known, "flaps": [
-        {"flap_deg": f, "params": p, "note": ""} for f, p in STALL.items()]}  # fmt: skip
+        {"flap_deg": f, "params": p, "note": "",
+         **({"drag": STALL_DRAG[f]} if f in STALL_DRAG else {})}
+        for f, p in STALL.items()]}  # fmt: skip
     return DeltaModel.from_spec(spec)
 
 
@@ -575,7 +581,9 @@ def test_jsbsim_stall_state_and_increments_equal_the_engine(tmp_path: Path) -> N
     - ``x`` is the flap setting's own state there and 1 at the flap without a stall;
     - ``CL-delta``, ``Cm-delta`` are the engine's Kirchhoff lift and moment at JSBSim's ``x``
       less the qualified static curves (the engine's DAVE-ML reading of the exported
-      qualified model) to 1e-9, and 0 at flap 20."""
+      qualified model) to 1e-9, and 0 at flap 20;
+    - ``CD-delta`` is the engine's Kirchhoff drag (``KirchhoffDrag``) at JSBSim's ``x`` less
+      ``CD_basic`` at flap 0, and 0 at flap 10 (stored without a drag) and 20."""
     m = stall_model()
     fdm, dt, a1 = _driven(tmp_path, jsbsim_xml(m, _TEST_PROPS), m)
     n = a1.size
@@ -583,7 +591,7 @@ def test_jsbsim_stall_state_and_increments_equal_the_engine(tmp_path: Path) -> N
     rate = np.concatenate([np.gradient(a1, dt)] * 3)
     flap = np.repeat([0.0, 10.0, 20.0], n)
     names = ["aero/aerodelta/stall/x", "aero/aerodelta/stall/CL-delta",
-             "aero/aerodelta/stall/Cm-delta"]  # fmt: skip
+             "aero/aerodelta/stall/Cm-delta", "aero/aerodelta/stall/CD-delta"]  # fmt: skip
     for i in range(len(STALL)):
         names += [f"aero/aerodelta/stall/flap-{i}/separated{k}" for k in ("-static", "")]
     got: dict[str, list[float]] = {k: [] for k in names}
@@ -597,7 +605,7 @@ def test_jsbsim_stall_state_and_increments_equal_the_engine(tmp_path: Path) -> N
     t = np.arange(alpha.size) * dt
     a_rad, r_rad = np.radians(alpha), np.radians(rate)
     qual = ad.export_qualified_daveml(tmp_path / "q.dml").evaluate(
-        {"alpha_deg": alpha, "flap_deg": flap}, outputs=["CL_basic", "Cm_basic"]
+        {"alpha_deg": alpha, "flap_deg": flap}, outputs=["CL_basic", "Cm_basic", "CD_basic"]
     )
     x = g["aero/aerodelta/stall/x"]
     for i, (f, p) in enumerate(STALL.items()):
@@ -628,18 +636,27 @@ def test_jsbsim_stall_state_and_increments_equal_the_engine(tmp_path: Path) -> N
             g["aero/aerodelta/stall/Cm-delta"][on], cm - qual["Cm_basic"].to_numpy()[on],
             rtol=0, atol=1e-9,
         )  # fmt: skip
+        dcd = g["aero/aerodelta/stall/CD-delta"][on]
+        if f in STALL_DRAG:
+            cd = _core.kirchhoff_drag_point(STALL_DRAG[f], cl, np.ascontiguousarray(x[on]))
+            np.testing.assert_allclose(dcd, cd - qual["CD_basic"].to_numpy()[on], rtol=0, atol=1e-9)
+            assert dcd.max() > 0.05  # the separated wake's drag is flown
+        else:
+            assert (dcd == 0.0).all()
     off = flap == 20.0
     assert (x[off] == 1.0).all()
     assert (g["aero/aerodelta/stall/CL-delta"][off] == 0.0).all()
     assert (g["aero/aerodelta/stall/Cm-delta"][off] == 0.0).all()
+    assert (g["aero/aerodelta/stall/CD-delta"][off] == 0.0).all()
 
 
 def test_jsbsim_stall_axes_equal_jsbsim_own_wind_to_body_forces(tmp_path: Path) -> None:
     """Default properties, the initial state of a flight past the stall (alpha 19 deg, no
     sideslip, flap 0; the Kirchhoff lift at attached flow differs from the static curve there):
-    with ``side_axis="SIDE"`` the lift increment on JSBSim's LIFT axis comes out of JSBSim's
-    own wind-to-body transform as body forces ``(L sin alpha, -L cos alpha)`` with
-    ``L = qbar S CL-delta``; with ``side_axis="Y"`` the export's own X and Z functions give the
+    with ``side_axis="SIDE"`` the lift and drag increments on JSBSim's LIFT and DRAG axes come
+    out of JSBSim's own wind-to-body transform as body forces
+    ``(L sin alpha - D cos alpha, -L cos alpha - D sin alpha)`` with ``L = qbar S CL-delta``,
+    ``D = qbar S CD-delta``; with ``side_axis="Y"`` the export's own X and Z functions give the
     same body forces; PITCH is ``qbar S cbar Cm-delta`` in both."""
     m = stall_model()
     out = {}
@@ -654,9 +671,11 @@ def test_jsbsim_stall_axes_equal_jsbsim_own_wind_to_body_forces(tmp_path: Path) 
         qs = fdm["aero/qbar-psf"] * fdm["metrics/Sw-sqft"]
         alpha = fdm["aero/alpha-rad"]
         lift = qs * fdm["aero/aerodelta/stall/CL-delta"]
-        assert abs(fdm["aero/beta-rad"]) < 1e-9 and abs(lift) > 1.0
-        np.testing.assert_allclose(fdm["forces/fbx-aero-lbs"], lift * math.sin(alpha), rtol=1e-9)
-        np.testing.assert_allclose(fdm["forces/fbz-aero-lbs"], -lift * math.cos(alpha), rtol=1e-9)
+        drag = qs * fdm["aero/aerodelta/stall/CD-delta"]
+        assert abs(fdm["aero/beta-rad"]) < 1e-9 and abs(lift) > 1.0 and abs(drag) > 1e-3
+        ca, sa = math.cos(alpha), math.sin(alpha)
+        np.testing.assert_allclose(fdm["forces/fbx-aero-lbs"], lift * sa - drag * ca, rtol=1e-9)
+        np.testing.assert_allclose(fdm["forces/fbz-aero-lbs"], -lift * ca - drag * sa, rtol=1e-9)
         np.testing.assert_allclose(
             fdm["moments/m-aero-lbsft"],
             qs * fdm["metrics/cbarw-ft"] * fdm["aero/aerodelta/stall/Cm-delta"], rtol=1e-9,
@@ -700,9 +719,10 @@ def test_jsbsim_stall_fitted_on_the_whole_coefficients_adds_its_dynamics_only(
     """A stall fitted with ``known="none"`` (the whole measured C_L, C_m, as on a JSBSim
     aircraft of the user's) adds the separation dynamics over the aircraft's own static
     curves: ``CL-delta`` is the engine's Kirchhoff lift at JSBSim's state less the same at the
-    static state ``x0(alpha)``, ``Cm-delta`` is ``Cm_x (x0 - x)``, both to 1e-9 along a pull
-    into the stall and back, and both vanish (below 1e-9) once alpha has been held for 6 s
-    (30 tau1: the state's distance to x0 decays as exp(-t/tau1)).
+    static state ``x0(alpha)``, ``Cm-delta`` is ``Cm_x (x0 - x)``, ``CD-delta`` the engine's
+    Kirchhoff drag at the state less at ``x0(alpha)``, all to 1e-9 along a pull into the stall
+    and back, and all vanish (below 1e-9) once alpha has been held for 6 s (30 tau1: the
+    state's distance to x0 decays as exp(-t/tau1)).
     No qualified table is written."""
     m = stall_model(known="none")
     aero = jsbsim_xml(m, _TEST_PROPS)
@@ -716,8 +736,9 @@ def test_jsbsim_stall_fitted_on_the_whole_coefficients_adds_its_dynamics_only(
         fdm["test/alpha_deg"], fdm["test/alphadot_dps"] = a, r
         assert fdm.run()
         rows.append([fdm["aero/aerodelta/stall/x"], fdm["aero/aerodelta/stall/CL-delta"],
-                     fdm["aero/aerodelta/stall/Cm-delta"]])  # fmt: skip
-    x, dcl, dcm = (np.ascontiguousarray(c) for c in np.asarray(rows).T)
+                     fdm["aero/aerodelta/stall/Cm-delta"],
+                     fdm["aero/aerodelta/stall/CD-delta"]])  # fmt: skip
+    x, dcl, dcm, dcd = (np.ascontiguousarray(c) for c in np.asarray(rows).T)
     p = STALL[0.0]
     a_rad, r_rad = np.radians(alpha), np.radians(rate)
     _, _, cl, _ = _core.kirchhoff_point(p, a_rad, r_rad, x)
@@ -725,8 +746,11 @@ def test_jsbsim_stall_fitted_on_the_whole_coefficients_adds_its_dynamics_only(
     _, _, cls, _ = _core.kirchhoff_point(p, a_rad, np.zeros_like(a_rad), x0s)
     np.testing.assert_allclose(dcl, cl - cls, rtol=0, atol=1e-9)
     np.testing.assert_allclose(dcm, p["Cm_x"] * (x0s - x), rtol=0, atol=1e-9)
-    assert np.abs(dcl[:n]).max() > 0.01  # the hysteresis is flown
-    assert np.abs(dcl[-1]) < 1e-9 and np.abs(dcm[-1]) < 1e-9
+    d = STALL_DRAG[0.0]
+    want = _core.kirchhoff_drag_point(d, cl, x) - _core.kirchhoff_drag_point(d, cls, x0s)
+    np.testing.assert_allclose(dcd, want, rtol=0, atol=1e-9)
+    assert np.abs(dcl[:n]).max() > 0.01 and np.abs(dcd[:n]).max() > 0.01  # hysteresis flown
+    assert np.abs(dcl[-1]) < 1e-9 and np.abs(dcm[-1]) < 1e-9 and np.abs(dcd[-1]) < 1e-9
 
 
 def test_daveml_stall_fitted_on_the_whole_coefficients_adds_its_dynamics_only() -> None:
@@ -737,7 +761,8 @@ def test_daveml_stall_fitted_on_the_whole_coefficients_adds_its_dynamics_only() 
     m = stall_model(known="none")
     out = extended_daveml_text(m)
     assert out.max_rel_error <= 1e-9 and out.model.run_checks()["pass"].all()
-    assert {"x_sep_dot", "CL_ext", "Cm_ext"} <= set(out.model.outputs)
+    # flap 0 stores a drag: CD_ext too (checked against the engine with the rest)
+    assert {"x_sep_dot", "CL_ext", "Cm_ext", "CD_ext"} <= set(out.model.outputs)
     rng = np.random.default_rng(3)
     alpha = rng.uniform(0.0, 30.0, 200)
     x = rng.uniform(0.0, 1.0, 200)

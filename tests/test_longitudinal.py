@@ -21,7 +21,9 @@ from aerodelta import _core
 from aerodelta.campaign import generate_campaign, simulate_campaign
 from aerodelta.cli import main
 from aerodelta.exceptions import DataError, InvalidInputError, TooLittleDataError
-from aerodelta.longitudinal import PARAMS, fit_kirchhoff, theil
+from aerodelta.fit import model_frame
+from aerodelta.ingest import ingest
+from aerodelta.longitudinal import PARAMS, fit_kirchhoff, measured_drag, measured_lift, theil
 
 HZ = 50.0
 
@@ -213,7 +215,7 @@ def test_kirchhoff_campaign_truth_and_default_unchanged(
     k = simulate_campaign(seed=3, size="quick", only=[0, 1], longitudinal_stall="kirchhoff")
     for m in k:
         tr = m["truth"]
-        assert {"x_sep_true", "CL_true", "Cm_true"} <= set(tr.columns)
+        assert {"x_sep_true", "CL_true", "Cm_true", "CD_true"} <= set(tr.columns)
         x = tr["x_sep_true"].to_numpy()
         assert np.all((x >= 0) & (x <= 1)) and x[0] > 0.99
     # the stall separates the flow (maneuver 1 flies without the pusher, past alpha*)
@@ -227,6 +229,24 @@ def test_kirchhoff_campaign_truth_and_default_unchanged(
     meta = json.loads((info.path / "truth" / "campaign.json").read_text())
     p10 = meta["longitudinal_stall"]["params_by_flap"]["10"]
     assert p10["tau1"] == pytest.approx(_core.kirchhoff_truth_params(10.0)["tau1"])
+    assert p10["CD_x"] == pytest.approx(_core.kirchhoff_truth_drag(10.0)["CD_x"])
+    # the measured drag of the ingested records (wind axes, thrust off C_X) is the truth's
+    # drag (the engine's lift/drag to body-axis rotation) to within the sensors' noise
+    data = model_frame(ingest(info.path, progress=False).data)
+    truth = pl.concat(
+        pl.read_parquet(f).with_columns(pl.lit(f.stem).alias("maneuver_id"))
+        for f in sorted((info.path / "truth").glob("*.parquet"))
+    ).select("maneuver_id", pl.col("t").round(6), "CD_true", "CL_true")
+    both = data.with_columns(
+        pl.Series("_cd", measured_drag(data)),
+        pl.Series("_cl", measured_lift(data)),
+        pl.col("t").round(6),
+    ).join(truth, on=["maneuver_id", "t"])
+    assert both.height > 0.9 * data.height
+    err_d = (both["_cd"] - both["CD_true"]).to_numpy()
+    err_l = (both["_cl"] - both["CL_true"]).to_numpy()
+    assert abs(float(np.median(err_d))) < 2e-3 and float(np.std(err_d)) < 0.02
+    assert abs(float(np.median(err_l))) < 2e-3 and float(np.std(err_l)) < 0.02
     assert meta["spec"]["longitudinal_stall"] == "kirchhoff"
     assert pl.read_csv(info.path / "manifest.csv").height == info.n_maneuvers
     # the command line fits it (all 8 maneuvers of flap 10)
@@ -239,6 +259,14 @@ def test_kirchhoff_campaign_truth_and_default_unchanged(
         math.degrees(truth10["alpha_star"]), abs=0.5
     )
     assert rows["tau1"]["std_err_colored"] > 0
+    # the drag along the identified state: the separated wake's drag near the truth's
+    drag10 = _core.kirchhoff_truth_drag(10.0)
+    assert rows["CD_x"]["estimate"] == pytest.approx(drag10["CD_x"], rel=0.3)
+    assert rows["CD_x"]["std_err_cluster"] > 0 and math.isnan(rows["tau1"]["std_err_cluster"])
+    assert main(["longitudinal", str(info.path), "--flaps", "10", "--no-cd",
+                 "--no-progress"]) == 0  # fmt: skip
+    text = capsys.readouterr().out
+    assert "CD_x" not in text and "tau1" in text
     assert main(["longitudinal", str(info.path), "--flaps", "12", "--no-progress"]) == 1
     assert "no records at flap 12" in capsys.readouterr().err
     # the default campaign is the one before the option: test_campaign_mass.py's stored

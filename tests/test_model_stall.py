@@ -57,6 +57,9 @@ def test_the_stall_survives_the_file_bit_for_bit(fitted: dict[str, Any]) -> None
     for f in (0.0, 15.0):
         assert set(k[f]) == set(PARAMS)
         assert all(k[f][n] == stall[f].params[n] for n in PARAMS)  # exact, not approximate
+        # and the drag along the state, fitted by default, likewise
+        d = stall[f].drag
+        assert d is not None and back.kirchhoff_drag[f] == d.params
     # the lateral Δ is untouched
     spec, spec2 = model.to_spec(), back.to_spec()
     assert spec2.pop("longitudinal")["model"] == "kirchhoff"
@@ -73,11 +76,14 @@ def test_the_replay_flies_the_stored_stall(fitted: dict[str, Any]) -> None:
         .sort()
         .to_list()
     )
+
+    def with_drag(f: float) -> dict[str, float]:
+        d = stall[f].drag
+        assert d is not None
+        return {**stall[f].params, **d.params}
+
     given = closed_loop_replay(
-        data,
-        model=model,
-        kirchhoff={f: stall[f].params for f in (0.0, 15.0)},
-        maneuvers=ids,
+        data, model=model, kirchhoff={f: with_drag(f) for f in (0.0, 15.0)}, maneuvers=ids
     )
     stored = closed_loop_replay(data, model=model.with_longitudinal(stall), maneuvers=ids)
     static = closed_loop_replay(data, model=model, maneuvers=ids)
@@ -87,6 +93,17 @@ def test_the_replay_flies_the_stored_stall(fitted: dict[str, Any]) -> None:
         assert stored.runs[mid].equals(given.runs[mid]), mid
     # without the stall the qualified static curves fly: another flight
     assert any(not static.runs[m].equals(given.runs[m]) for m in ids)
+    # the stored drag flies too: the stall given without it (the qualified drag) is another
+    # flight, and a stall stored without it (fit_cd=False) is that one
+    no_drag = closed_loop_replay(
+        data, model=model, kirchhoff={f: stall[f].params for f in (0.0, 15.0)}, maneuvers=ids
+    )
+    assert any(not no_drag.runs[m].equals(given.runs[m]) for m in ids)
+    plain = fit_kirchhoff(model_frame(data), flaps=[0.0, 15.0], known="adx37", fit_cd=False)
+    assert model.with_longitudinal(plain).kirchhoff_drag == {}
+    stored_plain = closed_loop_replay(data, model=model.with_longitudinal(plain), maneuvers=ids)
+    for mid in ids:
+        assert stored_plain.runs[mid].equals(no_drag.runs[mid]), mid
 
 
 def test_replays_count_the_time_outside_the_envelope(fitted: dict[str, Any]) -> None:
@@ -232,7 +249,7 @@ def test_the_daveml_export_carries_the_stall_state(fitted: dict[str, Any], tmp_p
     m2 = model.with_longitudinal(stall)
     out = export_extended_daveml(tmp_path / "ext.dml", m2)
     dave = ad.DaveModel(tmp_path / "ext.dml")
-    assert {"x_sep_dot", "x_sep_0", "CL_ext", "Cm_ext"} <= set(dave.outputs)
+    assert {"x_sep_dot", "x_sep_0", "CL_ext", "Cm_ext", "CD_ext"} <= set(dave.outputs)
     assert "x_sep" in dave.inputs and dave.run_checks()["pass"].all()
     assert out.max_rel_error <= 1e-12
     # a smooth pull into the stall and back at flap 15, 200 Hz: the engine's exact steps of the
@@ -248,7 +265,8 @@ def test_the_daveml_export_carries_the_stall_state(fitted: dict[str, Any], tmp_p
     got = dave.evaluate(
         {"alpha_deg": alpha, "flap_deg": np.full(t.size, 15.0), "x_sep": x_eng,
          "alphadot_dps": rate},
-        outputs=["CL_ext", "Cm_ext", "CL", "Cm", "CL_basic", "Cm_basic"],
+        outputs=["CL_ext", "Cm_ext", "CL", "Cm", "CL_basic", "Cm_basic", "CD_ext", "CD",
+                 "CD_basic"],
     )  # fmt: skip
     np.testing.assert_allclose(
         got["CL_ext"].to_numpy(),
@@ -257,6 +275,14 @@ def test_the_daveml_export_carries_the_stall_state(fitted: dict[str, Any], tmp_p
     np.testing.assert_allclose(
         got["Cm_ext"].to_numpy(),
         got["Cm"].to_numpy() - got["Cm_basic"].to_numpy() + cm_eng, rtol=1e-12, atol=1e-14,
+    )  # fmt: skip
+    # the drag along the same state: the engine's KirchhoffDrag in place of CD_basic
+    d = stall[15.0].drag
+    assert d is not None
+    cd_eng = _core.kirchhoff_drag_point(d.params, cl_eng, x_eng)
+    np.testing.assert_allclose(
+        got["CD_ext"].to_numpy(),
+        got["CD"].to_numpy() - got["CD_basic"].to_numpy() + cd_eng, rtol=1e-12, atol=1e-14,
     )  # fmt: skip
     # a flap setting without a stored stall: no state dynamics, the qualified totals
     mid = dave.evaluate(
@@ -277,7 +303,10 @@ def test_a_stall_the_qualified_file_cannot_carry_is_refused(
     m2 = fitted["model"].with_longitudinal(fitted["stall"])
     base = tmp_path / "example.dml"
     write_example_model(base)  # no CL_basic, Cm_basic, CL, Cm
-    with pytest.raises(ad.DataError, match=r"no CL_basic, Cm_basic, CL, Cm.*--no-longitudinal"):
+    # the stall stores its drag (fit_kirchhoff's default): C_D's curve and total are needed too
+    with pytest.raises(
+        ad.DataError, match=r"no CL_basic, Cm_basic, CD_basic, CL, Cm, CD.*--no-longitudinal"
+    ):
         extended_daveml_text(m2, base, channel_map={"phat": "p_hat", "rhat": "r_hat"})
     out = extended_daveml_text(
         m2, base, channel_map={"phat": "p_hat", "rhat": "r_hat"}, longitudinal=False
@@ -301,8 +330,9 @@ def test_cli_export_of_a_model_with_its_stall(
     out, err = capsys.readouterr()
     assert rc == 0
     assert "longitudinal stall at flaps 0, 15 deg" in out
-    assert f"wrote {sysx}" in out and "LIFT and PITCH" in out
+    assert f"wrote {sysx}" in out and "LIFT, DRAG and PITCH" in out
     assert "aero/aerodelta/stall/CL-delta" in xml.read_text()
+    assert "aero/aerodelta/stall/CD-delta" in xml.read_text()
     assert 'name="aerodelta/stall/flap-1/separated-previous"' in sysx.read_text()
     assert "x_sep" in ad.DaveModel(dml).inputs
     assert not list(tmp_path.glob("*.tmp-*"))

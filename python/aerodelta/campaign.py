@@ -65,6 +65,7 @@ LONGITUDINAL_STALLS = ("static", "kirchhoff")
 KIRCHHOFF_UNITS: dict[str, str] = {
     "tau1": "s", "tau2": "s", "alpha_star": "rad", "a1": "1/rad", "CL_alpha": "1/rad",
     "alpha0": "rad", "Cm0": "-", "Cm_alpha": "1/rad", "Cm_x": "-",
+    "CD0": "-", "CD_k": "-", "CD_x": "-",
 }  # fmt: skip
 
 #: Manifest columns of a campaign with per-maneuver mass properties: mass (kg), CG from the
@@ -479,11 +480,11 @@ def generate_campaign(
         written to ``truth/campaign.json`` under ``"buffet"`` and per sample to the truth
         files (``buffet_ay_true_mps2``, ``buffet_az_true_mps2``, ``buffet_rms_true_mps2``).
     longitudinal_stall
-        ``"static"`` (default): the truth's lift and pitching moment follow the qualified
-        model's static curves. ``"kirchhoff"``: a Kirchhoff flow-separation stall
-        (``docs/longitudinal.md``) with known time constants, breakpoint and steepness per flap,
-        written to ``truth/campaign.json`` (``longitudinal_stall``); the truth files then carry
-        ``x_sep_true``, ``CL_true`` and ``Cm_true``.
+        ``"static"`` (default): the truth's lift, pitching moment and drag follow the
+        qualified model's static curves. ``"kirchhoff"``: a Kirchhoff flow-separation stall
+        (``docs/longitudinal.md``) with known time constants, breakpoint, steepness and drag per
+        flap, written to ``truth/campaign.json`` (``longitudinal_stall``); the truth files then
+        carry ``x_sep_true``, ``CL_true``, ``Cm_true`` and ``CD_true``.
     overwrite
         Replace an existing folder.
     progress
@@ -626,7 +627,8 @@ def kirchhoff_truth() -> dict[str, Any]:
     -------
     dict
         ``model`` ("kirchhoff"), ``units`` per parameter and ``params_by_flap``: for each flap
-        (key: the flap in deg as text) the engine's parameters (radians, seconds) plus
+        (key: the flap in deg as text) the engine's parameters (radians, seconds), the drag's
+        ``CD0``, ``CD_k``, ``CD_x`` (``aero_core::aircraft::truth::kirchhoff_truth_drag``), and
         ``alpha_star_deg``, ``alpha_cl_max_deg`` and ``cl_max`` of the static lift curve.
     """
     flaps: dict[str, Any] = {}
@@ -635,6 +637,7 @@ def kirchhoff_truth() -> dict[str, Any]:
         a_max, cl_max = _core.kirchhoff_cl_max(p)
         flaps[f"{f:g}"] = {
             **p,
+            **_core.kirchhoff_truth_drag(f),
             "alpha_star_deg": math.degrees(p["alpha_star"]),
             "alpha_cl_max_deg": math.degrees(a_max),
             "cl_max": cl_max,

@@ -66,6 +66,7 @@ SIM_HZ = 100.0
 
 _RECORD_COLUMNS, _OUTPUT_COLUMNS = _core.sim_closed_loop_columns()
 _KIRCHHOFF_NAMES = tuple(_core.kirchhoff_param_names())
+_DRAG_NAMES = tuple(_core.kirchhoff_drag_names())
 
 
 @dataclass
@@ -183,7 +184,11 @@ def discrete_thresholds(data: pl.DataFrame, discrete: str, alpha: str) -> dict[f
     return out
 
 
-def _kirchhoff_array(params: Mapping[str, float] | Sequence[float] | None) -> list[float] | None:
+def _kirchhoff_array(
+    params: Mapping[str, float] | Sequence[float] | None,
+) -> tuple[list[float], list[float] | None] | None:
+    """The stall's 9 parameters and, when given, its 3 drag parameters (by name: all of
+    ``_DRAG_NAMES`` or none; as a sequence: 9 or 12 values)."""
     if params is None:
         return None
     if isinstance(params, Mapping):
@@ -193,14 +198,24 @@ def _kirchhoff_array(params: Mapping[str, float] | Sequence[float] | None) -> li
                 f"closed-loop replay: Kirchhoff parameters lack {', '.join(missing)}; give all "
                 f"of {', '.join(_KIRCHHOFF_NAMES)}"
             )
-        return [float(params[n]) for n in _KIRCHHOFF_NAMES]
+        have = [n for n in _DRAG_NAMES if n in params]
+        if have and len(have) < len(_DRAG_NAMES):
+            lack = ", ".join(n for n in _DRAG_NAMES if n not in params)
+            raise InvalidInputError(
+                f"closed-loop replay: the Kirchhoff drag lacks {lack}; give all of "
+                f"{', '.join(_DRAG_NAMES)} or none (the qualified drag)"
+            )
+        drag = [float(params[n]) for n in _DRAG_NAMES] if have else None
+        return [float(params[n]) for n in _KIRCHHOFF_NAMES], drag
     v = [float(x) for x in params]
-    if len(v) != len(_KIRCHHOFF_NAMES):
+    k, d = len(_KIRCHHOFF_NAMES), len(_DRAG_NAMES)
+    if len(v) not in (k, k + d):
         raise InvalidInputError(
-            f"closed-loop replay: {len(v)} Kirchhoff parameters; give {len(_KIRCHHOFF_NAMES)} "
-            f"({', '.join(_KIRCHHOFF_NAMES)})"
+            f"closed-loop replay: {len(v)} Kirchhoff parameters; give {k} "
+            f"({', '.join(_KIRCHHOFF_NAMES)}), or {k + d} with the drag's "
+            f"({', '.join(_DRAG_NAMES)})"
         )
-    return v
+    return v[:k], (v[k:] if len(v) > k else None)
 
 
 def _noise_std(t: np.ndarray, alpha: np.ndarray, az: np.ndarray) -> float:
@@ -265,7 +280,9 @@ def closed_loop_replay(
     kirchhoff
         Per flap (deg), the Kirchhoff stall parameters (by name, engine units, or in
         ``_core.kirchhoff_param_names()`` order) replacing the qualified static C_L, C_m
-        curves (e.g. :func:`aerodelta.longitudinal.fit_kirchhoff`'s); a flap absent flies the
+        curves (e.g. :func:`aerodelta.longitudinal.fit_kirchhoff`'s), with the drag's
+        ``CD0``, ``CD_k``, ``CD_x`` replacing the static C_D curve when given (by name, or as
+        3 more values; without them the qualified drag flies); a flap absent flies the
         stall ``model`` stores for it (:meth:`DeltaModel.with_longitudinal`, when fitted with
         ``known="adx37"``), else the static curves.
     truth_effects
@@ -394,8 +411,9 @@ def closed_loop_replay(
             x0,
             json.dumps(opts),
             model=model._m if model is not None else None,
-            kirchhoff=kp.get(flap),
+            kirchhoff=stall[0] if (stall := kp.get(flap)) is not None else None,
             effects_json=effects_json,
+            kirchhoff_drag=stall[1] if stall is not None else None,
         )
         sim = pl.DataFrame(np.asarray(x), schema=list(_OUTPUT_COLUMNS), orient="row")
         runs[mid] = sim.with_columns(

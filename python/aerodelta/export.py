@@ -173,13 +173,23 @@ def qualified_base(qualified: str | PathLike[str] | None) -> tuple[str, str, Dav
 STALL_FLAP_WINDOW_DEG = 1e-9
 #: Variables of the qualified file the longitudinal stall replaces (the static curves).
 STALL_BASE_VARIABLES = ("CL_basic", "Cm_basic")
+#: The static drag curve a stall with a drag replaces too.
+STALL_DRAG_VARIABLE = "CD_basic"
 
 
 def _stall_replaces(model: DeltaModel) -> tuple[str, ...]:
     """The qualified file's static curves the model's stall replaces: those of
-    :data:`STALL_BASE_VARIABLES` for a stall fitted on the ADX-37's known terms, none for one
-    fitted with ``known="none"`` (which adds its separation dynamics to the totals)."""
-    return () if model.kirchhoff_known == "none" else STALL_BASE_VARIABLES
+    :data:`STALL_BASE_VARIABLES` (and :data:`STALL_DRAG_VARIABLE` when a flap stores a drag)
+    for a stall fitted on the ADX-37's known terms, none for one fitted with ``known="none"``
+    (which adds its separation dynamics to the totals)."""
+    if model.kirchhoff_known == "none":
+        return ()
+    return STALL_BASE_VARIABLES + ((STALL_DRAG_VARIABLE,) if model.kirchhoff_drag else ())
+
+
+def _stall_totals(model: DeltaModel) -> tuple[str, ...]:
+    """The coefficient totals the stall changes: C_L, C_m, and C_D with a stored drag."""
+    return ("CL", "Cm", "CD") if model.kirchhoff_drag else ("CL", "Cm")
 
 
 def _stall_spec(
@@ -194,28 +204,32 @@ def _stall_spec(
     """Inputs, calculations and outputs of the stored Kirchhoff stall (``model.kirchhoff``):
     the separation point as a state input ``x_sep`` the host integrates from ``x_sep_dot``
     (Fischenberg's ``τ₁ ẋ + x = x₀(α − τ₂ α̇)``), its static value ``x_sep_0`` (to start
-    at), and ``CL_ext``, ``Cm_ext`` at each flap setting that has a stall. A stall fitted on
-    the ADX-37's known terms replaces the qualified static curves ``CL_basic``, ``Cm_basic``
-    of the ``CL``, ``Cm`` totals by the Kirchhoff curves (the engine's ``KirchhoffStall``);
+    at), and ``CL_ext``, ``Cm_ext`` (and ``CD_ext`` when a flap stores the stall's drag) at
+    each flap setting that has a stall. A stall fitted on the ADX-37's known terms replaces
+    the qualified static curves ``CL_basic``, ``Cm_basic`` (``CD_basic``) of the ``CL``,
+    ``Cm`` (``CD``) totals by the Kirchhoff curves (the engine's ``KirchhoffStall``);
     one fitted with ``known="none"`` (the whole measured coefficients, whose static curves
     the qualified file already holds) adds the separation dynamics alone: the Kirchhoff
     curves at ``x_sep`` less the same curves at the static ``x₀(α)``. Elsewhere the state
     derivative is 0 and the totals are the qualified ones."""
     stall = model.kirchhoff or {}
+    drags = model.kirchhoff_drag
     dynamics_only = model.kirchhoff_known == "none"
-    need = [*_stall_replaces(model), *(coefficients.get(c, c) for c in ("CL", "Cm"))]
+    totals = _stall_totals(model)
+    need = [*_stall_replaces(model), *(coefficients.get(c, c) for c in totals)]
     missing = [v for v in need if v not in bunits]
     if missing:
+        names = " and ".join(", ".join(totals).rsplit(", ", 1))
         what = (
-            "the CL and Cm totals the stall's separation dynamics are added to"
+            f"the {names} totals the stall's separation dynamics are added to"
             if dynamics_only
-            else "the stall replaces the static curves CL_basic, Cm_basic of the CL and Cm "
-            "totals (the built-in ADX-37 file's variables)"
+            else f"the stall replaces the static curves {', '.join(_stall_replaces(model))} of "
+            f"the {names} totals (the built-in ADX-37 file's variables)"
         )
         raise DataError(
             f"the qualified DAVE-ML model has no {', '.join(missing)}: {what}; name the totals "
-            "(--coef CL=VARID --coef Cm=VARID, coefficients=) or export without the stall "
-            "(--no-longitudinal, longitudinal=False)"
+            "(--coef CL=VARID --coef Cm=VARID --coef CD=VARID, coefficients=) or export "
+            "without the stall (--no-longitudinal, longitudinal=False)"
         )
     d2r = math.pi / 180.0
     inputs = [
@@ -231,7 +245,7 @@ def _stall_spec(
         {"id": "ks_alphadot", "units": "rad_s", "expr": f"{alphadot} * {d2r!r}",
          "description": "rate of the angle of attack, rad/s"},
     ]  # fmt: skip
-    x0_terms, xd_terms, cl_terms, cm_terms = [], [], [], []
+    x0_terms, xd_terms, cl_terms, cm_terms, cd_terms = [], [], [], [], []
     w = STALL_FLAP_WINDOW_DEG
     for i, (f, p) in enumerate(sorted(stall.items())):
         g = {k: repr(float(v)) for k, v in p.items()}
@@ -249,8 +263,9 @@ def _stall_spec(
              "description": f"flap {f:g}: (x0 - x) / tau1, 1/s"},
         ]  # fmt: skip
         lift = f"{g['CL_alpha']} * (ks_alpha - {g['alpha0']}) * ((1 + sqrt(ks_x)) / 2)^2"
+        drag = {k: repr(float(v)) for k, v in drags.get(f, {}).items()}
+        xs = f"ks_x0s_{i}"
         if dynamics_only:
-            xs = f"ks_x0s_{i}"
             calcs += [
                 {"id": xs, "units": "nd",
                  "expr": f"1 / (1 + exp(2 * {g['a1']} * (ks_alpha - {g['alpha_star']})))",
@@ -274,6 +289,24 @@ def _stall_spec(
                  "description": f"flap {f:g}: Kirchhoff pitching moment minus the static "
                  "curve"},
             ]  # fmt: skip
+        if drag:
+            if dynamics_only:  # the drag at x_sep less at x0(alpha)
+                lift_s = f"{g['CL_alpha']} * (ks_alpha - {g['alpha0']}) * ((1 + sqrt({xs})) / 2)^2"
+                expr = (
+                    f"{drag['CD_k']} * (({lift})^2 - ({lift_s})^2) + {drag['CD_x']} * ({xs} - ks_x)"
+                )
+                what = "Kirchhoff drag at x_sep minus at x0(alpha)"
+            else:
+                expr = (
+                    f"{drag['CD0']} + {drag['CD_k']} * ({lift})^2 + {drag['CD_x']} * (1 - ks_x)"
+                    f" - {STALL_DRAG_VARIABLE}"
+                )
+                what = "Kirchhoff drag (CD0 + CD_k CL^2 + CD_x (1 - x)) minus the static curve"
+            calcs.append(
+                {"id": f"ks_dcd_{i}", "units": "nd", "expr": expr,
+                 "description": f"flap {f:g}: {what}"}
+            )  # fmt: skip
+            cd_terms.append({"factors": [on, f"ks_dcd_{i}"]})
         x0_terms.append({"factors": [on, x0]})
         xd_terms.append({"factors": [on, f"ks_xdot_{i}"]})
         cl_terms.append({"factors": [on, f"ks_dcl_{i}"]})
@@ -305,6 +338,19 @@ def _stall_spec(
              f"Kirchhoff moment at flaps {flaps} deg")
          + " (the qualified Cm elsewhere)"},
     ]  # fmt: skip
+    if cd_terms:
+        dflaps = ", ".join(f"{f:g}" for f in sorted(drags))
+        outputs.append(
+            {"id": "CD_ext", "units": "nd",
+             "terms": [{"factors": [coefficients.get("CD", "CD")]}, *cd_terms],
+             "description": (
+                 "extended CD: the qualified CD plus the drag of the stall's separation "
+                 f"dynamics at flaps {dflaps} deg"
+                 if dynamics_only else
+                 f"extended CD: the qualified CD with its static curve {STALL_DRAG_VARIABLE} "
+                 f"replaced by the Kirchhoff drag at flaps {dflaps} deg")
+             + " (the qualified CD elsewhere)"}
+        )  # fmt: skip
     return inputs, calcs, outputs
 
 
@@ -473,7 +519,7 @@ def extended_daveml_spec(
             model, bunits, alpha=alpha_ch, flap=flap_ch, alphadot="alphadot_dps",
             coefficients=cnames,
         )  # fmt: skip
-        for v in (*_stall_replaces(model), *(cnames.get(c, c) for c in ("CL", "Cm"))):
+        for v in (*_stall_replaces(model), *(cnames.get(c, c) for c in _stall_totals(model))):
             if v not in resolved:
                 resolved.add(v)
                 inputs.append({"id": v, "units": bunits[v]})
@@ -601,10 +647,12 @@ def _stall_reference(
     data: Mapping[str, list[Any]],
     coefficients: Mapping[str, str],
 ) -> dict[str, np.ndarray]:
-    """``x_sep_dot``, ``x_sep_0``, ``CL_ext``, ``Cm_ext`` by the engine at the states: the
-    stored stall's ``KirchhoffParams`` (``_core.kirchhoff_point``) at the flap settings that
-    have one (exactly), replacing the base file's ``CL_basic``, ``Cm_basic`` in its ``CL``,
-    ``Cm`` (the base's own values, as the Δ's reference takes the base's coefficients)."""
+    """``x_sep_dot``, ``x_sep_0``, ``CL_ext``, ``Cm_ext`` (and ``CD_ext`` with a stored drag)
+    by the engine at the states: the stored stall's ``KirchhoffParams``
+    (``_core.kirchhoff_point``) and ``KirchhoffDrag`` (``_core.kirchhoff_drag_point``) at the
+    flap settings that have one (exactly), replacing the base file's ``CL_basic``, ``Cm_basic``
+    (``CD_basic``) in its ``CL``, ``Cm`` (``CD``) (the base's own values, as the Δ's reference
+    takes the base's coefficients)."""
     n = len(data["alpha_deg"])
 
     def col(name: str, default: float) -> np.ndarray:
@@ -614,30 +662,43 @@ def _stall_reference(
     alpha, flap = col("alpha_deg", np.nan), col("flap_deg", np.nan)
     rates = np.radians(col("alphadot_dps", 0.0))
     x = np.clip(col("x_sep", 1.0), 0.0, 1.0)
-    cl_q, cm_q = (coefficients.get(c, c) for c in ("CL", "Cm"))
+    totals = [coefficients.get(c, c) for c in _stall_totals(model)]
     binputs = set(base.inputs)
     dynamics_only = model.kirchhoff_known == "none"
+    drags = model.kirchhoff_drag
     qual = base.evaluate(
         {k: v for k, v in data.items() if k in binputs},
-        outputs=[cl_q, cm_q, *_stall_replaces(model)],
+        outputs=[*totals, *_stall_replaces(model)],
     )
     xdot, x0 = np.zeros(n), np.zeros(n)
-    cl, cm = qual[cl_q].to_numpy().copy(), qual[cm_q].to_numpy().copy()
+    cl, cm = qual[totals[0]].to_numpy().copy(), qual[totals[1]].to_numpy().copy()
+    cd = qual[totals[2]].to_numpy().copy() if drags else None
     for f, p in (model.kirchhoff or {}).items():
         on = flap == f
         a_on = np.radians(alpha[on])
         s_x0, s_xd, s_cl, s_cm = _core.kirchhoff_point(p, a_on, rates[on], x[on])
         x0[on], xdot[on] = s_x0, s_xd
+        d = drags.get(f)
         if dynamics_only:  # less the same curves at the static state x0(alpha)
             still = np.zeros_like(a_on)
             xs = _core.kirchhoff_point(p, a_on, still, x[on])[0]
             _, _, st_cl, st_cm = _core.kirchhoff_point(p, a_on, still, xs)
             cl[on] += s_cl - st_cl
             cm[on] += s_cm - st_cm
+            if d is not None and cd is not None:
+                cd[on] += _core.kirchhoff_drag_point(d, s_cl, x[on]) - _core.kirchhoff_drag_point(
+                    d, st_cl, xs
+                )
         else:
             cl[on] += s_cl - qual["CL_basic"].to_numpy()[on]
             cm[on] += s_cm - qual["Cm_basic"].to_numpy()[on]
-    return {"x_sep_dot": xdot, "x_sep_0": x0, "CL_ext": cl, "Cm_ext": cm}
+            if d is not None and cd is not None:
+                cd[on] += (
+                    _core.kirchhoff_drag_point(d, s_cl, x[on])
+                    - qual[STALL_DRAG_VARIABLE].to_numpy()[on]
+                )
+    out = {"x_sep_dot": xdot, "x_sep_0": x0, "CL_ext": cl, "Cm_ext": cm}
+    return out | ({"CD_ext": cd} if cd is not None else {})
 
 
 def extended_daveml_text(
@@ -686,7 +747,7 @@ def extended_daveml_text(
     merged = DaveModel.from_string(merged_text, name)
     cmap = {c: (coefficients or {}).get(c, c) for c in model.coefficients}
     if stall:
-        cmap |= {c: (coefficients or {}).get(c, c) for c in ("CL", "Cm")}
+        cmap |= {c: (coefficients or {}).get(c, c) for c in _stall_totals(model)}
     ref = _engine_reference(model, base, merged, states, cmap, stall=stall)
     keys = sorted({k for s in states for k in s["inputs"]})
     data = {k: [s["inputs"].get(k, np.nan) for s in states] for k in keys}

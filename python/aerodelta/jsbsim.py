@@ -20,8 +20,9 @@ properties that the file declares (value 0) and the aircraft must drive, e.g. fr
 model that carries its validated envelope also publishes ``aero/aerodelta/in-envelope`` (1
 inside the flight data's alpha/beta envelope, 0 outside).
 
-A model storing a Kirchhoff stall adds its lift and pitching-moment increments (``LIFT`` or
-``X``/``Z``, and ``PITCH``): over the ADX-37 qualified static curves for a stall fitted on the
+A model storing a Kirchhoff stall adds its lift and pitching-moment increments, and its drag
+increment when it stores the stall's drag (``LIFT`` and ``DRAG`` or ``X``/``Z``, and
+``PITCH``): over the ADX-37 qualified static curves for a stall fitted on the
 ADX-37's known terms, over the identified static curves (the separation dynamics alone) for one
 fitted with ``known="none"``; the separation state is stepped exactly each frame in the
 aerodynamics and carried to the next frame by a ``<system>`` (:func:`jsbsim_stall_system_xml`;
@@ -465,9 +466,10 @@ def _stall_functions(
 ) -> tuple[list[str], dict[str, list[str]]]:
     """The aerodynamics' part of the stored stall: ``aero/aerodelta/stall/x`` (1 attached,
     0 separated; 1 at a flap setting without a stall), the increments ``CL-delta``,
-    ``Cm-delta`` at each flap setting with a stall (0 elsewhere) and the axis functions:
-    ``LIFT`` (wind axes, with ``side_axis="SIDE"``) or ``X``, ``Z`` (body axes, with
-    ``side_axis="Y"``: ``L sin(alpha)``, ``-L cos(alpha)``), and ``PITCH``.
+    ``Cm-delta`` (and ``CD-delta`` when a flap stores the stall's drag) at each flap setting
+    with a stall (0 elsewhere) and the axis functions: ``LIFT`` (and ``DRAG``; wind axes, with
+    ``side_axis="SIDE"``) or ``X``, ``Z`` (body axes, with ``side_axis="Y"``:
+    ``L sin(alpha) - D cos(alpha)``, ``-L cos(alpha) - D sin(alpha)``), and ``PITCH``.
 
     The increments of a stall fitted with ``known="adx37"`` are the Kirchhoff curves less the
     ADX-37 qualified static curves ``CL_basic``, ``Cm_basic`` they replace. One fitted with
@@ -481,10 +483,12 @@ def _stall_functions(
     alpha_p = w.channel(spec.get("alpha_channel", "alpha_deg"))
     flap_p = w.channel(spec.get("flap_channel", "flap_deg"))
     fns: list[str] = []
+    drags = model.kirchhoff_drag
     if not dynamics_only:
         qspec = qualified_daveml_spec()
         cl_basic = _qualified_table(w, "CL_basic", qspec, done, fns)
         cm_basic = _qualified_table(w, "Cm_basic", qspec, done, fns)
+        cd_basic = _qualified_table(w, "CD_basic", qspec, done, fns) if drags else ""
     alphadot_p = w.channel("alphadot_dps")
     # the exact step of the ODE for an input linear over the frame (first-order hold, as
     # aero_core::kirchhoff::step): r = dt / tau1, e = exp(-r), g = 1 - (1 - e) / r,
@@ -545,7 +549,7 @@ def _stall_functions(
     a_rad = (
         f"<product><property>{alpha_p}</property><value>{_num(math.pi / 180.0)}</value></product>"
     )
-    cl_terms, cm_terms = [], []
+    cl_terms, cm_terms, cd_terms = [], [], []
 
     def lift(g: Mapping[str, float], x: str) -> str:
         """``C_La (alpha - alpha0) ((1 + sqrt(x)) / 2)^2``"""
@@ -580,6 +584,24 @@ def _stall_functions(
             dcm = f"<difference>{moment}<property>{cm_basic}</property></difference>"
         cl_terms.append(f"<product>{on}{dcl}</product>")
         cm_terms.append(f"<product>{on}{dcm}</product>")
+        d = drags.get(f)
+        if d is not None:
+            # C_D = CD0 + CD_k C_L(alpha, x)^2 + CD_x (1 - x) (aero_core KirchhoffDrag)
+            def polar(x: str, lift_at: str, d: Mapping[str, float] = d) -> str:
+                return (
+                    f"<sum><value>{_num(d['CD0'])}</value><product><value>{_num(d['CD_k'])}"
+                    f"</value><pow>{lift_at}<value>2</value></pow></product><product>"
+                    f"<value>{_num(d['CD_x'])}</value><difference><value>1</value>{x}"
+                    "</difference></product></sum>"
+                )
+
+            here = polar(xp, lift(g, xp))
+            if dynamics_only:
+                xsp = f"<property>aero/{STALL_PREFIX}/flap-{i}/x-static</property>"
+                dcd = f"<difference>{here}{polar(xsp, lift(g, xsp))}</difference>"
+            else:
+                dcd = f"<difference>{here}<property>{cd_basic}</property></difference>"
+            cd_terms.append(f"<product>{on}{dcd}</product>")
     flaps_txt = ", ".join(f"{f:g}" for f, _ in flaps)
     less = (
         "the same curve at the static separation point (the separation dynamics over the "
@@ -587,7 +609,10 @@ def _stall_functions(
         if dynamics_only
         else "the qualified static curve it replaces"
     )
-    for c, terms, what in (("CL", cl_terms, "lift"), ("Cm", cm_terms, "pitching moment")):
+    incs = [("CL", cl_terms, "lift"), ("Cm", cm_terms, "pitching moment")]
+    if cd_terms:
+        incs.append(("CD", cd_terms, "drag"))
+    for c, terms, what in incs:
         fns.append(
             f'  <function name="aero/aerodelta/stall/{c}-delta">\n    <description>Kirchhoff '
             f"{what} less {less}, at flaps {flaps_txt} deg; 0 elsewhere</description>\n    "
@@ -603,6 +628,7 @@ def _stall_functions(
             f"(lbf)</description>\n      {body}\n    </function>"
         )
 
+    cd = "<property>aero/aerodelta/stall/CD-delta</property>"
     if side_axis == "Y":
         force(
             "X",
@@ -616,8 +642,23 @@ def _stall_functions(
             "body z force of the stall's lift increment, -L cos(alpha)",
             f"<product><value>-1</value>{qs}{cl}<cos>{a_rad}</cos></product>",
         )
+        if cd_terms:
+            force(
+                "X",
+                "CX-stall-drag",
+                "body x force of the stall's drag increment, -D cos(alpha)",
+                f"<product><value>-1</value>{qs}{cd}<cos>{a_rad}</cos></product>",
+            )
+            force(
+                "Z",
+                "CZ-stall-drag",
+                "body z force of the stall's drag increment, -D sin(alpha)",
+                f"<product><value>-1</value>{qs}{cd}<sin>{a_rad}</sin></product>",
+            )
     else:
         force("LIFT", "CL-stall", "lift increment of the stall", f"<product>{qs}{cl}</product>")
+        if cd_terms:
+            force("DRAG", "CD-stall", "drag increment of the stall", f"<product>{qs}{cd}</product>")
     axes["PITCH"] = [
         '    <function name="aero/moment/aerodelta-Cm-stall">\n      <description>pitching '
         "moment increment of the stall (ft lbf)</description>\n      <product>"
@@ -714,14 +755,15 @@ def jsbsim_xml(
         (:data:`PROPULSIVE_TERMS`), which JSBSim's propulsion applies.
     longitudinal
         Carry the Kirchhoff stall the model stores (:meth:`DeltaModel.with_longitudinal`):
-        the lift and pitching-moment increments of the Kirchhoff curves over the ADX-37
-        qualified static curves ``CL_basic``, ``Cm_basic`` (fitted with ``known="adx37"``) or,
-        fitted with ``known="none"``, over the same curves at the static separation point (the
-        separation dynamics alone, over the aircraft's own static curves; non-dimensional:
-        ``aero/aerodelta/stall/CL-delta``, ``.../Cm-delta``), on the ``LIFT``
-        axis (``side_axis="SIDE"``: wind axes) or the ``X`` and ``Z`` axes (``side_axis="Y"``),
-        and ``PITCH`` (``qbar S cbar``, ft lbf). The separation state is stepped here, with
-        the frame's alpha and alphadot, from the previous frame's that
+        the lift and pitching-moment increments (and the drag's, where the model stores the
+        stall's drag) of the Kirchhoff curves over the ADX-37 qualified static curves
+        ``CL_basic``, ``Cm_basic``, ``CD_basic`` (fitted with ``known="adx37"``) or, fitted with
+        ``known="none"``, over the same curves at the static separation point (the separation
+        dynamics alone, over the aircraft's own static curves; non-dimensional:
+        ``aero/aerodelta/stall/CL-delta``, ``.../Cm-delta``, ``.../CD-delta``), on the ``LIFT``
+        and ``DRAG`` axes (``side_axis="SIDE"``: wind axes) or the ``X`` and ``Z`` axes
+        (``side_axis="Y"``), and ``PITCH`` (``qbar S cbar``, ft lbf). The separation state
+        is stepped here, with the frame's alpha and alphadot, from the previous frame's that
         :func:`jsbsim_stall_system_xml`'s ``<system>`` hands on; load both.
 
     Raises

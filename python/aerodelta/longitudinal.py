@@ -4,7 +4,9 @@ identified by output error from flight records (``docs/longitudinal.md``).
 The separation point ``x`` obeys ``tau1 x' + x = x0(alpha - tau2 alpha')`` with
 ``x0(alpha) = (1 - tanh(a1 (alpha - alpha*))) / 2`` (Fischenberg, AIAA 95-3438); lift is
 ``CL_alpha (alpha - alpha0) ((1 + sqrt(x)) / 2)**2`` and the pitching moment
-``Cm0 + Cm_alpha alpha + Cm_x (1 - x)``. These replace the qualified model's static curves;
+``Cm0 + Cm_alpha alpha + Cm_x (1 - x)``; drag ``CD0 + CD_k CL(alpha, x)**2 + CD_x (1 - x)``
+(the polar in the Kirchhoff lift plus the separated wake's drag, fitted by equation error along
+the identified state: :class:`DragFit`). These replace the qualified model's static curves;
 the qualified model's control, rate and thrust terms are known and taken off the measured
 coefficients before the fit. The engine (``aero_core::output_error``) integrates the state from
 the measured alpha and its rate, and fits all maneuvers of a flap setting at once by
@@ -33,6 +35,7 @@ import polars as pl
 from aerodelta import _core
 from aerodelta._groups import Groups, group_agg
 from aerodelta.exceptions import AerodeltaError, DataError, InvalidInputError, NoConvergenceError
+from aerodelta.lsq import ols
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -69,6 +72,9 @@ _PROBE_TOL = 1e-6
 _FALLBACK_ITER = 300
 
 _NEEDED = ("maneuver_id", "t", "alpha_deg", "alphadot_dps", "flap_deg", "CX_meas", "CZ_meas")
+
+#: Drag parameter names (all dimensionless): ``C_D = CD0 + CD_k C_L(alpha, x)^2 + CD_x (1 - x)``.
+DRAG_PARAMS: tuple[str, ...] = tuple(_core.kirchhoff_drag_names())
 
 
 def _f64(frame: pl.DataFrame, name: str) -> FloatArray:
@@ -109,8 +115,41 @@ def measured_lift(data: pl.DataFrame) -> FloatArray:
     return -_f64(data, "CZ_meas") * np.cos(a) + cx * np.sin(a)
 
 
+def measured_drag(data: pl.DataFrame) -> FloatArray:
+    """Measured aerodynamic drag coefficient along the records, -.
+
+    ``C_D = -(C_X - C_T) cos(alpha) - C_Z sin(alpha)``, the wind-axis companion of
+    :func:`measured_lift` (same channels, the thrust coefficient ``C_T = ct_left + ct_right``
+    taken off C_X where the records carry it).
+
+    Parameters
+    ----------
+    data
+        Ingested records with ``alpha_deg``, ``CX_meas``, ``CZ_meas`` (and optionally
+        ``ct_left``, ``ct_right``).
+
+    Returns
+    -------
+    numpy.ndarray
+        C_D per row.
+    """
+    missing = [c for c in ("alpha_deg", "CX_meas", "CZ_meas") if c not in data.columns]
+    if missing:
+        raise DataError(
+            f"records lack {', '.join(missing)}; run aerodelta.ingest on them first "
+            "(it derives the measured coefficients)"
+        )
+    a = np.radians(_f64(data, "alpha_deg"))
+    cx = _f64(data, "CX_meas")
+    if all(c in data.columns for c in ("ct_left", "ct_right")):
+        ct = _f64(data, "ct_left") + _f64(data, "ct_right")
+        cx = cx - np.where(np.isfinite(ct), ct, 0.0)
+    return -cx * np.cos(a) - _f64(data, "CZ_meas") * np.sin(a)
+
+
 def qualified_longitudinal(data: pl.DataFrame) -> pl.DataFrame:
-    """The built-in aircraft's qualified C_L and C_m along the records, and their static parts.
+    """The built-in aircraft's qualified C_L, C_m and C_D along the records, and their static
+    parts.
 
     Parameters
     ----------
@@ -120,8 +159,9 @@ def qualified_longitudinal(data: pl.DataFrame) -> pl.DataFrame:
     Returns
     -------
     polars.DataFrame
-        ``CL_qual``, ``Cm_qual`` (totals) and ``CL_basic``, ``Cm_basic`` (the static
-        curves of alpha and flap the Kirchhoff model replaces), one row per record row.
+        ``CL_qual``, ``Cm_qual``, ``CD_qual`` (totals; C_L and C_D in wind axes) and
+        ``CL_basic``, ``Cm_basic``, ``CD_basic`` (the static curves of alpha and flap the
+        Kirchhoff model replaces), one row per record row.
     """
     cols: dict[str, FloatArray] = {}
     for n in _QUAL_INPUTS:
@@ -131,8 +171,13 @@ def qualified_longitudinal(data: pl.DataFrame) -> pl.DataFrame:
             )
         elif n in ("dsl_deg", "dsr_deg", "de_deg", "ct_left", "ct_right"):
             cols[n] = np.zeros(data.height)
-    cl, cm, clb, cmb = _core.qualified_longitudinal_adx37(cols)
-    return pl.DataFrame({"CL_qual": cl, "Cm_qual": cm, "CL_basic": clb, "Cm_basic": cmb})
+    cl, cm, clb, cmb, cd, cdb = _core.qualified_longitudinal_adx37(cols)
+    return pl.DataFrame(
+        {
+            "CL_qual": cl, "Cm_qual": cm, "CD_qual": cd,
+            "CL_basic": clb, "Cm_basic": cmb, "CD_basic": cdb,
+        }
+    )  # fmt: skip
 
 
 def theil(measured: npt.ArrayLike, predicted: npt.ArrayLike) -> float:
@@ -248,7 +293,7 @@ def binned_static_curve(
     _check(data)
     if not (math.isfinite(bin_deg) and bin_deg > 0):
         raise InvalidInputError(f"bin_deg {bin_deg!r}: give a positive width in deg")
-    rest_l, rest_m = _known(data, known)
+    rest_l, rest_m, _ = _known(data, known)
     cm = (
         _f64(data, "Cm_meas") - rest_m
         if "Cm_meas" in data.columns
@@ -327,6 +372,51 @@ def binned_static_curve(
 
 
 @dataclass(frozen=True)
+class DragFit:
+    """The drag of one flap setting, fitted by equation error along the identified state.
+
+    ``C_D = CD0 + CD_k C_L(alpha, x)^2 + CD_x (1 - x)`` with ``x`` and the Kirchhoff lift
+    ``C_L`` integrated from the output-error estimates over each maneuver (as
+    :meth:`KirchhoffResult.predict`), least squares on the measured drag less its known terms
+    (``aero_core::lsq``).
+
+    Attributes
+    ----------
+    params
+        ``CD0``, ``CD_k``, ``CD_x`` (-).
+    std_err
+        Cluster-robust (CR2, maneuvers as clusters) standard errors, the default of the
+        identification (``docs/identification.md``); NaN where a maneuver alone determines a
+        parameter.
+    dof
+        Their Bell-McCaffrey degrees of freedom (Student t).
+    std_err_conventional, std_err_colored
+        White-residual and coloured-residual (SIDPAC ``r_colores``, within the concatenated
+        records) standard errors, beside them.
+    cov
+        The CR2 covariance, 3 x 3 in :data:`DRAG_PARAMS` order.
+    residual_std
+        Residual standard deviation of C_D.
+    n_samples, n_maneuvers
+        Samples and maneuvers fitted.
+    note
+        What the errors do not include: the separation state is taken as known (its
+        parameters' uncertainty is not propagated into the drag's).
+    """
+
+    params: dict[str, float]
+    std_err: dict[str, float]
+    dof: dict[str, float]
+    std_err_conventional: dict[str, float]
+    std_err_colored: dict[str, float]
+    cov: FloatArray
+    residual_std: float
+    n_samples: int
+    n_maneuvers: int
+    note: str = ""
+
+
+@dataclass(frozen=True)
 class FlapFit:
     """The output-error fit of one flap setting.
 
@@ -358,6 +448,9 @@ class FlapFit:
         ``tau2`` s, their coloured-residual bounds ``tau1_se_colored``, ``tau2_se_colored``
         and that of the sum ``tau_sum_se_colored`` s, all NaN when it did not converge;
         ``cost_drop``, the static fit's cost minus the restart's; ``iterations``).
+    drag
+        The drag along the identified state (:class:`DragFit`); None when not fitted
+        (``fit_cd=False``).
     """
 
     flap_deg: float
@@ -377,6 +470,7 @@ class FlapFit:
     tau_identified: bool = True
     note: str = ""
     tau_free: dict[str, float] = field(default_factory=dict)
+    drag: DragFit | None = None
 
     @property
     def alpha_star_deg(self) -> float:
@@ -415,9 +509,13 @@ class KirchhoffResult:
 
     def summary(self) -> pl.DataFrame:
         """One row per flap and parameter: ``flap_deg, parameter, unit, estimate, std_err,
-        std_err_colored, start``, plus the derived ``alpha_star_deg``, ``alpha_cl_max_deg``
-        and ``cl_max`` (their errors NaN, except alpha*'s in deg)."""
+        std_err_colored, std_err_cluster, start``, plus the derived ``alpha_star_deg``,
+        ``alpha_cl_max_deg`` and ``cl_max`` (their errors NaN, except alpha*'s in deg), then
+        the drag's ``CD0``, ``CD_k``, ``CD_x`` where fitted (``std_err`` conventional,
+        ``std_err_colored`` coloured-residual, ``std_err_cluster`` the CR2 error of
+        :class:`DragFit`; no start). ``std_err_cluster`` is NaN on the output-error rows."""
         rows: list[dict[str, Any]] = []
+        nan = math.nan
         for f in sorted(self.fits):
             ff = self.fits[f]
             for n in PARAMS:
@@ -429,6 +527,7 @@ class KirchhoffResult:
                         "estimate": ff.params[n],
                         "std_err": ff.std_err[n],
                         "std_err_colored": ff.std_err_colored[n],
+                        "std_err_cluster": nan,
                         "start": ff.start[n],
                     }
                 )
@@ -454,9 +553,22 @@ class KirchhoffResult:
                         "estimate": est,
                         "std_err": se,
                         "std_err_colored": sec,
+                        "std_err_cluster": nan,
                         "start": st,
                     }
                 )
+            if ff.drag is not None:
+                rows.extend(
+                    {
+                        "flap_deg": f, "parameter": n, "unit": "-",
+                        "estimate": ff.drag.params[n],
+                        "std_err": ff.drag.std_err_conventional[n],
+                        "std_err_colored": ff.drag.std_err_colored[n],
+                        "std_err_cluster": ff.drag.std_err[n],
+                        "start": nan,
+                    }
+                    for n in DRAG_PARAMS
+                )  # fmt: skip
         return pl.DataFrame(rows, infer_schema_length=None)
 
     def predict(self, data: pl.DataFrame, known: str = "adx37") -> pl.DataFrame:
@@ -473,12 +585,14 @@ class KirchhoffResult:
         Returns
         -------
         polars.DataFrame
-            ``x_sep``, ``CL_model``, ``Cm_model``, one row per input row (in input order).
+            ``x_sep``, ``CL_model``, ``Cm_model``, ``CD_model`` (NaN at a flap whose drag was
+            not fitted), one row per input row (in input order).
         """
         _check(data)
-        rest_l, rest_m = _known(data, known)
+        rest_l, rest_m, rest_d = _known(data, known)
         n = data.height
         x, cl, cm = np.full(n, np.nan), np.full(n, np.nan), np.full(n, np.nan)
+        cd = np.full(n, np.nan)
         idx = data.with_row_index("_row")
         for _, g in idx.group_by("maneuver_id", maintain_order=True):
             flap = float(g["flap_deg"][0])
@@ -491,7 +605,25 @@ class KirchhoffResult:
                 np.radians(_f64(g, "alphadot_dps")),
             )
             x[rows], cl[rows], cm[rows] = xs, ls, ms
-        return pl.DataFrame({"x_sep": x, "CL_model": cl + rest_l, "Cm_model": cm + rest_m})
+            if ff.drag is not None:
+                cd[rows] = _drag_regressors(ls, xs) @ _drag_vector(ff.drag.params)
+        return pl.DataFrame(
+            {
+                "x_sep": x,
+                "CL_model": cl + rest_l,
+                "Cm_model": cm + rest_m,
+                "CD_model": cd + rest_d,
+            }
+        )
+
+
+def _drag_regressors(cl: FloatArray, x: FloatArray) -> FloatArray:
+    """``[1, C_L^2, 1 - x]`` per sample (``aero_core::kirchhoff::KirchhoffDrag::regressors``)."""
+    return np.column_stack([np.ones(len(cl)), cl * cl, 1.0 - x])
+
+
+def _drag_vector(params: Mapping[str, float]) -> FloatArray:
+    return np.array([float(params[n]) for n in DRAG_PARAMS])
 
 
 def _maneuver_name(ids: tuple[str, ...], m: re.Match[str]) -> str:
@@ -508,15 +640,16 @@ def _check(data: pl.DataFrame) -> None:
         )
 
 
-def _known(data: pl.DataFrame, known: str) -> tuple[FloatArray, FloatArray]:
-    """The coefficients' known (non-static-curve) parts along the records."""
+def _known(data: pl.DataFrame, known: str) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """The coefficients' known (non-static-curve) parts along the records: C_L, C_m, C_D."""
     if known == "none":
-        return np.zeros(data.height), np.zeros(data.height)
+        return np.zeros(data.height), np.zeros(data.height), np.zeros(data.height)
     if known == "adx37":
         q = qualified_longitudinal(data)
         return (
             (q["CL_qual"] - q["CL_basic"]).to_numpy(),
             (q["Cm_qual"] - q["Cm_basic"]).to_numpy(),
+            (q["CD_qual"] - q["CD_basic"]).to_numpy(),
         )
     raise InvalidInputError(f"known '{known}': use 'adx37' (the built-in aircraft) or 'none'")
 
@@ -527,6 +660,7 @@ def fit_kirchhoff(
     flaps: Sequence[float] | None = None,
     maneuvers: Sequence[str] | None = None,
     fit_cm: bool = True,
+    fit_cd: bool = True,
     known: str = "adx37",
     start: Mapping[float, Mapping[str, float]] | None = None,
     fixed: Sequence[str] = (),
@@ -547,9 +681,12 @@ def fit_kirchhoff(
         Maneuver ids to fit on (default: all); the others stay out (held out).
     fit_cm
         Fit the pitching moment too (C_m0, C_malpha, C_mx); else C_L alone.
+    fit_cd
+        Fit the drag along the identified state too (:class:`DragFit`: ``CD0``, ``CD_k``,
+        ``CD_x`` by least squares once the output-error fit of the flap is done).
     known
         ``"adx37"``: take the built-in qualified model's control, rate and thrust terms off the
-        measured C_L and C_m; ``"none"``: fit the measured coefficients as they are.
+        measured C_L, C_m and C_D; ``"none"``: fit the measured coefficients as they are.
     start
         Start values per flap (all nine parameters, engine units); default: equation error.
     fixed
@@ -592,11 +729,13 @@ def fit_kirchhoff(
     frame = data
     if maneuvers is not None:
         frame = frame.filter(pl.col("maneuver_id").is_in(list(maneuvers)))
-    rest_l, rest_m = _known(frame, known)
+    rest_l, rest_m, rest_d = _known(frame, known)
     cl = measured_lift(frame) - rest_l
     cm = (_f64(frame, "Cm_meas") - rest_m) if fit_cm else None
     frame = frame.with_columns(
-        pl.Series("_cl", cl), pl.Series("_cm", cm if cm is not None else np.zeros(frame.height))
+        pl.Series("_cl", cl),
+        pl.Series("_cm", cm if cm is not None else np.zeros(frame.height)),
+        pl.Series("_cd", measured_drag(frame) - rest_d),
     )
     all_flaps = sorted({float(f) for f in frame["flap_deg"].unique().to_list()})
     wanted = all_flaps if flaps is None else [float(f) for f in flaps]
@@ -606,7 +745,7 @@ def fit_kirchhoff(
         if sub.height == 0:
             have = ", ".join(f"{f:g}" for f in all_flaps)
             raise DataError(f"no records at flap {flap:g} deg; the data hold flaps {have}")
-        ts, al, ad, ls, ms, ids = [], [], [], [], [], []
+        ts, al, ad, ls, ms, ds, ids = [], [], [], [], [], [], []
         for (mid,), grp in sub.group_by("maneuver_id", maintain_order=True):
             g = grp.sort("t")
             ts.append(_f64(g, "t"))
@@ -614,6 +753,7 @@ def fit_kirchhoff(
             ad.append(np.radians(_f64(g, "alphadot_dps")))
             ls.append(_f64(g, "_cl"))
             ms.append(_f64(g, "_cm"))
+            ds.append(_f64(g, "_cd"))
             ids.append(str(mid))
         engine = functools.partial(
             _engine, ts, al, ad, ls, ms if fit_cm else None, tuple(ids), flap, max_lag
@@ -663,8 +803,52 @@ def fit_kirchhoff(
             tau_identified=not note,
             note=note,
             tau_free=tau_free,
+            drag=_fit_drag(r["params"], ts, al, ad, ds, ids, flap) if fit_cd else None,
         )
     return KirchhoffResult(fits=fits, fit_cm=fit_cm, known=known)
+
+
+def _fit_drag(  # noqa: PLR0917
+    params: Mapping[str, float],
+    ts: list[FloatArray],
+    al: list[FloatArray],
+    ad: list[FloatArray],
+    ds: list[FloatArray],
+    ids: tuple[str, ...] | list[str],
+    flap: float,
+) -> DragFit:
+    """The drag of one flap by least squares along the state of ``params`` (:class:`DragFit`)."""
+    p = {k: float(v) for k, v in params.items()}
+    xs: list[FloatArray] = []
+    for t, a, adot in zip(ts, al, ad, strict=True):
+        x, cl, _, _, _ = _core.kirchhoff_outputs(p, t, a, adot)
+        xs.append(_drag_regressors(cl, x))
+    groups = np.repeat(np.arange(len(ts), dtype=np.uint64), [len(t) for t in ts])
+    try:
+        f = ols(
+            np.concatenate(xs), np.concatenate(ds), list(DRAG_PARAMS), groups=groups, colored=True
+        )
+    except AerodeltaError as e:
+        raise type(e)(f"flap {flap:g} deg, drag: {e}") from e
+    assert f.std_err_cluster is not None and f.dof_cluster is not None
+    assert f.cov_cluster is not None and f.std_err_corrected is not None
+
+    def named(v: FloatArray) -> dict[str, float]:
+        return {n: float(x) for n, x in zip(DRAG_PARAMS, v, strict=True)}
+
+    return DragFit(
+        params=named(f.params),
+        std_err=named(f.std_err_cluster),
+        dof=named(f.dof_cluster),
+        std_err_conventional=named(f.std_err),
+        std_err_colored=named(f.std_err_corrected),
+        cov=np.asarray(f.cov_cluster),
+        residual_std=float(np.sqrt(f.s2)),
+        n_samples=int(sum(len(t) for t in ts)),
+        n_maneuvers=len(ids),
+        note="conditional on the identified separation state: the uncertainty of tau1, tau2, "
+        "alpha*, a1 and the lift line is not carried into the drag's errors",
+    )
 
 
 def _engine(  # noqa: PLR0917

@@ -202,6 +202,15 @@ class DeltaModel:
         return {float(f["flap_deg"]): dict(f["params"]) for f in lon["flaps"]}
 
     @property
+    def kirchhoff_drag(self) -> dict[float, dict[str, float]]:
+        """The drag of the stored stall: per flap (deg) that carries one, ``CD0``, ``CD_k``,
+        ``CD_x`` (``aerodelta.longitudinal.DRAG_PARAMS``, dimensionless); empty without."""
+        lon = self.to_spec().get("longitudinal")
+        if lon is None:
+            return {}
+        return {float(f["flap_deg"]): dict(f["drag"]) for f in lon["flaps"] if f.get("drag")}
+
+    @property
     def kirchhoff_known(self) -> str | None:
         """``adx37`` (the stall replaces the built-in aircraft's qualified static C_L, C_m
         curves), ``none`` (the curves are the whole measured coefficients) or ``None`` without
@@ -220,9 +229,10 @@ class DeltaModel:
 
     def with_longitudinal(self, result: Any) -> DeltaModel:
         """A copy of the model carrying the Kirchhoff stall of
-        :func:`aerodelta.longitudinal.fit_kirchhoff` (every flap fitted, with its note), so a
-        simulator that loads the model (``aero_core``'s closed-loop replays, the evidence
-        pack) flies the identified lift and pitch break. A stall already stored is replaced.
+        :func:`aerodelta.longitudinal.fit_kirchhoff` (every flap fitted, with its note and its
+        drag when fitted), so a simulator that loads the model (``aero_core``'s closed-loop
+        replays, the evidence pack) flies the identified lift and pitch break and the drag of
+        the separated flow. A stall already stored is replaced.
 
         Raises
         ------
@@ -242,7 +252,12 @@ class DeltaModel:
             "model": "kirchhoff",
             "known": result.known,
             "flaps": [
-                {"flap_deg": float(f), "params": dict(ff.params), "note": ff.note}
+                {
+                    "flap_deg": float(f),
+                    "params": dict(ff.params),
+                    **({"drag": dict(ff.drag.params)} if ff.drag is not None else {}),
+                    "note": ff.note,
+                }
                 for f, ff in sorted(result.fits.items())
             ],
         }

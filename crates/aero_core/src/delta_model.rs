@@ -24,9 +24,9 @@ use serde::{Deserialize, Serialize};
 
 use crate::envelope::{Envelope, EnvelopeSpec};
 use crate::error::{AeroError, Result, ResultExt};
-use crate::kirchhoff::KirchhoffParams;
+use crate::kirchhoff::{KirchhoffDrag, KirchhoffParams};
 use crate::regressor::{BoundExpr, Expr};
-use crate::stall_spec::LongitudinalSpec;
+use crate::stall_spec::{CompiledFlap, LongitudinalSpec};
 use crate::table::{Axis, Table};
 use crate::text::{one_line, shown};
 
@@ -128,7 +128,7 @@ pub struct DeltaModel {
     spec: DeltaModelSpec,
     coefficients: Vec<Coefficient>,
     envelope: Option<Envelope>,
-    kirchhoff: Vec<(f64, KirchhoffParams)>,
+    kirchhoff: Vec<CompiledFlap>,
 }
 
 /// Linear blending weight of Eq. 3.12.
@@ -266,19 +266,28 @@ impl DeltaModel {
         let known = self.spec.longitudinal.as_ref()?.known.as_str();
         self.kirchhoff
             .iter()
-            .find(|(f, _)| *f == flap_deg)
-            .map(|(_, p)| (p, known))
+            .find(|f| f.flap_deg == flap_deg)
+            .map(|f| (&f.params, known))
+    }
+
+    /// The stored drag of the Kirchhoff stall at a flap setting (deg, exact); `None` when the
+    /// model carries no stall or no drag for it.
+    pub fn kirchhoff_drag(&self, flap_deg: f64) -> Option<&KirchhoffDrag> {
+        self.kirchhoff
+            .iter()
+            .find(|f| f.flap_deg == flap_deg)
+            .and_then(|f| f.drag.as_ref())
     }
 
     /// The stored stall a simulator of the built-in ADX-37 flies at `flap_deg` (deg, exact):
-    /// the Kirchhoff parameters when they were fitted on that aircraft's known terms
-    /// (`known == "adx37"`; they then replace its qualified static C_L, C_m curves), `None`
-    /// for another basis or no stall. The rule of every ADX-37 replay of a Δ model (open and
-    /// closed loop).
-    pub fn adx37_stall(&self, flap_deg: f64) -> Option<KirchhoffParams> {
+    /// the Kirchhoff parameters and drag when they were fitted on that aircraft's known terms
+    /// (`known == "adx37"`; they then replace its qualified static C_L, C_m and, with the
+    /// drag, C_D curves), `None` for another basis or no stall. The rule of every ADX-37
+    /// replay of a Δ model (open and closed loop).
+    pub fn adx37_stall(&self, flap_deg: f64) -> Option<(KirchhoffParams, Option<KirchhoffDrag>)> {
         self.kirchhoff(flap_deg)
             .filter(|(_, known)| *known == "adx37")
-            .map(|(p, _)| *p)
+            .map(|(p, _)| (*p, self.kirchhoff_drag(flap_deg).copied()))
     }
 
     /// Whether the state (flap, α, β in deg) lies inside the validated envelope of the flight

@@ -228,6 +228,89 @@ impl KirchhoffParams {
     }
 }
 
+/// Number of parameters of [`KirchhoffDrag`].
+pub const N_DRAG: usize = 3;
+
+/// Drag parameter names in [`KirchhoffDrag::to_array`] order (all dimensionless).
+pub const DRAG_NAMES: [&str; N_DRAG] = ["CD0", "CD_k", "CD_x"];
+
+/// The drag of the Kirchhoff stall (its static-curve part, as [`KirchhoffParams::cl`] is
+/// lift's): a parabolic polar in the Kirchhoff lift plus the pressure drag of the separated
+/// flow,
+///
+/// $$ C_D = C_{D0} + k\,C_L(\alpha, x)^2 + C_{Dx}\,(1 - x) $$
+///
+/// with `C_L(α, x)` the Kirchhoff lift at the separation point `x`. In attached flow
+/// (`x = 1`) it is the qualified aircraft's polar `C_D0 + k C_L²`; as the flow separates the
+/// induced part falls with the lift and the wake's drag grows to `C_Dx` at full separation,
+/// with the lag and hysteresis of `x` (a term linear in the separated fraction `1 − x`, as
+/// `C_m`'s pitch break; this form is aerodelta's choice, not taken from a paper). Linear in its three
+/// parameters once `x` is known, so it is fitted by equation error along the separation state
+/// the output-error fit of the lift and pitching moment integrates.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct KirchhoffDrag {
+    /// Drag at zero lift with attached flow.
+    pub cd0: f64,
+    /// Induced-drag factor `k` of the polar (`1/(π e A)`).
+    pub k: f64,
+    /// Drag of the fully separated flow over the polar's (positive: drag rises as the flow
+    /// separates).
+    pub cd_x: f64,
+}
+
+impl KirchhoffDrag {
+    /// The parameters in [`DRAG_NAMES`] order.
+    pub fn to_array(&self) -> [f64; N_DRAG] {
+        [self.cd0, self.k, self.cd_x]
+    }
+
+    /// From values in [`DRAG_NAMES`] order.
+    pub fn from_array(v: &[f64; N_DRAG]) -> Self {
+        KirchhoffDrag {
+            cd0: v[0],
+            k: v[1],
+            cd_x: v[2],
+        }
+    }
+
+    /// Refuse non-finite values.
+    ///
+    /// # Errors
+    /// [`AeroError::OutOfRange`] naming the parameter.
+    pub fn check(&self) -> Result<()> {
+        for (name, v) in DRAG_NAMES.iter().zip(self.to_array()) {
+            if !v.is_finite() {
+                return Err(AeroError::out_of_range(
+                    format!("Kirchhoff drag parameter {name}"),
+                    format!("is {v}; give a finite value"),
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    /// Drag coefficient (static-curve part) at the Kirchhoff lift `cl` and separation point
+    /// `x`.
+    ///
+    /// ```
+    /// use aero_core::kirchhoff::KirchhoffDrag;
+    /// let d = KirchhoffDrag { cd0: 0.03, k: 0.04, cd_x: 0.3 };
+    /// assert!((d.cd(1.0, 1.0) - 0.07).abs() < 1e-15);   // attached: the polar
+    /// assert!((d.cd(0.5, 0.0) - 0.34).abs() < 1e-15);   // separated: wake drag
+    /// ```
+    #[inline]
+    pub fn cd(&self, cl: f64, x: f64) -> f64 {
+        self.cd0 + self.k * cl * cl + self.cd_x * (1.0 - x)
+    }
+
+    /// The regressors of [`KirchhoffDrag::cd`], `[1, C_L², 1 − x]`: drag is linear in its
+    /// parameters along a known separation state.
+    #[inline]
+    pub fn regressors(cl: f64, x: f64) -> [f64; N_DRAG] {
+        [1.0, cl * cl, 1.0 - x]
+    }
+}
+
 /// Weights of the exact first-order-hold step over `h` seconds: `(e, c0, g)`
 /// with `x₁ = e x₀ + c0 u₀ + g u₁`, and their derivatives in τ₁.
 #[inline]

@@ -3,9 +3,13 @@ use std::collections::HashMap;
 
 use aero_core::aircraft::qualified::QualifiedModel;
 use aero_core::aircraft::records::qualified_longitudinal;
-use aero_core::aircraft::truth::kirchhoff_truth_params as truth_params;
+use aero_core::aircraft::truth::{
+    kirchhoff_truth_drag as truth_drag, kirchhoff_truth_params as truth_params,
+};
 use aero_core::aircraft::turboprop::adx37;
-use aero_core::kirchhoff::{outputs, Inputs, KirchhoffParams, N_PARAMS, PARAM_NAMES};
+use aero_core::kirchhoff::{
+    outputs, Inputs, KirchhoffDrag, KirchhoffParams, DRAG_NAMES, N_DRAG, N_PARAMS, PARAM_NAMES,
+};
 use aero_core::output_error::{fit, OeOptions, Series};
 use aero_core::AeroError;
 use numpy::ndarray::Array2;
@@ -52,10 +56,27 @@ fn kirchhoff_param_names() -> Vec<String> {
     PARAM_NAMES.iter().map(|s| (*s).to_string()).collect()
 }
 
+/// Drag parameter names in the engine's order.
+#[pyfunction]
+fn kirchhoff_drag_names() -> Vec<String> {
+    DRAG_NAMES.iter().map(|s| (*s).to_string()).collect()
+}
+
 /// The virtual aircraft's Kirchhoff stall parameters at a flap setting.
 #[pyfunction]
 fn kirchhoff_truth_params(flap_deg: f64) -> HashMap<String, f64> {
     params_dict(&truth_params(flap_deg))
+}
+
+/// The virtual aircraft's Kirchhoff stall drag at a flap setting (`CD0`, `CD_k`, `CD_x`).
+#[pyfunction]
+fn kirchhoff_truth_drag(flap_deg: f64) -> HashMap<String, f64> {
+    let d = truth_drag(flap_deg, &adx37());
+    DRAG_NAMES
+        .iter()
+        .zip(d.to_array())
+        .map(|(n, v)| ((*n).to_string(), v))
+        .collect()
 }
 
 /// `(alpha at C_L,max [rad], C_L,max)` of the static curve.
@@ -150,6 +171,41 @@ fn kirchhoff_point<'py>(
     ))
 }
 
+/// `C_D` of the stall's drag (`KirchhoffDrag::cd`) at each Kirchhoff lift `cl` and separation
+/// point `x`.
+#[pyfunction]
+fn kirchhoff_drag_point<'py>(
+    py: Python<'py>,
+    drag: HashMap<String, f64>,
+    cl: PyReadonlyArray1<'py, f64>,
+    x: PyReadonlyArray1<'py, f64>,
+) -> PyResult<Array<'py>> {
+    let mut v = [0.0; N_DRAG];
+    for (slot, name) in v.iter_mut().zip(DRAG_NAMES) {
+        *slot = *drag.get(name).ok_or_else(|| {
+            to_py(AeroError::invalid(
+                "argument 'drag'",
+                format!("has no '{name}'; give all of {}", DRAG_NAMES.join(", ")),
+            ))
+        })?;
+    }
+    let d = KirchhoffDrag::from_array(&v);
+    d.check().map_err(to_py)?;
+    let (cl, x) = (cl.as_slice()?, x.as_slice()?);
+    if cl.len() != x.len() {
+        return Err(to_py(AeroError::invalid(
+            "kirchhoff_drag_point",
+            format!(
+                "cl and x have {} and {} values; give one of each per point",
+                cl.len(),
+                x.len()
+            ),
+        )));
+    }
+    let cd: Vec<f64> = cl.iter().zip(x).map(|(&c, &x)| d.cd(c, x)).collect();
+    Ok(cd.into_pyarray(py))
+}
+
 /// Output-error fit over maneuvers; returns a dict of plain values.
 #[pyfunction]
 #[pyo3(signature = (t, alpha, alpha_dot, cl, cm=None, start=None, fixed=Vec::new(), max_iter=60, tol=1e-9, max_lag=None))]
@@ -235,14 +291,22 @@ fn output_error_kirchhoff<'py>(
     Ok(d)
 }
 
-/// `(CL, Cm, CL_basic, Cm_basic)` of the ADX-37 qualified model along records.
+/// `(CL, Cm, CL_basic, Cm_basic, CD, CD_basic)` of the ADX-37 qualified model along records.
 #[pyfunction]
+#[allow(clippy::type_complexity)]
 fn qualified_longitudinal_adx37<'py>(
     py: Python<'py>,
     columns: HashMap<String, PyReadonlyArray1<'py, f64>>,
-) -> PyResult<(Array<'py>, Array<'py>, Array<'py>, Array<'py>)> {
+) -> PyResult<(
+    Array<'py>,
+    Array<'py>,
+    Array<'py>,
+    Array<'py>,
+    Array<'py>,
+    Array<'py>,
+)> {
     let cols = column_slices(&columns)?;
-    let [a, b, c, d] = detached(py, || {
+    let [a, b, c, d, e, f] = detached(py, || {
         let model = QualifiedModel::adx37(&adx37())?;
         let r = record_columns(&cols)?;
         qualified_longitudinal(&model, &r)
@@ -252,12 +316,17 @@ fn qualified_longitudinal_adx37<'py>(
         b.into_pyarray(py),
         c.into_pyarray(py),
         d.into_pyarray(py),
+        e.into_pyarray(py),
+        f.into_pyarray(py),
     ))
 }
 
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(kirchhoff_param_names, m)?)?;
     m.add_function(wrap_pyfunction!(kirchhoff_truth_params, m)?)?;
+    m.add_function(wrap_pyfunction!(kirchhoff_truth_drag, m)?)?;
+    m.add_function(wrap_pyfunction!(kirchhoff_drag_names, m)?)?;
+    m.add_function(wrap_pyfunction!(kirchhoff_drag_point, m)?)?;
     m.add_function(wrap_pyfunction!(kirchhoff_cl_max, m)?)?;
     m.add_function(wrap_pyfunction!(kirchhoff_outputs, m)?)?;
     m.add_function(wrap_pyfunction!(kirchhoff_point, m)?)?;

@@ -281,10 +281,12 @@ fn sim_rolloff_config() -> PyResult<String> {
 /// `aero_core::sim::closed_loop`). `record`: n x 16 in `sim_closed_loop_columns()[0]` order;
 /// `model`: the fitted Δ model (the extended model) or None (the qualified model with the
 /// truth effects `effects_json`); `kirchhoff`: the 9 Kirchhoff parameters of this flap
-/// (`aero_core::kirchhoff::PARAM_NAMES`) or None (static curves). Returns the simulated
+/// (`aero_core::kirchhoff::PARAM_NAMES`) or None (static curves), with `kirchhoff_drag` its 3
+/// drag parameters (`DRAG_NAMES`) or None (the qualified drag). Returns the simulated
 /// history (m x 15, `sim_closed_loop_columns()[1]` order) and its metadata as JSON.
 #[pyfunction]
-#[pyo3(signature = (record, x0, options_json, model=None, kirchhoff=None, effects_json=None))]
+#[pyo3(signature = (record, x0, options_json, model=None, kirchhoff=None, effects_json=None, kirchhoff_drag=None))]
+#[allow(clippy::too_many_arguments)]
 fn sim_closed_loop<'py>(
     py: Python<'py>,
     record: PyReadonlyArray2<'py, f64>,
@@ -293,6 +295,7 @@ fn sim_closed_loop<'py>(
     model: Option<&Bound<'py, PyDeltaModel>>,
     kirchhoff: Option<[f64; 9]>,
     effects_json: Option<&str>,
+    kirchhoff_drag: Option<[f64; 3]>,
 ) -> PyResult<(Bound<'py, PyArray2<f64>>, String)> {
     let shape = record.shape();
     if shape[1] != RECORD_COLUMNS.len() {
@@ -316,7 +319,18 @@ fn sim_closed_loop<'py>(
             .map_err(|e| to_py(AeroError::parse("effects (JSON)", e.line(), e.to_string())))?,
         None => Vec::new(),
     };
-    let kp = kirchhoff.map(|a| aero_core::kirchhoff::KirchhoffParams::from_array(&a));
+    if kirchhoff.is_none() && kirchhoff_drag.is_some() {
+        return Err(to_py(AeroError::invalid(
+            "closed-loop replay",
+            "a Kirchhoff drag without the stall's parameters: give kirchhoff too",
+        )));
+    }
+    let kp = kirchhoff.map(|a| {
+        (
+            aero_core::kirchhoff::KirchhoffParams::from_array(&a),
+            kirchhoff_drag.map(|d| aero_core::kirchhoff::KirchhoffDrag::from_array(&d)),
+        )
+    });
     let delta = model.map(|m| &m.get().0);
     let run = detached(py, || {
         let which = match &delta {

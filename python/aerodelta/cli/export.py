@@ -98,8 +98,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         action="store_true",
         help="leave out the Kirchhoff stall the model stores (aerodelta longitudinal "
         "--model M --out-model M2); by default DAVE-ML carries it as the state x_sep with "
-        "x_sep_dot, CL_ext, Cm_ext, and JSBSim as increments on LIFT (or X, Z) and PITCH "
-        "reading the --jsbsim-system file",
+        "x_sep_dot, CL_ext, Cm_ext (CD_ext with a stored drag), and JSBSim as increments on "
+        "LIFT (DRAG; or X, Z) and PITCH reading the --jsbsim-system file",
     )
 
 
@@ -222,7 +222,9 @@ def run(args: argparse.Namespace) -> int:
             {p for p in re.findall(r"(?<![\w/])aerodelta/[\w.-]+", " ".join(mapped.values()))}
         )
         if args.jsbsim_system:
-            axes = "X, Z" if side_axis == "Y" else "LIFT"
+            axes = (
+                "X, Z" if side_axis == "Y" else ("LIFT, DRAG" if model.kirchhoff_drag else "LIFT")
+            )
             print(
                 f"wrote {args.jsbsim_system}: the <system> carrying the separation state of "
                 f"the stall at flaps {', '.join(f'{f:g}' for f in sorted(model.kirchhoff or {}))}"

@@ -1,7 +1,8 @@
 """Fit the Kirchhoff flow-separation stall of lift and pitching moment by output error, per flap
 (docs/longitudinal.md): time constants tau1, tau2, breakpoint alpha*, steepness a1, the attached
 lift and pitch lines and the pitch break C_mx, with Cramér-Rao bounds and the bounds corrected
-for coloured residuals, the static C_L,max and its alpha.
+for coloured residuals, the static C_L,max and its alpha; then the drag along the identified
+separation state (CD0, CD_k, CD_x by least squares, cluster-robust errors; --no-cd skips it).
 
 Prints one row per flap and parameter (or JSON with --format json); --out FILE also writes
 that table as CSV. The built-in aircraft's qualified control, rate and thrust terms are taken
@@ -33,7 +34,7 @@ from aerodelta.cli._data import (
 )
 from aerodelta.exceptions import InvalidInputError
 
-HELP = "Kirchhoff stall of C_L and C_m by output error (tau1, tau2, alpha*, C_L,max)"
+HELP = "Kirchhoff stall of C_L, C_m (output error) and C_D (tau1, tau2, alpha*, C_L,max)"
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -41,6 +42,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_data_arguments(parser)
     parser.add_argument("--flaps", metavar="F,...", help="flap settings to fit, deg (default all)")
     parser.add_argument("--no-cm", action="store_true", help="fit C_L only")
+    parser.add_argument("--no-cd", action="store_true", help="do not fit the drag")
     parser.add_argument("--known", choices=("adx37", "none"), default="adx37")
     parser.add_argument("--max-iter", type=int, default=60, metavar="N")
     parser.add_argument("--out", metavar="FILE", help="write the parameter table as CSV")
@@ -90,7 +92,12 @@ def run(args: argparse.Namespace) -> int:
         check_outputs(src, "--out-model", files=[out_model], inputs=[Path(args.model)])
     data = model_frame(load_records(src, progress=not args.no_progress))
     res = fit_kirchhoff(
-        data, flaps=flaps, fit_cm=not args.no_cm, known=args.known, max_iter=args.max_iter
+        data,
+        flaps=flaps,
+        fit_cm=not args.no_cm,
+        fit_cd=not args.no_cd,
+        known=args.known,
+        max_iter=args.max_iter,
     )
     table = res.summary()
     if out is not None:
@@ -106,19 +113,28 @@ def run(args: argparse.Namespace) -> int:
     else:
         print(
             f"{'flap':>4} {'parameter':<17} {'unit':<6} {'estimate':>10} {'CR bound':>10} "
-            f"{'coloured':>10}"
+            f"{'coloured':>10} {'clustered':>10}"
         )
+
+        def num(v: float) -> str:
+            return "-" if math.isnan(v) else f"{v:.4g}"
+
         for r in table.iter_rows(named=True):
             if not math.isfinite(r["estimate"]):
                 continue
-            se = "-" if math.isnan(r["std_err"]) else f"{r['std_err']:.4g}"
-            sec = "-" if math.isnan(r["std_err_colored"]) else f"{r['std_err_colored']:.4g}"
             print(
                 f"{r['flap_deg']:>4g} {r['parameter']:<17} {r['unit']:<6} "
-                f"{r['estimate']:>10.4g} {se:>10} {sec:>10}"
+                f"{r['estimate']:>10.4g} {num(r['std_err']):>10} "
+                f"{num(r['std_err_colored']):>10} {num(r['std_err_cluster']):>10}"
             )
         for flap, note in res.notes.items():
             print(f"flap {flap:g}: {note}")
+        if any(ff.drag is not None for ff in res.fits.values()):
+            print(
+                "drag (CD0, CD_k, CD_x): least squares along the identified separation state; "
+                "CR bound = conventional, clustered = CR2 over maneuvers; the state's own "
+                "uncertainty is not carried into these"
+            )
         if out is not None:
             print(f"wrote {out}")
         if out_model is not None:

@@ -1086,8 +1086,13 @@ class LongitudinalFits:
     why: str | None = None
 
     def params(self) -> dict[float, dict[str, float]]:
-        """flap -> the fitted parameters (engine units, by name)."""
-        return {f: dict(r[f].params) for f, r in self.fitted.items()}
+        """flap -> the fitted parameters (engine units, by name), with the drag's where
+        fitted."""
+        out: dict[float, dict[str, float]] = {}
+        for f, r in self.fitted.items():
+            drag = r[f].drag
+            out[f] = {**r[f].params, **(drag.params if drag is not None else {})}
+        return out
 
 
 def fit_longitudinal(data: pl.DataFrame, enabled: bool) -> LongitudinalFits:
@@ -1153,9 +1158,15 @@ def _longitudinal_row(out: Assessment, fits: LongitudinalFits) -> None:
             if ff.tau_identified
             else ff.note  # static records: "tau1, tau2 not identified: why ..."
         )
+        drag = (
+            f", separated-flow drag C_Dx {ff.drag.params['CD_x']:.3f} ± "
+            f"{ff.drag.std_err['CD_x']:.3f}"
+            if ff.drag is not None
+            else ""
+        )
         notes[flap] = (
             f"{lags}, α* {ff.alpha_star_deg:.2f} deg, C_L,max {cl_max:.3f} at "
-            f"{a_max:.1f} deg ({ff.n_maneuvers} maneuvers, {ff.iterations} iterations)"
+            f"{a_max:.1f} deg{drag} ({ff.n_maneuvers} maneuvers, {ff.iterations} iterations)"
         )
         rows.append(res.summary())
     if rows:

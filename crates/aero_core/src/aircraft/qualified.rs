@@ -218,7 +218,16 @@ pub fn lift_curve(f: &FlapStall, alpha_deg: f64) -> f64 {
     }
 }
 
-fn drag_curve(f: &FlapStall, alpha_deg: f64, ar: f64) -> f64 {
+/// The induced-drag factor `k = 1/(π e A)` of the qualified polar (Oswald factor `e` = 0.8,
+/// aspect ratio `A = b²/S`).
+pub fn induced_drag_factor(aircraft: &AircraftRef) -> f64 {
+    let ar = aircraft.b_m * aircraft.b_m / aircraft.s_m2;
+    1.0 / (std::f64::consts::PI * ar * 0.8)
+}
+
+/// The basic drag of one flap setting: the parabolic polar of [`lift_curve`] plus a drag rise
+/// past `α_max − 6°` (aspect ratio `ar`).
+pub fn drag_curve(f: &FlapStall, alpha_deg: f64, ar: f64) -> f64 {
     let cl = lift_curve(f, alpha_deg);
     let k = 1.0 / (std::f64::consts::PI * ar * 0.8);
     let sep = (alpha_deg - (f.alpha_max_deg - 6.0))

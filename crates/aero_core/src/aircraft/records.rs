@@ -76,30 +76,34 @@ pub fn qualified_lateral(model: &QualifiedModel, c: &RecordColumns<'_>) -> Resul
     Ok(by_rows(c.alpha_deg.len(), row))
 }
 
-/// `[C_L, C_m, C_L,basic, C_m,basic]` of the qualified model at every row: the
-/// wind-axis lift and the pitching moment (total, as measured), and the parts
-/// of them the static curves (the `CL_basic`, `Cm_basic` tables) give; the
-/// difference is what control, rate and thrust terms add.
+/// `[C_L, C_m, C_L,basic, C_m,basic, C_D, C_D,basic]` of the qualified model at every
+/// row: the wind-axis lift, the pitching moment and the wind-axis drag (total, as
+/// measured), and the parts of them the static curves (the `CL_basic`, `Cm_basic`,
+/// `CD_basic` tables) give; the difference is what control, rate and thrust terms add.
 ///
 /// # Errors
 /// [`AeroError::InvalidInput`] naming a column whose length differs.
 pub fn qualified_longitudinal(
     model: &QualifiedModel,
     c: &RecordColumns<'_>,
-) -> Result<[Vec<f64>; 4]> {
+) -> Result<[Vec<f64>; 6]> {
     check_lengths(c)?;
-    let all = model.resolve(|c| matches!(c, Coef::CL | Coef::Cm));
+    let all = model.resolve(|c| matches!(c, Coef::CL | Coef::Cm | Coef::CD));
     let basic: Vec<_> = all
         .iter()
-        .filter(|(t, _)| t.table == "CL_basic" || t.table == "Cm_basic")
+        .filter(|(t, _)| matches!(t.table.as_str(), "CL_basic" | "Cm_basic" | "CD_basic"))
         .copied()
         .collect();
-    let (il, im) = (coef_index(Coef::CL), coef_index(Coef::Cm));
-    let row = |i: usize| -> [f64; 4] {
+    let (il, im, id) = (
+        coef_index(Coef::CL),
+        coef_index(Coef::Cm),
+        coef_index(Coef::CD),
+    );
+    let row = |i: usize| -> [f64; 6] {
         let s = input_at(c, i);
         let v = model.evaluate_resolved(&all, &s);
         let b = model.evaluate_resolved(&basic, &s);
-        [v[il], v[im], b[il], b[im]]
+        [v[il], v[im], b[il], b[im], v[id], b[id]]
     };
     Ok(by_rows(c.alpha_deg.len(), row))
 }
@@ -289,18 +293,24 @@ mod tests {
             assert!((cn[i] - w[coef_index(Coef::Cn)]).abs() < 1e-12);
             assert!((cy[i] - w[coef_index(Coef::CY)]).abs() < 1e-12);
         }
-        let [lift, cm, lift_b, cm_b] = qualified_longitudinal(&q, &cols).expect("evaluates");
+        let [lift, cm, lift_b, cm_b, drag, drag_b] =
+            qualified_longitudinal(&q, &cols).expect("evaluates");
         for i in 0..n {
             let s = input_at(&cols, i);
             let w = fm.evaluate(&s);
             assert!((lift[i] - w[coef_index(Coef::CL)]).abs() < 1e-12);
             assert!((cm[i] - w[coef_index(Coef::Cm)]).abs() < 1e-12);
+            assert!((drag[i] - w[coef_index(Coef::CD)]).abs() < 1e-12);
             // the static curves at table nodes are the curves of qualified.rs
             let st = crate::aircraft::qualified::FLAP_STALL[2];
             if alpha[i].fract() == 0.0 {
                 let lc = crate::aircraft::qualified::lift_curve(&st, alpha[i]);
                 let pc = crate::aircraft::qualified::pitch_curve(&st, alpha[i]);
                 assert!((lift_b[i] - lc).abs() < 1e-12 && (cm_b[i] - pc).abs() < 1e-12);
+                let a = adx37();
+                let dc =
+                    crate::aircraft::qualified::drag_curve(&st, alpha[i], a.b_m * a.b_m / a.s_m2);
+                assert!((drag_b[i] - dc).abs() < 1e-12);
             }
         }
         let short = RecordColumns {

@@ -5,10 +5,11 @@
 
 use crate::aircraft::effects::{effect, flap_index, ActiveEffect, AlphaShape};
 use crate::aircraft::qualified::{
-    to_body, FlapModel, QualifiedModel, CL_ALPHA_PER_DEG, FLAP_STALL,
+    induced_drag_factor, to_body, FlapModel, QualifiedModel, CL_ALPHA_PER_DEG, FLAP_STALL,
 };
+use crate::aircraft::turboprop::AircraftRef;
 use crate::error::{AeroError, Result};
-use crate::kirchhoff::{KirchhoffParams, KirchhoffState};
+use crate::kirchhoff::{KirchhoffDrag, KirchhoffParams, KirchhoffState};
 use crate::rolloff::RollOff;
 use crate::sim::aero::{AeroCoeffs, AeroInput, AeroModel};
 use crate::table::Table;
@@ -80,15 +81,7 @@ pub enum LongitudinalStall {
 /// tenths (τ₁) and hundredths (τ₂) of a second chosen for this aircraft, not
 /// identified from any flight data.
 pub fn kirchhoff_truth_params(flap_deg: f64) -> KirchhoffParams {
-    let fs = FLAP_STALL
-        .iter()
-        .min_by(|a, b| {
-            (a.flap_deg - flap_deg)
-                .abs()
-                .total_cmp(&(b.flap_deg - flap_deg).abs())
-        })
-        .copied()
-        .unwrap_or(FLAP_STALL[0]);
+    let fs = nearest_flap(flap_deg);
     let cl0 = fs.cl_max + 3.0 * CL_ALPHA_PER_DEG - CL_ALPHA_PER_DEG * fs.alpha_max_deg;
     KirchhoffParams {
         tau1: 0.20 + 0.002 * fs.flap_deg,
@@ -103,10 +96,41 @@ pub fn kirchhoff_truth_params(flap_deg: f64) -> KirchhoffParams {
     }
 }
 
+/// The flap setting of [`FLAP_STALL`] nearest to `flap_deg`.
+fn nearest_flap(flap_deg: f64) -> crate::aircraft::qualified::FlapStall {
+    FLAP_STALL
+        .iter()
+        .min_by(|a, b| {
+            (a.flap_deg - flap_deg)
+                .abs()
+                .total_cmp(&(b.flap_deg - flap_deg).abs())
+        })
+        .copied()
+        .unwrap_or(FLAP_STALL[0])
+}
+
+/// The drag of the virtual aircraft's Kirchhoff stall at a flap setting (nearest of 0, 5,
+/// 10, 15, 35 deg), over the aircraft `a` (its aspect ratio sets the polar).
+///
+/// Attached flow keeps the qualified polar (`C_D0` of [`FLAP_STALL`], `k` of
+/// [`induced_drag_factor`]); the fully separated wake adds `C_Dx = 0.30 + 0.002 δf`
+/// (δf in deg), a representative value chosen for this aircraft (the qualified curve's own
+/// drag rise, `0.9 sin²(α − α_max + 6°)`, reaches 0.07-0.17 at 10-20 deg past its stall), not
+/// identified from flight data.
+pub fn kirchhoff_truth_drag(flap_deg: f64, a: &AircraftRef) -> KirchhoffDrag {
+    let fs = nearest_flap(flap_deg);
+    KirchhoffDrag {
+        cd0: fs.cd0,
+        k: induced_drag_factor(a),
+        cd_x: 0.30 + 0.002 * fs.flap_deg,
+    }
+}
+
 /// A Kirchhoff stall replacing the qualified static C_L and C_m curves: the
 /// truth's C_L is the qualified C_L minus its `CL_basic` table plus the
 /// Kirchhoff lift, likewise C_m with `Cm_basic` (control, rate and thrust
-/// terms unchanged).
+/// terms unchanged), and with a [`KirchhoffDrag`] likewise C_D with `CD_basic`
+/// ([`KirchhoffStall::with_drag`]; without one the qualified drag is kept).
 ///
 /// The separation state is driven by the air-relative α at the CG and its rate
 /// as the backward difference of α over each simulation step (not the
@@ -124,6 +148,9 @@ pub struct KirchhoffStall {
     pub state: KirchhoffState,
     cl_basic: Table,
     cm_basic: Table,
+    cd_basic: Table,
+    /// The stall's drag, replacing `CD_basic` (`None`: the qualified drag).
+    pub drag: Option<KirchhoffDrag>,
     /// `(t, α)` at the last update.
     prev: Option<(f64, f64)>,
 }
@@ -135,7 +162,8 @@ impl KirchhoffStall {
     /// # Errors
     /// If `q` lacks its `CL_basic` or `Cm_basic` table.
     pub fn adx37(q: &QualifiedModel, flap_deg: f64) -> Result<Self> {
-        Self::new(q, kirchhoff_truth_params(flap_deg))
+        Self::new(q, kirchhoff_truth_params(flap_deg))?
+            .with_drag(Some(kirchhoff_truth_drag(flap_deg, &q.aircraft)))
     }
 
     /// A Kirchhoff stall with the parameters `params` (e.g. fitted by
@@ -146,7 +174,7 @@ impl KirchhoffStall {
     /// (its `advance` reaches the base model's).
     ///
     /// # Errors
-    /// If `q` lacks its `CL_basic` or `Cm_basic` table, or `params` fail
+    /// If `q` lacks its `CL_basic`, `Cm_basic` or `CD_basic` table, or `params` fail
     /// [`KirchhoffParams::check`].
     pub fn new(q: &QualifiedModel, params: KirchhoffParams) -> Result<Self> {
         let table = |name: &str| {
@@ -160,8 +188,23 @@ impl KirchhoffStall {
             state: KirchhoffState::new(params)?,
             cl_basic: table("CL_basic")?,
             cm_basic: table("Cm_basic")?,
+            cd_basic: table("CD_basic")?,
+            drag: None,
             prev: None,
         })
+    }
+
+    /// The same stall with the drag `drag` replacing the qualified `CD_basic` (`None`: the
+    /// qualified drag is kept).
+    ///
+    /// # Errors
+    /// If `drag` fails [`KirchhoffDrag::check`].
+    pub fn with_drag(mut self, drag: Option<KirchhoffDrag>) -> Result<Self> {
+        if let Some(d) = &drag {
+            d.check()?;
+        }
+        self.drag = drag;
+        Ok(self)
     }
 
     /// Advance the separation state to time `t` (s) at the input `s` (module docs of
@@ -179,15 +222,22 @@ impl KirchhoffStall {
         self.state.update(t, s.alpha, alpha_dot);
     }
 
-    /// `[ΔC_L, ΔC_m]` replacing the static curves at `s`, and the separation point.
+    /// `[ΔC_L, ΔC_D, ΔC_m]` replacing the static curves at `s` (ΔC_D zero without a drag),
+    /// and the separation point.
     #[inline]
-    pub fn delta(&self, s: &AeroInput) -> ([f64; 2], f64) {
+    pub fn delta(&self, s: &AeroInput) -> ([f64; 3], f64) {
         let x = self.state.x_at(s.alpha, s.alpha_dot);
         let p = &self.state.params;
         let at = [s.alpha.to_degrees(), s.flap_deg];
+        let cl = p.cl(s.alpha, x);
+        let dcd = self
+            .drag
+            .as_ref()
+            .map_or(0.0, |d| d.cd(cl, x) - self.cd_basic.eval(&at));
         (
             [
-                p.cl(s.alpha, x) - self.cl_basic.eval(&at),
+                cl - self.cl_basic.eval(&at),
+                dcd,
                 p.cm(s.alpha, x) - self.cm_basic.eval(&at),
             ],
             x,
@@ -270,7 +320,8 @@ impl AeroModel for TruthAero {
         if let Some(k) = &self.kirchhoff {
             let (d, _) = k.delta(s);
             c[0] += d[0];
-            c[4] += d[1];
+            c[1] += d[1];
+            c[4] += d[2];
         }
         to_body(&c, s)
     }
@@ -345,5 +396,53 @@ mod tests {
         p.a1 = -1.0;
         let e = KirchhoffStall::new(&q, p).unwrap_err();
         assert!(e.to_string().contains("a1"), "{e}");
+    }
+
+    fn drag(c: &crate::sim::aero::AeroCoeffs, s: &AeroInput) -> f64 {
+        let (sa, ca) = s.alpha.sin_cos();
+        -(c.cx - s.ct_sum()) * ca - c.cz * sa
+    }
+
+    #[test]
+    fn the_kirchhoff_drag_replaces_the_basic_drag_and_is_the_polar_in_attached_flow() {
+        let q = QualifiedModel::adx37(&adx37()).expect("model");
+        let p = kirchhoff_truth_params(10.0);
+        let d = kirchhoff_truth_drag(10.0, &q.aircraft);
+        let slice = || q.at_flap(10.0).expect("slice");
+        let with = TruthAero::new(slice(), Vec::new(), None)
+            .with_kirchhoff(Some(KirchhoffStall::adx37(&q, 10.0).expect("stall")));
+        let without = TruthAero::new(slice(), Vec::new(), None).with_kirchhoff(Some(
+            KirchhoffStall::new(&q, p).expect("stall without drag"),
+        ));
+        let plain = TruthAero::new(slice(), Vec::new(), None);
+        let fs = FLAP_STALL[2];
+        for a in [0.0, 8.0, 17.0, 20.0, 25.0, 30.0] {
+            let s = at(a);
+            // static state before any update: the drag is the Kirchhoff drag at x0(alpha)
+            let x = p.x0(s.alpha);
+            let want = d.cd(p.cl(s.alpha, x), x);
+            let cd = drag(&with.coefficients(&s), &s);
+            assert!((cd - want).abs() < 1e-12, "{a}: {cd} vs {want}");
+            // no drag given: the qualified drag, whatever the lift does
+            let q_cd = drag(&plain.coefficients(&s), &s);
+            assert!((drag(&without.coefficients(&s), &s) - q_cd).abs() < 1e-12);
+            if a <= fs.alpha_max_deg - 6.0 {
+                // attached flow (below the qualified drag rise): the qualified polar within
+                // the little separation x0 already has (about 1e-3)
+                assert!((cd - q_cd).abs() < 2e-3, "{a}: {cd} vs {q_cd}");
+            }
+        }
+        // deep stall: the separated wake's drag dominates, over the qualified drag rise
+        let s = at(35.0);
+        assert!(drag(&with.coefficients(&s), &s) > drag(&plain.coefficients(&s), &s) + 0.05);
+        // a non-finite drag is refused with its name
+        let bad = KirchhoffDrag {
+            cd_x: f64::NAN,
+            ..d
+        };
+        let e = KirchhoffStall::new(&q, p)
+            .and_then(|k| k.with_drag(Some(bad)))
+            .unwrap_err();
+        assert!(e.to_string().contains("CD_x"), "{e}");
     }
 }

@@ -92,7 +92,7 @@ pub struct CampaignSpec {
     /// The truth's longitudinal stall: the qualified static curves (the default,
     /// absent from the JSON) or a Kirchhoff flow-separation stall
     /// ([`crate::aircraft::truth::kirchhoff_truth_params`]), whose records then
-    /// carry the truth columns `x_sep_true`, `CL_true`, `Cm_true`.
+    /// carry the truth columns `x_sep_true`, `CL_true`, `Cm_true`, `CD_true`.
     #[serde(skip_serializing_if = "is_static")]
     pub longitudinal_stall: LongitudinalStall,
 }
@@ -608,8 +608,8 @@ fn fly(
         })
         .transpose()?;
     let mut buffet_rows: Vec<[f64; 3]> = Vec::new();
-    // the Kirchhoff stall's truth: separation point, wind-axis C_L, C_m (with it on)
-    let mut long_rows: Vec<[f64; 3]> = Vec::new();
+    // the Kirchhoff stall's truth: separation point, wind-axis C_L, C_m, C_D (with it on)
+    let mut long_rows: Vec<[f64; 4]> = Vec::new();
     let (mut max_alpha, mut n_at, mut max_bank) = (f64::NEG_INFINITY, 1.0, 0.0f64);
     for step in 0..max_steps {
         let st = f.command();
@@ -633,7 +633,7 @@ fn fly(
             let qc = model.qualified_coeffs(&inp);
             if let Some(k) = &model.kirchhoff {
                 let (d, x) = k.delta(&inp);
-                long_rows.push([x, qc[0] + d[0], coeffs.cm]);
+                long_rows.push([x, qc[0] + d[0], coeffs.cm, qc[1] + d[1]]);
             }
             model.contributions(&inp, &mut contrib);
             eff_rows.extend_from_slice(&contrib);
@@ -786,7 +786,10 @@ fn fly(
         }
     }
     if !long_rows.is_empty() {
-        for (j, name) in ["x_sep_true", "CL_true", "Cm_true"].iter().enumerate() {
+        for (j, name) in ["x_sep_true", "CL_true", "Cm_true", "CD_true"]
+            .iter()
+            .enumerate()
+        {
             truth_names.push((*name).into());
             truth.push(long_rows.iter().map(|r| r[j]).collect());
         }
@@ -989,7 +992,7 @@ pub fn replay_adx37_extended(
     let rolloff = replay_rolloff(flap_deg, rolloff_seed)?;
     let stall = delta
         .adx37_stall(flap_deg)
-        .map(|p| KirchhoffStall::new(qual, p))
+        .map(|(p, d)| KirchhoffStall::new(qual, p).and_then(|k| k.with_drag(d)))
         .transpose()?;
     let mut base =
         TruthAero::new(slice(qual, flap_deg)?, Vec::new(), rolloff).with_kirchhoff(stall);

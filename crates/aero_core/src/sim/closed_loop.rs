@@ -55,7 +55,7 @@ use crate::aircraft::turboprop::{adx37, AircraftRef};
 use crate::buffet::{Buffet, BuffetSchedule, BuffetSpec};
 use crate::delta_model::DeltaModel;
 use crate::error::{AeroError, Result};
-use crate::kirchhoff::KirchhoffParams;
+use crate::kirchhoff::{KirchhoffDrag, KirchhoffParams};
 use crate::sim::actuator::Actuator;
 use crate::sim::aero::{AeroModel, Controls};
 use crate::sim::atmosphere::G0;
@@ -673,22 +673,23 @@ pub fn fly_closed_loop<M: AeroModel + ?Sized>(
 #[derive(Debug, Clone)]
 pub enum ReplayModel<'a> {
     /// The extended model: the qualified model plus the fitted Δ model, and the fitted
-    /// Kirchhoff stall (replacing the static C_L, C_m curves) when given.
+    /// Kirchhoff stall (replacing the static C_L, C_m curves, and C_D with its drag) when
+    /// given.
     Extended {
         /// The fitted Δ model.
         delta: &'a DeltaModel,
-        /// Kirchhoff parameters of this flap; None: the stall the Δ model stores for the flap
-        /// ([`DeltaModel::kirchhoff`]) when fitted on the ADX-37's known terms, else the
-        /// qualified static curves.
-        kirchhoff: Option<KirchhoffParams>,
+        /// Kirchhoff parameters of this flap, with its drag or not; None: the stall the Δ
+        /// model stores for the flap ([`DeltaModel::adx37_stall`]) when fitted on the
+        /// ADX-37's known terms, else the qualified static curves.
+        kirchhoff: Option<(KirchhoffParams, Option<KirchhoffDrag>)>,
     },
     /// A truth model of the virtual aircraft: the qualified model with these effects and
     /// Kirchhoff parameters (e.g. the campaign's own, or deliberately wrong ones).
     Truth {
         /// Effects switched on (aerodynamic ones act; others are ignored).
         effects: &'a [EffectSpec],
-        /// Kirchhoff parameters, when the longitudinal stall is Kirchhoff.
-        kirchhoff: Option<KirchhoffParams>,
+        /// Kirchhoff parameters and drag, when the longitudinal stall is Kirchhoff.
+        kirchhoff: Option<(KirchhoffParams, Option<KirchhoffDrag>)>,
     },
 }
 
@@ -714,7 +715,10 @@ pub fn closed_loop_adx37(
         ));
     }
     let ac = adx37();
-    let stall = |p: Option<KirchhoffParams>| p.map(|p| KirchhoffStall::new(qual, p)).transpose();
+    let stall = |p: Option<(KirchhoffParams, Option<KirchhoffDrag>)>| {
+        p.map(|(p, d)| KirchhoffStall::new(qual, p).and_then(|k| k.with_drag(d)))
+            .transpose()
+    };
     match model {
         ReplayModel::Extended { delta, kirchhoff } => {
             // the stall given, else the one the model carries for this flap when it was fitted

@@ -307,7 +307,9 @@ mod tests {
 
     #[test]
     fn the_open_loop_replay_flies_the_stored_adx37_stall() {
-        use crate::aircraft::truth::{kirchhoff_truth_params, KirchhoffStall, TruthAero};
+        use crate::aircraft::truth::{
+            kirchhoff_truth_drag, kirchhoff_truth_params, KirchhoffStall, TruthAero,
+        };
         use crate::sim::campaign::{
             adx37_models, replay_adx37, replay_adx37_extended, slice, trim_adx37, ExtendedLayers,
         };
@@ -325,14 +327,20 @@ mod tests {
         let zero_cl = r#""Cl": {"terms": [{"name": "dCl_0", "regressor": "1",
             "alpha_deg": [-20, 40], "values": [[0.0, 0.0]]}],
             "alpha_l_deg": [-20.0], "alpha_u_deg": [-19.0]}"#;
-        let with_stall = |known: &str| {
+        let drag = kirchhoff_truth_drag(0.0, &crate::aircraft::turboprop::adx37());
+        let with_stall_drag = |known: &str, with_drag: bool| {
             let mut spec = model(zero_cl).spec().clone();
-            spec.longitudinal = Some(LongitudinalSpec::from_params(
+            let mut lon = LongitudinalSpec::from_params(
                 known,
                 &[(0.0, kirchhoff_truth_params(0.0), String::new())],
-            ));
+            );
+            if with_drag {
+                lon.flaps[0].set_drag(Some(&drag));
+            }
+            spec.longitudinal = Some(lon);
             DeltaModel::new(spec).expect("valid model")
         };
+        let with_stall = |known: &str| with_stall_drag(known, true);
         let fly = |m: &DeltaModel, layers| {
             replay_adx37_extended(0.0, m, layers, None, x0, 0.01, &controls, &cts).expect("replays")
         };
@@ -353,6 +361,9 @@ mod tests {
         assert_eq!(stall_only, want);
         // a zero lateral Δ adds exactly nothing on top of the stall
         assert_eq!(fly(&stored, ExtendedLayers::Extended), want);
+        // the stored drag flies: without it (the qualified drag) the flight differs
+        let no_drag = fly(&with_stall_drag("adx37", false), ExtendedLayers::StallOnly);
+        assert_ne!(no_drag, want);
         // the qualified static curves fly another flight past the stall
         let qual_run = replay_adx37(0.0, &[], None, x0, 0.01, &controls, &cts).expect("replays");
         let alpha_max = want
