@@ -657,13 +657,18 @@ def test_jsbsim_stall_axes_equal_jsbsim_own_wind_to_body_forces(tmp_path: Path) 
     out of JSBSim's own wind-to-body transform as body forces
     ``(L sin alpha - D cos alpha, -L cos alpha - D sin alpha)`` with ``L = qbar S CL-delta``,
     ``D = qbar S CD-delta``; with ``side_axis="Y"`` the export's own X and Z functions give the
-    same body forces; PITCH is ``qbar S cbar Cm-delta`` in both."""
+    same body forces, and with ``stall_axes="AXIAL"`` (an AXIAL/SIDE/NORMAL aircraft) its
+    AXIAL and NORMAL functions through JSBSim's own body-axis convention; PITCH is
+    ``qbar S cbar Cm-delta`` in all three. A pair of axes JSBSim does not hold is refused."""
     m = stall_model()
     out = {}
-    for axis in ("SIDE", "Y"):
-        fdm = _load_with_stall(
-            tmp_path / axis, jsbsim_xml(m, side_axis=axis), jsbsim_stall_system_xml(m)
-        )
+    for axis, stall_axes in (("SIDE", None), ("Y", None), ("SIDE", "AXIAL")):
+        text = jsbsim_xml(m, side_axis=axis, stall_axes=stall_axes)
+        want = {"SIDE": ("LIFT", "DRAG"), "Y": ("X", "Z"), "AXIAL": ("AXIAL", "NORMAL")}
+        for name in want[stall_axes or axis]:
+            assert f'<axis name="{name}">' in text, name
+        key = stall_axes or axis
+        fdm = _load_with_stall(tmp_path / key, text, jsbsim_stall_system_xml(m))
         fdm["ic/vt-kts"], fdm["ic/h-sl-ft"] = 110.0, 3000.0
         fdm["ic/alpha-deg"], fdm["ic/beta-deg"] = 19.0, 0.0
         fdm["fcs/flap-pos-deg"] = 0.0
@@ -680,8 +685,12 @@ def test_jsbsim_stall_axes_equal_jsbsim_own_wind_to_body_forces(tmp_path: Path) 
             fdm["moments/m-aero-lbsft"],
             qs * fdm["metrics/cbarw-ft"] * fdm["aero/aerodelta/stall/Cm-delta"], rtol=1e-9,
         )  # fmt: skip
-        out[axis] = (fdm["forces/fbx-aero-lbs"], fdm["forces/fbz-aero-lbs"])
+        out[key] = (fdm["forces/fbx-aero-lbs"], fdm["forces/fbz-aero-lbs"])
     np.testing.assert_allclose(out["Y"], out["SIDE"], rtol=1e-9)
+    np.testing.assert_allclose(out["AXIAL"], out["SIDE"], rtol=1e-9)
+    for axis, stall_axes in (("Y", "AXIAL"), ("Y", "LIFT"), ("SIDE", "X"), ("SIDE", "NORMAL")):
+        with pytest.raises(ad.DataError, match="stall_axes"):
+            jsbsim_xml(m, side_axis=axis, stall_axes=stall_axes)
 
 
 def test_jsbsim_stall_state_in_flight_is_the_engines_step_of_jsbsim_alpha(tmp_path: Path) -> None:

@@ -333,6 +333,17 @@ def test_cli_export_of_a_model_with_its_stall(
     assert f"wrote {sysx}" in out and "LIFT, DRAG and PITCH" in out
     assert "aero/aerodelta/stall/CL-delta" in xml.read_text()
     assert "aero/aerodelta/stall/CD-delta" in xml.read_text()
+    # an AXIAL/SIDE/NORMAL aircraft takes the stall's forces on AXIAL and NORMAL
+    rc = main([*argv, "--jsbsim-system", str(sysx), "--stall-axes", "AXIAL"])
+    out = capsys.readouterr().out
+    assert rc == 0 and "AXIAL, NORMAL and PITCH" in out
+    assert '<axis name="AXIAL">' in xml.read_text() and '<axis name="LIFT">' not in xml.read_text()
+    # axes JSBSim does not combine: refused before anything is written
+    dml2, xml2 = tmp_path / "b" / "ext.dml", tmp_path / "b" / "delta.xml"
+    bad = ["export", "--model", str(path), "--daveml", str(dml2), "--jsbsim", str(xml2),
+           "--jsbsim-system", str(sysx), "--side-axis", "Y", "--stall-axes", "LIFT"]  # fmt: skip
+    assert main(bad) == 2 and "stall_axes 'LIFT' with side_axis 'Y'" in capsys.readouterr().err
+    assert not dml2.exists() and not xml2.exists() and not dml2.parent.exists()
     assert 'name="aerodelta/stall/flap-1/separated-previous"' in sysx.read_text()
     assert "x_sep" in ad.DaveModel(dml).inputs
     assert not list(tmp_path.glob("*.tmp-*"))

@@ -461,15 +461,38 @@ def jsbsim_stall_system_xml(model: DeltaModel) -> str:
     )  # fmt: skip
 
 
+#: The force axes of the stall's lift and drag increments per JSBSim axis system: wind
+#: (``LIFT``, ``DRAG``), body ``AXIAL``/``NORMAL`` (with ``SIDE``), body ``X``/``Z`` (with ``Y``).
+STALL_AXES = ("LIFT", "AXIAL", "X")
+
+
+def stall_axes_for(side_axis: str, stall_axes: str | None) -> str:
+    """The stall's force axes for ``side_axis`` (:data:`STALL_AXES`; default ``LIFT`` with
+    ``SIDE``, ``X`` with ``Y``); a pair JSBSim's axis systems do not hold is refused."""
+    axes = stall_axes or ("X" if side_axis == "Y" else "LIFT")
+    if axes not in STALL_AXES:
+        raise DataError(
+            f"stall_axes '{axes}': use 'LIFT' (DRAG/SIDE/LIFT aircraft), 'AXIAL' "
+            "(AXIAL/SIDE/NORMAL aircraft) or 'X' (X/Y/Z aircraft)"
+        )
+    if (axes == "X") != (side_axis == "Y"):
+        raise DataError(
+            f"stall_axes '{axes}' with side_axis '{side_axis}': JSBSim's axis systems are "
+            "DRAG/SIDE/LIFT, AXIAL/SIDE/NORMAL and X/Y/Z; give LIFT or AXIAL with SIDE, X with Y"
+        )
+    return axes
+
+
 def _stall_functions(
-    w: _Writer, model: DeltaModel, side_axis: str, done: set[str]
+    w: _Writer, model: DeltaModel, stall_axes: str, done: set[str]
 ) -> tuple[list[str], dict[str, list[str]]]:
     """The aerodynamics' part of the stored stall: ``aero/aerodelta/stall/x`` (1 attached,
     0 separated; 1 at a flap setting without a stall), the increments ``CL-delta``,
     ``Cm-delta`` (and ``CD-delta`` when a flap stores the stall's drag) at each flap setting
-    with a stall (0 elsewhere) and the axis functions: ``LIFT`` (and ``DRAG``; wind axes, with
-    ``side_axis="SIDE"``) or ``X``, ``Z`` (body axes, with ``side_axis="Y"``:
-    ``L sin(alpha) - D cos(alpha)``, ``-L cos(alpha) - D sin(alpha)``), and ``PITCH``.
+    with a stall (0 elsewhere) and the axis functions (``stall_axes``): ``LIFT`` (and
+    ``DRAG``; wind axes), ``AXIAL``, ``NORMAL`` (body axes: ``D cos(alpha) - L sin(alpha)``,
+    ``L cos(alpha) + D sin(alpha)``) or ``X``, ``Z`` (body axes: ``L sin(alpha) - D cos(alpha)``,
+    ``-L cos(alpha) - D sin(alpha)``), and ``PITCH``.
 
     The increments of a stall fitted with ``known="adx37"`` are the Kirchhoff curves less the
     ADX-37 qualified static curves ``CL_basic``, ``Cm_basic`` they replace. One fitted with
@@ -629,7 +652,33 @@ def _stall_functions(
         )
 
     cd = "<property>aero/aerodelta/stall/CD-delta</property>"
-    if side_axis == "Y":
+    if stall_axes == "AXIAL":
+        force(
+            "AXIAL",
+            "CA-stall",
+            "body axial force (positive aft) of the stall's lift increment, -L sin(alpha)",
+            f"<product><value>-1</value>{qs}{cl}<sin>{a_rad}</sin></product>",
+        )
+        force(
+            "NORMAL",
+            "CN-stall",
+            "body normal force (positive up) of the stall's lift increment, L cos(alpha)",
+            f"<product>{qs}{cl}<cos>{a_rad}</cos></product>",
+        )
+        if cd_terms:
+            force(
+                "AXIAL",
+                "CA-stall-drag",
+                "body axial force of the stall's drag increment, D cos(alpha)",
+                f"<product>{qs}{cd}<cos>{a_rad}</cos></product>",
+            )
+            force(
+                "NORMAL",
+                "CN-stall-drag",
+                "body normal force of the stall's drag increment, D sin(alpha)",
+                f"<product>{qs}{cd}<sin>{a_rad}</sin></product>",
+            )
+    elif stall_axes == "X":
         force(
             "X",
             "CX-stall",
@@ -732,6 +781,7 @@ def jsbsim_xml(
     side_axis: str = "SIDE",
     qualified: bool = False,
     longitudinal: bool = True,
+    stall_axes: str | None = None,
 ) -> str:
     """The JSBSim ``<aerodynamics>`` text of the blended Δ model (see the module docstring).
 
@@ -765,6 +815,12 @@ def jsbsim_xml(
         (``side_axis="Y"``), and ``PITCH`` (``qbar S cbar``, ft lbf). The separation state
         is stepped here, with the frame's alpha and alphadot, from the previous frame's that
         :func:`jsbsim_stall_system_xml`'s ``<system>`` hands on; load both.
+    stall_axes
+        The axes of the stall's lift and drag increments (:data:`STALL_AXES`): ``"LIFT"``
+        (``LIFT``, ``DRAG``; the default with ``side_axis="SIDE"``), ``"AXIAL"`` (``AXIAL``,
+        ``NORMAL``, for an aircraft whose aerodynamics use AXIAL/SIDE/NORMAL: a file's
+        functions join the aircraft's own axis system) or ``"X"`` (``X``, ``Z``; the default
+        and only choice with ``side_axis="Y"``).
 
     Raises
     ------
@@ -774,6 +830,7 @@ def jsbsim_xml(
     """
     if side_axis not in ("SIDE", "Y"):
         raise DataError(f"side_axis '{side_axis}': use 'SIDE' or 'Y' (JSBSim axis names)")
+    st_axes = stall_axes_for(side_axis, stall_axes)
     w = _Writer(model, properties or {})
     spec = w.spec
     recorded = recorded_source(spec, "adx37")
@@ -852,7 +909,7 @@ def jsbsim_xml(
         )
     stall = longitudinal and bool(model.kirchhoff)
     if stall:
-        sfns, saxes = _stall_functions(w, model, side_axis, done)
+        sfns, saxes = _stall_functions(w, model, st_axes, done)
         fns.extend(sfns)
         for a, fs in saxes.items():
             axes.setdefault(a, []).extend(fs)
@@ -951,6 +1008,7 @@ def export_jsbsim(
     qualified: bool = False,
     longitudinal: bool = True,
     system_path: str | PathLike[str] | None = None,
+    stall_axes: str | None = None,
 ) -> str:
     """Write :func:`jsbsim_xml` to ``path``; returns its text. A model storing a Kirchhoff
     stall (with ``longitudinal``) also needs ``system_path``, where
@@ -967,7 +1025,12 @@ def export_jsbsim(
     if problem is not None:
         raise DataError(problem)
     text = jsbsim_xml(
-        model, properties, side_axis=side_axis, qualified=qualified, longitudinal=longitudinal
+        model,
+        properties,
+        side_axis=side_axis,
+        qualified=qualified,
+        longitudinal=longitudinal,
+        stall_axes=stall_axes,
     )
     if system_path is None:
         write_atomic(path, text)

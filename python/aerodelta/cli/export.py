@@ -28,7 +28,12 @@ from aerodelta.cli._data import (
 )
 from aerodelta.exceptions import DataError
 from aerodelta.export import export_extended_daveml
-from aerodelta.jsbsim import export_jsbsim, jsbsim_properties, stall_system_problem
+from aerodelta.jsbsim import (
+    export_jsbsim,
+    jsbsim_properties,
+    stall_axes_for,
+    stall_system_problem,
+)
 
 HELP = "export the extended model to DAVE-ML and/or JSBSim"
 
@@ -78,6 +83,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="JSBSim: axis of the side force (SIDE for AXIAL/NORMAL or DRAG/LIFT aircraft, "
         "the default; Y for X/Y/Z aircraft); a stored stall's lift goes on LIFT with SIDE "
         "(DRAG/LIFT aircraft), on X and Z with Y",
+    )
+    parser.add_argument(
+        "--stall-axes",
+        choices=["LIFT", "AXIAL", "X"],
+        help="JSBSim: axes of a stored stall's lift and drag increments: LIFT (LIFT, DRAG; "
+        "the default with --side-axis SIDE), AXIAL (AXIAL, NORMAL: an AXIAL/SIDE/NORMAL "
+        "aircraft) or X (X, Z; with --side-axis Y)",
     )
     parser.add_argument(
         "--jsbsim-qualified",
@@ -130,6 +142,7 @@ def run(args: argparse.Namespace) -> int:
     for given, option, needs, value in (
         (args.property, "--property", "--jsbsim", args.jsbsim),
         (args.side_axis, "--side-axis", "--jsbsim", args.jsbsim),
+        (args.stall_axes, "--stall-axes", "--jsbsim", args.jsbsim),
         (args.jsbsim_qualified, "--jsbsim-qualified", "--jsbsim", args.jsbsim),
         (args.map, "--map", "--daveml", args.daveml),
         (args.coef, "--coef", "--daveml", args.daveml),
@@ -169,7 +182,11 @@ def run(args: argparse.Namespace) -> int:
     props = _pairs(args.property, "--property")
     _known(channel_map, "--map", model.input_columns, "channel")
     # a stored stall also reads the qualified CL and Cm totals
-    stall_coefs = ["CL", "Cm"] if model.kirchhoff and not args.no_longitudinal else []
+    stall_coefs = (
+        ["CL", "Cm", *(["CD"] if model.kirchhoff_drag else [])]
+        if model.kirchhoff and not args.no_longitudinal
+        else []
+    )
     _known(coefs, "--coef", [*model.coefficients, *stall_coefs], "coefficient")
     _known(props, "--property", model.input_columns, "channel")
     if args.jsbsim:
@@ -178,6 +195,11 @@ def run(args: argparse.Namespace) -> int:
         except DataError as e:
             raise DataError(f"--property: {e}") from None
     side_axis = args.side_axis or "SIDE"
+    if args.jsbsim:
+        try:  # checked before anything is written
+            stall_axes_for(side_axis, args.stall_axes)
+        except DataError as e:
+            return _usage(str(e))
     with ExitStack() as stack:
         for p in outs.values():  # folders made for the files; removed if the export fails
             stack.enter_context(created(p.parent))
@@ -200,7 +222,7 @@ def run(args: argparse.Namespace) -> int:
                     f"  longitudinal stall at flaps "
                     f"{', '.join(f'{f:g}' for f in sorted(model.kirchhoff))} deg: the host "
                     "integrates the input x_sep from x_sep_dot (start at x_sep_0) and flies "
-                    "CL_ext, Cm_ext"
+                    + ("CL_ext, Cm_ext, CD_ext" if model.kirchhoff_drag else "CL_ext, Cm_ext")
                 )
         if args.jsbsim:
             export_jsbsim(
@@ -211,6 +233,7 @@ def run(args: argparse.Namespace) -> int:
                 qualified=args.jsbsim_qualified,
                 longitudinal=not args.no_longitudinal,
                 system_path=args.jsbsim_system,
+                stall_axes=args.stall_axes,
             )
     if args.jsbsim:
         print(f"wrote {args.jsbsim}: channels read from JSBSim properties:")
@@ -222,9 +245,12 @@ def run(args: argparse.Namespace) -> int:
             {p for p in re.findall(r"(?<![\w/])aerodelta/[\w.-]+", " ".join(mapped.values()))}
         )
         if args.jsbsim_system:
-            axes = (
-                "X, Z" if side_axis == "Y" else ("LIFT, DRAG" if model.kirchhoff_drag else "LIFT")
-            )
+            kind = args.stall_axes or ("X" if side_axis == "Y" else "LIFT")
+            axes = {
+                "X": "X, Z",
+                "AXIAL": "AXIAL, NORMAL",
+                "LIFT": "LIFT, DRAG" if model.kirchhoff_drag else "LIFT",
+            }[kind]
             print(
                 f"wrote {args.jsbsim_system}: the <system> carrying the separation state of "
                 f"the stall at flaps {', '.join(f'{f:g}' for f in sorted(model.kirchhoff or {}))}"
