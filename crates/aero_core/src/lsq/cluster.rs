@@ -61,7 +61,7 @@
 //! parameters that load on that direction get NaN with a note, never a
 //! standard error that pretends the maneuver carried no information.
 
-use nalgebra::{DMatrix, SymmetricEigen};
+use nalgebra::{DMatrix, SMatrix, SymmetricEigen};
 
 /// Leverage above which a cluster determines a direction alone.
 const LEVERAGE_ONE: f64 = 1.0 - 1e-8;
@@ -170,6 +170,31 @@ impl Cross {
     }
 }
 
+/// Eigen-pairs of the symmetric `k × k` matrix whose lower triangle `w` holds (row-major):
+/// eigenvalues into `vals` (`k`), eigenvectors into `vecs` (column-major: `V[i, a] =
+/// vecs[a * k + i]`). nalgebra's `SymmetricEigen` on a fixed-size matrix up to 12 × 12 (no
+/// heap allocation per cluster; the same algorithm as the dynamic one, which takes larger k).
+fn sym_eigen(w: &[f64], k: usize, vals: &mut [f64], vecs: &mut [f64]) {
+    let at = |a: usize, e: usize| w[a.max(e) * k + a.min(e)];
+    macro_rules! sizes {
+        ($($n:literal),*) => {
+            match k {
+                $($n => {
+                    let e = SymmetricEigen::new(SMatrix::<f64, $n, $n>::from_fn(at));
+                    vals.copy_from_slice(e.eigenvalues.as_slice());
+                    vecs.copy_from_slice(e.eigenvectors.as_slice());
+                })*
+                _ => {
+                    let e = SymmetricEigen::new(DMatrix::from_fn(k, k, at));
+                    vals.copy_from_slice(e.eigenvalues.as_slice());
+                    vecs.copy_from_slice(e.eigenvectors.as_slice());
+                }
+            }
+        };
+    }
+    sizes!(1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12);
+}
+
 /// CR2 covariance and Bell-McCaffrey dof.
 ///
 /// `w` holds the `n_clusters` Gram matrices `W_g = Q_gᵀQ_g` (`k × k`
@@ -216,11 +241,11 @@ pub(crate) fn cr2(
     // per-cluster work space
     let mut c = vec![0.0; k * p];
     let mut u = vec![0.0; k];
+    let (mut vals, mut vecs) = (vec![0.0; k], vec![0.0; k * k]);
     for (g, (wg, sg)) in w.chunks_exact(k * k).zip(s.chunks_exact(k)).enumerate() {
         // symmetric by construction up to round-off: take the lower triangle
-        let eig = SymmetricEigen::new(DMatrix::from_fn(k, k, |a, e| wg[a.max(e) * k + a.min(e)]));
-        let vecs = eig.eigenvectors.as_slice(); // column-major: V[i, a] = vecs[a * k + i]
-        let vals = eig.eigenvalues.as_slice();
+        sym_eigen(wg, k, &mut vals, &mut vecs); // column-major: V[i, a] = vecs[a * k + i]
+        let (vals, vecs) = (vals.as_slice(), vecs.as_slice());
         // meat: u = V f(λ) Vᵀ s
         u.iter_mut().for_each(|x| *x = 0.0);
         for (a, &l) in vals.iter().enumerate() {
@@ -634,6 +659,26 @@ mod tests {
         let col = col.map(|h| h as f64 / reps as f64);
         eprintln!("AR(1) 0.9: conventional {conv:?}, all-lag coloured {col:?}");
         assert!(conv.iter().all(|&c| c < 0.8), "{conv:?}");
+    }
+
+    #[test]
+    fn fixed_size_eigen_pairs_equal_the_dynamic_ones_bit_for_bit() {
+        let mut rng = ChaCha8Rng::seed_from_u64(28);
+        for k in 1..=14 {
+            // a leverage-like Gram matrix: Q^T Q of a random 3k x k block, scaled under 1
+            let q: Vec<f64> = (0..3 * k * k).map(|_| normal(&mut rng) * 0.1).collect();
+            let w: Vec<f64> = (0..k * k)
+                .map(|ae| {
+                    let (a, e) = (ae / k, ae % k);
+                    (0..3 * k).map(|r| q[r * k + a] * q[r * k + e]).sum()
+                })
+                .collect();
+            let (mut vals, mut vecs) = (vec![0.0; k], vec![0.0; k * k]);
+            sym_eigen(&w, k, &mut vals, &mut vecs);
+            let e = SymmetricEigen::new(DMatrix::from_fn(k, k, |a, b| w[a.max(b) * k + a.min(b)]));
+            assert_eq!(vals.as_slice(), e.eigenvalues.as_slice(), "k = {k}");
+            assert_eq!(vecs.as_slice(), e.eigenvectors.as_slice(), "k = {k}");
+        }
     }
 
     #[test]
