@@ -606,7 +606,7 @@ class KirchhoffResult:
             )
             x[rows], cl[rows], cm[rows] = xs, ls, ms
             if ff.drag is not None:
-                cd[rows] = _drag_regressors(ls, xs) @ _drag_vector(ff.drag.params)
+                cd[rows] = _core.kirchhoff_drag_point(ff.drag.params, ls, xs)
         return pl.DataFrame(
             {
                 "x_sep": x,
@@ -620,10 +620,6 @@ class KirchhoffResult:
 def _drag_regressors(cl: FloatArray, x: FloatArray) -> FloatArray:
     """``[1, C_L^2, 1 - x]`` per sample (``aero_core::kirchhoff::KirchhoffDrag::regressors``)."""
     return np.column_stack([np.ones(len(cl)), cl * cl, 1.0 - x])
-
-
-def _drag_vector(params: Mapping[str, float]) -> FloatArray:
-    return np.array([float(params[n]) for n in DRAG_PARAMS])
 
 
 def _maneuver_name(ids: tuple[str, ...], m: re.Match[str]) -> str:

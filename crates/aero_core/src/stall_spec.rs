@@ -16,7 +16,7 @@ use std::collections::BTreeMap;
 use serde::{Deserialize, Serialize};
 
 use crate::error::{AeroError, Result, ResultExt};
-use crate::kirchhoff::{KirchhoffDrag, KirchhoffParams, DRAG_NAMES, N_DRAG, N_PARAMS, PARAM_NAMES};
+use crate::kirchhoff::{KirchhoffDrag, KirchhoffParams, DRAG_NAMES, PARAM_NAMES};
 
 /// The stored longitudinal stall.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -70,6 +70,32 @@ impl KirchhoffFlap {
     }
 }
 
+/// The values of `map` in `names` order, refusing an unknown or a missing name (`what`
+/// names them in the message, at `place`).
+fn named<const N: usize>(
+    map: &BTreeMap<String, f64>,
+    names: [&str; N],
+    place: &str,
+    what: &str,
+) -> Result<[f64; N]> {
+    if let Some(extra) = map.keys().find(|k| !names.contains(&k.as_str())) {
+        return Err(AeroError::invalid(
+            place,
+            format!(
+                "unknown {what} '{extra}'; the {what}s are {}",
+                names.join(", ")
+            ),
+        ));
+    }
+    let mut v = [0.0; N];
+    for (slot, name) in v.iter_mut().zip(names) {
+        *slot = *map
+            .get(name)
+            .ok_or_else(|| AeroError::invalid(place, format!("lacks {what} {name}")))?;
+    }
+    Ok(v)
+}
+
 /// Known-term bases a stored stall may declare.
 pub const KNOWN: [&str; 2] = ["adx37", "none"];
 
@@ -106,42 +132,18 @@ impl LongitudinalSpec {
                     "appears twice; give each flap once",
                 ));
             }
-            if let Some(extra) = f.params.keys().find(|k| !PARAM_NAMES.contains(&k.as_str())) {
-                return Err(AeroError::invalid(
-                    place,
-                    format!(
-                        "unknown parameter '{extra}'; the parameters are {}",
-                        PARAM_NAMES.join(", ")
-                    ),
-                ));
-            }
-            let mut v = [0.0; N_PARAMS];
-            for (slot, name) in v.iter_mut().zip(PARAM_NAMES) {
-                *slot = *f.params.get(name).ok_or_else(|| {
-                    AeroError::invalid(place.clone(), format!("lacks parameter {name}"))
-                })?;
-            }
+            let v = named(&f.params, PARAM_NAMES, &place, "parameter")?;
             let p = KirchhoffParams::from_array(&v);
             p.check().context(place.clone())?;
             let drag = if f.drag.is_empty() {
                 None
             } else {
-                if let Some(extra) = f.drag.keys().find(|k| !DRAG_NAMES.contains(&k.as_str())) {
-                    return Err(AeroError::invalid(
-                        place,
-                        format!(
-                            "unknown drag parameter '{extra}'; the drag's are {}",
-                            DRAG_NAMES.join(", ")
-                        ),
-                    ));
-                }
-                let mut d = [0.0; N_DRAG];
-                for (slot, name) in d.iter_mut().zip(DRAG_NAMES) {
-                    *slot = *f.drag.get(name).ok_or_else(|| {
-                        AeroError::invalid(place.clone(), format!("lacks drag parameter {name}"))
-                    })?;
-                }
-                let d = KirchhoffDrag::from_array(&d);
+                let d = KirchhoffDrag::from_array(&named(
+                    &f.drag,
+                    DRAG_NAMES,
+                    &place,
+                    "drag parameter",
+                )?);
                 d.check().context(place)?;
                 Some(d)
             };
