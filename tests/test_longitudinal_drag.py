@@ -16,10 +16,10 @@ import polars as pl
 import statsmodels.api as sm
 from scipy.signal import lfilter, lfilter_zi
 
+from _stall_pulls import stall_pull
 from aerodelta import _core
 from aerodelta.longitudinal import DRAG_PARAMS, PARAMS, fit_kirchhoff, measured_drag, measured_lift
 
-HZ = 50.0
 TRUTH_DRAG = {"CD0": 0.04, "CD_k": 0.045, "CD_x": 0.32}
 
 
@@ -43,12 +43,8 @@ def _records(k: int, seed: int, noise: float) -> pl.DataFrame:
     truth = _core.kirchhoff_truth_params(10.0)
     frames = []
     for m in range(k):
-        n = 1200
-        t = np.arange(n) / HZ
-        top, f1, amp = rng.uniform(21.0, 25.0), rng.uniform(1.0, 2.5), rng.uniform(0.5, 2.0)
-        s = np.sin(np.pi * t / t[-1])
-        a_deg = 6.0 + (top - 6.0) * s**2 + amp * np.sin(f1 * t)
-        ad_deg = np.gradient(a_deg, t)
+        t, a_deg, ad_deg = stall_pull(rng)
+        n = t.size
         a, ad = np.radians(a_deg), np.radians(ad_deg)
         x, cl, cm = _peer_state(truth, t, a, ad)
         cd = TRUTH_DRAG["CD0"] + TRUTH_DRAG["CD_k"] * cl**2 + TRUTH_DRAG["CD_x"] * (1.0 - x)

@@ -18,6 +18,7 @@ import numpy as np
 import polars as pl
 import pytest
 
+from _stall_pulls import HZ, stall_pull
 from aerodelta import _core
 from aerodelta.cli import main
 from aerodelta.longitudinal import (
@@ -27,8 +28,6 @@ from aerodelta.longitudinal import (
     fit_kirchhoff,
     static_curves,
 )
-
-HZ = 50.0
 
 
 def _frame(lagged: bool, seed: int, k: int = 8) -> tuple[pl.DataFrame, dict[str, float]]:
@@ -40,12 +39,8 @@ def _frame(lagged: bool, seed: int, k: int = 8) -> tuple[pl.DataFrame, dict[str,
     rng = np.random.default_rng(seed)
     parts = []
     for i in range(k):
-        n = 1200
-        t = np.arange(n) / HZ
-        top, f1, amp = rng.uniform(21.0, 25.0), rng.uniform(1.0, 2.5), rng.uniform(0.5, 2.0)
-        s = np.sin(np.pi * t / t[-1])
-        a_deg = 6.0 + (top - 6.0) * s**2 + amp * np.sin(f1 * t)
-        ad_deg = np.gradient(a_deg, t)
+        t, a_deg, ad_deg = stall_pull(rng)
+        n = t.size
         a = np.radians(a_deg)
         if lagged:
             _, cl, cm, _, _ = _core.kirchhoff_outputs(truth, t, a, np.radians(ad_deg))

@@ -81,6 +81,24 @@ def _f64(frame: pl.DataFrame, name: str) -> FloatArray:
     return np.ascontiguousarray(frame[name].cast(pl.Float64).to_numpy(), dtype=np.float64)
 
 
+def _body_force_coefficients(data: pl.DataFrame) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """``(alpha rad, C_X - C_T, C_Z)`` of the records: the measured body-axis force
+    coefficients with the thrust coefficient ``C_T = ct_left + ct_right`` (along body x) taken
+    off C_X where the records carry it."""
+    missing = [c for c in ("alpha_deg", "CX_meas", "CZ_meas") if c not in data.columns]
+    if missing:
+        raise DataError(
+            f"records lack {', '.join(missing)}; run aerodelta.ingest on them first "
+            "(it derives the measured coefficients)"
+        )
+    a = np.radians(_f64(data, "alpha_deg"))
+    cx = _f64(data, "CX_meas")
+    if all(c in data.columns for c in ("ct_left", "ct_right")):
+        ct = _f64(data, "ct_left") + _f64(data, "ct_right")
+        cx = cx - np.where(np.isfinite(ct), ct, 0.0)
+    return a, cx, _f64(data, "CZ_meas")
+
+
 def measured_lift(data: pl.DataFrame) -> FloatArray:
     """Measured aerodynamic lift coefficient along the records, -.
 
@@ -101,18 +119,8 @@ def measured_lift(data: pl.DataFrame) -> FloatArray:
     numpy.ndarray
         C_L per row.
     """
-    missing = [c for c in ("alpha_deg", "CX_meas", "CZ_meas") if c not in data.columns]
-    if missing:
-        raise DataError(
-            f"records lack {', '.join(missing)}; run aerodelta.ingest on them first "
-            "(it derives the measured coefficients)"
-        )
-    a = np.radians(_f64(data, "alpha_deg"))
-    cx = _f64(data, "CX_meas")
-    if all(c in data.columns for c in ("ct_left", "ct_right")):
-        ct = _f64(data, "ct_left") + _f64(data, "ct_right")
-        cx = cx - np.where(np.isfinite(ct), ct, 0.0)
-    return -_f64(data, "CZ_meas") * np.cos(a) + cx * np.sin(a)
+    a, cx, cz = _body_force_coefficients(data)
+    return -cz * np.cos(a) + cx * np.sin(a)
 
 
 def measured_drag(data: pl.DataFrame) -> FloatArray:
@@ -133,18 +141,8 @@ def measured_drag(data: pl.DataFrame) -> FloatArray:
     numpy.ndarray
         C_D per row.
     """
-    missing = [c for c in ("alpha_deg", "CX_meas", "CZ_meas") if c not in data.columns]
-    if missing:
-        raise DataError(
-            f"records lack {', '.join(missing)}; run aerodelta.ingest on them first "
-            "(it derives the measured coefficients)"
-        )
-    a = np.radians(_f64(data, "alpha_deg"))
-    cx = _f64(data, "CX_meas")
-    if all(c in data.columns for c in ("ct_left", "ct_right")):
-        ct = _f64(data, "ct_left") + _f64(data, "ct_right")
-        cx = cx - np.where(np.isfinite(ct), ct, 0.0)
-    return -cx * np.cos(a) - _f64(data, "CZ_meas") * np.sin(a)
+    a, cx, cz = _body_force_coefficients(data)
+    return -cx * np.cos(a) - cz * np.sin(a)
 
 
 def qualified_longitudinal(data: pl.DataFrame) -> pl.DataFrame:
