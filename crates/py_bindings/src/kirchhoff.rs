@@ -8,7 +8,7 @@ use aero_core::aircraft::truth::{
 };
 use aero_core::aircraft::turboprop::adx37;
 use aero_core::kirchhoff::{
-    outputs, Inputs, KirchhoffDrag, KirchhoffParams, DRAG_NAMES, N_DRAG, N_PARAMS, PARAM_NAMES,
+    outputs, Inputs, KirchhoffDrag, KirchhoffParams, DRAG_NAMES, N_PARAMS, PARAM_NAMES,
 };
 use aero_core::output_error::{fit, OeOptions, Series};
 use aero_core::AeroError;
@@ -23,25 +23,39 @@ use crate::util::{column_slices, detached, record_columns};
 type Array<'py> = Bound<'py, PyArray1<f64>>;
 type Matrix<'py> = Bound<'py, PyArray2<f64>>;
 
-fn params_from(d: &HashMap<String, f64>, arg: &str) -> PyResult<KirchhoffParams> {
-    let mut v = [0.0; N_PARAMS];
-    for (slot, name) in v.iter_mut().zip(PARAM_NAMES) {
+/// The values of argument `arg` in `names` order; a missing name is refused.
+fn named<const N: usize>(
+    d: &HashMap<String, f64>,
+    names: [&str; N],
+    arg: &str,
+) -> PyResult<[f64; N]> {
+    let mut v = [0.0; N];
+    for (slot, name) in v.iter_mut().zip(names) {
         *slot = *d.get(name).ok_or_else(|| {
             to_py(AeroError::invalid(
                 format!("argument '{arg}'"),
-                format!("has no '{name}'; give all of {}", PARAM_NAMES.join(", ")),
+                format!("has no '{name}'; give all of {}", names.join(", ")),
             ))
         })?;
     }
-    Ok(KirchhoffParams::from_array(&v))
+    Ok(v)
+}
+
+/// `names` -> `values` as a dict.
+fn dict_of<const N: usize>(names: [&str; N], values: [f64; N]) -> HashMap<String, f64> {
+    names
+        .iter()
+        .zip(values)
+        .map(|(n, v)| ((*n).to_string(), v))
+        .collect()
+}
+
+fn params_from(d: &HashMap<String, f64>, arg: &str) -> PyResult<KirchhoffParams> {
+    Ok(KirchhoffParams::from_array(&named(d, PARAM_NAMES, arg)?))
 }
 
 fn params_dict(p: &KirchhoffParams) -> HashMap<String, f64> {
-    PARAM_NAMES
-        .iter()
-        .zip(p.to_array())
-        .map(|(n, v)| ((*n).to_string(), v))
-        .collect()
+    dict_of(PARAM_NAMES, p.to_array())
 }
 
 fn matrix<'py>(py: Python<'py>, v: Vec<f64>, rows: usize) -> PyResult<Matrix<'py>> {
@@ -71,12 +85,7 @@ fn kirchhoff_truth_params(flap_deg: f64) -> HashMap<String, f64> {
 /// The virtual aircraft's Kirchhoff stall drag at a flap setting (`CD0`, `CD_k`, `CD_x`).
 #[pyfunction]
 fn kirchhoff_truth_drag(flap_deg: f64) -> HashMap<String, f64> {
-    let d = truth_drag(flap_deg, &adx37());
-    DRAG_NAMES
-        .iter()
-        .zip(d.to_array())
-        .map(|(n, v)| ((*n).to_string(), v))
-        .collect()
+    dict_of(DRAG_NAMES, truth_drag(flap_deg, &adx37()).to_array())
 }
 
 /// `(alpha at C_L,max [rad], C_L,max)` of the static curve.
@@ -180,16 +189,7 @@ fn kirchhoff_drag_point<'py>(
     cl: PyReadonlyArray1<'py, f64>,
     x: PyReadonlyArray1<'py, f64>,
 ) -> PyResult<Array<'py>> {
-    let mut v = [0.0; N_DRAG];
-    for (slot, name) in v.iter_mut().zip(DRAG_NAMES) {
-        *slot = *drag.get(name).ok_or_else(|| {
-            to_py(AeroError::invalid(
-                "argument 'drag'",
-                format!("has no '{name}'; give all of {}", DRAG_NAMES.join(", ")),
-            ))
-        })?;
-    }
-    let d = KirchhoffDrag::from_array(&v);
+    let d = KirchhoffDrag::from_array(&named(&drag, DRAG_NAMES, "drag")?);
     d.check().map_err(to_py)?;
     let (cl, x) = (cl.as_slice()?, x.as_slice()?);
     if cl.len() != x.len() {

@@ -221,7 +221,11 @@ pub fn lift_curve(f: &FlapStall, alpha_deg: f64) -> f64 {
 /// The induced-drag factor `k = 1/(π e A)` of the qualified polar (Oswald factor `e` = 0.8,
 /// aspect ratio `A = b²/S`).
 pub fn induced_drag_factor(aircraft: &AircraftRef) -> f64 {
-    let ar = aircraft.b_m * aircraft.b_m / aircraft.s_m2;
+    polar_factor(aircraft.aspect_ratio())
+}
+
+/// `1/(π e A)` with `e` = 0.8 at aspect ratio `ar`.
+fn polar_factor(ar: f64) -> f64 {
     1.0 / (std::f64::consts::PI * ar * 0.8)
 }
 
@@ -229,7 +233,7 @@ pub fn induced_drag_factor(aircraft: &AircraftRef) -> f64 {
 /// past `α_max − 6°` (aspect ratio `ar`).
 pub fn drag_curve(f: &FlapStall, alpha_deg: f64, ar: f64) -> f64 {
     let cl = lift_curve(f, alpha_deg);
-    let k = 1.0 / (std::f64::consts::PI * ar * 0.8);
+    let k = polar_factor(ar);
     let sep = (alpha_deg - (f.alpha_max_deg - 6.0))
         .max(0.0)
         .to_radians()
@@ -276,7 +280,7 @@ impl QualifiedModel {
     /// # Errors
     /// Only if a table is malformed (a bug); kept as a value, not a panic.
     pub fn adx37(aircraft: &AircraftRef) -> Result<Self> {
-        let ar = aircraft.b_m * aircraft.b_m / aircraft.s_m2;
+        let ar = aircraft.aspect_ratio();
         let a_long = grid(-10.0, 40.0, 1.0);
         let a_stat = grid(-15.0, 15.0, 2.5);
         let a_ctrl = grid(-4.0, 10.0, 2.0);

@@ -308,8 +308,7 @@ mod tests {
                 let pc = crate::aircraft::qualified::pitch_curve(&st, alpha[i]);
                 assert!((lift_b[i] - lc).abs() < 1e-12 && (cm_b[i] - pc).abs() < 1e-12);
                 let a = adx37();
-                let dc =
-                    crate::aircraft::qualified::drag_curve(&st, alpha[i], a.b_m * a.b_m / a.s_m2);
+                let dc = crate::aircraft::qualified::drag_curve(&st, alpha[i], a.aspect_ratio());
                 assert!((drag_b[i] - dc).abs() < 1e-12);
             }
         }

@@ -95,6 +95,11 @@ pub fn adx37() -> AircraftRef {
 }
 
 impl AircraftRef {
+    /// Aspect ratio `A = b²/S`.
+    pub fn aspect_ratio(&self) -> f64 {
+        self.b_m * self.b_m / self.s_m2
+    }
+
     /// The aircraft reference file (the campaign contract's `aircraft.toml`).
     pub fn to_toml(&self) -> String {
         let v = |a: [f64; 3]| format!("[{:?}, {:?}, {:?}]", a[0], a[1], a[2]);
