@@ -53,7 +53,7 @@ pub const PARAM_NAMES: [&str; N_PARAMS] = [
 ];
 
 /// Smallest separation point used where `1/√x` appears (sensitivities).
-const X_FLOOR: f64 = 1e-12;
+pub(crate) const X_FLOOR: f64 = 1e-12;
 
 /// The parameters of the Kirchhoff stall model at one flap setting.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -183,8 +183,7 @@ impl KirchhoffParams {
     /// Lift coefficient at α (rad) and separation point `x`.
     #[inline]
     pub fn cl(&self, alpha: f64, x: f64) -> f64 {
-        let f = 0.5 * (1.0 + x.max(0.0).sqrt());
-        self.cl_alpha * (alpha - self.alpha0) * f * f
+        kirchhoff_lift(self.cl_alpha, self.alpha0, alpha, x)
     }
 
     /// Pitching moment coefficient (static-curve part) at α (rad) and `x`.
@@ -226,6 +225,15 @@ impl KirchhoffParams {
         let am = 0.5 * (a + b);
         (am, self.cl_static(am))
     }
+}
+
+/// Kirchhoff's lift of a partly separated plate, `C_Lα (α − α₀) ((1 + √x)/2)²`
+/// (α, α₀ in rad, C_Lα in 1/rad, `x` the separation point): the lift of both the
+/// tanh ([`KirchhoffParams`]) and the tabulated ([`crate::goman_khrabrov`]) forms.
+#[inline]
+pub fn kirchhoff_lift(cl_alpha: f64, alpha0: f64, alpha: f64, x: f64) -> f64 {
+    let f = 0.5 * (1.0 + x.max(0.0).sqrt());
+    cl_alpha * (alpha - alpha0) * f * f
 }
 
 /// Number of parameters of [`KirchhoffDrag`].
@@ -314,7 +322,7 @@ impl KirchhoffDrag {
 /// Weights of the exact first-order-hold step over `h` seconds: `(e, c0, g)`
 /// with `x₁ = e x₀ + c0 u₀ + g u₁`, and their derivatives in τ₁.
 #[inline]
-fn foh_weights(h: f64, tau1: f64) -> ([f64; 3], [f64; 3]) {
+pub(crate) fn foh_weights(h: f64, tau1: f64) -> ([f64; 3], [f64; 3]) {
     let r = h / tau1;
     if r > 700.0 {
         // τ₁ → 0: the state follows its input

@@ -60,6 +60,7 @@ pub mod delta_model;
 pub mod envelope;
 pub mod error;
 pub mod fsutil;
+pub mod goman_khrabrov;
 pub mod hatcv;
 pub mod identify;
 pub mod kirchhoff;

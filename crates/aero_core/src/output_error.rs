@@ -47,7 +47,8 @@
 use nalgebra::{DMatrix, DVector};
 
 use crate::error::{AeroError, Result};
-use crate::kirchhoff::{outputs, Inputs, KirchhoffParams, N_PARAMS, PARAM_NAMES};
+use crate::goman_khrabrov::{self as gk, GkParams, N_CORE};
+use crate::kirchhoff::{outputs, Inputs, KirchhoffParams, Outputs, N_PARAMS, PARAM_NAMES};
 use crate::lsq::colored::toeplitz_gram;
 use crate::lsq::{ols, OlsOptions};
 
@@ -123,11 +124,76 @@ pub struct OeFit {
     pub n_maneuvers: usize,
 }
 
-/// Lower bounds the iterations respect: τ₁ ≥ 1 ms, τ₂ ≥ 0, a₁ ≥ 0.1 /rad.
-fn project(th: &mut [f64; N_PARAMS]) {
-    th[0] = th[0].max(1e-3);
-    th[1] = th[1].max(0.0);
-    th[3] = th[3].max(0.1);
+/// A separation-state model the engine fits: a parameter vector, the bounds
+/// the iterations respect, and the outputs with their sensitivities (rows of
+/// [`OeModel::n_params`]). The tanh form ([`fit`]) and the tabulated
+/// Goman-Khrabrov form ([`fit_tabulated`]) share everything else: cost,
+/// Levenberg-Marquardt loop, Cramér-Rao and coloured-residual bounds.
+trait OeModel {
+    fn n_params(&self) -> usize;
+    fn names(&self) -> Vec<String>;
+    /// Parameters only C_m sees (held when C_m is not fitted).
+    fn cm_only(&self) -> [usize; 3];
+    fn project(&self, th: &mut [f64]);
+    fn outputs(&self, th: &[f64], inp: &Inputs<'_>, sens: bool) -> Result<Outputs>;
+}
+
+/// Fischenberg's tanh form, [`KirchhoffParams`].
+struct TanhForm;
+
+impl OeModel for TanhForm {
+    fn n_params(&self) -> usize {
+        N_PARAMS
+    }
+    fn names(&self) -> Vec<String> {
+        PARAM_NAMES.iter().map(|s| (*s).to_string()).collect()
+    }
+    fn cm_only(&self) -> [usize; 3] {
+        [6, 7, 8]
+    }
+    /// τ₁ ≥ 1 ms, τ₂ ≥ 0, a₁ ≥ 0.1 /rad.
+    fn project(&self, th: &mut [f64]) {
+        th[0] = th[0].max(1e-3);
+        th[1] = th[1].max(0.0);
+        th[3] = th[3].max(0.1);
+    }
+    fn outputs(&self, th: &[f64], inp: &Inputs<'_>, sens: bool) -> Result<Outputs> {
+        outputs(&tanh_params(th), inp, sens)
+    }
+}
+
+fn tanh_params(th: &[f64]) -> KirchhoffParams {
+    let mut a = [0.0; N_PARAMS];
+    a.copy_from_slice(&th[..N_PARAMS]);
+    KirchhoffParams::from_array(&a)
+}
+
+/// The tabulated form over the knots of `template`.
+struct TableForm<'a> {
+    template: &'a GkParams,
+}
+
+impl OeModel for TableForm<'_> {
+    fn n_params(&self) -> usize {
+        N_CORE + self.template.x0.knots().len()
+    }
+    fn names(&self) -> Vec<String> {
+        self.template.names()
+    }
+    fn cm_only(&self) -> [usize; 3] {
+        [4, 5, 6]
+    }
+    /// τ₁ ≥ 1 ms, τ₂ ≥ 0, node values in [0, 1].
+    fn project(&self, th: &mut [f64]) {
+        th[0] = th[0].max(1e-3);
+        th[1] = th[1].max(0.0);
+        for v in &mut th[N_CORE..] {
+            *v = v.clamp(0.0, 1.0);
+        }
+    }
+    fn outputs(&self, th: &[f64], inp: &Inputs<'_>, sens: bool) -> Result<Outputs> {
+        gk::outputs(&self.template.with_vec(th), inp, sens)
+    }
 }
 
 fn check(series: &[Series<'_>]) -> Result<bool> {
@@ -168,11 +234,11 @@ fn check(series: &[Series<'_>]) -> Result<bool> {
 }
 
 /// Residual sums of squares per output and the sample count at θ.
-fn sums(p: &KirchhoffParams, series: &[Series<'_>]) -> Result<([f64; 2], usize)> {
+fn sums<M: OeModel>(model: &M, th: &[f64], series: &[Series<'_>]) -> Result<([f64; 2], usize)> {
     let mut ss = [0.0; 2];
     let mut n = 0;
     for s in series {
-        let o = outputs(p, &s.inputs, false)?;
+        let o = model.outputs(th, &s.inputs, false)?;
         for (k, y) in s.cl.iter().enumerate() {
             ss[0] += (y - o.cl[k]).powi(2);
         }
@@ -197,18 +263,20 @@ fn cost_of(ss: [f64; 2], n: usize, with_cm: bool) -> f64 {
 }
 
 /// Information matrix and gradient over the free parameters with weights `w`.
-fn normal_equations(
-    p: &KirchhoffParams,
+fn normal_equations<M: OeModel>(
+    model: &M,
+    th: &[f64],
     series: &[Series<'_>],
     free: &[usize],
     w: [f64; 2],
 ) -> Result<(DMatrix<f64>, DVector<f64>)> {
     let np = free.len();
+    let stride = model.n_params();
     let mut m = DMatrix::<f64>::zeros(np, np);
     let mut g = DVector::<f64>::zeros(np);
     let mut row = vec![0.0; np];
     for s in series {
-        let o = outputs(p, &s.inputs, true)?;
+        let o = model.outputs(th, &s.inputs, true)?;
         let mut add = |sens: &[f64], v: f64, wo: f64| {
             for (r, &j) in row.iter_mut().zip(free) {
                 *r = sens[j];
@@ -223,16 +291,12 @@ fn normal_equations(
         };
         for k in 0..s.cl.len() {
             add(
-                &o.dcl[k * N_PARAMS..(k + 1) * N_PARAMS],
+                &o.dcl[k * stride..(k + 1) * stride],
                 s.cl[k] - o.cl[k],
                 w[0],
             );
             if let Some(cm) = s.cm {
-                add(
-                    &o.dcm[k * N_PARAMS..(k + 1) * N_PARAMS],
-                    cm[k] - o.cm[k],
-                    w[1],
-                );
+                add(&o.dcm[k * stride..(k + 1) * stride], cm[k] - o.cm[k], w[1]);
             }
         }
     }
@@ -245,7 +309,7 @@ fn normal_equations(
 }
 
 /// Inverse of a symmetric positive definite matrix after diagonal scaling.
-fn spd_inverse(m: &DMatrix<f64>, names: &[&str]) -> Result<DMatrix<f64>> {
+fn spd_inverse(m: &DMatrix<f64>, names: &[String]) -> Result<DMatrix<f64>> {
     let n = m.nrows();
     let d: Vec<f64> = (0..n).map(|i| 1.0 / m[(i, i)].max(1e-300).sqrt()).collect();
     let scaled = DMatrix::from_fn(n, n, |i, j| m[(i, j)] * d[i] * d[j]);
@@ -384,7 +448,7 @@ pub fn equation_error_start(series: &[Series<'_>]) -> Result<KirchhoffParams> {
             cm_alpha,
             cm_x,
         };
-        let (ss, n) = sums(&p, series)?;
+        let (ss, n) = sums(&TanhForm, &p.to_array(), series)?;
         let j = cost_of(ss, n, with_cm);
         if best.as_ref().is_none_or(|(bj, _)| j < *bj) {
             best = Some((j, p));
@@ -394,51 +458,67 @@ pub fn equation_error_start(series: &[Series<'_>]) -> Result<KirchhoffParams> {
         .ok_or_else(|| AeroError::too_little(place, "no start candidate"))
 }
 
-/// Fit the Kirchhoff model to `series` by output error (module docs).
-///
-/// # Errors
-/// Invalid inputs (lengths, non-finite values, time not increasing), too little
-/// data for the start, a singular information matrix, or no convergence within
-/// [`OeOptions::max_iter`] ([`AeroError::NoConvergence`] with the last cost).
-pub fn fit(series: &[Series<'_>], opts: &OeOptions) -> Result<OeFit> {
-    let with_cm = check(series)?;
-    let start = match opts.start {
-        Some(p) => {
-            p.check()?;
-            p
-        }
-        None => equation_error_start(series)?,
-    };
-    let mut free = [true; N_PARAMS];
-    for (f, fx) in free.iter_mut().zip(opts.fixed) {
-        *f = !fx;
-    }
+/// What [`run`] returns: estimates and bounds over the model's whole vector.
+struct EngineFit {
+    th: Vec<f64>,
+    free: Vec<bool>,
+    se: Vec<f64>,
+    se_c: Vec<f64>,
+    cov: Vec<f64>,
+    cov_c: Vec<f64>,
+    iterations: usize,
+    converged: bool,
+    cost: f64,
+    residual_var: [f64; 2],
+    n_samples: usize,
+}
+
+/// Iteration bound, tolerance and coloured-residual lag of [`run`].
+struct Settings {
+    max_iter: usize,
+    tol: f64,
+    max_lag: Option<usize>,
+}
+
+/// The engine (module docs): Levenberg-Marquardt on the relaxed maximum-likelihood
+/// cost from `start` with the parameters in `fixed` held, then the Cramér-Rao and
+/// coloured-residual bounds at the estimate.
+fn run<M: OeModel>(
+    model: &M,
+    series: &[Series<'_>],
+    with_cm: bool,
+    start: &[f64],
+    fixed: &[bool],
+    set: &Settings,
+) -> Result<EngineFit> {
+    let dim = model.n_params();
+    let mut free: Vec<bool> = fixed.iter().map(|f| !f).collect();
     if !with_cm {
-        free[6] = false;
-        free[7] = false;
-        free[8] = false;
+        for j in model.cm_only() {
+            free[j] = false;
+        }
     }
-    let idx: Vec<usize> = (0..N_PARAMS).filter(|&j| free[j]).collect();
-    let names: Vec<&str> = idx.iter().map(|&j| PARAM_NAMES[j]).collect();
-    let mut th = start.to_array();
-    project(&mut th);
-    let (mut ss, n) = sums(&KirchhoffParams::from_array(&th), series)?;
+    let idx: Vec<usize> = (0..dim).filter(|&j| free[j]).collect();
+    let all_names = model.names();
+    let names: Vec<String> = idx.iter().map(|&j| all_names[j].clone()).collect();
+    let mut th = start.to_vec();
+    model.project(&mut th);
+    let (mut ss, n) = sums(model, &th, series)?;
     let mut j = cost_of(ss, n, with_cm);
     let mut lambda = 1e-3;
     let (mut iterations, mut converged) = (0, false);
-    while iterations < opts.max_iter {
+    while iterations < set.max_iter {
         iterations += 1;
         let nf = n as f64;
         let w = [
             nf / ss[0].max(1e-300),
             if with_cm { nf / ss[1].max(1e-300) } else { 0.0 },
         ];
-        let p = KirchhoffParams::from_array(&th);
-        let (m, g) = normal_equations(&p, series, &idx, w)?;
+        let (m, g) = normal_equations(model, &th, series, &idx, w)?;
         let np = idx.len();
         let d: Vec<f64> = (0..np).map(|i| m[(i, i)].max(1e-300)).collect();
         let mut accepted = false;
-        while iterations <= opts.max_iter {
+        while iterations <= set.max_iter {
             let a = DMatrix::from_fn(np, np, |r, c| {
                 m[(r, c)] + if r == c { lambda * d[r] } else { 0.0 }
             });
@@ -450,12 +530,12 @@ pub fn fit(series: &[Series<'_>], opts: &OeOptions) -> Result<OeFit> {
                     continue;
                 }
             };
-            let mut trial = th;
+            let mut trial = th.clone();
             for (k, &jx) in idx.iter().enumerate() {
                 trial[jx] += step[k];
             }
-            project(&mut trial);
-            let (ss_t, _) = sums(&KirchhoffParams::from_array(&trial), series)?;
+            model.project(&mut trial);
+            let (ss_t, _) = sums(model, &trial, series)?;
             let j_t = cost_of(ss_t, n, with_cm);
             if j_t.is_finite() && j_t <= j {
                 let dj = j - j_t;
@@ -470,7 +550,7 @@ pub fn fit(series: &[Series<'_>], opts: &OeOptions) -> Result<OeFit> {
                     .iter()
                     .enumerate()
                     .all(|(k, &jx)| step[k].abs() <= 1e-10 * (th[jx].abs() + 1e-10));
-                if dj < opts.tol || tiny {
+                if dj < set.tol || tiny {
                     converged = true;
                 }
                 break;
@@ -495,20 +575,19 @@ pub fn fit(series: &[Series<'_>], opts: &OeOptions) -> Result<OeFit> {
             message: "raise max_iter, or give start values closer to the solution".into(),
         });
     }
-    let params = KirchhoffParams::from_array(&th);
     let nf = n as f64;
     let r = [ss[0] / nf, if with_cm { ss[1] / nf } else { f64::NAN }];
     let w = [
         1.0 / r[0].max(1e-300),
         if with_cm { 1.0 / r[1].max(1e-300) } else { 0.0 },
     ];
-    let (m, _) = normal_equations(&params, series, &idx, w)?;
+    let (m, _) = normal_equations(model, &th, series, &idx, w)?;
     let minv = spd_inverse(&m, &names)?;
     // coloured-residual middle matrix, per maneuver and output
     let np = idx.len();
     let mut mid = DMatrix::<f64>::zeros(np, np);
     for s in series {
-        let o = outputs(&params, &s.inputs, true)?;
+        let o = model.outputs(&th, &s.inputs, true)?;
         // (measured, model, sensitivities, weight) per output
         type Output<'a> = (&'a [f64], &'a [f64], &'a [f64], f64);
         let outs: [Output<'_>; 2] = [
@@ -524,11 +603,11 @@ pub fn fit(series: &[Series<'_>], opts: &OeOptions) -> Result<OeFit> {
                 np,
                 |b, out| {
                     for (k, o) in out.iter_mut().enumerate() {
-                        *o = sens[k * N_PARAMS + idx[b]] * wo;
+                        *o = sens[k * dim + idx[b]] * wo;
                     }
                 },
                 &v,
-                opts.max_lag,
+                set.max_lag,
             )?;
             for a in 0..np {
                 for b in 0..np {
@@ -538,31 +617,187 @@ pub fn fit(series: &[Series<'_>], opts: &OeOptions) -> Result<OeFit> {
         }
     }
     let cc = &minv * mid * &minv;
-    let mut cov = vec![0.0; N_PARAMS * N_PARAMS];
-    let mut cov_c = vec![0.0; N_PARAMS * N_PARAMS];
-    let mut se = [f64::NAN; N_PARAMS];
-    let mut se_c = [f64::NAN; N_PARAMS];
+    let mut cov = vec![0.0; dim * dim];
+    let mut cov_c = vec![0.0; dim * dim];
+    let mut se = vec![f64::NAN; dim];
+    let mut se_c = vec![f64::NAN; dim];
     for (a, &ja) in idx.iter().enumerate() {
         for (b, &jb) in idx.iter().enumerate() {
-            cov[ja * N_PARAMS + jb] = minv[(a, b)];
-            cov_c[ja * N_PARAMS + jb] = cc[(a, b)];
+            cov[ja * dim + jb] = minv[(a, b)];
+            cov_c[ja * dim + jb] = cc[(a, b)];
         }
         se[ja] = minv[(a, a)].max(0.0).sqrt();
         se_c[ja] = cc[(a, a)].max(0.0).sqrt();
     }
-    Ok(OeFit {
-        params,
-        start,
+    Ok(EngineFit {
+        th,
         free,
-        std_err: se,
-        std_err_colored: se_c,
+        se,
+        se_c,
         cov,
-        cov_colored: cov_c,
+        cov_c,
         iterations,
         converged,
         cost: j,
         residual_var: r,
         n_samples: n,
+    })
+}
+
+/// Fit the Kirchhoff model to `series` by output error (module docs).
+///
+/// # Errors
+/// Invalid inputs (lengths, non-finite values, time not increasing), too little
+/// data for the start, a singular information matrix, or no convergence within
+/// [`OeOptions::max_iter`] ([`AeroError::NoConvergence`] with the last cost).
+pub fn fit(series: &[Series<'_>], opts: &OeOptions) -> Result<OeFit> {
+    let with_cm = check(series)?;
+    let start = match opts.start {
+        Some(p) => {
+            p.check()?;
+            p
+        }
+        None => equation_error_start(series)?,
+    };
+    let set = Settings {
+        max_iter: opts.max_iter,
+        tol: opts.tol,
+        max_lag: opts.max_lag,
+    };
+    let e = run(
+        &TanhForm,
+        series,
+        with_cm,
+        &start.to_array(),
+        &opts.fixed,
+        &set,
+    )?;
+    let arr = |v: &[f64]| {
+        let mut a = [0.0; N_PARAMS];
+        a.copy_from_slice(v);
+        a
+    };
+    let mut free = [false; N_PARAMS];
+    free.copy_from_slice(&e.free);
+    Ok(OeFit {
+        params: tanh_params(&e.th),
+        start,
+        free,
+        std_err: arr(&e.se),
+        std_err_colored: arr(&e.se_c),
+        cov: e.cov,
+        cov_colored: e.cov_c,
+        iterations: e.iterations,
+        converged: e.converged,
+        cost: e.cost,
+        residual_var: e.residual_var,
+        n_samples: e.n_samples,
+        n_maneuvers: series.len(),
+    })
+}
+
+/// Settings of [`fit_tabulated`].
+#[derive(Debug, Clone)]
+pub struct GkOptions {
+    /// Iteration bound. Default 60.
+    pub max_iter: usize,
+    /// Convergence tolerance on the cost, as [`OeOptions::tol`]. Default 1e-9.
+    pub tol: f64,
+    /// Parameters held at their start ([`GkParams::names`] order); empty: none.
+    pub fixed: Vec<bool>,
+    /// As [`OeOptions::max_lag`].
+    pub max_lag: Option<usize>,
+}
+
+impl Default for GkOptions {
+    fn default() -> Self {
+        GkOptions {
+            max_iter: 60,
+            tol: 1e-9,
+            fixed: Vec::new(),
+            max_lag: None,
+        }
+    }
+}
+
+/// The result of [`fit_tabulated`]: as [`OeFit`] over [`GkParams::names`].
+#[derive(Debug, Clone)]
+pub struct GkFit {
+    /// Estimates (the start's knots).
+    pub params: GkParams,
+    /// The start.
+    pub start: GkParams,
+    /// Which parameters were estimated.
+    pub free: Vec<bool>,
+    /// Cramér-Rao bounds, NaN for held parameters.
+    pub std_err: Vec<f64>,
+    /// The bounds corrected for coloured residuals, NaN for held parameters.
+    pub std_err_colored: Vec<f64>,
+    /// Row-major Cramér-Rao covariance (zeros for held parameters).
+    pub cov: Vec<f64>,
+    /// Row-major coloured-residual covariance.
+    pub cov_colored: Vec<f64>,
+    /// Iterations taken.
+    pub iterations: usize,
+    /// True when the cost change met the tolerance.
+    pub converged: bool,
+    /// Final cost `J`.
+    pub cost: f64,
+    /// Residual variance per output (C_L, C_m; C_m NaN when not fitted).
+    pub residual_var: [f64; 2],
+    /// Samples used.
+    pub n_samples: usize,
+    /// Maneuvers used.
+    pub n_maneuvers: usize,
+}
+
+/// Fit the tabulated (Goman-Khrabrov) form ([`crate::goman_khrabrov`]) by output
+/// error from `start` over its knots, with the engine of [`fit`] (same cost,
+/// iterations and bounds). The start is typically the tanh fit's curve
+/// tabulated on the knots, and the nodes of attached flow held at 1
+/// (`opts.fixed`): with them free the lift line `C_Lα` and the nodes trade off.
+///
+/// # Errors
+/// As [`fit`]; a start that fails [`GkParams::check`]; `fixed` of the wrong length.
+pub fn fit_tabulated(series: &[Series<'_>], start: &GkParams, opts: &GkOptions) -> Result<GkFit> {
+    let with_cm = check(series)?;
+    start.check()?;
+    let model = TableForm { template: start };
+    let dim = model.n_params();
+    let fixed = if opts.fixed.is_empty() {
+        vec![false; dim]
+    } else {
+        opts.fixed.clone()
+    };
+    if fixed.len() != dim {
+        return Err(AeroError::invalid(
+            "output-error fit (tabulated): fixed",
+            format!(
+                "has {} flags for {dim} parameters ({} scalar and one per knot)",
+                fixed.len(),
+                N_CORE
+            ),
+        ));
+    }
+    let set = Settings {
+        max_iter: opts.max_iter,
+        tol: opts.tol,
+        max_lag: opts.max_lag,
+    };
+    let e = run(&model, series, with_cm, &start.to_vec(), &fixed, &set)?;
+    Ok(GkFit {
+        params: start.with_vec(&e.th),
+        start: start.clone(),
+        free: e.free,
+        std_err: e.se,
+        std_err_colored: e.se_c,
+        cov: e.cov,
+        cov_colored: e.cov_c,
+        iterations: e.iterations,
+        converged: e.converged,
+        cost: e.cost,
+        residual_var: e.residual_var,
+        n_samples: e.n_samples,
         n_maneuvers: series.len(),
     })
 }
@@ -570,6 +805,7 @@ pub fn fit(series: &[Series<'_>], opts: &OeOptions) -> Result<OeFit> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::goman_khrabrov::{GkParams, N_CORE};
     use crate::kirchhoff::outputs;
     use crate::kirchhoff::tests::truth;
     use crate::sim::rng::Stream;
@@ -724,6 +960,172 @@ mod tests {
         assert_eq!(f.params.cm_x, p.cm_x); // not fitted: held at the start
         assert!(f.std_err[4].is_nan() && f.std_err[8].is_nan());
         assert!((f.params.tau2 - p.tau2).abs() < 1e-6);
+    }
+
+    /// A table truth: the tanh curve of [`truth`] every 1.5 deg, with a plateau
+    /// the tanh cannot follow (the nodes at 19.5-21 deg held at 0.55).
+    fn table_truth() -> GkParams {
+        let p = truth();
+        let knots: Vec<f64> = (0..8)
+            .map(|k| (12.0 + 1.5 * k as f64).to_radians())
+            .collect();
+        let values = knots
+            .iter()
+            .map(|&a| {
+                let d = a.to_degrees();
+                if (19.4..21.1).contains(&d) {
+                    0.55
+                } else {
+                    p.x0(a)
+                }
+            })
+            .collect();
+        GkParams {
+            tau1: p.tau1,
+            tau2: p.tau2,
+            cl_alpha: p.cl_alpha,
+            alpha0: p.alpha0,
+            cm0: p.cm0,
+            cm_alpha: p.cm_alpha,
+            cm_x: p.cm_x,
+            x0: crate::goman_khrabrov::X0Table::new(knots, values).unwrap(),
+        }
+    }
+
+    fn gk_data(g: &GkParams, ms: &[(Vec<f64>, Vec<f64>, Vec<f64>)]) -> Vec<(Vec<f64>, Vec<f64>)> {
+        ms.iter()
+            .map(|(t, a, ad)| {
+                let o = crate::goman_khrabrov::outputs(
+                    g,
+                    &Inputs {
+                        t,
+                        alpha: a,
+                        alpha_dot: ad,
+                    },
+                    false,
+                )
+                .unwrap();
+                (o.cl, o.cm)
+            })
+            .collect()
+    }
+
+    #[test]
+    fn tabulated_form_recovers_a_table_the_tanh_cannot_follow() {
+        let g = table_truth();
+        let ms = maneuvers(6, 7);
+        let ys = gk_data(&g, &ms);
+        let s = series(&ms, &ys);
+        // the tanh fit misses the plateau; the table started from it finds it
+        let tanh = fit(&s, &OeOptions::default()).unwrap();
+        let mut st = g.clone();
+        let tp = tanh.params;
+        let vals: Vec<f64> = g.x0.knots().iter().map(|&a| tp.x0(a)).collect();
+        st = st.with_vec(
+            &[
+                vec![
+                    tp.tau1,
+                    tp.tau2,
+                    tp.cl_alpha,
+                    tp.alpha0,
+                    tp.cm0,
+                    tp.cm_alpha,
+                    tp.cm_x,
+                ],
+                vals,
+            ]
+            .concat(),
+        );
+        // the first node is attached flow: held (it trades with CL_alpha)
+        let mut fixed = vec![false; st.to_vec().len()];
+        fixed[N_CORE] = true;
+        let mut st_vals = st.to_vec();
+        st_vals[N_CORE] = g.x0.values()[0];
+        let st = st.with_vec(&st_vals);
+        let f = fit_tabulated(
+            &s,
+            &st,
+            &GkOptions {
+                fixed,
+                max_iter: 200,
+                ..GkOptions::default()
+            },
+        )
+        .unwrap();
+        assert!(f.converged);
+        let (est, tru) = (f.params.to_vec(), g.to_vec());
+        let names = g.names();
+        for j in 0..est.len() {
+            assert!(
+                (est[j] - tru[j]).abs() <= 1e-5 * tru[j].abs().max(1e-2),
+                "{}: {} vs {}",
+                names[j],
+                est[j],
+                tru[j]
+            );
+        }
+        assert!(f.std_err[N_CORE].is_nan() && f.std_err[N_CORE + 1] > 0.0);
+        // the tanh form's residual is not noise: it could not follow the plateau
+        assert!(
+            tanh.residual_var[0].sqrt() > 1e-3,
+            "{:?}",
+            tanh.residual_var
+        );
+        // wrong length of fixed: refused
+        let bad = GkOptions {
+            fixed: vec![false; 3],
+            ..GkOptions::default()
+        };
+        assert!(fit_tabulated(&s, &st, &bad)
+            .unwrap_err()
+            .to_string()
+            .contains("fixed"));
+    }
+
+    #[test]
+    fn tabulated_bounds_cover_the_truth_on_noisy_histories() {
+        let g = table_truth();
+        let ms = maneuvers(8, 11);
+        let mut rng = Stream::new(3, 2);
+        let ys: Vec<(Vec<f64>, Vec<f64>)> = gk_data(&g, &ms)
+            .into_iter()
+            .map(|(cl, cm)| {
+                (
+                    cl.iter().map(|v| v + 0.02 * rng.normal()).collect(),
+                    cm.iter().map(|v| v + 0.006 * rng.normal()).collect(),
+                )
+            })
+            .collect();
+        let s = series(&ms, &ys);
+        let mut fixed = vec![false; N_CORE + g.x0.knots().len()];
+        fixed[N_CORE] = true;
+        let f = fit_tabulated(
+            &s,
+            &g,
+            &GkOptions {
+                fixed,
+                max_iter: 200,
+                ..GkOptions::default()
+            },
+        )
+        .unwrap();
+        let (est, tru) = (f.params.to_vec(), g.to_vec());
+        let names = g.names();
+        let mut outside = 0;
+        for j in 0..est.len() {
+            if !f.free[j] {
+                continue;
+            }
+            let ratio = f.std_err_colored[j] / f.std_err[j];
+            assert!((0.7..1.4).contains(&ratio), "{}: ratio {ratio}", names[j]);
+            // nodes at 0 or 1 sit on their bound: skip those
+            let on_bound = j >= N_CORE && (tru[j] < 0.01 || tru[j] > 0.99);
+            if !on_bound && (est[j] - tru[j]).abs() > 3.0 * f.std_err[j] {
+                outside += 1;
+            }
+        }
+        assert!(outside <= 1, "{outside} parameters outside 3 bounds");
+        assert!((f.residual_var[0].sqrt() - 0.02).abs() < 0.002);
     }
 
     #[test]
