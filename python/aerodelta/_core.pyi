@@ -366,6 +366,38 @@ def qualified_longitudinal_adx37(
     npt.NDArray[np.float64],
     npt.NDArray[np.float64],
 ]: ...
+def goman_khrabrov_core_names() -> list[str]: ...
+def goman_khrabrov_outputs(
+    core: dict[str, float],
+    knots: list[float],
+    values: list[float],
+    t: npt.NDArray[np.float64],
+    alpha: npt.NDArray[np.float64],
+    alpha_dot: npt.NDArray[np.float64],
+) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64], npt.NDArray[np.float64]]: ...
+def goman_khrabrov_static(
+    core: dict[str, float], knots: list[float], values: list[float], alpha: npt.NDArray[np.float64]
+) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64], npt.NDArray[np.float64]]: ...
+def goman_khrabrov_cl_max(
+    core: dict[str, float], knots: list[float], values: list[float]
+) -> tuple[float, float]: ...
+def goman_khrabrov_weights(
+    knots: list[float], alpha: npt.NDArray[np.float64]
+) -> npt.NDArray[np.float64]: ...
+def output_error_goman_khrabrov(
+    t: list[npt.NDArray[np.float64]],
+    alpha: list[npt.NDArray[np.float64]],
+    alpha_dot: list[npt.NDArray[np.float64]],
+    cl: list[npt.NDArray[np.float64]],
+    cm: list[npt.NDArray[np.float64]] | None,
+    core: dict[str, float],
+    knots: list[float],
+    values: list[float],
+    fixed: list[str] = ...,
+    max_iter: int = ...,
+    tol: float = ...,
+    max_lag: int | None = ...,
+) -> dict[str, Any]: ...
 def kirchhoff_param_names() -> list[str]: ...
 def kirchhoff_truth_params(flap_deg: float) -> dict[str, float]: ...
 def kirchhoff_truth_drag(flap_deg: float) -> dict[str, float]: ...

@@ -648,6 +648,57 @@ def _known(data: pl.DataFrame, known: str) -> tuple[FloatArray, FloatArray, Floa
     raise InvalidInputError(f"known '{known}': use 'adx37' (the built-in aircraft) or 'none'")
 
 
+def _prepared(
+    data: pl.DataFrame, maneuvers: Sequence[str] | None, known: str, fit_cm: bool
+) -> pl.DataFrame:
+    """The records to fit with the outputs less their known terms: ``_cl``, ``_cm``, ``_cd``."""
+    _check(data)
+    if fit_cm and "Cm_meas" not in data.columns:
+        raise DataError("records lack Cm_meas; run aerodelta.ingest, or pass fit_cm=False")
+    frame = data
+    if maneuvers is not None:
+        frame = frame.filter(pl.col("maneuver_id").is_in(list(maneuvers)))
+    rest_l, rest_m, rest_d = _known(frame, known)
+    cl = measured_lift(frame) - rest_l
+    cm = (_f64(frame, "Cm_meas") - rest_m) if fit_cm else np.zeros(frame.height)
+    return frame.with_columns(
+        pl.Series("_cl", cl),
+        pl.Series("_cm", cm),
+        pl.Series("_cd", measured_drag(frame) - rest_d),
+    )
+
+
+_Arrays = list[FloatArray]
+
+
+def _flap_records(
+    frame: pl.DataFrame, flap: float, all_flaps: Sequence[float]
+) -> tuple[_Arrays, _Arrays, _Arrays, _Arrays, _Arrays, _Arrays, list[str]]:
+    """Per maneuver of one flap (time order): t (s), alpha (rad), alpha-dot (rad/s), the
+    outputs ``_cl``, ``_cm``, ``_cd`` of :func:`_prepared`, and the ids (as a list)."""
+    sub = frame.filter(pl.col("flap_deg") == flap)
+    if sub.height == 0:
+        have = ", ".join(f"{f:g}" for f in all_flaps)
+        raise DataError(f"no records at flap {flap:g} deg; the data hold flaps {have}")
+    ts: _Arrays = []
+    al: _Arrays = []
+    ad: _Arrays = []
+    ls: _Arrays = []
+    ms: _Arrays = []
+    ds: _Arrays = []
+    ids: list[str] = []
+    for (mid,), grp in sub.group_by("maneuver_id", maintain_order=True):
+        g = grp.sort("t")
+        ts.append(_f64(g, "t"))
+        al.append(np.radians(_f64(g, "alpha_deg")))
+        ad.append(np.radians(_f64(g, "alphadot_dps")))
+        ls.append(_f64(g, "_cl"))
+        ms.append(_f64(g, "_cm"))
+        ds.append(_f64(g, "_cd"))
+        ids.append(str(mid))
+    return ts, al, ad, ls, ms, ds, ids
+
+
 def fit_kirchhoff(
     data: pl.DataFrame,
     *,
@@ -717,38 +768,12 @@ def fit_kirchhoff(
         From the engine, with the flap named (no convergence with tau1 or tau2 held by the
         caller, or of the static fit).
     """
-    _check(data)
-    if fit_cm and "Cm_meas" not in data.columns:
-        raise DataError("records lack Cm_meas; run aerodelta.ingest, or pass fit_cm=False")
-    frame = data
-    if maneuvers is not None:
-        frame = frame.filter(pl.col("maneuver_id").is_in(list(maneuvers)))
-    rest_l, rest_m, rest_d = _known(frame, known)
-    cl = measured_lift(frame) - rest_l
-    cm = (_f64(frame, "Cm_meas") - rest_m) if fit_cm else None
-    frame = frame.with_columns(
-        pl.Series("_cl", cl),
-        pl.Series("_cm", cm if cm is not None else np.zeros(frame.height)),
-        pl.Series("_cd", measured_drag(frame) - rest_d),
-    )
+    frame = _prepared(data, maneuvers, known, fit_cm)
     all_flaps = sorted({float(f) for f in frame["flap_deg"].unique().to_list()})
     wanted = all_flaps if flaps is None else [float(f) for f in flaps]
     fits: dict[float, FlapFit] = {}
     for flap in wanted:
-        sub = frame.filter(pl.col("flap_deg") == flap)
-        if sub.height == 0:
-            have = ", ".join(f"{f:g}" for f in all_flaps)
-            raise DataError(f"no records at flap {flap:g} deg; the data hold flaps {have}")
-        ts, al, ad, ls, ms, ds, ids = [], [], [], [], [], [], []
-        for (mid,), grp in sub.group_by("maneuver_id", maintain_order=True):
-            g = grp.sort("t")
-            ts.append(_f64(g, "t"))
-            al.append(np.radians(_f64(g, "alpha_deg")))
-            ad.append(np.radians(_f64(g, "alphadot_dps")))
-            ls.append(_f64(g, "_cl"))
-            ms.append(_f64(g, "_cm"))
-            ds.append(_f64(g, "_cd"))
-            ids.append(str(mid))
+        ts, al, ad, ls, ms, ds, ids = _flap_records(frame, flap, all_flaps)
         engine = functools.partial(
             _engine, ts, al, ad, ls, ms if fit_cm else None, tuple(ids), flap, max_lag
         )

@@ -9,17 +9,24 @@
 //!    C_L = C_{L\alpha} (\alpha - \alpha_0) \Bigl(\frac{1 + \sqrt x}{2}\Bigr)^2, \qquad
 //!    C_m = C_{m0} + C_{m\alpha}\,\alpha + C_{mx}\,(1 - x) $$
 //!
-//! `x₀` is piecewise linear between knots `α_0 < α_1 < … < α_{K−1}` (rad) with
-//! node values `v_k ∈ [0, 1]`, constant beyond the end knots (`v_0` below the
-//! first, `v_{K−1}` above the last). A static lift curve that the tanh cannot
-//! follow (a plateau, a second rise, a kink: a JSBSim lift table) is followed
-//! node by node, and the separation state keeps its lag and hysteresis.
+//! `x₀` is a uniform cubic B-spline on equally spaced knots `α_0 < … < α_{K−1}`
+//! (rad, spacing `h`) with coefficients `v_k ∈ [0, 1]`:
+//! `x₀(z) = Σ_k v_k B((z − α_k)/h)`, `B` the cardinal cubic B-spline, a missing
+//! neighbour beyond an end knot taking that end's coefficient, and `z` clamped
+//! to `[α_0, α_{K−1}]` (constant beyond the ends). The weights are a partition
+//! of unity, so `x₀` is a convex combination of the coefficients: it stays in
+//! `[0, 1]` and is 1 where they are. It is twice continuously differentiable
+//! inside the table (τ₂'s sensitivity, `−α̇ x₀'`, has no jumps; a piecewise
+//! linear table, tried first, put τ₁ and τ₂ up to 25 % off on the virtual
+//! aircraft's smooth truth at 1 deg spacing). A static lift curve that the tanh
+//! cannot follow (a plateau, a second rise: a JSBSim lift table) is followed
+//! coefficient by coefficient, and the state keeps its lag and hysteresis.
 //!
 //! Identified by output error ([`crate::output_error::fit_tabulated`]) on the
 //! parameter vector `[τ₁, τ₂, C_Lα, α₀, C_m0, C_mα, C_mx, v_0, …, v_{K−1}]`
 //! ([`GkParams::to_vec`]). The node values enter `x` linearly through the hat
-//! functions of the table, so their output sensitivities are a second forward
-//! recursion of the same discrete step as `τ₂`'s.
+//! weights, so their output sensitivities are a forward recursion of the same
+//! discrete step as `τ₂`'s.
 //!
 //! Where the lift line and the nodes trade off (a node below the stall and
 //! `C_Lα` both scale the lift), the fit holds the nodes of attached flow at 1
@@ -37,8 +44,9 @@ pub const CORE_NAMES: [&str; N_CORE] = [
     "tau1", "tau2", "CL_alpha", "alpha0", "Cm0", "Cm_alpha", "Cm_x",
 ];
 
-/// The static separation curve `x₀(α)`: piecewise linear between knots (rad),
-/// constant beyond the end knots.
+/// The static separation curve `x₀(α)`: a uniform cubic B-spline on equally
+/// spaced knots (rad) with coefficients in `[0, 1]`, constant beyond the end
+/// knots (module docs).
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct X0Table {
     knots: Vec<f64>,
@@ -46,8 +54,8 @@ pub struct X0Table {
 }
 
 impl X0Table {
-    /// A table of `knots` (rad, strictly increasing, at least two) and node
-    /// `values` (in `[0, 1]`).
+    /// A table of `knots` (rad, strictly increasing and equally spaced to 1e-9 of
+    /// the spacing, at least two) and coefficients `values` (in `[0, 1]`).
     ///
     /// # Errors
     /// [`AeroError::InvalidInput`] naming the first bad knot or value.
@@ -75,6 +83,20 @@ impl X0Table {
                 format!(
                     "({:.4} deg) is not above the one before; knots must increase strictly",
                     knots[k + 1].to_degrees()
+                ),
+            ));
+        }
+        let h = (knots[knots.len() - 1] - knots[0]) / (knots.len() - 1) as f64;
+        if let Some(k) =
+            (1..knots.len()).find(|&k| ((knots[k] - knots[0]) - h * k as f64).abs() > 1e-9 * h)
+        {
+            return Err(AeroError::invalid(
+                format!("{place}: knot {k}"),
+                format!(
+                    "({:.4} deg) is off the uniform spacing of {:.4} deg; the spline's knots \
+                     must be equally spaced",
+                    knots[k].to_degrees(),
+                    h.to_degrees()
                 ),
             ));
         }
@@ -110,36 +132,67 @@ impl X0Table {
         &self.values
     }
 
-    /// Where `z` (rad) falls: `(k, w, slope)` with `x₀(z) = (1 − w) v_k + w v_{k+1}`
-    /// and `slope` = ∂w/∂z (0 beyond the end knots, where `w` is 0 or 1).
+    /// The spline's weights at `z` (rad): the four coefficients' indices, their
+    /// weights, and the weights' derivatives in `z` (1/rad; zero beyond the ends,
+    /// where `z` is clamped). Indices beyond an end are that end's.
     #[inline]
-    fn locate(&self, z: f64) -> (usize, f64, f64) {
+    fn basis(&self, z: f64) -> ([usize; 4], [f64; 4], [f64; 4]) {
         let n = self.knots.len();
-        if z <= self.knots[0] {
-            return (0, 0.0, 0.0);
+        let h = (self.knots[n - 1] - self.knots[0]) / (n - 1) as f64;
+        let s = (z - self.knots[0]) / h;
+        let inside = s > 0.0 && s < (n - 1) as f64;
+        let sc = s.clamp(0.0, (n - 1) as f64);
+        let i = (sc.floor() as usize).min(n - 2);
+        let u = sc - i as f64;
+        let (u2, u3) = (u * u, u * u * u);
+        let v = 1.0 - u;
+        let w = [
+            v * v * v / 6.0,
+            (3.0 * u3 - 6.0 * u2 + 4.0) / 6.0,
+            (-3.0 * u3 + 3.0 * u2 + 3.0 * u + 1.0) / 6.0,
+            u3 / 6.0,
+        ];
+        let dw = if inside {
+            [
+                -0.5 * v * v / h,
+                (1.5 * u2 - 2.0 * u) / h,
+                (-1.5 * u2 + u + 0.5) / h,
+                0.5 * u2 / h,
+            ]
+        } else {
+            [0.0; 4]
+        };
+        let idx = [i.saturating_sub(1), i, i + 1, (i + 2).min(n - 1)];
+        (idx, w, dw)
+    }
+
+    /// The weight of each coefficient in `x₀(z)` (length K; four at most are
+    /// non-zero): `∂x₀(z)/∂v_k`.
+    pub fn weights(&self, z: f64) -> Vec<f64> {
+        let (idx, w, _) = self.basis(z);
+        let mut out = vec![0.0; self.knots.len()];
+        for j in 0..4 {
+            out[idx[j]] += w[j];
         }
-        if z >= self.knots[n - 1] {
-            return (n - 2, 1.0, 0.0);
-        }
-        // first knot above z; 1..n-1
-        let k = self.knots.partition_point(|&a| a <= z).clamp(1, n - 1) - 1;
-        let span = self.knots[k + 1] - self.knots[k];
-        ((k), (z - self.knots[k]) / span, 1.0 / span)
+        out
     }
 
     /// `x₀(z)`, z in rad.
     ///
     /// ```
     /// use aero_core::goman_khrabrov::X0Table;
-    /// let t = X0Table::new(vec![0.2, 0.3], vec![1.0, 0.2]).unwrap();
-    /// assert_eq!(t.eval(0.1), 1.0);
-    /// assert!((t.eval(0.25) - 0.6).abs() < 1e-15);
-    /// assert_eq!(t.eval(0.5), 0.2);
+    /// // all coefficients 1: attached everywhere (the weights sum to 1)
+    /// let t = X0Table::new(vec![0.1, 0.2, 0.3], vec![1.0; 3]).unwrap();
+    /// assert!((t.eval(0.17) - 1.0).abs() < 1e-15);
+    /// // a convex combination of the coefficients, constant beyond the ends
+    /// let t = X0Table::new(vec![0.1, 0.2, 0.3, 0.4], vec![1.0, 0.8, 0.3, 0.1]).unwrap();
+    /// assert!((0.1..=1.0).contains(&t.eval(0.25)));
+    /// assert_eq!(t.eval(0.5), t.eval(0.4));
     /// ```
     #[inline]
     pub fn eval(&self, z: f64) -> f64 {
-        let (k, w, _) = self.locate(z);
-        (1.0 - w) * self.values[k] + w * self.values[k + 1]
+        let (idx, w, _) = self.basis(z);
+        (0..4).map(|j| w[j] * self.values[idx[j]]).sum()
     }
 }
 
@@ -262,9 +315,8 @@ impl GkParams {
     }
 
     /// The maximum of the static lift curve over `[α₀ + 0.01, last knot]`:
-    /// `(α at C_L,max [rad], C_L,max)`. The curve is smooth between knots, so it
-    /// is scanned at 0.01 deg and refined by golden section around the best
-    /// point. With a maximum at the last knot the curve rises past the table
+    /// `(α at C_L,max [rad], C_L,max)`: scanned at 0.01 deg and refined by golden
+    /// section around the best point. With a maximum at the last knot the curve rises past the table
     /// (the lift line with the last node): the maximum is not in the data.
     pub fn cl_max(&self) -> (f64, f64) {
         let lo = self.alpha0 + 0.01;
@@ -326,24 +378,29 @@ pub fn outputs(p: &GkParams, inp: &Inputs<'_>, sensitivities: bool) -> Result<Ou
     if n == 0 {
         return Ok(o);
     }
-    // the input u, its derivative in τ₂, and where it sits in the table
-    let u_of = |k: usize| -> (f64, f64, usize, f64) {
+    // the input u, its derivative in τ₂, and its spline weights
+    type Basis = ([usize; 4], [f64; 4]);
+    let u_of = |k: usize| -> (f64, f64, Basis) {
         let z = inp.alpha[k] - p.tau2 * inp.alpha_dot[k];
-        let (j, w, dw) = p.x0.locate(z);
-        let (v0, v1) = (p.x0.values[j], p.x0.values[j + 1]);
-        let u = (1.0 - w) * v0 + w * v1;
-        (u, -(v1 - v0) * dw * inp.alpha_dot[k], j, w)
+        let (idx, w, dw) = p.x0.basis(z);
+        let (mut u, mut du) = (0.0, 0.0);
+        for j in 0..4 {
+            u += w[j] * p.x0.values[idx[j]];
+            du += dw[j] * p.x0.values[idx[j]];
+        }
+        (u, -du * inp.alpha_dot[k], (idx, w))
     };
     // state sensitivities: [τ₁, τ₂, v_0..v_{K-1}]
     let ns = 2 + nk;
     let mut sx = vec![0.0; ns];
     let mut sn = vec![0.0; ns];
-    let (mut u0, mut du0_t2, mut j0, mut w0) = u_of(0);
+    let (mut u0, mut du0_t2, mut b0) = u_of(0);
     let mut x = u0;
     if sensitivities {
         sx[1] = du0_t2;
-        sx[2 + j0] += 1.0 - w0;
-        sx[2 + j0 + 1] += w0;
+        for j in 0..4 {
+            sx[2 + b0.0[j]] += b0.1[j];
+        }
     }
     let emit = |k: usize, x: f64, sx: &[f64], o: &mut Outputs| {
         let a = inp.alpha[k];
@@ -372,7 +429,7 @@ pub fn outputs(p: &GkParams, inp: &Inputs<'_>, sensitivities: bool) -> Result<Ou
     };
     emit(0, x, &sx, &mut o);
     for k in 0..n - 1 {
-        let (u1, du1_t2, j1, w1) = u_of(k + 1);
+        let (u1, du1_t2, b1) = u_of(k + 1);
         let h = inp.t[k + 1] - inp.t[k];
         let ([e, c0, g], [de, dc0, dg]) = foh_weights(h, p.tau1);
         let xn = e * x + c0 * u0 + g * u1;
@@ -382,14 +439,14 @@ pub fn outputs(p: &GkParams, inp: &Inputs<'_>, sensitivities: bool) -> Result<Ou
             for (s, &v) in sn[2..].iter_mut().zip(&sx[2..]) {
                 *s = e * v;
             }
-            sn[2 + j0] += c0 * (1.0 - w0);
-            sn[2 + j0 + 1] += c0 * w0;
-            sn[2 + j1] += g * (1.0 - w1);
-            sn[2 + j1 + 1] += g * w1;
+            for j in 0..4 {
+                sn[2 + b0.0[j]] += c0 * b0.1[j];
+                sn[2 + b1.0[j]] += g * b1.1[j];
+            }
             std::mem::swap(&mut sx, &mut sn);
         }
         x = xn;
-        (u0, du0_t2, j0, w0) = (u1, du1_t2, j1, w1);
+        (u0, du0_t2, b0) = (u1, du1_t2, b1);
         emit(k + 1, x, &sx, &mut o);
     }
     Ok(o)
@@ -459,8 +516,8 @@ mod tests {
             .zip(&og.cl)
             .map(|(a, b)| (a - b).abs())
             .fold(0.0, f64::max);
-        // linear interpolation of tanh(a1 z) at 0.05 deg: error <= h^2/8 max|x0''| ~ 1e-4
-        assert!(worst < 2e-4, "{worst}");
+        // the spline with the curve's values as coefficients: error ~ h^2/6 max|x0''| ~ 1e-5
+        assert!(worst < 1e-4, "{worst}");
         // a held alpha is a fixed point: the static solution is x0
         let al = vec![0.33; 50];
         let z = vec![0.0; 50];
@@ -530,6 +587,8 @@ mod tests {
         let e = X0Table::new(vec![0.1, 0.2], vec![1.0, 1.5]).unwrap_err();
         assert!(e.to_string().contains("knot 1"), "{e}");
         assert!(X0Table::new(vec![0.1], vec![1.0]).is_err());
+        let e = X0Table::new(vec![0.1, 0.2, 0.35], vec![1.0; 3]).unwrap_err();
+        assert!(e.to_string().contains("uniform spacing"), "{e}");
         let mut g = tabulated(&truth(), 10.0, 20.0, 5.0);
         g.tau1 = 0.0;
         assert!(g.check().unwrap_err().to_string().contains("tau1"));

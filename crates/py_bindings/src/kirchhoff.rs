@@ -24,7 +24,7 @@ type Array<'py> = Bound<'py, PyArray1<f64>>;
 type Matrix<'py> = Bound<'py, PyArray2<f64>>;
 
 /// The values of argument `arg` in `names` order; a missing name is refused.
-fn named<const N: usize>(
+pub(crate) fn named<const N: usize>(
     d: &HashMap<String, f64>,
     names: [&str; N],
     arg: &str,
@@ -42,7 +42,7 @@ fn named<const N: usize>(
 }
 
 /// `names` -> `values` as a dict.
-fn dict_of<const N: usize>(names: [&str; N], values: [f64; N]) -> HashMap<String, f64> {
+pub(crate) fn dict_of<const N: usize>(names: [&str; N], values: [f64; N]) -> HashMap<String, f64> {
     names
         .iter()
         .zip(values)
@@ -59,7 +59,17 @@ fn params_dict(p: &KirchhoffParams) -> HashMap<String, f64> {
 }
 
 fn matrix<'py>(py: Python<'py>, v: Vec<f64>, rows: usize) -> PyResult<Matrix<'py>> {
-    Array2::from_shape_vec((rows, N_PARAMS), v)
+    matrix_of(py, v, rows, N_PARAMS)
+}
+
+/// A row-major `rows × cols` matrix as a numpy array.
+pub(crate) fn matrix_of<'py>(
+    py: Python<'py>,
+    v: Vec<f64>,
+    rows: usize,
+    cols: usize,
+) -> PyResult<Matrix<'py>> {
+    Array2::from_shape_vec((rows, cols), v)
         .map(|a| a.into_pyarray(py))
         .map_err(|e| to_py(AeroError::invalid("matrix", e.to_string())))
 }
@@ -206,6 +216,45 @@ fn kirchhoff_drag_point<'py>(
     Ok(cd.into_pyarray(py))
 }
 
+/// One [`Series`] per maneuver from the per-maneuver arrays (the lists must be equally long).
+pub(crate) fn series_of<'a, 'py>(
+    t: &'a [PyReadonlyArray1<'py, f64>],
+    alpha: &'a [PyReadonlyArray1<'py, f64>],
+    alpha_dot: &'a [PyReadonlyArray1<'py, f64>],
+    cl: &'a [PyReadonlyArray1<'py, f64>],
+    cm: Option<&'a [PyReadonlyArray1<'py, f64>]>,
+) -> PyResult<Vec<Series<'a>>> {
+    let k = t.len();
+    let counts = [
+        alpha.len(),
+        alpha_dot.len(),
+        cl.len(),
+        cm.map_or(k, <[_]>::len),
+    ];
+    if counts.iter().any(|&c| c != k) {
+        return Err(to_py(AeroError::invalid(
+            "output-error fit",
+            format!("give one array per maneuver in every list (t has {k}, others {counts:?})"),
+        )));
+    }
+    let mut series = Vec::with_capacity(k);
+    for i in 0..k {
+        series.push(Series {
+            inputs: Inputs {
+                t: t[i].as_slice()?,
+                alpha: alpha[i].as_slice()?,
+                alpha_dot: alpha_dot[i].as_slice()?,
+            },
+            cl: cl[i].as_slice()?,
+            cm: match cm {
+                Some(c) => Some(c[i].as_slice()?),
+                None => None,
+            },
+        });
+    }
+    Ok(series)
+}
+
 /// Output-error fit over maneuvers; returns a dict of plain values.
 #[pyfunction]
 #[pyo3(signature = (t, alpha, alpha_dot, cl, cm=None, start=None, fixed=Vec::new(), max_iter=60, tol=1e-9, max_lag=None))]
@@ -223,19 +272,6 @@ fn output_error_kirchhoff<'py>(
     tol: f64,
     max_lag: Option<usize>,
 ) -> PyResult<Bound<'py, PyDict>> {
-    let k = t.len();
-    let counts = [
-        alpha.len(),
-        alpha_dot.len(),
-        cl.len(),
-        cm.as_ref().map_or(k, Vec::len),
-    ];
-    if counts.iter().any(|&c| c != k) {
-        return Err(to_py(AeroError::invalid(
-            "output-error fit",
-            format!("give one array per maneuver in every list (t has {k}, others {counts:?})"),
-        )));
-    }
     let start = start.map(|d| params_from(&d, "start")).transpose()?;
     let mut fx = [false; N_PARAMS];
     for name in &fixed {
@@ -250,21 +286,7 @@ fn output_error_kirchhoff<'py>(
         })?;
         fx[j] = true;
     }
-    let mut series = Vec::with_capacity(k);
-    for i in 0..k {
-        series.push(Series {
-            inputs: Inputs {
-                t: t[i].as_slice()?,
-                alpha: alpha[i].as_slice()?,
-                alpha_dot: alpha_dot[i].as_slice()?,
-            },
-            cl: cl[i].as_slice()?,
-            cm: match &cm {
-                Some(c) => Some(c[i].as_slice()?),
-                None => None,
-            },
-        });
-    }
+    let series = series_of(&t, &alpha, &alpha_dot, &cl, cm.as_deref())?;
     let opts = OeOptions {
         max_iter,
         tol,

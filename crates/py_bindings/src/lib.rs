@@ -9,6 +9,7 @@ mod chain;
 mod daveml;
 mod delta_model;
 mod error;
+mod goman_khrabrov;
 mod hatcv;
 mod identify;
 mod kirchhoff;
@@ -29,6 +30,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     table::register(m)?;
     identify::register(m)?;
     chain::register(m)?;
+    goman_khrabrov::register(m)?;
     kirchhoff::register(m)?;
     delta_model::register(m)?;
     spline::register(m)?;

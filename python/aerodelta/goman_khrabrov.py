@@ -1,0 +1,470 @@
+"""The longitudinal stall with a tabulated static separation curve (the Goman-Khrabrov form),
+identified by output error (``docs/longitudinal.md``, "The Goman-Khrabrov form").
+
+The separation dynamics are those of :mod:`aerodelta.longitudinal`,
+``tau1 x' + x = x0(alpha - tau2 alpha')``, with Kirchhoff's lift
+``CL_alpha (alpha - alpha0) ((1 + sqrt(x)) / 2)**2`` and the pitching moment
+``Cm0 + Cm_alpha alpha + Cm_x (1 - x)``; but ``x0(alpha)`` is a table, piecewise linear
+between knots, instead of Fischenberg's ``(1 - tanh(a1 (alpha - alpha*))) / 2`` (Goman &
+Khrabrov, J. Aircraft 31(5), 1994: the static separation curve is whatever the static lift
+curve says). A lift curve the tanh cannot follow (a plateau, a second rise: JSBSim's
+piecewise-linear tables) is followed node by node, and the state keeps its lag and hysteresis.
+
+:func:`fit_goman_khrabrov` starts from the tanh fit (:func:`aerodelta.longitudinal.
+fit_kirchhoff`) of the same flap and records, holds its attached-flow lift line (``CL_alpha``,
+``alpha0``: with every node free, the line and the nodes trade off), and fits tau1, tau2, the
+node values and the pitching moment with the same engine (``aero_core::output_error``: same
+cost, iterations, Cramér-Rao and coloured-residual bounds).
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+import re
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+import polars as pl
+
+from aerodelta import _core
+from aerodelta.exceptions import AerodeltaError, InvalidInputError, TooLittleDataError
+from aerodelta.longitudinal import (
+    TAU1_MIN_S,
+    FlapFit,
+    FloatArray,
+    KirchhoffResult,
+    _check,
+    _f64,
+    _flap_records,
+    _known,
+    _maneuver_name,
+    _prepared,
+    fit_kirchhoff,
+)
+
+#: The scalar parameters in the engine's order (the node values ``x0[k]`` follow).
+CORE_PARAMS: tuple[str, ...] = tuple(_core.goman_khrabrov_core_names())
+
+#: Units of the scalar parameters (engine units).
+CORE_UNITS: dict[str, str] = {
+    "tau1": "s", "tau2": "s", "CL_alpha": "1/rad", "alpha0": "rad", "Cm0": "-",
+    "Cm_alpha": "1/rad", "Cm_x": "-",
+}  # fmt: skip
+
+#: Held at the tanh fit's values: the attached-flow lift line (the nodes carry the rest).
+HELD_LINE = ("CL_alpha", "alpha0")
+
+#: The separation point of the tanh start at which the table begins (its first node, held at
+#: 1: the lift there is within 0.05 % of the attached line).
+ATTACHED_X = 0.999
+
+
+@dataclass(frozen=True)
+class GkFlapFit:
+    """The output-error fit of the tabulated form at one flap setting.
+
+    Attributes
+    ----------
+    flap_deg
+        Flap, deg.
+    params, start
+        Scalar estimates and their start (the tanh fit's), by name (units: :data:`CORE_UNITS`).
+    knots_deg
+        The table's knots, deg (alpha of the static separation curve).
+    x0, x0_start
+        Node values (separation point, 0-1) and their start (the tanh curve at the knots).
+    std_err, std_err_colored
+        Cramér-Rao bounds and the bounds corrected for coloured residuals of the scalar
+        parameters (NaN: held, e.g. ``CL_alpha``, ``alpha0``; tau1, tau2 on static data).
+    x0_std_err, x0_std_err_colored
+        The same for the node values.
+    cov, cov_colored
+        Covariances over ``names`` (zeros where held).
+    names
+        ``CORE_PARAMS`` then ``x0[0]``, ``x0[1]``, ...
+    iterations, converged, n_samples, n_maneuvers, cost
+        As :class:`aerodelta.longitudinal.FlapFit`.
+    residual_std
+        Residual standard deviation of C_L and C_m (NaN when C_m was not fitted).
+    maneuvers
+        The maneuver ids fitted.
+    tanh
+        The tanh fit it started from (its ``cost`` against this one's says what the table
+        gained on the same records).
+    tau_identified, note
+        As the tanh fit's: on static records tau1, tau2 stay held at the engine's bounds.
+    """
+
+    flap_deg: float
+    params: dict[str, float]
+    start: dict[str, float]
+    knots_deg: FloatArray
+    x0: FloatArray
+    x0_start: FloatArray
+    std_err: dict[str, float]
+    std_err_colored: dict[str, float]
+    x0_std_err: FloatArray
+    x0_std_err_colored: FloatArray
+    cov: FloatArray
+    cov_colored: FloatArray
+    names: tuple[str, ...]
+    iterations: int
+    converged: bool
+    n_samples: int
+    n_maneuvers: int
+    cost: float
+    residual_std: tuple[float, float]
+    maneuvers: tuple[str, ...]
+    tanh: FlapFit
+    tau_identified: bool = True
+    note: str = ""
+
+    def _table(self) -> tuple[dict[str, float], list[float], list[float]]:
+        return self.params, np.radians(self.knots_deg).tolist(), self.x0.tolist()
+
+    @property
+    def cl_max(self) -> tuple[float, float]:
+        """``(alpha at C_L,max [deg], C_L,max)`` of the static lift curve over the table. A
+        maximum at the last knot means the curve still rises where the data end."""
+        a, c = _core.goman_khrabrov_cl_max(*self._table())
+        return math.degrees(a), c
+
+    def static_curve(self, alpha_deg: Sequence[float] | FloatArray) -> pl.DataFrame:
+        """The static curves (``x = x0(alpha)``) at ``alpha_deg`` (deg), with delta-method
+        standard errors from the coloured-residual covariance.
+
+        Returns
+        -------
+        polars.DataFrame
+            ``alpha_deg``, ``x0``, ``CL``, ``Cm``, ``CL_se``, ``Cm_se`` (C_L and C_m the
+            static-curve parts, as fitted).
+        """
+        a_deg = np.asarray(alpha_deg, dtype=np.float64)
+        a = np.radians(a_deg)
+        p, knots, values = self._table()
+        x0, cl, cm = _core.goman_khrabrov_static(p, knots, values, a)
+        # d x0 / d coefficient: the spline's weights at each alpha
+        hat = _core.goman_khrabrov_weights(knots, a)
+        sq = np.sqrt(np.maximum(x0, 1e-12))
+        dcl_dx = p["CL_alpha"] * (a - p["alpha0"]) * (1.0 + sq) / (4.0 * sq)
+        nc = len(CORE_PARAMS)
+        g_cl = np.zeros((len(a), nc + len(knots)))
+        g_cm = np.zeros_like(g_cl)
+        g_cl[:, nc:] = dcl_dx[:, None] * hat
+        ci = {n: k for k, n in enumerate(CORE_PARAMS)}
+        g_cl[:, ci["CL_alpha"]] = (a - p["alpha0"]) * ((1.0 + sq) / 2.0) ** 2
+        g_cl[:, ci["alpha0"]] = -p["CL_alpha"] * ((1.0 + sq) / 2.0) ** 2
+        g_cm[:, ci["Cm0"]] = 1.0
+        g_cm[:, ci["Cm_alpha"]] = a
+        g_cm[:, ci["Cm_x"]] = 1.0 - x0
+        g_cm[:, nc:] = -p["Cm_x"] * hat
+        cov = self.cov_colored
+        return pl.DataFrame(
+            {
+                "alpha_deg": a_deg,
+                "x0": x0,
+                "CL": cl,
+                "Cm": cm,
+                "CL_se": np.sqrt(np.maximum(((g_cl @ cov) * g_cl).sum(axis=1), 0.0)),
+                "Cm_se": np.sqrt(np.maximum(((g_cm @ cov) * g_cm).sum(axis=1), 0.0)),
+            }
+        )
+
+
+@dataclass(frozen=True)
+class GomanKhrabrovResult:
+    """What :func:`fit_goman_khrabrov` returns: one :class:`GkFlapFit` per flap, whether C_m
+    was fitted, and ``known`` (the terms taken off the measured coefficients)."""
+
+    fits: dict[float, GkFlapFit]
+    fit_cm: bool
+    known: str = "adx37"
+
+    @property
+    def notes(self) -> dict[float, str]:
+        """flap (deg) -> the fit's note, for the flaps that have one."""
+        return {f: ff.note for f, ff in sorted(self.fits.items()) if ff.note}
+
+    def __getitem__(self, flap_deg: float) -> GkFlapFit:
+        """The fit of one flap setting (deg)."""
+        try:
+            return self.fits[float(flap_deg)]
+        except KeyError:
+            have = ", ".join(f"{f:g}" for f in sorted(self.fits))
+            raise InvalidInputError(f"no fit at flap {flap_deg:g} deg; fitted: {have}") from None
+
+    def summary(self) -> pl.DataFrame:
+        """One row per flap and parameter: ``flap_deg, parameter, unit, alpha_deg, estimate,
+        std_err, std_err_colored, start`` (``alpha_deg`` the knot of a node ``x0[k]``, NaN for
+        the scalars), then ``alpha_cl_max_deg`` and ``cl_max`` of the static curve and the
+        tanh fit's and this fit's ``cost`` (``start`` holds the tanh fit's value)."""
+        rows: list[dict[str, Any]] = []
+        nan = math.nan
+        for f in sorted(self.fits):
+            ff = self.fits[f]
+            for n in CORE_PARAMS:
+                rows.append(
+                    {
+                        "flap_deg": f, "parameter": n, "unit": CORE_UNITS[n], "alpha_deg": nan,
+                        "estimate": ff.params[n], "std_err": ff.std_err[n],
+                        "std_err_colored": ff.std_err_colored[n], "start": ff.start[n],
+                    }
+                )  # fmt: skip
+            for k, a in enumerate(ff.knots_deg):
+                rows.append(
+                    {
+                        "flap_deg": f, "parameter": f"x0[{k}]", "unit": "-",
+                        "alpha_deg": float(a), "estimate": float(ff.x0[k]),
+                        "std_err": float(ff.x0_std_err[k]),
+                        "std_err_colored": float(ff.x0_std_err_colored[k]),
+                        "start": float(ff.x0_start[k]),
+                    }
+                )  # fmt: skip
+            a_max, c_max = ff.cl_max
+            t_a, t_c = ff.tanh.cl_max
+            for name, unit, est, st in (
+                ("alpha_cl_max_deg", "deg", a_max, t_a),
+                ("cl_max", "-", c_max, t_c),
+                ("cost", "-", ff.cost, ff.tanh.cost),
+            ):
+                rows.append(
+                    {
+                        "flap_deg": f, "parameter": name, "unit": unit, "alpha_deg": nan,
+                        "estimate": est, "std_err": nan, "std_err_colored": nan, "start": st,
+                    }
+                )  # fmt: skip
+        return pl.DataFrame(rows, infer_schema_length=None)
+
+    def predict(self, data: pl.DataFrame, known: str | None = None) -> pl.DataFrame:
+        """The model's C_L and C_m along records (each maneuver integrated from its start).
+
+        Parameters
+        ----------
+        data
+            A :func:`aerodelta.fit.model_frame` of ingested records at fitted flap settings.
+        known
+            ``"adx37"``: add the built-in qualified model's control, rate and thrust terms;
+            ``"none"``: the static-curve parts alone. Default: the basis of the fit.
+
+        Returns
+        -------
+        polars.DataFrame
+            ``x_sep``, ``CL_model``, ``Cm_model``, one row per input row (in input order).
+        """
+        _check(data)
+        rest_l, rest_m, _ = _known(data, self.known if known is None else known)
+        n = data.height
+        x, cl, cm = np.full(n, np.nan), np.full(n, np.nan), np.full(n, np.nan)
+        idx = data.with_row_index("_row")
+        for _, g in idx.group_by("maneuver_id", maintain_order=True):
+            ff = self[float(g["flap_deg"][0])]
+            rows = g["_row"].to_numpy()
+            xs, ls, ms = _core.goman_khrabrov_outputs(
+                *ff._table(),
+                _f64(g, "t"),
+                np.radians(_f64(g, "alpha_deg")),
+                np.radians(_f64(g, "alphadot_dps")),
+            )
+            x[rows], cl[rows], cm[rows] = xs, ls, ms
+        return pl.DataFrame({"x_sep": x, "CL_model": cl + rest_l, "Cm_model": cm + rest_m})
+
+
+def knots_for(
+    alpha_deg: FloatArray, spacing_deg: float, first_deg: float, min_samples: int
+) -> tuple[FloatArray, npt.NDArray[np.bool_]]:
+    """The table's knots (deg) and which coefficients are free.
+
+    Knots are the multiples of ``spacing_deg`` from ``first_deg`` (rounded down; or from the
+    lowest flown alpha, rounded down, when that is higher) to the first at or above the largest
+    flown alpha, so the table spans the data. A coefficient is free
+    when its support (the knot +- two spacings: the cubic B-spline's) holds at least
+    ``min_samples`` samples; the others stay at their start.
+
+    Raises
+    ------
+    TooLittleDataError
+        Fewer than three knots, or fewer than two free coefficients.
+    """
+    a = np.sort(np.asarray(alpha_deg, dtype=np.float64))
+    lo = math.floor(max(first_deg, a[0]) / spacing_deg) * spacing_deg
+    top = math.ceil(a[-1] / spacing_deg) * spacing_deg
+    if top - lo < 2 * spacing_deg - 1e-9:
+        raise TooLittleDataError(
+            f"the records reach alpha {a[-1]:.1f} deg, less than two {spacing_deg:g}-deg "
+            f"knots past {lo:g} deg (where the tanh fit's separation begins): fly through the "
+            "stall, or narrow the spacing"
+        )
+    grid = lo + spacing_deg * np.arange(round((top - lo) / spacing_deg) + 1)
+    h2 = 2.0 * spacing_deg
+    count = np.searchsorted(a, grid + h2) - np.searchsorted(a, grid - h2)
+    free = count >= min_samples
+    if int(free.sum()) < 2:
+        raise TooLittleDataError(
+            f"{int(free.sum())} of {grid.size} knots from {lo:g} deg hold {min_samples} samples "
+            "within two spacings; the table needs at least 2 free: fly deeper into the stall, "
+            "widen the spacing or lower min_knot_samples"
+        )
+    return np.asarray(grid, dtype=np.float64), free
+
+
+def fit_goman_khrabrov(
+    data: pl.DataFrame,
+    *,
+    start: KirchhoffResult | None = None,
+    flaps: Sequence[float] | None = None,
+    maneuvers: Sequence[str] | None = None,
+    fit_cm: bool = True,
+    known: str = "adx37",
+    knot_spacing_deg: float = 1.0,
+    min_knot_samples: int = 50,
+    max_iter: int = 100,
+    max_lag: int | None = None,
+) -> GomanKhrabrovResult:
+    """Fit the tabulated (Goman-Khrabrov) form by output error, one flap setting at a time.
+
+    Parameters
+    ----------
+    data
+        A :func:`aerodelta.fit.model_frame` of ingested records, as
+        :func:`aerodelta.longitudinal.fit_kirchhoff`.
+    start
+        The tanh fit of the same records (``fit_kirchhoff(data, flaps=..., maneuvers=...,
+        known=...)``) to start from; default: fitted here (without drag). Refused when it was
+        fitted on other maneuvers or another ``known``.
+    flaps, maneuvers, fit_cm, known, max_lag
+        As :func:`aerodelta.longitudinal.fit_kirchhoff`.
+    knot_spacing_deg
+        Spacing of the table's knots, deg (:func:`knots_for`).
+    min_knot_samples
+        Samples each knot's support (+- one spacing) must hold; the table spans the run of
+        such knots.
+    max_iter
+        Iteration bound of the Levenberg-Marquardt loop.
+
+    Returns
+    -------
+    GomanKhrabrovResult
+
+    Notes
+    -----
+    The tanh fit's lift line ``CL_alpha``, ``alpha0`` is held (:data:`HELD_LINE`): with every
+    node free the line and the nodes trade off. tau1, tau2, the nodes (bounded to [0, 1]) and
+    ``Cm0``, ``Cm_alpha``, ``Cm_x`` are estimated; where the tanh fit found no separation lag
+    (``tau_identified`` False: static records) tau1, tau2 stay held at the engine's bounds and
+    the note says so.
+
+    Raises
+    ------
+    InvalidInputError
+        A ``start`` fitted on other maneuvers, flaps or basis.
+    TooLittleDataError, NoConvergenceError
+        Too few knots with data, or from the engine, with the flap named.
+    """
+    if knot_spacing_deg <= 0 or not math.isfinite(knot_spacing_deg):
+        raise InvalidInputError(f"knot_spacing_deg is {knot_spacing_deg}; give a spacing > 0 deg")
+    frame = _prepared(data, maneuvers, known, fit_cm)
+    all_flaps = sorted({float(f) for f in frame["flap_deg"].unique().to_list()})
+    wanted = all_flaps if flaps is None else [float(f) for f in flaps]
+    if start is None:
+        start = fit_kirchhoff(
+            data, flaps=wanted, maneuvers=maneuvers, fit_cm=fit_cm, fit_cd=False, known=known,
+            max_lag=max_lag,
+        )  # fmt: skip
+    elif start.known != known or (fit_cm and not start.fit_cm):
+        raise InvalidInputError(
+            f"start was fitted with known='{start.known}', fit_cm={start.fit_cm}; "
+            f"this fit asks known='{known}', fit_cm={fit_cm}: fit the start the same way"
+        )
+    fits: dict[float, GkFlapFit] = {}
+    for flap in wanted:
+        ts, al, ad, ls, ms, _, ids = _flap_records(frame, flap, all_flaps)
+        tanh = start[flap]
+        if tuple(sorted(tanh.maneuvers)) != tuple(sorted(ids)):
+            raise InvalidInputError(
+                f"flap {flap:g} deg: start was fitted on {len(tanh.maneuvers)} maneuvers, these "
+                f"records hold {len(ids)} others; fit the start on the same maneuvers"
+            )
+        fits[flap] = _fit_flap(
+            tanh, ts, al, ad, ls, ms if fit_cm else None, tuple(ids), flap,
+            knot_spacing_deg, min_knot_samples, max_iter, max_lag,
+        )  # fmt: skip
+    return GomanKhrabrovResult(fits=fits, fit_cm=fit_cm, known=known)
+
+
+def _fit_flap(  # noqa: PLR0917
+    tanh: FlapFit,
+    ts: list[FloatArray],
+    al: list[FloatArray],
+    ad: list[FloatArray],
+    ls: list[FloatArray],
+    ms: list[FloatArray] | None,
+    ids: tuple[str, ...],
+    flap: float,
+    spacing: float,
+    min_samples: int,
+    max_iter: int,
+    max_lag: int | None,
+) -> GkFlapFit:
+    tp = tanh.params
+    # the table starts where the tanh start leaves attached flow (x0 = 0.999: its lift
+    # within 0.05 % of the line), at a multiple of the spacing; that first node is held at 1
+    a_att = math.degrees(tp["alpha_star"] + math.atanh(1.0 - 2.0 * ATTACHED_X) / tp["a1"])
+    try:
+        knots_deg, free = knots_for(np.degrees(np.concatenate(al)), spacing, a_att, min_samples)
+    except TooLittleDataError as e:
+        raise TooLittleDataError(f"flap {flap:g} deg: {e}") from e
+    knots = np.radians(knots_deg)
+    values = np.clip(0.5 * (1.0 - np.tanh(tp["a1"] * (knots - tp["alpha_star"]))), 0.0, 1.0)
+    if knots_deg[0] <= a_att:
+        # attached flow at the first knot: held at 1 (it and the lift line trade off)
+        values[0] = 1.0
+        free[0] = False
+    core = {n: float(tp[n]) for n in CORE_PARAMS}
+    fixed = [*HELD_LINE, *(f"x0[{k}]" for k in np.flatnonzero(~free))]
+    if not tanh.tau_identified:
+        core.update(tau1=TAU1_MIN_S, tau2=0.0)
+        fixed += ["tau1", "tau2"]
+    try:
+        r = dict(
+            _core.output_error_goman_khrabrov(
+                ts, al, ad, ls, ms, core, knots.tolist(), values.tolist(), fixed=fixed,
+                max_iter=int(max_iter), max_lag=max_lag,
+            )
+        )  # fmt: skip
+    except AerodeltaError as e:
+        msg = re.sub(r"maneuver (\d+)", functools.partial(_maneuver_name, ids), str(e))
+        raise type(e)(f"flap {flap:g} deg (Goman-Khrabrov): {msg}") from e
+    names = tuple(r["names"])
+    nc = len(CORE_PARAMS)
+    se = [float(v) for v in r["std_err"]]
+    sec = [float(v) for v in r["std_err_colored"]]
+    var = [float(v) for v in r["residual_var"]]
+    return GkFlapFit(
+        flap_deg=flap,
+        params={k: float(v) for k, v in r["params"].items()},
+        start={k: float(v) for k, v in r["start"].items()},
+        knots_deg=knots_deg,
+        x0=np.asarray(r["values"], dtype=np.float64),
+        x0_start=np.asarray(r["start_values"], dtype=np.float64),
+        std_err=dict(zip(CORE_PARAMS, se[:nc], strict=True)),
+        std_err_colored=dict(zip(CORE_PARAMS, sec[:nc], strict=True)),
+        x0_std_err=np.asarray(se[nc:]),
+        x0_std_err_colored=np.asarray(sec[nc:]),
+        cov=np.asarray(r["cov"]),
+        cov_colored=np.asarray(r["cov_colored"]),
+        names=names,
+        iterations=int(r["iterations"]),
+        converged=bool(r["converged"]),
+        n_samples=int(r["n_samples"]),
+        n_maneuvers=int(r["n_maneuvers"]),
+        cost=float(r["cost"]),
+        residual_std=(math.sqrt(var[0]), math.sqrt(var[1]) if ms is not None else math.nan),
+        maneuvers=ids,
+        tanh=tanh,
+        tau_identified=tanh.tau_identified,
+        note=tanh.note,
+    )
