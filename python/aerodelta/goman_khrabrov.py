@@ -58,6 +58,14 @@ CORE_UNITS: dict[str, str] = {
 #: Held at the tanh fit's values: the attached-flow lift line (the nodes carry the rest).
 HELD_LINE = ("CL_alpha", "alpha0")
 
+#: The separation point of the tanh start at which the table ends when the records stop short
+#: of it (the coefficients past the data are held at the tanh start's curve). Small, because
+#: the lift goes as ``(1 + sqrt(x))^2``: at x = 1e-6 it is within 0.1 % of full separation's.
+SEPARATED_X = 1e-6
+
+#: The table ends at most this far past the highest alpha flown, deg.
+EXTEND_DEG = 15.0
+
 #: The separation point of the tanh start at which the table begins (its first node, held at
 #: 1: the lift there is within 0.05 % of the attached line).
 ATTACHED_X = 0.999
@@ -274,15 +282,22 @@ class GomanKhrabrovResult:
 
 
 def knots_for(
-    alpha_deg: FloatArray, spacing_deg: float, first_deg: float, min_samples: int
+    alpha_deg: FloatArray,
+    spacing_deg: float,
+    first_deg: float,
+    min_samples: int,
+    last_deg: float = -math.inf,
 ) -> tuple[FloatArray, npt.NDArray[np.bool_]]:
     """The table's knots (deg) and which coefficients are free.
 
     Knots are the multiples of ``spacing_deg`` from ``first_deg`` (rounded down; or from the
     lowest flown alpha, rounded down, when that is higher) to the first at or above the largest
-    flown alpha, so the table spans the data. A coefficient is free
-    when its support (the knot +- two spacings: the cubic B-spline's) holds at least
-    ``min_samples`` samples; the others stay at their start.
+    flown alpha or ``last_deg``, whichever is higher, so the table spans the data (and, past
+    them, the start's curve up to ``last_deg``). A coefficient is free when its effective sample
+    count, the sum of its spline weight over the samples (``aero_core``'s
+    ``X0Table::weights``), is at least ``min_samples``; the others stay at their start (a
+    coefficient at the table's end that few samples reach extrapolates: held, it keeps the
+    tanh start's trend).
 
     Raises
     ------
@@ -291,7 +306,7 @@ def knots_for(
     """
     a = np.sort(np.asarray(alpha_deg, dtype=np.float64))
     lo = math.floor(max(first_deg, a[0]) / spacing_deg) * spacing_deg
-    top = math.ceil(a[-1] / spacing_deg) * spacing_deg
+    top = math.ceil(max(a[-1], last_deg) / spacing_deg) * spacing_deg
     if top - lo < 2 * spacing_deg - 1e-9:
         raise TooLittleDataError(
             f"the records reach alpha {a[-1]:.1f} deg, less than two {spacing_deg:g}-deg "
@@ -299,14 +314,13 @@ def knots_for(
             "stall, or narrow the spacing"
         )
     grid = lo + spacing_deg * np.arange(round((top - lo) / spacing_deg) + 1)
-    h2 = 2.0 * spacing_deg
-    count = np.searchsorted(a, grid + h2) - np.searchsorted(a, grid - h2)
-    free = count >= min_samples
+    weight = _core.goman_khrabrov_weights(np.radians(grid).tolist(), np.radians(a)).sum(axis=0)
+    free = weight >= min_samples
     if int(free.sum()) < 2:
         raise TooLittleDataError(
-            f"{int(free.sum())} of {grid.size} knots from {lo:g} deg hold {min_samples} samples "
-            "within two spacings; the table needs at least 2 free: fly deeper into the stall, "
-            "widen the spacing or lower min_knot_samples"
+            f"{int(free.sum())} of {grid.size} knots from {lo:g} deg have an effective sample "
+            f"count of {min_samples}; the table needs at least 2 free: fly deeper into the "
+            "stall, widen the spacing or lower min_knot_samples"
         )
     return np.asarray(grid, dtype=np.float64), free
 
@@ -340,8 +354,9 @@ def fit_goman_khrabrov(
     knot_spacing_deg
         Spacing of the table's knots, deg (:func:`knots_for`).
     min_knot_samples
-        Samples each knot's support (+- one spacing) must hold; the table spans the run of
-        such knots.
+        Effective samples (the sum of a coefficient's spline weight over the samples) a
+        coefficient needs to be estimated; the others are held at the tanh start
+        (:func:`knots_for`).
     max_iter
         Iteration bound of the Levenberg-Marquardt loop.
 
@@ -395,6 +410,20 @@ def fit_goman_khrabrov(
     return GomanKhrabrovResult(fits=fits, fit_cm=fit_cm, known=known)
 
 
+def _held_note(knots_deg: FloatArray, free: npt.NDArray[np.bool_], skip: int) -> str:
+    """``"x0 held at the tanh fit's curve at 19-25 deg"`` for the held coefficients from index
+    ``skip`` on (empty when none is held)."""
+    held = np.flatnonzero(~free[skip:]) + skip
+    if held.size == 0:
+        return ""
+    runs = np.split(held, np.flatnonzero(np.diff(held) > 1) + 1)
+    where = ", ".join(
+        f"{knots_deg[r[0]]:g}" if r.size == 1 else f"{knots_deg[r[0]]:g}-{knots_deg[r[-1]]:g}"
+        for r in runs
+    )
+    return f"x0 not identified at {where} deg (too few samples there), held at the tanh fit's curve"
+
+
 def _fit_flap(  # noqa: PLR0917
     tanh: FlapFit,
     ts: list[FloatArray],
@@ -413,18 +442,31 @@ def _fit_flap(  # noqa: PLR0917
     # the table starts where the tanh start leaves attached flow (x0 = 0.999: its lift
     # within 0.05 % of the line), at a multiple of the spacing; that first node is held at 1
     a_att = math.degrees(tp["alpha_star"] + math.atanh(1.0 - 2.0 * ATTACHED_X) / tp["a1"])
+    # past the data the table follows the tanh start's curve (held coefficients) until it is
+    # separated (x0 = SEPARATED_X), at most EXTEND_DEG past the highest alpha flown
+    a_all = np.degrees(np.concatenate(al))
+    a_sep = math.degrees(tp["alpha_star"] + math.atanh(1.0 - 2.0 * SEPARATED_X) / tp["a1"])
+    last = min(a_sep, float(a_all.max()) + EXTEND_DEG)
     try:
-        knots_deg, free = knots_for(np.degrees(np.concatenate(al)), spacing, a_att, min_samples)
+        knots_deg, free = knots_for(a_all, spacing, a_att, min_samples, last)
     except TooLittleDataError as e:
         raise TooLittleDataError(f"flap {flap:g} deg: {e}") from e
     knots = np.radians(knots_deg)
-    values = np.clip(0.5 * (1.0 - np.tanh(tp["a1"] * (knots - tp["alpha_star"]))), 0.0, 1.0)
+    # the spline through the tanh start's curve at the knots (coefficients that equal the
+    # curve's values miss it by h^2 x0''/6, and where the flow is nearly separated the lift's
+    # sensitivity to x, 1/sqrt(x), turns that into 0.02 of C_L)
+    basis = _core.goman_khrabrov_weights(knots.tolist(), knots)
+    tanh_x0 = 0.5 * (1.0 - np.tanh(tp["a1"] * (knots - tp["alpha_star"])))
+    values = np.clip(np.linalg.solve(basis, tanh_x0), 0.0, 1.0)
     if knots_deg[0] <= a_att:
         # attached flow at the first knot: held at 1 (it and the lift line trade off)
         values[0] = 1.0
         free[0] = False
     core = {n: float(tp[n]) for n in CORE_PARAMS}
     fixed = [*HELD_LINE, *(f"x0[{k}]" for k in np.flatnonzero(~free))]
+    held_note = _held_note(knots_deg, free, 0 if free[0] or knots_deg[0] > a_att else 1)
+    if held_note:
+        held_note += f" (an effective sample count under {min_samples})"
     if not tanh.tau_identified:
         core.update(tau1=TAU1_MIN_S, tau2=0.0)
         fixed += ["tau1", "tau2"]
@@ -466,5 +508,5 @@ def _fit_flap(  # noqa: PLR0917
         maneuvers=ids,
         tanh=tanh,
         tau_identified=tanh.tau_identified,
-        note=tanh.note,
+        note="; ".join(n for n in (tanh.note, held_note) if n),
     )
