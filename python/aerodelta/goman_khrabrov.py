@@ -11,10 +11,12 @@ curve says). A lift curve the tanh cannot follow (a plateau, a second rise: JSBS
 piecewise-linear tables) is followed node by node, and the state keeps its lag and hysteresis.
 
 :func:`fit_goman_khrabrov` starts from the tanh fit (:func:`aerodelta.longitudinal.
-fit_kirchhoff`) of the same flap and records, holds its attached-flow lift line (``CL_alpha``,
-``alpha0``: with every node free, the line and the nodes trade off), and fits tau1, tau2, the
-node values and the pitching moment with the same engine (``aero_core::output_error``: same
-cost, iterations, Cramér-Rao and coloured-residual bounds).
+fit_kirchhoff`) of the same flap and records, holds the attached-flow lift line of its
+equation-error start (``CL_alpha``, ``alpha0``: least squares below the largest binned C_L less
+5 deg; with every coefficient free, the line and the table trade off), and fits tau1, tau2,
+the table's coefficients and the pitching moment with the same engine
+(``aero_core::output_error``: same cost, iterations, Cramér-Rao and coloured-residual bounds;
+coefficients held at their bounds 0 or 1 while the data push them out).
 """
 
 from __future__ import annotations
@@ -33,17 +35,20 @@ import polars as pl
 from aerodelta import _core
 from aerodelta.exceptions import AerodeltaError, InvalidInputError, TooLittleDataError
 from aerodelta.longitudinal import (
+    PARAMS,
     TAU1_MIN_S,
     FlapFit,
     FloatArray,
     KirchhoffResult,
     _check,
+    _engine,
     _f64,
     _flap_records,
     _known,
     _maneuver_name,
     _prepared,
     fit_kirchhoff,
+    static_curves,
 )
 
 #: The scalar parameters in the engine's order (the node values ``x0[k]`` follow).
@@ -55,7 +60,8 @@ CORE_UNITS: dict[str, str] = {
     "Cm_alpha": "1/rad", "Cm_x": "-",
 }  # fmt: skip
 
-#: Held at the tanh fit's values: the attached-flow lift line (the nodes carry the rest).
+#: Held at the equation-error start's values: the attached-flow lift line (the table carries
+#: the rest).
 HELD_LINE = ("CL_alpha", "alpha0")
 
 #: The separation point of the tanh start at which the table ends when the records stop short
@@ -66,9 +72,13 @@ SEPARATED_X = 1e-6
 #: The table ends at most this far past the highest alpha flown, deg.
 EXTEND_DEG = 15.0
 
-#: The separation point of the tanh start at which the table begins (its first node, held at
-#: 1: the lift there is within 0.05 % of the attached line).
+#: The separation point of the tanh start at which its flow is taken as attached (its lift
+#: within 0.05 % of the line); the table begins BELOW_DEG under that alpha.
 ATTACHED_X = 0.999
+
+#: How far under the tanh start's attached alpha the table begins, deg: where the records
+#: leave the line earlier than the tanh says (a plateau), the table must reach there too.
+BELOW_DEG = 3.0
 
 
 @dataclass(frozen=True)
@@ -366,11 +376,16 @@ def fit_goman_khrabrov(
 
     Notes
     -----
-    The tanh fit's lift line ``CL_alpha``, ``alpha0`` is held (:data:`HELD_LINE`): with every
-    node free the line and the nodes trade off. tau1, tau2, the nodes (bounded to [0, 1]) and
-    ``Cm0``, ``Cm_alpha``, ``Cm_x`` are estimated; where the tanh fit found no separation lag
-    (``tau_identified`` False: static records) tau1, tau2 stay held at the engine's bounds and
-    the note says so.
+    The attached-flow lift line ``CL_alpha``, ``alpha0`` of the equation-error start is held
+    (:data:`HELD_LINE`): with every coefficient free the line and the table trade off, and the
+    tanh fit's own line bends to the break where the tanh cannot follow it. The table's knots
+    run from :data:`BELOW_DEG` under the tanh start's attached alpha (or the lowest alpha
+    flown) to past the data on the tanh start's curve (:func:`knots_for`); its start is the
+    separation point whose lift on the held line is the tanh fit's static lift. tau1, tau2, the
+    coefficients with enough samples (bounded to [0, 1]) and ``Cm0``, ``Cm_alpha``, ``Cm_x``
+    are estimated; the others are held and the note names them. Where the tanh fit found no
+    separation lag (``tau_identified`` False: static records) tau1, tau2 stay held at the
+    engine's bounds and the note says so.
 
     Raises
     ------
@@ -381,6 +396,11 @@ def fit_goman_khrabrov(
     """
     if knot_spacing_deg <= 0 or not math.isfinite(knot_spacing_deg):
         raise InvalidInputError(f"knot_spacing_deg is {knot_spacing_deg}; give a spacing > 0 deg")
+    if start is not None and (start.known != known or (fit_cm and not start.fit_cm)):
+        raise InvalidInputError(
+            f"start was fitted with known='{start.known}', fit_cm={start.fit_cm}; "
+            f"this fit asks known='{known}', fit_cm={fit_cm}: fit the start the same way"
+        )
     frame = _prepared(data, maneuvers, known, fit_cm)
     all_flaps = sorted({float(f) for f in frame["flap_deg"].unique().to_list()})
     wanted = all_flaps if flaps is None else [float(f) for f in flaps]
@@ -389,11 +409,6 @@ def fit_goman_khrabrov(
             data, flaps=wanted, maneuvers=maneuvers, fit_cm=fit_cm, fit_cd=False, known=known,
             max_lag=max_lag,
         )  # fmt: skip
-    elif start.known != known or (fit_cm and not start.fit_cm):
-        raise InvalidInputError(
-            f"start was fitted with known='{start.known}', fit_cm={start.fit_cm}; "
-            f"this fit asks known='{known}', fit_cm={fit_cm}: fit the start the same way"
-        )
     fits: dict[float, GkFlapFit] = {}
     for flap in wanted:
         ts, al, ad, ls, ms, _, ids = _flap_records(frame, flap, all_flaps)
@@ -410,10 +425,10 @@ def fit_goman_khrabrov(
     return GomanKhrabrovResult(fits=fits, fit_cm=fit_cm, known=known)
 
 
-def _held_note(knots_deg: FloatArray, free: npt.NDArray[np.bool_], skip: int) -> str:
-    """``"x0 held at the tanh fit's curve at 19-25 deg"`` for the held coefficients from index
-    ``skip`` on (empty when none is held)."""
-    held = np.flatnonzero(~free[skip:]) + skip
+def _held_note(knots_deg: FloatArray, free: npt.NDArray[np.bool_]) -> str:
+    """``"x0 not identified at 19-25 deg ..."`` for the held coefficients (empty when none is
+    held)."""
+    held = np.flatnonzero(~free)
     if held.size == 0:
         return ""
     runs = np.split(held, np.flatnonzero(np.diff(held) > 1) + 1)
@@ -448,7 +463,7 @@ def _fit_flap(  # noqa: PLR0917
     a_sep = math.degrees(tp["alpha_star"] + math.atanh(1.0 - 2.0 * SEPARATED_X) / tp["a1"])
     last = min(a_sep, float(a_all.max()) + EXTEND_DEG)
     try:
-        knots_deg, free = knots_for(a_all, spacing, a_att, min_samples, last)
+        knots_deg, free = knots_for(a_all, spacing, a_att - BELOW_DEG, min_samples, last)
     except TooLittleDataError as e:
         raise TooLittleDataError(f"flap {flap:g} deg: {e}") from e
     knots = np.radians(knots_deg)
@@ -456,15 +471,21 @@ def _fit_flap(  # noqa: PLR0917
     # curve's values miss it by h^2 x0''/6, and where the flow is nearly separated the lift's
     # sensitivity to x, 1/sqrt(x), turns that into 0.02 of C_L)
     basis = _core.goman_khrabrov_weights(knots.tolist(), knots)
-    tanh_x0 = 0.5 * (1.0 - np.tanh(tp["a1"] * (knots - tp["alpha_star"])))
-    values = np.clip(np.linalg.solve(basis, tanh_x0), 0.0, 1.0)
-    if knots_deg[0] <= a_att:
-        # attached flow at the first knot: held at 1 (it and the lift line trade off)
-        values[0] = 1.0
-        free[0] = False
+    # the attached-flow line of the equation-error start (least squares below the largest
+    # binned C_L less 5 deg), not the tanh fit's: where the tanh cannot follow the lift curve
+    # it bends the line to fit the break, and the lags read that as dynamics (a plateau's tau2
+    # came out 15 % low); the start is the separation point whose lift on that line is the
+    # tanh fit's static lift
+    ee = _engine(ts, al, ad, ls, ms, ids, flap, max_lag, None, list(PARAMS), 1)["start"]
+    line = float(ee["CL_alpha"]) * (knots - float(ee["alpha0"]))
+    ratio = np.ones_like(knots)
+    up = line > 0.0
+    ratio[up] = np.clip(static_curves(tp, knots_deg[up])["CL"] / line[up], 0.25, 1.0)
+    values = np.clip(np.linalg.solve(basis, (2.0 * np.sqrt(ratio) - 1.0) ** 2), 0.0, 1.0)
     core = {n: float(tp[n]) for n in CORE_PARAMS}
+    core.update(CL_alpha=float(ee["CL_alpha"]), alpha0=float(ee["alpha0"]))
     fixed = [*HELD_LINE, *(f"x0[{k}]" for k in np.flatnonzero(~free))]
-    held_note = _held_note(knots_deg, free, 0 if free[0] or knots_deg[0] > a_att else 1)
+    held_note = _held_note(knots_deg, free)
     if held_note:
         held_note += f" (an effective sample count under {min_samples})"
     if not tanh.tau_identified:

@@ -86,9 +86,9 @@ impl X0Table {
                 ),
             ));
         }
-        let h = (knots[knots.len() - 1] - knots[0]) / (knots.len() - 1) as f64;
+        let h = knots[1] - knots[0];
         if let Some(k) =
-            (1..knots.len()).find(|&k| ((knots[k] - knots[0]) - h * k as f64).abs() > 1e-9 * h)
+            (2..knots.len()).find(|&k| ((knots[k] - knots[0]) - h * k as f64).abs() > 1e-9 * h)
         {
             return Err(AeroError::invalid(
                 format!("{place}: knot {k}"),

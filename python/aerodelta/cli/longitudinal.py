@@ -13,6 +13,12 @@ held at the engine's lower bounds and a "not identified" note after the table.
 --model M.json --out-model OUT.json writes a copy of the Δ model M carrying the fitted stall
 (every flap, with its note), so a simulator that loads OUT flies the identified lift and pitch
 break; M itself is not touched.
+
+--form goman-khrabrov fits the static separation curve x0(alpha) as a table (a cubic B-spline
+on knots every --knot-spacing deg) instead of the tanh, started from the tanh fit with its lift
+line held: for records whose lift curve the tanh cannot follow (a plateau, a second rise). It
+prints the scalar parameters and one row per table coefficient (alpha of its knot); the drag
+and --out-model are for the tanh form only.
 """
 
 from __future__ import annotations
@@ -22,6 +28,7 @@ import json
 import math
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from aerodelta._fsutil import write_atomic
 from aerodelta.cli._data import (
@@ -34,6 +41,9 @@ from aerodelta.cli._data import (
 )
 from aerodelta.exceptions import InvalidInputError
 
+if TYPE_CHECKING:
+    import polars as pl
+
 HELP = "Kirchhoff stall of C_L, C_m (output error) and C_D (tau1, tau2, alpha*, C_L,max)"
 
 
@@ -45,6 +55,19 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--no-cd", action="store_true", help="do not fit the drag")
     parser.add_argument("--known", choices=("adx37", "none"), default="adx37")
     parser.add_argument("--max-iter", type=int, default=60, metavar="N")
+    parser.add_argument(
+        "--form",
+        choices=("kirchhoff", "goman-khrabrov"),
+        default="kirchhoff",
+        help="static separation curve: Fischenberg's tanh (default) or a table (Goman-Khrabrov)",
+    )
+    parser.add_argument(
+        "--knot-spacing",
+        type=float,
+        default=1.0,
+        metavar="DEG",
+        help="spacing of the table's knots with --form goman-khrabrov, deg (default 1)",
+    )
     parser.add_argument("--out", metavar="FILE", help="write the parameter table as CSV")
     parser.add_argument(
         "--model", metavar="FILE", help="Δ model to carry the stall (with --out-model)"
@@ -83,6 +106,14 @@ def run(args: argparse.Namespace) -> int:
         raise InvalidInputError(
             "--out-model with --no-cm: a simulator flies both curves; fit C_m too"
         )
+    gk = args.form == "goman-khrabrov"
+    if gk and args.out_model is not None:
+        raise InvalidInputError(
+            "--out-model with --form goman-khrabrov: the model file stores the tanh form only; "
+            "fit without --form to store the stall"
+        )
+    if gk and args.no_cm:
+        raise InvalidInputError("--no-cm with --form goman-khrabrov: the table is fitted with C_m")
     out_model = output_file(args.out_model, "--out-model") if args.out_model else None
     base_model = load_model(args.model) if args.model is not None else None
     src = resolve_data(args)
@@ -91,6 +122,8 @@ def run(args: argparse.Namespace) -> int:
     if out_model is not None:
         check_outputs(src, "--out-model", files=[out_model], inputs=[Path(args.model)])
     data = model_frame(load_records(src, progress=not args.no_progress))
+    if gk:
+        return _run_goman_khrabrov(args, data, flaps, out)
     res = fit_kirchhoff(
         data,
         flaps=flaps,
@@ -139,5 +172,51 @@ def run(args: argparse.Namespace) -> int:
             print(f"wrote {out}")
         if out_model is not None:
             print(f"wrote {out_model} (the Δ model with the stall of {len(res.fits)} flap(s))")
+    sys.stdout.flush()
+    return 0
+
+
+def _run_goman_khrabrov(
+    args: argparse.Namespace, data: pl.DataFrame, flaps: list[float] | None, out: Path | None
+) -> int:
+    """``--form goman-khrabrov``: the table's fit, printed as the tanh form's is."""
+    from aerodelta.goman_khrabrov import fit_goman_khrabrov  # noqa: PLC0415
+
+    res = fit_goman_khrabrov(
+        data, flaps=flaps, known=args.known, knot_spacing_deg=args.knot_spacing,
+        max_iter=max(args.max_iter, 100),
+    )  # fmt: skip
+    table = res.summary()
+    if out is not None:
+        out.parent.mkdir(parents=True, exist_ok=True)
+        write_atomic(out, table.write_csv)
+    if args.format == "json":
+        print(json.dumps(table.to_dicts(), indent=2, allow_nan=True))
+        for flap, note in res.notes.items():
+            print(f"flap {flap:g}: {note}", file=sys.stderr)
+        return 0
+
+    def num(v: float) -> str:
+        return "-" if math.isnan(v) else f"{v:.4g}"
+
+    print(
+        f"{'flap':>4} {'parameter':<17} {'unit':<6} {'alpha':>6} {'estimate':>10} "
+        f"{'CR bound':>10} {'coloured':>10} {'tanh':>10}"
+    )
+    for r in table.iter_rows(named=True):
+        print(
+            f"{r['flap_deg']:>4g} {r['parameter']:<17} {r['unit']:<6} {num(r['alpha_deg']):>6} "
+            f"{r['estimate']:>10.4g} {num(r['std_err']):>10} {num(r['std_err_colored']):>10} "
+            f"{num(r['start']):>10}"
+        )
+    for flap, note in res.notes.items():
+        print(f"flap {flap:g}: {note}")
+    print(
+        "x0[k]: the table's cubic B-spline coefficients (knot alpha in deg); '-' bounds: held "
+        "(the tanh fit's lift line, attached flow at the first knot, no data); tanh: the tanh "
+        "fit it started from"
+    )
+    if out is not None:
+        print(f"wrote {out}")
     sys.stdout.flush()
     return 0
