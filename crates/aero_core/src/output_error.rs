@@ -1233,15 +1233,15 @@ mod tests {
         .unwrap();
         assert!(f.converged && f.iterations < 60, "{}", f.iterations);
         let est = f.params.to_vec();
-        for j in N_CORE..N_CORE + 3 {
-            if est[j] >= 1.0 {
-                assert!(
-                    f.std_err[j].is_nan(),
-                    "x0[{}] at 1 with a bound",
-                    j - N_CORE
-                );
+        for (k, (&e, &se)) in est[N_CORE..N_CORE + 3]
+            .iter()
+            .zip(&f.std_err[N_CORE..N_CORE + 3])
+            .enumerate()
+        {
+            if e >= 1.0 {
+                assert!(se.is_nan(), "x0[{k}] at 1 with a bound");
             } else {
-                assert!((1.0 - est[j]) < 3.0 * f.std_err[j], "x0[{}]", j - N_CORE);
+                assert!((1.0 - e) < 3.0 * se, "x0[{k}]");
             }
         }
         assert!((f.params.tau1 / g.tau1 - 1.0).abs() < 0.05);
