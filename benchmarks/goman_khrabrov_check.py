@@ -140,6 +140,7 @@ def check_virtual(seed: int, work: Path) -> list[dict[str, Any]]:
                 "theil_Cm_tanh": th["Cm", "tanh"], "theil_Cm_qual": th["Cm", "qual"],
                 "theil_ratio_CL": r_l, "theil_ratio_Cm": r_m, "theil_CL_vs_tanh": vs_tanh,
                 "cost_gk": gf.cost, "cost_tanh": gf.tanh.cost, "held_out": int(sel.sum()),
+                "line": gf.line.removeprefix("lift line of the "),
                 "floor_ok": bool(
                     e1 <= FLOORS["tau_rel"] and e2 <= FLOORS["tau_rel"]
                     and ecl <= FLOORS["cl_max_rel"] and r_l <= FLOORS["theil_ratio"]
@@ -200,6 +201,7 @@ def check_jsbsim(aircraft: str, seed: int, work: Path) -> list[dict[str, Any]]:
             "table_deg": f"{gf.knots_deg[0]:g}-{gf.knots_deg[-1]:g}",
             "tau_identified": gf.tau_identified, "tau1": gf.params["tau1"],
             "tau2": gf.params["tau2"], "iterations": gf.iterations,
+            "line": gf.line.removeprefix("lift line of the "),
         }  # fmt: skip
         for c in ("CL", "Cm"):
             b, b_se = grid[c].to_numpy(), grid[f"{c}_se"].to_numpy()

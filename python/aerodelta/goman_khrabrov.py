@@ -24,7 +24,7 @@ from __future__ import annotations
 import functools
 import math
 import re
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -114,7 +114,11 @@ class GkFlapFit:
         The tanh fit it started from (its ``cost`` against this one's says what the table
         gained on the same records).
     tau_identified, note
-        As the tanh fit's: on static records tau1, tau2 stay held at the engine's bounds.
+        As the tanh fit's: on static records tau1, tau2 stay held at the engine's bounds. The
+        note also names the coefficients held for want of samples.
+    line
+        Which lift line was held: ``"lift line of the tanh fit"`` or ``"... of the
+        equation-error start"`` (:func:`fit_goman_khrabrov`, Notes).
     """
 
     flap_deg: float
@@ -140,6 +144,7 @@ class GkFlapFit:
     tanh: FlapFit
     tau_identified: bool = True
     note: str = ""
+    line: str = ""
 
     def _table(self) -> tuple[dict[str, float], list[float], list[float]]:
         return self.params, np.radians(self.knots_deg).tolist(), self.x0.tolist()
@@ -454,8 +459,8 @@ def _fit_flap(  # noqa: PLR0917
     max_lag: int | None,
 ) -> GkFlapFit:
     tp = tanh.params
-    # the table starts where the tanh start leaves attached flow (x0 = 0.999: its lift
-    # within 0.05 % of the line), at a multiple of the spacing; that first node is held at 1
+    # the table starts BELOW_DEG under where the tanh start leaves attached flow (x0 = 0.999:
+    # its lift within 0.05 % of its line), at a multiple of the spacing
     a_att = math.degrees(tp["alpha_star"] + math.atanh(1.0 - 2.0 * ATTACHED_X) / tp["a1"])
     # past the data the table follows the tanh start's curve (held coefficients) until it is
     # separated (x0 = SEPARATED_X), at most EXTEND_DEG past the highest alpha flown
@@ -467,40 +472,36 @@ def _fit_flap(  # noqa: PLR0917
     except TooLittleDataError as e:
         raise TooLittleDataError(f"flap {flap:g} deg: {e}") from e
     knots = np.radians(knots_deg)
-    # the spline through the tanh start's curve at the knots (coefficients that equal the
-    # curve's values miss it by h^2 x0''/6, and where the flow is nearly separated the lift's
-    # sensitivity to x, 1/sqrt(x), turns that into 0.02 of C_L)
-    basis = _core.goman_khrabrov_weights(knots.tolist(), knots)
-    # the attached-flow line of the equation-error start (least squares below the largest
-    # binned C_L less 5 deg), not the tanh fit's: where the tanh cannot follow the lift curve
-    # it bends the line to fit the break, and the lags read that as dynamics (a plateau's tau2
-    # came out 15 % low); the start is the separation point whose lift on that line is the
-    # tanh fit's static lift
-    ee = _engine(ts, al, ad, ls, ms, ids, flap, max_lag, None, list(PARAMS), 1)["start"]
-    line = float(ee["CL_alpha"]) * (knots - float(ee["alpha0"]))
-    ratio = np.ones_like(knots)
-    up = line > 0.0
-    ratio[up] = np.clip(static_curves(tp, knots_deg[up])["CL"] / line[up], 0.25, 1.0)
-    values = np.clip(np.linalg.solve(basis, (2.0 * np.sqrt(ratio) - 1.0) ** 2), 0.0, 1.0)
-    core = {n: float(tp[n]) for n in CORE_PARAMS}
-    core.update(CL_alpha=float(ee["CL_alpha"]), alpha0=float(ee["alpha0"]))
     fixed = [*HELD_LINE, *(f"x0[{k}]" for k in np.flatnonzero(~free))]
     held_note = _held_note(knots_deg, free)
     if held_note:
         held_note += f" (an effective sample count under {min_samples})"
     if not tanh.tau_identified:
-        core.update(tau1=TAU1_MIN_S, tau2=0.0)
         fixed += ["tau1", "tau2"]
-    try:
-        r = dict(
-            _core.output_error_goman_khrabrov(
-                ts, al, ad, ls, ms, core, knots.tolist(), values.tolist(), fixed=fixed,
-                max_iter=int(max_iter), max_lag=max_lag,
+    # Two candidate lift lines, the one of lower cost kept (same free parameters, so the costs
+    # compare): the tanh fit's, fitted to every sample, and the attached-flow line of the
+    # equation-error start (least squares below the largest binned C_L less 5 deg). Where the
+    # tanh cannot follow the lift curve it bends its line to fit the break, and the lags read
+    # that as dynamics (a plateau's tau2 came out 15 % low on the tanh's line); where the lift
+    # rises above the attached line again (JSBSim's F-15, DHC-6) that line clips coefficients
+    # at 1 (the table left the binned curve's band on 15-25 % of the grid).
+    ee = _engine(ts, al, ad, ls, ms, ids, flap, max_lag, None, list(PARAMS), 1)["start"]
+    fits: list[tuple[float, str, dict[str, Any]]] = []
+    errors: list[AerodeltaError] = []
+    for source, line_p in (("tanh fit", tp), ("equation-error start", ee)):
+        try:
+            r = _fit_on_line(
+                tanh, line_p, knots, knots_deg, ts, al, ad, ls, ms, fixed, max_iter, max_lag
             )
-        )  # fmt: skip
-    except AerodeltaError as e:
-        msg = re.sub(r"maneuver (\d+)", functools.partial(_maneuver_name, ids), str(e))
-        raise type(e)(f"flap {flap:g} deg (Goman-Khrabrov): {msg}") from e
+        except AerodeltaError as e:
+            msg = re.sub(r"maneuver (\d+)", functools.partial(_maneuver_name, ids), str(e))
+            errors.append(type(e)(f"flap {flap:g} deg (Goman-Khrabrov, {source}'s line): {msg}"))
+            continue
+        fits.append((float(r["cost"]), source, r))
+    if not fits:
+        raise errors[0]
+    _, source, r = min(fits, key=lambda f: f[0])
+    line_note = f"lift line of the {source}"
     names = tuple(r["names"])
     nc = len(CORE_PARAMS)
     se = [float(v) for v in r["std_err"]]
@@ -530,4 +531,43 @@ def _fit_flap(  # noqa: PLR0917
         tanh=tanh,
         tau_identified=tanh.tau_identified,
         note="; ".join(n for n in (tanh.note, held_note) if n),
+        line=line_note,
     )
+
+
+def _fit_on_line(  # noqa: PLR0917
+    tanh: FlapFit,
+    line_p: Mapping[str, float],
+    knots: FloatArray,
+    knots_deg: FloatArray,
+    ts: list[FloatArray],
+    al: list[FloatArray],
+    ad: list[FloatArray],
+    ls: list[FloatArray],
+    ms: list[FloatArray] | None,
+    fixed: list[str],
+    max_iter: int,
+    max_lag: int | None,
+) -> dict[str, Any]:
+    """One engine fit of the table on the lift line of ``line_p`` (held). The start is the
+    separation point whose lift on that line is the tanh fit's static lift, interpolated by
+    the spline at the knots (coefficients equal to the curve's values miss it by
+    ``h^2 x0''/6``, and near full separation the lift's ``1/sqrt(x)`` sensitivity turns that
+    into 0.02 of C_L)."""
+    tp = tanh.params
+    basis = _core.goman_khrabrov_weights(knots.tolist(), knots)
+    line = float(line_p["CL_alpha"]) * (knots - float(line_p["alpha0"]))
+    ratio = np.ones_like(knots)
+    up = line > 0.0
+    ratio[up] = np.clip(static_curves(tp, knots_deg[up])["CL"] / line[up], 0.25, 1.0)
+    values = np.clip(np.linalg.solve(basis, (2.0 * np.sqrt(ratio) - 1.0) ** 2), 0.0, 1.0)
+    core = {n: float(tp[n]) for n in CORE_PARAMS}
+    core.update(CL_alpha=float(line_p["CL_alpha"]), alpha0=float(line_p["alpha0"]))
+    if not tanh.tau_identified:
+        core.update(tau1=TAU1_MIN_S, tau2=0.0)
+    return dict(
+        _core.output_error_goman_khrabrov(
+            ts, al, ad, ls, ms, core, knots.tolist(), values.tolist(), fixed=fixed,
+            max_iter=int(max_iter), max_lag=max_lag,
+        )
+    )  # fmt: skip
