@@ -55,6 +55,7 @@ import numpy as np
 import polars as pl
 
 from aerodelta.campaign import generate_campaign
+from aerodelta.exceptions import AerodeltaError
 from aerodelta.fit import model_frame
 from aerodelta.goman_khrabrov import fit_goman_khrabrov
 from aerodelta.ingest import ingest
@@ -171,8 +172,13 @@ def check_jsbsim(aircraft: str, seed: int, work: Path) -> list[dict[str, Any]]:
     data = data.with_columns(pl.Series("_cl_true", truth_lift(camp, data)))
     train, fit_rows, held = _split(data)
     t1 = time.perf_counter()
-    tanh = fit_kirchhoff(data, maneuvers=train, known="none", fit_cd=False)
-    gk = fit_goman_khrabrov(data, start=tanh, maneuvers=train, known="none")
+    try:
+        tanh = fit_kirchhoff(data, maneuvers=train, known="none", fit_cd=False)
+        gk = fit_goman_khrabrov(data, start=tanh, maneuvers=train, known="none")
+    except AerodeltaError as e:
+        # a failed fit is a row that does not meet the floor, with the reason
+        print(f"{aircraft} seed {seed}: no fit: {e}", file=sys.stderr)
+        return [{"aircraft": aircraft, "seed": seed, "error": str(e), "floor_ok": False}]
     t_fit = time.perf_counter() - t1
     bins = binned_static_curve(fit_rows)
     truth_bins = (
