@@ -22,7 +22,8 @@
 //!
 //! # Start
 //! Equation error ([`equation_error_start`]): a line through the attached-flow
-//! lift (α below the alpha of the largest binned C_L minus 5°) gives C_Lα, α₀;
+//! lift (α below the alpha of the largest binned C_L minus 5°; minus 3° or 1.5°
+//! when that leaves too little attached flow or break to start from) gives C_Lα, α₀;
 //! inverting Kirchhoff's lift gives the separation point of each sample,
 //! `x = (2√(C_L / C_Lα(α − α₀)) − 1)²`; `atanh(1 − 2x) = a₁(α − τ α̇ − α*)`
 //! is linear in `(α, α̇, 1)` (the quasi-steady solution of the ODE with
@@ -377,14 +378,48 @@ pub fn equation_error_start(series: &[Series<'_>]) -> Result<KirchhoffParams> {
         .map(|(b, (s, n))| ((*b as f64 + 0.5) * bin, s / *n as f64))
         .max_by(|x, y| x.1.total_cmp(&y.1))
         .ok_or_else(|| AeroError::too_little(place, "no 0.5 deg alpha bin holds 20 samples"))?;
-    let a_lin = peak.0 - 5.0f64.to_radians();
+    // the attached-flow margin under the peak: 5 deg, or narrower when the records hold too
+    // little attached flow or break under it (records that start a few degrees under the
+    // stall: JSBSim's DHC-6 at flap 0 peaks at 11-12 deg from 6.5 deg); the first margin that
+    // gives a start wins, so records that give one at 5 deg keep it
+    let mut first_err = None;
+    for margin in START_MARGINS_DEG {
+        match start_at_margin(series, with_cm, &a, &ad, &cl, &cm, peak.0, margin) {
+            Ok(p) => return Ok(p),
+            Err(e) if e.kind() == crate::ErrorKind::TooLittleData => {
+                first_err.get_or_insert(e);
+            }
+            Err(e) => return Err(e),
+        }
+    }
+    Err(first_err.unwrap_or_else(|| AeroError::too_little(place, "no start margin")))
+}
+
+/// Margins under the alpha of the largest binned C_L below which [`equation_error_start`]
+/// takes the flow as attached, deg, tried in this order.
+const START_MARGINS_DEG: [f64; 3] = [5.0, 3.0, 1.5];
+
+/// [`equation_error_start`] with the attached flow below `peak - margin_deg`.
+#[allow(clippy::too_many_arguments)]
+fn start_at_margin(
+    series: &[Series<'_>],
+    with_cm: bool,
+    a: &[f64],
+    ad: &[f64],
+    cl: &[f64],
+    cm: &[f64],
+    peak: f64,
+    margin_deg: f64,
+) -> Result<KirchhoffParams> {
+    let place = "output-error start (equation error)";
+    let a_lin = peak - margin_deg.to_radians();
     let lin: Vec<usize> = (0..a.len()).filter(|&i| a[i] <= a_lin).collect();
     if lin.len() < 20 {
         return Err(AeroError::too_little(
             place,
             format!(
-                "{} samples below alpha {:.1} deg (5 deg under the largest C_L); the attached-flow \
-                 lift slope needs records that start below the stall",
+                "{} samples below alpha {:.1} deg ({margin_deg} deg under the largest C_L); the \
+                 attached-flow lift slope needs records that start below the stall",
                 lin.len(),
                 a_lin.to_degrees()
             ),
@@ -449,7 +484,7 @@ pub fn equation_error_start(series: &[Series<'_>]) -> Result<KirchhoffParams> {
         let x: Vec<f64> = (0..a.len())
             .flat_map(|i| [1.0, a[i], 1.0 - x_sep[i]])
             .collect();
-        let f = ols(&x, a.len(), 3, &cm, &opts).map_err(|e| e.context(place))?;
+        let f = ols(&x, a.len(), 3, cm, &opts).map_err(|e| e.context(place))?;
         (cm0, cm_alpha, cm_x) = (f.params[0], f.params[1], f.params[2]);
     }
     let mut best: Option<(f64, KirchhoffParams)> = None;
