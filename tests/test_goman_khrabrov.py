@@ -194,7 +194,8 @@ def test_summary_predict_notes_and_refusals() -> None:
         "flap_deg", "parameter", "unit", "alpha_deg", "estimate", "std_err",
         "std_err_colored", "start",
     ]  # fmt: skip
-    assert s.height == len(CORE_PARAMS) + ff.knots_deg.size + 3
+    assert s.height == len(CORE_PARAMS) + ff.knots_deg.size + 3 + 3  # drag, derived rows
+    assert ff.drag is not None and s.filter(pl.col("parameter") == "CD_x").height == 1
     nodes = s.filter(pl.col("parameter").str.starts_with("x0["))
     np.testing.assert_array_equal(nodes["alpha_deg"].to_numpy(), ff.knots_deg)
     # the table runs past the data on the tanh start's curve: those coefficients are held,
@@ -204,6 +205,8 @@ def test_summary_predict_notes_and_refusals() -> None:
     assert "not identified at" in res.notes[0.0]
     p = res.predict(data)
     assert p.height == data.height and p["CL_model"].is_finite().all()
+    assert p["CD_model"].is_finite().all()
+    assert fit_goman_khrabrov(data, known="none", fit_cd=False)[0.0].drag is None
     with pytest.raises(InvalidInputError, match="other"):
         fit_goman_khrabrov(data, known="none", start=fit_kirchhoff(data, known="none"),
                            maneuvers=ids[:4])  # fmt: skip

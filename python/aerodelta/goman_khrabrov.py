@@ -21,6 +21,7 @@ coefficients held at their bounds 0 or 1 while the data push them out).
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import math
 import re
@@ -35,14 +36,18 @@ import polars as pl
 from aerodelta import _core
 from aerodelta.exceptions import AerodeltaError, InvalidInputError, TooLittleDataError
 from aerodelta.longitudinal import (
+    DRAG_PARAMS,
     PARAMS,
     TAU1_MIN_S,
+    DragFit,
     FlapFit,
     FloatArray,
     KirchhoffResult,
     _check,
+    _drag_regressors,
     _engine,
     _f64,
+    _fit_drag,
     _flap_records,
     _known,
     _maneuver_name,
@@ -119,6 +124,9 @@ class GkFlapFit:
     line
         Which lift line was held: ``"lift line of the tanh fit"`` or ``"... of the
         equation-error start"`` (:func:`fit_goman_khrabrov`, Notes).
+    drag
+        The drag along this fit's state (:class:`aerodelta.longitudinal.DragFit`: ``CD0``,
+        ``CD_k``, ``CD_x``, errors with the state's uncertainty); None with ``fit_cd=False``.
     """
 
     flap_deg: float
@@ -145,6 +153,7 @@ class GkFlapFit:
     tau_identified: bool = True
     note: str = ""
     line: str = ""
+    drag: DragFit | None = None
 
     def _table(self) -> tuple[dict[str, float], list[float], list[float]]:
         return self.params, np.radians(self.knots_deg).tolist(), self.x0.tolist()
@@ -223,8 +232,10 @@ class GomanKhrabrovResult:
     def summary(self) -> pl.DataFrame:
         """One row per flap and parameter: ``flap_deg, parameter, unit, alpha_deg, estimate,
         std_err, std_err_colored, start`` (``alpha_deg`` the knot of a node ``x0[k]``, NaN for
-        the scalars), then ``alpha_cl_max_deg`` and ``cl_max`` of the static curve and the
-        tanh fit's and this fit's ``cost`` (``start`` holds the tanh fit's value)."""
+        the scalars), the drag's ``CD0``, ``CD_k``, ``CD_x`` where fitted (``std_err`` the
+        :class:`aerodelta.longitudinal.DragFit` one: CR2 with the state's uncertainty), then
+        ``alpha_cl_max_deg`` and ``cl_max`` of the static curve and the tanh fit's and this
+        fit's ``cost`` (``start`` holds the tanh fit's value)."""
         rows: list[dict[str, Any]] = []
         nan = math.nan
         for f in sorted(self.fits):
@@ -246,6 +257,15 @@ class GomanKhrabrovResult:
                         "std_err_colored": float(ff.x0_std_err_colored[k]),
                         "start": float(ff.x0_start[k]),
                     }
+                )  # fmt: skip
+            if ff.drag is not None:
+                rows.extend(
+                    {
+                        "flap_deg": f, "parameter": n, "unit": "-", "alpha_deg": nan,
+                        "estimate": ff.drag.params[n], "std_err": ff.drag.std_err[n],
+                        "std_err_colored": nan, "start": nan,
+                    }
+                    for n in DRAG_PARAMS
                 )  # fmt: skip
             a_max, c_max = ff.cl_max
             t_a, t_c = ff.tanh.cl_max
@@ -276,12 +296,14 @@ class GomanKhrabrovResult:
         Returns
         -------
         polars.DataFrame
-            ``x_sep``, ``CL_model``, ``Cm_model``, one row per input row (in input order).
+            ``x_sep``, ``CL_model``, ``Cm_model``, ``CD_model`` (NaN at a flap whose drag was
+            not fitted), one row per input row (in input order).
         """
         _check(data)
-        rest_l, rest_m, _ = _known(data, self.known if known is None else known)
+        rest_l, rest_m, rest_d = _known(data, self.known if known is None else known)
         n = data.height
         x, cl, cm = np.full(n, np.nan), np.full(n, np.nan), np.full(n, np.nan)
+        cd = np.full(n, np.nan)
         idx = data.with_row_index("_row")
         for _, g in idx.group_by("maneuver_id", maintain_order=True):
             ff = self[float(g["flap_deg"][0])]
@@ -293,7 +315,16 @@ class GomanKhrabrovResult:
                 np.radians(_f64(g, "alphadot_dps")),
             )
             x[rows], cl[rows], cm[rows] = xs, ls, ms
-        return pl.DataFrame({"x_sep": x, "CL_model": cl + rest_l, "Cm_model": cm + rest_m})
+            if ff.drag is not None:
+                cd[rows] = _core.kirchhoff_drag_point(ff.drag.params, ls, xs)
+        return pl.DataFrame(
+            {
+                "x_sep": x,
+                "CL_model": cl + rest_l,
+                "Cm_model": cm + rest_m,
+                "CD_model": cd + rest_d,
+            }
+        )
 
 
 def knots_for(
@@ -347,6 +378,7 @@ def fit_goman_khrabrov(
     flaps: Sequence[float] | None = None,
     maneuvers: Sequence[str] | None = None,
     fit_cm: bool = True,
+    fit_cd: bool = True,
     known: str = "adx37",
     knot_spacing_deg: float = 1.0,
     min_knot_samples: int = 50,
@@ -364,8 +396,8 @@ def fit_goman_khrabrov(
         The tanh fit of the same records (``fit_kirchhoff(data, flaps=..., maneuvers=...,
         known=...)``) to start from; default: fitted here (without drag). Refused when it was
         fitted on other maneuvers or another ``known``.
-    flaps, maneuvers, fit_cm, known, max_lag
-        As :func:`aerodelta.longitudinal.fit_kirchhoff`.
+    flaps, maneuvers, fit_cm, fit_cd, known, max_lag
+        As :func:`aerodelta.longitudinal.fit_kirchhoff` (the drag along this fit's state).
     knot_spacing_deg
         Spacing of the table's knots, deg (:func:`knots_for`).
     min_knot_samples
@@ -416,17 +448,20 @@ def fit_goman_khrabrov(
         )  # fmt: skip
     fits: dict[float, GkFlapFit] = {}
     for flap in wanted:
-        ts, al, ad, ls, ms, _, ids = _flap_records(frame, flap, all_flaps)
+        ts, al, ad, ls, ms, ds, ids = _flap_records(frame, flap, all_flaps)
         tanh = start[flap]
         if tuple(sorted(tanh.maneuvers)) != tuple(sorted(ids)):
             raise InvalidInputError(
                 f"flap {flap:g} deg: start was fitted on {len(tanh.maneuvers)} maneuvers, these "
                 f"records hold {len(ids)} others; fit the start on the same maneuvers"
             )
-        fits[flap] = _fit_flap(
+        ff = _fit_flap(
             tanh, ts, al, ad, ls, ms if fit_cm else None, tuple(ids), flap,
             knot_spacing_deg, min_knot_samples, max_iter, max_lag,
         )  # fmt: skip
+        if fit_cd:
+            ff = dataclasses.replace(ff, drag=_table_drag(ff, ts, al, ad, ds))
+        fits[flap] = ff
     return GomanKhrabrovResult(fits=fits, fit_cm=fit_cm, known=known)
 
 
@@ -571,3 +606,34 @@ def _fit_on_line(  # noqa: PLR0917
             max_iter=int(max_iter), max_lag=max_lag,
         )
     )  # fmt: skip
+
+
+def _table_drag(
+    ff: GkFlapFit,
+    ts: list[FloatArray],
+    al: list[FloatArray],
+    ad: list[FloatArray],
+    ds: list[FloatArray],
+) -> DragFit:
+    """The drag along the table's state (:func:`aerodelta.longitudinal._fit_drag`), its errors
+    with the table's coloured covariance carried."""
+    nc = len(CORE_PARAMS)
+    knots = np.radians(ff.knots_deg).tolist()
+
+    def design(p: Mapping[str, float]) -> FloatArray:
+        core = {n: p[n] for n in CORE_PARAMS}
+        values = [p[n] for n in ff.names[nc:]]
+        xs: list[FloatArray] = []
+        for t, a, adot in zip(ts, al, ad, strict=True):
+            x, cl, _ = _core.goman_khrabrov_outputs(core, knots, values, t, a, adot)
+            xs.append(_drag_regressors(cl, x))
+        return np.concatenate(xs)
+
+    theta = {**ff.params, **dict(zip(ff.names[nc:], map(float, ff.x0), strict=True))}
+    theta = {n: theta[n] for n in ff.names}
+    bounds = {
+        "tau1": (TAU1_MIN_S, math.inf),
+        "tau2": (0.0, math.inf),
+        **dict.fromkeys(ff.names[nc:], (0.0, 1.0)),
+    }
+    return _fit_drag(design, theta, ff.cov_colored, bounds, ds, ff.maneuvers, ff.flap_deg)

@@ -24,7 +24,7 @@ from __future__ import annotations
 import functools
 import math
 import re
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -383,23 +383,27 @@ class DragFit:
     params
         ``CD0``, ``CD_k``, ``CD_x`` (-).
     std_err
-        Cluster-robust (CR2, maneuvers as clusters) standard errors, the default of the
-        identification (``docs/identification.md``); NaN where a maneuver alone determines a
+        Standard errors: the cluster-robust ones (CR2, maneuvers as clusters, the default of the
+        identification, ``docs/identification.md``) with the separation state's uncertainty
+        added by the delta method (``cov`` below); NaN where a maneuver alone determines a
         parameter.
     dof
-        Their Bell-McCaffrey degrees of freedom (Student t).
+        The Bell-McCaffrey degrees of freedom of the CR2 part (Student t).
     std_err_conventional, std_err_colored
         White-residual and coloured-residual (SIDPAC ``r_colores``, within the concatenated
         records) standard errors, beside them.
     cov
-        The CR2 covariance, 3 x 3 in :data:`DRAG_PARAMS` order.
+        ``cov_cluster + J V J'``, 3 x 3 in :data:`DRAG_PARAMS` order: ``V`` the output-error
+        fit's coloured-residual covariance, ``J`` the derivative of the drag's least squares in
+        those parameters (the regressors ``C_L^2``, ``1 - x`` move with the state).
     residual_std
         Residual standard deviation of C_D.
     n_samples, n_maneuvers
         Samples and maneuvers fitted.
     note
-        What the errors do not include: the separation state is taken as known (its
-        parameters' uncertainty is not propagated into the drag's).
+        What the errors include and leave out.
+    std_err_cluster, cov_cluster
+        The CR2 errors and covariance conditional on the state (as if it were known).
     """
 
     params: dict[str, float]
@@ -412,6 +416,8 @@ class DragFit:
     n_samples: int
     n_maneuvers: int
     note: str = ""
+    std_err_cluster: dict[str, float] = field(default_factory=dict)
+    cov_cluster: FloatArray = field(default_factory=lambda: np.zeros((0, 0)))
 
 
 @dataclass(frozen=True)
@@ -507,11 +513,12 @@ class KirchhoffResult:
 
     def summary(self) -> pl.DataFrame:
         """One row per flap and parameter: ``flap_deg, parameter, unit, estimate, std_err,
-        std_err_colored, std_err_cluster, start``, plus the derived ``alpha_star_deg``,
-        ``alpha_cl_max_deg`` and ``cl_max`` (their errors NaN, except alpha*'s in deg), then
-        the drag's ``CD0``, ``CD_k``, ``CD_x`` where fitted (``std_err`` conventional,
-        ``std_err_colored`` coloured-residual, ``std_err_cluster`` the CR2 error of
-        :class:`DragFit`; no start). ``std_err_cluster`` is NaN on the output-error rows."""
+        std_err_colored, std_err_cluster, std_err_total, start``, plus the derived
+        ``alpha_star_deg``, ``alpha_cl_max_deg`` and ``cl_max`` (their errors NaN, except
+        alpha*'s in deg), then the drag's ``CD0``, ``CD_k``, ``CD_x`` where fitted (``std_err``
+        conventional, ``std_err_colored`` coloured-residual, ``std_err_cluster`` CR2 given the
+        state, ``std_err_total`` CR2 with the state's uncertainty: :attr:`DragFit.std_err`; no
+        start). ``std_err_cluster`` and ``std_err_total`` are NaN on the output-error rows."""
         rows: list[dict[str, Any]] = []
         nan = math.nan
         for f in sorted(self.fits):
@@ -526,6 +533,7 @@ class KirchhoffResult:
                         "std_err": ff.std_err[n],
                         "std_err_colored": ff.std_err_colored[n],
                         "std_err_cluster": nan,
+                        "std_err_total": nan,
                         "start": ff.start[n],
                     }
                 )
@@ -552,6 +560,7 @@ class KirchhoffResult:
                         "std_err": se,
                         "std_err_colored": sec,
                         "std_err_cluster": nan,
+                        "std_err_total": nan,
                         "start": st,
                     }
                 )
@@ -562,7 +571,8 @@ class KirchhoffResult:
                         "estimate": ff.drag.params[n],
                         "std_err": ff.drag.std_err_conventional[n],
                         "std_err_colored": ff.drag.std_err_colored[n],
-                        "std_err_cluster": ff.drag.std_err[n],
+                        "std_err_cluster": ff.drag.std_err_cluster[n],
+                        "std_err_total": ff.drag.std_err[n],
                         "start": nan,
                     }
                     for n in DRAG_PARAMS
@@ -822,51 +832,124 @@ def fit_kirchhoff(
             tau_identified=not note,
             note=note,
             tau_free=tau_free,
-            drag=_fit_drag(r["params"], ts, al, ad, ds, ids, flap) if fit_cd else None,
+            drag=(
+                _fit_drag(
+                    _tanh_design(ts, al, ad),
+                    {n: float(r["params"][n]) for n in PARAMS},
+                    np.asarray(r["cov_colored"]),
+                    _BOUNDS,
+                    ds,
+                    ids,
+                    flap,
+                )
+                if fit_cd
+                else None
+            ),
         )
     return KirchhoffResult(fits=fits, fit_cm=fit_cm, known=known)
 
 
+#: Bounds of the output-error parameters a difference step must respect (others: none).
+_BOUNDS = {"tau1": (TAU1_MIN_S, math.inf), "tau2": (0.0, math.inf), "a1": (0.1, math.inf)}
+
+Design = Callable[[Mapping[str, float]], FloatArray]
+
+
+def _state_jacobian(  # noqa: PLR0917
+    design_of: Design,
+    p: Mapping[str, float],
+    names: Sequence[str],
+    cov: FloatArray,
+    x0: FloatArray,
+    z: FloatArray,
+    beta: FloatArray,
+    bounds: Mapping[str, tuple[float, float]],
+) -> FloatArray:
+    """``d beta / d theta`` (3 x len(names)): how the drag's least squares moves with the
+    output-error parameters ``theta`` (``names``, covariance ``cov``) that make its regressors
+    ``design_of(theta)``: ``(X'X)^-1 (dX' r - X' dX beta)``, the regressors' derivative ``dX``
+    by central differences of 1e-3 of each parameter's error (one-sided at a bound; zero for a
+    parameter without error: held)."""
+    xtx = x0.T @ x0
+    resid = z - x0 @ beta
+    jac = np.zeros((len(DRAG_PARAMS), len(names)))
+    for j, name in enumerate(names):
+        se = math.sqrt(max(float(cov[j, j]), 0.0))
+        if not se > 0.0:
+            continue
+        h = 1e-3 * se
+        lo, hi = bounds.get(name, (-math.inf, math.inf))
+        up_ok, dn_ok = p[name] + h <= hi, p[name] - h >= lo
+        x_up = _design_at(design_of, p, name, h) if up_ok else x0
+        x_dn = _design_at(design_of, p, name, -h) if dn_ok else x0
+        dx = (x_up - x_dn) / (h * (int(up_ok) + int(dn_ok)))
+        jac[:, j] = np.linalg.solve(xtx, dx.T @ resid - x0.T @ (dx @ beta))
+    return jac
+
+
+def _design_at(design_of: Design, p: Mapping[str, float], name: str, h: float) -> FloatArray:
+    return design_of({**p, name: p[name] + h})
+
+
+def _tanh_design(ts: list[FloatArray], al: list[FloatArray], ad: list[FloatArray]) -> Design:
+    """The drag's regressors ``[1, C_L^2, 1 - x]`` along the tanh form's state, all maneuvers,
+    as a function of its parameters."""
+
+    def design(p: Mapping[str, float]) -> FloatArray:
+        xs: list[FloatArray] = []
+        for t, a, adot in zip(ts, al, ad, strict=True):
+            x, cl, _, _, _ = _core.kirchhoff_outputs(dict(p), t, a, adot)
+            xs.append(_drag_regressors(cl, x))
+        return np.concatenate(xs)
+
+    return design
+
+
 def _fit_drag(  # noqa: PLR0917
+    design_of: Design,
     params: Mapping[str, float],
-    ts: list[FloatArray],
-    al: list[FloatArray],
-    ad: list[FloatArray],
+    cov_state: FloatArray,
+    bounds: Mapping[str, tuple[float, float]],
     ds: list[FloatArray],
     ids: tuple[str, ...] | list[str],
     flap: float,
 ) -> DragFit:
-    """The drag of one flap by least squares along the state of ``params`` (:class:`DragFit`)."""
+    """The drag of one flap by least squares along the state of ``params`` (:class:`DragFit`),
+    its errors with the state's (``cov_state``, the output-error fit's covariance over
+    ``params`` in their order) carried by the delta method."""
     p = {k: float(v) for k, v in params.items()}
-    xs: list[FloatArray] = []
-    for t, a, adot in zip(ts, al, ad, strict=True):
-        x, cl, _, _, _ = _core.kirchhoff_outputs(p, t, a, adot)
-        xs.append(_drag_regressors(cl, x))
-    groups = np.repeat(np.arange(len(ts), dtype=np.uint64), [len(t) for t in ts])
+    design = design_of(p)
+    z = np.concatenate(ds)
+    groups = np.repeat(np.arange(len(ds), dtype=np.uint64), [len(d) for d in ds])
     try:
-        f = ols(
-            np.concatenate(xs), np.concatenate(ds), list(DRAG_PARAMS), groups=groups, colored=True
-        )
+        f = ols(design, z, list(DRAG_PARAMS), groups=groups, colored=True)
     except AerodeltaError as e:
         raise type(e)(f"flap {flap:g} deg, drag: {e}") from e
     assert f.std_err_cluster is not None and f.dof_cluster is not None
     assert f.cov_cluster is not None and f.std_err_corrected is not None
+    beta = np.asarray(f.params)
+    jac = _state_jacobian(design_of, p, list(p), cov_state, design, z, beta, bounds)
+    cov_cr2 = np.asarray(f.cov_cluster)
+    cov = cov_cr2 + jac @ cov_state @ jac.T
 
     def named(v: FloatArray) -> dict[str, float]:
         return {n: float(x) for n, x in zip(DRAG_PARAMS, v, strict=True)}
 
     return DragFit(
         params=named(f.params),
-        std_err=named(f.std_err_cluster),
+        std_err=named(np.sqrt(np.maximum(np.diag(cov), 0.0))),
         dof=named(f.dof_cluster),
         std_err_conventional=named(f.std_err),
         std_err_colored=named(f.std_err_corrected),
-        cov=np.asarray(f.cov_cluster),
+        cov=cov,
         residual_std=float(np.sqrt(f.s2)),
-        n_samples=int(sum(len(t) for t in ts)),
+        n_samples=int(z.size),
         n_maneuvers=len(ids),
-        note="conditional on the identified separation state: the uncertainty of tau1, tau2, "
-        "alpha*, a1 and the lift line is not carried into the drag's errors",
+        note="the separation state's uncertainty (the output-error fit's coloured-residual "
+        "covariance of its parameters) is carried into the errors by the delta method; the "
+        "correlation of the lift and drag residuals is not",
+        std_err_cluster=named(f.std_err_cluster),
+        cov_cluster=cov_cr2,
     )
 
 

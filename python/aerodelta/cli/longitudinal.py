@@ -2,7 +2,8 @@
 (docs/longitudinal.md): time constants tau1, tau2, breakpoint alpha*, steepness a1, the attached
 lift and pitch lines and the pitch break C_mx, with Cramér-Rao bounds and the bounds corrected
 for coloured residuals, the static C_L,max and its alpha; then the drag along the identified
-separation state (CD0, CD_k, CD_x by least squares, cluster-robust errors; --no-cd skips it).
+separation state (CD0, CD_k, CD_x by least squares, cluster-robust errors with the state's
+uncertainty carried; --no-cd skips it).
 
 Prints one row per flap and parameter (or JSON with --format json); --out FILE also writes
 that table as CSV. The built-in aircraft's qualified control, rate and thrust terms are taken
@@ -17,8 +18,8 @@ break; M itself is not touched.
 --form goman-khrabrov fits the static separation curve x0(alpha) as a table (a cubic B-spline
 on knots every --knot-spacing deg) instead of the tanh, started from the tanh fit with its lift
 line held: for records whose lift curve the tanh cannot follow (a plateau, a second rise). It
-prints the scalar parameters and one row per table coefficient (alpha of its knot); the drag
-and --out-model are for the tanh form only.
+prints the scalar parameters, one row per table coefficient (alpha of its knot) and the drag
+along the table's state; --out-model is for the tanh form only.
 """
 
 from __future__ import annotations
@@ -146,7 +147,7 @@ def run(args: argparse.Namespace) -> int:
     else:
         print(
             f"{'flap':>4} {'parameter':<17} {'unit':<6} {'estimate':>10} {'CR bound':>10} "
-            f"{'coloured':>10} {'clustered':>10}"
+            f"{'coloured':>10} {'clustered':>10} {'total':>10}"
         )
 
         def num(v: float) -> str:
@@ -158,15 +159,16 @@ def run(args: argparse.Namespace) -> int:
             print(
                 f"{r['flap_deg']:>4g} {r['parameter']:<17} {r['unit']:<6} "
                 f"{r['estimate']:>10.4g} {num(r['std_err']):>10} "
-                f"{num(r['std_err_colored']):>10} {num(r['std_err_cluster']):>10}"
+                f"{num(r['std_err_colored']):>10} {num(r['std_err_cluster']):>10} "
+                f"{num(r['std_err_total']):>10}"
             )
         for flap, note in res.notes.items():
             print(f"flap {flap:g}: {note}")
         if any(ff.drag is not None for ff in res.fits.values()):
             print(
                 "drag (CD0, CD_k, CD_x): least squares along the identified separation state; "
-                "CR bound = conventional, clustered = CR2 over maneuvers; the state's own "
-                "uncertainty is not carried into these"
+                "CR bound = conventional, clustered = CR2 over maneuvers given the state, total "
+                "= CR2 with the state's uncertainty (delta method)"
             )
         if out is not None:
             print(f"wrote {out}")
@@ -184,7 +186,7 @@ def _run_goman_khrabrov(
 
     res = fit_goman_khrabrov(
         data, flaps=flaps, known=args.known, knot_spacing_deg=args.knot_spacing,
-        max_iter=max(args.max_iter, 100),
+        max_iter=max(args.max_iter, 100), fit_cd=not args.no_cd,
     )  # fmt: skip
     table = res.summary()
     if out is not None:
@@ -213,8 +215,9 @@ def _run_goman_khrabrov(
         print(f"flap {flap:g}: {note}")
     print(
         "x0[k]: the table's cubic B-spline coefficients (knot alpha in deg); '-' bounds: held "
-        "(the tanh fit's lift line, attached flow at the first knot, no data); tanh: the tanh "
-        "fit it started from"
+        "(the lift line, too few samples, or at the bound 0 or 1); tanh: the tanh fit it "
+        "started from; CD0, CD_k, CD_x: the drag along the table's state, CR bound = CR2 with "
+        "the state's uncertainty"
     )
     if out is not None:
         print(f"wrote {out}")
