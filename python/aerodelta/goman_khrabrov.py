@@ -48,9 +48,11 @@ from aerodelta.longitudinal import (
     _engine,
     _f64,
     _fit_drag,
+    _flap_fit,
     _flap_records,
     _known,
     _maneuver_name,
+    _notes,
     _prepared,
     fit_kirchhoff,
     static_curves,
@@ -219,15 +221,11 @@ class GomanKhrabrovResult:
     @property
     def notes(self) -> dict[float, str]:
         """flap (deg) -> the fit's note, for the flaps that have one."""
-        return {f: ff.note for f, ff in sorted(self.fits.items()) if ff.note}
+        return _notes(self.fits)
 
     def __getitem__(self, flap_deg: float) -> GkFlapFit:
         """The fit of one flap setting (deg)."""
-        try:
-            return self.fits[float(flap_deg)]
-        except KeyError:
-            have = ", ".join(f"{f:g}" for f in sorted(self.fits))
-            raise InvalidInputError(f"no fit at flap {flap_deg:g} deg; fitted: {have}") from None
+        return _flap_fit(self.fits, flap_deg)
 
     def summary(self) -> pl.DataFrame:
         """One row per flap and parameter: ``flap_deg, parameter, unit, alpha_deg, estimate,

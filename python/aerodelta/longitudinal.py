@@ -26,7 +26,7 @@ import math
 import re
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Protocol, TypeVar
 
 import numpy as np
 import numpy.typing as npt
@@ -488,6 +488,27 @@ class FlapFit:
         return math.degrees(a), c
 
 
+class _Noted(Protocol):
+    note: str
+
+
+_Fit = TypeVar("_Fit", bound=_Noted)
+
+
+def _notes(fits: Mapping[float, _Noted]) -> dict[float, str]:
+    """flap (deg) -> the fit's note, for the flaps that have one."""
+    return {f: ff.note for f, ff in sorted(fits.items()) if ff.note}
+
+
+def _flap_fit(fits: Mapping[float, _Fit], flap_deg: float) -> _Fit:
+    """The fit of one flap setting (deg), or a clear refusal naming the fitted flaps."""
+    try:
+        return fits[float(flap_deg)]
+    except KeyError:
+        have = ", ".join(f"{f:g}" for f in sorted(fits))
+        raise InvalidInputError(f"no fit at flap {flap_deg:g} deg; fitted: {have}") from None
+
+
 @dataclass(frozen=True)
 class KirchhoffResult:
     """What :func:`fit_kirchhoff` returns: one :class:`FlapFit` per flap setting, whether
@@ -501,15 +522,11 @@ class KirchhoffResult:
     @property
     def notes(self) -> dict[float, str]:
         """flap (deg) -> the fit's note, for the flaps that have one (lags not identified)."""
-        return {f: ff.note for f, ff in sorted(self.fits.items()) if ff.note}
+        return _notes(self.fits)
 
     def __getitem__(self, flap_deg: float) -> FlapFit:
         """The fit of one flap setting (deg)."""
-        try:
-            return self.fits[float(flap_deg)]
-        except KeyError:
-            have = ", ".join(f"{f:g}" for f in sorted(self.fits))
-            raise InvalidInputError(f"no fit at flap {flap_deg:g} deg; fitted: {have}") from None
+        return _flap_fit(self.fits, flap_deg)
 
     def summary(self) -> pl.DataFrame:
         """One row per flap and parameter: ``flap_deg, parameter, unit, estimate, std_err,

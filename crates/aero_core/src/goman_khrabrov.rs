@@ -33,7 +33,7 @@
 //! ([`crate::output_error::fit_tabulated`]'s `fixed`).
 
 use crate::error::{AeroError, Result};
-use crate::kirchhoff::{foh_weights, kirchhoff_lift, Inputs, Outputs, X_FLOOR};
+use crate::kirchhoff::{check_lags, foh_weights, kirchhoff_lift, Inputs, Outputs, X_FLOOR};
 
 /// Number of the scalar parameters ahead of the node values in [`GkParams::to_vec`].
 pub const N_CORE: usize = 7;
@@ -264,29 +264,13 @@ impl GkParams {
     /// # Errors
     /// [`AeroError::OutOfRange`] naming the parameter.
     pub fn check(&self) -> Result<()> {
-        for (name, v) in CORE_NAMES.iter().zip(self.to_vec()) {
-            if !v.is_finite() {
-                return Err(AeroError::out_of_range(
-                    format!("Goman-Khrabrov parameter {name}"),
-                    format!("is {v}; give a finite value"),
-                ));
-            }
-        }
-        if self.tau1 <= 0.0 {
-            return Err(AeroError::out_of_range(
-                "Goman-Khrabrov parameter tau1",
-                format!(
-                    "is {} s; the separation time constant must be > 0",
-                    self.tau1
-                ),
-            ));
-        }
-        if self.tau2 < 0.0 {
-            return Err(AeroError::out_of_range(
-                "Goman-Khrabrov parameter tau2",
-                format!("is {} s; the convective lag must be >= 0", self.tau2),
-            ));
-        }
+        check_lags(
+            "Goman-Khrabrov",
+            &CORE_NAMES,
+            &self.to_vec(),
+            self.tau1,
+            self.tau2,
+        )?;
         self.x0.check_values()
     }
 

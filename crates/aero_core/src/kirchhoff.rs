@@ -114,29 +114,13 @@ impl KirchhoffParams {
     /// # Errors
     /// [`AeroError::OutOfRange`] naming the parameter.
     pub fn check(&self) -> Result<()> {
-        for (name, v) in PARAM_NAMES.iter().zip(self.to_array()) {
-            if !v.is_finite() {
-                return Err(AeroError::out_of_range(
-                    format!("Kirchhoff parameter {name}"),
-                    format!("is {v}; give a finite value"),
-                ));
-            }
-        }
-        if self.tau1 <= 0.0 {
-            return Err(AeroError::out_of_range(
-                "Kirchhoff parameter tau1",
-                format!(
-                    "is {} s; the separation time constant must be > 0",
-                    self.tau1
-                ),
-            ));
-        }
-        if self.tau2 < 0.0 {
-            return Err(AeroError::out_of_range(
-                "Kirchhoff parameter tau2",
-                format!("is {} s; the convective lag must be >= 0", self.tau2),
-            ));
-        }
+        check_lags(
+            "Kirchhoff",
+            &PARAM_NAMES,
+            &self.to_array(),
+            self.tau1,
+            self.tau2,
+        )?;
         if self.a1 <= 0.0 {
             return Err(AeroError::out_of_range(
                 "Kirchhoff parameter a1",
@@ -225,6 +209,38 @@ impl KirchhoffParams {
         let am = 0.5 * (a + b);
         (am, self.cl_static(am))
     }
+}
+
+/// The checks both separation forms share: every named value finite, `τ₁ > 0`,
+/// `τ₂ ≥ 0`; errors name the form (`model`) and the parameter.
+pub(crate) fn check_lags(
+    model: &str,
+    names: &[&str],
+    values: &[f64],
+    tau1: f64,
+    tau2: f64,
+) -> Result<()> {
+    for (name, v) in names.iter().zip(values) {
+        if !v.is_finite() {
+            return Err(AeroError::out_of_range(
+                format!("{model} parameter {name}"),
+                format!("is {v}; give a finite value"),
+            ));
+        }
+    }
+    if tau1 <= 0.0 {
+        return Err(AeroError::out_of_range(
+            format!("{model} parameter tau1"),
+            format!("is {tau1} s; the separation time constant must be > 0"),
+        ));
+    }
+    if tau2 < 0.0 {
+        return Err(AeroError::out_of_range(
+            format!("{model} parameter tau2"),
+            format!("is {tau2} s; the convective lag must be >= 0"),
+        ));
+    }
+    Ok(())
 }
 
 /// Kirchhoff's lift of a partly separated plate, `C_Lα (α − α₀) ((1 + √x)/2)²`
