@@ -444,6 +444,60 @@ pub fn simulate(p: &GkParams, inp: &Inputs<'_>) -> Result<Vec<f64>> {
     Ok(outputs(p, inp, false)?.x)
 }
 
+/// The separation state of a running simulation with the tabulated form (one per
+/// aircraft), as [`crate::kirchhoff::KirchhoffState`] is for the tanh form: call
+/// [`GkState::update`] once per step; before the first call the state is the static
+/// solution `x₀(α − τ₂α̇)` of the input it is asked about.
+#[derive(Debug, Clone, PartialEq)]
+pub struct GkState {
+    /// The model parameters.
+    pub params: GkParams,
+    /// `(t, x, u)` at the last update.
+    last: Option<(f64, f64, f64)>,
+}
+
+impl GkState {
+    /// A state that has not been stepped yet.
+    ///
+    /// # Errors
+    /// If the parameters fail [`GkParams::check`].
+    pub fn new(params: GkParams) -> Result<Self> {
+        params.check()?;
+        Ok(GkState { params, last: None })
+    }
+
+    /// The separation point to use at `alpha`, `alpha_dot` (rad, rad/s).
+    #[inline]
+    pub fn x_at(&self, alpha: f64, alpha_dot: f64) -> f64 {
+        match self.last {
+            Some((_, x, _)) => x,
+            None => self.params.x0_lagged(alpha, alpha_dot),
+        }
+    }
+
+    /// Advance to time `t` (s) where the flow angles are `alpha`, `alpha_dot` (the input
+    /// held linear since the last update, the exact step of [`outputs`]). The first call
+    /// sets the static solution; a call at the time of the last one changes nothing; a
+    /// call at an earlier time restarts at the static solution there.
+    pub fn update(&mut self, t: f64, alpha: f64, alpha_dot: f64) {
+        let u = self.params.x0_lagged(alpha, alpha_dot);
+        let x = match self.last {
+            Some((t0, _, _)) if t == t0 => return,
+            Some((t0, x, u0)) if t > t0 => {
+                let ([e, c0, g], _) = foh_weights(t - t0, self.params.tau1);
+                e * x + c0 * u0 + g * u
+            }
+            _ => u,
+        };
+        self.last = Some((t, x, u));
+    }
+
+    /// Forget the history (the next update starts at the static solution).
+    pub fn reset(&mut self) {
+        self.last = None;
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -516,6 +570,34 @@ mod tests {
         )
         .unwrap();
         assert!(x.iter().all(|&v| (v - g.x0.eval(0.33)).abs() < 1e-15));
+    }
+
+    #[test]
+    fn the_runtime_state_is_the_batch_simulation() {
+        let g = tabulated(&truth(), 10.0, 26.0, 1.0);
+        let (t, a, ad) = sweep(900, 50.0);
+        let batch = simulate(
+            &g,
+            &Inputs {
+                t: &t,
+                alpha: &a,
+                alpha_dot: &ad,
+            },
+        )
+        .unwrap();
+        let mut st = GkState::new(g.clone()).unwrap();
+        assert_eq!(st.x_at(a[0], ad[0]), g.x0_lagged(a[0], ad[0]));
+        for k in 0..t.len() {
+            st.update(t[k], a[k], ad[k]);
+            assert!((st.x_at(a[k], ad[k]) - batch[k]).abs() < 1e-15, "row {k}");
+            st.update(t[k], a[k] + 0.1, ad[k]); // the same time again: no change
+            assert!((st.x_at(a[k], ad[k]) - batch[k]).abs() < 1e-15);
+        }
+        st.reset();
+        assert_eq!(st.x_at(0.3, 0.0), g.x0.eval(0.3));
+        let mut bad = g;
+        bad.tau2 = -1.0;
+        assert!(GkState::new(bad).is_err());
     }
 
     #[test]
