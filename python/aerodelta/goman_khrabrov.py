@@ -4,17 +4,18 @@ identified by output error (``docs/longitudinal.md``, "The Goman-Khrabrov form")
 The separation dynamics are those of :mod:`aerodelta.longitudinal`,
 ``tau1 x' + x = x0(alpha - tau2 alpha')``, with Kirchhoff's lift
 ``CL_alpha (alpha - alpha0) ((1 + sqrt(x)) / 2)**2`` and the pitching moment
-``Cm0 + Cm_alpha alpha + Cm_x (1 - x)``; but ``x0(alpha)`` is a table, piecewise linear
-between knots, instead of Fischenberg's ``(1 - tanh(a1 (alpha - alpha*))) / 2`` (Goman &
-Khrabrov, J. Aircraft 31(5), 1994: the static separation curve is whatever the static lift
-curve says). A lift curve the tanh cannot follow (a plateau, a second rise: JSBSim's
-piecewise-linear tables) is followed node by node, and the state keeps its lag and hysteresis.
+``Cm0 + Cm_alpha alpha + Cm_x (1 - x)``; but ``x0(alpha)`` is a table, a uniform cubic
+B-spline on knots every 1 deg, instead of Fischenberg's ``(1 - tanh(a1 (alpha - alpha*))) /
+2`` (Goman & Khrabrov, J. Aircraft 31(5), 1994: the static separation curve is whatever the
+static lift curve says). A lift curve the tanh cannot follow (a plateau, a second rise:
+JSBSim's piecewise-linear tables) is followed coefficient by coefficient, and the state keeps
+its lag and hysteresis.
 
 :func:`fit_goman_khrabrov` starts from the tanh fit (:func:`aerodelta.longitudinal.
-fit_kirchhoff`) of the same flap and records, holds the attached-flow lift line of its
-equation-error start (``CL_alpha``, ``alpha0``: least squares below the largest binned C_L less
-5 deg; with every coefficient free, the line and the table trade off), and fits tau1, tau2,
-the table's coefficients and the pitching moment with the same engine
+fit_kirchhoff`) of the same flap and records, holds a lift line (``CL_alpha``, ``alpha0``:
+with every coefficient free, the line and the table trade off; of two candidates, the tanh
+fit's and the equation-error start's attached-flow line, the one giving the lower cost), and
+fits tau1, tau2, the table's coefficients and the pitching moment with the same engine
 (``aero_core::output_error``: same cost, iterations, Cramér-Rao and coloured-residual bounds;
 coefficients held at their bounds 0 or 1 while the data push them out).
 """
@@ -67,8 +68,8 @@ CORE_UNITS: dict[str, str] = {
     "Cm_alpha": "1/rad", "Cm_x": "-",
 }  # fmt: skip
 
-#: Held at the equation-error start's values: the attached-flow lift line (the table carries
-#: the rest).
+#: Held: the lift line (the tanh fit's or the equation-error start's, whichever gives the lower
+#: cost; the table carries the rest).
 HELD_LINE = ("CL_alpha", "alpha0")
 
 #: The separation point of the tanh start at which the table ends when the records stop short
@@ -97,11 +98,13 @@ class GkFlapFit:
     flap_deg
         Flap, deg.
     params, start
-        Scalar estimates and their start (the tanh fit's), by name (units: :data:`CORE_UNITS`).
+        Scalar estimates and their start (the held line's ``CL_alpha``, ``alpha0``, the tanh
+        fit's others), by name (units: :data:`CORE_UNITS`).
     knots_deg
         The table's knots, deg (alpha of the static separation curve).
     x0, x0_start
-        Node values (separation point, 0-1) and their start (the tanh curve at the knots).
+        The spline's coefficients (separation point, 0-1) and their start (the tanh fit's
+        static lift re-expressed on the held line, interpolated at the knots).
     std_err, std_err_colored
         Cramér-Rao bounds and the bounds corrected for coloured residuals of the scalar
         parameters (NaN: held, e.g. ``CL_alpha``, ``alpha0``; tau1, tau2 on static data).
@@ -232,8 +235,10 @@ class GomanKhrabrovResult:
         std_err, std_err_colored, start`` (``alpha_deg`` the knot of a node ``x0[k]``, NaN for
         the scalars), the drag's ``CD0``, ``CD_k``, ``CD_x`` where fitted (``std_err`` the
         :class:`aerodelta.longitudinal.DragFit` one: CR2 with the state's uncertainty), then
-        ``alpha_cl_max_deg`` and ``cl_max`` of the static curve and the tanh fit's and this
-        fit's ``cost`` (``start`` holds the tanh fit's value)."""
+        ``alpha_cl_max_deg`` and ``cl_max`` of the static curve and this fit's ``cost``.
+        ``start``: the fit's start (the held line, the tanh fit's other scalars, the
+        coefficients re-expressed on the held line); on the last three rows, the tanh fit's
+        value."""
         rows: list[dict[str, Any]] = []
         nan = math.nan
         for f in sorted(self.fits):
@@ -411,9 +416,12 @@ def fit_goman_khrabrov(
 
     Notes
     -----
-    The attached-flow lift line ``CL_alpha``, ``alpha0`` of the equation-error start is held
-    (:data:`HELD_LINE`): with every coefficient free the line and the table trade off, and the
-    tanh fit's own line bends to the break where the tanh cannot follow it. The table's knots
+    A lift line ``CL_alpha``, ``alpha0`` is held (:data:`HELD_LINE`): with every coefficient
+    free the line and the table trade off. Two candidates are fitted and the lower cost kept
+    (:attr:`GkFlapFit.line`): the tanh fit's line, and the equation-error start's attached-flow
+    line (its margin under the peak 5 deg, or 3 or 1.5 when needed); the tanh fit's own line
+    bends to the break where the tanh cannot follow it, the attached line clips coefficients at
+    1 where the lift rises above it again. The table's knots
     run from :data:`BELOW_DEG` under the tanh start's attached alpha (or the lowest alpha
     flown) to past the data on the tanh start's curve (:func:`knots_for`); its start is the
     separation point whose lift on the held line is the tanh fit's static lift. tau1, tau2, the
@@ -518,10 +526,15 @@ def _fit_flap(  # noqa: PLR0917
     # that as dynamics (a plateau's tau2 came out 15 % low on the tanh's line); where the lift
     # rises above the attached line again (JSBSim's F-15, DHC-6) that line clips coefficients
     # at 1 (the table left the binned curve's band on 15-25 % of the grid).
-    ee = _engine(ts, al, ad, ls, ms, ids, flap, max_lag, None, list(PARAMS), 1)["start"]
-    fits: list[tuple[float, str, dict[str, Any]]] = []
+    candidates: list[tuple[str, Mapping[str, float]]] = [("tanh fit", tp)]
     errors: list[AerodeltaError] = []
-    for source, line_p in (("tanh fit", tp), ("equation-error start", ee)):
+    try:
+        ee = _engine(ts, al, ad, ls, ms, ids, flap, max_lag, None, list(PARAMS), 1)["start"]
+        candidates.append(("equation-error start", ee))
+    except AerodeltaError as e:  # a user-given tanh start on records the start refuses
+        errors.append(e)
+    fits: list[tuple[float, str, dict[str, Any]]] = []
+    for source, line_p in candidates:
         try:
             r = _fit_on_line(
                 tanh, line_p, knots, knots_deg, ts, al, ad, ls, ms, fixed, max_iter, max_lag
@@ -634,4 +647,8 @@ def _table_drag(
         "tau2": (0.0, math.inf),
         **dict.fromkeys(ff.names[nc:], (0.0, 1.0)),
     }
-    return _fit_drag(design, theta, ff.cov_colored, bounds, ds, ff.maneuvers, ff.flap_deg)
+    d = _fit_drag(design, theta, ff.cov_colored, bounds, ds, ff.maneuvers, ff.flap_deg)
+    return dataclasses.replace(
+        d,
+        note=d.note + "; the held lift line (CL_alpha, alpha0) carries no uncertainty here",
+    )

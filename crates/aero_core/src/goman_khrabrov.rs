@@ -24,13 +24,14 @@
 //!
 //! Identified by output error ([`crate::output_error::fit_tabulated`]) on the
 //! parameter vector `[τ₁, τ₂, C_Lα, α₀, C_m0, C_mα, C_mx, v_0, …, v_{K−1}]`
-//! ([`GkParams::to_vec`]). The node values enter `x` linearly through the hat
-//! weights, so their output sensitivities are a forward recursion of the same
-//! discrete step as `τ₂`'s.
+//! ([`GkParams::to_vec`]). The coefficients enter `x` linearly through the
+//! cubic B-spline weights, so their output sensitivities are a forward recursion
+//! of the same discrete step as `τ₂`'s.
 //!
-//! Where the lift line and the nodes trade off (a node below the stall and
-//! `C_Lα` both scale the lift), the fit holds the nodes of attached flow at 1
-//! ([`crate::output_error::fit_tabulated`]'s `fixed`).
+//! The lift line and the coefficients trade off (a steeper line with lower
+//! coefficients gives the same static lift), so a fit holds one of them: the
+//! Python front end holds the line (`C_Lα`, `α₀`) through
+//! [`crate::output_error::fit_tabulated`]'s `fixed`.
 
 use crate::error::{AeroError, Result};
 use crate::kirchhoff::{check_lags, foh_weights, kirchhoff_lift, Inputs, Outputs, X_FLOOR};
@@ -47,7 +48,7 @@ pub const CORE_NAMES: [&str; N_CORE] = [
 /// The static separation curve `x₀(α)`: a uniform cubic B-spline on equally
 /// spaced knots (rad) with coefficients in `[0, 1]`, constant beyond the end
 /// knots (module docs).
-#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct X0Table {
     knots: Vec<f64>,
     values: Vec<f64>,
@@ -197,7 +198,7 @@ impl X0Table {
 }
 
 /// The parameters of the tabulated (Goman-Khrabrov) form at one flap setting.
-#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct GkParams {
     /// Separation time constant, s.
     pub tau1: f64,
@@ -303,7 +304,9 @@ impl GkParams {
     /// section around the best point. With a maximum at the last knot the curve rises past the table
     /// (the lift line with the last node): the maximum is not in the data.
     pub fn cl_max(&self) -> (f64, f64) {
-        let lo = self.alpha0 + 0.01;
+        // from just past the zero-lift alpha, or half a radian under the table when that
+        // is higher (below the table the lift is the line times a constant: no maximum)
+        let lo = (self.alpha0 + 0.01).max(self.x0.knots[0] - 0.5);
         let hi = *self.x0.knots.last().unwrap_or(&lo);
         if hi <= lo {
             return (lo, self.cl_static(lo));

@@ -658,11 +658,16 @@ fn run<M: OeModel>(
         if with_cm { 1.0 / r[1].max(1e-300) } else { 0.0 },
     ];
     let (idx, names) = if set.active_set {
-        // parameters ending on a bound are reported without bounds (held there)
+        // parameters ending on a bound are reported held there: not free, no bounds
         let (_, g) = normal_equations(model, &th, series, &idx, w)?;
         let keep: Vec<usize> = (0..idx.len())
             .filter(|&k| !at_bound(model.bounds(idx[k]), th[idx[k]], g[k]))
             .collect();
+        for k in 0..idx.len() {
+            if !keep.contains(&k) {
+                free[idx[k]] = false;
+            }
+        }
         (
             keep.iter().map(|&k| idx[k]).collect::<Vec<_>>(),
             keep.iter().map(|&k| names[k].clone()).collect::<Vec<_>>(),
@@ -829,7 +834,7 @@ pub struct GkFit {
     pub params: GkParams,
     /// The start.
     pub start: GkParams,
-    /// Which parameters were estimated.
+    /// Which parameters were estimated (false: held, or ending on a bound).
     pub free: Vec<bool>,
     /// Cramér-Rao bounds, NaN for held parameters.
     pub std_err: Vec<f64>,
@@ -855,9 +860,11 @@ pub struct GkFit {
 
 /// Fit the tabulated (Goman-Khrabrov) form ([`crate::goman_khrabrov`]) by output
 /// error from `start` over its knots, with the engine of [`fit`] (same cost,
-/// iterations and bounds). The start is typically the tanh fit's curve
-/// tabulated on the knots, and the nodes of attached flow held at 1
-/// (`opts.fixed`): with them free the lift line `C_Lα` and the nodes trade off.
+/// iterations and bounds), with the active set: a coefficient on its bound 0 or 1
+/// whose gradient points outward is held for the step, and one ending there is
+/// reported not free, without bounds. The start is typically the tanh fit's curve
+/// re-expressed on the knots, with the lift line `C_Lα`, `α₀` held (`opts.fixed`):
+/// with both free, the line and the coefficients trade off.
 ///
 /// # Errors
 /// As [`fit`]; a start that fails [`GkParams::check`]; `fixed` of the wrong length.

@@ -55,7 +55,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--no-cm", action="store_true", help="fit C_L only")
     parser.add_argument("--no-cd", action="store_true", help="do not fit the drag")
     parser.add_argument("--known", choices=("adx37", "none"), default="adx37")
-    parser.add_argument("--max-iter", type=int, default=60, metavar="N")
+    parser.add_argument(
+        "--max-iter",
+        type=int,
+        default=None,
+        metavar="N",
+        help="iteration bound (default 60; 100 with --form goman-khrabrov)",
+    )
     parser.add_argument(
         "--form",
         choices=("kirchhoff", "goman-khrabrov"),
@@ -94,7 +100,7 @@ def run(args: argparse.Namespace) -> int:
     from aerodelta.fit import model_frame  # noqa: PLC0415  (CLI start-up light)
     from aerodelta.longitudinal import fit_kirchhoff  # noqa: PLC0415
 
-    if args.max_iter < 1:
+    if args.max_iter is not None and args.max_iter < 1:
         raise InvalidInputError(f"--max-iter {args.max_iter}: give at least 1")
     flaps = _flaps(args.flaps)
     out = output_file(args.out, "--out", "kirchhoff.csv") if args.out else None
@@ -131,7 +137,7 @@ def run(args: argparse.Namespace) -> int:
         fit_cm=not args.no_cm,
         fit_cd=not args.no_cd,
         known=args.known,
-        max_iter=args.max_iter,
+        max_iter=60 if args.max_iter is None else args.max_iter,
     )
     table = res.summary()
     if out is not None:
@@ -186,7 +192,7 @@ def _run_goman_khrabrov(
 
     res = fit_goman_khrabrov(
         data, flaps=flaps, known=args.known, knot_spacing_deg=args.knot_spacing,
-        max_iter=max(args.max_iter, 100), fit_cd=not args.no_cd,
+        max_iter=100 if args.max_iter is None else args.max_iter, fit_cd=not args.no_cd,
     )  # fmt: skip
     table = res.summary()
     if out is not None:
@@ -203,7 +209,7 @@ def _run_goman_khrabrov(
 
     print(
         f"{'flap':>4} {'parameter':<17} {'unit':<6} {'alpha':>6} {'estimate':>10} "
-        f"{'CR bound':>10} {'coloured':>10} {'tanh':>10}"
+        f"{'CR bound':>10} {'coloured':>10} {'start':>10}"
     )
     for r in table.iter_rows(named=True):
         print(
@@ -215,9 +221,10 @@ def _run_goman_khrabrov(
         print(f"flap {flap:g}: {note}")
     print(
         "x0[k]: the table's cubic B-spline coefficients (knot alpha in deg); '-' bounds: held "
-        "(the lift line, too few samples, or at the bound 0 or 1); tanh: the tanh fit it "
-        "started from; CD0, CD_k, CD_x: the drag along the table's state, CR bound = CR2 with "
-        "the state's uncertainty"
+        "(the lift line, too few samples, or at the bound 0 or 1); start: the start (on "
+        "alpha_cl_max_deg, cl_max and cost: the tanh fit's); CD0, CD_k, CD_x: the drag along "
+        "the table's state, CR bound = CR2 with the state's uncertainty (the held lift line's "
+        "left out)"
     )
     if out is not None:
         print(f"wrote {out}")
