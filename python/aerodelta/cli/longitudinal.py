@@ -71,7 +71,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--knot-spacing",
         type=float,
-        default=1.0,
+        default=None,
         metavar="DEG",
         help="spacing of the table's knots with --form goman-khrabrov, deg (default 1)",
     )
@@ -118,6 +118,11 @@ def run(args: argparse.Namespace) -> int:
         raise InvalidInputError(
             "--out-model with --form goman-khrabrov: the model file stores the tanh form only; "
             "fit without --form to store the stall"
+        )
+    if not gk and args.knot_spacing is not None:
+        raise InvalidInputError(
+            "--knot-spacing applies to --form goman-khrabrov (the table's knots); the tanh form "
+            "has none"
         )
     if gk and args.no_cm:
         raise InvalidInputError("--no-cm with --form goman-khrabrov: the table is fitted with C_m")
@@ -191,7 +196,8 @@ def _run_goman_khrabrov(
     from aerodelta.goman_khrabrov import fit_goman_khrabrov  # noqa: PLC0415
 
     res = fit_goman_khrabrov(
-        data, flaps=flaps, known=args.known, knot_spacing_deg=args.knot_spacing,
+        data, flaps=flaps, known=args.known,
+        knot_spacing_deg=1.0 if args.knot_spacing is None else args.knot_spacing,
         max_iter=100 if args.max_iter is None else args.max_iter, fit_cd=not args.no_cd,
     )  # fmt: skip
     table = res.summary()
