@@ -34,7 +34,9 @@
 //! [`crate::output_error::fit_tabulated`]'s `fixed`.
 
 use crate::error::{AeroError, Result};
-use crate::kirchhoff::{check_lags, foh_weights, kirchhoff_lift, Inputs, Outputs, X_FLOOR};
+use crate::kirchhoff::{
+    check_lags, foh_weights, kirchhoff_lift, Inputs, Outputs, Separation, SeparationState, X_FLOOR,
+};
 
 /// Number of the scalar parameters ahead of the node values in [`GkParams::to_vec`].
 pub const N_CORE: usize = 7;
@@ -219,6 +221,21 @@ pub struct GkParams {
 }
 
 impl GkParams {
+    /// The tanh form's lags, lift line and pitching-moment terms over the separation
+    /// table `x0` (a tanh fit's scalars, its curve replaced by a table).
+    pub fn with_table(p: &crate::kirchhoff::KirchhoffParams, x0: X0Table) -> GkParams {
+        GkParams {
+            tau1: p.tau1,
+            tau2: p.tau2,
+            cl_alpha: p.cl_alpha,
+            alpha0: p.alpha0,
+            cm0: p.cm0,
+            cm_alpha: p.cm_alpha,
+            cm_x: p.cm_x,
+            x0,
+        }
+    }
+
     /// `[τ₁, τ₂, C_Lα, α₀, C_m0, C_mα, C_mx, v_0, …]`.
     pub fn to_vec(&self) -> Vec<f64> {
         let mut v = vec![
@@ -447,64 +464,29 @@ pub fn simulate(p: &GkParams, inp: &Inputs<'_>) -> Result<Vec<f64>> {
     Ok(outputs(p, inp, false)?.x)
 }
 
-/// The separation state of a running simulation with the tabulated form (one per
-/// aircraft), as [`crate::kirchhoff::KirchhoffState`] is for the tanh form: call
-/// [`GkState::update`] once per step; before the first call the state is the static
-/// solution `x₀(α − τ₂α̇)` of the input it is asked about.
-#[derive(Debug, Clone, PartialEq)]
-pub struct GkState {
-    /// The model parameters.
-    pub params: GkParams,
-    /// `(t, x, u)` at the last update.
-    last: Option<(f64, f64, f64)>,
-}
-
-impl GkState {
-    /// A state that has not been stepped yet.
-    ///
-    /// # Errors
-    /// If the parameters fail [`GkParams::check`].
-    pub fn new(params: GkParams) -> Result<Self> {
-        params.check()?;
-        Ok(GkState { params, last: None })
-    }
-
-    /// The separation point to use at `alpha`, `alpha_dot` (rad, rad/s).
+impl Separation for GkParams {
     #[inline]
-    pub fn x_at(&self, alpha: f64, alpha_dot: f64) -> f64 {
-        match self.last {
-            Some((_, x, _)) => x,
-            None => self.params.x0_lagged(alpha, alpha_dot),
-        }
+    fn x0_lagged(&self, alpha: f64, alpha_dot: f64) -> f64 {
+        GkParams::x0_lagged(self, alpha, alpha_dot)
     }
-
-    /// Advance to time `t` (s) where the flow angles are `alpha`, `alpha_dot` (the input
-    /// held linear since the last update, the exact step of [`outputs`]). The first call
-    /// sets the static solution; a call at the time of the last one changes nothing; a
-    /// call at an earlier time restarts at the static solution there.
-    pub fn update(&mut self, t: f64, alpha: f64, alpha_dot: f64) {
-        let u = self.params.x0_lagged(alpha, alpha_dot);
-        let x = match self.last {
-            Some((t0, _, _)) if t == t0 => return,
-            Some((t0, x, u0)) if t > t0 => {
-                let ([e, c0, g], _) = foh_weights(t - t0, self.params.tau1);
-                e * x + c0 * u0 + g * u
-            }
-            _ => u,
-        };
-        self.last = Some((t, x, u));
+    #[inline]
+    fn tau1(&self) -> f64 {
+        self.tau1
     }
-
-    /// Forget the history (the next update starts at the static solution).
-    pub fn reset(&mut self) {
-        self.last = None;
+    fn check_params(&self) -> Result<()> {
+        self.check()
     }
 }
+
+/// The tabulated form's running state (one per aircraft), as
+/// [`crate::kirchhoff::KirchhoffState`] is the tanh form's: the same
+/// [`SeparationState`], stepped exactly as [`outputs`] steps a record.
+pub type GkState = SeparationState<GkParams>;
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::kirchhoff::tests::truth;
+    use crate::kirchhoff::tests::{sweep_about, truth};
     use crate::kirchhoff::KirchhoffParams;
 
     /// The tanh curve of `p` tabulated every `step_deg` over `[lo, hi]` deg.
@@ -514,29 +496,11 @@ mod tests {
             .map(|k| (lo + step_deg * k as f64).to_radians())
             .collect();
         let values = knots.iter().map(|&a| p.x0(a)).collect();
-        GkParams {
-            tau1: p.tau1,
-            tau2: p.tau2,
-            cl_alpha: p.cl_alpha,
-            alpha0: p.alpha0,
-            cm0: p.cm0,
-            cm_alpha: p.cm_alpha,
-            cm_x: p.cm_x,
-            x0: X0Table::new(knots, values).unwrap(),
-        }
+        GkParams::with_table(p, X0Table::new(knots, values).unwrap())
     }
 
     fn sweep(n: usize, hz: f64) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
-        let t: Vec<f64> = (0..n).map(|k| k as f64 / hz).collect();
-        let a: Vec<f64> = t
-            .iter()
-            .map(|&t| (14.0 + 9.0 * (0.4 * t).sin() + 1.5 * (2.3 * t).sin()).to_radians())
-            .collect();
-        let ad: Vec<f64> = t
-            .iter()
-            .map(|&t| (9.0 * 0.4 * (0.4 * t).cos() + 1.5 * 2.3 * (2.3 * t).cos()).to_radians())
-            .collect();
-        (t, a, ad)
+        sweep_about(14.0, n, hz)
     }
 
     #[test]

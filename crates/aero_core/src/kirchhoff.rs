@@ -375,27 +375,60 @@ pub fn step(x: f64, u0: f64, u1: f64, h: f64, tau1: f64) -> f64 {
     e * x + c0 * u0 + g * u1
 }
 
-/// The separation state of a running simulation (one per aircraft).
+/// A static separation curve a running state can be stepped with: the tanh form
+/// ([`KirchhoffParams`]) or the tabulated form ([`crate::goman_khrabrov::GkParams`]).
+pub trait Separation {
+    /// `x₀(α − τ₂ α̇)`, the ODE's input (rad, rad/s).
+    fn x0_lagged(&self, alpha: f64, alpha_dot: f64) -> f64;
+    /// The separation time constant τ₁, s.
+    fn tau1(&self) -> f64;
+    /// Refuse values the model cannot run with.
+    ///
+    /// # Errors
+    /// [`AeroError::OutOfRange`] naming the parameter.
+    fn check_params(&self) -> Result<()>;
+}
+
+impl Separation for KirchhoffParams {
+    #[inline]
+    fn x0_lagged(&self, alpha: f64, alpha_dot: f64) -> f64 {
+        KirchhoffParams::x0_lagged(self, alpha, alpha_dot)
+    }
+    #[inline]
+    fn tau1(&self) -> f64 {
+        self.tau1
+    }
+    fn check_params(&self) -> Result<()> {
+        self.check()
+    }
+}
+
+/// The separation state of a running simulation (one per aircraft), for either
+/// form ([`KirchhoffState`], [`crate::goman_khrabrov::GkState`]).
 ///
-/// Call [`KirchhoffState::update`] once per step with the time and the flow
+/// Call [`SeparationState::update`] once per step with the time and the flow
 /// angles; before the first call the state is the static solution
-/// x₀(α − τ₂α̇) of the input it is asked about ([`KirchhoffState::x_at`]).
+/// x₀(α − τ₂α̇) of the input it is asked about ([`SeparationState::x_at`]).
 #[derive(Debug, Clone, PartialEq)]
-pub struct KirchhoffState {
+pub struct SeparationState<P> {
     /// The model parameters.
-    pub params: KirchhoffParams,
+    pub params: P,
     /// `(t, x, u)` at the last update.
     last: Option<(f64, f64, f64)>,
 }
 
-impl KirchhoffState {
+/// The tanh form's running state.
+pub type KirchhoffState = SeparationState<KirchhoffParams>;
+
+impl<P: Separation> SeparationState<P> {
     /// A state that has not been stepped yet.
     ///
     /// # Errors
-    /// If the parameters fail [`KirchhoffParams::check`].
-    pub fn new(params: KirchhoffParams) -> Result<Self> {
-        params.check()?;
-        Ok(KirchhoffState { params, last: None })
+    /// If the parameters fail their check ([`KirchhoffParams::check`],
+    /// [`crate::goman_khrabrov::GkParams::check`]).
+    pub fn new(params: P) -> Result<Self> {
+        params.check_params()?;
+        Ok(SeparationState { params, last: None })
     }
 
     /// The separation point to use at `alpha`, `alpha_dot` (rad, rad/s): the
@@ -409,14 +442,15 @@ impl KirchhoffState {
     }
 
     /// Advance to time `t` (s) where the flow angles are `alpha`, `alpha_dot`
-    /// (the input held linear since the last update). The first call sets the
-    /// static solution; a call at the time of the last one changes nothing; a
-    /// call at an earlier time restarts at the static solution there.
+    /// (the input held linear since the last update: the exact step of [`step`]).
+    /// The first call sets the static solution; a call at the time of the last one
+    /// changes nothing; a call at an earlier time restarts at the static solution
+    /// there.
     pub fn update(&mut self, t: f64, alpha: f64, alpha_dot: f64) {
         let u = self.params.x0_lagged(alpha, alpha_dot);
         let x = match self.last {
             Some((t0, _, _)) if t == t0 => return,
-            Some((t0, x, u0)) if t > t0 => step(x, u0, u, t - t0, self.params.tau1),
+            Some((t0, x, u0)) if t > t0 => step(x, u0, u, t - t0, self.params.tau1()),
             _ => u,
         };
         self.last = Some((t, x, u));
@@ -620,10 +654,16 @@ pub(crate) mod tests {
     }
 
     fn sweep(n: usize, hz: f64) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
+        sweep_about(12.0, n, hz)
+    }
+
+    /// `(t, alpha, alpha_dot)` of a two-tone sweep about `mean_deg` (9 and 1.5 deg
+    /// at 0.4 and 2.3 rad/s), `n` samples at `hz`; rad and rad/s.
+    pub(crate) fn sweep_about(mean_deg: f64, n: usize, hz: f64) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
         let t: Vec<f64> = (0..n).map(|k| k as f64 / hz).collect();
         let a: Vec<f64> = t
             .iter()
-            .map(|&t| (12.0 + 9.0 * (0.4 * t).sin() + 1.5 * (2.3 * t).sin()).to_radians())
+            .map(|&t| (mean_deg + 9.0 * (0.4 * t).sin() + 1.5 * (2.3 * t).sin()).to_radians())
             .collect();
         let ad: Vec<f64> = t
             .iter()

@@ -1090,16 +1090,10 @@ mod tests {
                 }
             })
             .collect();
-        GkParams {
-            tau1: p.tau1,
-            tau2: p.tau2,
-            cl_alpha: p.cl_alpha,
-            alpha0: p.alpha0,
-            cm0: p.cm0,
-            cm_alpha: p.cm_alpha,
-            cm_x: p.cm_x,
-            x0: crate::goman_khrabrov::X0Table::new(knots, values).unwrap(),
-        }
+        GkParams::with_table(
+            &p,
+            crate::goman_khrabrov::X0Table::new(knots, values).unwrap(),
+        )
     }
 
     fn gk_data(g: &GkParams, ms: &[(Vec<f64>, Vec<f64>, Vec<f64>)]) -> Vec<(Vec<f64>, Vec<f64>)> {
