@@ -24,8 +24,9 @@ use serde::{Deserialize, Serialize};
 
 use crate::envelope::{Envelope, EnvelopeSpec};
 use crate::error::{AeroError, Result, ResultExt};
-use crate::kirchhoff::{KirchhoffDrag, KirchhoffParams};
+use crate::kirchhoff::KirchhoffDrag;
 use crate::regressor::{BoundExpr, Expr};
+use crate::stall_form::StallParams;
 use crate::stall_spec::{CompiledFlap, LongitudinalSpec};
 use crate::table::{Axis, Table};
 use crate::text::{one_line, shown};
@@ -259,10 +260,10 @@ impl DeltaModel {
         })
     }
 
-    /// The stored Kirchhoff stall parameters of a flap setting (deg, exact), with the basis of
-    /// their known terms ([`LongitudinalSpec::known`]); `None` when the model carries none for
-    /// it.
-    pub fn kirchhoff(&self, flap_deg: f64) -> Option<(&KirchhoffParams, &str)> {
+    /// The stored stall parameters of a flap setting (deg, exact), in the stored form of the
+    /// separation curve ([`crate::stall_form`]), with the basis of their known terms
+    /// ([`LongitudinalSpec::known`]); `None` when the model carries none for it.
+    pub fn kirchhoff(&self, flap_deg: f64) -> Option<(&StallParams, &str)> {
         let known = self.spec.longitudinal.as_ref()?.known.as_str();
         self.kirchhoff
             .iter()
@@ -284,10 +285,10 @@ impl DeltaModel {
     /// (`known == "adx37"`; they then replace its qualified static C_L, C_m and, with the
     /// drag, C_D curves), `None` for another basis or no stall. The rule of every ADX-37
     /// replay of a Δ model (open and closed loop).
-    pub fn adx37_stall(&self, flap_deg: f64) -> Option<(KirchhoffParams, Option<KirchhoffDrag>)> {
+    pub fn adx37_stall(&self, flap_deg: f64) -> Option<(StallParams, Option<KirchhoffDrag>)> {
         self.kirchhoff(flap_deg)
             .filter(|(_, known)| *known == "adx37")
-            .map(|(p, _)| (*p, self.kirchhoff_drag(flap_deg).copied()))
+            .map(|(p, _)| (p.clone(), self.kirchhoff_drag(flap_deg).copied()))
     }
 
     /// Whether the state (flap, α, β in deg) lies inside the validated envelope of the flight
@@ -616,13 +617,12 @@ mod tests {
         let m = DeltaModel::new(spec()).unwrap();
         assert!(m.kirchhoff(0.0).is_none());
         let mut s = spec();
-        s.longitudinal = Some(LongitudinalSpec::from_params(
-            "adx37",
-            &[(10.0, p, "note".into())],
-        ));
+        s.longitudinal = Some(
+            LongitudinalSpec::from_params("adx37", &[(10.0, p.into(), "note".into())]).unwrap(),
+        );
         let m = DeltaModel::from_json(&DeltaModel::new(s.clone()).unwrap().to_json().unwrap(), "m")
             .unwrap();
-        assert_eq!(m.kirchhoff(10.0), Some((&p, "adx37")));
+        assert_eq!(m.kirchhoff(10.0), Some((&p.into(), "adx37")));
         assert!(m.kirchhoff(0.0).is_none());
         assert_eq!(m.spec(), &s);
         if let Some(l) = s.longitudinal.as_mut() {

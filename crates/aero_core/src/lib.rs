@@ -77,6 +77,7 @@ pub mod select;
 pub mod signflip;
 pub mod sim;
 pub mod spline;
+pub mod stall_form;
 pub mod stall_spec;
 pub mod table;
 mod text;

@@ -3,8 +3,14 @@
 //! stored in the model file beside the lateral Δ tables so a simulator that loads the model
 //! flies the identified lift break and pitch break (issue 20, item 2).
 //!
-//! The parameters are those of [`crate::kirchhoff::PARAM_NAMES`] in the engine's units
-//! (s, rad, 1/rad). `known` says what the fit took off the measured coefficients before
+//! `model` names the form of the static separation curve ([`crate::stall_form`]):
+//! - `kirchhoff`: the tanh curve; the parameters are those of
+//!   [`crate::kirchhoff::PARAM_NAMES`] in the engine's units (s, rad, 1/rad);
+//! - `goman-khrabrov`: the tabulated curve ([`crate::goman_khrabrov`]); the parameters are
+//!   [`crate::goman_khrabrov::CORE_NAMES`], and each flap gives its curve as `x0_knots` (rad,
+//!   equally spaced) and `x0_values` (the cubic B-spline's coefficients, in `[0, 1]`).
+//!
+//! `known` says what the fit took off the measured coefficients before
 //! fitting the static curves: `adx37` (the built-in aircraft's qualified control, rate and
 //! thrust terms; the curves then replace its qualified `C_L`, `C_m` basic curves) or `none`
 //! (the curves are the whole measured coefficients of the fitted records). A flap may also
@@ -16,13 +22,18 @@ use std::collections::BTreeMap;
 use serde::{Deserialize, Serialize};
 
 use crate::error::{AeroError, Result, ResultExt};
+use crate::goman_khrabrov::{GkParams, X0Table, CORE_NAMES};
 use crate::kirchhoff::{KirchhoffDrag, KirchhoffParams, DRAG_NAMES, PARAM_NAMES};
+use crate::stall_form::StallParams;
+
+/// The forms of the separation curve a stored stall may take (module docs).
+pub const FORMS: [&str; 2] = ["kirchhoff", "goman-khrabrov"];
 
 /// The stored longitudinal stall.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct LongitudinalSpec {
-    /// The stall model: `kirchhoff`.
+    /// The form of the separation curve: `kirchhoff` (tanh) or `goman-khrabrov` (table).
     pub model: String,
     /// What the fit took off the measured coefficients: `adx37` or `none` (module docs).
     pub known: String,
@@ -36,8 +47,16 @@ pub struct LongitudinalSpec {
 pub struct KirchhoffFlap {
     /// Flap setting, deg.
     pub flap_deg: f64,
-    /// Parameter name ([`PARAM_NAMES`]) -> value, engine units.
+    /// Parameter name ([`PARAM_NAMES`], or [`CORE_NAMES`] for the tabulated form) -> value,
+    /// engine units.
     pub params: BTreeMap<String, f64>,
+    /// The tabulated form's knots, rad (equally spaced); empty for the tanh form.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub x0_knots: Vec<f64>,
+    /// The tabulated form's spline coefficients, one per knot, in `[0, 1]`; empty for the
+    /// tanh form.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub x0_values: Vec<f64>,
     /// The drag ([`DRAG_NAMES`] -> value), when fitted; empty: the aircraft's drag is kept.
     #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
     pub drag: BTreeMap<String, f64>,
@@ -47,12 +66,12 @@ pub struct KirchhoffFlap {
 }
 
 /// One flap setting of a checked [`LongitudinalSpec`].
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct CompiledFlap {
     /// Flap setting, deg.
     pub flap_deg: f64,
-    /// The separation dynamics, lift and pitching moment.
-    pub params: KirchhoffParams,
+    /// The separation dynamics, lift and pitching moment, in the stored form.
+    pub params: StallParams,
     /// The drag, when stored.
     pub drag: Option<KirchhoffDrag>,
 }
@@ -108,12 +127,19 @@ impl LongitudinalSpec {
     /// stall or of its drag), values the model cannot run with ([`KirchhoffParams::check`],
     /// [`KirchhoffDrag::check`]).
     pub fn compile(&self) -> Result<Vec<CompiledFlap>> {
-        if self.model != "kirchhoff" {
-            return Err(AeroError::invalid(
-                "model longitudinal.model",
-                format!("is '{}'; this library reads 'kirchhoff'", self.model),
-            ));
-        }
+        let tabulated = match self.model.as_str() {
+            "kirchhoff" => false,
+            "goman-khrabrov" => true,
+            other => {
+                return Err(AeroError::invalid(
+                    "model longitudinal.model",
+                    format!(
+                        "is '{other}'; this library reads {}",
+                        FORMS.map(|f| format!("'{f}'")).join(" or ")
+                    ),
+                ))
+            }
+        };
         if !KNOWN.contains(&self.known.as_str()) {
             return Err(AeroError::invalid(
                 "model longitudinal.known",
@@ -132,9 +158,36 @@ impl LongitudinalSpec {
                     "appears twice; give each flap once",
                 ));
             }
-            let v = named(&f.params, PARAM_NAMES, &place, "parameter")?;
-            let p = KirchhoffParams::from_array(&v);
-            p.check().context(place.clone())?;
+            let params: StallParams = if tabulated {
+                let v = named(&f.params, CORE_NAMES, &place, "parameter")?;
+                let table =
+                    X0Table::new(f.x0_knots.clone(), f.x0_values.clone()).context(place.clone())?;
+                let p = GkParams {
+                    tau1: v[0],
+                    tau2: v[1],
+                    cl_alpha: v[2],
+                    alpha0: v[3],
+                    cm0: v[4],
+                    cm_alpha: v[5],
+                    cm_x: v[6],
+                    x0: table,
+                };
+                p.check().context(place.clone())?;
+                p.into()
+            } else {
+                if !(f.x0_knots.is_empty() && f.x0_values.is_empty()) {
+                    return Err(AeroError::invalid(
+                        place,
+                        "gives a separation table (x0_knots, x0_values) but the model is \
+                         'kirchhoff' (the tanh curve); set model = 'goman-khrabrov' or drop \
+                         the table",
+                    ));
+                }
+                let v = named(&f.params, PARAM_NAMES, &place, "parameter")?;
+                let p = KirchhoffParams::from_array(&v);
+                p.check().context(place.clone())?;
+                p.into()
+            };
             let drag = if f.drag.is_empty() {
                 None
             } else {
@@ -149,7 +202,7 @@ impl LongitudinalSpec {
             };
             out.push(CompiledFlap {
                 flap_deg: f.flap_deg,
-                params: p,
+                params,
                 drag,
             });
         }
@@ -157,24 +210,55 @@ impl LongitudinalSpec {
     }
 
     /// A spec from fitted parameters per flap (`known` as in the module docs).
-    pub fn from_params(known: &str, flaps: &[(f64, KirchhoffParams, String)]) -> Self {
-        LongitudinalSpec {
-            model: "kirchhoff".into(),
+    ///
+    /// # Errors
+    /// [`AeroError::InvalidInput`] when the flaps mix the two forms (a model stores one).
+    pub fn from_params(known: &str, flaps: &[(f64, StallParams, String)]) -> Result<Self> {
+        let model = flaps.first().map_or("kirchhoff", |(_, p, _)| p.form());
+        if let Some((f, p, _)) = flaps.iter().find(|(_, p, _)| p.form() != model) {
+            return Err(AeroError::invalid(
+                format!("longitudinal stall, flap {f}"),
+                format!(
+                    "is in the '{}' form and an earlier flap in '{model}'; a model stores one \
+                     form for every flap",
+                    p.form()
+                ),
+            ));
+        }
+        let pairs = |names: &[&str], v: &[f64]| -> BTreeMap<String, f64> {
+            names
+                .iter()
+                .zip(v)
+                .map(|(n, v)| ((*n).to_string(), *v))
+                .collect()
+        };
+        Ok(LongitudinalSpec {
+            model: model.into(),
             known: known.into(),
             flaps: flaps
                 .iter()
-                .map(|(f, p, note)| KirchhoffFlap {
-                    flap_deg: *f,
-                    params: PARAM_NAMES
-                        .iter()
-                        .zip(p.to_array())
-                        .map(|(n, v)| ((*n).to_string(), v))
-                        .collect(),
-                    drag: BTreeMap::new(),
-                    note: note.clone(),
+                .map(|(f, p, note)| {
+                    let (params, x0_knots, x0_values) = match p {
+                        StallParams::Kirchhoff(k) => {
+                            (pairs(&PARAM_NAMES, &k.to_array()), Vec::new(), Vec::new())
+                        }
+                        StallParams::GomanKhrabrov(g) => (
+                            pairs(&CORE_NAMES, &g.to_vec()[..CORE_NAMES.len()]),
+                            g.x0.knots().to_vec(),
+                            g.x0.values().to_vec(),
+                        ),
+                    };
+                    KirchhoffFlap {
+                        flap_deg: *f,
+                        params,
+                        x0_knots,
+                        x0_values,
+                        drag: BTreeMap::new(),
+                        note: note.clone(),
+                    }
                 })
                 .collect(),
-        }
+        })
     }
 }
 
@@ -185,12 +269,13 @@ mod tests {
 
     #[test]
     fn round_trips_and_refuses_what_it_cannot_fly() {
-        let spec = LongitudinalSpec::from_params("adx37", &[(0.0, params(), String::new())]);
+        let spec = LongitudinalSpec::from_params("adx37", &[(0.0, params().into(), String::new())])
+            .unwrap();
         let text = serde_json::to_string(&spec).unwrap();
         let back: LongitudinalSpec = serde_json::from_str(&text).unwrap();
         let plain = CompiledFlap {
             flap_deg: 0.0,
-            params: params(),
+            params: params().into(),
             drag: None,
         };
         assert_eq!(back.compile().unwrap(), vec![plain]);
@@ -242,6 +327,77 @@ mod tests {
         assert!(msg(&bad).contains("'adx37' or 'none'"));
         let mut bad = spec;
         bad.model = "goman".into();
-        assert!(msg(&bad).contains("reads 'kirchhoff'"));
+        assert!(msg(&bad).contains("reads 'kirchhoff' or 'goman-khrabrov'"));
+    }
+
+    /// A tabulated stall: the truth's lags and lines over a table of its curve.
+    fn table_params() -> GkParams {
+        let p = params();
+        let knots: Vec<f64> = (0..12)
+            .map(|k| (6.0 + 2.0 * k as f64).to_radians())
+            .collect();
+        let values = knots.iter().map(|&a| p.x0(a)).collect();
+        GkParams::with_table(&p, X0Table::new(knots, values).unwrap())
+    }
+
+    #[test]
+    fn the_tabulated_form_round_trips_and_is_checked() {
+        let g = table_params();
+        let spec =
+            LongitudinalSpec::from_params("none", &[(10.0, g.clone().into(), "n".into())]).unwrap();
+        assert_eq!(spec.model, "goman-khrabrov");
+        let text = serde_json::to_string(&spec).unwrap();
+        assert!(
+            text.contains("x0_knots") && !text.contains("alpha_star"),
+            "{text}"
+        );
+        let back: LongitudinalSpec = serde_json::from_str(&text).unwrap();
+        let c = back.compile().unwrap();
+        assert_eq!(c[0].params, StallParams::GomanKhrabrov(g.clone()));
+        let msg = |s: &LongitudinalSpec| s.compile().unwrap_err().to_string();
+        // a knot off the uniform spacing, named with its flap
+        let mut bad = spec.clone();
+        bad.flaps[0].x0_knots[3] += 1e-4;
+        let m = msg(&bad);
+        assert!(m.contains("flap 10") && m.contains("knot 3"), "{m}");
+        // a value outside [0, 1]
+        let mut bad = spec.clone();
+        bad.flaps[0].x0_values[2] = 1.2;
+        assert!(msg(&bad).contains("knot 2"), "{}", msg(&bad));
+        // no table at all
+        let mut bad = spec.clone();
+        bad.flaps[0].x0_knots.clear();
+        bad.flaps[0].x0_values.clear();
+        assert!(msg(&bad).contains("knots"), "{}", msg(&bad));
+        // a tanh parameter in the tabulated form
+        let mut bad = spec.clone();
+        bad.flaps[0].params.insert("a1".into(), 20.0);
+        assert!(
+            msg(&bad).contains("unknown parameter 'a1'"),
+            "{}",
+            msg(&bad)
+        );
+        // a table given to the tanh form
+        let mut tanh =
+            LongitudinalSpec::from_params("none", &[(0.0, params().into(), String::new())])
+                .unwrap();
+        tanh.flaps[0].x0_knots = spec.flaps[0].x0_knots.clone();
+        tanh.flaps[0].x0_values = spec.flaps[0].x0_values.clone();
+        assert!(
+            msg(&tanh).contains("set model = 'goman-khrabrov'"),
+            "{}",
+            msg(&tanh)
+        );
+        // one form per model
+        let e = LongitudinalSpec::from_params(
+            "none",
+            &[
+                (0.0, params().into(), String::new()),
+                (10.0, g.into(), String::new()),
+            ],
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains("flap 10") && e.contains("one form"), "{e}");
     }
 }

@@ -327,7 +327,9 @@ fn sim_closed_loop<'py>(
     }
     let kp = kirchhoff.map(|a| {
         (
-            aero_core::kirchhoff::KirchhoffParams::from_array(&a),
+            aero_core::stall_form::StallParams::Kirchhoff(
+                aero_core::kirchhoff::KirchhoffParams::from_array(&a),
+            ),
             kirchhoff_drag.map(|d| aero_core::kirchhoff::KirchhoffDrag::from_array(&d)),
         )
     });
@@ -336,11 +338,11 @@ fn sim_closed_loop<'py>(
         let which = match &delta {
             Some(d) => ReplayModel::Extended {
                 delta: d,
-                kirchhoff: kp,
+                kirchhoff: kp.clone(),
             },
             None => ReplayModel::Truth {
                 effects: &effects,
-                kirchhoff: kp,
+                kirchhoff: kp.clone(),
             },
         };
         closed_loop_adx37(&which, &cols, x0, &opts)

@@ -9,9 +9,10 @@ use crate::aircraft::qualified::{
 };
 use crate::aircraft::turboprop::AircraftRef;
 use crate::error::{AeroError, Result};
-use crate::kirchhoff::{KirchhoffDrag, KirchhoffParams, KirchhoffState};
+use crate::kirchhoff::{KirchhoffDrag, KirchhoffParams};
 use crate::rolloff::RollOff;
 use crate::sim::aero::{AeroCoeffs, AeroInput, AeroModel};
+use crate::stall_form::{StallParams, StallState};
 use crate::table::Table;
 
 /// An effect request: vocabulary name, magnitude (1 = design), optional shape override.
@@ -144,8 +145,8 @@ pub fn kirchhoff_truth_drag(flap_deg: f64, a: &AircraftRef) -> KirchhoffDrag {
 /// τ₁ from τ₂; `docs/longitudinal.md`.)
 #[derive(Debug, Clone)]
 pub struct KirchhoffStall {
-    /// The separation state.
-    pub state: KirchhoffState,
+    /// The separation state (either form of the separation curve).
+    pub state: StallState,
     cl_basic: Table,
     cm_basic: Table,
     cd_basic: Table,
@@ -174,9 +175,9 @@ impl KirchhoffStall {
     /// (its `advance` reaches the base model's).
     ///
     /// # Errors
-    /// If `q` lacks its `CL_basic`, `Cm_basic` or `CD_basic` table, or `params` fail
-    /// [`KirchhoffParams::check`].
-    pub fn new(q: &QualifiedModel, params: KirchhoffParams) -> Result<Self> {
+    /// If `q` lacks its `CL_basic`, `Cm_basic` or `CD_basic` table, or `params` fail their
+    /// check ([`KirchhoffParams::check`], [`crate::goman_khrabrov::GkParams::check`]).
+    pub fn new(q: &QualifiedModel, params: impl Into<StallParams>) -> Result<Self> {
         let table = |name: &str| {
             q.tables
                 .iter()
@@ -185,7 +186,7 @@ impl KirchhoffStall {
                 .ok_or_else(|| AeroError::invalid("qualified model", format!("no table '{name}'")))
         };
         Ok(KirchhoffStall {
-            state: KirchhoffState::new(params)?,
+            state: StallState::new(params.into())?,
             cl_basic: table("CL_basic")?,
             cm_basic: table("Cm_basic")?,
             cd_basic: table("CD_basic")?,

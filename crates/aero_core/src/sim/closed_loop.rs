@@ -55,7 +55,7 @@ use crate::aircraft::turboprop::{adx37, AircraftRef};
 use crate::buffet::{Buffet, BuffetSchedule, BuffetSpec};
 use crate::delta_model::DeltaModel;
 use crate::error::{AeroError, Result};
-use crate::kirchhoff::{KirchhoffDrag, KirchhoffParams};
+use crate::kirchhoff::KirchhoffDrag;
 use crate::sim::actuator::Actuator;
 use crate::sim::aero::{AeroModel, Controls};
 use crate::sim::atmosphere::G0;
@@ -66,6 +66,7 @@ use crate::sim::maneuver::Simulator;
 use crate::sim::pilot::Pusher;
 use crate::sim::rng::Stream;
 use crate::sim::sensors::stall_warning;
+use crate::stall_form::StallParams;
 
 /// Record columns the replay reads, in this order (units in the names; controls Etkin).
 pub const RECORD_COLUMNS: [&str; 16] = [
@@ -678,18 +679,18 @@ pub enum ReplayModel<'a> {
     Extended {
         /// The fitted Δ model.
         delta: &'a DeltaModel,
-        /// Kirchhoff parameters of this flap, with its drag or not; None: the stall the Δ
-        /// model stores for the flap ([`DeltaModel::adx37_stall`]) when fitted on the
-        /// ADX-37's known terms, else the qualified static curves.
-        kirchhoff: Option<(KirchhoffParams, Option<KirchhoffDrag>)>,
+        /// Stall parameters of this flap (either form), with its drag or not; None: the
+        /// stall the Δ model stores for the flap ([`DeltaModel::adx37_stall`]) when fitted on
+        /// the ADX-37's known terms, else the qualified static curves.
+        kirchhoff: Option<(StallParams, Option<KirchhoffDrag>)>,
     },
     /// A truth model of the virtual aircraft: the qualified model with these effects and
     /// Kirchhoff parameters (e.g. the campaign's own, or deliberately wrong ones).
     Truth {
         /// Effects switched on (aerodynamic ones act; others are ignored).
         effects: &'a [EffectSpec],
-        /// Kirchhoff parameters and drag, when the longitudinal stall is Kirchhoff.
-        kirchhoff: Option<(KirchhoffParams, Option<KirchhoffDrag>)>,
+        /// Stall parameters (either form) and drag, when the longitudinal stall is on.
+        kirchhoff: Option<(StallParams, Option<KirchhoffDrag>)>,
     },
 }
 
@@ -715,7 +716,7 @@ pub fn closed_loop_adx37(
         ));
     }
     let ac = adx37();
-    let stall = |p: Option<(KirchhoffParams, Option<KirchhoffDrag>)>| {
+    let stall = |p: Option<(StallParams, Option<KirchhoffDrag>)>| {
         p.map(|(p, d)| KirchhoffStall::new(qual, p).and_then(|k| k.with_drag(d)))
             .transpose()
     };
@@ -723,7 +724,9 @@ pub fn closed_loop_adx37(
         ReplayModel::Extended { delta, kirchhoff } => {
             // the stall given, else the one the model carries for this flap when it was fitted
             // on the ADX-37's known terms (it then replaces the qualified static curves)
-            let k = kirchhoff.or_else(|| delta.adx37_stall(opts.flap_deg));
+            let k = kirchhoff
+                .clone()
+                .or_else(|| delta.adx37_stall(opts.flap_deg));
             let base = TruthAero::new(slice(qual, opts.flap_deg)?, Vec::new(), None)
                 .with_kirchhoff(stall(k)?);
             let mut m = ExtendedAero::new(base, delta)?;
@@ -732,7 +735,7 @@ pub fn closed_loop_adx37(
         ReplayModel::Truth { effects, kirchhoff } => {
             let aero = active_effects(effects)?;
             let mut m = TruthAero::new(slice(qual, opts.flap_deg)?, aero, None)
-                .with_kirchhoff(stall(*kirchhoff)?);
+                .with_kirchhoff(stall(kirchhoff.clone())?);
             fly_closed_loop(&mut m, &ac, record, x0, opts)
         }
     }

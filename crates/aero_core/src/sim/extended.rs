@@ -310,10 +310,13 @@ mod tests {
         use crate::aircraft::truth::{
             kirchhoff_truth_drag, kirchhoff_truth_params, KirchhoffStall, TruthAero,
         };
+        use crate::goman_khrabrov::{GkParams, X0Table};
         use crate::sim::campaign::{
             adx37_models, replay_adx37, replay_adx37_extended, slice, trim_adx37, ExtendedLayers,
         };
+        use crate::stall_form::StallParams;
         use crate::stall_spec::LongitudinalSpec;
+        let tanh = kirchhoff_truth_params(0.0);
         // a pull from a 70 m/s trim to well past the stall: the Kirchhoff lift break matters
         let (x0, c, ct) = trim_adx37(0.0, 70.0, 1000.0).expect("trims");
         let n = 800;
@@ -328,18 +331,18 @@ mod tests {
             "alpha_deg": [-20, 40], "values": [[0.0, 0.0]]}],
             "alpha_l_deg": [-20.0], "alpha_u_deg": [-19.0]}"#;
         let drag = kirchhoff_truth_drag(0.0, &crate::aircraft::turboprop::adx37());
-        let with_stall_drag = |known: &str, with_drag: bool| {
+        let stored_model = |known: &str, with_drag: bool, p: StallParams| {
             let mut spec = model(zero_cl).spec().clone();
-            let mut lon = LongitudinalSpec::from_params(
-                known,
-                &[(0.0, kirchhoff_truth_params(0.0), String::new())],
-            );
+            let mut lon =
+                LongitudinalSpec::from_params(known, &[(0.0, p, String::new())]).expect("one form");
             if with_drag {
                 lon.flaps[0].set_drag(Some(&drag));
             }
             spec.longitudinal = Some(lon);
             DeltaModel::new(spec).expect("valid model")
         };
+        let with_stall_drag =
+            |known: &str, with_drag: bool| stored_model(known, with_drag, tanh.into());
         let with_stall = |known: &str| with_stall_drag(known, true);
         let fly = |m: &DeltaModel, layers| {
             replay_adx37_extended(0.0, m, layers, None, x0, 0.01, &controls, &cts).expect("replays")
@@ -378,5 +381,39 @@ mod tests {
         assert_eq!(fly(&other, ExtendedLayers::StallOnly), qual_run);
         assert_eq!(fly(&other, ExtendedLayers::Extended), qual_run);
         assert_eq!(fly(&model(zero_cl), ExtendedLayers::Extended), qual_run);
+        // the tabulated (Goman-Khrabrov) form flies too: a table sampling the truth's curve
+        // every 0.5 deg, stored, replays as the truth model over the same table, bit for bit
+        let knots: Vec<f64> = (0..70)
+            .map(|k| (-5.0 + 0.5 * k as f64).to_radians())
+            .collect();
+        let values = knots.iter().map(|&a| tanh.x0(a)).collect();
+        let gk = GkParams::with_table(&tanh, X0Table::new(knots, values).expect("table"));
+        let mut truth_gk = TruthAero::new(slice(qual, 0.0).expect("flap 0"), Vec::new(), None)
+            .with_kirchhoff(Some(
+                KirchhoffStall::new(qual, gk.clone())
+                    .and_then(|k| k.with_drag(Some(drag)))
+                    .expect("stall"),
+            ));
+        let mut sim = crate::sim::maneuver::Simulator::new(
+            crate::aircraft::turboprop::adx37(),
+            0.0,
+            nalgebra::SVector::from(x0),
+            0.01,
+        );
+        let want_gk = crate::sim::campaign::replay_states(&mut sim, &mut truth_gk, &controls, &cts)
+            .expect("replays");
+        let stored_gk = stored_model("adx37", true, gk.into());
+        assert_eq!(fly(&stored_gk, ExtendedLayers::StallOnly), want_gk);
+        // not the tanh's flight, but close to it (the spline rounds the curve by h² x0''/6):
+        // the airspeed within Part 60's ±3 kt stall-speed tolerance of the tanh's flight
+        // over the whole pull
+        assert_ne!(want_gk, want);
+        let v = |x: &[f64; 12]| (x[0] * x[0] + x[1] * x[1] + x[2] * x[2]).sqrt();
+        let dv = want_gk
+            .iter()
+            .zip(&want)
+            .map(|(g, k)| (v(g) - v(k)).abs())
+            .fold(0.0f64, f64::max);
+        assert!(dv < 3.0 * 0.514_444, "airspeed differs by {dv} m/s");
     }
 }
