@@ -651,6 +651,8 @@ def kirchhoff_point(
     alpha: npt.NDArray[np.float64],
     alpha_dot: npt.NDArray[np.float64],
     x: npt.NDArray[np.float64],
+    knots: list[float] | None = None,
+    values: list[float] | None = None,
 ) -> tuple[
     npt.NDArray[np.float64],
     npt.NDArray[np.float64],

@@ -192,6 +192,57 @@ def _stall_totals(model: DeltaModel) -> tuple[str, ...]:
     return ("CL", "Cm", "CD") if model.kirchhoff_drag else ("CL", "Cm")
 
 
+#: B-spline terms per calculation of a tabulated separation curve (each term some 25 nodes of
+#: the expression tree; aero_core's parser takes 2048 nodes per expression).
+SPLINE_TERMS_PER_CALC = 16
+
+
+def _x0_calcs(
+    model: DeltaModel, f: float, u: str, name: str, what: str
+) -> tuple[list[dict[str, Any]], str]:
+    """Calculations giving the static separation point ``x0`` at the calculation ``u`` (rad)
+    of the stored stall at flap ``f``, and the id of the last. The tanh form:
+    ``x0(u) = (1 - tanh(a1 (u - alpha*))) / 2 = 1 / (1 + exp(2 a1 (u - alpha*)))``. The
+    tabulated form (``aero_core::goman_khrabrov::X0Table``): with ``s`` the knot coordinate
+    ``(u - t_0) / h`` held in ``[0, K - 1]`` (the curve is constant beyond the end knots),
+    ``x0 = Σ_k c_k B(s - k)`` over ``k = -1 .. K`` (the end coefficients repeated beyond the
+    ends), with the centred cubic B-spline ``B(t) = (max(0, 2 - |t|)^3 - 4 max(0, 1 - |t|)^3)
+    / 6`` (de Boor 2001, *A Practical Guide to Splines*, ch. IX): the engine's spline,
+    exactly."""
+    p = (model.kirchhoff or {})[f]
+    tables = model.separation_tables
+    if f not in tables:
+        expr = f"1 / (1 + exp(2 * {p['a1']!r} * ({u} - {p['alpha_star']!r})))"
+        return [{"id": name, "units": "nd", "expr": expr, "description": what}], name
+    knots, values = tables[f]
+    n = len(knots)
+    h = (float(knots[-1]) - float(knots[0])) / (n - 1)
+    coef = [float(values[0]), *map(float, values), float(values[-1])]
+    s_id = f"{name}_s"
+    calcs: list[dict[str, Any]] = [
+        {"id": s_id, "units": "nd",
+         "expr": f"min({n - 1}, max(0, ({u} - {float(knots[0])!r}) / {h!r}))",
+         "description": f"{what}: knot coordinate of the separation table, held in [0, {n - 1}]"},
+    ]  # fmt: skip
+    terms = [
+        f"{c!r} * (max(0, 2 - abs({s_id} - ({k})))^3 - 4 * max(0, 1 - abs({s_id} - ({k})))^3)"
+        for k, c in zip(range(-1, n + 1), coef, strict=True)
+        if c != 0.0
+    ]
+    parts = []
+    for j in range(0, len(terms), SPLINE_TERMS_PER_CALC):
+        pid = f"{name}_p{j // SPLINE_TERMS_PER_CALC}"
+        calcs.append(
+            {"id": pid, "units": "nd", "expr": " + ".join(terms[j : j + SPLINE_TERMS_PER_CALC]),
+             "description": f"{what}: six times the B-spline's terms {j} to "
+             f"{min(j + SPLINE_TERMS_PER_CALC, len(terms)) - 1}"}
+        )  # fmt: skip
+        parts.append(pid)
+    total = " + ".join(parts) if parts else "0"
+    calcs.append({"id": name, "units": "nd", "expr": f"({total}) / 6", "description": what})
+    return calcs, name
+
+
 def _stall_spec(
     model: DeltaModel,
     bunits: Mapping[str, str],
@@ -254,22 +305,26 @@ def _stall_spec(
             {"id": on, "units": "nd",
              "expr": f"step({flap} - {f!r} + {w!r}) * step({f!r} + {w!r} - {flap})",
              "description": f"1 at flap {f:g} deg (the stall stored for it), else 0"},
-            # x0(u) = (1 - tanh(a1 (u - alpha*))) / 2 = 1 / (1 + exp(2 a1 (u - alpha*)))
-            {"id": x0, "units": "nd",
-             "expr": f"1 / (1 + exp(2 * {g['a1']} * (ks_alpha - {g['tau2']} * ks_alphadot - "
-                     f"{g['alpha_star']})))",
-             "description": f"flap {f:g}: static separation point at alpha - tau2 alphadot"},
-            {"id": f"ks_xdot_{i}", "units": "_s", "expr": f"({x0} - ks_x) / {g['tau1']}",
-             "description": f"flap {f:g}: (x0 - x) / tau1, 1/s"},
+            {"id": f"ks_u_{i}", "units": "rad",
+             "expr": f"ks_alpha - {g['tau2']} * ks_alphadot",
+             "description": f"flap {f:g}: alpha - tau2 alphadot, rad"},
         ]  # fmt: skip
+        calcs += _x0_calcs(
+            model, f, f"ks_u_{i}", x0,
+            f"flap {f:g}: static separation point at alpha - tau2 alphadot",
+        )[0]  # fmt: skip
+        calcs.append(
+            {"id": f"ks_xdot_{i}", "units": "_s", "expr": f"({x0} - ks_x) / {g['tau1']}",
+             "description": f"flap {f:g}: (x0 - x) / tau1, 1/s"}
+        )  # fmt: skip
         lift = f"{g['CL_alpha']} * (ks_alpha - {g['alpha0']}) * ((1 + sqrt(ks_x)) / 2)^2"
         drag = {k: repr(float(v)) for k, v in drags.get(f, {}).items()}
         xs = f"ks_x0s_{i}"
         if dynamics_only:
+            calcs += _x0_calcs(
+                model, f, "ks_alpha", xs, f"flap {f:g}: static separation point x0(alpha)"
+            )[0]
             calcs += [
-                {"id": xs, "units": "nd",
-                 "expr": f"1 / (1 + exp(2 * {g['a1']} * (ks_alpha - {g['alpha_star']})))",
-                 "description": f"flap {f:g}: static separation point x0(alpha)"},
                 {"id": f"ks_dcl_{i}", "units": "nd",
                  "expr": f"{lift} - {g['CL_alpha']} * (ks_alpha - {g['alpha0']}) * "
                          f"((1 + sqrt({xs})) / 2)^2",
@@ -673,16 +728,20 @@ def _stall_reference(
     xdot, x0 = np.zeros(n), np.zeros(n)
     cl, cm = qual[totals[0]].to_numpy().copy(), qual[totals[1]].to_numpy().copy()
     cd = qual[totals[2]].to_numpy().copy() if drags else None
+    tables = model.separation_tables
     for f, p in (model.kirchhoff or {}).items():
         on = flap == f
         a_on = np.radians(alpha[on])
-        s_x0, s_xd, s_cl, s_cm = _core.kirchhoff_point(p, a_on, rates[on], x[on])
+        table = (
+            {"knots": tables[f][0].tolist(), "values": tables[f][1].tolist()} if f in tables else {}
+        )
+        s_x0, s_xd, s_cl, s_cm = _core.kirchhoff_point(p, a_on, rates[on], x[on], **table)
         x0[on], xdot[on] = s_x0, s_xd
         d = drags.get(f)
         if dynamics_only:  # less the same curves at the static state x0(alpha)
             still = np.zeros_like(a_on)
-            xs = _core.kirchhoff_point(p, a_on, still, x[on])[0]
-            _, _, st_cl, st_cm = _core.kirchhoff_point(p, a_on, still, xs)
+            xs = _core.kirchhoff_point(p, a_on, still, x[on], **table)[0]
+            _, _, st_cl, st_cm = _core.kirchhoff_point(p, a_on, still, xs, **table)
             cl[on] += s_cl - st_cl
             cm[on] += s_cm - st_cm
             if d is not None and cd is not None:

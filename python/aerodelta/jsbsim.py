@@ -41,6 +41,7 @@ from typing import Any
 from xml.sax.saxutils import escape
 
 import numpy as np
+import numpy.typing as npt
 
 from aerodelta._exportutil import DERIVED_CHANNELS, Node, parse_regressor, write_atomic
 from aerodelta._fsutil import write_texts_atomic
@@ -48,6 +49,8 @@ from aerodelta.exceptions import DataError
 from aerodelta.export import STALL_FLAP_WINDOW_DEG, qualified_daveml_spec
 from aerodelta.model import DeltaModel
 from aerodelta.qualified import describe, recorded_source
+
+FloatArray = npt.NDArray[np.float64]
 
 __all__ = [
     "DEFAULT_PROPERTIES",
@@ -395,16 +398,68 @@ def _logistic(k: float, u: str, centre: float) -> str:
     )
 
 
-def _stall_static_separated(g: Mapping[str, float], alpha_p: str, alphadot_p: str) -> str:
+def _spline_x0(table: tuple[FloatArray, FloatArray], s_prop: str) -> str:
+    """The tabulated separation curve ``x0`` at the knot coordinate held in the property
+    ``s_prop`` (:func:`_spline_coordinate`), as JSBSim function elements:
+    ``Σ_k c_k B(s - k)`` over ``k = -1 .. K`` (the end coefficients repeated beyond the
+    ends) with the centred cubic B-spline ``B(t) = (max(0, 2 - |t|)^3 - 4 max(0, 1 - |t|)^3)
+    / 6`` (de Boor 2001, ch. IX): ``aero_core::goman_khrabrov::X0Table`` exactly."""
+    _, values = table
+    coef = [float(values[0]), *map(float, values), float(values[-1])]
+    sp = f"<property>{s_prop}</property>"
+
+    def cube(reach: int, k: int) -> str:
+        return (
+            f"<pow><max><value>0</value><difference><value>{reach}</value><abs><difference>{sp}"
+            f"<value>{k}</value></difference></abs></difference></max><value>3</value></pow>"
+        )
+
+    terms = [
+        f"<product><value>{_num(c)}</value><difference>{cube(2, k)}<product><value>4</value>"
+        f"{cube(1, k)}</product></difference></product>"
+        for k, c in zip(range(-1, len(values) + 1), coef, strict=True)
+        if c != 0.0
+    ]
+    total = _sum(terms, "") if terms else "<value>0</value>"
+    return f"<quotient>{total}<value>6</value></quotient>"
+
+
+def _spline_coordinate(table: tuple[FloatArray, FloatArray], u: str) -> str:
+    """``(u - t_0) / h`` held in ``[0, K - 1]``: the knot coordinate of ``u`` (rad, one
+    element) on the table's knots; the curve is constant beyond the end knots."""
+    knots, _ = table
+    n = len(knots)
+    h = (float(knots[-1]) - float(knots[0])) / (n - 1)
+    return (
+        f"<min><value>{n - 1}</value><max><value>0</value><quotient><difference>{u}"
+        f"<value>{_num(float(knots[0]))}</value></difference><value>{_num(h)}</value></quotient>"
+        "</max></min>"
+    )
+
+
+def _stall_static_separated(
+    g: Mapping[str, float],
+    alpha_p: str,
+    alphadot_p: str,
+    table: tuple[FloatArray, FloatArray] | None = None,
+    s_prop: str = "",
+) -> str:
     """``1 - x0(alpha - tau2 alphadot)`` (alpha in deg, alphadot in deg/s read from the
-    properties)."""
+    properties); for the tabulated form (``table``) from the knot coordinate of the lagged
+    alpha in the property ``s_prop`` (:func:`_spline_coordinate`)."""
+    if table is not None:
+        return f"<difference><value>1</value>{_spline_x0(table, s_prop)}</difference>"
+    return _logistic(-2.0 * g["a1"], _lagged_alpha(g, alpha_p, alphadot_p), g["alpha_star"])
+
+
+def _lagged_alpha(g: Mapping[str, float], alpha_p: str, alphadot_p: str) -> str:
+    """``alpha - tau2 alphadot``, rad, from the properties (deg, deg/s)."""
     d2r = math.pi / 180.0
-    u = (
+    return (
         f"<difference><product><property>{alpha_p}</property><value>{_num(d2r)}</value>"
         f"</product><product><property>{alphadot_p}</property>"
         f"<value>{_num(g['tau2'] * d2r)}</value></product></difference>"
     )
-    return _logistic(-2.0 * g["a1"], u, g["alpha_star"])
 
 
 def _stall_on(flap_p: str, f: float) -> str:
@@ -513,6 +568,7 @@ def _stall_functions(
         cm_basic = _qualified_table(w, "Cm_basic", qspec, done, fns)
         cd_basic = _qualified_table(w, "CD_basic", qspec, done, fns) if drags else ""
     alphadot_p = w.channel("alphadot_dps")
+    tables = model.separation_tables
     # the exact step of the ODE for an input linear over the frame (first-order hold, as
     # aero_core::kirchhoff::step): r = dt / tau1, e = exp(-r), g = 1 - (1 - e) / r,
     # s = e s_prev + (1 - e - g) v_prev + g v on the separated fraction s = 1 - x, v = 1 - x0
@@ -536,10 +592,20 @@ def _stall_functions(
             f"    <description>flap {f:g} deg: 1 - (1 - e) tau1/dt</description>\n    {g_fn}\n"
             "  </function>"
         )
+        table = tables.get(f)
+        if table is not None:
+            fns.append(
+                f'  <function name="{base}/knot-lagged">\n    <description>flap {f:g} deg: '
+                "the separation table's knot coordinate of alpha - tau2 alphadot</description>"
+                f"\n    {_spline_coordinate(table, _lagged_alpha(g, alpha_p, alphadot_p))}\n"
+                "  </function>"
+            )
         fns.append(
             f'  <function name="{base}/separated-static">\n    <description>flap {f:g} deg: '
             "1 - x0(alpha - tau2 alphadot), the separated fraction the flow tends to"
-            f"</description>\n    {_stall_static_separated(g, alpha_p, alphadot_p)}\n  </function>"
+            f"</description>\n    "
+            f"{_stall_static_separated(g, alpha_p, alphadot_p, table, f'{base}/knot-lagged')}"
+            "\n  </function>"
         )
         fns.append(
             f'  <function name="{base}/separated">\n    <description>flap {f:g} deg: 1 - x, '
@@ -587,10 +653,23 @@ def _stall_functions(
         on = _stall_on(flap_p, f)
         if dynamics_only:
             xs = f"aero/{STALL_PREFIX}/flap-{i}/x-static"
+            table = tables.get(f)
+            if table is None:
+                static = _logistic(2.0 * g["a1"], a_rad, g["alpha_star"])
+                form = "1 / (1 + exp(2 a1 (alpha - alpha*)))"
+            else:
+                ks = f"aero/{STALL_PREFIX}/flap-{i}/knot-static"
+                fns.append(
+                    f'  <function name="{ks}">\n    <description>flap {f:g} deg: the '
+                    "separation table's knot coordinate of alpha</description>\n    "
+                    f"{_spline_coordinate(table, a_rad)}\n  </function>"
+                )
+                static = _spline_x0(table, ks)
+                form = "the separation table's cubic B-spline"
             fns.append(
                 f'  <function name="{xs}">\n    <description>flap {f:g} deg: the static '
-                "separation point x0(alpha) = 1 / (1 + exp(2 a1 (alpha - alpha*)))</description>"
-                f"\n    {_logistic(2.0 * g['a1'], a_rad, g['alpha_star'])}\n  </function>"
+                f"separation point x0(alpha), {form}</description>"
+                f"\n    {static}\n  </function>"
             )
             dcl = f"<difference>{lift(g, xp)}{lift(g, f'<property>{xs}</property>')}</difference>"
             dcm = (

@@ -13,10 +13,13 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 import polars as pl
 
 from aerodelta import _core
 from aerodelta.exceptions import DataError, InvalidInputError
+
+FloatArray = npt.NDArray[np.float64]
 
 SCHEMA = "aerodelta.model/1"
 
@@ -192,14 +195,41 @@ class DeltaModel:
 
     @property
     def kirchhoff(self) -> dict[float, dict[str, float]] | None:
-        """The longitudinal stall stored with the model: per flap (deg), the Kirchhoff
-        parameters by name (``aerodelta.longitudinal.PARAMS``; engine units s, rad, 1/rad);
+        """The longitudinal stall stored with the model: per flap (deg), the stall's scalar
+        parameters by name (engine units s, rad, 1/rad): ``aerodelta.longitudinal.PARAMS`` for
+        the tanh form, ``aerodelta.goman_khrabrov.CORE_PARAMS`` for the tabulated one, whose
+        separation curve :attr:`separation_tables` holds (:attr:`stall_form` says which);
         ``None`` for a model without one. :attr:`kirchhoff_known` says what the fit took off
         the measured coefficients."""
         lon = self.to_spec().get("longitudinal")
         if lon is None:
             return None
         return {float(f["flap_deg"]): dict(f["params"]) for f in lon["flaps"]}
+
+    @property
+    def stall_form(self) -> str | None:
+        """The form of the stored stall's static separation curve: ``"kirchhoff"`` (the tanh
+        curve, :func:`aerodelta.longitudinal.fit_kirchhoff`), ``"goman-khrabrov"`` (the
+        tabulated curve, :func:`aerodelta.goman_khrabrov.fit_goman_khrabrov`) or ``None``
+        without a stored stall."""
+        lon = self.to_spec().get("longitudinal")
+        return None if lon is None else str(lon["model"])
+
+    @property
+    def separation_tables(self) -> dict[float, tuple[FloatArray, FloatArray]]:
+        """The tabulated form's static separation curves: per flap (deg), the knots (rad,
+        equally spaced) and the cubic B-spline's coefficients (0-1, one per knot); empty for
+        the tanh form or without a stored stall."""
+        lon = self.to_spec().get("longitudinal")
+        if lon is None or lon["model"] != "goman-khrabrov":
+            return {}
+        return {
+            float(f["flap_deg"]): (
+                np.asarray(f["x0_knots"], dtype=np.float64),
+                np.asarray(f["x0_values"], dtype=np.float64),
+            )
+            for f in lon["flaps"]
+        }
 
     @property
     def kirchhoff_drag(self) -> dict[float, dict[str, float]]:
@@ -228,11 +258,12 @@ class DeltaModel:
         return sorted(k) if k is not None and self.kirchhoff_known == "adx37" else []
 
     def with_longitudinal(self, result: Any) -> DeltaModel:
-        """A copy of the model carrying the Kirchhoff stall of
-        :func:`aerodelta.longitudinal.fit_kirchhoff` (every flap fitted, with its note and its
-        drag when fitted), so a simulator that loads the model (``aero_core``'s closed-loop
-        replays, the evidence pack) flies the identified lift and pitch break and the drag of
-        the separated flow. A stall already stored is replaced.
+        """A copy of the model carrying the longitudinal stall of
+        :func:`aerodelta.longitudinal.fit_kirchhoff` (the tanh separation curve) or
+        :func:`aerodelta.goman_khrabrov.fit_goman_khrabrov` (the tabulated curve), every flap
+        fitted, with its note and its drag when fitted, so a simulator that loads the model
+        (``aero_core``'s replays, the exports, the evidence pack) flies the identified lift and
+        pitch break and the drag of the separated flow. A stall already stored is replaced.
 
         Raises
         ------
@@ -242,19 +273,30 @@ class DeltaModel:
         """
         if not result.fit_cm:
             raise InvalidInputError(
-                "with_longitudinal: the Kirchhoff fit left C_m out (fit_cm=False); fit both "
+                "with_longitudinal: the stall fit left C_m out (fit_cm=False); fit both "
                 "curves to store the stall a simulator flies"
             )
         if not result.fits:
-            raise InvalidInputError("with_longitudinal: the Kirchhoff fit has no flap")
+            raise InvalidInputError("with_longitudinal: the stall fit has no flap")
+        tabulated = all(hasattr(ff, "knots_deg") for ff in result.fits.values())
+
+        def table(ff: Any) -> dict[str, Any]:
+            if not tabulated:
+                return {}
+            return {
+                "x0_knots": np.radians(np.asarray(ff.knots_deg, dtype=np.float64)).tolist(),
+                "x0_values": np.asarray(ff.x0, dtype=np.float64).tolist(),
+            }
+
         spec = self.to_spec()
         spec["longitudinal"] = {
-            "model": "kirchhoff",
+            "model": "goman-khrabrov" if tabulated else "kirchhoff",
             "known": result.known,
             "flaps": [
                 {
                     "flap_deg": float(f),
                     "params": dict(ff.params),
+                    **table(ff),
                     **({"drag": dict(ff.drag.params)} if ff.drag is not None else {}),
                     "note": ff.note,
                 }

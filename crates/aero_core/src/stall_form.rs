@@ -70,6 +70,13 @@ impl StallParams {
         }
     }
 
+    /// The ODE's right-hand side `ẋ = (x₀(α − τ₂ α̇) − x) / τ₁`, 1/s (what a host
+    /// integrating the state itself evaluates).
+    #[inline]
+    pub fn x_dot(&self, alpha: f64, alpha_dot: f64, x: f64) -> f64 {
+        (self.x0_lagged(alpha, alpha_dot) - x) / self.tau1()
+    }
+
     /// The convective lag τ₂, s.
     pub fn tau2(&self) -> f64 {
         match self {

@@ -16,7 +16,7 @@ use crate::util::detached;
 type Array<'py> = Bound<'py, PyArray1<f64>>;
 
 /// The parameters from the scalar map `core` and the table `knots` (rad), `values`.
-fn params_from(
+pub(crate) fn params_from(
     core: &HashMap<String, f64>,
     knots: Vec<f64>,
     values: Vec<f64>,

@@ -8,9 +8,10 @@ use aero_core::aircraft::truth::{
 };
 use aero_core::aircraft::turboprop::adx37;
 use aero_core::kirchhoff::{
-    outputs, Inputs, KirchhoffDrag, KirchhoffParams, DRAG_NAMES, N_PARAMS, PARAM_NAMES,
+    outputs, Inputs, KirchhoffDrag, KirchhoffParams, Separation, DRAG_NAMES, N_PARAMS, PARAM_NAMES,
 };
 use aero_core::output_error::{fit, OeOptions, Series};
+use aero_core::stall_form::StallParams;
 use aero_core::AeroError;
 use numpy::ndarray::Array2;
 use numpy::{IntoPyArray, PyArray1, PyArray2, PyReadonlyArray1};
@@ -154,17 +155,31 @@ fn kirchhoff_outputs<'py>(
 
 /// `(x0, x_dot, CL, Cm)` at each `(alpha, alpha_dot, x)` (rad, rad/s, -): the ODE's input
 /// `x₀(α − τ₂ α̇)` and right-hand side, and the static-curve lift and pitching moment at the
-/// separation point `x` (`KirchhoffParams::{x0_lagged, x_dot, cl, cm}`).
+/// separation point `x` (`StallParams::{x0_lagged, x_dot, cl, cm}`). The tanh form by default;
+/// with `knots` (rad) and `values` the tabulated form (Goman-Khrabrov), whose `params` are its
+/// core names.
 #[pyfunction]
+#[pyo3(signature = (params, alpha, alpha_dot, x, knots=None, values=None))]
 fn kirchhoff_point<'py>(
     py: Python<'py>,
     params: HashMap<String, f64>,
     alpha: PyReadonlyArray1<'py, f64>,
     alpha_dot: PyReadonlyArray1<'py, f64>,
     x: PyReadonlyArray1<'py, f64>,
+    knots: Option<Vec<f64>>,
+    values: Option<Vec<f64>>,
 ) -> PyResult<(Array<'py>, Array<'py>, Array<'py>, Array<'py>)> {
-    let p = params_from(&params, "params")?;
-    p.check().map_err(to_py)?;
+    let p: StallParams = match (knots, values) {
+        (None, None) => params_from(&params, "params")?.into(),
+        (Some(k), Some(v)) => crate::goman_khrabrov::params_from(&params, k, v, "params")?.into(),
+        _ => {
+            return Err(to_py(AeroError::invalid(
+                "kirchhoff_point",
+                "give both knots and values (the tabulated form) or neither (the tanh form)",
+            )))
+        }
+    };
+    p.check_params().map_err(to_py)?;
     let (a, ad, xs) = (alpha.as_slice()?, alpha_dot.as_slice()?, x.as_slice()?);
     if ad.len() != a.len() || xs.len() != a.len() {
         return Err(to_py(AeroError::invalid(

@@ -19,7 +19,8 @@ break; M itself is not touched.
 on knots every --knot-spacing deg) instead of the tanh, started from the tanh fit with its lift
 line held: for records whose lift curve the tanh cannot follow (a plateau, a second rise). It
 prints the scalar parameters, one row per table coefficient (alpha of its knot) and the drag
-along the table's state; --out-model is for the tanh form only.
+along the table's state. With --out-model the model file stores the table (knots and
+coefficients per flap), which the replays, the exports and the evidence pack fly.
 """
 
 from __future__ import annotations
@@ -44,6 +45,8 @@ from aerodelta.exceptions import InvalidInputError
 
 if TYPE_CHECKING:
     import polars as pl
+
+    from aerodelta.model import DeltaModel
 
 HELP = "Kirchhoff stall of C_L, C_m (output error) and C_D (tau1, tau2, alpha*, C_L,max)"
 
@@ -114,11 +117,6 @@ def run(args: argparse.Namespace) -> int:
             "--out-model with --no-cm: a simulator flies both curves; fit C_m too"
         )
     gk = args.form == "goman-khrabrov"
-    if gk and args.out_model is not None:
-        raise InvalidInputError(
-            "--out-model with --form goman-khrabrov: the model file stores the tanh form only; "
-            "fit without --form to store the stall"
-        )
     if not gk and args.knot_spacing is not None:
         raise InvalidInputError(
             "--knot-spacing applies to --form goman-khrabrov (the table's knots); the tanh form "
@@ -135,7 +133,7 @@ def run(args: argparse.Namespace) -> int:
         check_outputs(src, "--out-model", files=[out_model], inputs=[Path(args.model)])
     data = model_frame(load_records(src, progress=not args.no_progress))
     if gk:
-        return _run_goman_khrabrov(args, data, flaps, out)
+        return _run_goman_khrabrov(args, data, flaps, out, base_model, out_model)
     res = fit_kirchhoff(
         data,
         flaps=flaps,
@@ -189,10 +187,16 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def _run_goman_khrabrov(
-    args: argparse.Namespace, data: pl.DataFrame, flaps: list[float] | None, out: Path | None
+def _run_goman_khrabrov(  # noqa: PLR0917  (the tanh path's arguments, passed on)
+    args: argparse.Namespace,
+    data: pl.DataFrame,
+    flaps: list[float] | None,
+    out: Path | None,
+    base_model: DeltaModel | None,
+    out_model: Path | None,
 ) -> int:
-    """``--form goman-khrabrov``: the table's fit, printed as the tanh form's is."""
+    """``--form goman-khrabrov``: the table's fit, printed as the tanh form's is, and stored
+    with the Δ model when asked."""
     from aerodelta.goman_khrabrov import fit_goman_khrabrov  # noqa: PLC0415
 
     res = fit_goman_khrabrov(
@@ -204,6 +208,9 @@ def _run_goman_khrabrov(
     if out is not None:
         out.parent.mkdir(parents=True, exist_ok=True)
         write_atomic(out, table.write_csv)
+    if out_model is not None and base_model is not None:
+        out_model.parent.mkdir(parents=True, exist_ok=True)
+        base_model.with_longitudinal(res).save(out_model)
     if args.format == "json":
         print(json.dumps(table.to_dicts(), indent=2, allow_nan=True))
         for flap, note in res.notes.items():
@@ -234,5 +241,9 @@ def _run_goman_khrabrov(
     )
     if out is not None:
         print(f"wrote {out}")
+    if out_model is not None:
+        print(
+            f"wrote {out_model} (the Δ model with the tabulated stall of {len(res.fits)} flap(s))"
+        )
     sys.stdout.flush()
     return 0
