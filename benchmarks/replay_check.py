@@ -14,7 +14,8 @@ test-condition stall speeds within ±3 kt; the table (whose tanh truth it can on
 approximate) within one maneuver of the tanh's count.
 
 Run: ``python benchmarks/replay_check.py [--fit-seed 961] [--seeds 962 ... 971]``
-(quick campaigns; a few seconds per held-out campaign). Development: fit seed 41, held-out 42-45. Report (run once): fit seed 961, held-out 962-971.
+(quick campaigns; a few seconds per held-out campaign). Development: fit seed 41, held-out
+42-45. Report (run once): fit seed 961, held-out 962-971.
 """
 
 from __future__ import annotations
