@@ -12,7 +12,7 @@ condition number, VIF, excitation) the statsmodels way.
 The peer fits the bins the engine fitted in its like-for-like run (the default structures,
 no selection): the same edges, the same bins left out for too little data. Until session 30
 it fitted fixed 0.2 deg bins with at least 10 points per parameter, 1515 bins where the engine
-fits 2049 on the default campaign, so it did about a quarter less work than the engine; that
+fits 2023 on the default campaign, so it did about a quarter less work than the engine; that
 older peer with statistics is still timed and printed, for comparison with earlier sessions'
 ratios.
 
@@ -111,9 +111,12 @@ def peer_fit(data: pl.DataFrame, bins: Bins | None, stats: bool = False) -> int:
             if bins is None:
                 groups_rows = _fixed_bins(alpha, x.shape[1])
             else:
+                # [lo, hi) as numpy.histogram (the engine's partition), the last bin [lo, hi]
+                edges = bins.get((coef, float(flap)), [])
+                top = max((hi for _, hi in edges), default=np.inf)
                 groups_rows = [
-                    np.flatnonzero((alpha >= lo) & (alpha < hi))
-                    for lo, hi in bins.get((coef, float(flap)), [])
+                    np.flatnonzero((alpha >= lo) & ((alpha < hi) | ((hi == top) & (alpha == hi))))
+                    for lo, hi in edges
                 ]
             centres, params = [], []
             for rows in groups_rows:
@@ -188,14 +191,18 @@ def main() -> None:
             "aerodelta.fit, default structures, no selection, chain calibration on (like for "
             f"like, plus the chain calibration and smoother match): {t_plain:.3f} s"
         )
-        t_same, _ = best(
+        t_same, r_same = best(
             ad.FitConfig(selection=None, chain_calibration=False, smoother_match=False)
         )
         print(
             "aerodelta.fit, default structures, no selection, no chain calibration or smoother "
             f"match (the peer's work): {t_same:.3f} s"
         )
-        bins = engine_bins(r_plain)
+        # the bins of the run the floor is judged on (those of the run with the chain
+        # calibration are printed beside them)
+        bins = engine_bins(r_same)
+        if bins != engine_bins(r_plain):
+            print("note: the runs with and without the chain calibration fitted other bins")
         n_engine = sum(len(v) for v in bins.values())
         t0 = time.perf_counter()
         nb = peer_fit(data, bins)

@@ -91,6 +91,7 @@ def main() -> None:
                 print(f"fit seed {args.fit_seed}, {name}, flap {f:g}: cost {ff.cost:.4g}"
                       + (f", note: {ff.note}" if ff.note else ""))  # fmt: skip
         totals: dict[str, dict[str, list[int]]] = {}
+        gaps: list[float] = []  # |table - tanh| of the simulated stall speeds, kt
         for seed in args.seeds:
             held, spec = _campaign(root, seed)
             buffet = spec.get("buffet")
@@ -103,6 +104,13 @@ def main() -> None:
                 held, kirchhoff=_truth_stall(flaps), truth_effects=spec_effects(spec),
                 buffet_model=buffet, seed=seed,
             )  # fmt: skip
+            both = (
+                runs["tanh"].table.select("maneuver_id", pl.col("v_stall_sim_keas").alias("a"))
+                .join(runs["table"].table.select("maneuver_id", pl.col("v_stall_sim_keas")
+                                                 .alias("b")), on="maneuver_id")
+                .drop_nulls()
+            )  # fmt: skip
+            gaps += (both["b"] - both["a"]).abs().to_list()
             for name, res in runs.items():
                 c = _count(res.table)
                 tot = totals.setdefault(name, {"test": [0, 0], "all": [0, 0]})
@@ -121,6 +129,12 @@ def main() -> None:
             (a, n), (b, m) = tot["test"], tot["all"]
             print(f"| {name} | {a} of {n} ({100 * a / max(n, 1):.0f} %) | "
                   f"{b} of {m} ({100 * b / max(m, 1):.0f} %) |")  # fmt: skip
+        if gaps:
+            g = sorted(gaps)
+            print(
+                f"simulated stall speed, table - tanh: median |diff| {g[len(g) // 2]:.2f} kt, "
+                f"largest {g[-1]:.2f} kt over {len(g)} maneuvers"
+            )
         for name in ("tanh", "table"):
             a, n = totals[name]["test"]
             ok = n > 0 and a >= 0.9 * n

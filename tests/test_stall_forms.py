@@ -45,11 +45,13 @@ DRAG = {0.0: {"CD0": 0.027, "CD_k": 0.0322, "CD_x": 0.30}}
 
 def _table(f: float) -> tuple[list[float], list[float]]:
     """A separation curve no tanh follows: attached to 14 deg, a plateau at 0.55 from 17 to
-    21 deg, fully separated past 26 deg (knots every 1 deg from 10 to 30 deg, flap 10's
-    shifted 1 deg down)."""
+    21 deg, separated past 26 deg (knots every 1 deg from 10 to 30 deg, flap 10's shifted
+    1 deg down). The end coefficients (0.93, 0.04) differ from their neighbours, so that the
+    ends' handling (the end coefficients repeated beyond the knots) shows in the curve."""
     knots = np.radians(np.arange(10.0, 31.0) - f / 10.0)
     deg = np.arange(10.0, 31.0)
     values = np.interp(deg, [10, 14, 17, 21, 26, 30], [1.0, 1.0, 0.55, 0.55, 0.0, 0.0])
+    values[0], values[1], values[-1] = 0.93, 0.99, 0.04
     return knots.tolist(), values.tolist()
 
 
@@ -117,6 +119,9 @@ def test_the_model_file_stores_the_table_and_the_engine_reads_it(tmp_path: Path)
     spec["longitudinal"]["model"] = "kirchhoff"
     with pytest.raises(ad.AerodeltaError, match="goman-khrabrov"):
         DeltaModel.from_spec(spec)
+    # only a stall fit is stored
+    with pytest.raises(ad.InvalidInputError, match="give the result of"):
+        m.with_longitudinal(CORE)
 
 
 @pytest.mark.parametrize("known", ["adx37", "none"])
@@ -248,8 +253,10 @@ def test_a_fitted_table_is_stored_by_the_command_line_and_replayed(
 ) -> None:
     """``aerodelta longitudinal --form goman-khrabrov --model M --out-model OUT`` stores the
     table of :func:`fit_goman_khrabrov` on the same records bit for bit; the closed-loop replay
-    of a stored-stall flap flies it: the same flight as the stall given explicitly to the
-    engine's truth replay, and another flight than the model without it."""
+    of a stored-stall flap flies it: another flight than the model without it, and the same
+    flight, bit for bit, as the model without it given the fit's table explicitly
+    (``kirchhoff={15: GkFlapFit}``); a table without its core parameters, or with a
+    coefficient outside [0, 1], is refused."""
     data = ad.ingest(stall_campaign, compat=False, progress=False).data
     src = tmp_path / "model.json"
     ad.fit(data).model.save(src)
@@ -281,3 +288,19 @@ def test_a_fitted_table_is_stored_by_the_command_line_and_replayed(
     assert set(flown.runs) == set(ids)
     for mid in ids:
         assert not flown.runs[mid].equals(plain.runs[mid])
+    # the same table given explicitly (the fit of one flap) flies the same flights, bit for bit
+    explicit = closed_loop_replay(
+        data, model=DeltaModel.load(src), kirchhoff={15.0: res[15.0]}, maneuvers=ids
+    )
+    assert explicit.setup["kirchhoff_flaps"] == [15.0]
+    for mid in ids:
+        assert explicit.runs[mid].equals(flown.runs[mid])
+    # a table without its core parameters: one line naming what is missing
+    core = dict(res[15.0].params)
+    del core["tau1"]
+    table = {"x0_knots": knots.tolist(), "x0_values": values.tolist()}
+    with pytest.raises(ad.InvalidInputError, match=r"tabulated form's parameters lack tau1"):
+        closed_loop_replay(data, kirchhoff={15.0: {**core, **table}}, maneuvers=ids)
+    bad = {**res[15.0].params, **table, "x0_values": [*values.tolist()[:-1], 1.5]}
+    with pytest.raises(ad.AerodeltaError, match="knot"):
+        closed_loop_replay(data, kirchhoff={15.0: bad}, maneuvers=ids)

@@ -164,6 +164,8 @@ def sim_closed_loop(
     kirchhoff: list[float] | None = None,
     effects_json: str | None = None,
     kirchhoff_drag: list[float] | None = None,
+    x0_knots: list[float] | None = None,
+    x0_values: list[float] | None = None,
 ) -> tuple[npt.NDArray[np.float64], str]: ...
 def sim_closed_loop_columns() -> tuple[list[str], list[str]]: ...
 def sim_replay_daveml(

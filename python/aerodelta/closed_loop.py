@@ -67,6 +67,13 @@ SIM_HZ = 100.0
 _RECORD_COLUMNS, _OUTPUT_COLUMNS = _core.sim_closed_loop_columns()
 _KIRCHHOFF_NAMES = tuple(_core.kirchhoff_param_names())
 _DRAG_NAMES = tuple(_core.kirchhoff_drag_names())
+_CORE_NAMES = tuple(_core.goman_khrabrov_core_names())
+#: The tabulated form's separation curve in a ``kirchhoff`` mapping: knots (rad), coefficients.
+_TABLE_KEYS = ("x0_knots", "x0_values")
+
+#: One flap's stall as the engine takes it: the tanh form's 9 parameters (or the tabulated
+#: form's 7), the drag's 3 or None, and the table (knots in rad, coefficients) or None.
+_Stall = tuple[list[float], list[float] | None, tuple[list[float], list[float]] | None]
 
 
 @dataclass
@@ -184,19 +191,31 @@ def discrete_thresholds(data: pl.DataFrame, discrete: str, alpha: str) -> dict[f
     return out
 
 
-def _kirchhoff_array(
-    params: Mapping[str, float] | Sequence[float] | None,
-) -> tuple[list[float], list[float] | None] | None:
-    """The stall's 9 parameters and, when given, its 3 drag parameters (by name: all of
-    ``_DRAG_NAMES`` or none; as a sequence: 9 or 12 values)."""
+def _kirchhoff_array(params: Any) -> _Stall | None:
+    """The stall's parameters, its 3 drag parameters when given, and its table for the
+    tabulated form. ``params``: a mapping by name (the tanh form's 9 names; or the tabulated
+    form's 7 core names with ``x0_knots`` in rad and ``x0_values``; the drag's names all or
+    none), a sequence (9 or 12 values, the tanh form), or a tabulated fit of one flap
+    (:class:`aerodelta.goman_khrabrov.GkFlapFit`, with its drag when fitted)."""
     if params is None:
         return None
+    if hasattr(params, "knots_deg") and hasattr(params, "x0"):  # a GkFlapFit
+        drag = getattr(params, "drag", None)
+        params = {
+            **params.params,
+            "x0_knots": np.radians(np.asarray(params.knots_deg, dtype=np.float64)).tolist(),
+            "x0_values": np.asarray(params.x0, dtype=np.float64).tolist(),
+            **(dict(drag.params) if drag is not None else {}),
+        }
     if isinstance(params, Mapping):
-        missing = [n for n in _KIRCHHOFF_NAMES if n not in params]
+        tabulated = any(k in params for k in _TABLE_KEYS)
+        names = _CORE_NAMES if tabulated else _KIRCHHOFF_NAMES
+        missing = [n for n in (*names, *(_TABLE_KEYS if tabulated else ())) if n not in params]
         if missing:
+            form = "the tabulated form's" if tabulated else "Kirchhoff"
             raise InvalidInputError(
-                f"closed-loop replay: Kirchhoff parameters lack {', '.join(missing)}; give all "
-                f"of {', '.join(_KIRCHHOFF_NAMES)}"
+                f"closed-loop replay: {form} parameters lack {', '.join(missing)}; give all "
+                f"of {', '.join((*names, *(_TABLE_KEYS if tabulated else ())))}"
             )
         have = [n for n in _DRAG_NAMES if n in params]
         if have and len(have) < len(_DRAG_NAMES):
@@ -206,7 +225,15 @@ def _kirchhoff_array(
                 f"{', '.join(_DRAG_NAMES)} or none (the qualified drag)"
             )
         drag = [float(params[n]) for n in _DRAG_NAMES] if have else None
-        return [float(params[n]) for n in _KIRCHHOFF_NAMES], drag
+        table = (
+            (
+                [float(x) for x in params["x0_knots"]],
+                [float(x) for x in params["x0_values"]],
+            )
+            if tabulated
+            else None
+        )
+        return [float(params[n]) for n in names], drag, table
     v = [float(x) for x in params]
     k, d = len(_KIRCHHOFF_NAMES), len(_DRAG_NAMES)
     if len(v) not in (k, k + d):
@@ -215,7 +242,7 @@ def _kirchhoff_array(
             f"({', '.join(_KIRCHHOFF_NAMES)}), or {k + d} with the drag's "
             f"({', '.join(_DRAG_NAMES)})"
         )
-    return v[:k], (v[k:] if len(v) > k else None)
+    return v[:k], (v[k:] if len(v) > k else None), None
 
 
 def _noise_std(t: np.ndarray, alpha: np.ndarray, az: np.ndarray) -> float:
@@ -282,7 +309,9 @@ def closed_loop_replay(
         ``_core.kirchhoff_param_names()`` order) replacing the qualified static C_L, C_m
         curves (e.g. :func:`aerodelta.longitudinal.fit_kirchhoff`'s), with the drag's
         ``CD0``, ``CD_k``, ``CD_x`` replacing the static C_D curve when given (by name, or as
-        3 more values; without them the qualified drag flies); a flap absent flies the
+        3 more values; without them the qualified drag flies); or the tabulated form: a
+        :class:`aerodelta.goman_khrabrov.GkFlapFit` (with its drag), or a mapping of its core
+        parameters with ``x0_knots`` (rad) and ``x0_values``; a flap absent flies the
         stall ``model`` stores for it (:meth:`DeltaModel.with_longitudinal`, when fitted with
         ``known="adx37"``), else the static curves.
     truth_effects
@@ -414,6 +443,8 @@ def closed_loop_replay(
             kirchhoff=stall[0] if (stall := kp.get(flap)) is not None else None,
             effects_json=effects_json,
             kirchhoff_drag=stall[1] if stall is not None else None,
+            x0_knots=stall[2][0] if stall is not None and stall[2] is not None else None,
+            x0_values=stall[2][1] if stall is not None and stall[2] is not None else None,
         )
         sim = pl.DataFrame(np.asarray(x), schema=list(_OUTPUT_COLUMNS), orient="row")
         runs[mid] = sim.with_columns(

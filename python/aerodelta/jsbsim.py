@@ -382,8 +382,10 @@ STALL_PREFIX = "aerodelta/stall"
 
 
 def _stall_flaps(model: DeltaModel) -> list[tuple[float, dict[str, float]]]:
-    """The stored Kirchhoff stall per flap setting (fitted with ``known`` ``"adx37"`` or
-    ``"none"``, the two forms of :func:`_stall_functions`; the model file allows no other)."""
+    """The stored stall's scalar parameters per flap setting, in either form of its separation
+    curve (``DeltaModel.stall_form``; the table's curve is ``DeltaModel.separation_tables``),
+    fitted with ``known`` ``"adx37"`` or ``"none"`` (the two variants of
+    :func:`_stall_functions`; the model file allows no other basis)."""
     return sorted((float(f), dict(p)) for f, p in (model.kirchhoff or {}).items())
 
 

@@ -271,6 +271,15 @@ class DeltaModel:
             When the fit left C_m out (``fit_cm=False``: a simulator flies both curves) or
             fitted no flap.
         """
+        from aerodelta.goman_khrabrov import GomanKhrabrovResult  # noqa: PLC0415
+        from aerodelta.longitudinal import KirchhoffResult  # noqa: PLC0415
+
+        if not isinstance(result, KirchhoffResult | GomanKhrabrovResult):
+            raise InvalidInputError(
+                f"with_longitudinal: a {type(result).__name__}; give the result of "
+                "aerodelta.longitudinal.fit_kirchhoff or aerodelta.goman_khrabrov."
+                "fit_goman_khrabrov"
+            )
         if not result.fit_cm:
             raise InvalidInputError(
                 "with_longitudinal: the stall fit left C_m out (fit_cm=False); fit both "
@@ -278,7 +287,7 @@ class DeltaModel:
             )
         if not result.fits:
             raise InvalidInputError("with_longitudinal: the stall fit has no flap")
-        tabulated = all(hasattr(ff, "knots_deg") for ff in result.fits.values())
+        tabulated = isinstance(result, GomanKhrabrovResult)
 
         def table(ff: Any) -> dict[str, Any]:
             if not tabulated:

@@ -236,6 +236,20 @@ impl GkParams {
         }
     }
 
+    /// The parameters from the scalars `c` in [`CORE_NAMES`] order and the table `x0`.
+    pub fn from_core(c: &[f64; N_CORE], x0: X0Table) -> GkParams {
+        GkParams {
+            tau1: c[0],
+            tau2: c[1],
+            cl_alpha: c[2],
+            alpha0: c[3],
+            cm0: c[4],
+            cm_alpha: c[5],
+            cm_x: c[6],
+            x0,
+        }
+    }
+
     /// `[τ₁, τ₂, C_Lα, α₀, C_m0, C_mα, C_mx, v_0, …]`.
     pub fn to_vec(&self) -> Vec<f64> {
         let mut v = vec![

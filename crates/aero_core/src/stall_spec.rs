@@ -124,8 +124,10 @@ impl LongitudinalSpec {
     /// # Errors
     /// [`AeroError::InvalidInput`] naming the flap and the parameter: an unknown model or
     /// known-term basis, a repeated or non-finite flap, a missing or unknown parameter (of the
-    /// stall or of its drag), values the model cannot run with ([`KirchhoffParams::check`],
-    /// [`KirchhoffDrag::check`]).
+    /// stall or of its drag), a parameter or a table of the other form, a table the tabulated
+    /// form cannot run with ([`X0Table::new`]: too few knots, unequal spacing, a coefficient
+    /// outside [0, 1]), values the model cannot run with ([`KirchhoffParams::check`],
+    /// [`GkParams::check`], [`KirchhoffDrag::check`]).
     pub fn compile(&self) -> Result<Vec<CompiledFlap>> {
         let tabulated = match self.model.as_str() {
             "kirchhoff" => false,
@@ -159,19 +161,22 @@ impl LongitudinalSpec {
                 ));
             }
             let params: StallParams = if tabulated {
+                if let Some(k) = f.params.keys().find(|k| {
+                    PARAM_NAMES.contains(&k.as_str()) && !CORE_NAMES.contains(&k.as_str())
+                }) {
+                    return Err(AeroError::invalid(
+                        place,
+                        format!(
+                            "gives '{k}', a parameter of the tanh curve, but the model is \
+                             'goman-khrabrov' (its curve is the table x0_knots, x0_values); \
+                             set model = 'kirchhoff' or give the table"
+                        ),
+                    ));
+                }
                 let v = named(&f.params, CORE_NAMES, &place, "parameter")?;
                 let table =
                     X0Table::new(f.x0_knots.clone(), f.x0_values.clone()).context(place.clone())?;
-                let p = GkParams {
-                    tau1: v[0],
-                    tau2: v[1],
-                    cl_alpha: v[2],
-                    alpha0: v[3],
-                    cm0: v[4],
-                    cm_alpha: v[5],
-                    cm_x: v[6],
-                    x0: table,
-                };
+                let p = GkParams::from_core(&v, table);
                 p.check().context(place.clone())?;
                 p.into()
             } else {
@@ -369,14 +374,15 @@ mod tests {
         bad.flaps[0].x0_knots.clear();
         bad.flaps[0].x0_values.clear();
         assert!(msg(&bad).contains("knots"), "{}", msg(&bad));
-        // a tanh parameter in the tabulated form
+        // a tanh parameter in the tabulated form, an unknown one
         let mut bad = spec.clone();
         bad.flaps[0].params.insert("a1".into(), 20.0);
-        assert!(
-            msg(&bad).contains("unknown parameter 'a1'"),
-            "{}",
-            msg(&bad)
-        );
+        let m = msg(&bad);
+        assert!(m.contains("'a1', a parameter of the tanh curve"), "{m}");
+        let mut bad = spec.clone();
+        bad.flaps[0].params.insert("tau3".into(), 1.0);
+        let m = msg(&bad);
+        assert!(m.contains("unknown parameter 'tau3'"), "{m}");
         // a table given to the tanh form
         let mut tanh =
             LongitudinalSpec::from_params("none", &[(0.0, params().into(), String::new())])

@@ -23,16 +23,7 @@ pub(crate) fn params_from(
     arg: &str,
 ) -> PyResult<GkParams> {
     let c = named(core, CORE_NAMES, arg)?;
-    let p = GkParams {
-        tau1: c[0],
-        tau2: c[1],
-        cl_alpha: c[2],
-        alpha0: c[3],
-        cm0: c[4],
-        cm_alpha: c[5],
-        cm_x: c[6],
-        x0: X0Table::new(knots, values).map_err(to_py)?,
-    };
+    let p = GkParams::from_core(&c, X0Table::new(knots, values).map_err(to_py)?);
     p.check().map_err(to_py)?;
     Ok(p)
 }

@@ -281,11 +281,13 @@ fn sim_rolloff_config() -> PyResult<String> {
 /// `aero_core::sim::closed_loop`). `record`: n x 16 in `sim_closed_loop_columns()[0]` order;
 /// `model`: the fitted Δ model (the extended model) or None (the qualified model with the
 /// truth effects `effects_json`); `kirchhoff`: the 9 Kirchhoff parameters of this flap
-/// (`aero_core::kirchhoff::PARAM_NAMES`) or None (static curves), with `kirchhoff_drag` its 3
-/// drag parameters (`DRAG_NAMES`) or None (the qualified drag). Returns the simulated
-/// history (m x 15, `sim_closed_loop_columns()[1]` order) and its metadata as JSON.
+/// (`aero_core::kirchhoff::PARAM_NAMES`), or with `x0_knots` (rad) and `x0_values` the 7 core
+/// parameters of the tabulated form (`aero_core::goman_khrabrov::CORE_NAMES`), or None
+/// (static curves), with `kirchhoff_drag` its 3 drag parameters (`DRAG_NAMES`) or None (the
+/// qualified drag). Returns the simulated history (m x 15, `sim_closed_loop_columns()[1]`
+/// order) and its metadata as JSON.
 #[pyfunction]
-#[pyo3(signature = (record, x0, options_json, model=None, kirchhoff=None, effects_json=None, kirchhoff_drag=None))]
+#[pyo3(signature = (record, x0, options_json, model=None, kirchhoff=None, effects_json=None, kirchhoff_drag=None, x0_knots=None, x0_values=None))]
 #[allow(clippy::too_many_arguments)]
 fn sim_closed_loop<'py>(
     py: Python<'py>,
@@ -293,9 +295,11 @@ fn sim_closed_loop<'py>(
     x0: [f64; 12],
     options_json: &str,
     model: Option<&Bound<'py, PyDeltaModel>>,
-    kirchhoff: Option<[f64; 9]>,
+    kirchhoff: Option<Vec<f64>>,
     effects_json: Option<&str>,
     kirchhoff_drag: Option<[f64; 3]>,
+    x0_knots: Option<Vec<f64>>,
+    x0_values: Option<Vec<f64>>,
 ) -> PyResult<(Bound<'py, PyArray2<f64>>, String)> {
     let shape = record.shape();
     if shape[1] != RECORD_COLUMNS.len() {
@@ -325,11 +329,56 @@ fn sim_closed_loop<'py>(
             "a Kirchhoff drag without the stall's parameters: give kirchhoff too",
         )));
     }
-    let kp = kirchhoff.map(|a| {
-        (
-            aero_core::stall_form::StallParams::Kirchhoff(
+    let stall = match (kirchhoff, x0_knots, x0_values) {
+        (None, None, None) => None,
+        (Some(v), None, None) => {
+            let a: [f64; 9] = v.as_slice().try_into().map_err(|_| {
+                to_py(AeroError::invalid(
+                    "closed-loop replay",
+                    format!(
+                        "kirchhoff has {} values; the tanh form takes 9 ({})",
+                        v.len(),
+                        aero_core::kirchhoff::PARAM_NAMES.join(", ")
+                    ),
+                ))
+            })?;
+            Some(aero_core::stall_form::StallParams::Kirchhoff(
                 aero_core::kirchhoff::KirchhoffParams::from_array(&a),
-            ),
+            ))
+        }
+        (Some(v), Some(knots), Some(values)) => {
+            let names = aero_core::goman_khrabrov::CORE_NAMES;
+            if v.len() != names.len() {
+                return Err(to_py(AeroError::invalid(
+                    "closed-loop replay",
+                    format!(
+                        "kirchhoff has {} values; the tabulated form takes {} ({})",
+                        v.len(),
+                        names.len(),
+                        names.join(", ")
+                    ),
+                )));
+            }
+            let mut c = [0.0; aero_core::goman_khrabrov::N_CORE];
+            c.copy_from_slice(&v);
+            let table = aero_core::goman_khrabrov::X0Table::new(knots, values)
+                .map_err(|e| to_py(e.context("closed-loop replay")))?;
+            let p = aero_core::goman_khrabrov::GkParams::from_core(&c, table);
+            p.check()
+                .map_err(|e| to_py(e.context("closed-loop replay")))?;
+            Some(p.into())
+        }
+        _ => {
+            return Err(to_py(AeroError::invalid(
+                "closed-loop replay",
+                "x0_knots and x0_values go together, with the tabulated form's kirchhoff \
+                 parameters",
+            )))
+        }
+    };
+    let kp = stall.map(|p| {
+        (
+            p,
             kirchhoff_drag.map(|d| aero_core::kirchhoff::KirchhoffDrag::from_array(&d)),
         )
     });
