@@ -183,7 +183,8 @@ _PROPS = {"alpha_deg": "test/alpha_deg", "alphadot_dps": "test/alphadot_dps",
           "flap_deg": "test/flap_deg", "beta_deg": "test/beta_deg", "phat": "test/phat",
           "qhat": "test/qhat", "rhat": "test/rhat", "betadot_dps": "test/betadot_dps",
           "da_deg": "test/da_deg", "de_deg": "test/de_deg", "dr_deg": "test/dr_deg",
-          "ds_deg": "test/ds_deg", "ct_left": "test/ct_left", "ct_right": "test/ct_right"}  # fmt: skip
+          "ds_deg": "test/ds_deg", "ct_left": "test/ct_left",
+          "ct_right": "test/ct_right"}  # fmt: skip
 
 
 @pytest.mark.parametrize("known", ["adx37", "none"])
@@ -210,7 +211,9 @@ def test_jsbsim_flies_the_table(known: str, tmp_path: Path) -> None:
     flap = np.repeat([0.0, 10.0], pull.size)
     names = ["aero/aerodelta/stall/x", "aero/aerodelta/stall/CL-delta",
              "aero/aerodelta/stall/Cm-delta"]  # fmt: skip
-    names += [f"aero/aerodelta/stall/flap-{i}/separated{k}" for i in (0, 1) for k in ("-static", "")]
+    names += [
+        f"aero/aerodelta/stall/flap-{i}/separated{k}" for i in (0, 1) for k in ("-static", "")
+    ]
     rows: dict[str, list[float]] = {k: [] for k in names}
     for a, r, f in zip(alpha, rate, flap, strict=True):
         fdm["test/alpha_deg"], fdm["test/alphadot_dps"], fdm["test/flap_deg"] = a, r, f
