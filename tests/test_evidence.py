@@ -440,3 +440,41 @@ def test_bad_input_gets_one_line(
     _one_line_error(capsys, ["evidence", camp, "--out", str(tmp_path / "o"), "--power-on-ct",
                              "-1"], "--power-on-ct")  # fmt: skip
     assert not (tmp_path / "o").exists()
+
+
+def test_the_tabulated_form_in_the_pack(pack: dict[str, Any], tmp_path: Path) -> None:
+    """``stall_form="auto"`` with a model storing the tabulated stall (flap 15) fits that form
+    at every flap: the longitudinal row names the table and its lags are the truth's within
+    15 % (issue 20's floor), the replays fly the stored table at flap 15 and the pack's own
+    table elsewhere, the provenance says which form; an unknown form gets one line."""
+    from aerodelta.fit import model_frame  # noqa: PLC0415
+    from aerodelta.goman_khrabrov import fit_goman_khrabrov  # noqa: PLC0415
+
+    data = pack["data"]
+    base = ad.DeltaModel.load(pack["root"] / "model.json")
+    stored = base.with_longitudinal(fit_goman_khrabrov(model_frame(data), flaps=[15.0]))
+    res = write_evidence(data, tmp_path / "p", model=stored, campaign=pack["camp"])
+    row = res.matrix.filter(pl.col("key") == "longitudinal").row(0, named=True)
+    assert row["status"] == "shown"
+    got = {
+        float(m[0]): (float(m[1]), float(m[2]))
+        for m in re.findall(r"flap (\d+): tau1 ([\d.]+) ± [\d.]+ s, tau2 ([\d.]+) ± [\d.]+ s, "
+                            r"separation table on \d+ knots", row["detail"])
+    }  # fmt: skip
+    assert sorted(got) == [0.0, 5.0, 10.0, 15.0, 35.0], row["detail"]
+    for flap, (tau1, tau2) in got.items():
+        t = _core.kirchhoff_truth_params(flap)
+        assert abs(tau1 / t["tau1"] - 1) < 0.15, (flap, tau1, t["tau1"])
+        assert abs(tau2 / t["tau2"] - 1) < 0.15, (flap, tau2, t["tau2"])
+    html = res.html.read_text(encoding="utf-8")
+    assert "longitudinal=True (goman-khrabrov)" in html
+    assert "a cubic B-spline table, Goman-Khrabrov" in html
+    # the replays: the stored table at flap 15, the pack's own tables (GkFlapFit) elsewhere
+    from aerodelta.evidence.matrix import assess  # noqa: PLC0415
+
+    setup = assess(data, model=stored, stall_form="auto").facts["closed_loop_setup"]
+    assert setup["model_kirchhoff_flaps"] == [15.0]
+    assert setup["kirchhoff_flaps"] == [0.0, 5.0, 10.0, 35.0]
+    with pytest.raises(ad.InvalidInputError, match="stall_form 'tanh'"):
+        write_evidence(data, tmp_path / "q", model=stored, stall_form="tanh")
+    assert not (tmp_path / "q").exists()

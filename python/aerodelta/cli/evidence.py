@@ -68,6 +68,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="do not fit the Kirchhoff longitudinal stall (its row says so)",
     )
     parser.add_argument(
+        "--stall-form",
+        choices=("auto", "kirchhoff", "goman-khrabrov"),
+        default="auto",
+        help="separation curve of the longitudinal fit: the tanh (kirchhoff), the table "
+        "(goman-khrabrov), or auto: the one --model stores, else the tanh",
+    )
+    parser.add_argument(
         "--no-replay",
         action="store_true",
         help="do not fly the closed-loop replays of the stall maneuvers (the ±3 kt speed rows "
@@ -125,6 +132,7 @@ def run(args: argparse.Namespace) -> int:
         aft_stop_deg=aft_stop,
         power_on_ct=ct,
         longitudinal=not args.no_longitudinal,
+        stall_form=args.stall_form,
         replay=not args.no_replay,
         overwrite=args.overwrite,
         command=_command(args),

@@ -35,6 +35,7 @@ from aerodelta.evidence.matrix import (
     SHOWN,
     MatrixRow,
     assess,
+    stall_form_of,
 )
 from aerodelta.exceptions import DataError, InvalidInputError
 from aerodelta.model import DeltaModel
@@ -254,6 +255,7 @@ def write_evidence(
     overwrite: bool = False,
     command: str | None = None,
     data_label: str | None = None,
+    stall_form: str = "auto",
 ) -> EvidenceResult:
     """Write the Part 60 stall-model evidence pack.
 
@@ -287,6 +289,11 @@ def write_evidence(
         Thrust coefficient, summed over the engines, from which a stall entry is power-on (-).
     longitudinal
         Fit the Kirchhoff stall by output error where it applies.
+    stall_form
+        Its separation curve: ``"kirchhoff"`` (the tanh), ``"goman-khrabrov"`` (the table,
+        :func:`aerodelta.goman_khrabrov.fit_goman_khrabrov`) or ``"auto"`` (the form ``model``
+        stores, else the tanh). The replays fly the fitted stall at the flaps the model stores
+        none for.
     replay
         Fly the closed-loop replays of the stall maneuvers with the extended model (the fitted
         Δ model, the Kirchhoff stall fitted here; :func:`aerodelta.closed_loop_replay`) for the
@@ -332,6 +339,7 @@ def write_evidence(
     files = [*files, *(Path(s) for s in sources)]
     camp = Path(campaign) if campaign is not None else root
     delta, model_path = _model(model)
+    form = stall_form_of(stall_form, delta)  # refused here, before the records are assessed
     if model_path is not None and params is None:
         from aerodelta.report.context import load_params  # noqa: PLC0415
 
@@ -369,6 +377,7 @@ def write_evidence(
         longitudinal=longitudinal,
         buffet_model=buffet_model,
         replay=replay,
+        stall_form=form,
     )
     if files:
         ftable, digest = file_table(files, camp)
@@ -386,7 +395,7 @@ def write_evidence(
         "model_sha256": hashlib.sha256(model_path.read_bytes()).hexdigest()
         if model_path is not None else None,
         "options": f"aft_stop_deg={aft_stop_deg}, power_on_ct={power_on_ct:g}, "
-        f"longitudinal={longitudinal}, replay={replay}, simulator buffet: "
+        f"longitudinal={longitudinal} ({form}), replay={replay}, simulator buffet: "
         f"{sim_source or 'none'}",
         "generated": generated.strftime("%Y-%m-%d %H:%M:%S UTC"),
     }  # fmt: skip

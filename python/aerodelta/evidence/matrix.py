@@ -21,7 +21,7 @@ from aerodelta._groups import group_agg
 from aerodelta.buffet import FREQ_TOLERANCE_HZ, MIN_SPIKES, buffet_identification
 from aerodelta.buffet import compare_frequencies as _compare
 from aerodelta.evidence import figures
-from aerodelta.exceptions import AerodeltaError
+from aerodelta.exceptions import AerodeltaError, InvalidInputError
 from aerodelta.model import DeltaModel
 from aerodelta.preprocess import GAMMA, R_AIR
 from aerodelta.stall import (
@@ -140,6 +140,7 @@ def assess(
     longitudinal: bool = True,
     buffet_model: Mapping[str, Any] | None = None,
     replay: bool = True,
+    stall_form: str = "auto",
 ) -> Assessment:
     """Assess every characteristic of the matrix from ingested records.
 
@@ -168,11 +169,17 @@ def assess(
     replay
         Fly the closed-loop replays of the stall maneuvers (rows 2-4,
         :func:`aerodelta.closed_loop.closed_loop_replay`) when a model is given.
+    stall_form
+        The form of the separation curve the pack fits: ``"kirchhoff"`` (the tanh,
+        :func:`aerodelta.longitudinal.fit_kirchhoff`), ``"goman-khrabrov"`` (the table,
+        :func:`aerodelta.goman_khrabrov.fit_goman_khrabrov`) or ``"auto"``: the form ``model``
+        stores (:attr:`DeltaModel.stall_form`), else the tanh.
 
     Returns
     -------
     Assessment
     """
+    form = stall_form_of(stall_form, model)
     out = Assessment()
     table = stall_identification(data, aft_stop_deg=aft_stop_deg)
     table = _with_state_at_id(data, table)
@@ -189,7 +196,7 @@ def assess(
         by=dict(ident.group_by("stall_id_by").len().sort("stall_id_by").iter_rows()),
     )
     buffet = buffet_identification(data) if "az_mps2" in data.columns else None
-    fits = fit_longitudinal(data, longitudinal)
+    fits = fit_longitudinal(data, longitudinal, form)
     loop, why = _replay(
         data, table, model=model, fits=fits, buffet_model=buffet_model,
         aft_stop_deg=aft_stop_deg, enabled=replay,
@@ -1077,28 +1084,56 @@ def _lateral_row(out: Assessment, model: DeltaModel | None, params: pl.DataFrame
 
 @dataclass
 class LongitudinalFits:
-    """The Kirchhoff output-error fits of the records per flap (:func:`fit_longitudinal`)."""
+    """The output-error stall fits of the records per flap (:func:`fit_longitudinal`), in the
+    form ``form`` of the separation curve."""
 
     fitted: dict[float, Any] = field(default_factory=dict)
     notes: dict[float, str] = field(default_factory=dict)
     known: str = "none"
     frame: pl.DataFrame | None = None
     why: str | None = None
+    form: str = "kirchhoff"
 
-    def params(self) -> dict[float, dict[str, float]]:
-        """flap -> the fitted parameters (engine units, by name), with the drag's where
-        fitted."""
-        out: dict[float, dict[str, float]] = {}
+    def params(self) -> dict[float, Any]:
+        """flap -> what the closed-loop replays fly (``closed_loop_replay(kirchhoff=)``): the
+        tanh form's fitted parameters (engine units, by name) with the drag's where fitted, or
+        the tabulated form's fit of the flap (:class:`aerodelta.goman_khrabrov.GkFlapFit`,
+        with its drag)."""
+        out: dict[float, Any] = {}
         for f, r in self.fitted.items():
+            if self.form == "goman-khrabrov":
+                out[f] = r[f]
+                continue
             drag = r[f].drag
             out[f] = {**r[f].params, **(drag.params if drag is not None else {})}
         return out
 
 
-def fit_longitudinal(data: pl.DataFrame, enabled: bool) -> LongitudinalFits:
-    """Fit the Kirchhoff stall by output error per flap where it applies (``why`` says why
-    not when it does not)."""
+#: The forms of the separation curve the pack can fit (``stall_form``), and ``"auto"``.
+STALL_FORMS = ("auto", "kirchhoff", "goman-khrabrov")
+
+
+def stall_form_of(stall_form: str, model: DeltaModel | None) -> str:
+    """The form the pack fits: ``stall_form``, or for ``"auto"`` the one ``model`` stores
+    (else the tanh). Anything else is refused."""
+    if stall_form not in STALL_FORMS:
+        raise InvalidInputError(
+            f"stall_form '{stall_form}': use {', '.join(repr(f) for f in STALL_FORMS)}"
+        )
+    if stall_form != "auto":
+        return stall_form
+    stored = model.stall_form if model is not None else None
+    return stored or "kirchhoff"
+
+
+def fit_longitudinal(
+    data: pl.DataFrame, enabled: bool, form: str = "kirchhoff"
+) -> LongitudinalFits:
+    """Fit the stall by output error per flap where it applies, in the form ``form``
+    (``"kirchhoff"``: the tanh separation curve; ``"goman-khrabrov"``: the table, started from
+    the tanh fit of the same flap); ``why`` says why not when it does not."""
     from aerodelta.fit import model_frame  # noqa: PLC0415
+    from aerodelta.goman_khrabrov import fit_goman_khrabrov  # noqa: PLC0415
     from aerodelta.longitudinal import fit_kirchhoff  # noqa: PLC0415
     from aerodelta.qualified import flown_on_builtin  # noqa: PLC0415
 
@@ -1108,13 +1143,16 @@ def fit_longitudinal(data: pl.DataFrame, enabled: bool) -> LongitudinalFits:
         why = "switched off (longitudinal=False)" if not enabled else (
             f"the records lack {', '.join(missing)} (ingest them with aerodelta ingest)"
         )  # fmt: skip
-        return LongitudinalFits(why=why)
+        return LongitudinalFits(why=why, form=form)
     mf = model_frame(data)
     known = "adx37" if flown_on_builtin(mf) else "none"
-    out = LongitudinalFits(known=known, frame=mf)
+    out = LongitudinalFits(known=known, frame=mf, form=form)
     for flap in sorted({float(f) for f in mf["flap_deg"]}):
         try:
-            out.fitted[flap] = fit_kirchhoff(mf, flaps=[flap], known=known)
+            if form == "goman-khrabrov":
+                out.fitted[flap] = fit_goman_khrabrov(mf, flaps=[flap], known=known)
+            else:
+                out.fitted[flap] = fit_kirchhoff(mf, flaps=[flap], known=known)
         except AerodeltaError as e:
             out.notes[flap] = "not fitted: " + str(e).splitlines()[0]
     return out
@@ -1164,8 +1202,16 @@ def _longitudinal_row(out: Assessment, fits: LongitudinalFits) -> None:
             if ff.drag is not None
             else ""
         )
+        if fits.form == "goman-khrabrov":
+            knots = ff.knots_deg
+            curve = (
+                f"separation table on {len(knots)} knots, {knots[0]:.0f}-{knots[-1]:.0f} deg"
+                + (f" ({ff.note})" if ff.note and ff.tau_identified else "")
+            )
+        else:
+            curve = f"α* {ff.alpha_star_deg:.2f} deg"
         notes[flap] = (
-            f"{lags}, α* {ff.alpha_star_deg:.2f} deg, C_L,max {cl_max:.3f} at "
+            f"{lags}, {curve}, C_L,max {cl_max:.3f} at "
             f"{a_max:.1f} deg{drag} ({ff.n_maneuvers} maneuvers, {ff.iterations} iterations)"
         )
         rows.append(res.summary())
@@ -1180,8 +1226,14 @@ def _longitudinal_row(out: Assessment, fits: LongitudinalFits) -> None:
                 figures.longitudinal,
                 {"panels": panels},
                 "Measured lift and pitching-moment coefficients (grey) and the Kirchhoff "
-                "flow-separation model fitted by output error (colour) against alpha, per flap "
-                f"fitted (every {THIN}th sample; docs/longitudinal.md).",
+                "flow-separation model fitted by output error (colour; separation curve: "
+                + (
+                    "a cubic B-spline table, Goman-Khrabrov"
+                    if fits.form == "goman-khrabrov"
+                    else "tanh, Fischenberg"
+                )
+                + f") against alpha, per flap fitted (every {THIN}th sample; "
+                "docs/longitudinal.md).",
             )
         )
     out.rows.append(
