@@ -18,6 +18,8 @@ import polars as pl
 import pytest
 
 import aerodelta as ad
+from _jsbsim_fixture import driven
+from _jsbsim_fixture import load_with_stall as _load_with_stall
 from aerodelta import _core
 from aerodelta.cli import main
 from aerodelta.daveml import write_example_model
@@ -534,37 +536,9 @@ def stall_model(known: str = "adx37") -> DeltaModel:
     return DeltaModel.from_spec(spec)
 
 
-def _load_with_stall(tmp: Path, aero: str, system: str) -> Any:
-    """The fixture aircraft with the exported aerodynamics and the stall's ``<system>``."""
-    root = tmp / "jsbsim"
-    dest = root / "aircraft" / "aerodelta_fixture"
-    dest.mkdir(parents=True)
-    text = (FIXTURE / "aerodelta_fixture.xml").read_text()
-    loads = '<aerodynamics file="delta"/>'
-    assert loads in text
-    (dest / "aerodelta_fixture.xml").write_text(
-        text.replace(loads, f'<system file="stall"/>\n  {loads}')
-    )
-    (dest / "delta.xml").write_text(aero)
-    (dest / "stall.xml").write_text(system)
-    fdm = jsbsim.FGFDMExec(str(root))
-    fdm.set_debug_level(0)
-    assert fdm.load_model("aerodelta_fixture")
-    return fdm
-
-
 def _driven(tmp: Path, aero: str, m: DeltaModel) -> tuple[Any, float, np.ndarray]:
-    """The fixture with ``aero`` and ``m``'s stall system, its channels on test properties
-    (all 0, alpha 5 deg) after the initial conditions; JSBSim's dt, and a 5 s pull from 5 to
-    25 deg and back (deg per frame)."""
-    fdm = _load_with_stall(tmp, aero, jsbsim_stall_system_xml(m))
-    for ch in _TEST_PROPS.values():
-        fdm[ch] = 0.0
-    fdm["test/alpha_deg"] = 5.0
-    assert fdm.run_ic()
-    dt = fdm["simulation/dt"]
-    t = np.arange(600) * dt
-    return fdm, dt, 5.0 + 20.0 * np.sin(np.pi * t / t[-1]) ** 2
+    """The fixture with ``aero`` and ``m``'s stall system (:func:`_jsbsim_fixture.driven`)."""
+    return driven(tmp, aero, jsbsim_stall_system_xml(m))
 
 
 def test_jsbsim_stall_state_and_increments_equal_the_engine(tmp_path: Path) -> None:

@@ -29,9 +29,9 @@ from aerodelta.model import DeltaModel
 
 jsbsim = pytest.importorskip("jsbsim")
 
+from _jsbsim_fixture import TEST_PROPS, driven  # noqa: E402
 from aerodelta.jsbsim import jsbsim_stall_system_xml, jsbsim_xml  # noqa: E402
 
-FIXTURE = Path(__file__).parent / "data" / "jsbsim" / "aircraft" / "aerodelta_fixture"
 _D2R = math.pi / 180.0
 #: Core parameters at flaps 0 and 10 (the virtual aircraft's lags and lines).
 CORE = {
@@ -162,31 +162,6 @@ def test_daveml_carries_the_table(known: str) -> None:
             assert np.abs(dcl).max() > 0.1
 
 
-def _load(tmp: Path, aero: str, system: str) -> Any:
-    root = tmp / "jsbsim"
-    dest = root / "aircraft" / "aerodelta_fixture"
-    dest.mkdir(parents=True)
-    text = (FIXTURE / "aerodelta_fixture.xml").read_text()
-    loads = '<aerodynamics file="delta"/>'
-    (dest / "aerodelta_fixture.xml").write_text(
-        text.replace(loads, f'<system file="stall"/>\n  {loads}')
-    )
-    (dest / "delta.xml").write_text(aero)
-    (dest / "stall.xml").write_text(system)
-    fdm = jsbsim.FGFDMExec(str(root))
-    fdm.set_debug_level(0)
-    assert fdm.load_model("aerodelta_fixture")
-    return fdm
-
-
-_PROPS = {"alpha_deg": "test/alpha_deg", "alphadot_dps": "test/alphadot_dps",
-          "flap_deg": "test/flap_deg", "beta_deg": "test/beta_deg", "phat": "test/phat",
-          "qhat": "test/qhat", "rhat": "test/rhat", "betadot_dps": "test/betadot_dps",
-          "da_deg": "test/da_deg", "de_deg": "test/de_deg", "dr_deg": "test/dr_deg",
-          "ds_deg": "test/ds_deg", "ct_left": "test/ct_left",
-          "ct_right": "test/ct_right"}  # fmt: skip
-
-
 @pytest.mark.parametrize("known", ["adx37", "none"])
 def test_jsbsim_flies_the_table(known: str, tmp_path: Path) -> None:
     """A pull from 5 to 32 deg and back (5 s) at flap 0, then 10, the channels set on the
@@ -196,16 +171,9 @@ def test_jsbsim_flies_the_table(known: str, tmp_path: Path) -> None:
     none``: the dynamics alone, the curves at ``x`` less at ``x0(alpha)``) are the engine's at
     JSBSim's ``x`` (1e-9)."""
     m = gk_model(known)
-    aero = jsbsim_xml(m, {k: v for k, v in _PROPS.items()})
+    aero = jsbsim_xml(m, TEST_PROPS)
     assert "knot-lagged" in aero
-    fdm = _load(tmp_path, aero, jsbsim_stall_system_xml(m))
-    for p in _PROPS.values():
-        fdm[p] = 0.0
-    fdm["test/alpha_deg"] = 5.0
-    assert fdm.run_ic()
-    dt = fdm["simulation/dt"]
-    t = np.arange(600) * dt
-    pull = 5.0 + 27.0 * np.sin(np.pi * t / t[-1]) ** 2
+    fdm, dt, pull = driven(tmp_path, aero, jsbsim_stall_system_xml(m), peak_deg=32.0)
     alpha = np.concatenate([pull, pull])
     rate = np.concatenate([np.gradient(pull, dt)] * 2)
     flap = np.repeat([0.0, 10.0], pull.size)

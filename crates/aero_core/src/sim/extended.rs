@@ -349,16 +349,19 @@ mod tests {
         };
         // the reference: the virtual aircraft's own Kirchhoff stall over the qualified model
         let (qual, _) = adx37_models().expect("tables");
-        let mut truth = TruthAero::new(slice(qual, 0.0).expect("flap 0"), Vec::new(), None)
-            .with_kirchhoff(Some(KirchhoffStall::adx37(qual, 0.0).expect("stall")));
-        let mut sim = crate::sim::maneuver::Simulator::new(
-            crate::aircraft::turboprop::adx37(),
-            0.0,
-            nalgebra::SVector::from(x0),
-            0.01,
-        );
-        let want = crate::sim::campaign::replay_states(&mut sim, &mut truth, &controls, &cts)
-            .expect("replays");
+        let truth_flight = |stall: KirchhoffStall| {
+            let mut truth = TruthAero::new(slice(qual, 0.0).expect("flap 0"), Vec::new(), None)
+                .with_kirchhoff(Some(stall));
+            let mut sim = crate::sim::maneuver::Simulator::new(
+                crate::aircraft::turboprop::adx37(),
+                0.0,
+                nalgebra::SVector::from(x0),
+                0.01,
+            );
+            crate::sim::campaign::replay_states(&mut sim, &mut truth, &controls, &cts)
+                .expect("replays")
+        };
+        let want = truth_flight(KirchhoffStall::adx37(qual, 0.0).expect("stall"));
         let stored = with_stall("adx37");
         let stall_only = fly(&stored, ExtendedLayers::StallOnly);
         assert_eq!(stall_only, want);
@@ -388,20 +391,11 @@ mod tests {
             .collect();
         let values = knots.iter().map(|&a| tanh.x0(a)).collect();
         let gk = GkParams::with_table(&tanh, X0Table::new(knots, values).expect("table"));
-        let mut truth_gk = TruthAero::new(slice(qual, 0.0).expect("flap 0"), Vec::new(), None)
-            .with_kirchhoff(Some(
-                KirchhoffStall::new(qual, gk.clone())
-                    .and_then(|k| k.with_drag(Some(drag)))
-                    .expect("stall"),
-            ));
-        let mut sim = crate::sim::maneuver::Simulator::new(
-            crate::aircraft::turboprop::adx37(),
-            0.0,
-            nalgebra::SVector::from(x0),
-            0.01,
+        let want_gk = truth_flight(
+            KirchhoffStall::new(qual, gk.clone())
+                .and_then(|k| k.with_drag(Some(drag)))
+                .expect("stall"),
         );
-        let want_gk = crate::sim::campaign::replay_states(&mut sim, &mut truth_gk, &controls, &cts)
-            .expect("replays");
         let stored_gk = stored_model("adx37", true, gk.into());
         assert_eq!(fly(&stored_gk, ExtendedLayers::StallOnly), want_gk);
         // not the tanh's flight, but close to it (the spline rounds the curve by h² x0''/6):
