@@ -226,6 +226,12 @@ def _worker_env() -> tuple[str | None, str | None]:
     return os.environ.get("MALLOC_TRIM_THRESHOLD_"), os.environ.get("MALLOC_ARENA_MAX")
 
 
+def _polars_threads() -> int:
+    import polars  # noqa: PLC0415
+
+    return polars.thread_pool_size()
+
+
 def _worker_folder(dask_worker: Any) -> str:
     return str(dask_worker.local_directory)
 
@@ -238,6 +244,9 @@ def test_workers_keep_glibc_adaptive_malloc_and_fly_in_their_own_folder(client: 
     envs = client.run(_worker_env)
     assert len(envs) == 2
     assert set(envs.values()) == {(None, "2")}
+    # one polars thread per worker, as one engine thread (WORKER_ENV): two workers on two
+    # cores would otherwise run four polars threads
+    assert set(client.run(_polars_threads).values()) == {1}
     for address, local in client.run(_worker_folder).items():
         # as a task on that worker, as run_task runs
         scratch = client.submit(_scratch, workers=[address], pure=False).result()

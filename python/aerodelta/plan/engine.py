@@ -25,13 +25,16 @@ from aerodelta.exceptions import InvalidInputError
 
 #: Environment of the local workers: one engine thread per worker process, the front end's
 #: thread pools included (``aerodelta._threads``; the cluster's parallelism is the tasks; an
-#: engine pool per worker would oversubscribe the cores).
+#: engine pool per worker would oversubscribe the cores), and polars' pool too (session 30:
+#: without it two workers on two cores ran four polars threads, and one worker borrowed the
+#: second core).
 WORKER_ENV: dict[str, str] = {
     "AERODELTA_NUM_THREADS": "1",
     "RAYON_NUM_THREADS": "1",
     "OMP_NUM_THREADS": "1",
     "OPENBLAS_NUM_THREADS": "1",
     "MKL_NUM_THREADS": "1",
+    "POLARS_MAX_THREADS": "1",
 }
 
 
