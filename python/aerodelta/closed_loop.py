@@ -197,10 +197,12 @@ def _kirchhoff_array(params: Any) -> _Stall | None:
     form's 7 core names with ``x0_knots`` in rad and ``x0_values``; the drag's names all or
     none), a sequence (9 or 12 values, the tanh form), or a tabulated fit of one flap
     (:class:`aerodelta.goman_khrabrov.GkFlapFit`, with its drag when fitted)."""
+    from aerodelta.goman_khrabrov import GkFlapFit  # noqa: PLC0415
+
     if params is None:
         return None
-    if hasattr(params, "knots_deg") and hasattr(params, "x0"):  # a GkFlapFit
-        drag = getattr(params, "drag", None)
+    if isinstance(params, GkFlapFit):
+        drag = params.drag
         params = {
             **params.params,
             "x0_knots": np.radians(np.asarray(params.knots_deg, dtype=np.float64)).tolist(),
