@@ -44,16 +44,14 @@ from aerodelta.longitudinal import (
     FlapFit,
     FloatArray,
     KirchhoffResult,
-    _check,
     _drag_regressors,
     _engine,
-    _f64,
     _fit_drag,
     _flap_fit,
     _flap_records,
-    _known,
     _maneuver_name,
     _notes,
+    _predict_along,
     _prepared,
     fit_kirchhoff,
     static_curves,
@@ -302,31 +300,11 @@ class GomanKhrabrovResult:
             ``x_sep``, ``CL_model``, ``Cm_model``, ``CD_model`` (NaN at a flap whose drag was
             not fitted), one row per input row (in input order).
         """
-        _check(data)
-        rest_l, rest_m, rest_d = _known(data, self.known if known is None else known)
-        n = data.height
-        x, cl, cm = np.full(n, np.nan), np.full(n, np.nan), np.full(n, np.nan)
-        cd = np.full(n, np.nan)
-        idx = data.with_row_index("_row")
-        for _, g in idx.group_by("maneuver_id", maintain_order=True):
-            ff = self[float(g["flap_deg"][0])]
-            rows = g["_row"].to_numpy()
-            xs, ls, ms = _core.goman_khrabrov_outputs(
-                *ff._table(),
-                _f64(g, "t"),
-                np.radians(_f64(g, "alpha_deg")),
-                np.radians(_f64(g, "alphadot_dps")),
-            )
-            x[rows], cl[rows], cm[rows] = xs, ls, ms
-            if ff.drag is not None:
-                cd[rows] = _core.kirchhoff_drag_point(ff.drag.params, ls, xs)
-        return pl.DataFrame(
-            {
-                "x_sep": x,
-                "CL_model": cl + rest_l,
-                "Cm_model": cm + rest_m,
-                "CD_model": cd + rest_d,
-            }
+        return _predict_along(
+            data,
+            self.known if known is None else known,
+            self.__getitem__,
+            lambda ff, t, a, ad: _core.goman_khrabrov_outputs(*ff._table(), t, a, ad),
         )
 
 

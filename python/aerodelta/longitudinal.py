@@ -613,33 +613,51 @@ class KirchhoffResult:
             ``x_sep``, ``CL_model``, ``Cm_model``, ``CD_model`` (NaN at a flap whose drag was
             not fitted), one row per input row (in input order).
         """
-        _check(data)
-        rest_l, rest_m, rest_d = _known(data, known)
-        n = data.height
-        x, cl, cm = np.full(n, np.nan), np.full(n, np.nan), np.full(n, np.nan)
-        cd = np.full(n, np.nan)
-        idx = data.with_row_index("_row")
-        for _, g in idx.group_by("maneuver_id", maintain_order=True):
-            flap = float(g["flap_deg"][0])
-            ff = self[flap]
-            rows = g["_row"].to_numpy()
-            xs, ls, ms, _, _ = _core.kirchhoff_outputs(
-                ff.params,
-                _f64(g, "t"),
-                np.radians(_f64(g, "alpha_deg")),
-                np.radians(_f64(g, "alphadot_dps")),
-            )
-            x[rows], cl[rows], cm[rows] = xs, ls, ms
-            if ff.drag is not None:
-                cd[rows] = _core.kirchhoff_drag_point(ff.drag.params, ls, xs)
-        return pl.DataFrame(
-            {
-                "x_sep": x,
-                "CL_model": cl + rest_l,
-                "Cm_model": cm + rest_m,
-                "CD_model": cd + rest_d,
-            }
+        return _predict_along(
+            data,
+            known,
+            self.__getitem__,
+            lambda ff, t, a, ad: _core.kirchhoff_outputs(ff.params, t, a, ad)[:3],
         )
+
+
+#: One flap fit's separation state, lift and pitching moment along one maneuver (time in s,
+#: alpha in rad, its rate in rad/s).
+_States = Callable[[Any, FloatArray, FloatArray, FloatArray], tuple[Any, Any, Any]]
+
+
+def _predict_along(
+    data: pl.DataFrame, known: str, fit_of: Callable[[float], Any], states: _States
+) -> pl.DataFrame:
+    """The ``predict`` of both forms of the stall: each maneuver integrated from its start by
+    ``states`` with the fit of its flap (``fit_of``), the drag along the state where fitted,
+    plus the known terms of ``known`` (:func:`_known`)."""
+    _check(data)
+    rest_l, rest_m, rest_d = _known(data, known)
+    n = data.height
+    x, cl, cm = np.full(n, np.nan), np.full(n, np.nan), np.full(n, np.nan)
+    cd = np.full(n, np.nan)
+    idx = data.with_row_index("_row")
+    for _, g in idx.group_by("maneuver_id", maintain_order=True):
+        ff = fit_of(float(g["flap_deg"][0]))
+        rows = g["_row"].to_numpy()
+        xs, ls, ms = states(
+            ff,
+            _f64(g, "t"),
+            np.radians(_f64(g, "alpha_deg")),
+            np.radians(_f64(g, "alphadot_dps")),
+        )
+        x[rows], cl[rows], cm[rows] = xs, ls, ms
+        if ff.drag is not None:
+            cd[rows] = _core.kirchhoff_drag_point(ff.drag.params, ls, xs)
+    return pl.DataFrame(
+        {
+            "x_sep": x,
+            "CL_model": cl + rest_l,
+            "Cm_model": cm + rest_m,
+            "CD_model": cd + rest_d,
+        }
+    )
 
 
 def _drag_regressors(cl: FloatArray, x: FloatArray) -> FloatArray:
