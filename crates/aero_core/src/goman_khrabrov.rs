@@ -236,9 +236,14 @@ impl GkParams {
         }
     }
 
-    /// The parameters from the scalars `c` in [`CORE_NAMES`] order and the table `x0`.
-    pub fn from_core(c: &[f64; N_CORE], x0: X0Table) -> GkParams {
-        GkParams {
+    /// The parameters from the scalars `c` in [`CORE_NAMES`] order and the table of `knots`
+    /// (rad) and `values`, checked ([`X0Table::new`], [`GkParams::check`]): what a model
+    /// file, the bindings and a replay build a stored table from.
+    ///
+    /// # Errors
+    /// As [`X0Table::new`] and [`GkParams::check`].
+    pub fn from_core(c: &[f64; N_CORE], knots: Vec<f64>, values: Vec<f64>) -> Result<GkParams> {
+        let p = GkParams {
             tau1: c[0],
             tau2: c[1],
             cl_alpha: c[2],
@@ -246,8 +251,10 @@ impl GkParams {
             cm0: c[4],
             cm_alpha: c[5],
             cm_x: c[6],
-            x0,
-        }
+            x0: X0Table::new(knots, values)?,
+        };
+        p.check()?;
+        Ok(p)
     }
 
     /// `[τ₁, τ₂, C_Lα, α₀, C_m0, C_mα, C_mx, v_0, …]`.

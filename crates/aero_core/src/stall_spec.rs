@@ -22,7 +22,7 @@ use std::collections::BTreeMap;
 use serde::{Deserialize, Serialize};
 
 use crate::error::{AeroError, Result, ResultExt};
-use crate::goman_khrabrov::{GkParams, X0Table, CORE_NAMES};
+use crate::goman_khrabrov::{GkParams, CORE_NAMES};
 use crate::kirchhoff::{KirchhoffDrag, KirchhoffParams, DRAG_NAMES, PARAM_NAMES};
 use crate::stall_form::StallParams;
 
@@ -125,9 +125,9 @@ impl LongitudinalSpec {
     /// [`AeroError::InvalidInput`] naming the flap and the parameter: an unknown model or
     /// known-term basis, a repeated or non-finite flap, a missing or unknown parameter (of the
     /// stall or of its drag), a parameter or a table of the other form, a table the tabulated
-    /// form cannot run with ([`X0Table::new`]: too few knots, unequal spacing, a coefficient
-    /// outside [0, 1]), values the model cannot run with ([`KirchhoffParams::check`],
-    /// [`GkParams::check`], [`KirchhoffDrag::check`]).
+    /// form cannot run with ([`GkParams::from_core`]: too few knots, unequal spacing, a
+    /// coefficient outside [0, 1]), values the model cannot run with
+    /// ([`KirchhoffParams::check`], [`GkParams::check`], [`KirchhoffDrag::check`]).
     pub fn compile(&self) -> Result<Vec<CompiledFlap>> {
         let tabulated = match self.model.as_str() {
             "kirchhoff" => false,
@@ -174,11 +174,9 @@ impl LongitudinalSpec {
                     ));
                 }
                 let v = named(&f.params, CORE_NAMES, &place, "parameter")?;
-                let table =
-                    X0Table::new(f.x0_knots.clone(), f.x0_values.clone()).context(place.clone())?;
-                let p = GkParams::from_core(&v, table);
-                p.check().context(place.clone())?;
-                p.into()
+                GkParams::from_core(&v, f.x0_knots.clone(), f.x0_values.clone())
+                    .context(place.clone())?
+                    .into()
             } else {
                 if !(f.x0_knots.is_empty() && f.x0_values.is_empty()) {
                     return Err(AeroError::invalid(
@@ -270,6 +268,7 @@ impl LongitudinalSpec {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::goman_khrabrov::X0Table;
     use crate::kirchhoff::tests::truth as params;
 
     #[test]

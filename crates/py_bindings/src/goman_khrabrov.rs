@@ -22,10 +22,7 @@ pub(crate) fn params_from(
     values: Vec<f64>,
     arg: &str,
 ) -> PyResult<GkParams> {
-    let c = named(core, CORE_NAMES, arg)?;
-    let p = GkParams::from_core(&c, X0Table::new(knots, values).map_err(to_py)?);
-    p.check().map_err(to_py)?;
-    Ok(p)
+    GkParams::from_core(&named(core, CORE_NAMES, arg)?, knots, values).map_err(to_py)
 }
 
 fn core_dict(p: &GkParams) -> HashMap<String, f64> {

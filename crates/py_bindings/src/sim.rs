@@ -361,10 +361,7 @@ fn sim_closed_loop<'py>(
             }
             let mut c = [0.0; aero_core::goman_khrabrov::N_CORE];
             c.copy_from_slice(&v);
-            let table = aero_core::goman_khrabrov::X0Table::new(knots, values)
-                .map_err(|e| to_py(e.context("closed-loop replay")))?;
-            let p = aero_core::goman_khrabrov::GkParams::from_core(&c, table);
-            p.check()
+            let p = aero_core::goman_khrabrov::GkParams::from_core(&c, knots, values)
                 .map_err(|e| to_py(e.context("closed-loop replay")))?;
             Some(p.into())
         }
