@@ -25,6 +25,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 import polars as pl
 
 from aerodelta import _core
@@ -197,37 +198,57 @@ def _stall_totals(model: DeltaModel) -> tuple[str, ...]:
 SPLINE_TERMS_PER_CALC = 16
 
 
+@dataclass(frozen=True)
+class SplineLayout:
+    """A stored separation table as the exports write it (``aero_core::goman_khrabrov::
+    X0Table``): the knot coordinate ``s = (u - origin) / spacing`` held in ``[0, top]``, and
+    ``x0 = Σ_k c_k B(s - k)`` over the nonzero ``(k, c_k)`` of ``terms``, ``k = -1 .. K`` (the
+    end coefficients repeated beyond the ends), ``B(t) = (max(0, 2 - |t|)^3 - 4 max(0, 1 -
+    |t|)^3) / 6`` the centred cubic B-spline (de Boor 2001, *A Practical Guide to Splines*,
+    ch. IX). Zero coefficients are left out (they add exact zeros)."""
+
+    origin: float
+    spacing: float
+    top: int
+    terms: tuple[tuple[int, float], ...]
+
+    @classmethod
+    def of(cls, table: tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]) -> SplineLayout:
+        """The layout of ``(knots in rad, coefficients)`` (``DeltaModel.separation_tables``)."""
+        knots, values = table
+        n = len(knots)
+        coef = [float(values[0]), *map(float, values), float(values[-1])]
+        return cls(
+            origin=float(knots[0]),
+            spacing=(float(knots[-1]) - float(knots[0])) / (n - 1),
+            top=n - 1,
+            terms=tuple((k, c) for k, c in zip(range(-1, n + 1), coef, strict=True) if c != 0.0),
+        )
+
+
 def _x0_calcs(
     model: DeltaModel, f: float, u: str, name: str, what: str
 ) -> tuple[list[dict[str, Any]], str]:
     """Calculations giving the static separation point ``x0`` at the calculation ``u`` (rad)
     of the stored stall at flap ``f``, and the id of the last. The tanh form:
     ``x0(u) = (1 - tanh(a1 (u - alpha*))) / 2 = 1 / (1 + exp(2 a1 (u - alpha*)))``. The
-    tabulated form (``aero_core::goman_khrabrov::X0Table``): with ``s`` the knot coordinate
-    ``(u - t_0) / h`` held in ``[0, K - 1]`` (the curve is constant beyond the end knots),
-    ``x0 = Σ_k c_k B(s - k)`` over ``k = -1 .. K`` (the end coefficients repeated beyond the
-    ends), with the centred cubic B-spline ``B(t) = (max(0, 2 - |t|)^3 - 4 max(0, 1 - |t|)^3)
-    / 6`` (de Boor 2001, *A Practical Guide to Splines*, ch. IX): the engine's spline,
-    exactly."""
+    tabulated form: the engine's spline, exactly (:class:`SplineLayout`)."""
     p = (model.kirchhoff or {})[f]
     tables = model.separation_tables
     if f not in tables:
         expr = f"1 / (1 + exp(2 * {p['a1']!r} * ({u} - {p['alpha_star']!r})))"
         return [{"id": name, "units": "nd", "expr": expr, "description": what}], name
-    knots, values = tables[f]
-    n = len(knots)
-    h = (float(knots[-1]) - float(knots[0])) / (n - 1)
-    coef = [float(values[0]), *map(float, values), float(values[-1])]
+    lay = SplineLayout.of(tables[f])
     s_id = f"{name}_s"
     calcs: list[dict[str, Any]] = [
         {"id": s_id, "units": "nd",
-         "expr": f"min({n - 1}, max(0, ({u} - {float(knots[0])!r}) / {h!r}))",
-         "description": f"{what}: knot coordinate of the separation table, held in [0, {n - 1}]"},
+         "expr": f"min({lay.top}, max(0, ({u} - {lay.origin!r}) / {lay.spacing!r}))",
+         "description": f"{what}: knot coordinate of the separation table, held in "
+         f"[0, {lay.top}]"},
     ]  # fmt: skip
     terms = [
         f"{c!r} * (max(0, 2 - abs({s_id} - ({k})))^3 - 4 * max(0, 1 - abs({s_id} - ({k})))^3)"
-        for k, c in zip(range(-1, n + 1), coef, strict=True)
-        if c != 0.0
+        for k, c in lay.terms
     ]
     parts = []
     for j in range(0, len(terms), SPLINE_TERMS_PER_CALC):

@@ -46,7 +46,7 @@ import numpy.typing as npt
 from aerodelta._exportutil import DERIVED_CHANNELS, Node, parse_regressor, write_atomic
 from aerodelta._fsutil import write_texts_atomic
 from aerodelta.exceptions import DataError
-from aerodelta.export import STALL_FLAP_WINDOW_DEG, qualified_daveml_spec
+from aerodelta.export import STALL_FLAP_WINDOW_DEG, SplineLayout, qualified_daveml_spec
 from aerodelta.model import DeltaModel
 from aerodelta.qualified import describe, recorded_source
 
@@ -402,12 +402,8 @@ def _logistic(k: float, u: str, centre: float) -> str:
 
 def _spline_x0(table: tuple[FloatArray, FloatArray], s_prop: str) -> str:
     """The tabulated separation curve ``x0`` at the knot coordinate held in the property
-    ``s_prop`` (:func:`_spline_coordinate`), as JSBSim function elements:
-    ``Σ_k c_k B(s - k)`` over ``k = -1 .. K`` (the end coefficients repeated beyond the
-    ends) with the centred cubic B-spline ``B(t) = (max(0, 2 - |t|)^3 - 4 max(0, 1 - |t|)^3)
-    / 6`` (de Boor 2001, ch. IX): ``aero_core::goman_khrabrov::X0Table`` exactly."""
-    _, values = table
-    coef = [float(values[0]), *map(float, values), float(values[-1])]
+    ``s_prop`` (:func:`_spline_coordinate`), as JSBSim function elements: the sum of
+    :class:`aerodelta.export.SplineLayout`, ``aero_core::goman_khrabrov::X0Table`` exactly."""
     sp = f"<property>{s_prop}</property>"
 
     def cube(reach: int, k: int) -> str:
@@ -419,23 +415,19 @@ def _spline_x0(table: tuple[FloatArray, FloatArray], s_prop: str) -> str:
     terms = [
         f"<product><value>{_num(c)}</value><difference>{cube(2, k)}<product><value>4</value>"
         f"{cube(1, k)}</product></difference></product>"
-        for k, c in zip(range(-1, len(values) + 1), coef, strict=True)
-        if c != 0.0
+        for k, c in SplineLayout.of(table).terms
     ]
-    total = _sum(terms, "") if terms else "<value>0</value>"
-    return f"<quotient>{total}<value>6</value></quotient>"
+    return f"<quotient>{_sum(terms, '')}<value>6</value></quotient>"
 
 
 def _spline_coordinate(table: tuple[FloatArray, FloatArray], u: str) -> str:
-    """``(u - t_0) / h`` held in ``[0, K - 1]``: the knot coordinate of ``u`` (rad, one
-    element) on the table's knots; the curve is constant beyond the end knots."""
-    knots, _ = table
-    n = len(knots)
-    h = (float(knots[-1]) - float(knots[0])) / (n - 1)
+    """The knot coordinate of ``u`` (rad, one element) held in ``[0, K - 1]``
+    (:class:`aerodelta.export.SplineLayout`); the curve is constant beyond the end knots."""
+    lay = SplineLayout.of(table)
     return (
-        f"<min><value>{n - 1}</value><max><value>0</value><quotient><difference>{u}"
-        f"<value>{_num(float(knots[0]))}</value></difference><value>{_num(h)}</value></quotient>"
-        "</max></min>"
+        f"<min><value>{lay.top}</value><max><value>0</value><quotient><difference>{u}"
+        f"<value>{_num(lay.origin)}</value></difference><value>{_num(lay.spacing)}</value>"
+        "</quotient></max></min>"
     )
 
 
