@@ -16,6 +16,7 @@ import pytest
 import aerodelta
 from aerodelta.campaign import (
     _departure_row,
+    campaign_plan,
     effect_library,
     generate_campaign,
     parse_effects,
@@ -66,6 +67,56 @@ def test_same_seed_identical_files_other_seed_differs(quick: Path, tmp_path: Pat
     assert a["records/m000_f00_straight_p.parquet"] != b["records/m000_f00_straight_p.parquet"]
     with pytest.raises(aerodelta.DataError, match="already exists"):
         generate_campaign(other, seed=1, size="quick")
+
+
+def test_a_subset_flies_its_maneuvers_byte_for_byte_as_the_whole_campaign(
+    quick: Path, tmp_path: Path
+) -> None:
+    """``only`` flies the chosen maneuvers of the campaign: their files are those of the whole
+    campaign, their manifest rows too, and ``campaign_plan`` lists the whole campaign's
+    maneuvers in its manifest's order before flying them."""
+    whole = pl.read_csv(quick / "manifest.csv")
+    plan = campaign_plan(seed=11, size="quick")
+    assert plan["maneuver_index"].to_list() == list(range(whole.height))
+    for col in ("flap_deg", "kind", "pusher", "seed"):
+        assert plan[col].to_list() == whole[col].to_list(), col
+    pick = [38, 0, 13, 7]
+    sub = tmp_path / "sub"
+    info = generate_campaign(sub, effects="default", seed=11, size="quick", only=pick)
+    ids = whole["maneuver_id"].to_list()
+    chosen = [ids[i] for i in sorted(pick)]
+    assert info.manifest["maneuver_id"].to_list() == chosen
+    assert pl.read_csv(sub / "manifest.csv").equals(
+        whole.filter(pl.col("maneuver_id").is_in(chosen))
+    )
+    a, b = _digest(quick), _digest(sub)
+    for mid in chosen:
+        for part in ("records", "truth"):
+            assert b[f"{part}/{mid}.parquet"] == a[f"{part}/{mid}.parquet"], (part, mid)
+    assert len([k for k in b if k.startswith("records/")]) == len(pick)
+    doc = json.loads((sub / "truth" / "campaign.json").read_text())
+    assert doc["spec"]["only"] == sorted(pick)
+    assert json.loads((quick / "truth" / "campaign.json").read_text())["spec"]["only"] == []
+    seeds = dict(zip(ids, whole["seed"], strict=True))
+    assert doc["maneuver_seeds"] == {m: seeds[m] for m in chosen}
+
+
+@pytest.mark.parametrize(
+    ("only", "match"),
+    [
+        ([40], r"only: maneuver index 40 is not in this campaign .*indices 0 to 39"),
+        ([-1], r"only: maneuver index -1 is not in this campaign"),
+        ([3, 5, 3], r"only: maneuver index 3 is given twice"),
+        (["3"], r"only: '3' is not a maneuver index"),
+        ("0,1", r"give a list of maneuver indices"),
+    ],
+)
+def test_a_meaningless_subset_is_refused_in_one_line(
+    only: object, match: str, tmp_path: Path
+) -> None:
+    with pytest.raises(aerodelta.InvalidInputError, match=match):
+        generate_campaign(tmp_path / "c", seed=1, size="quick", only=only)  # type: ignore[arg-type]
+    assert not (tmp_path / "c").exists()
 
 
 def test_contract_layout_and_channels(quick: Path) -> None:

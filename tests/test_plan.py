@@ -34,9 +34,11 @@ except ImportError:  # the plan/test extras install it; CI (CI=1) must run these
     )
 
 import aerodelta as ad
+from aerodelta.campaign import campaign_plan
 from aerodelta.cli import main
 from aerodelta.exceptions import DataError, InvalidInputError
 from aerodelta.plan import load_matrix, run_plan, run_rolloff_study
+from aerodelta.plan import task as plan_task
 from aerodelta.plan.aggregate import recommendation
 from aerodelta.plan.engine import open_client
 from aerodelta.plan.matrix import KINDS, parse_matrix
@@ -220,6 +222,40 @@ def test_resume_runs_only_the_missing_seed_and_a_failing_task_is_reported(
     assert r.ran == [2] and r.failures == []
     assert (out / "summary.json").read_bytes() == (study / "summary.json").read_bytes()
     assert (out / "params.csv").read_bytes() == (study / "params.csv").read_bytes()
+
+
+def test_a_task_flies_only_the_matrix_maneuvers_and_summarises_as_from_the_whole_campaign(
+    tiny: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The tiny matrix's largest cell (3 straight stalls at flap 15, pusher off) makes a
+    campaign of 120 maneuvers of which it uses 16. The task flies those 16 only; its summary
+    equals the one from flying the whole campaign and selecting them."""
+    spec = load_matrix(tiny).task_spec()
+    picked = plan_task.maneuvers_to_fly(2, spec)
+    plan = campaign_plan(seed=2, size=3)
+    assert plan.height == 120 and len(picked) == 16
+    rows = plan.filter(pl.col("maneuver_index").is_in(picked))
+    counts = {
+        (f, k, p): n for f, k, p, n in rows.group_by("flap_deg", "kind", "pusher").len().rows()
+    }
+    assert counts[(15.0, "straight", False)] == 3 and counts[(0.0, "straight", True)] == 1
+    assert not any(p for f, _, p in counts if f == 15.0)
+    flown: list[int] = []
+    real = plan_task.generate_campaign
+
+    def spy(*args: Any, **kw: Any) -> Any:
+        info = real(*args, **kw)
+        flown.append(info.n_maneuvers)
+        return info
+
+    monkeypatch.setattr(plan_task, "generate_campaign", spy)
+    few = plan_task.run_task(spec, 2)
+    monkeypatch.setattr(plan_task, "maneuvers_to_fly", lambda seed, spec: [])
+    whole = plan_task.run_task(spec, 2)
+    assert flown == [16, 120]
+    few.pop("peak_rss_mib")
+    whole.pop("peak_rss_mib")
+    assert few == whole and few["maneuvers"] == 16
 
 
 def _worker_env() -> tuple[str | None, str | None]:

@@ -13,6 +13,7 @@ from aerodelta.aircraft import Aircraft
 from aerodelta.buffet import BuffetResult, buffet_identification, compare_frequencies
 from aerodelta.campaign import (
     CampaignInfo,
+    campaign_plan,
     effect_library,
     generate_campaign,
     qualified_model_tables,
@@ -92,6 +93,7 @@ __all__ = [
     "buffet_identification",
     "build_report",
     "campaign_effects",
+    "campaign_plan",
     "check_daveml",
     "closed_loop_replay",
     "compare_frequencies",

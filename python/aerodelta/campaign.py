@@ -424,6 +424,7 @@ def generate_campaign(
     flank_vane: bool = False,
     buffet: bool | Mapping[str, Any] | None = None,
     longitudinal_stall: str = "static",
+    only: Sequence[int] = (),
     overwrite: bool = False,
     progress: bool = False,
 ) -> CampaignInfo:
@@ -485,6 +486,11 @@ def generate_campaign(
         (``docs/longitudinal.md``) with known time constants, breakpoint, steepness and drag per
         flap, written to ``truth/campaign.json`` (``longitudinal_stall``); the truth files then
         carry ``x_sep_true``, ``CL_true``, ``Cm_true`` and ``CD_true``.
+    only
+        Indices of the maneuvers to fly (:func:`campaign_plan` lists the campaign's maneuvers
+        with their index, flap, kind and pusher); empty: all. Each maneuver has its own seeded
+        streams, so a maneuver's files are byte for byte those it has in the whole campaign.
+        ``truth/campaign.json`` records the indices (``spec.only``).
     overwrite
         Replace an existing folder.
     progress
@@ -499,11 +505,13 @@ def generate_campaign(
     DataError
         If ``out_dir`` exists and ``overwrite`` is false.
     InvalidInputError
-        For a meaningless mass, CG or inertia range (negative, beyond the limits).
+        For a meaningless mass, CG or inertia range (negative, beyond the limits), or an index
+        of ``only`` that is not one of the campaign's maneuvers or comes twice.
     """
     out = Path(out_dir)
     if out.exists() and not overwrite:
         raise DataError(f"{out}: already exists; choose another folder or pass overwrite=True")
+    picked = _only(only, seed=seed, size=size)
     eff = parse_effects(effects)
     spec = _spec(
         eff,
@@ -517,6 +525,7 @@ def generate_campaign(
         vanes=vane_calibration(vane_scale, flank_vane),
         buffet=buffet_spec(buffet),
         longitudinal_stall=longitudinal_stall,
+        only=picked,
     )
     plan = json.loads(_core.sim_plan(json.dumps(spec)))
     out.parent.mkdir(parents=True, exist_ok=True)
@@ -581,7 +590,7 @@ def generate_campaign(
         manifest.write_csv(tmp / "manifest.csv")
         (tmp / "aircraft.toml").write_text(_aircraft_toml(flank_vane))
         lib = {e["name"]: e for e in effect_library()}
-        spec["only"] = []
+        spec["only"] = picked
         info = {
             "seed": int(seed),
             "spec": spec,
@@ -618,6 +627,66 @@ def generate_campaign(
         effects=spec_effects(spec),
         manifest=manifest,
     )
+
+
+def campaign_plan(*, seed: int = 0, size: Size | int = "default") -> pl.DataFrame:
+    """The maneuvers a campaign flies, in order, before flying them.
+
+    Parameters
+    ----------
+    seed, size
+        As :func:`generate_campaign` (the other options do not change the plan).
+
+    Returns
+    -------
+    polars.DataFrame
+        One row per maneuver: ``maneuver_index`` (what ``only`` takes), ``flap_deg`` (deg),
+        ``kind`` (as the manifest's), ``pusher`` and ``seed`` (the maneuver's own stream).
+    """
+    spec = _spec({}, seed=seed, size=size, noise=0.0, turbulence=0.0, rolloff=False, excitation=0.0)
+    plan = json.loads(_core.sim_plan(json.dumps(spec)))
+    return pl.DataFrame(
+        {
+            "maneuver_index": [int(p["index"]) for p in plan],
+            "flap_deg": [float(p["flap_deg"]) for p in plan],
+            "kind": [_kind_name(p["kind"]) for p in plan],
+            "pusher": [bool(p["pusher"]) for p in plan],
+            "seed": [int(p["seed"]) for p in plan],
+        },
+        schema={
+            "maneuver_index": pl.Int64,
+            "flap_deg": pl.Float64,
+            "kind": pl.String,
+            "pusher": pl.Boolean,
+            "seed": pl.UInt64,
+        },
+    )
+
+
+def _only(only: Sequence[int], *, seed: int, size: Size | int) -> list[int]:
+    """``only`` checked against the campaign's plan: sorted indices, each a maneuver of it."""
+    if isinstance(only, (np.ndarray, pl.Series)):
+        only = only.tolist()
+    if isinstance(only, (str, bytes)) or not isinstance(only, Sequence):
+        raise InvalidInputError(f"only {only!r}: give a list of maneuver indices (campaign_plan)")
+    if not only:
+        return []
+    picked: list[int] = []
+    for v in only:
+        if isinstance(v, bool) or not isinstance(v, (int, np.integer)):
+            raise InvalidInputError(f"only: {v!r} is not a maneuver index (an integer)")
+        picked.append(int(v))
+    n = campaign_plan(seed=seed, size=size).height
+    bad = [v for v in picked if not 0 <= v < n]
+    if bad:
+        raise InvalidInputError(
+            f"only: maneuver index {bad[0]} is not in this campaign (size {size!r} flies "
+            f"indices 0 to {n - 1}; campaign_plan lists them)"
+        )
+    if len(set(picked)) != len(picked):
+        dup = next(v for v in picked if picked.count(v) > 1)
+        raise InvalidInputError(f"only: maneuver index {dup} is given twice")
+    return sorted(picked)
 
 
 def kirchhoff_truth() -> dict[str, Any]:

@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 import polars as pl
 
-from aerodelta.campaign import generate_campaign
+from aerodelta.campaign import campaign_plan, generate_campaign
 from aerodelta.exceptions import AerodeltaError
 from aerodelta.fit import FitConfig, fit
 from aerodelta.ingest import ingest
@@ -61,6 +61,19 @@ def _flap_rows(spec: Mapping[str, Any]) -> pl.DataFrame:
     )
 
 
+def _first_in_cells(table: pl.DataFrame, order: str, spec: Mapping[str, Any]) -> pl.DataFrame:
+    """The rows of ``table`` (manifest or plan) the matrix uses: in each (flap, kind, pusher)
+    cell, the first ``want`` rows in the order of column ``order``, returned in that order."""
+    cells = ["flap_deg", "kind", "pusher"]
+    m = table.sort(order).with_columns(pl.int_range(pl.len()).over(cells).alias("_rank"))
+    return (
+        m.join(_flap_rows(spec), on=cells, how="inner")
+        .filter(pl.col("_rank") < pl.col("want"))
+        .drop("_rank", "want")
+        .sort(order)
+    )
+
+
 def select_maneuvers(manifest: pl.DataFrame, spec: Mapping[str, Any]) -> pl.DataFrame:
     """The manifest rows the matrix uses: in each (flap, kind, pusher) cell, the first
     ``want`` maneuvers in maneuver order (each maneuver has its own seeded streams, so the
@@ -71,14 +84,22 @@ def select_maneuvers(manifest: pl.DataFrame, spec: Mapping[str, Any]) -> pl.Data
     polars.DataFrame
         The selected manifest rows, in maneuver order.
     """
-    cells = ["flap_deg", "kind", "pusher"]
-    m = manifest.sort("maneuver_id").with_columns(pl.int_range(pl.len()).over(cells).alias("_rank"))
-    return (
-        m.join(_flap_rows(spec), on=cells, how="inner")
-        .filter(pl.col("_rank") < pl.col("want"))
-        .drop("_rank", "want")
-        .sort("maneuver_id")
-    )
+    return _first_in_cells(manifest, "maneuver_id", spec)
+
+
+def maneuvers_to_fly(seed: int, spec: Mapping[str, Any]) -> list[int]:
+    """Indices (``generate_campaign(only=...)``) of the maneuvers the matrix uses, in a campaign
+    of ``seed`` whose size is the matrix's largest cell: in each (flap, kind, pusher) cell the
+    first ``want`` in the campaign's order, the maneuvers :func:`select_maneuvers` takes from
+    the whole campaign. Only those are flown (until session 31 the whole campaign was flown and
+    half of it or more thrown away)."""
+    plan = campaign_plan(seed=int(seed), size=_campaign_size(spec))
+    return _first_in_cells(plan, "maneuver_index", spec)["maneuver_index"].to_list()
+
+
+def _campaign_size(spec: Mapping[str, Any]) -> int:
+    """Repetitions of the campaign a task flies: the matrix's largest cell."""
+    return int(max([1, *(_flap_rows(spec)["want"].to_list())]))
 
 
 def _finite(x: float) -> float | None:
@@ -162,9 +183,11 @@ def _range_rows(result: Any, spec: Mapping[str, Any], truth: Truth) -> list[dict
 
 def _coverage(data: pl.DataFrame, edges: list[float]) -> list[dict[str, Any]]:
     """Samples and maneuvers per flap, kind and alpha range (what each kind contributes)."""
-    labels = [f"{i}" for i in range(len(edges) + 1)]
+    # the range index: how many edges lie at or below alpha (ranges closed on the left), what
+    # `Expr.cut(edges, left_closed=True)` labels, which polars 2 deprecates
+    at_or_above = [(pl.col("alpha_deg") >= e).cast(pl.Int32) for e in edges]
     d = data.select("maneuver_id", "flap_deg", "kind", "alpha_deg").with_columns(
-        pl.col("alpha_deg").cut(edges, labels=labels, left_closed=True).alias("r")
+        pl.sum_horizontal(at_or_above).cast(pl.String).alias("r")
     )
     maneuvers = d.group_by("flap_deg", "kind").agg(pl.col("maneuver_id").n_unique().alias("n"))
     counts = d.group_by("flap_deg", "kind", "r").agg(pl.len().alias("samples"))
@@ -298,7 +321,7 @@ def run_task(spec: Mapping[str, Any], seed: int, drill: bool = False) -> dict[st
             camp,
             effects=effects or "none",
             seed=int(seed),
-            size=int(max([1, *(_flap_rows(spec)["want"].to_list())])),
+            size=_campaign_size(spec),
             noise=float(spec["noise"]),
             turbulence=float(spec["turbulence_mps"]),
             rolloff=bool(spec["rolloff"]),
@@ -308,6 +331,7 @@ def run_task(spec: Mapping[str, Any], seed: int, drill: bool = False) -> dict[st
             inertia_range=spec["inertia_range"],
             vane_scale=spec["vane_scale"],
             flank_vane=bool(spec["flank_vane"]),
+            only=maneuvers_to_fly(seed, spec),
         )
         manifest = select_maneuvers(info.manifest, spec)
         data = ingest(camp, manifest=manifest, compat=False, progress=False).data
@@ -346,7 +370,7 @@ def _run_jsbsim_task(spec: Mapping[str, Any], seed: int) -> dict[str, Any]:
             camp,
             aircraft=str(spec["aircraft"]),
             seed=int(seed),
-            size=int(max([1, *(_flap_rows(spec)["want"].to_list())])),
+            size=_campaign_size(spec),
             withhold=list(terms),
             withhold_scale=float(spec["withhold_scale"]),
             noise=float(spec["noise"]),
