@@ -3,7 +3,12 @@
 ``--speedup``: the same study (``--campaigns`` seeds) with 1 and then 2 local workers in one
 run; prints both wall times, the ratio (floor: 1.8x on a 2-core machine) and whether the
 summaries are byte-identical. Cold timings include the cluster's start (a few seconds); warm
-ones run the study on a cluster already up, its workers having imported the engine.
+ones run the study on a cluster already up, its workers having imported the engine. Then the
+ceiling of this machine for these tasks: the same tasks (``run_task``, same seeds, the workers'
+environment) on 1 and 2 plain processes (``ProcessPoolExecutor``, warmed, no Dask), and Dask's
+warm speed-up as a share of that ceiling. A task's own threads (polars' parquet writer and
+reader) borrow the idle core when it runs alone and compete when two run, so two tasks at once
+do not take the time of one even without any engine.
 
 ``--floors``: a study of ``--campaigns`` seeds predicts, per parameter and alpha range with an
 expected Δ, the standard error (RMS of the bootstrap standard errors), the band width and the
@@ -19,15 +24,18 @@ The matrix is ``--matrix`` (default: ``BENCH_MATRIX`` below, 80 maneuvers with t
 selection active at every flap, 30 bootstrap replicates, no diagnosis: about 10 s per campaign
 on one core). Studies are written under ``--out`` (default: a temporary folder) and resume.
 
-Run: ``python benchmarks/bench_plan.py --speedup --campaigns 8``,
+Run: ``python benchmarks/bench_plan.py --speedup --campaigns 16 [--repeat 3]``,
 ``python benchmarks/bench_plan.py --floors --campaigns 20``.
 """
 
 from __future__ import annotations
 
 import argparse
+import os
 import tempfile
 import time
+from concurrent.futures import ProcessPoolExecutor
+from multiprocessing import get_context
 from pathlib import Path
 
 import numpy as np
@@ -35,7 +43,9 @@ import polars as pl
 
 from aerodelta.plan import run_plan
 from aerodelta.plan.aggregate import KEYS
-from aerodelta.plan.engine import open_client
+from aerodelta.plan.engine import WORKER_ENV, open_client
+from aerodelta.plan.matrix import load_matrix
+from aerodelta.plan.task import run_task
 
 BENCH_MATRIX = """
 [campaign]
@@ -68,29 +78,78 @@ def _warm(client: object) -> None:
     client.run(load)  # type: ignore[attr-defined]
 
 
-def speedup(matrix: Path, campaigns: int, root: Path) -> None:
+def _warm_study(matrix: Path, campaigns: int, out: Path, workers: int) -> float:
+    """Wall time of the study on a cluster already up, its workers having imported the engine."""
+    with open_client(workers) as client:
+        _warm(client)
+        t0 = time.perf_counter()
+        run_plan(matrix, campaigns=campaigns, seed=1, out=out, workers=workers, progress=False,
+                 client=client)  # fmt: skip
+        return time.perf_counter() - t0
+
+
+def speedup(matrix: Path, campaigns: int, root: Path, repeat: int) -> None:
     """Cold: the whole ``run_plan`` (the cluster started, its workers importing the engine).
     Warm: on a cluster already up and warmed, the study alone (the steady state of a long
-    study, where the start-up is paid once)."""
-    times, warm = {}, {}
+    study, where the start-up is paid once). Then ``repeat`` rounds, each timing 1 and 2
+    warm Dask workers and 1 and 2 plain processes back to back (the machine's speed drifts
+    between runs by more than the gap to the floor, so each round's ratios pair runs made
+    minutes apart); the median round is the result."""
+    times = {}
     for w in (1, 2):
         t0 = time.perf_counter()
         run_plan(matrix, campaigns=campaigns, seed=1, out=root / f"w{w}", workers=w, progress=False)
         times[w] = time.perf_counter() - t0
-        with open_client(w) as client:
-            _warm(client)
-            t0 = time.perf_counter()
-            run_plan(matrix, campaigns=campaigns, seed=1, out=root / f"warm{w}", workers=w,
-                     progress=False, client=client)  # fmt: skip
-            warm[w] = time.perf_counter() - t0
-        print(f"{w} worker(s): {times[w]:.1f} s for {campaigns} campaigns (cold), "
-              f"{warm[w]:.1f} s on a warm cluster", flush=True)  # fmt: skip
+        print(f"{w} worker(s): {times[w]:.1f} s for {campaigns} campaigns (cold)", flush=True)
+    print(f"speed-up 1 -> 2 workers, cold: {times[1] / times[2]:.2f}x (floor 1.8x)", flush=True)
+    dask_r, bare_r = [], []
+    for r in range(repeat):
+        warm = {w: _warm_study(matrix, campaigns, root / f"warm{w}-{r}", w) for w in (1, 2)}
+        bare = {w: _bare(matrix, campaigns, w) for w in (1, 2)}
+        dask_r.append(warm[1] / warm[2])
+        bare_r.append(bare[1] / bare[2])
+        print(f"round {r + 1}: Dask warm 1 worker {warm[1]:.1f} s, 2 workers {warm[2]:.1f} s: "
+              f"{dask_r[-1]:.2f}x; plain processes (no Dask) 1: {bare[1]:.1f} s, 2: "
+              f"{bare[2]:.1f} s: {bare_r[-1]:.2f}x", flush=True)  # fmt: skip
     same = all(
         (root / a / "summary.json").read_bytes() == (root / "w1" / "summary.json").read_bytes()
-        for a in ("w2", "warm1", "warm2")
+        for a in ["w2", *(f"warm{w}-{r}" for w in (1, 2) for r in range(repeat))]
     )
-    print(f"speed-up 1 -> 2 workers: {times[1] / times[2]:.2f}x cold, {warm[1] / warm[2]:.2f}x "
-          f"warm (floor 1.8x); summaries byte-identical: {same}")  # fmt: skip
+    d, b = float(np.median(dask_r)), float(np.median(bare_r))
+    print(f"speed-up 1 -> 2 workers, warm, median of {repeat} round(s): {d:.2f}x (floor 1.8x; "
+          f"rounds {min(dask_r):.2f}-{max(dask_r):.2f}x); this machine's ceiling for these "
+          f"tasks (plain processes): {b:.2f}x ({min(bare_r):.2f}-{max(bare_r):.2f}x); "
+          f"summaries byte-identical: {same}")  # fmt: skip
+
+
+def _warm_process() -> None:
+    import aerodelta  # noqa: F401, PLC0415
+
+
+def _bare(matrix: Path, campaigns: int, workers: int) -> float:
+    """Wall time of the study's tasks (seeds 1..campaigns) on ``workers`` plain processes,
+    warmed (each has imported the engine), handed out one at a time as processes free up."""
+    spec = load_matrix(matrix).task_spec()
+    env = {**WORKER_ENV, "MALLOC_ARENA_MAX": "2"}  # as the Dask workers (engine.open_client)
+    saved = {k: os.environ.get(k) for k in env}
+    os.environ.update(env)
+    try:
+        with ProcessPoolExecutor(
+            workers, mp_context=get_context("spawn"), initializer=_warm_process
+        ) as pool:
+            # every process started (each imports the engine as it starts) before the clock
+            for f in [pool.submit(time.sleep, 0.5) for _ in range(workers)]:
+                f.result()
+            t0 = time.perf_counter()
+            for f in [pool.submit(run_task, spec, s) for s in range(1, campaigns + 1)]:
+                f.result()
+            return time.perf_counter() - t0
+    finally:
+        for k, v in saved.items():
+            if v is None:
+                os.environ.pop(k, None)
+            else:
+                os.environ[k] = v
 
 
 def _noise_share(n: int, rng: np.random.Generator, trials: int = 20000) -> float:
@@ -152,6 +211,7 @@ def main() -> None:
     ap.add_argument("--speedup", action="store_true")
     ap.add_argument("--floors", action="store_true")
     ap.add_argument("--campaigns", type=int, default=8)
+    ap.add_argument("--repeat", type=int, default=3, help="rounds of the warm speed-up")
     ap.add_argument("--fresh-seed", type=int, default=1001)
     ap.add_argument("--matrix", type=Path)
     ap.add_argument("--out", type=Path)
@@ -164,7 +224,7 @@ def main() -> None:
             matrix = root / "bench_matrix.toml"
             matrix.write_text(BENCH_MATRIX)
         if args.speedup:
-            speedup(matrix, args.campaigns, root)
+            speedup(matrix, args.campaigns, root, max(1, args.repeat))
         if args.floors:
             floors(matrix, args.campaigns, args.fresh_seed, root)
 

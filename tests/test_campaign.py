@@ -19,6 +19,7 @@ from aerodelta.campaign import (
     campaign_plan,
     effect_library,
     generate_campaign,
+    maneuver_index,
     parse_effects,
     qualified_model_tables,
     replay,
@@ -80,6 +81,11 @@ def test_a_subset_flies_its_maneuvers_byte_for_byte_as_the_whole_campaign(
     assert plan["maneuver_index"].to_list() == list(range(whole.height))
     for col in ("flap_deg", "kind", "pusher", "seed"):
         assert plan[col].to_list() == whole[col].to_list(), col
+    assert [maneuver_index(m) for m in whole["maneuver_id"]] == list(range(whole.height))
+    # four digits from index 1000 on (stall.py read the first three until session 31)
+    assert maneuver_index("m1000_f05_turning_n") == 1000
+    with pytest.raises(aerodelta.InvalidInputError, match="not a virtual campaign's"):
+        maneuver_index("DHC6_f00_straight_003")
     pick = [38, 0, 13, 7]
     sub = tmp_path / "sub"
     info = generate_campaign(sub, effects="default", seed=11, size="quick", only=pick)

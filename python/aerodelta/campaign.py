@@ -663,6 +663,17 @@ def campaign_plan(*, seed: int = 0, size: Size | int = "default") -> pl.DataFram
     )
 
 
+def maneuver_index(maneuver_id: str) -> int:
+    """The campaign index of a virtual campaign's maneuver id (``m{index:03}_f{flap:02}_...``:
+    three digits or more; what ``only`` takes)."""
+    head = maneuver_id.split("_", 1)[0]
+    if not (head.startswith("m") and head[1:].isdigit()):
+        raise InvalidInputError(
+            f"maneuver id '{maneuver_id}' is not a virtual campaign's (m<index>_f<flap>_...)"
+        )
+    return int(head[1:])
+
+
 def _only(only: Sequence[int], *, seed: int, size: Size | int) -> list[int]:
     """``only`` checked against the campaign's plan: sorted indices, each a maneuver of it."""
     if isinstance(only, (np.ndarray, pl.Series)):

@@ -681,6 +681,7 @@ def virtual_truth(campaign: str | Path, table: pl.DataFrame) -> pl.DataFrame:
         When ``campaign`` has no ``truth/campaign.json`` (not a virtual campaign).
     """
     from aerodelta import _core  # noqa: PLC0415  (the engine only for virtual campaigns)
+    from aerodelta.campaign import maneuver_index  # noqa: PLC0415
 
     folder = Path(campaign)
     info_path = folder / "truth" / "campaign.json"
@@ -689,7 +690,9 @@ def virtual_truth(campaign: str | Path, table: pl.DataFrame) -> pl.DataFrame:
     spec = json.loads(info_path.read_text())["spec"]
     man = pl.read_csv(folder / "manifest.csv")
     fired_ids = man.filter(pl.col("pusher_fired"))["maneuver_id"].to_list()
-    spec["only"] = [int(m[1:4]) for m in fired_ids]
+    # the index has three digits or more: m1000_... is maneuver 1000 (until session 31 the first
+    # three digits were read, and a campaign of 1000 maneuvers or more flew the wrong ones)
+    spec["only"] = [maneuver_index(m) for m in fired_ids]
     fired: dict[str, float] = {}
     if spec["only"]:
         for m in _core.sim_run_campaign(json.dumps(spec)):
