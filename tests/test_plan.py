@@ -443,6 +443,52 @@ def test_a_jsbsim_aircraft_study_reports_its_fit_against_the_xml_truth(
     assert kinds == {"straight", "turning", "sideslip"}
 
 
+def test_a_jsbsim_task_flies_only_the_matrix_maneuvers(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """An uneven F-15 matrix (3 straight entries, 1 turning, 1 sideslip) takes the campaign of
+    3 of each kind (9 maneuvers) and flies its first straight ones, the first turning and the
+    first sideslip only: 5 maneuvers. ``jsbsim_campaign_plan`` lists the whole campaign as its
+    manifest does, and the summary equals the one from flying the whole campaign."""
+    pytest.importorskip("jsbsim")
+    import aerodelta.jsbsim_campaign as jc  # noqa: PLC0415
+
+    m = tmp_path / "uneven.toml"
+    m.write_text(
+        '[aircraft]\nsimulator = "jsbsim"\nname = "f15"\n\n[flaps.0]\nstraight = 3\n'
+        "turning = 1\nsideslip = 1\n\n[fit]\nbootstrap = 5\n[targets]\n"
+        "alpha_edges_deg = [12, 16, 20]\n"
+    )
+    spec = load_matrix(m).task_spec()
+    manifests: list[pl.DataFrame] = []
+    real, real_plan = jc.generate_jsbsim_campaign, jc.jsbsim_campaign_plan
+
+    def spy(*args: Any, **kw: Any) -> Any:
+        info = real(*args, **kw)
+        manifests.append(info.manifest)
+        return info
+
+    monkeypatch.setattr(jc, "generate_jsbsim_campaign", spy)
+    few = plan_task.run_task(spec, 4)
+    monkeypatch.setattr(jc, "jsbsim_campaign_plan", lambda *a, **k: real_plan(*a, **k).head(0))
+    whole = plan_task.run_task(spec, 4)
+    flown, everything = manifests
+    plan = real_plan("f15", seed=4, size=3)
+    assert everything.height == plan.height == 9
+    for col in ("flap_deg", "kind", "pusher"):
+        assert everything[col].to_list() == plan[col].to_list(), col
+    assert [int(mid.rsplit("_", 1)[1]) for mid in everything["maneuver_id"]] == list(range(9))
+    kinds = flown["kind"].to_list()
+    assert kinds == ["straight"] * 3 + ["turning", "other"]
+    assert (
+        flown["maneuver_id"].to_list()
+        == everything["maneuver_id"].gather([0, 1, 2, 3, 6]).to_list()
+    )
+    few.pop("peak_rss_mib")
+    whole.pop("peak_rss_mib")
+    assert few == whole and few["maneuvers"] == 5
+
+
 def test_recommendation_follows_the_numbers() -> None:
     """A hand-built table: one parameter at flap 15 with a band twice the target over 8
     maneuvers needs (0.4 / 0.2)² x 8 = 32 maneuvers, as the kind with the most samples per

@@ -696,6 +696,56 @@ def _plan(cfg: JsbsimAircraft, seed: int, reps: int) -> list[_Plan]:
     return plans
 
 
+def jsbsim_campaign_plan(
+    aircraft: str | JsbsimAircraft = "f15",
+    *,
+    seed: int = 0,
+    size: str | int = "default",
+    root_dir: str | os.PathLike[str] | None = None,
+) -> pl.DataFrame:
+    """The maneuvers :func:`generate_jsbsim_campaign` flies, in order, before flying them.
+
+    Parameters
+    ----------
+    aircraft, seed, size, root_dir
+        As :func:`generate_jsbsim_campaign` (the other options do not change the plan).
+
+    Returns
+    -------
+    polars.DataFrame
+        One row per maneuver: ``maneuver_index`` (what ``only`` takes), ``flap_deg`` (deg),
+        ``kind`` and ``pusher`` as the manifest writes them (a sideslip entry is ``"other"``;
+        no pusher) and ``seed`` (the maneuver's own stream: a maneuver flies the same in a
+        subset as in the whole campaign).
+
+    Raises
+    ------
+    InvalidInputError
+        Unknown aircraft, or a size that is not ``"default"``, ``"quick"`` or a positive count.
+    """
+    cfg, _ = _resolve_aircraft(aircraft, _root(root_dir))
+    reps = SIZES.get(size, 0) if isinstance(size, str) else int(size)
+    if reps <= 0:
+        raise InvalidInputError(f"size '{size}': use 'default', 'quick' or a positive integer")
+    plans = _plan(cfg, int(seed), reps)
+    return pl.DataFrame(
+        {
+            "maneuver_index": [p.index for p in plans],
+            "flap_deg": [p.flap_deg for p in plans],
+            "kind": ["other" if p.kind == "sideslip" else p.kind for p in plans],
+            "pusher": [False] * len(plans),
+            "seed": [p.seed for p in plans],
+        },
+        schema={
+            "maneuver_index": pl.Int64,
+            "flap_deg": pl.Float64,
+            "kind": pl.String,
+            "pusher": pl.Boolean,
+            "seed": pl.Int64,
+        },
+    )
+
+
 def _entry_kts(cfg: JsbsimAircraft, flap_deg: float) -> float:
     i = int(np.argmin([abs(f - flap_deg) for f in cfg.flaps_deg]))
     return float(cfg.entry_kts[min(i, len(cfg.entry_kts) - 1)])
@@ -1121,7 +1171,7 @@ def generate_jsbsim_campaign(
     decel_kts_per_s
         The entry's deceleration schedule (thesis: about 1 kt/s).
     only
-        Fly only these maneuver indices (for tests).
+        Fly only these maneuver indices (:func:`jsbsim_campaign_plan` lists them; empty: all).
     root_dir
         JSBSim root (``aircraft/``, ``engine/``, ``systems/``); default: the package's.
     overwrite

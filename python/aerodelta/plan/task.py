@@ -350,20 +350,25 @@ def run_task(spec: Mapping[str, Any], seed: int, drill: bool = False) -> dict[st
 
 
 def _run_jsbsim_task(spec: Mapping[str, Any], seed: int) -> dict[str, Any]:
-    """:func:`run_task` on a JSBSim aircraft: fly :func:`aerodelta.jsbsim_campaign.
-    generate_jsbsim_campaign` (each flap and kind as often as the matrix's largest cell, the
-    matrix's maneuvers ingested), fit against the campaign's qualified columns
-    (``qualified="columns"``), take the true Δ from the aircraft's XML
-    (``true_delta_derivative``: zero for regressors other than beta, p̂, r̂, δa, δr) and, with
-    the diagnosis on, score it as the JSBSim withheld-effect suite does
+    """:func:`run_task` on a JSBSim aircraft: fly the matrix's maneuvers of :func:`aerodelta.
+    jsbsim_campaign.generate_jsbsim_campaign` (in each flap and kind the first ones of the
+    campaign whose cells are the matrix's largest, as :func:`maneuvers_to_fly`), fit against
+    the campaign's qualified columns (``qualified="columns"``), take the true Δ from the
+    aircraft's XML (``true_delta_derivative``: zero for regressors other than beta, p̂, r̂, δa,
+    δr) and, with the diagnosis on, score it as the JSBSim withheld-effect suite does
     (``score_jsbsim_case``: per vocabulary effect of the withheld terms, named or not)."""
     from aerodelta.jsbsim_campaign import (  # noqa: PLC0415  (jsbsim is optional)
         generate_jsbsim_campaign,
+        jsbsim_campaign_plan,
         lateral_terms,
         true_delta_derivative,
     )
 
     terms = {str(t): float(spec["withhold_scale"]) for t in spec["withhold"]}
+    # the JSBSim manifest calls a sideslip entry "other"; the matrix calls it sideslip
+    kinds = pl.col("kind").replace({"other": "sideslip"})
+    plan = jsbsim_campaign_plan(str(spec["aircraft"]), seed=int(seed), size=_campaign_size(spec))
+    only = _first_in_cells(plan.with_columns(kinds), "maneuver_index", spec)["maneuver_index"]
     with tempfile.TemporaryDirectory(prefix="aerodelta-plan-", dir=_scratch()) as tmp:
         camp = Path(tmp) / "campaign"
         info = generate_jsbsim_campaign(
@@ -375,12 +380,11 @@ def _run_jsbsim_task(spec: Mapping[str, Any], seed: int) -> dict[str, Any]:
             withhold_scale=float(spec["withhold_scale"]),
             noise=float(spec["noise"]),
             turbulence=float(spec["jsbsim_turbulence"]),
+            only=only.to_list(),
         )
-        # the JSBSim manifest calls a sideslip entry "other"; the matrix calls it sideslip
-        kinds = pl.col("kind").replace({"other": "sideslip"})
         man = info.manifest.with_columns(kinds, pl.col("pusher").cast(pl.Boolean))
         manifest = select_maneuvers(man, spec)
-        keep = info.manifest.filter(pl.col("maneuver_id").is_in(manifest["maneuver_id"]))
+        keep = info.manifest.filter(pl.col("maneuver_id").is_in(manifest["maneuver_id"].to_list()))
         data = ingest(camp, manifest=keep, compat=False, progress=False).data
         data = data.with_columns(kinds)
         result = fit(data, qualified="columns", config=_fit_config(spec, seed))
