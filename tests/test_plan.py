@@ -224,6 +224,21 @@ def test_resume_runs_only_the_missing_seed_and_a_failing_task_is_reported(
     assert (out / "params.csv").read_bytes() == (study / "params.csv").read_bytes()
 
 
+def _record_campaigns(monkeypatch: pytest.MonkeyPatch, module: Any, name: str) -> list[Any]:
+    """Wrap the campaign generator ``module.name`` so that each call's returned info is
+    appended to the list returned here (the campaigns a task flew, in order)."""
+    infos: list[Any] = []
+    real = getattr(module, name)
+
+    def spy(*args: Any, **kw: Any) -> Any:
+        info = real(*args, **kw)
+        infos.append(info)
+        return info
+
+    monkeypatch.setattr(module, name, spy)
+    return infos
+
+
 def test_a_task_flies_only_the_matrix_maneuvers_and_summarises_as_from_the_whole_campaign(
     tiny: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
@@ -240,19 +255,11 @@ def test_a_task_flies_only_the_matrix_maneuvers_and_summarises_as_from_the_whole
     }
     assert counts[(15.0, "straight", False)] == 3 and counts[(0.0, "straight", True)] == 1
     assert not any(p for f, _, p in counts if f == 15.0)
-    flown: list[int] = []
-    real = plan_task.generate_campaign
-
-    def spy(*args: Any, **kw: Any) -> Any:
-        info = real(*args, **kw)
-        flown.append(info.n_maneuvers)
-        return info
-
-    monkeypatch.setattr(plan_task, "generate_campaign", spy)
+    infos = _record_campaigns(monkeypatch, plan_task, "generate_campaign")
     few = plan_task.run_task(spec, 2)
     monkeypatch.setattr(plan_task, "maneuvers_to_fly", lambda seed, spec: [])
     whole = plan_task.run_task(spec, 2)
-    assert flown == [16, 120]
+    assert [i.n_maneuvers for i in infos] == [16, 120]
     few.pop("peak_rss_mib")
     whole.pop("peak_rss_mib")
     assert few == whole and few["maneuvers"] == 16
@@ -460,19 +467,12 @@ def test_a_jsbsim_task_flies_only_the_matrix_maneuvers(
         "alpha_edges_deg = [12, 16, 20]\n"
     )
     spec = load_matrix(m).task_spec()
-    manifests: list[pl.DataFrame] = []
-    real, real_plan = jc.generate_jsbsim_campaign, jc.jsbsim_campaign_plan
-
-    def spy(*args: Any, **kw: Any) -> Any:
-        info = real(*args, **kw)
-        manifests.append(info.manifest)
-        return info
-
-    monkeypatch.setattr(jc, "generate_jsbsim_campaign", spy)
+    real_plan = jc.jsbsim_campaign_plan
+    infos = _record_campaigns(monkeypatch, jc, "generate_jsbsim_campaign")
     few = plan_task.run_task(spec, 4)
     monkeypatch.setattr(jc, "jsbsim_campaign_plan", lambda *a, **k: real_plan(*a, **k).head(0))
     whole = plan_task.run_task(spec, 4)
-    flown, everything = manifests
+    flown, everything = (i.manifest for i in infos)
     plan = real_plan("f15", seed=4, size=3)
     assert everything.height == plan.height == 9
     for col in ("flap_deg", "kind", "pusher"):
