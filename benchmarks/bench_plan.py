@@ -37,6 +37,7 @@ import time
 from concurrent.futures import ProcessPoolExecutor
 from multiprocessing import get_context
 from pathlib import Path
+from unittest.mock import patch
 
 import numpy as np
 import polars as pl
@@ -67,21 +68,16 @@ for _f in (0, 5, 10, 15, 35):
 BENCH_MATRIX += "\n[fit]\nbootstrap = 30\n\n[targets]\nalpha_edges_deg = [8, 12, 16, 20, 24]\n"
 
 
-def _warm(client: object) -> None:
-    """Import the engine in every worker before timing (what a running cluster has done)."""
-
-    def load() -> str:
-        import aerodelta  # noqa: PLC0415
-
-        return aerodelta.__version__
-
-    client.run(load)  # type: ignore[attr-defined]
+def _warm_process() -> None:
+    """Import the engine (in a Dask worker or a plain process, before timing: what a running
+    cluster has done)."""
+    import aerodelta  # noqa: F401, PLC0415
 
 
 def _warm_study(matrix: Path, campaigns: int, out: Path, workers: int) -> float:
     """Wall time of the study on a cluster already up, its workers having imported the engine."""
     with open_client(workers) as client:
-        _warm(client)
+        client.run(_warm_process)
         t0 = time.perf_counter()
         run_plan(matrix, campaigns=campaigns, seed=1, out=out, workers=workers, progress=False,
                  client=client)  # fmt: skip
@@ -122,10 +118,6 @@ def speedup(matrix: Path, campaigns: int, root: Path, repeat: int) -> None:
           f"{d / b:.0%} of it; summaries byte-identical: {same}")  # fmt: skip
 
 
-def _warm_process() -> None:
-    import aerodelta  # noqa: F401, PLC0415
-
-
 def _pid_after(seconds: float) -> int:
     time.sleep(seconds)
     return os.getpid()
@@ -136,28 +128,23 @@ def _bare(matrix: Path, campaigns: int, workers: int) -> float:
     warmed (each has imported the engine), handed out one at a time as processes free up."""
     spec = load_matrix(matrix).task_spec()
     env = {**WORKER_ENV, "MALLOC_ARENA_MAX": "2"}  # as the Dask workers (engine.open_client)
-    saved = {k: os.environ.get(k) for k in env}
-    os.environ.update(env)
-    try:
-        with ProcessPoolExecutor(
+    # the spawned processes inherit the environment; it is restored after
+    with (
+        patch.dict(os.environ, env),
+        ProcessPoolExecutor(
             workers, mp_context=get_context("spawn"), initializer=_warm_process
-        ) as pool:
-            # every process started (each imports the engine as it starts) before the clock
-            seen: set[int] = set()
-            for _ in range(50):
-                seen |= {f.result() for f in [pool.submit(_pid_after, 0.2) for _ in range(workers)]}
-                if len(seen) == workers:
-                    break
-            t0 = time.perf_counter()
-            for f in [pool.submit(run_task, spec, s) for s in range(1, campaigns + 1)]:
-                f.result()
-            return time.perf_counter() - t0
-    finally:
-        for k, v in saved.items():
-            if v is None:
-                os.environ.pop(k, None)
-            else:
-                os.environ[k] = v
+        ) as pool,
+    ):
+        # every process started (each imports the engine as it starts) before the clock
+        seen: set[int] = set()
+        for _ in range(50):
+            seen |= {f.result() for f in [pool.submit(_pid_after, 0.2) for _ in range(workers)]}
+            if len(seen) == workers:
+                break
+        t0 = time.perf_counter()
+        for f in [pool.submit(run_task, spec, s) for s in range(1, campaigns + 1)]:
+            f.result()
+        return time.perf_counter() - t0
 
 
 def _noise_share(n: int, rng: np.random.Generator, trials: int = 20000) -> float:
