@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 from pathlib import Path
 
 import numpy as np
@@ -148,6 +149,43 @@ def test_true_delta_exact(f15_exact: Path) -> None:
     got = true_delta_derivative(f15_exact, "Cn", "beta_deg", 0.0, grid)
     np.testing.assert_allclose(got, want * D2R, rtol=1e-6, atol=1e-12)
     assert np.all(true_delta_derivative(f15_exact, "Cn", "rhat", 0.0, grid) == 0.0)
+
+
+def test_sideslip_short_of_its_command_is_noted(tmp_path: Path, f15_exact: Path) -> None:
+    """The JSBSim DHC-6 cannot hold its commanded sideslip at flap 20 (Cn_beta 1.2-2.5 per rad
+    against Cn_dr -0.125 per rad and 0.28 rad of rudder: about 1 deg at full rudder); the
+    manifest says so, with the sideslip the records hold. The F-15's entry gets no note."""
+    info = generate_jsbsim_campaign(
+        tmp_path / "d", aircraft="DHC6", seed=5, size="quick", only=[5], noise=0.0
+    )
+    row = info.manifest.row(0, named=True)
+    assert row["entry"] == "sideslip" and row["flap_deg"] == 20.0
+    m = re.search(r"sideslip entry held ([0-9.]+) deg of sideslip against ([0-9.]+) deg "
+                  r"commanded, the rudder at ([0-9]+) % of its travel", row["notes"])  # fmt: skip
+    assert m is not None, row["notes"]
+    held, cmd, rudder = float(m[1]), float(m[2]), float(m[3])
+    assert 5.0 <= cmd <= 9.0 and held < 0.5 * cmd
+    assert rudder >= 70.0  # the pilot uses the rudder; the aircraft does not follow
+    # the records: median |beta| from the deceleration's start (4 s) to the stall
+    tr = pl.read_parquet(tmp_path / "d" / "truth" / f"{row['maneuver_id']}.parquet")
+    t = tr["t"].to_numpy()
+    beta = np.abs(tr["beta_deg"].to_numpy()[(t >= 4.0) & (t <= row["t_stall_s"])])
+    assert abs(float(np.median(beta)) - held) <= 0.3 and held < 2.0
+    man = pl.read_csv(f15_exact / "manifest.csv")
+    assert not man["notes"].str.contains("sideslip entry held").any()
+
+
+def test_cli_counts_the_short_sideslips(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    args = ["campaign", "--simulator", "jsbsim", "--aircraft", "DHC6", "--quick", "--seed", "5"]
+    assert main([*args, "--no-progress", "--out", str(tmp_path / "c")]) == 0
+    out = capsys.readouterr().out
+    m = re.search(r"note: (\d) of 3 sideslip entries held less than half their commanded "
+                  r"sideslip \(flaps ([0-9, ]+) deg", out)  # fmt: skip
+    assert m is not None, out
+    man = pl.read_csv(tmp_path / "c" / "manifest.csv")
+    short = man.filter(pl.col("notes").str.contains("sideslip entry held", literal=True))
+    assert int(m[1]) == short.height >= 2
+    assert m[2] == ", ".join(f"{f:g}" for f in sorted(set(short["flap_deg"])))
 
 
 def test_control_signs_follow_etkin(f15_exact: Path) -> None:

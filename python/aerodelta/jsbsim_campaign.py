@@ -807,6 +807,8 @@ def _fly(  # noqa: PLR0917
     rec: dict[str, list[float]] = {p: [] for p in props}
     max_alpha = -1e9
     max_bank = 0.0
+    held: list[float] = []  # |beta| while the sideslip command is held (decel and stall)
+    rudder_use: list[float] = []  # |rudder command| (share of full travel) over those samples
     step = 0
     phi_cmd = 0.0
     ks = math.exp(-DT / noise_tau)
@@ -875,6 +877,9 @@ def _fly(  # noqa: PLR0917
         fdm["fcs/elevator-cmd-norm"] = float(np.clip(signs["de"] * u_pitch, -1, 1))
         fdm["fcs/aileron-cmd-norm"] = float(np.clip(-signs["da"] * (ia + u_roll), -1, 1))
         fdm["fcs/rudder-cmd-norm"] = float(np.clip(-signs["dr"] * u_yaw, -1, 1))
+        if beta_cmd != 0.0 and phase in ("decel", "stall"):
+            held.append(abs(beta))
+            rudder_use.append(min(abs(u_yaw), 1.0))
         for i, th in enumerate(thr0):
             fdm[f"fcs/throttle-cmd-norm[{i}]"] = 1.0 if phase == "recovery" else th * thr_factor
         fdm.run()
@@ -890,8 +895,35 @@ def _fly(  # noqa: PLR0917
         "aileron_trim_cmd": a0,
         "rudder_trim_cmd": r0,
         "n_engines": len(thr0),
+        "beta_cmd_deg": abs(beta_cmd),
+        "beta_held_deg": float(np.median(held)) if held else math.nan,
+        "rudder_use": float(np.median(rudder_use)) if rudder_use else math.nan,
     }
     return {p: np.asarray(v, dtype=float) for p, v in rec.items()}, meta
+
+
+#: A sideslip entry whose median |beta| while the command is held is below this share of the
+#: command gets a note in the manifest (the aircraft could not be sideslipped that far).
+SIDESLIP_SHORT = 0.5
+
+
+def _sideslip_note(meta: Mapping[str, Any]) -> str:
+    """The manifest note of a sideslip entry that held less than :data:`SIDESLIP_SHORT` of its
+    commanded sideslip (medians over the entry's deceleration and stall, while the command is
+    held), with the rudder command's median share of its travel. The rudder's authority
+    against the directional stability bounds the sideslip (at full rudder beta is about
+    -Cn_dr dr_max / Cn_beta): the JSBSim DHC-6, Cn_beta 1.2-2.4 per rad at flaps 20-40 deg
+    against Cn_dr -0.125 per rad and 16 deg of rudder, holds about 1 deg. Such an entry
+    excites beta less than its name says. Empty otherwise."""
+    cmd, got = float(meta.get("beta_cmd_deg", 0.0)), float(meta.get("beta_held_deg", math.nan))
+    if cmd <= 0.0 or not math.isfinite(got) or got >= SIDESLIP_SHORT * cmd:
+        return ""
+    use = float(meta.get("rudder_use", math.nan))
+    return (
+        f"sideslip entry held {got:.1f} deg of sideslip against {cmd:.1f} deg commanded, "
+        f"the rudder at {100 * use:.0f} % of its travel (medians while the command is held): "
+        "this maneuver excites sideslip less than its name says"
+    )
 
 
 def _n_engines(fdm: Any) -> int:
@@ -1304,7 +1336,7 @@ def generate_jsbsim_campaign(
                     "max_bank_deg": round(float(meta["max_bank_deg"]), 6),
                     "t_stall_s": round(float(meta["t_stall_s"]), 6),
                     "departed_at_s": departed,
-                    "notes": cfg.notes,
+                    "notes": "; ".join(n for n in (cfg.notes, _sideslip_note(meta)) if n),
                 }
             )
             if progress:

@@ -10,6 +10,8 @@ import argparse
 import math
 import sys
 
+import polars as pl
+
 from aerodelta.campaign import effect_library, generate_campaign
 from aerodelta.cli._data import check_at_least, output_folder
 from aerodelta.exceptions import InvalidInputError
@@ -265,4 +267,12 @@ def _run_jsbsim(args: argparse.Namespace) -> int:
         f"wrote {info.n_maneuvers} maneuvers of JSBSim {info.aircraft} to {info.path} "
         f"(seed {info.seed}; withheld past {info.withhold_alpha_deg:g} deg: {held})"
     )
+    short = info.manifest.filter(pl.col("notes").str.contains("sideslip entry held", literal=True))
+    if short.height:
+        flaps = ", ".join(f"{f:g}" for f in sorted(set(short["flap_deg"].to_list())))
+        print(
+            f"note: {short.height} of {info.manifest.filter(pl.col('entry') == 'sideslip').height}"
+            f" sideslip entries held less than half their commanded sideslip (flaps {flaps} deg;"
+            " the manifest's notes give each one's sideslip and rudder)"
+        )
     return 0
