@@ -898,6 +898,7 @@ impl Excitation<'_> {
     }
 }
 
+#[allow(clippy::too_many_arguments)]
 fn cv_score(
     grams: &BinGrams,
     trains: &FoldGrams,
@@ -906,6 +907,7 @@ fn cv_score(
     cols: &[usize],
     min_points: usize,
     excitation: &Excitation<'_>,
+    fallback: &[(f64, f64, f64)],
 ) -> CvScore {
     cv_score_per_fold(
         grams,
@@ -916,12 +918,14 @@ fn cv_score(
         min_points,
         excitation,
         cols,
+        fallback,
     )
 }
 
 /// [`cv_score`] with the columns of each fold's training fit given by `cols_of(fold)` (the
 /// structure a selection chose on that fold's training maneuvers); `label` is the score's
-/// [`CvScore::columns`].
+/// [`CvScore::columns`]. Where the training maneuvers cannot fit the structure in a bin, the
+/// fold predicts what [`fallback_sums`] gives.
 #[allow(clippy::too_many_arguments)]
 fn cv_score_per_fold<'c>(
     grams: &BinGrams,
@@ -932,6 +936,7 @@ fn cv_score_per_fold<'c>(
     min_points: usize,
     excitation: &Excitation<'_>,
     label: &[usize],
+    fallback: &[(f64, f64, f64)],
 ) -> CvScore {
     let dim = grams.dim;
     let nf = folds.folds();
@@ -953,7 +958,7 @@ fn cv_score_per_fold<'c>(
             };
             let (e, z2, y2) = match fit {
                 Some(_) => held_out(gf, dim, &used, &th),
-                None => zero_prediction(gf, dim),
+                None => fallback[b * nf + f],
             };
             acc.add(f, e, z2, y2, nfold);
         }
@@ -965,6 +970,55 @@ fn cv_score_per_fold<'c>(
 fn zero_prediction(gf: &[f64], dim: usize) -> (f64, f64, f64) {
     let z2 = gf[dim * dim - 1];
     (z2, z2, 0.0)
+}
+
+/// Per bin and fold (index `b · folds + f`), the held-out sums `(Σ(z−ẑ)², Σz², Σẑ²)` of what
+/// the fold predicts where a structure cannot be fitted on its training maneuvers (fewer
+/// than `min_points` per parameter, dependent columns, estimates not finite): the training
+/// fit of the `forced` columns (the bias), or zero Δ where even that cannot be fitted. Bins
+/// not fitted and empty folds hold zeros (never read).
+///
+/// The shipped model never predicts zero Δ in a bin for want of points: the partition merges
+/// sparse bins, and the smoothing spans a bin the final fit cannot identify from its
+/// neighbours. Scoring zero there charged every structure larger than the one the sparse
+/// cell could still fit with the whole Δ of that cell: at the edge of the data (a bin of 3
+/// maneuvers at the highest alpha, a fold holding out 2 of them) that is the bias itself, 0.02
+/// in C_l on the JSBSim DHC-6 at flap 40, and adding ΔC_l_β there raised one fold's held-out
+/// error 16-fold, so the selection kept the intercept alone (`docs/identification.md`,
+/// session 32). The forced columns are in every structure compared, so this charges none of
+/// them for the data's sparseness; a structure still loses the rest of its terms there.
+fn fallback_sums(
+    dim: usize,
+    trains: &FoldGrams,
+    folds: &FoldGrams,
+    fitted: &[bool],
+    forced: &[usize],
+    min_points: usize,
+    excitation: &Excitation<'_>,
+) -> Vec<(f64, f64, f64)> {
+    let nf = folds.folds();
+    let mut out = vec![(0.0, 0.0, 0.0); fitted.len() * nf];
+    let (mut used, mut work, mut th) = (Vec::new(), Vec::new(), Vec::new());
+    for (b, _) in fitted.iter().enumerate().filter(|(_, &ok)| ok) {
+        for f in 0..nf {
+            let (gf, _, nfold) = folds.get(b, f);
+            if nfold == 0.0 {
+                continue;
+            }
+            let (train, strain, ntrain) = trains.get(b, f);
+            excitation.excited(train, strain, ntrain, dim, forced, &mut used);
+            let fit = if !used.is_empty() && ntrain >= (min_points * used.len()) as f64 {
+                solve_subset_into(train, dim, &used, &mut work, &mut th)
+            } else {
+                None
+            };
+            out[b * nf + f] = match fit {
+                Some(_) => held_out(gf, dim, &used, &th),
+                None => zero_prediction(gf, dim),
+            };
+        }
+    }
+    out
 }
 
 /// Sums of a cross-validated score over bins and folds.
@@ -1337,6 +1391,15 @@ fn select_impl(
         constant: &constant,
         min: opts.min_excitation,
     };
+    let fallback = fallback_sums(
+        grams.dim,
+        trains,
+        folds,
+        &fitted,
+        &opts.forced,
+        opts.min_points_per_param,
+        &excitation,
+    );
     let score = |cols: &[usize]| {
         cv_score(
             grams,
@@ -1346,6 +1409,7 @@ fn select_impl(
             cols,
             opts.min_points_per_param,
             &excitation,
+            &fallback,
         )
     };
     // the greedy path: from the forced columns, add at each step the frequent
@@ -1366,6 +1430,7 @@ fn select_impl(
         &order,
         opts.min_points_per_param,
         &excitation,
+        &fallback,
     );
     let key = |s: &CvScore| {
         if s.mse.is_finite() {
@@ -1526,6 +1591,7 @@ fn select_impl(
             opts.min_points_per_param,
             &excitation,
             &chosen,
+            &fallback,
         );
         (Some(outer), per_fold)
     } else {

@@ -30,7 +30,7 @@
 //! to rounding (checked in the test builds).
 
 use super::stepwise::PIVOT_TOL;
-use super::{zero_prediction, BinGrams, CvAccum, CvScore, Excitation, FoldGrams};
+use super::{BinGrams, CvAccum, CvScore, Excitation, FoldGrams};
 
 /// What one candidate carries along the path in one bin and fold: the length of its `w` and
 /// `r` and their products.
@@ -59,8 +59,10 @@ struct Cell<'g> {
     /// Columns in the factor (the path's excited columns).
     k: usize,
     /// A path column was dependent on the earlier ones: every extension is singular too,
-    /// and the bin predicts zero.
+    /// and the bin predicts `fallback`.
     dead: bool,
+    /// Held-out sums where the training set cannot fit a structure (`super::fallback_sums`).
+    fallback: (f64, f64, f64),
     /// The held-out sums of the path itself.
     base: (f64, f64, f64),
     /// The path's `θᵀa = yᵀq_a` and `θᵀFθ = yᵀMy`, unclamped.
@@ -162,8 +164,8 @@ impl Cell<'_> {
     }
 
     /// Held-out sums `(Σ(z−ẑ)², Σz², Σẑ²)` of the training fit of the path's columns and `c`
-    /// (see the module doc); the fold predicts zero when `c` depends on the path or a sum is
-    /// not finite.
+    /// (see the module doc); the fold predicts `fallback` when `c` depends on the path or a
+    /// sum is not finite.
     fn score(
         &self,
         pt: &mut Parts<'_>,
@@ -174,12 +176,12 @@ impl Cell<'_> {
     ) -> (f64, f64, f64) {
         let fold = self.fold;
         if self.dead {
-            return zero_prediction(fold, dim);
+            return self.fallback;
         }
         self.extend(pt, c, slot, kmax, dim);
         let cd = pt.cand[slot];
         let Some((d, u)) = self.pivot(&cd, c, dim) else {
-            return zero_prediction(fold, dim);
+            return self.fallback;
         };
         let tc = u / d.sqrt();
         let zz = fold[dim * dim - 1];
@@ -191,7 +193,7 @@ impl Cell<'_> {
         if tc.is_finite() && sse.is_finite() && yy.is_finite() {
             (sse.max(0.0), zz, yy.max(0.0))
         } else {
-            zero_prediction(fold, dim)
+            self.fallback
         }
     }
 
@@ -256,7 +258,7 @@ impl Cell<'_> {
         {
             (sse.max(0.0), zz, self.yy.max(0.0))
         } else {
-            zero_prediction(fold, dim)
+            self.fallback
         };
     }
 }
@@ -296,6 +298,7 @@ impl<'g> PathScorer<'g> {
         later: &[usize],
         min_points: usize,
         excitation: &Excitation<'_>,
+        fallback: &[(f64, f64, f64)],
     ) -> Self {
         let dim = grams.dim;
         let p = dim - 1;
@@ -333,6 +336,7 @@ impl<'g> PathScorer<'g> {
                     f,
                     k: 0,
                     dead: false,
+                    fallback: fallback[b * nf + f],
                     base: (0.0, 0.0, 0.0),
                     cross: 0.0,
                     yy: 0.0,
@@ -404,7 +408,7 @@ impl<'g> PathScorer<'g> {
                 } else if enough {
                     cell.score(pt, c, sl, kmax, dim)
                 } else {
-                    zero_prediction(cell.fold, dim)
+                    cell.fallback
                 };
                 accs[i].add(cell.f, sums.0, sums.1, sums.2, cell.n_fold);
             }
@@ -436,7 +440,7 @@ impl<'g> PathScorer<'g> {
 
 #[cfg(test)]
 mod tests {
-    use super::super::{cv_score, BinStats, CvGrams};
+    use super::super::{cv_score, fallback_sums, BinStats, CvGrams};
     use super::*;
     use crate::sim::rng::Stream;
 
@@ -456,6 +460,94 @@ mod tests {
             }
         }
         st
+    }
+
+    /// A bin whose training maneuvers hold too few rows for `[bias, x]` (6 rows, 4 per
+    /// parameter needed) but enough for the bias predicts the training mean, as the bias
+    /// alone does, and not zero: the held-out error is `Σ(z_f − mean(z_train))²` per fold
+    /// (closed form), for the refit and along the path alike.
+    #[test]
+    fn a_cell_too_sparse_for_the_structure_predicts_the_bias_fit() {
+        let mut rng = Stream::new(7, 1);
+        let (p, dim, folds, min_points) = (2usize, 3usize, 2usize, 4usize);
+        let rows_of: Vec<Vec<Vec<f64>>> = (0..4)
+            .map(|_| {
+                (0..3)
+                    .map(|_| {
+                        let x = rng.normal();
+                        vec![1.0, x, 5.0 + 0.3 * x + 0.1 * rng.normal()]
+                    })
+                    .collect()
+            })
+            .collect();
+        let grams = BinGrams {
+            dim,
+            scale: vec![1.0; dim],
+            bins: vec![stats(&rows_of, dim)],
+        };
+        let cv = CvGrams::new(&grams, folds, |_, k| Some(k % folds), |_, _| 1.0);
+        let fitted = [true];
+        let (flap_sd, constant) = (vec![1.0; p], vec![true, false]);
+        let excitation = Excitation {
+            flap_sd: &flap_sd,
+            constant: &constant,
+            min: 0.05,
+        };
+        let fallback = fallback_sums(
+            dim,
+            &cv.trains,
+            &cv.folds,
+            &fitted,
+            &[0],
+            min_points,
+            &excitation,
+        );
+        let score = |cols: &[usize]| {
+            cv_score(
+                &grams,
+                &cv.trains,
+                &cv.folds,
+                &fitted,
+                cols,
+                min_points,
+                &excitation,
+                &fallback,
+            )
+        };
+        // closed form: per fold, the held-out rows against the training rows' mean z
+        let mut want = Vec::new();
+        for f in 0..folds {
+            let z = |keep: bool| -> Vec<f64> {
+                (0..4)
+                    .filter(|k| (k % folds == f) == keep)
+                    .flat_map(|k| rows_of[k].iter().map(|r| r[2]))
+                    .collect()
+            };
+            let (held, train) = (z(true), z(false));
+            let mean = train.iter().sum::<f64>() / train.len() as f64;
+            want.push(held.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / held.len() as f64);
+        }
+        let (bias, both) = (score(&[0]), score(&[0, 1]));
+        for (got, w) in [&bias, &both]
+            .iter()
+            .flat_map(|s| s.fold_mse.iter().zip(&want))
+        {
+            assert!((got - w).abs() <= 1e-12 * w, "{got} vs {w}");
+        }
+        assert!(both.mse < 1.0, "zero Δ would score about 25: {}", both.mse);
+        let mut scorer = PathScorer::new(
+            &grams,
+            &cv.trains,
+            &cv.folds,
+            &fitted,
+            &[0],
+            &[1],
+            min_points,
+            &excitation,
+            &fallback,
+        );
+        let path = scorer.scores(&[1]).remove(0);
+        assert!((path.mse - both.mse).abs() <= 1e-12 * both.mse);
     }
 
     /// Along a path through every candidate, the carried-product scores equal a refit's
@@ -508,6 +600,15 @@ mod tests {
         };
         let (start, later) = (vec![0usize], vec![1usize, 2, 3, 4, 5]);
         let min_points = 4;
+        let fallback = fallback_sums(
+            grams.dim,
+            &cv.trains,
+            &cv.folds,
+            &fitted,
+            &start,
+            min_points,
+            &excitation,
+        );
         let mut scorer = PathScorer::new(
             &grams,
             &cv.trains,
@@ -517,6 +618,7 @@ mod tests {
             &later,
             min_points,
             &excitation,
+            &fallback,
         );
         let mut path = start.clone();
         let mut left = later.clone();
@@ -537,6 +639,7 @@ mod tests {
                     &cols,
                     min_points,
                     &excitation,
+                    &fallback,
                 );
                 assert!(
                     close(s.mse, r.mse) && close(s.tic, r.tic),
