@@ -578,7 +578,8 @@ pub struct SelectOptions {
     /// [`crate::identify::IdentifyOptions::min_excitation_snr`]).
     pub min_excitation_snr: f64,
     /// Training points per parameter a fold's bin regression needs; with
-    /// fewer, the fold predicts zero Δ in that bin.
+    /// fewer, the fold predicts the training fit of the forced columns there (zero Δ when
+    /// even those cannot be fitted; see `fallback_sums`).
     pub min_points_per_param: usize,
     /// Extra structures to score by cross-validation (column lists), e.g.
     /// the thesis's default structure.
