@@ -943,28 +943,79 @@ fn cv_score_per_fold<'c>(
     let nf = folds.folds();
     let mut acc = CvAccum::new(nf);
     // buffers reused over the bins and folds (the path search calls this thousands of times)
-    let (mut used, mut work, mut th) = (Vec::new(), Vec::new(), Vec::new());
-    for (b, _) in fitted.iter().enumerate().filter(|(_, &ok)| ok) {
-        for f in 0..nf {
-            let (gf, _, nfold) = folds.get(b, f);
-            if nfold == 0.0 {
-                continue;
-            }
-            let (train, strain, ntrain) = trains.get(b, f);
-            excitation.excited(train, strain, ntrain, dim, cols_of(f), &mut used);
-            let fit = if ntrain >= (min_points * used.len().max(1)) as f64 {
-                solve_subset_into(train, dim, &used, &mut work, &mut th)
-            } else {
-                None
-            };
-            let (e, z2, y2) = match fit {
-                Some(_) => held_out(gf, dim, &used, &th),
-                None => fallback[b * nf + f],
-            };
-            acc.add(f, e, z2, y2, nfold);
-        }
+    let mut buf = CellBuffers::default();
+    for c in fold_cells(fitted, folds, trains) {
+        let (e, z2, y2) = cell_fit(&c, dim, cols_of(c.f), min_points, excitation, &mut buf)
+            .unwrap_or(fallback[c.b * nf + c.f]);
+        acc.add(c.f, e, z2, y2, c.n_fold);
     }
     acc.finish(grams.scale[dim - 1].powi(2), label)
+}
+
+/// One bin and fold of the cross-validation: the fold's Gram matrix and samples, its
+/// training set's Gram matrix, column sums and samples.
+struct FoldCell<'g> {
+    b: usize,
+    f: usize,
+    fold: &'g [f64],
+    n_fold: f64,
+    train: &'g [f64],
+    train_sums: &'g [f64],
+    n_train: f64,
+}
+
+/// The cells of the fitted bins' non-empty folds, bin by bin, folds in order.
+fn fold_cells<'a, 'g: 'a>(
+    fitted: &'a [bool],
+    folds: &'g FoldGrams,
+    trains: &'g FoldGrams,
+) -> impl Iterator<Item = FoldCell<'g>> + 'a {
+    let nf = folds.folds();
+    fitted
+        .iter()
+        .enumerate()
+        .filter(|(_, &ok)| ok)
+        .flat_map(move |(b, _)| (0..nf).map(move |f| (b, f)))
+        .filter_map(move |(b, f)| {
+            let (fold, _, n_fold) = folds.get(b, f);
+            let (train, train_sums, n_train) = trains.get(b, f);
+            (n_fold != 0.0).then_some(FoldCell {
+                b,
+                f,
+                fold,
+                n_fold,
+                train,
+                train_sums,
+                n_train,
+            })
+        })
+}
+
+/// Scratch of [`cell_fit`], reused over the cells.
+#[derive(Default)]
+struct CellBuffers {
+    used: Vec<usize>,
+    work: Vec<f64>,
+    th: Vec<f64>,
+}
+
+/// Held-out sums `(Σ(z−ẑ)², Σz², Σẑ²)` of the training fit of the columns of `cols` the
+/// cell's training set excites, or `None` when it cannot be fitted: fewer than `min_points`
+/// per parameter, or the columns dependent there.
+fn cell_fit(
+    c: &FoldCell<'_>,
+    dim: usize,
+    cols: &[usize],
+    min_points: usize,
+    excitation: &Excitation<'_>,
+    buf: &mut CellBuffers,
+) -> Option<(f64, f64, f64)> {
+    excitation.excited(c.train, c.train_sums, c.n_train, dim, cols, &mut buf.used);
+    if c.n_train < (min_points * buf.used.len().max(1)) as f64 {
+        return None;
+    }
+    solve_subset_into(c.train, dim, &buf.used, &mut buf.work, &mut buf.th)?;
+    Some(held_out(c.fold, dim, &buf.used, &buf.th))
 }
 
 /// Held-out sums of a fold whose bin predicts zero Δ (no training fit).
@@ -999,25 +1050,10 @@ fn fallback_sums(
 ) -> Vec<(f64, f64, f64)> {
     let nf = folds.folds();
     let mut out = vec![(0.0, 0.0, 0.0); fitted.len() * nf];
-    let (mut used, mut work, mut th) = (Vec::new(), Vec::new(), Vec::new());
-    for (b, _) in fitted.iter().enumerate().filter(|(_, &ok)| ok) {
-        for f in 0..nf {
-            let (gf, _, nfold) = folds.get(b, f);
-            if nfold == 0.0 {
-                continue;
-            }
-            let (train, strain, ntrain) = trains.get(b, f);
-            excitation.excited(train, strain, ntrain, dim, forced, &mut used);
-            let fit = if !used.is_empty() && ntrain >= (min_points * used.len()) as f64 {
-                solve_subset_into(train, dim, &used, &mut work, &mut th)
-            } else {
-                None
-            };
-            out[b * nf + f] = match fit {
-                Some(_) => held_out(gf, dim, &used, &th),
-                None => zero_prediction(gf, dim),
-            };
-        }
+    let mut buf = CellBuffers::default();
+    for c in fold_cells(fitted, folds, trains) {
+        out[c.b * nf + c.f] = cell_fit(&c, dim, forced, min_points, excitation, &mut buf)
+            .unwrap_or_else(|| zero_prediction(c.fold, dim));
     }
     out
 }

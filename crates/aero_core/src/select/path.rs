@@ -30,7 +30,7 @@
 //! to rounding (checked in the test builds).
 
 use super::stepwise::PIVOT_TOL;
-use super::{BinGrams, CvAccum, CvScore, Excitation, FoldGrams};
+use super::{fold_cells, BinGrams, CvAccum, CvScore, Excitation, FoldGrams};
 
 /// What one candidate carries along the path in one bin and fold: the length of its `w` and
 /// `r` and their products.
@@ -315,33 +315,26 @@ impl<'g> PathScorer<'g> {
         let mut cells = Vec::new();
         let mut excited = Vec::new();
         let mut used = Vec::new();
-        for (b, _) in fitted.iter().enumerate().filter(|(_, &ok)| ok) {
-            for f in 0..nf {
-                let (gf, _, nfold) = folds.get(b, f);
-                if nfold == 0.0 {
-                    continue;
-                }
-                let (train, strain, ntrain) = trains.get(b, f);
-                excitation.excited(train, strain, ntrain, dim, &all, &mut used);
-                let at = excited.len();
-                excited.resize(at + p, false);
-                for &j in &used {
-                    excited[at + j] = true;
-                }
-                cells.push(Cell {
-                    fold: gf,
-                    train,
-                    n_fold: nfold,
-                    n_train: ntrain,
-                    f,
-                    k: 0,
-                    dead: false,
-                    fallback: fallback[b * nf + f],
-                    base: (0.0, 0.0, 0.0),
-                    cross: 0.0,
-                    yy: 0.0,
-                });
+        for c in fold_cells(fitted, folds, trains) {
+            excitation.excited(c.train, c.train_sums, c.n_train, dim, &all, &mut used);
+            let at = excited.len();
+            excited.resize(at + p, false);
+            for &j in &used {
+                excited[at + j] = true;
             }
+            cells.push(Cell {
+                fold: c.fold,
+                train: c.train,
+                n_fold: c.n_fold,
+                n_train: c.n_train,
+                f: c.f,
+                k: 0,
+                dead: false,
+                fallback: fallback[c.b * nf + c.f],
+                base: (0.0, 0.0, 0.0),
+                cross: 0.0,
+                yy: 0.0,
+            });
         }
         let n = cells.len();
         let mut scorer = PathScorer {
