@@ -46,7 +46,9 @@
 #![allow(clippy::needless_range_loop)]
 
 use crate::error::{AeroError, Result};
-use crate::identify::{smooth_parameters, BinnedFit, Design, SmoothOptions, SmoothedParameter};
+use crate::identify::{
+    smooth_bins, smooth_parameters, BinnedFit, Design, SmoothOptions, SmoothedParameter,
+};
 use crate::lsq::stats::student_t_ppf;
 use crate::select::{
     bin_grams, bin_members, independent_subset, select_chosen, solve_subset, BinGrams,
@@ -316,7 +318,8 @@ pub fn bootstrap_smoothed(
             }
         };
         let cols: Vec<usize> = (0..p).filter(|&j| keep[j]).collect();
-        let mut rf = fit.clone();
+        // the bins only: the fit's partition (a bin index per sample) is not read
+        let mut bins = fit.bins.clone();
         for (b, bs) in grams.bins.iter().enumerate() {
             let w: Vec<f64> = bs
                 .maneuvers
@@ -339,7 +342,7 @@ pub fn bootstrap_smoothed(
             } else {
                 None
             };
-            let bin = &mut rf.bins[b];
+            let bin = &mut bins[b];
             match sol {
                 Some((th, kept)) => {
                     bin.params.iter_mut().for_each(|v| *v = 0.0);
@@ -358,9 +361,8 @@ pub fn bootstrap_smoothed(
                 }
             }
         }
-        let sm = smooth_parameters(&rf, smooth)?;
-        let per_bin: Vec<Vec<f64>> = rf
-            .bins
+        let sm = smooth_bins(&fit.names, &bins, smooth)?;
+        let per_bin: Vec<Vec<f64>> = bins
             .iter()
             .map(|b| {
                 (0..p)

@@ -103,6 +103,23 @@ pub struct Design {
     pub nrows: usize,
 }
 
+/// Storage a thread reuses from one [`Design::build_into`] to the next: the row-major values
+/// (handed to the design built and taken back by [`DesignBuffers::recycle`]) and the columns
+/// of the expressions that are not plain data columns.
+#[derive(Debug, Default)]
+pub struct DesignBuffers {
+    values: Vec<f64>,
+    columns: Vec<Vec<f64>>,
+}
+
+impl DesignBuffers {
+    /// Take back the values' storage of a design (built by [`Design::build_into`] or not) for
+    /// the next build.
+    pub fn recycle(&mut self, design: Design) {
+        self.values = design.values;
+    }
+}
+
 impl Design {
     /// Evaluate `regressors` (`(name, expression)` pairs) over columns of `n` rows.
     ///
@@ -114,6 +131,22 @@ impl Design {
         lookup: &dyn Fn(&str) -> Option<&'a [f64]>,
         n: usize,
     ) -> Result<Design> {
+        Design::build_into(regressors, lookup, n, &mut DesignBuffers::default())
+    }
+
+    /// [`Design::build`] in the storage of `buffers`: the same design, without a fresh
+    /// allocation (and its page faults) when the buffers have held one as large. A
+    /// regressor that is a plain data column is read in place; the values' storage moves
+    /// into the design (give it back with [`DesignBuffers::recycle`]).
+    ///
+    /// # Errors
+    /// Those of [`Design::build`].
+    pub fn build_into<'a>(
+        regressors: &[(String, String)],
+        lookup: &dyn Fn(&str) -> Option<&'a [f64]>,
+        n: usize,
+        buffers: &mut DesignBuffers,
+    ) -> Result<Design> {
         if regressors.is_empty() {
             return Err(AeroError::invalid(
                 "model structure",
@@ -123,22 +156,35 @@ impl Design {
         let p = regressors.len();
         let mut names = Vec::with_capacity(p);
         let mut exprs = Vec::with_capacity(p);
-        let mut cols = Vec::with_capacity(p);
-        for (name, src) in regressors {
+        // per regressor, its data column (read in place) or its values in `buffers.columns[j]`
+        let mut data: Vec<Option<&'a [f64]>> = Vec::with_capacity(p);
+        if buffers.columns.len() < p {
+            buffers.columns.resize_with(p, Vec::new);
+        }
+        for ((name, src), scratch) in regressors.iter().zip(&mut buffers.columns) {
             let e = Expr::parse(src).with_context(|| format!("parameter '{name}'"))?;
-            cols.push(
-                e.eval_columns(lookup, n)
-                    .with_context(|| format!("parameter '{name}'"))?,
-            );
+            let col = e
+                .as_data_column(lookup, n)
+                .with_context(|| format!("parameter '{name}'"))?;
+            if col.is_none() {
+                e.eval_columns_into(lookup, n, scratch)
+                    .with_context(|| format!("parameter '{name}'"))?;
+            }
+            data.push(col);
             names.push(name.clone());
             exprs.push(e);
         }
+        let cols: Vec<&[f64]> = data
+            .iter()
+            .zip(&buffers.columns)
+            .map(|(d, scratch)| d.unwrap_or(scratch.as_slice()))
+            .collect();
         // row-major, written row by row (the columns are read as p sequential streams)
-        let mut values = vec![0.0; n * p];
-        for (i, row) in values.chunks_exact_mut(p).enumerate() {
-            for (v, col) in row.iter_mut().zip(&cols) {
-                *v = col[i];
-            }
+        let mut values = std::mem::take(&mut buffers.values);
+        values.clear();
+        values.reserve(n * p);
+        for i in 0..n {
+            values.extend(cols.iter().map(|c| c[i]));
         }
         Ok(Design {
             names,
@@ -806,8 +852,12 @@ pub struct SmoothedParameter {
 /// The common table grid of a binned fit: from the first bin centre to the
 /// last (or `alpha_max_deg`), every `grid_step_deg`, ends included.
 pub fn table_grid(fit: &BinnedFit, opts: &SmoothOptions) -> Vec<f64> {
-    let centres: Vec<f64> = fit
-        .bins
+    bins_grid(&fit.bins, opts)
+}
+
+/// [`table_grid`] of `bins` (in increasing alpha).
+fn bins_grid(bins: &[BinFit], opts: &SmoothOptions) -> Vec<f64> {
+    let centres: Vec<f64> = bins
         .iter()
         .map(|b| 0.5 * (b.alpha_lo + b.alpha_hi))
         .collect();
@@ -840,11 +890,24 @@ pub fn table_grid(fit: &BinnedFit, opts: &SmoothOptions) -> Vec<f64> {
 /// # Errors
 /// Spline errors with the parameter named.
 pub fn smooth_parameters(fit: &BinnedFit, opts: &SmoothOptions) -> Result<Vec<SmoothedParameter>> {
-    let grid = table_grid(fit, opts);
-    let mut out = Vec::with_capacity(fit.names.len());
-    for (j, name) in fit.names.iter().enumerate() {
-        let used: Vec<&BinFit> = fit
-            .bins
+    smooth_bins(&fit.names, &fit.bins, opts)
+}
+
+/// [`smooth_parameters`] of the parameters `names` over `bins` (in increasing alpha): what
+/// it reads of a binned fit, for a caller that has changed the bins' estimates (a bootstrap
+/// replicate) without the rest of the fit (its partition holds a bin index per sample).
+///
+/// # Errors
+/// As [`smooth_parameters`].
+pub fn smooth_bins(
+    names: &[String],
+    bins: &[BinFit],
+    opts: &SmoothOptions,
+) -> Result<Vec<SmoothedParameter>> {
+    let grid = bins_grid(bins, opts);
+    let mut out = Vec::with_capacity(names.len());
+    for (j, name) in names.iter().enumerate() {
+        let used: Vec<&BinFit> = bins
             .iter()
             .filter(|b| b.smoothable[j] && 0.5 * (b.alpha_lo + b.alpha_hi) <= opts.alpha_max_deg)
             .collect();
@@ -1080,6 +1143,55 @@ mod tests {
             if bin.alpha_lo > 15.05 {
                 assert!(!bin.identifiable[2], "{:?}", bin);
                 assert!(bin.notes[2].contains("low excitation"), "{}", bin.notes[2]);
+            }
+        }
+    }
+
+    #[test]
+    fn a_design_built_in_used_buffers_is_the_fresh_one() {
+        let n = 500;
+        let x: Vec<f64> = (0..n).map(|i| (i as f64 * 0.37).sin()).collect();
+        let y: Vec<f64> = (0..n).map(|i| (i as f64 * 0.11).cos() - 0.2).collect();
+        let lookup = |c: &str| -> Option<&[f64]> {
+            match c {
+                "x" => Some(&x),
+                "y" => Some(&y),
+                _ => None,
+            }
+        };
+        let regs: Vec<(String, String)> = [
+            ("bias", "1"),
+            ("x", "x"),
+            ("xy", "x * y"),
+            ("ny", "-(y - 0.5) / x"),
+            ("db", "deadband(x, 0.3)"),
+            ("pw", "y^3 + 2 * x"),
+        ]
+        .iter()
+        .map(|(a, b)| (a.to_string(), b.to_string()))
+        .collect();
+        let fresh = Design::build(&regs, &lookup, n).expect("design");
+        // buffers that held a wider design of other values, then a narrower one
+        let mut buffers = DesignBuffers::default();
+        let wide: Vec<(String, String)> = (0..9)
+            .map(|j| (format!("c{j}"), format!("y * {j}")))
+            .collect();
+        let d = Design::build_into(&wide, &lookup, n, &mut buffers).expect("design");
+        buffers.recycle(d);
+        let d = Design::build_into(&regs[..2], &lookup, n, &mut buffers).expect("design");
+        buffers.recycle(d);
+        let again = Design::build_into(&regs, &lookup, n, &mut buffers).expect("design");
+        assert_eq!(again.names, fresh.names);
+        assert_eq!(again.nrows, fresh.nrows);
+        assert_eq!(again.values.len(), fresh.values.len());
+        for (a, b) in again.values.iter().zip(&fresh.values) {
+            assert_eq!(a.to_bits(), b.to_bits());
+        }
+        // and each column is the expression evaluated point by point
+        for (j, e) in fresh.exprs.iter().enumerate() {
+            for i in 0..n {
+                let v = e.eval_point(&|c: &str| lookup(c).map(|col| col[i]));
+                assert_eq!(v.to_bits(), fresh.values[i * regs.len() + j].to_bits());
             }
         }
     }

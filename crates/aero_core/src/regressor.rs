@@ -754,54 +754,115 @@ impl Expr {
         lookup: &dyn Fn(&str) -> Option<&'a [f64]>,
         n: usize,
     ) -> Result<Vec<f64>> {
+        let mut out = Vec::new();
+        self.eval_columns_into(lookup, n, &mut out)?;
+        Ok(out)
+    }
+
+    /// [`Expr::eval_columns`] written into `out` (cleared first; its capacity is reused, so a
+    /// caller evaluating expression after expression into one vector allocates once). The
+    /// same values: the right operand of an operation is read in place when it is a data
+    /// column or a number, evaluated into a vector of its own otherwise.
+    ///
+    /// # Errors
+    /// Those of [`Expr::eval_columns`]; `out` is then left in an unspecified state.
+    pub fn eval_columns_into<'a>(
+        &self,
+        lookup: &dyn Fn(&str) -> Option<&'a [f64]>,
+        n: usize,
+        out: &mut Vec<f64>,
+    ) -> Result<()> {
+        out.clear();
         match self {
-            Expr::Const(c) => Ok(vec![*c; n]),
-            Expr::Column(name) => {
-                let col = lookup(name).ok_or_else(|| {
-                    AeroError::invalid(
-                        format!("regressor column '{name}'"),
-                        "is not in the data; add the channel or derive it before fitting",
-                    )
-                })?;
-                if col.len() != n {
-                    return Err(AeroError::invalid(
-                        format!("regressor column '{name}'"),
-                        format!("has {} rows, expected {n}", col.len()),
-                    ));
-                }
-                Ok(col.to_vec())
-            }
+            Expr::Const(c) => out.resize(n, *c),
+            Expr::Column(name) => out.extend_from_slice(data_column(name, lookup, n)?),
             Expr::Neg(e) => {
-                let mut v = e.eval_columns(lookup, n)?;
-                v.iter_mut().for_each(|x| *x = -*x);
-                Ok(v)
+                e.eval_columns_into(lookup, n, out)?;
+                out.iter_mut().for_each(|x| *x = -*x);
             }
             Expr::Bin(op, a, b) => {
-                let mut va = a.eval_columns(lookup, n)?;
-                let vb = b.eval_columns(lookup, n)?;
-                for (x, y) in va.iter_mut().zip(&vb) {
-                    *x = binop(*op, *x, *y);
-                }
-                Ok(va)
+                a.eval_columns_into(lookup, n, out)?;
+                let op = *op;
+                combine_with(out, b, lookup, n, |x, y| binop(op, x, y))?;
             }
             Expr::Call(func, args) => {
-                let mut va = match args.first() {
-                    Some(e) => e.eval_columns(lookup, n)?,
-                    None => vec![f64::NAN; n],
-                };
-                match args.get(1) {
-                    Some(e) => {
-                        let vb = e.eval_columns(lookup, n)?;
-                        for (x, y) in va.iter_mut().zip(&vb) {
-                            *x = func.apply(*x, *y);
-                        }
-                    }
-                    None => va.iter_mut().for_each(|x| *x = func.apply(*x, 0.0)),
+                match args.first() {
+                    Some(e) => e.eval_columns_into(lookup, n, out)?,
+                    None => out.resize(n, f64::NAN),
                 }
-                Ok(va)
+                let func = *func;
+                match args.get(1) {
+                    Some(e) => combine_with(out, e, lookup, n, |x, y| func.apply(x, y))?,
+                    None => out.iter_mut().for_each(|x| *x = func.apply(*x, 0.0)),
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// The data column of a plain column expression (`None` for any other expression),
+    /// checked as [`Expr::eval_columns`] checks it: read in place, not copied.
+    ///
+    /// # Errors
+    /// Those of [`Expr::eval_columns`] for the column.
+    pub fn as_data_column<'a>(
+        &self,
+        lookup: &dyn Fn(&str) -> Option<&'a [f64]>,
+        n: usize,
+    ) -> Result<Option<&'a [f64]>> {
+        match self {
+            Expr::Column(name) => data_column(name, lookup, n).map(Some),
+            _ => Ok(None),
+        }
+    }
+}
+
+/// Column `name` of `n` rows from `lookup`, or the error of [`Expr::eval_columns`].
+fn data_column<'a>(
+    name: &str,
+    lookup: &dyn Fn(&str) -> Option<&'a [f64]>,
+    n: usize,
+) -> Result<&'a [f64]> {
+    let col = lookup(name).ok_or_else(|| {
+        AeroError::invalid(
+            format!("regressor column '{name}'"),
+            "is not in the data; add the channel or derive it before fitting",
+        )
+    })?;
+    if col.len() != n {
+        return Err(AeroError::invalid(
+            format!("regressor column '{name}'"),
+            format!("has {} rows, expected {n}", col.len()),
+        ));
+    }
+    Ok(col)
+}
+
+/// `out[i] = f(out[i], b[i])` for the values `b` of expression `b` over `n` rows: a number
+/// or a data column read in place, any other expression evaluated first.
+fn combine_with<'a>(
+    out: &mut [f64],
+    b: &Expr,
+    lookup: &dyn Fn(&str) -> Option<&'a [f64]>,
+    n: usize,
+    f: impl Fn(f64, f64) -> f64,
+) -> Result<()> {
+    match b {
+        Expr::Const(c) => out.iter_mut().for_each(|x| *x = f(*x, *c)),
+        Expr::Column(name) => {
+            let vb = data_column(name, lookup, n)?;
+            for (x, y) in out.iter_mut().zip(vb) {
+                *x = f(*x, *y);
+            }
+        }
+        _ => {
+            let vb = b.eval_columns(lookup, n)?;
+            for (x, y) in out.iter_mut().zip(&vb) {
+                *x = f(*x, *y);
             }
         }
     }
+    Ok(())
 }
 
 /// A regressor whose column names are resolved to positions in a state

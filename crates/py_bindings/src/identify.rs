@@ -1,4 +1,5 @@
 //! Per-bin Δ identification and the qualified model along records (conversion only).
+use std::cell::RefCell;
 use std::collections::HashMap;
 
 use aero_core::aircraft::qualified::QualifiedModel;
@@ -6,7 +7,9 @@ use aero_core::aircraft::records::qualified_lateral;
 use aero_core::aircraft::turboprop::adx37;
 use aero_core::band::lowpass_by_maneuver;
 use aero_core::bootstrap::{Bootstrap, BootstrapOptions};
-use aero_core::identify::{BinnedFit, Design, IdentifyOptions, SmoothOptions, SmoothedParameter};
+use aero_core::identify::{
+    BinnedFit, Design, DesignBuffers, IdentifyOptions, SmoothOptions, SmoothedParameter,
+};
 use aero_core::partition::PartitionOptions;
 use aero_core::select::{
     identify_flap as identify_flap_core, CvScore, Method, SelectOptions, Selection,
@@ -251,6 +254,12 @@ fn bootstrap_dict<'py>(py: Python<'py>, b: &Bootstrap) -> PyResult<Bound<'py, Py
     Ok(d)
 }
 
+thread_local! {
+    /// The design storage [`identify_flap`] reuses on each thread: the candidate pool of a
+    /// flap is about a dozen megabytes, and a fresh one each call cost its page faults.
+    static DESIGN_BUFFERS: RefCell<DesignBuffers> = RefCell::new(DesignBuffers::default());
+}
+
 /// Per-bin identification of one coefficient at one flap setting with an optional
 /// structure selection over a candidate pool and an optional bootstrap over maneuvers.
 #[pyfunction]
@@ -313,7 +322,10 @@ fn identify_flap<'py>(
     };
     let out = detached(py, || {
         let lookup = |name: &str| cols.get(name).copied();
-        let mut design = Design::build(&regressors, &lookup, z.len())?;
+        // the storage of this thread's previous design (a fit's (flap, coefficient) tasks run
+        // one after another on each of its threads)
+        let mut buffers = DESIGN_BUFFERS.with(RefCell::take);
+        let mut design = Design::build_into(&regressors, &lookup, z.len(), &mut buffers)?;
         let mut zf: Option<Vec<f64>> = None;
         if let Some(fc) = band_hz {
             let t = t.ok_or_else(|| {
@@ -371,7 +383,7 @@ fn identify_flap<'py>(
             min_maneuvers,
             reselect: bootstrap_reselect,
         });
-        identify_flap_core(
+        let out = identify_flap_core(
             &design,
             z,
             alpha,
@@ -380,7 +392,10 @@ fn identify_flap<'py>(
             so.as_ref(),
             &smooth,
             bo.as_ref(),
-        )
+        );
+        buffers.recycle(design);
+        DESIGN_BUFFERS.with(|b| b.replace(buffers));
+        out
     })?;
     let d = fit_dict(py, &out.fit, out.smoothed)?;
     d.set_item("chosen", out.chosen.clone())?;

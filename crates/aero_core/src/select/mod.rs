@@ -63,6 +63,7 @@ use crate::identify::{
 };
 use crate::partition::partition_alpha;
 use crate::sim::rng::Stream;
+use std::borrow::Cow;
 
 mod collinear;
 mod folds;
@@ -230,7 +231,14 @@ fn gram_entries<const W: usize>(
 ) -> usize {
     let w = W.min(out.len());
     let mut acc = [0.0f64; W];
-    acc[..w].copy_from_slice(&out[..w]);
+    // whole-width copies when the row has W entries left (a fixed-size move, not a call to
+    // memcpy of a variable length, which cost more than the few rows of a maneuver's sums)
+    let whole = w == W;
+    if whole {
+        acc.copy_from_slice(&out[..W]);
+    } else {
+        acc[..w].copy_from_slice(&out[..w]);
+    }
     for row in rows.chunks_exact(dim) {
         let xa = row[a];
         if let Ok(xb) = <&[f64; W]>::try_from(&row[b0..b0 + W]) {
@@ -239,7 +247,11 @@ fn gram_entries<const W: usize>(
             }
         }
     }
-    out[..w].copy_from_slice(&acc[..w]);
+    if whole {
+        out[..W].copy_from_slice(&acc);
+    } else {
+        out[..w].copy_from_slice(&acc[..w]);
+    }
     w
 }
 
@@ -1880,11 +1892,12 @@ pub fn identify_flap(
     };
     let mut chosen = chosen;
     let mut pruned = Vec::new();
-    let subset = |cols: &[usize]| {
+    // the pool itself when the structure is the whole pool (no copy)
+    let subset = |cols: &[usize]| -> Cow<'_, Design> {
         if cols.len() == pool.ncols() {
-            pool.clone()
+            Cow::Borrowed(pool)
         } else {
-            subset_design(pool, cols)
+            Cow::Owned(subset_design(pool, cols))
         }
     };
     let design0 = subset(&chosen);
