@@ -256,7 +256,9 @@ fn bootstrap_dict<'py>(py: Python<'py>, b: &Bootstrap) -> PyResult<Bound<'py, Py
 
 thread_local! {
     /// The design storage [`identify_flap`] reuses on each thread: the candidate pool of a
-    /// flap is about a dozen megabytes, and a fresh one each call cost its page faults.
+    /// flap is about a dozen megabytes, and a fresh one each call cost its page faults. Held
+    /// until the thread's next call or its end (`aerodelta.fit`'s worker threads end with the
+    /// fit).
     static DESIGN_BUFFERS: RefCell<DesignBuffers> = RefCell::new(DesignBuffers::default());
 }
 

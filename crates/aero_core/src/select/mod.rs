@@ -231,13 +231,12 @@ fn gram_entries<const W: usize>(
 ) -> usize {
     let w = W.min(out.len());
     let mut acc = [0.0f64; W];
-    // whole-width copies when the row has W entries left (a fixed-size move, not a call to
-    // memcpy of a variable length, which cost more than the few rows of a maneuver's sums)
-    let whole = w == W;
-    if whole {
-        acc.copy_from_slice(&out[..W]);
-    } else {
-        acc[..w].copy_from_slice(&out[..w]);
+    // copied in and out entry by entry over the W registers (masked past `w`): a slice copy of
+    // the variable length `w` is a call to memcpy, which cost more than a maneuver's few rows
+    for k in 0..W {
+        if k < w {
+            acc[k] = out[k];
+        }
     }
     for row in rows.chunks_exact(dim) {
         let xa = row[a];
@@ -247,10 +246,10 @@ fn gram_entries<const W: usize>(
             }
         }
     }
-    if whole {
-        out[..W].copy_from_slice(&acc);
-    } else {
-        out[..w].copy_from_slice(&acc[..w]);
+    for k in 0..W {
+        if k < w {
+            out[k] = acc[k];
+        }
     }
     w
 }
