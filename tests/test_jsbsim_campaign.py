@@ -152,7 +152,7 @@ def test_true_delta_exact(f15_exact: Path) -> None:
 
 
 def test_sideslip_short_of_its_command_is_noted(tmp_path: Path, f15_exact: Path) -> None:
-    """The JSBSim DHC-6 cannot hold its commanded sideslip at flap 20 (Cn_beta 1.2-2.5 per rad
+    """The JSBSim DHC-6 cannot hold its commanded sideslip at flap 20 (Cn_beta 1.0-2.5 per rad
     against Cn_dr -0.125 per rad and 0.28 rad of rudder: about 1 deg at full rudder); the
     manifest says so, with the sideslip the records hold. The F-15's entry gets no note."""
     info = generate_jsbsim_campaign(

@@ -912,8 +912,9 @@ def _sideslip_note(meta: Mapping[str, Any]) -> str:
     commanded sideslip (medians over the entry's deceleration and stall, while the command is
     held), with the rudder command's median share of its travel. The rudder's authority
     against the directional stability bounds the sideslip (at full rudder beta is about
-    -Cn_dr dr_max / Cn_beta): the JSBSim DHC-6, Cn_beta 1.2-2.4 per rad at flaps 20-40 deg
-    against Cn_dr -0.125 per rad and 16 deg of rudder, holds about 1 deg. Such an entry
+    -Cn_dr dr_max / Cn_beta): the JSBSim DHC-6, Cn_beta 1.0-2.5 per rad at flap 20 and 2.4-3.2
+    at flap 40 (alpha 0-15 deg) against Cn_dr -0.125 per rad and 16 deg of rudder, holds about
+    1 deg. Such an entry
     excites beta less than its name says. Empty otherwise."""
     cmd, got = float(meta.get("beta_cmd_deg", 0.0)), float(meta.get("beta_held_deg", math.nan))
     if cmd <= 0.0 or not math.isfinite(got) or got >= SIDESLIP_SHORT * cmd:
