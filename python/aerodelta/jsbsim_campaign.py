@@ -905,6 +905,8 @@ def _fly(  # noqa: PLR0917
 #: A sideslip entry whose median |beta| while the command is held is below this share of the
 #: command gets a note in the manifest (the aircraft could not be sideslipped that far).
 SIDESLIP_SHORT = 0.5
+#: How that note begins (``aerodelta campaign`` counts the notes that do).
+SIDESLIP_NOTE = "sideslip entry held"
 
 
 def _sideslip_note(meta: Mapping[str, Any]) -> str:
@@ -916,12 +918,11 @@ def _sideslip_note(meta: Mapping[str, Any]) -> str:
     at flap 40 (alpha 0-15 deg) against Cn_dr -0.125 per rad and 16 deg of rudder, holds about
     1 deg. Such an entry
     excites beta less than its name says. Empty otherwise."""
-    cmd, got = float(meta.get("beta_cmd_deg", 0.0)), float(meta.get("beta_held_deg", math.nan))
+    cmd, got, use = meta["beta_cmd_deg"], meta["beta_held_deg"], meta["rudder_use"]
     if cmd <= 0.0 or not math.isfinite(got) or got >= SIDESLIP_SHORT * cmd:
         return ""
-    use = float(meta.get("rudder_use", math.nan))
     return (
-        f"sideslip entry held {got:.1f} deg of sideslip against {cmd:.1f} deg commanded, "
+        f"{SIDESLIP_NOTE} {got:.1f} deg of sideslip against {cmd:.1f} deg commanded, "
         f"the rudder at {100 * use:.0f} % of its travel (medians while the command is held): "
         "this maneuver excites sideslip less than its name says"
     )

@@ -236,6 +236,7 @@ def _check_out(args: argparse.Namespace) -> None:
 
 def _run_jsbsim(args: argparse.Namespace) -> int:
     from aerodelta.jsbsim_campaign import (  # noqa: PLC0415
+        SIDESLIP_NOTE,
         generate_jsbsim_campaign,
         lateral_terms,
     )
@@ -267,7 +268,7 @@ def _run_jsbsim(args: argparse.Namespace) -> int:
         f"wrote {info.n_maneuvers} maneuvers of JSBSim {info.aircraft} to {info.path} "
         f"(seed {info.seed}; withheld past {info.withhold_alpha_deg:g} deg: {held})"
     )
-    short = info.manifest.filter(pl.col("notes").str.contains("sideslip entry held", literal=True))
+    short = info.manifest.filter(pl.col("notes").str.contains(SIDESLIP_NOTE, literal=True))
     if short.height:
         flaps = ", ".join(f"{f:g}" for f in sorted(set(short["flap_deg"].to_list())))
         print(
